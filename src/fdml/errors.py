@@ -1,0 +1,62 @@
+"""Exceptions and warnings raised by fdml.
+
+Every error that fdml raises on bad input is a :class:`FdmlError` (a
+``ValueError``), with a message that names the offending quantity, so that a
+command-line user sees one clear line instead of a traceback.
+"""
+
+from __future__ import annotations
+
+
+class FdmlError(ValueError):
+    """Base class for errors caused by bad input to fdml."""
+
+
+class RecordError(FdmlError):
+    """A flight record is unusable: NaN, uneven time, missing columns, units."""
+
+
+class BandError(FdmlError):
+    """A frequency band is unusable: empty, above Nyquist, too fine for the record."""
+
+
+class ParameterError(FdmlError):
+    """An unknown parameter name, an impossible value or inconsistent bounds."""
+
+
+class AircraftError(FdmlError):
+    """An aircraft description is incomplete or inconsistent."""
+
+
+class FdmlWarning(UserWarning):
+    """Base class for fdml warnings."""
+
+
+class ConvergenceWarning(FdmlWarning):
+    """The estimator stopped before its convergence test was met."""
+
+
+class IdentifiabilityWarning(FdmlWarning):
+    """The information matrix is singular, or parameters are highly correlated."""
+
+
+class DataWarning(FdmlWarning):
+    """The data are usable but questionable (end state far from trim, jitter)."""
+
+
+class BoundsWarning(FdmlWarning):
+    """Frequency-grid correlation or other effects make bounds less reliable."""
+
+
+__all__ = [
+    "FdmlError",
+    "RecordError",
+    "BandError",
+    "ParameterError",
+    "AircraftError",
+    "FdmlWarning",
+    "ConvergenceWarning",
+    "IdentifiabilityWarning",
+    "DataWarning",
+    "BoundsWarning",
+]
