@@ -1,0 +1,241 @@
+"""Aircraft geometry, mass, flight condition and unsteady constants.
+
+Presets (``navion``, ``sundowner``, ``do128``) are JSON files in
+``fdml/presets``; every value carries its source and the assumed ones are
+flagged (THEORY.md sections 10 and 11).  A user's own aircraft is a JSON file
+with the keys ``name, S_w, c_w, S_t, c_t, l_t, mass, Iy, U, rho`` (SI) and,
+optionally, any of the model constants by parameter name.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from importlib import resources
+from pathlib import Path
+
+from .errors import AircraftError
+
+__all__ = [
+    "Aircraft",
+    "REQUIRED_KEYS",
+    "CONSTANT_KEYS",
+    "GENERIC_CONSTANTS",
+    "get_aircraft",
+    "list_aircraft",
+    "load_aircraft",
+]
+
+#: Keys every aircraft description must have (SI units).
+REQUIRED_KEYS = ("name", "S_w", "c_w", "S_t", "c_t", "l_t", "mass", "Iy", "U", "rho")
+
+_UNITS = {
+    "S_w": "m^2", "c_w": "m", "S_t": "m^2", "c_t": "m", "l_t": "m",
+    "mass": "kg", "Iy": "kg m^2", "U": "m/s", "rho": "kg/m^3",
+}
+
+#: Optional model constants an aircraft may carry, by parameter name.
+CONSTANT_KEYS = (
+    "CLa_w", "CLa_t", "deps_da", "Cm_de", "Cz_de",
+    "y_w", "z_w", "y_t", "z_t", "F", "G", "H", "b1",
+)
+
+#: Start values used for constants an aircraft file does not give.  They are
+#: generic light-aircraft numbers, not data: a fit frees the first five, and
+#: the lag constants default to "no lag" so that nothing unsteady is assumed.
+GENERIC_CONSTANTS = {
+    "CLa_w": 4.5, "CLa_t": 3.5, "deps_da": 0.4, "Cm_de": -1.0, "Cz_de": -0.4,
+    "y_w": 0.0, "z_w": 0.381, "y_t": 0.0, "z_t": 0.381,
+    "F": 0.0, "G": 0.0, "H": 0.065, "b1": 7.5,
+}
+
+
+@dataclass(frozen=True)
+class Aircraft:
+    """Geometry, mass properties and flight condition of one aircraft (SI).
+
+    Parameters
+    ----------
+    name : str
+        Short identifier.
+    S_w, c_w : float
+        Wing area (m^2) and wing root chord (m), the reference chord of the
+        Wells-Keskar model (THEORY.md section 1).
+    S_t, c_t : float
+        Horizontal-tail area (m^2) and chord (m).
+    l_t : float
+        Tail length, c.g. to tail aerodynamic centre (m).
+    mass : float
+        Mass, kg.
+    Iy : float
+        Pitch moment of inertia, kg m^2.
+    U : float
+        True airspeed, m/s.
+    rho : float
+        Air density, kg/m^3.
+    constants : mapping, optional
+        Model constants by parameter name (see :data:`CONSTANT_KEYS`); missing
+        ones take :data:`GENERIC_CONSTANTS`.
+    sources : mapping, optional
+        Where each value comes from (free text, per key).
+    assumed : frozenset of str, optional
+        Keys whose values are assumptions rather than data.
+    description : str, optional
+    """
+
+    name: str
+    S_w: float
+    c_w: float
+    S_t: float
+    c_t: float
+    l_t: float
+    mass: float
+    Iy: float
+    U: float
+    rho: float
+    constants: Mapping[str, float] = field(default_factory=dict)
+    sources: Mapping[str, str] = field(default_factory=dict)
+    assumed: frozenset = frozenset()
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        for key in REQUIRED_KEYS[1:]:
+            v = getattr(self, key)
+            try:
+                v = float(v)
+            except (TypeError, ValueError):
+                raise AircraftError(f"aircraft {self.name!r}: {key} must be a number, got {v!r}") from None
+            if not math.isfinite(v) or v <= 0:
+                raise AircraftError(
+                    f"aircraft {self.name!r}: {key} must be positive and finite ({_UNITS[key]}), got {v!r}"
+                )
+            object.__setattr__(self, key, v)
+        unknown = set(self.constants) - set(CONSTANT_KEYS)
+        if unknown:
+            raise AircraftError(
+                f"aircraft {self.name!r}: unknown constants {sorted(unknown)}; "
+                f"known: {', '.join(CONSTANT_KEYS)}"
+            )
+        consts = dict(GENERIC_CONSTANTS)
+        for k, v in self.constants.items():
+            try:
+                fv = float(v)
+            except (TypeError, ValueError):
+                raise AircraftError(f"aircraft {self.name!r}: constant {k} must be a number, got {v!r}") from None
+            if not math.isfinite(fv):
+                raise AircraftError(f"aircraft {self.name!r}: constant {k} is not finite")
+            consts[k] = fv
+        object.__setattr__(self, "constants", consts)
+        object.__setattr__(self, "sources", dict(self.sources))
+        object.__setattr__(self, "assumed", frozenset(self.assumed))
+
+    # --- derived quantities --------------------------------------------------
+    @property
+    def k_z(self) -> float:
+        """rho U S_w / (2 m), 1/s: the factor of C_z in THEORY.md Eq. 3."""
+        return self.rho * self.U * self.S_w / (2.0 * self.mass)
+
+    @property
+    def k_m(self) -> float:
+        """rho U^2 S_w c_w / (2 I_y), 1/s^2: the factor of C_m in Eq. 4."""
+        return self.rho * self.U**2 * self.S_w * self.c_w / (2.0 * self.Iy)
+
+    @property
+    def qbar(self) -> float:
+        """Dynamic pressure rho U^2 / 2, Pa."""
+        return 0.5 * self.rho * self.U**2
+
+    def with_changes(self, **changes) -> "Aircraft":
+        """Return a copy with fields (or constants, by name) changed."""
+        consts = dict(self.constants)
+        fields_ = {}
+        for k, v in changes.items():
+            if k in CONSTANT_KEYS:
+                consts[k] = v
+            elif k in REQUIRED_KEYS:
+                fields_[k] = v
+            else:
+                raise AircraftError(f"unknown aircraft field or constant {k!r}")
+        return replace(self, constants=consts, **fields_)
+
+    # --- serialisation --------------------------------------------------------
+    def to_dict(self) -> dict:
+        """JSON-ready dict in the aircraft-file layout."""
+        d = {k: getattr(self, k) for k in REQUIRED_KEYS}
+        d.update(self.constants)
+        d["description"] = self.description
+        d["sources"] = dict(self.sources)
+        d["assumed"] = sorted(self.assumed)
+        return d
+
+    @classmethod
+    def from_dict(cls, d: Mapping, origin: str = "aircraft description") -> "Aircraft":
+        """Build from a mapping with the aircraft-file keys."""
+        if not isinstance(d, Mapping):
+            raise AircraftError(f"{origin}: expected a JSON object, got {type(d).__name__}")
+        missing = [k for k in REQUIRED_KEYS if k not in d]
+        if missing:
+            raise AircraftError(f"{origin}: missing key(s) {', '.join(missing)} (all SI units)")
+        extra = set(d) - set(REQUIRED_KEYS) - set(CONSTANT_KEYS) - {"description", "sources", "assumed"}
+        if extra:
+            raise AircraftError(f"{origin}: unknown key(s) {', '.join(sorted(extra))}")
+        return cls(
+            name=str(d["name"]),
+            **{k: d[k] for k in REQUIRED_KEYS[1:]},
+            constants={k: d[k] for k in CONSTANT_KEYS if k in d},
+            sources=d.get("sources", {}),
+            assumed=frozenset(d.get("assumed", ())),
+            description=d.get("description", ""),
+        )
+
+    def describe(self) -> str:
+        """Multi-line text: every value with its unit, source and assumed flag."""
+        lines = [f"{self.name}: {self.description}".rstrip(": ")]
+        for k in REQUIRED_KEYS[1:]:
+            lines.append(self._line(k, getattr(self, k), _UNITS[k]))
+        for k in CONSTANT_KEYS:
+            lines.append(self._line(k, self.constants[k], ""))
+        return "\n".join(lines)
+
+    def _line(self, key: str, value: float, unit: str) -> str:
+        flag = " [assumed]" if key in self.assumed else ""
+        src = self.sources.get(key, "generic default" if key in CONSTANT_KEYS else "")
+        return f"  {key:8s} = {value:12.6g} {unit:8s}{flag}  {src}"
+
+
+def list_aircraft() -> list[str]:
+    """Names of the bundled presets."""
+    folder = resources.files("fdml") / "presets"
+    return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".json"))
+
+
+def get_aircraft(name: str) -> Aircraft:
+    """Return a bundled preset by name (``navion``, ``sundowner``, ``do128``)."""
+    if isinstance(name, Aircraft):
+        return name
+    names = list_aircraft()
+    if name not in names:
+        raise AircraftError(f"unknown aircraft {name!r}; presets: {', '.join(names)}")
+    text = (resources.files("fdml") / "presets" / f"{name}.json").read_text()
+    return Aircraft.from_dict(json.loads(text), origin=f"preset {name}")
+
+
+def load_aircraft(spec: str | Path | Aircraft) -> Aircraft:
+    """Resolve a preset name or a JSON file path to an :class:`Aircraft`."""
+    if isinstance(spec, Aircraft):
+        return spec
+    spec_s = str(spec)
+    if spec_s in list_aircraft():
+        return get_aircraft(spec_s)
+    path = Path(spec_s)
+    if path.suffix.lower() != ".json" and not path.exists():
+        raise AircraftError(f"unknown aircraft {spec_s!r}: not a preset ({', '.join(list_aircraft())}) nor a JSON file")
+    if not path.exists():
+        raise AircraftError(f"aircraft file {spec_s} does not exist")
+    try:
+        d = json.loads(path.read_text())
+    except json.JSONDecodeError as exc:
+        raise AircraftError(f"aircraft file {spec_s} is not valid JSON: {exc}") from None
+    return Aircraft.from_dict(d, origin=f"aircraft file {spec_s}")

@@ -1,0 +1,71 @@
+"""fdml models: each gives G(j omega, theta) for outputs (alpha, q, a_z).
+
+=============  =========================================================
+kind           model
+=============  =========================================================
+unsteady       Wells-Keskar, THEORY.md Eqs. 13-17 (+ Kussner gust lag)
+steady         its quasi-steady limit (N = a, E = deps_da, K = 1)
+derivatives    six non-dimensional derivatives (+ optional alpha-dot)
+dimensional    Z_a, Z_q, Z_de, M_a, M_q, M_de (records without geometry)
+=============  =========================================================
+"""
+
+from __future__ import annotations
+
+from ..aircraft import Aircraft, load_aircraft
+from ..errors import ParameterError
+from .base import OUTPUTS, Model, ModelResponse, solve_short_period
+from .conventional import DerivativesModel, DimensionalModel, to_dimensional
+from .wells_keskar import SteadyModel, UnsteadyModel, alternate_set
+
+MODEL_KINDS = {
+    "unsteady": UnsteadyModel,
+    "steady": SteadyModel,
+    "derivatives": DerivativesModel,
+    "dimensional": DimensionalModel,
+}
+
+
+def make_model(kind: str, aircraft: Aircraft | str | None = None, **options) -> Model:
+    """Build a model by name.
+
+    Parameters
+    ----------
+    kind : {"unsteady", "steady", "derivatives", "dimensional"}
+    aircraft : Aircraft or str, optional
+        An :class:`~fdml.aircraft.Aircraft`, a preset name or a JSON file path.
+        Required except for ``dimensional`` given ``airspeed=``.
+    **options
+        Model options (``gust``, ``output_bias``, ``adot``, ``airspeed``,
+        ``tail_lag_chord``, ``gust_lag``, ``tail_gust_delay``).
+
+    Returns
+    -------
+    Model
+    """
+    try:
+        cls = MODEL_KINDS[kind]
+    except KeyError:
+        raise ParameterError(f"unknown model {kind!r}; models: {', '.join(MODEL_KINDS)}") from None
+    if aircraft is not None:
+        aircraft = load_aircraft(aircraft)
+    try:
+        return cls(aircraft=aircraft, **options)
+    except TypeError as exc:
+        raise ParameterError(f"bad option for the {kind} model: {exc}") from None
+
+
+__all__ = [
+    "OUTPUTS",
+    "Model",
+    "ModelResponse",
+    "MODEL_KINDS",
+    "make_model",
+    "solve_short_period",
+    "UnsteadyModel",
+    "SteadyModel",
+    "DerivativesModel",
+    "DimensionalModel",
+    "alternate_set",
+    "to_dimensional",
+]

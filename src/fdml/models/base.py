@@ -1,0 +1,250 @@
+"""The common frame of every fdml model: a two-state short-period system.
+
+Each model supplies, per frequency, the matrices of
+
+    E (s x~ - d) = A(s) x~ + B(s) u~,      x = [alpha, q],  d = x(0) - x(T) e^{-sT}
+
+(the finite-record transform of ``E xdot = A x + B u``; THEORY.md section 7,
+Klein's boundary terms).  The outputs are alpha, q and
+``a_z = (U/g)(alpha_dot - q)`` (Eq. 5), whose finite transform is
+``(U/g)(s alpha~ - d_alpha - q~)``.  So
+
+    G(s) = C(s) M(s)^-1 B(s),        M(s) = s E - A(s)        (Eq. 18)
+    H(s) = C(s) M(s)^-1 E - (U/g) e_az e_alpha^T
+
+where H maps the boundary vector d to the outputs.  The 2 x 2 solve is done
+in closed form over all frequencies at once.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import ClassVar
+
+import numpy as np
+
+from ..constants import G0
+from ..errors import ParameterError
+from ..parameters import Parameter, Parameters
+
+__all__ = ["Model", "ModelResponse", "OUTPUTS", "solve_short_period"]
+
+#: Output channels of every model, in order: alpha (rad), q (rad/s), a_z (g).
+OUTPUTS = ("alpha", "q", "az")
+OUTPUT_UNITS = {"alpha": "rad", "q": "rad/s", "az": "g", "de": "rad", "alpha_w": "rad"}
+
+
+@dataclass(frozen=True)
+class ModelResponse:
+    """Frequency response of a model, frequency first (for array work).
+
+    Attributes
+    ----------
+    omega : ndarray, shape (n,)
+        Frequencies, rad/s.
+    G : ndarray, shape (n, 3, n_in)
+        Outputs (alpha, q, az) per input (de[, alpha_w]).
+    H : ndarray, shape (n, 3, 2)
+        Outputs per boundary term d = x(0) - x(T) e^{-sT}, x = [alpha, q].
+    """
+
+    omega: np.ndarray
+    G: np.ndarray
+    H: np.ndarray
+
+
+def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarray, U: float):
+    """Solve ``M x = B u`` (and ``M x = E d``) for all frequencies at once.
+
+    Parameters
+    ----------
+    s : ndarray, shape (n,)
+        j omega, rad/s.
+    M : ndarray, shape (n, 2, 2)
+        ``s E - A(s)``.
+    B : ndarray, shape (n, 2, n_in)
+        Input matrix, with input delays applied.
+    E : ndarray, shape (2, 2) or (n, 2, 2)
+        Matrix multiplying the state derivative.
+    U : float
+        Airspeed, m/s (for a_z in g, Eq. 5).
+
+    Returns
+    -------
+    G : ndarray, shape (n, 3, n_in)
+    H : ndarray, shape (n, 3, 2)
+    """
+    m00, m01, m10, m11 = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
+    det = m00 * m11 - m01 * m10
+    if np.any(det == 0):
+        bad = s[det == 0]
+        raise ParameterError(f"the model is singular at s = {bad[0]}: a pole lies on the frequency grid")
+    inv = np.empty_like(M)
+    inv[:, 0, 0] = m11 / det
+    inv[:, 0, 1] = -m01 / det
+    inv[:, 1, 0] = -m10 / det
+    inv[:, 1, 1] = m00 / det
+    k = U / G0  # Eq. 5: a_z = (U/g)(alpha_dot - q), in g
+    X = inv @ B  # (n, 2, n_in): alpha~, q~ per unit input
+    G = np.empty((s.size, 3, B.shape[2]), dtype=complex)
+    G[:, :2] = X
+    G[:, 2] = k * (s[:, None] * X[:, 0] - X[:, 1])
+    E = np.broadcast_to(E, M.shape)
+    Y = inv @ E  # (n, 2, 2): state per boundary term
+    H = np.empty((s.size, 3, 2), dtype=complex)
+    H[:, :2] = Y
+    H[:, 2] = k * (s[:, None] * Y[:, 0] - Y[:, 1])
+    H[:, 2, 0] -= k  # finite transform of alpha_dot is s alpha~ - d_alpha
+    return G, H
+
+
+@dataclass(frozen=True, kw_only=True)
+class Model:
+    """Base class of fdml's short-period models.
+
+    Subclasses define :attr:`kind`, :meth:`_default_parameters` and
+    :meth:`_matrices`.  A model is immutable; :meth:`with_values`,
+    :meth:`fix` and :meth:`free` return new models.
+
+    Parameters
+    ----------
+    gust : bool, optional
+        If True the model has a second input, the vertical gust angle alpha_w
+        (rad, positive for an up-gust).
+    output_bias : bool, optional
+        If True the output biases ``bias_alpha, bias_q, bias_az`` are free
+        parameters (they are present, fixed at zero, otherwise).
+    parameters : Parameters, optional
+        Overrides the default parameter set.
+    """
+
+    kind: ClassVar[str] = "base"
+    outputs: ClassVar[tuple[str, ...]] = OUTPUTS
+
+    gust: bool = False
+    output_bias: bool = False
+    parameters: Parameters = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if self.parameters is None:
+            params = self._default_parameters().extended(self._common_parameters())
+            object.__setattr__(self, "parameters", params)
+        elif not isinstance(self.parameters, Parameters):
+            raise ParameterError("parameters must be an fdml.Parameters set")
+
+    # --- to be provided by subclasses -------------------------------------------
+    def _default_parameters(self) -> Parameters:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _matrices(self, s: np.ndarray, p: Mapping[str, float]):  # pragma: no cover - abstract
+        """Return (M, B, E) for ``s`` (see :func:`solve_short_period`)."""
+        raise NotImplementedError
+
+    @property
+    def U(self) -> float:  # pragma: no cover - abstract
+        """Airspeed, m/s."""
+        raise NotImplementedError
+
+    def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
+        """Derived quantities (the alternate set); empty by default."""
+        return {}
+
+    # --- common machinery --------------------------------------------------------
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """Input names: ``('de',)`` or ``('de', 'alpha_w')``."""
+        return ("de", "alpha_w") if self.gust else ("de",)
+
+    def _common_parameters(self) -> list[Parameter]:
+        out = [Parameter("tau_de", 0.0, free=False, lower=0.0, unit="s", description="elevator time delay")]
+        if self.gust:
+            out.append(Parameter("tau_alpha_w", 0.0, free=False, lower=0.0, unit="s",
+                                 description="gust-angle time delay"))
+        for name in OUTPUTS:
+            out.append(Parameter(f"bias_{name}", 0.0, free=self.output_bias, unit=OUTPUT_UNITS[name],
+                                 description=f"output bias on {name}"))
+        return out
+
+    def values(self, values: Mapping[str, float] | Parameters | None = None) -> dict[str, float]:
+        """All parameter values, with ``values`` (by name) overriding the defaults."""
+        p = self.parameters.values
+        if values is None:
+            return p
+        if isinstance(values, Parameters):
+            values = values.values
+        unknown = [k for k in values if k not in p]
+        if unknown:
+            raise ParameterError(
+                f"unknown parameter {unknown[0]!r} for the {self.kind} model; "
+                f"known: {', '.join(self.parameters.names)}"
+            )
+        p.update({k: float(v) for k, v in values.items()})
+        return p
+
+    def evaluate(self, omega, values: Mapping[str, float] | None = None) -> ModelResponse:
+        """G and H at ``omega`` (rad/s), frequency first; see :class:`ModelResponse`."""
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        p = self.values(values)
+        s = 1j * omega
+        M, B, E = self._matrices(s, p)
+        delays = [p["tau_de"]] + ([p["tau_alpha_w"]] if self.gust else [])
+        B = B * np.exp(-np.outer(s, delays))[:, None, :]  # pure input delays
+        G, H = solve_short_period(s, M, B, E, self.U)
+        return ModelResponse(omega, G, H)
+
+    def frequency_response(self, omega, values: Mapping[str, float] | None = None) -> np.ndarray:
+        """G(j omega, theta), shape (3 outputs, n_in inputs, n omega) (Eq. 18).
+
+        Outputs are alpha (rad), q (rad/s), a_z (g); inputs de (rad) and, for a
+        gust model, alpha_w (rad).  The layout follows python-control.
+        """
+        return np.moveaxis(self.evaluate(omega, values).G, 0, -1)
+
+    def biases(self, values: Mapping[str, float] | None = None) -> np.ndarray:
+        """Output biases (alpha rad, q rad/s, az g)."""
+        p = self.values(values)
+        return np.array([p[f"bias_{n}"] for n in OUTPUTS])
+
+    # --- functional updates --------------------------------------------------------
+    def with_parameters(self, parameters: Parameters) -> "Model":
+        """Return a copy with a new parameter set."""
+        return replace(self, parameters=parameters)
+
+    def with_values(self, values: Mapping[str, float] | None = None, **kw: float) -> "Model":
+        """Return a copy with new parameter values."""
+        return self.with_parameters(self.parameters.with_values(values, **kw))
+
+    def fix(self, names: Sequence[str] | Mapping[str, float]) -> "Model":
+        """Return a copy with ``names`` fixed (a mapping also sets values)."""
+        return self.with_parameters(self.parameters.fix(names))
+
+    def free(self, names: Sequence[str]) -> "Model":
+        """Return a copy with ``names`` freed."""
+        return self.with_parameters(self.parameters.free(names))
+
+    def derived_jacobian(self, values: Mapping[str, float], names: Sequence[str]):
+        """Jacobian of :meth:`derived` with respect to ``names`` (central differences).
+
+        The alternate-set maps are low-order polynomials in the parameters, so
+        a central difference with relative step 1e-6 has truncation error near
+        1e-12 and rounding error near 1e-10 relative; ample for a delta-method
+        covariance.
+        """
+        base = self.values(values)
+        keys = list(self.derived(base))
+        J = np.zeros((len(keys), len(names)))
+        for j, n in enumerate(names):
+            h = 1e-6 * max(abs(base[n]), 1e-3)
+            up = dict(base, **{n: base[n] + h})
+            dn = dict(base, **{n: base[n] - h})
+            du, dd = self.derived(up), self.derived(dn)
+            J[:, j] = [(du[k] - dd[k]) / (2 * h) for k in keys]
+        return keys, J
+
+    def describe(self) -> str:
+        """One line naming the model and its options."""
+        opts = ["gust" if self.gust else "elevator only"]
+        if self.output_bias:
+            opts.append("output biases")
+        return f"{self.kind} model ({', '.join(opts)})"

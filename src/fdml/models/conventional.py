@@ -1,0 +1,174 @@
+"""Conventional short-period models: ``derivatives`` and ``dimensional``.
+
+``derivatives`` is the six-derivative non-dimensional model that THEORY.md
+section 6 identifies as Wells-Keskar's "steady" column (q per q c/(2U)), with
+optional alpha-dot derivatives.  ``dimensional`` is the form SIDPAC and
+Jategaonkar fit to records without geometry:
+
+    alpha_dot = Z_a alpha + (1 + Z_q) q + Z_de de
+    q_dot     = M_a alpha + M_q q + M_de de
+    a_z       = (U/g)(alpha_dot - q)                  (THEORY.md Eq. 5)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..aircraft import Aircraft
+from ..errors import ParameterError
+from ..parameters import Parameter, Parameters
+from .base import Model
+from .wells_keskar import alternate_set
+
+__all__ = ["DerivativesModel", "DimensionalModel", "to_dimensional"]
+
+#: Generic dimensional start values for a record without geometry: a stable
+#: short period near 3 rad/s; a fit moves them (they are not data).
+_GENERIC_DIMENSIONAL = {"Z_a": -1.0, "Z_q": 0.0, "Z_de": -0.1, "M_a": -8.0, "M_q": -2.0, "M_de": -10.0}
+
+
+def to_dimensional(d: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
+    """Dimensional derivatives from non-dimensional ones (per q c/(2U))."""
+    kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
+    return {
+        "Z_a": kz * d["Cz_a"], "Z_q": kz * d["Cz_q"] * cu, "Z_de": kz * d["Cz_de"],
+        "M_a": km * d["Cm_a"], "M_q": km * d["Cm_q"] * cu, "M_de": km * d["Cm_de"],
+    }
+
+
+@dataclass(frozen=True, kw_only=True)
+class DerivativesModel(Model):
+    """Six non-dimensional derivatives, optionally with Cz_adot and Cm_adot.
+
+    Equations (THEORY.md section 6, "steady" model), with k_z = rho U S/(2m),
+    k_m = rho U^2 S c/(2 Iy) and hat q = q c/(2U)::
+
+        alpha_dot = q + k_z [Cz_a alpha + Cz_q hat q + Cz_de de + Cz_adot hat alpha_dot]
+        q_dot     = k_m [Cm_a alpha + Cm_q hat q + Cm_de de + Cm_adot hat alpha_dot]
+
+    A gust alpha_w enters quasi-steadily as aerodynamic angle of attack
+    (alpha + alpha_w, and its rate in the alpha-dot terms).
+
+    Parameters
+    ----------
+    aircraft : Aircraft
+    gust, output_bias : bool, optional
+    adot : bool, optional
+        Free Cz_adot and Cm_adot (present and fixed at zero otherwise).
+    """
+
+    kind = "derivatives"
+    aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
+    adot: bool = False
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.aircraft, Aircraft):
+            raise ParameterError("the derivatives model needs an Aircraft (geometry and flight condition)")
+        super().__post_init__()
+
+    @property
+    def U(self) -> float:
+        return self.aircraft.U
+
+    def _default_parameters(self) -> Parameters:
+        c = self.aircraft.constants
+        start = alternate_set({**c, "l_t": self.aircraft.l_t}, self.aircraft)
+        items = [
+            Parameter("Cz_a", start["Cz_a"], unit="1/rad", description="z force per alpha"),
+            Parameter("Cz_q", start["Cz_q"], unit="1/rad", description="z force per q c/(2U)"),
+            Parameter("Cz_de", start["Cz_de"], unit="1/rad", description="z force per elevator"),
+            Parameter("Cm_a", start["Cm_a"], unit="1/rad", description="pitching moment per alpha"),
+            Parameter("Cm_q", start["Cm_q"], unit="1/rad", description="pitching moment per q c/(2U)"),
+            Parameter("Cm_de", start["Cm_de"], unit="1/rad", description="pitching moment per elevator"),
+            Parameter("Cz_adot", 0.0, free=self.adot, unit="1/rad", description="z force per alpha_dot c/(2U)"),
+            Parameter("Cm_adot", 0.0, free=self.adot, unit="1/rad", description="moment per alpha_dot c/(2U)"),
+        ]
+        return Parameters(tuple(items))
+
+    def _matrices(self, s, p):
+        ac = self.aircraft
+        kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
+        n = s.size
+        E = np.array([[1.0 - kz * p["Cz_adot"] * cu, 0.0], [-km * p["Cm_adot"] * cu, 1.0]])
+        A = np.array([[kz * p["Cz_a"], 1.0 + kz * p["Cz_q"] * cu], [km * p["Cm_a"], km * p["Cm_q"] * cu]])
+        M = s[:, None, None] * E - A  # M = sE - A
+        n_in = 2 if self.gust else 1
+        B = np.empty((n, 2, n_in), dtype=complex)
+        B[:, 0, 0] = kz * p["Cz_de"]
+        B[:, 1, 0] = km * p["Cm_de"]
+        if self.gust:
+            B[:, 0, 1] = kz * (p["Cz_a"] + p["Cz_adot"] * cu * s)
+            B[:, 1, 1] = km * (p["Cm_a"] + p["Cm_adot"] * cu * s)
+        return M, B, E
+
+    def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
+        """Dimensional equivalents Z_a, Z_q, Z_de, M_a, M_q, M_de."""
+        return to_dimensional(self.values(values), self.aircraft)
+
+
+@dataclass(frozen=True, kw_only=True)
+class DimensionalModel(Model):
+    """Dimensional short-period model (SIDPAC / Jategaonkar form).
+
+    Parameters
+    ----------
+    U : float, optional
+        Airspeed, m/s (needed for a_z, Eq. 5).  Taken from ``aircraft`` when
+        that is given.
+    aircraft : Aircraft, optional
+        When given, supplies U, start values from its constants and the
+        non-dimensional derived set.
+    gust, output_bias : bool, optional
+    """
+
+    kind = "dimensional"
+    airspeed: float | None = None
+    aircraft: Aircraft | None = None
+
+    def __post_init__(self) -> None:
+        if self.aircraft is None and self.airspeed is None:
+            raise ParameterError("the dimensional model needs the airspeed U (m/s) or an aircraft")
+        if self.airspeed is not None and not (np.isfinite(self.airspeed) and self.airspeed > 0):
+            raise ParameterError(f"airspeed must be positive (m/s), got {self.airspeed!r}")
+        super().__post_init__()
+
+    @property
+    def U(self) -> float:
+        return float(self.airspeed) if self.airspeed is not None else self.aircraft.U
+
+    def _default_parameters(self) -> Parameters:
+        if self.aircraft is not None:
+            c = self.aircraft.constants
+            start = to_dimensional(alternate_set({**c, "l_t": self.aircraft.l_t}, self.aircraft), self.aircraft)
+        else:
+            start = dict(_GENERIC_DIMENSIONAL)
+        units = {"Z_a": "1/s", "Z_q": "-", "Z_de": "1/s", "M_a": "1/s^2", "M_q": "1/s", "M_de": "1/s^2"}
+        return Parameters(tuple(Parameter(k, start[k], unit=units[k]) for k in _GENERIC_DIMENSIONAL))
+
+    def _matrices(self, s, p):
+        n = s.size
+        A = np.array([[p["Z_a"], 1.0 + p["Z_q"]], [p["M_a"], p["M_q"]]])
+        M = s[:, None, None] * np.eye(2) - A
+        n_in = 2 if self.gust else 1
+        B = np.empty((n, 2, n_in), dtype=complex)
+        B[:, 0, 0] = p["Z_de"]
+        B[:, 1, 0] = p["M_de"]
+        if self.gust:
+            B[:, 0, 1] = p["Z_a"]
+            B[:, 1, 1] = p["M_a"]
+        return M, B, np.eye(2)
+
+    def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
+        """Non-dimensional derivatives when an aircraft is attached, else empty."""
+        if self.aircraft is None:
+            return {}
+        p = self.values(values)
+        ac = self.aircraft
+        kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
+        return {
+            "Cz_a": p["Z_a"] / kz, "Cz_q": p["Z_q"] / (kz * cu), "Cz_de": p["Z_de"] / kz,
+            "Cm_a": p["M_a"] / km, "Cm_q": p["M_q"] / (km * cu), "Cm_de": p["M_de"] / km,
+        }

@@ -1,0 +1,230 @@
+"""Wells-Keskar models: ``unsteady`` (Eqs. 13-17) and its quasi-steady limit ``steady``.
+
+Parameter vector theta (Eq. 18): CLa_w, CLa_t, deps_da, Cm_de, Cz_de.  The lag
+constants y_w, z_w, y_t, z_t, F, G, H, the tail length l_t and the Kussner
+length b1 are fixed by default and may be freed.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..aero import IndicialFunction, downwash, get_indicial, kussner, lift_lag
+from ..aircraft import Aircraft
+from ..errors import ParameterError
+from ..parameters import Parameter, Parameters
+from .base import Model
+
+__all__ = ["UnsteadyModel", "SteadyModel", "alternate_set"]
+
+_THETA = (
+    ("CLa_w", "1/rad", "steady wing lift slope (C_La)_ss,w"),
+    ("CLa_t", "1/rad", "steady tail lift slope (C_La)_ss,t"),
+    ("deps_da", "-", "steady downwash gradient (d eps/d alpha)_ss"),
+    ("Cm_de", "1/rad", "pitching moment per elevator"),
+    ("Cz_de", "1/rad", "z force per elevator"),
+)
+
+
+def alternate_set(p: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
+    """Quasi-steady derivatives implied by theta, THEORY.md section 6.
+
+    q-derivatives per ``q c_w / (2U)``.
+
+    Returns
+    -------
+    dict
+        Cz_a, Cz_q, Cz_de, Cm_a, Cm_q, Cm_de (1/rad).
+    """
+    lc = p["l_t"] / ac.c_w
+    sr = ac.S_t / ac.S_w
+    at, eps = p["CLa_t"], p["deps_da"]
+    return {
+        "Cz_a": -(p["CLa_w"] + sr * at * (1.0 - eps)),
+        "Cz_q": -2.0 * lc * sr * at,
+        "Cz_de": p["Cz_de"],
+        "Cm_a": -lc * sr * at * (1.0 - eps),
+        "Cm_q": -2.0 * lc**2 * sr * at,
+        "Cm_de": p["Cm_de"],
+    }
+
+
+@dataclass(frozen=True, kw_only=True)
+class _WKBase(Model):
+    aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.aircraft, Aircraft):
+            raise ParameterError(f"the {self.kind} model needs an Aircraft (geometry and flight condition)")
+        super().__post_init__()
+
+    @property
+    def U(self) -> float:
+        return self.aircraft.U
+
+    def _theta_parameters(self) -> list[Parameter]:
+        c = self.aircraft.constants
+        return [Parameter(n, c[n], free=True, unit=u, description=d) for n, u, d in _THETA]
+
+    def _tail_length_parameter(self) -> Parameter:
+        return Parameter("l_t", self.aircraft.l_t, free=False, lower=0.0, unit="m",
+                         description="tail length, c.g. to tail a.c.")
+
+    def _force_moment(self, s, p, N_w, N_t, E, Kg):
+        """Assemble M, B of Eqs. 13-14 from the lift and downwash transfer functions.
+
+        ``Kg`` is ``(K_wing, K_tail)``: the gust transfer to wing and tail lift
+        (Kussner lag and tail delay), or None without a gust input.
+        """
+        ac = self.aircraft
+        kz, km = ac.k_z, ac.k_m
+        sr = ac.S_t / ac.S_w
+        l = p["l_t"]
+        U = ac.U
+        CLt = N_t * (1.0 - E)  # Eq. 16: C_Lt per alpha = N_t (1 - E)
+        n = s.size
+        M = np.empty((n, 2, 2), dtype=complex)
+        # Eq. 13: s alpha = q - kz{[N_w + (St/Sw) C_Lt] alpha + (l St/(Sw U)) N_t q - Cz_de de}
+        M[:, 0, 0] = s + kz * (N_w + sr * CLt)
+        M[:, 0, 1] = -1.0 + kz * (l * sr / U) * N_t
+        # Eq. 14: s q = km{-(l St/(c Sw)) C_Lt alpha - (l^2 St/(c Sw U)) N_t q + Cm_de de}
+        M[:, 1, 0] = km * (l * sr / ac.c_w) * CLt
+        M[:, 1, 1] = s + km * (l**2 * sr / (ac.c_w * U)) * N_t
+        n_in = 2 if self.gust else 1
+        B = np.empty((n, 2, n_in), dtype=complex)
+        B[:, 0, 0] = kz * p["Cz_de"]
+        B[:, 1, 0] = km * p["Cm_de"]
+        if self.gust:
+            # THEORY.md section 8: C_Lw += a_w K alpha_g; eps += eps_ss K D alpha_g;
+            # C_Lt += N_t(-eps_ss K D alpha_g) + a_t K D alpha_g, D = exp(-s l/U).
+            K_w, K_tD = Kg
+            CLt_g = (p["CLa_t"] - N_t * p["deps_da"]) * K_tD
+            B[:, 0, 1] = -kz * (p["CLa_w"] * K_w + sr * CLt_g)
+            B[:, 1, 1] = -km * (l * sr / ac.c_w) * CLt_g
+        return M, B, np.eye(2)
+
+    def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
+        """The alternate set (THEORY.md section 6) at ``values``."""
+        return alternate_set(self.values(values), self.aircraft)
+
+
+@dataclass(frozen=True, kw_only=True)
+class UnsteadyModel(_WKBase):
+    """Wells-Keskar unsteady model, THEORY.md Eqs. 13-17 (and section 8 for the gust).
+
+    Parameters
+    ----------
+    aircraft : Aircraft
+        Geometry, mass, flight condition and default constants.
+    gust : bool, optional
+        Add the vertical-gust input alpha_w with the Kussner lag (BS-12) and
+        the tail delay l_t/U.
+    output_bias : bool, optional
+        Free the output biases.
+    tail_lag_chord : {"c_w", "c_t"}, optional
+        Chord in the tail lift-lag rate 2 z_t U / c of Eq. 17; the paper prints
+        c_w (THEORY.md section 2, open question), which is the default.
+    gust_lag : str, optional
+        ``"bs12"`` (first-order Kussner lag with free-able length b1, the
+        default) or the name of an :data:`fdml.aero.INDICIAL_PRESETS` entry
+        used as a fixed gust indicial function.
+    tail_gust_delay : bool, optional
+        Delay the gust at the tail (and the wing downwash it causes) by l_t/U
+        (BS-8), default True.
+    """
+
+    kind = "unsteady"
+    tail_lag_chord: str = "c_w"
+    gust_lag: str = "bs12"
+    tail_gust_delay: bool = True
+
+    def __post_init__(self) -> None:
+        if self.tail_lag_chord not in ("c_w", "c_t"):
+            raise ParameterError(f"tail_lag_chord must be 'c_w' or 'c_t', got {self.tail_lag_chord!r}")
+        if self.gust_lag != "bs12":
+            get_indicial(self.gust_lag)  # raises on an unknown name
+        super().__post_init__()
+
+    def _default_parameters(self) -> Parameters:
+        c = self.aircraft.constants
+        fixed = [
+            Parameter("y_w", c["y_w"], free=False, lower=0.0, upper=1.0, unit="-", description="wing lift-lag amplitude"),
+            Parameter("z_w", c["z_w"], free=False, lower=0.0, unit="-", description="wing lift-lag rate per semichord"),
+            Parameter("y_t", c["y_t"], free=False, lower=0.0, upper=1.0, unit="-", description="tail lift-lag amplitude"),
+            Parameter("z_t", c["z_t"], free=False, lower=0.0, unit="-", description="tail lift-lag rate per semichord"),
+            Parameter("F", c["F"], free=False, unit="-", description="downwash starting-vortex strength (Eq. 2)"),
+            Parameter("G", c["G"], free=False, unit="-", description="downwash lag amplitude (Eq. 2)"),
+            Parameter("H", c["H"], free=False, lower=0.0, unit="-", description="downwash lag rate (Eq. 2)"),
+            self._tail_length_parameter(),
+        ]
+        if self.gust and self.gust_lag == "bs12":
+            fixed.append(Parameter("b1", c["b1"], free=False, lower=0.0, unit="semichords",
+                                   description="Kussner lag length, T* = c b1/(2U) (BS-12)"))
+        return Parameters(tuple(self._theta_parameters() + fixed))
+
+    def _gust_lag(self, s, p) -> np.ndarray:
+        ac = self.aircraft
+        if self.gust_lag == "bs12":
+            return kussner(s, p["b1"], ac.U, ac.c_w)
+        fn: IndicialFunction = get_indicial(self.gust_lag)
+        return fn.transfer(s, ac.U, ac.c_w)
+
+    def _matrices(self, s, p):
+        ac = self.aircraft
+        c_tail = ac.c_w if self.tail_lag_chord == "c_w" else ac.c_t
+        N_w = lift_lag(s, p["CLa_w"], p["y_w"], p["z_w"], ac.U, ac.c_w)  # Eq. 17, wing
+        N_t = lift_lag(s, p["CLa_t"], p["y_t"], p["z_t"], ac.U, c_tail)  # Eq. 17, tail
+        E = downwash(s, p["deps_da"], p["F"], p["G"], p["H"], p["l_t"], ac.U, ac.c_w)  # Eq. 16
+        Kg = None
+        if self.gust:
+            K = self._gust_lag(s, p)
+            D = np.exp(-s * p["l_t"] / ac.U) if self.tail_gust_delay else 1.0  # BS-8
+            Kg = (K, K * D)
+        return self._force_moment(s, p, N_w, N_t, E, Kg)
+
+    def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
+        """Alternate set plus the G-part alpha-dot derivatives (THEORY.md section 6).
+
+        ``Cm_adot_G = -(l/c)(St/Sw) a_t eps_ss G/H`` and
+        ``Cz_adot_G = -(St/Sw) a_t eps_ss G/H`` (per ``alpha_dot c/(2U)``); the
+        F part behaves like ``s ln s`` and has no derivative.
+        """
+        p = self.values(values)
+        out = alternate_set(p, self.aircraft)
+        ac = self.aircraft
+        sr = ac.S_t / ac.S_w
+        gh = p["G"] / p["H"] if p["H"] != 0 else 0.0
+        out["Cz_adot_G"] = -sr * p["CLa_t"] * p["deps_da"] * gh
+        out["Cm_adot_G"] = -(p["l_t"] / ac.c_w) * sr * p["CLa_t"] * p["deps_da"] * gh
+        return out
+
+
+@dataclass(frozen=True, kw_only=True)
+class SteadyModel(_WKBase):
+    """Quasi-steady Wells-Keskar model: Eqs. 13-14 with N = a, E = deps_da, K = 1.
+
+    This is the omega -> 0 limit of :class:`UnsteadyModel`: no lift lag, no
+    downwash lag, no Kussner lag and no tail gust delay.
+
+    Parameters
+    ----------
+    aircraft : Aircraft
+    gust : bool, optional
+    output_bias : bool, optional
+    """
+
+    kind = "steady"
+
+    def _default_parameters(self) -> Parameters:
+        return Parameters(tuple(self._theta_parameters() + [self._tail_length_parameter()]))
+
+    def _matrices(self, s, p):
+        one = np.ones_like(s)
+        N_w = p["CLa_w"] * one
+        N_t = p["CLa_t"] * one
+        E = p["deps_da"] * one
+        Kg = (one, one) if self.gust else None
+        return self._force_moment(s, p, N_w, N_t, E, Kg)

@@ -1,0 +1,198 @@
+"""Named model parameters: value, free or fixed, bounds, unit.
+
+A :class:`Parameters` set is immutable: every change returns a new set, so a fit
+never mutates the caller's parameters and no stale standard error survives a
+refit (the lmfit #189 trap, STYLE.md section 12).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Iterator, Mapping
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .errors import ParameterError
+
+__all__ = ["Parameter", "Parameters"]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One model parameter.
+
+    Parameters
+    ----------
+    name : str
+        Identifier, e.g. ``"CLa_w"`` or ``"M_a"``.
+    value : float
+        Current (or starting) value, in ``unit``.
+    free : bool, optional
+        True if the estimator adjusts it, False if it is held fixed.
+    lower, upper : float, optional
+        Bounds applied by the estimator (default unbounded).
+    unit : str, optional
+        Unit string for reports (``"1/rad"``, ``"s"``, ``"-"``).
+    description : str, optional
+        One line for summaries.
+    """
+
+    name: str
+    value: float
+    free: bool = True
+    lower: float = -math.inf
+    upper: float = math.inf
+    unit: str = ""
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise ParameterError("a parameter needs a non-empty name")
+        v = float(self.value)
+        if not math.isfinite(v):
+            raise ParameterError(f"parameter {self.name!r} has a non-finite value {self.value!r}")
+        if not self.lower <= self.upper:
+            raise ParameterError(
+                f"parameter {self.name!r}: lower bound {self.lower} exceeds upper bound {self.upper}"
+            )
+        if not self.lower <= v <= self.upper:
+            raise ParameterError(
+                f"parameter {self.name!r}: value {v} lies outside its bounds "
+                f"[{self.lower}, {self.upper}]"
+            )
+        object.__setattr__(self, "value", v)
+
+    def to_dict(self) -> dict:
+        """Return a JSON-ready dict (infinite bounds as None)."""
+        return {
+            "name": self.name,
+            "value": self.value,
+            "free": self.free,
+            "lower": None if math.isinf(self.lower) else self.lower,
+            "upper": None if math.isinf(self.upper) else self.upper,
+            "unit": self.unit,
+            "description": self.description,
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "Parameter":
+        """Inverse of :meth:`to_dict`."""
+        lo = d.get("lower")
+        hi = d.get("upper")
+        return cls(
+            name=d["name"],
+            value=d["value"],
+            free=bool(d.get("free", True)),
+            lower=-math.inf if lo is None else float(lo),
+            upper=math.inf if hi is None else float(hi),
+            unit=d.get("unit", ""),
+            description=d.get("description", ""),
+        )
+
+
+@dataclass(frozen=True)
+class Parameters:
+    """An ordered, immutable set of :class:`Parameter`.
+
+    Indexing by name returns the :class:`Parameter`; :attr:`values` is a plain
+    ``{name: value}`` dict.  Methods that change something return a new set.
+    """
+
+    items: tuple[Parameter, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        names = [p.name for p in self.items]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ParameterError(f"duplicate parameter names: {sorted(dup)}")
+
+    # --- mapping-like access -------------------------------------------------
+    def __getitem__(self, name: str) -> Parameter:
+        for p in self.items:
+            if p.name == name:
+                return p
+        raise ParameterError(self._unknown_message(name))
+
+    def __contains__(self, name: object) -> bool:
+        return any(p.name == name for p in self.items)
+
+    def __iter__(self) -> Iterator[Parameter]:
+        return iter(self.items)
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def _unknown_message(self, name: str) -> str:
+        return f"unknown parameter {name!r}; known parameters: {', '.join(self.names)}"
+
+    def check_names(self, names: Iterable[str]) -> None:
+        """Raise :class:`ParameterError` naming any name not in this set."""
+        for n in names:
+            if n not in self:
+                raise ParameterError(self._unknown_message(n))
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """All parameter names, in order."""
+        return tuple(p.name for p in self.items)
+
+    @property
+    def free_names(self) -> tuple[str, ...]:
+        """Names of the free parameters, in order."""
+        return tuple(p.name for p in self.items if p.free)
+
+    @property
+    def values(self) -> dict[str, float]:
+        """``{name: value}`` for every parameter."""
+        return {p.name: p.value for p in self.items}
+
+    def array(self, names: Iterable[str] | None = None) -> np.ndarray:
+        """Values of ``names`` (default: the free ones) as a float array."""
+        names = self.free_names if names is None else tuple(names)
+        return np.array([self[n].value for n in names], dtype=float)
+
+    # --- functional updates --------------------------------------------------
+    def _update(self, changes: Mapping[str, dict]) -> "Parameters":
+        self.check_names(changes)
+        return Parameters(
+            tuple(replace(p, **changes[p.name]) if p.name in changes else p for p in self.items)
+        )
+
+    def with_values(self, values: Mapping[str, float] | None = None, **kw: float) -> "Parameters":
+        """Return a copy with new values (free/fixed status unchanged)."""
+        vals = dict(values or {}, **kw)
+        return self._update({k: {"value": float(v)} for k, v in vals.items()})
+
+    def fix(self, names: Iterable[str] | Mapping[str, float]) -> "Parameters":
+        """Return a copy with ``names`` fixed (a mapping also sets their values)."""
+        if isinstance(names, Mapping):
+            return self._update({k: {"value": float(v), "free": False} for k, v in names.items()})
+        return self._update({k: {"free": False} for k in names})
+
+    def free(self, names: Iterable[str]) -> "Parameters":
+        """Return a copy with ``names`` freed."""
+        return self._update({k: {"free": True} for k in names})
+
+    def bound(self, name: str, lower: float = -math.inf, upper: float = math.inf) -> "Parameters":
+        """Return a copy with bounds on ``name``."""
+        return self._update({name: {"lower": float(lower), "upper": float(upper)}})
+
+    def only_free(self, names: Iterable[str]) -> "Parameters":
+        """Return a copy in which exactly ``names`` are free."""
+        names = set(names)
+        self.check_names(names)
+        return Parameters(tuple(replace(p, free=p.name in names) for p in self.items))
+
+    def extended(self, extra: Iterable[Parameter]) -> "Parameters":
+        """Return a copy with ``extra`` parameters appended."""
+        return Parameters(self.items + tuple(extra))
+
+    def to_list(self) -> list[dict]:
+        """JSON-ready list of dicts."""
+        return [p.to_dict() for p in self.items]
+
+    @classmethod
+    def from_list(cls, items: Iterable[Mapping]) -> "Parameters":
+        """Inverse of :meth:`to_list`."""
+        return cls(tuple(Parameter.from_dict(d) for d in items))

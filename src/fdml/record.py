@@ -1,0 +1,300 @@
+"""Flight records: time histories in SI units, checked on the way in.
+
+A :class:`Record` holds a uniformly sampled time vector and named signals:
+``de`` (elevator, rad, trailing edge down positive), ``alpha`` (rad), ``q``
+(rad/s), ``az`` (body-z specific force in g, positive down, THEORY.md Eq. 5)
+and optionally ``alpha_w`` (vertical gust angle, rad).  Construction checks
+everything a fit relies on and raises :class:`~fdml.errors.RecordError` with
+a message that names the problem.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import tempfile
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .errors import RecordError
+
+__all__ = ["Record", "read_csv", "SIGNALS", "REQUIRED_SIGNALS", "atomic_write_text"]
+
+#: Signals fdml knows, with their units.
+SIGNALS = {"de": "rad", "alpha": "rad", "q": "rad/s", "az": "g", "alpha_w": "rad"}
+#: Signals every record must have.
+REQUIRED_SIGNALS = ("de", "alpha", "q", "az")
+
+#: Largest plausible perturbation magnitudes in SI units.  A larger value in a
+#: channel almost always means degrees (or deg/s) where radians are due:
+#: 1 rad is 57 deg of angle of attack or elevator, 3 rad/s is 170 deg/s.
+_DEGREE_LIMITS = {"de": 1.0, "alpha": 1.0, "alpha_w": 1.0, "q": 3.0}
+#: Sample-interval jitter tolerated, as a fraction of the mean interval.  The
+#: Fourier front end assumes exact uniform sampling; 1e-3 of dt shifts phase
+#: at 10 rad/s by at most 1e-3 * 10 * dt rad, far below measurement noise.
+_JITTER_TOL = 1e-3
+
+
+def atomic_write_text(path: str | Path, text: str) -> None:
+    """Write ``text`` to ``path`` via a temporary file and a rename.
+
+    No reader ever sees a half-written file, and an error leaves any previous
+    file untouched.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+@dataclass(frozen=True)
+class Record:
+    """A uniformly sampled flight record in SI units.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Time, s, strictly increasing and evenly spaced.
+    signals : mapping of str to array_like
+        Signals by name (see :data:`SIGNALS`), each of shape (n,).
+    name : str, optional
+        Label used in reports and errors.
+    meta : mapping, optional
+        Flight condition and provenance (``U`` m/s, ``rho``, ``source``,
+        ``trim``, ...).
+    check_units : bool, optional
+        Reject channels whose magnitude suggests degrees (default True).
+    require : tuple of str, optional
+        Signals that must be present (default de, alpha, q, az).
+    """
+
+    t: np.ndarray
+    signals: Mapping[str, np.ndarray]
+    name: str = "record"
+    meta: Mapping = field(default_factory=dict)
+    check_units: bool = True
+    require: tuple = REQUIRED_SIGNALS
+
+    def __post_init__(self) -> None:
+        t = np.asarray(self.t, dtype=float)
+        where = f"record {self.name!r}"
+        if t.ndim != 1:
+            raise RecordError(f"{where}: time must be one-dimensional, got shape {t.shape}")
+        if t.size < 4:
+            raise RecordError(f"{where}: only {t.size} samples; at least 4 are needed")
+        _check_finite(t, "t", where)
+        dt = np.diff(t)
+        if np.any(dt <= 0):
+            i = int(np.argmax(dt <= 0))
+            raise RecordError(
+                f"{where}: time is not strictly increasing at sample {i + 1} "
+                f"(t = {t[i]:.6g} then {t[i + 1]:.6g} s)"
+            )
+        mean_dt = (t[-1] - t[0]) / (t.size - 1)
+        jitter = np.max(np.abs(dt - mean_dt)) / mean_dt
+        if jitter > _JITTER_TOL:
+            i = int(np.argmax(np.abs(dt - mean_dt)))
+            raise RecordError(
+                f"{where}: uneven sampling: interval {dt[i]:.6g} s at sample {i + 1} differs from the "
+                f"mean {mean_dt:.6g} s by {100 * jitter:.3g} % (limit {100 * _JITTER_TOL:.2g} %); "
+                "resample the record onto a uniform grid first"
+            )
+        missing = [k for k in self.require if k not in self.signals]
+        if missing:
+            raise RecordError(
+                f"{where}: missing signal(s) {', '.join(missing)}; it has {', '.join(self.signals) or 'none'}"
+            )
+        sig = {}
+        for k, v in self.signals.items():
+            if k not in SIGNALS:
+                raise RecordError(f"{where}: unknown signal {k!r}; known: {', '.join(SIGNALS)}")
+            a = np.asarray(v, dtype=float)
+            if a.shape != t.shape:
+                raise RecordError(f"{where}: signal {k} has {a.size} samples but time has {t.size}")
+            _check_finite(a, k, where)
+            sig[k] = a
+        if self.check_units:
+            for k, lim in _DEGREE_LIMITS.items():
+                if k in sig:
+                    span = float(np.max(np.abs(sig[k] - sig[k][0])))
+                    peak = float(np.max(np.abs(sig[k])))
+                    if max(span, peak) > lim:
+                        unit = "deg/s" if k == "q" else "deg"
+                        raise RecordError(
+                            f"{where}: {k} reaches {max(span, peak):.3g} {SIGNALS[k]}, which looks like "
+                            f"{unit} where {SIGNALS[k]} is due; convert to radians "
+                            "(or pass check_units=False if this is real)"
+                        )
+        object.__setattr__(self, "t", t)
+        object.__setattr__(self, "signals", sig)
+        object.__setattr__(self, "meta", dict(self.meta))
+
+    # --- accessors ---------------------------------------------------------------
+    def __getitem__(self, name: str) -> np.ndarray:
+        try:
+            return self.signals[name]
+        except KeyError:
+            raise RecordError(f"record {self.name!r} has no signal {name!r}") from None
+
+    def has(self, name: str) -> bool:
+        """True if the record carries signal ``name``."""
+        return name in self.signals
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return self.t.size
+
+    @property
+    def dt(self) -> float:
+        """Mean sample interval, s."""
+        return float((self.t[-1] - self.t[0]) / (self.t.size - 1))
+
+    @property
+    def duration(self) -> float:
+        """Record length T = (n - 1) dt, s."""
+        return float(self.t[-1] - self.t[0])
+
+    @property
+    def nyquist(self) -> float:
+        """Nyquist frequency pi/dt, rad/s."""
+        return math.pi / self.dt
+
+    # --- transformations -------------------------------------------------------------
+    def window(self, t0: float | None = None, t1: float | None = None) -> "Record":
+        """The samples with ``t0 <= t <= t1`` (s), time kept as recorded."""
+        lo = self.t[0] if t0 is None else float(t0)
+        hi = self.t[-1] if t1 is None else float(t1)
+        if not lo < hi:
+            raise RecordError(f"record {self.name!r}: window start {lo} s is not before its end {hi} s")
+        if lo < self.t[0] - 1e-9 or hi > self.t[-1] + 1e-9:
+            raise RecordError(
+                f"record {self.name!r}: window [{lo:g}, {hi:g}] s lies outside the record "
+                f"[{self.t[0]:g}, {self.t[-1]:g}] s"
+            )
+        keep = (self.t >= lo - 1e-9 * self.dt) & (self.t <= hi + 1e-9 * self.dt)
+        return replace(self, t=self.t[keep], signals={k: v[keep] for k, v in self.signals.items()},
+                       meta={**self.meta, "window": [lo, hi]})
+
+    def remove_trim(self, mode: str = "first", window: float = 0.5) -> "Record":
+        """Subtract the trim value from every signal.
+
+        Parameters
+        ----------
+        mode : {"first", "mean", "none"}
+            ``first``: the first sample; ``mean``: the mean over the leading
+            ``window`` seconds; ``none``: leave the record as it is.
+        window : float
+            Leading window for ``mean``, s.
+
+        Returns
+        -------
+        Record
+            The perturbation record; ``meta["trim"]`` holds the removed values
+            and ``meta["trim_mode"]`` the mode, so the change can be undone.
+        """
+        if mode == "none":
+            return self
+        if mode == "first":
+            trim = {k: float(v[0]) for k, v in self.signals.items()}
+            n_lead = 1
+        elif mode == "mean":
+            n_lead = int(round(window / self.dt)) + 1
+            if window <= 0 or n_lead > self.n:
+                raise RecordError(
+                    f"record {self.name!r}: trim window {window} s must be positive and within the "
+                    f"{self.duration:.3g} s record"
+                )
+            trim = {k: float(np.mean(v[:n_lead])) for k, v in self.signals.items()}
+        else:
+            raise RecordError(f"unknown trim mode {mode!r}; use 'first', 'mean' or 'none'")
+        prev = dict(self.meta.get("trim", {}))
+        total = {k: prev.get(k, 0.0) + trim[k] for k in trim}
+        return replace(
+            self,
+            signals={k: v - trim[k] for k, v in self.signals.items()},
+            meta={**self.meta, "trim": total, "trim_mode": mode, "trim_samples": n_lead},
+        )
+
+    def with_signals(self, **signals: np.ndarray) -> "Record":
+        """Return a copy with signals added or replaced."""
+        return replace(self, signals={**self.signals, **signals})
+
+    # --- CSV ---------------------------------------------------------------------
+    def to_csv_text(self) -> str:
+        """CSV text with a header row ``t,de,alpha,q,az[,alpha_w]``."""
+        cols = ["t"] + [k for k in SIGNALS if k in self.signals]
+        data = np.column_stack([self.t] + [self.signals[k] for k in cols[1:]])
+        buf = io.StringIO()
+        buf.write(",".join(cols) + "\n")
+        np.savetxt(buf, data, delimiter=",", fmt="%.17g")
+        return buf.getvalue()
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write the record as CSV (atomically: never a half-written file)."""
+        atomic_write_text(path, self.to_csv_text())
+        return Path(path)
+
+
+def _check_finite(a: np.ndarray, label: str, where: str) -> None:
+    bad = ~np.isfinite(a)
+    if np.any(bad):
+        i = int(np.argmax(bad))
+        kind = "NaN" if np.isnan(a[i]) else "inf"
+        raise RecordError(
+            f"{where}: {label} has {int(bad.sum())} non-finite value(s) (first: {kind} at sample {i})"
+        )
+
+
+def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = True) -> Record:
+    """Read fdml's own CSV layout.
+
+    A header row naming ``t`` (s), ``de`` (rad), ``alpha`` (rad), ``q``
+    (rad/s), ``az`` (g, positive down) and optionally ``alpha_w`` (rad); other
+    columns are ignored.  The record is returned as recorded (trim not removed).
+    """
+    path = Path(path)
+    if not path.exists():
+        raise RecordError(f"record file {path} does not exist")
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise RecordError(f"cannot read record file {path}: {exc}") from None
+    rows = list(csv.reader(io.StringIO(text)))
+    rows = [r for r in rows if r and any(c.strip() for c in r)]
+    if not rows:
+        raise RecordError(f"record file {path} is empty")
+    header = [h.strip() for h in rows[0]]
+    if "t" not in header:
+        raise RecordError(f"record file {path}: no 't' column in the header {header}; expected t,de,alpha,q,az")
+    cols = {}
+    for i, r in enumerate(rows[1:], start=2):
+        if len(r) != len(header):
+            raise RecordError(
+                f"record file {path}: line {i} has {len(r)} values but the header has {len(header)} "
+                "(truncated or corrupt file?)"
+            )
+    try:
+        data = np.array([[float(c) for c in r] for r in rows[1:]], dtype=float)
+    except ValueError as exc:
+        raise RecordError(f"record file {path}: a non-numeric value in the data ({exc})") from None
+    if data.ndim != 2 or data.shape[0] == 0:
+        raise RecordError(f"record file {path} has a header but no data rows")
+    for i, h in enumerate(header):
+        cols[h] = data[:, i]
+    signals = {k: cols[k] for k in SIGNALS if k in cols}
+    return Record(cols["t"], signals, name=name or path.stem, meta={"source": str(path)}, check_units=check_units)
