@@ -69,3 +69,33 @@ __all__ = [
     "alternate_set",
     "to_dimensional",
 ]
+
+
+def model_to_dict(model: Model) -> dict:
+    """JSON-ready description of a model: kind, options, aircraft, parameters."""
+    import dataclasses
+
+    opts = {}
+    for f in dataclasses.fields(model):
+        if f.name in ("aircraft", "parameters"):
+            continue
+        opts[f.name] = getattr(model, f.name)
+    ac = getattr(model, "aircraft", None)
+    return {
+        "kind": model.kind,
+        "options": opts,
+        "aircraft": None if ac is None else ac.to_dict(),
+        "parameters": model.parameters.to_list(),
+    }
+
+
+def model_from_dict(d: dict) -> Model:
+    """Inverse of :func:`model_to_dict`."""
+    from ..parameters import Parameters
+
+    ac = None if d.get("aircraft") is None else Aircraft.from_dict(d["aircraft"], origin="saved model")
+    model = make_model(d["kind"], ac, **d.get("options", {}))
+    return model.with_parameters(Parameters.from_list(d["parameters"]))
+
+
+__all__ += ["model_to_dict", "model_from_dict"]

@@ -1,0 +1,715 @@
+"""Frequency-domain maximum-likelihood estimation, THEORY.md Eqs. 20-26.
+
+The measured output spectra z(w) are modelled as (Eqs. 18-19)
+
+    z(w_i) = G(w_i, theta) u(w_i) + H(w_i, theta) d_i + b ones(w_i) + v(w_i)
+
+with Klein's boundary terms ``d_i = x(0) - x(T) exp(-j w_i T)`` (section 7;
+measured, estimated, or none), output biases ``b`` and complex Gaussian
+residuals ``v`` with covariance R.  Maximising Eq. 20 over R gives Eq. 24,
+and the concentrated cost is ``ln det R(theta)`` (Eq. 25's J = det R).
+
+Two iterations are offered:
+
+``"lm"`` (default)
+    Levenberg-Marquardt on the concentrated likelihood ``ln det R(theta)``:
+    its gradient is ``-(2/N) Re sum A^H R^-1 v`` (the Eq. 23 right-hand side)
+    and its Gauss-Newton Hessian ``(2/N) Re sum A^H R^-1 A - tr(R^-1 dR_k
+    R^-1 dR_l)`` includes the dependence of R on theta, which the paper's
+    alternation ignores; so it converges in a few passes where alternation
+    needs tens.
+``"gauss-newton"``
+    The paper's algorithm: a Gauss-Newton step (Eq. 23) with R held at its
+    last value, step halving while det R rises, then R re-estimated (Eq. 24).
+
+Sensitivities are forward differences (Eq. 26) with the step halved until
+they settle; the linear nuisance terms (boundary values, biases) have exact
+sensitivities.  By default the iteration runs to convergence (every step
+below ``tol`` times its standard error, ln det R settled); ``stop="paper"``
+applies the paper's rule, relative change of J below 0.01.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import (
+    BandError,
+    ConvergenceWarning,
+    DataWarning,
+    FdmlError,
+    IdentifiabilityWarning,
+    ParameterError,
+    RecordError,
+)
+from .models.base import OUTPUTS, Model
+from .record import Record
+from .results import FitResult, IterationInfo
+from .spectra import FrequencyData, parse_band, spectra
+
+__all__ = ["fit", "prepare", "Problem"]
+
+_BOUNDARY_NAMES = ("x0_alpha", "x0_q", "xT_alpha", "xT_q")
+#: Relative change at which Eq. 26 sensitivities count as settled (THEORY.md 7).
+_SETTLE_TOL = 1e-4
+#: End offset (fraction of the peak) above which a record "ends far from trim".
+_END_OFFSET_WARN = 0.1
+
+
+@dataclass(frozen=True)
+class _Slot:
+    """Where one estimated quantity lives: a model parameter or a nuisance term."""
+
+    name: str
+    kind: str  # "model" | "bias" | "boundary"
+    record: int  # -1 for shared model parameters
+    index: int  # output index for bias, boundary index (0..3) for boundary
+
+
+class Problem:
+    """A fit set up: data, model, free parameters and nuisance terms.
+
+    Built by :func:`prepare`; :func:`fit` iterates on it.  It evaluates
+    predictions, residuals and sensitivities as array operations over all
+    frequencies, outputs and (for nuisance terms) parameters at once.
+    """
+
+    def __init__(self, data: list[FrequencyData], model: Model, outputs: tuple[int, ...],
+                 boundary: str, sensitivity: str):
+        self.data = data
+        self.model = model
+        self.out_idx = np.array(outputs)
+        self.boundary = boundary
+        self.sensitivity = sensitivity
+        multi = len(data) > 1
+        slots: list[_Slot] = []
+        for name in model.parameters.free_names:
+            if not name.startswith("bias_"):
+                slots.append(_Slot(name, "model", -1, -1))
+        for r, d in enumerate(data):
+            suffix = f"[{d.name}]" if multi else ""
+            for k in outputs:
+                bname = f"bias_{OUTPUTS[k]}"
+                if model.parameters[bname].free:
+                    slots.append(_Slot(bname + suffix, "bias", r, k))
+            if boundary == "estimated":
+                for j, bn in enumerate(_BOUNDARY_NAMES):
+                    slots.append(_Slot(bn + suffix, "boundary", r, j))
+        self.slots = slots
+        self.names = tuple(s.name for s in slots)
+        self.model_slots = [i for i, s in enumerate(slots) if s.kind == "model"]
+        self.N = sum(d.m for d in data)
+        self.n_out = len(outputs)
+        self._steps = {}
+
+    # --- parameter vector ------------------------------------------------------------
+    def initial(self) -> np.ndarray:
+        """Start vector: model values, measured boundary values, model biases."""
+        p = self.model.parameters.values
+        out = []
+        for s in self.slots:
+            if s.kind == "model":
+                out.append(p[s.name])
+            elif s.kind == "bias":
+                out.append(p[f"bias_{OUTPUTS[s.index]}"])
+            else:
+                d = self.data[s.record]
+                out.append((d.x0 if s.index < 2 else d.xT)[s.index % 2])
+        return np.array(out, dtype=float)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds per slot."""
+        lo, hi = [], []
+        for s in self.slots:
+            if s.kind == "model":
+                par = self.model.parameters[s.name]
+                lo.append(par.lower)
+                hi.append(par.upper)
+            else:
+                lo.append(-math.inf)
+                hi.append(math.inf)
+        return np.array(lo), np.array(hi)
+
+    def model_values(self, theta: np.ndarray) -> dict[str, float]:
+        vals = self.model.parameters.values
+        for i in self.model_slots:
+            vals[self.slots[i].name] = float(theta[i])
+        return vals
+
+    def _nuisance(self, theta: np.ndarray, r: int):
+        """(boundary vector d (m, 2), biases (3,)) of record r."""
+        d = self.data[r]
+        vals = self.model.parameters.values
+        b = np.array([vals[f"bias_{o}"] for o in OUTPUTS])
+        x0, xT = d.x0.copy(), d.xT.copy()
+        for i, s in enumerate(self.slots):
+            if s.record != r:
+                continue
+            if s.kind == "bias":
+                b[s.index] = theta[i]
+            elif s.kind == "boundary":
+                (x0 if s.index < 2 else xT)[s.index % 2] = theta[i]
+        if self.boundary == "none":
+            bd = np.zeros((d.m, 2), complex)
+        else:
+            bd = x0[None, :] - xT[None, :] * np.exp(-1j * d.omega * d.T)[:, None]
+        return bd, b
+
+    # --- predictions ---------------------------------------------------------------------
+    def _responses(self, vals: Mapping[str, float]):
+        return [self.model.evaluate(d.omega, vals) for d in self.data]
+
+    def predict(self, theta: np.ndarray, responses=None) -> list[np.ndarray]:
+        """Predicted output spectra per record, shape (m_r, 3) (all outputs)."""
+        if responses is None:
+            responses = self._responses(self.model_values(theta))
+        out = []
+        for r, (d, resp) in enumerate(zip(self.data, responses)):
+            bd, b = self._nuisance(theta, r)
+            y = np.einsum("mij,mj->mi", resp.G, d.u) + np.einsum("mij,mj->mi", resp.H, bd)
+            y = y + d.ones[:, None] * b[None, :]
+            out.append(y)
+        return out
+
+    def residuals(self, theta: np.ndarray, responses=None) -> np.ndarray:
+        """Stacked residuals v = z - y over records, selected outputs, shape (N, n_out)."""
+        ys = self.predict(theta, responses)
+        return np.concatenate([(d.z - y)[:, self.out_idx] for d, y in zip(self.data, ys)])
+
+    def sensitivities(self, theta: np.ndarray, y0: list[np.ndarray] | None = None) -> np.ndarray:
+        """dy/dtheta, shape (N, n_out, p): Eq. 26 for model parameters, exact for nuisances."""
+        p = len(self.slots)
+        A = np.zeros((self.N, self.n_out, p), complex)
+        offs = np.cumsum([0] + [d.m for d in self.data])
+        responses = self._responses(self.model_values(theta))
+        if y0 is None:
+            y0 = self.predict(theta, responses)
+        y0s = np.concatenate([y[:, self.out_idx] for y in y0])
+        lo, hi = self.bounds()
+        for i in self.model_slots:
+            A[:, :, i] = self._fd_column(theta, i, y0s, lo[i], hi[i])
+        for i, s in enumerate(self.slots):
+            if s.kind == "model":
+                continue
+            r = s.record
+            d, resp = self.data[r], responses[r]
+            sl = slice(offs[r], offs[r + 1])
+            if s.kind == "bias":
+                col = np.zeros((d.m, 3), complex)
+                col[:, s.index] = d.ones
+            else:
+                j = s.index % 2
+                factor = np.ones(d.m) if s.index < 2 else -np.exp(-1j * d.omega * d.T)
+                col = resp.H[:, :, j] * factor[:, None]  # d = x0 - xT exp(-jwT)
+            A[sl, :, i] = col[:, self.out_idx]
+        return A
+
+    def _eval_stacked(self, theta: np.ndarray) -> np.ndarray:
+        return np.concatenate([y[:, self.out_idx] for y in self.predict(theta)])
+
+    def _fd_column(self, theta, i, y0s, lo, hi) -> np.ndarray:
+        """Eq. 26 with step reduction until the sensitivity settles."""
+        name = self.slots[i].name
+        scale = max(abs(theta[i]), 1e-3)
+        h = self._steps.get(name, 0.05 * scale)  # THEORY.md 7: start at 5 % of |theta|
+        if self.sensitivity == "central":
+            h = 1e-4 * scale
+            tp, tm = theta.copy(), theta.copy()
+            tp[i] += h
+            tm[i] -= h
+            return (self._eval_stacked(tp) - self._eval_stacked(tm)) / (2 * h)
+
+        def column(step):
+            step = step if theta[i] + step <= hi else -step  # stay inside the bounds
+            t = theta.copy()
+            t[i] += step
+            return (self._eval_stacked(t) - y0s) / step
+
+        prev = column(h)
+        for _ in range(30):
+            h *= 0.5
+            cur = column(h)
+            denom = np.linalg.norm(cur)
+            if denom == 0 or np.linalg.norm(cur - prev) <= _SETTLE_TOL * denom:
+                break
+            prev = cur
+        self._steps[name] = 2.0 * h  # next pass starts one halving above the settled step
+        return cur
+
+
+def _as_data(data, model: Model, omega, band, trim, trim_window, end_correction) -> list[FrequencyData]:
+    items = data if isinstance(data, (list, tuple)) else [data]
+    if not items:
+        raise RecordError("no records were given to fit")
+    out = []
+    for item in items:
+        if isinstance(item, Record):
+            item = spectra(item, omega, band=band, trim=trim, trim_window=trim_window,
+                           end_correction=end_correction)
+        elif not isinstance(item, FrequencyData):
+            raise RecordError(f"cannot fit a {type(item).__name__}: give an fdml Record or FrequencyData")
+        if model.gust and "alpha_w" not in item.inputs:
+            raise RecordError(
+                f"record {item.name!r} has no alpha_w column but the model has a gust input; "
+                "fit without gust=True or supply the measured gust angle"
+            )
+        if not model.gust and item.u.shape[1] > 1:
+            item = _drop_gust(item)
+        out.append(item)
+    names = [d.name for d in out]
+    if len(set(names)) != len(names):
+        out = [_renamed(d, f"{d.name}#{i}") for i, d in enumerate(out)]
+    return out
+
+
+def _drop_gust(d: FrequencyData) -> FrequencyData:
+    from dataclasses import replace
+    return replace(d, u=d.u[:, :1], inputs=("de",))
+
+
+def _renamed(d: FrequencyData, name: str) -> FrequencyData:
+    from dataclasses import replace
+    return replace(d, name=name)
+
+
+def _configure_model(model: Model, free, fix, bounds, biases: bool, out_idx) -> Model:
+    params = model.parameters
+    if biases:
+        params = params.free([f"bias_{OUTPUTS[k]}" for k in out_idx])
+    if fix:
+        if isinstance(fix, Mapping):
+            params.check_names(fix)
+            params = params.fix(fix)
+        else:
+            params = params.fix(list(fix))
+    if free:
+        params.check_names(free)
+        params = params.free(list(free))
+    if bounds:
+        for name, (lo, hi) in bounds.items():
+            params.check_names([name])
+            params = params.bound(name, -math.inf if lo is None else lo, math.inf if hi is None else hi)
+    return model.with_parameters(params)
+
+
+def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary="estimated",
+            biases="auto", free=None, fix=None, bounds=None, sensitivity="fd", trim="first",
+            trim_window=0.5, end_correction="cubic") -> Problem:
+    """Set up a fit without running it (see :func:`fit` for the arguments)."""
+    if not isinstance(model, Model):
+        raise ParameterError(f"model must be an fdml Model, got {type(model).__name__}")
+    if boundary not in ("estimated", "measured", "none"):
+        raise FdmlError(f"boundary must be 'estimated', 'measured' or 'none', got {boundary!r}")
+    if sensitivity not in ("fd", "central"):
+        raise FdmlError(f"sensitivity must be 'fd' (Eq. 26) or 'central', got {sensitivity!r}")
+    if outputs is None:
+        outputs = OUTPUTS
+    if isinstance(outputs, str):
+        outputs = [o.strip() for o in outputs.split(",") if o.strip()]
+    bad = [o for o in outputs if o not in OUTPUTS]
+    if bad or not outputs:
+        raise FdmlError(f"unknown output(s) {bad or outputs}; choose from {', '.join(OUTPUTS)}")
+    out_idx = tuple(OUTPUTS.index(o) for o in dict.fromkeys(outputs))
+    fdata = _as_data(data, model, omega, band, trim, trim_window, end_correction)
+    if biases == "auto":
+        biases = any(d.trim_mode != "none" for d in fdata)
+    elif biases not in (True, False):
+        raise FdmlError(f"biases must be 'auto', True or False, got {biases!r}")
+    model = _configure_model(model, free, fix, bounds, biases, out_idx)
+    prob = Problem(fdata, model, out_idx, boundary, sensitivity)
+    p = len(prob.slots)
+    if p == 0:
+        raise ParameterError("no free parameters: nothing to estimate")
+    # 2 real numbers per output and independent frequency; fewer than p cannot identify theta
+    n_indep = sum(d.independent_frequencies() for d in fdata) * 2 * len(out_idx)
+    if n_indep < p:
+        raise BandError(
+            f"the band carries about {n_indep:.0f} independent real data (record length x band width) "
+            f"for {p} free parameters: lengthen the record or widen the band"
+        )
+    if boundary == "none":
+        for d in fdata:
+            far = [OUTPUTS[k] for k in (0, 1) if d.end_offset[k] > _END_OFFSET_WARN]
+            if far:
+                warnings.warn(
+                    f"record {d.name!r} ends far from trim in {', '.join(far)} "
+                    f"({100 * max(d.end_offset[:2]):.0f} % of the peak) and boundary='none': the transform "
+                    "sees a truncated response; use boundary='estimated' or 'measured'",
+                    DataWarning, stacklevel=3)
+    return prob
+
+
+def _logdet(R: np.ndarray) -> float:
+    sign, ld = np.linalg.slogdet(R)
+    if sign == 0 or not np.isfinite(ld):
+        raise FdmlError("the residual covariance R is singular: an output is fitted exactly or is all zero")
+    return float(ld)
+
+
+def _cov_R(V: np.ndarray) -> np.ndarray:
+    # Eq. 24: R_jk = (1/N) sum_i v_ij conj(v_ik) (THEORY.md 7, conjugation convention)
+    return V.T @ V.conj() / V.shape[0]
+
+
+def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool):
+    """Gradient and Gauss-Newton Hessian of ln det R(theta)."""
+    N = V.shape[0]
+    W = np.linalg.inv(R)
+    # Cost weights v^* R^-1 v with R = E{v v^*}; for v rows: sum_jk conj(v_j) W_jk v_k.
+    WA = np.einsum("jk,nkp->njp", W, A)
+    H1 = (2.0 / N) * np.real(np.einsum("njp,njq->pq", A.conj(), WA))
+    g = -(2.0 / N) * np.real(np.einsum("njp,nj->p", WA.conj(), V))  # uses W Hermitian
+    if not full:
+        return g, H1, H1
+    # dR_k = -(1/N) sum (a_k v^H + v a_k^H)
+    dR = -(np.einsum("njp,nk->pjk", A, V.conj()) + np.einsum("nj,nkp->pjk", V, A.conj())) / N
+    X = np.einsum("ij,pjk->pik", W, dR)
+    H2 = np.real(np.einsum("pij,qji->pq", X, X))
+    Hc = H1 - H2
+    return g, H1, 0.5 * (Hc + Hc.T)
+
+
+def _solve(H: np.ndarray, g: np.ndarray, active: np.ndarray) -> np.ndarray:
+    """Solve H d = -g on the active (unconstrained) set with a scaled pseudo-inverse."""
+    d = np.zeros_like(g)
+    idx = np.flatnonzero(active)
+    if idx.size == 0:
+        return d
+    Hs = H[np.ix_(idx, idx)]
+    D = np.sqrt(np.maximum(np.abs(np.diag(Hs)), 1e-300))
+    Hn = Hs / np.outer(D, D)
+    d[idx] = -np.linalg.lstsq(Hn, g[idx] / D, rcond=1e-12)[0] / D
+    return d
+
+
+def _project(theta, lo, hi):
+    return np.minimum(np.maximum(theta, lo), hi)
+
+
+def _identifiability(H1: np.ndarray, names: Sequence[str]) -> tuple[list[str], list[str]]:
+    """Warnings for a singular information matrix; returns (messages, unidentified names)."""
+    msgs, dead = [], []
+    diag = np.diag(H1)
+    for i, n in enumerate(names):
+        if diag[i] <= 0:
+            msgs.append(f"parameter {n} has no effect on the fitted outputs in this band: it cannot be identified")
+            dead.append(n)
+    live = np.flatnonzero(diag > 0)
+    if live.size:
+        D = np.sqrt(diag[live])
+        Hn = H1[np.ix_(live, live)] / np.outer(D, D)
+        w, U = np.linalg.eigh(Hn)
+        for k in np.flatnonzero(w < 1e-10 * max(w.max(), 1e-300)):
+            comp = np.abs(U[:, k])
+            top = [names[live[j]] for j in np.argsort(comp)[::-1][:3] if comp[j] > 0.2]
+            msgs.append(
+                "the information matrix is singular: the combination of "
+                f"{', '.join(top)} is not identifiable from these data"
+            )
+            dead.extend(t for t in top if t not in dead)
+    return msgs, dead
+
+
+def fit(
+    data,
+    model: Model,
+    *,
+    omega=None,
+    band=None,
+    outputs=None,
+    boundary: str = "estimated",
+    biases: bool | str = "auto",
+    free: Sequence[str] | None = None,
+    fix: Sequence[str] | Mapping[str, float] | None = None,
+    bounds: Mapping[str, tuple] | None = None,
+    method: str = "lm",
+    stop: str = "converge",
+    tol: float = 1e-3,
+    max_iter: int = 200,
+    sensitivity: str = "fd",
+    cov_type: str = "white",
+    trim: str = "first",
+    trim_window: float = 0.5,
+    end_correction: str = "cubic",
+    callback: Callable[[IterationInfo], bool | None] | None = None,
+) -> FitResult:
+    """Fit a model to one or more records by frequency-domain maximum likelihood.
+
+    Parameters
+    ----------
+    data : Record, FrequencyData or list of them
+        Several records are fitted together with shared model parameters and
+        per-record nuisance terms (boundary values, output biases).
+    model : Model
+        From :func:`fdml.models.make_model`; its free parameters are estimated
+        from their current values.
+    omega : array_like, optional
+        Frequencies, rad/s; default the ``band`` grid.
+    band : tuple or str, optional
+        ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``; default 0.1:10:0.1.
+    outputs : sequence of str or str, optional
+        Outputs that enter the fit (default ``alpha, q, az``).
+    boundary : {"estimated", "measured", "none"}, optional
+        Klein's boundary terms ``x(0) - x(T) exp(-jwT)`` for alpha and q
+        (THEORY.md section 7): estimated as nuisance parameters (default),
+        taken from the measured first and last samples, or omitted (then a
+        record that ends far from trim triggers a :class:`DataWarning`).
+    biases : {"auto", True, False}, optional
+        Estimate an output bias for every fitted output.  ``"auto"`` (default)
+        does so whenever trim was removed from a record: the trim value is
+        itself a noisy estimate (the first sample, or a short mean), and its
+        error is a constant offset on the whole record, i.e. exactly an
+        output bias; left unestimated it biases the low-frequency fit.
+    free, fix : optional
+        Names to free; names (or a ``{name: value}`` mapping) to fix.
+    bounds : mapping, optional
+        ``{name: (lower, upper)}``; None for an open side.
+    method : {"lm", "gauss-newton"}, optional
+        Levenberg-Marquardt on ln det R (default) or the paper's alternation.
+    stop : {"converge", "paper"}, optional
+        Run to convergence (default) or stop when the relative change of
+        J = det R falls below 0.01 (the paper's rule).
+    tol : float, optional
+        Convergence: every parameter step below ``tol`` standard errors.
+    max_iter : int, optional
+    sensitivity : {"fd", "central"}, optional
+        Eq. 26 forward differences with step reduction (default) or central
+        differences.
+    cov_type : {"white", "naive"}, optional
+        ``white`` (default): covariance of the estimate for white measurement
+        noise, carried exactly through the transform, the frequency grid and
+        the trim removal (a sandwich form); at independent frequency spacing
+        2 pi/T it equals the Cramer-Rao bound.  ``naive``: the inverse of
+        ``2 Re sum A^H R^-1 A``, which treats every frequency as independent
+        and is optimistic on a grid finer than 2 pi/T (THEORY.md section 7).
+    trim, trim_window, end_correction :
+        Passed to :func:`fdml.spectra.spectra` for records.
+    callback : callable, optional
+        Called after every iteration with an :class:`IterationInfo`; return
+        True to stop the fit cleanly (the result says so).
+
+    Returns
+    -------
+    FitResult
+    """
+    t_start = time.perf_counter()
+    if method not in ("lm", "gauss-newton"):
+        raise FdmlError(f"method must be 'lm' or 'gauss-newton', got {method!r}")
+    if stop not in ("converge", "paper"):
+        raise FdmlError(f"stop must be 'converge' or 'paper', got {stop!r}")
+    if cov_type not in ("white", "naive"):
+        raise FdmlError(f"cov_type must be 'white' or 'naive', got {cov_type!r}")
+    prob = prepare(data, model, omega=omega, band=band, outputs=outputs, boundary=boundary,
+                   biases=biases, free=free,
+                   fix=fix, bounds=bounds, sensitivity=sensitivity, trim=trim, trim_window=trim_window,
+                   end_correction=end_correction)
+    theta = prob.initial()
+    lo, hi = prob.bounds()
+    theta = _project(theta, lo, hi)
+    full = method == "lm"
+    names = prob.names
+    V = prob.residuals(theta)
+    R = _cov_R(V)
+    J = _logdet(R)
+    history = [math.exp(J)]
+    converged, stopped = False, False
+    message = "maximum number of iterations reached"
+    it = 0
+    warned: list[str] = []
+    for it in range(1, max_iter + 1):
+        A = prob.sensitivities(theta)
+        g, H1, H = _grad_hess(A, V, R, full)
+        at_lo = (theta <= lo) & (g > 0)
+        at_hi = (theta >= hi) & (g < 0)
+        active = ~(at_lo | at_hi)
+        msgs, _ = _identifiability(H1, names)
+        for m in msgs:
+            if m not in warned:
+                warnings.warn(m, IdentifiabilityWarning, stacklevel=2)
+                warned.append(m)
+        # standard errors for the step test: naive CRB (N H1)^-1
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sig = np.sqrt(np.abs(np.diag(np.linalg.pinv(prob.N * H1))))
+        step_n = _solve(H if full else H1, g, active)
+        if full and not np.all(np.isfinite(step_n)):
+            step_n = _solve(H1, g, active)
+        rel_step = np.max(np.abs(step_n) / np.where(sig > 0, sig, np.inf)) if step_n.size else 0.0
+        J_old = J
+        # --- take a step -------------------------------------------------------------
+        accepted = False
+        if full:
+            accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, H, J, active, lo, hi)
+        else:
+            step = step_n
+            for _ in range(30):
+                accepted, t_new, V_new, R_new, J_new = _try(prob, theta, step, lo, hi, J)
+                if accepted:
+                    break
+                step = 0.5 * step  # step halving when the cost rises
+        if accepted:
+            theta, V, R, J = t_new, V_new, R_new, J_new
+        history.append(math.exp(J))
+        info = IterationInfo(iteration=it, cost=math.exp(J), params=dict(zip(names, theta.tolist())),
+                             step_in_stderr=float(rel_step))
+        if callback is not None and callback(info):
+            stopped = True
+            message = f"stopped by the callback after {it} iterations"
+            break
+        if stop == "paper":
+            if abs(math.exp(J_old) - math.exp(J)) / math.exp(J) < 0.01:  # Eq. 25 rule
+                converged = True
+                message = f"paper's rule: relative change of det R below 0.01 after {it} iterations"
+                break
+        else:
+            if rel_step < tol and abs(J - J_old) < 1e-9 * max(1.0, abs(J)):
+                converged = True
+                message = f"converged: every step below {tol:g} standard errors after {it} iterations"
+                break
+            if not accepted:
+                converged = rel_step < 10 * tol
+                message = ("converged: no further decrease of det R" if converged else
+                           "stalled: no step decreases det R")
+                break
+    if not converged and not stopped:
+        warnings.warn(f"fit did not converge: {message}", ConvergenceWarning, stacklevel=2)
+    return _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned,
+                   time.perf_counter() - t_start, stopped, method, stop)
+
+
+def _try(prob, theta, step, lo, hi, J):
+    t_new = _project(theta + step, lo, hi)
+    V_new = prob.residuals(t_new)
+    R_new = _cov_R(V_new)
+    try:
+        J_new = _logdet(R_new)
+    except FdmlError:  # an exactly singular R at a trial point: reject the trial
+        return False, t_new, V_new, R_new, math.inf
+    return J_new <= J + 1e-12 * abs(J), t_new, V_new, R_new, J_new
+
+
+def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi):
+    """One step on ln det R: Newton with the concentrated Hessian when it is
+    positive definite and lowers the cost, else a Gauss-Newton step with R
+    held (the paper's Eq. 23) with step halving, else Levenberg-Marquardt
+    damping of the Gauss-Newton Hessian."""
+    idx = np.flatnonzero(active)
+    try:
+        np.linalg.cholesky(Hc[np.ix_(idx, idx)])
+        ok, *rest = _try(prob, theta, _solve(Hc, g, active), lo, hi, J)
+        if ok:
+            return (True, *rest)
+    except np.linalg.LinAlgError:
+        pass
+    step = _solve(H1, g, active)
+    last = None
+    for _ in range(12):
+        ok, *rest = _try(prob, theta, step, lo, hi, J)
+        if ok:
+            return (True, *rest)
+        last = rest
+        step = 0.5 * step  # step halving when the cost rises
+    D = np.where(np.diag(H1) > 0, np.diag(H1), 1.0)
+    lam = 1e-2
+    for _ in range(12):
+        ok, *rest = _try(prob, theta, _solve(H1 + lam * np.diag(D), g, active), lo, hi, J)
+        if ok:
+            return (True, *rest)
+        lam *= 10
+    return (False, *last)
+
+
+def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Cov of g = Re sum A^H R^-1 v for white time-domain noise (exact, linear in the noise).
+
+    The residual is linear in the sampled noise e_n (one vector per sample,
+    covariance Sigma): v_i = sum_n (F P)_in e_n through the transform F and the
+    trim removal P, plus, for measured boundary terms, -H_i (delta_0 -
+    delta_T exp(-j w_i T)) with delta the trimmed noise at the first and last
+    samples.  So g = sum_n Re(K_n) e_n and Cov g = sum_n Re K_n Sigma Re K_n^T.
+    Sigma comes from R: E R = Sigma * mean_i ||F_i||^2 (the trim offset is a
+    constant, which the output biases absorb; without biases the estimate is
+    conservative), scaled by N_real/(N_real - p) for the noise the p
+    estimated parameters absorb, N_real = 2 n_out x independent frequencies.
+    """
+    W = np.linalg.inv(R)
+    C = np.einsum("njp,jk->npk", A.conj(), W)  # A_i^H W, shape (N, p, n_out)
+    gains = np.concatenate([d.noise_gain(include_trim=False) for d in prob.data])
+    p, no = A.shape[2], A.shape[1]
+    n_real = 2 * no * sum(d.independent_frequencies() for d in prob.data)
+    dof = n_real / max(n_real - len(prob.slots), 1.0)
+    Sigma = np.real(R) / np.mean(gains) * dof  # time-domain noise covariance per sample
+    out_idx = list(prob.out_idx)
+    bchan = [(j, out_idx.index(j)) for j in (0, 1) if j in out_idx]  # measured alpha, q in the fit
+    cov = np.zeros((p, p))
+    off = 0
+    vals = prob.model.parameters.values
+    for d in prob.data:
+        Cr = C[off: off + d.m]
+        off += d.m
+        K = d.noise_adjoint(Cr.reshape(d.m, p * no)).reshape(d.n, p, no)
+        if prob.boundary == "measured" and bchan:
+            H = prob.model.evaluate(d.omega, vals).H[:, prob.out_idx, :]  # (m, n_out, 2)
+            CH = np.einsum("mpk,mkj->mpj", Cr, H)  # (m, p, 2)
+            Q0 = -CH.sum(axis=0)
+            QT = np.einsum("mpj,m->pj", CH, np.exp(-1j * d.omega * d.T))
+            ell = d.trim_vector()
+            for j, col in bchan:
+                K[0, :, col] += Q0[:, j]
+                K[-1, :, col] += QT[:, j]
+                if ell is not None:
+                    K[:, :, col] -= np.outer(ell, Q0[:, j] + QT[:, j])
+        K = np.real(K)
+        cov += np.einsum("npj,jk,nqk->pq", K, Sigma, K)
+    return cov
+
+
+def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned, elapsed, stopped,
+            method, stop) -> FitResult:
+    names = prob.names
+    A = prob.sensitivities(theta)
+    N = prob.N
+    W = np.linalg.inv(R)
+    M = np.real(np.einsum("njp,jk,nkq->pq", A.conj(), W, A))  # Re sum A^H R^-1 A
+    msgs, dead = _identifiability(2 * M / N, names)
+    for m in msgs:
+        if m not in warned:
+            warnings.warn(m, IdentifiabilityWarning, stacklevel=3)
+            warned.append(m)
+    live = np.array([n not in dead for n in names])
+    cov_naive = np.full((len(names), len(names)), np.nan)
+    cov = np.full_like(cov_naive, np.nan)
+    idx = np.flatnonzero(live)
+    if idx.size:
+        Minv = np.linalg.inv(M[np.ix_(idx, idx)])
+        cov_naive[np.ix_(idx, idx)] = 0.5 * Minv  # (2 Re sum A^H R^-1 A)^-1
+        if cov_type == "white":
+            Cg = _white_cov_g(prob, A[:, :, idx], R)
+            cov[np.ix_(idx, idx)] = Minv @ Cg @ Minv
+        else:
+            cov[np.ix_(idx, idx)] = cov_naive[np.ix_(idx, idx)]
+    for k in np.flatnonzero(~live):
+        cov[k, k] = cov_naive[k, k] = math.inf
+    stderr = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(stderr, stderr)
+    corr[~np.isfinite(corr)] = np.nan
+    np.fill_diagonal(corr, 1.0)
+    for i in range(len(names)):
+        for j in range(i):
+            if np.isfinite(corr[i, j]) and abs(corr[i, j]) > 0.95:
+                m = f"parameters {names[j]} and {names[i]} are correlated at {corr[i, j]:+.3f} (beyond 0.95)"
+                warnings.warn(m, IdentifiabilityWarning, stacklevel=3)
+                warned.append(m)
+    model = prob.model.with_values({n: theta[i] for i, n in enumerate(names)
+                                    if prob.slots[i].kind == "model"})
+    return FitResult.build(
+        prob=prob, model=model, theta=theta, cov=cov, cov_naive=cov_naive, stderr=stderr, corr=corr,
+        R=R, history=history, iterations=it, converged=converged, message=message, cov_type=cov_type,
+        warnings=tuple(warned), elapsed=elapsed, stopped=stopped, method=method, stop=stop,
+    )

@@ -1,0 +1,265 @@
+"""From a record to its spectra: trim removal and the finite Fourier transform.
+
+:func:`spectra` turns a :class:`~fdml.record.Record` into
+:class:`FrequencyData`: the transforms (THEORY.md Eq. 11) of the outputs and
+inputs at the chosen frequencies, the measured boundary values used by Klein's
+boundary terms (THEORY.md section 7), the transform of a unit constant (the
+regressor of an output bias), and what is needed to carry white time-domain
+noise through the transform into the estimator's covariance.  It knows nothing
+of models.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import fourier
+from .errors import BandError, RecordError
+from .record import Record
+
+__all__ = ["FrequencyData", "spectra", "parse_band", "DEFAULT_BAND", "OUTPUT_NAMES"]
+
+#: The paper's grid: 0.1 to 10 rad/s at 0.1 rad/s ("10 points per radian").
+DEFAULT_BAND = (0.1, 10.0, 0.1)
+OUTPUT_NAMES = ("alpha", "q", "az")
+
+
+def parse_band(band) -> tuple[float, float, float]:
+    """Normalise a band given as ``(lo, hi, step)`` or ``"LO:HI:STEP"`` (rad/s)."""
+    if band is None:
+        return DEFAULT_BAND
+    if isinstance(band, str):
+        parts = band.split(":")
+        if len(parts) != 3:
+            raise BandError(f"band {band!r} must be LO:HI:STEP in rad/s, e.g. 0.1:10:0.1")
+        try:
+            band = tuple(float(x) for x in parts)
+        except ValueError:
+            raise BandError(f"band {band!r} must be three numbers LO:HI:STEP in rad/s") from None
+    try:
+        lo, hi, step = (float(x) for x in band)
+    except (TypeError, ValueError):
+        raise BandError(f"band {band!r} must be (lo, hi, step) in rad/s") from None
+    return lo, hi, step
+
+
+@dataclass(frozen=True)
+class FrequencyData:
+    """Spectra of one record at a set of frequencies.
+
+    Attributes
+    ----------
+    name : str
+        Record name.
+    omega : ndarray, shape (m,)
+        Frequencies, rad/s.
+    z : ndarray, shape (m, 3)
+        Measured output transforms (alpha rad s, q rad, az g s).
+    u : ndarray, shape (m, n_in)
+        Input transforms (de[, alpha_w]), rad s.
+    inputs : tuple of str
+        Names of the columns of ``u``.
+    x0, xT : ndarray, shape (2,)
+        Measured alpha (rad) and q (rad/s) at the first and last sample, after
+        trim removal (for measured boundary terms).
+    T : float
+        Record length (n - 1) dt, s.
+    dt : float
+        Sample interval, s.
+    n : int
+        Number of samples.
+    ones : ndarray, shape (m,)
+        Transform of a unit constant over the record: the regressor of an
+        output bias (``(1 - exp(-j w T))/(j w)`` to the accuracy of the
+        end-corrected quadrature).
+    trim_mode : str
+        How trim was removed (``first``, ``mean``, ``none``).
+    trim_samples : int
+        Samples averaged to find trim (1 for ``first``, 0 for ``none``).
+    end_correction : str
+        End correction used by the transform.
+    band : tuple
+        (lo, hi, step), rad/s, when built from a band.
+    end_offset : ndarray, shape (3,)
+        |x(T) - trim| / max|x - trim| per output: how far from trim it ends.
+    meta : dict
+        The record's meta data (airspeed, source, trim values).
+    """
+
+    name: str
+    omega: np.ndarray
+    z: np.ndarray
+    u: np.ndarray
+    inputs: tuple
+    x0: np.ndarray
+    xT: np.ndarray
+    T: float
+    dt: float
+    n: int
+    ones: np.ndarray
+    trim_mode: str = "first"
+    trim_samples: int = 1
+    end_correction: str = "cubic"
+    band: tuple | None = None
+    end_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def m(self) -> int:
+        """Number of frequencies."""
+        return self.omega.size
+
+    def boundary(self) -> np.ndarray:
+        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, 2)."""
+        return self.x0[None, :] - self.xT[None, :] * np.exp(-1j * self.omega * self.T)[:, None]
+
+    def independent_frequencies(self) -> float:
+        """Approximate number of independent frequencies, (band width) T / (2 pi) + 1."""
+        return (self.omega.max() - self.omega.min()) * self.T / (2 * math.pi) + 1.0
+
+    # --- noise propagation ------------------------------------------------------------
+    def trim_vector(self) -> np.ndarray | None:
+        """Weights l with trimmed x = x - (l . x) 1, or None when no trim was removed."""
+        if self.trim_mode == "none" or self.trim_samples == 0:
+            return None
+        ell = np.zeros(self.n)
+        ell[: self.trim_samples] = 1.0 / self.trim_samples
+        return ell
+
+    def noise_gain(self, include_trim: bool = True) -> np.ndarray:
+        """E|v(w_i)|^2 for unit-variance white noise on a channel, shape (m,).
+
+        ``v = F P e`` where F is the end-corrected transform and P the trim
+        removal; so ``s_i = ||F_i||^2 - 2 Re(conj(b_i) (F l)_i) + |b_i|^2 ||l||^2``
+        with ``b = F 1``.  ``||F_i||^2`` is exact: the weights of interior
+        samples all have modulus ``dt |W(w dt)|``, and the end-corrected
+        samples are taken from a short record.  With ``include_trim=False``
+        only ``||F_i||^2`` is returned: the trim error is a constant offset, so
+        a fit with output biases absorbs it completely.
+        """
+        k = 16 if self.n >= 16 else self.n
+        w_small = fourier.transform_weights(k, self.dt, self.omega, end_correction=self.end_correction)
+        a2 = np.abs(w_small) ** 2
+        if self.n > k:
+            interior = a2[:, k // 2]
+            row = a2.sum(axis=1) + (self.n - k) * interior
+        else:
+            row = a2.sum(axis=1)
+        ell = self.trim_vector()
+        if ell is None or not include_trim:
+            return row
+        Fl = fourier.finite_fourier_transform(ell, self.dt, self.omega, end_correction=self.end_correction)
+        b = self.ones
+        return row - 2.0 * np.real(np.conj(b) * Fl) + np.abs(b) ** 2 * float(ell @ ell)
+
+    def noise_adjoint(self, y: np.ndarray) -> np.ndarray:
+        """Apply ``(F P)^T`` to frequency-domain weights: ``sum_i (F P)_in y_i``.
+
+        Parameters
+        ----------
+        y : ndarray, shape (m, k)
+
+        Returns
+        -------
+        ndarray, shape (n, k), complex
+            Row n holds how a unit noise sample at time n enters ``sum_i y_i v_i``.
+        """
+        # F^T y = conj(F^H conj(y))
+        out = np.conj(fourier.fourier_adjoint(np.conj(y), self.n, self.dt, self.omega,
+                                              end_correction=self.end_correction))
+        ell = self.trim_vector()
+        if ell is not None:
+            out = out - ell[:, None] * out.sum(axis=0, keepdims=True)  # P^T = I - l 1^T
+        return out
+
+
+def spectra(
+    record: Record,
+    omega=None,
+    *,
+    band=None,
+    trim: str = "first",
+    trim_window: float = 0.5,
+    end_correction: str = "cubic",
+    method: str = "auto",
+) -> FrequencyData:
+    """Transform a record to the frequency domain.
+
+    Parameters
+    ----------
+    record : Record
+        Time histories (SI, radians, a_z in g).
+    omega : array_like, optional
+        Frequencies, rad/s.  Default: the band grid.
+    band : tuple or str, optional
+        ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``; default 0.1:10:0.1.
+    trim : {"first", "mean", "none"}, optional
+        Trim removal: first sample (default), mean of the leading
+        ``trim_window`` seconds, or none (the record is already perturbations).
+    trim_window : float, optional
+        Leading window for ``trim="mean"``, s.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        End correction of the finite Fourier integral (default cubic).
+    method : {"auto", "czt", "direct"}, optional
+        Transform algorithm.
+
+    Returns
+    -------
+    FrequencyData
+    """
+    if not isinstance(record, Record):
+        raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
+    band_t = None
+    if omega is None:
+        band_t = parse_band(band)
+        omega = fourier.omega_band(*band_t)
+    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    if omega.size == 0:
+        raise BandError("the frequency band is empty")
+    if np.any(omega <= 0):
+        raise BandError(f"frequencies must be positive rad/s; got {omega.min():g}")
+    nyq = record.nyquist
+    if omega.max() > nyq:
+        raise BandError(
+            f"band reaches {omega.max():g} rad/s, above the Nyquist frequency {nyq:.4g} rad/s "
+            f"of record {record.name!r} (dt = {record.dt:g} s)"
+        )
+    if record.duration * omega.max() < 2 * math.pi:
+        raise BandError(
+            f"record {record.name!r} is {record.duration:.3g} s long, shorter than one period "
+            f"({2 * math.pi / omega.max():.3g} s) of the highest band frequency {omega.max():g} rad/s: "
+            "too few samples for this band"
+        )
+    rec = record.remove_trim(trim, window=trim_window)
+    outs = np.column_stack([rec[k] for k in OUTPUT_NAMES])
+    inputs = ("de", "alpha_w") if rec.has("alpha_w") else ("de",)
+    ins = np.column_stack([rec[k] for k in inputs])
+    ones = np.ones(rec.n)
+    X = fourier.finite_fourier_transform(
+        np.column_stack([outs, ins, ones]), rec.dt, omega, method=method, end_correction=end_correction
+    )
+    peak = np.max(np.abs(outs), axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        end_offset = np.where(peak > 0, np.abs(outs[-1]) / peak, 0.0)
+    return FrequencyData(
+        name=rec.name,
+        omega=omega,
+        z=X[:, :3],
+        u=X[:, 3 : 3 + len(inputs)],
+        inputs=inputs,
+        x0=np.array([rec["alpha"][0], rec["q"][0]]),
+        xT=np.array([rec["alpha"][-1], rec["q"][-1]]),
+        T=rec.duration,
+        dt=rec.dt,
+        n=rec.n,
+        ones=X[:, -1],
+        trim_mode=trim,
+        trim_samples=int(rec.meta.get("trim_samples", 0)) if trim != "none" else 0,
+        end_correction=end_correction,
+        band=band_t,
+        end_offset=end_offset,
+        meta=dict(rec.meta),
+    )
