@@ -352,9 +352,17 @@ def _logdet(R: np.ndarray) -> float:
     return float(ld)
 
 
+#: Relative floor added to the diagonal of R.  Noise-free (simulated) data can
+#: make R numerically singular, where the likelihood is unbounded; a floor of
+#: 1e-12 of the largest variance changes nothing at any realistic noise level.
+_R_FLOOR = 1e-12
+
+
 def _cov_R(V: np.ndarray) -> np.ndarray:
     # Eq. 24: R_jk = (1/N) sum_i v_ij conj(v_ik) (THEORY.md 7, conjugation convention)
-    return V.T @ V.conj() / V.shape[0]
+    R = V.T @ V.conj() / V.shape[0]
+    floor = _R_FLOOR * float(np.max(np.real(np.diag(R))))
+    return R + floor * np.eye(R.shape[0]) if floor > 0 else R
 
 
 def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool):

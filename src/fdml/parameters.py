@@ -175,8 +175,11 @@ class Parameters:
         return self._update({k: {"free": True} for k in names})
 
     def bound(self, name: str, lower: float = -math.inf, upper: float = math.inf) -> "Parameters":
-        """Return a copy with bounds on ``name``."""
-        return self._update({name: {"lower": float(lower), "upper": float(upper)}})
+        """Return a copy with bounds on ``name`` (its value is moved inside them)."""
+        if not lower <= upper:
+            raise ParameterError(f"parameter {name!r}: lower bound {lower} exceeds upper bound {upper}")
+        v = min(max(self[name].value, float(lower)), float(upper))
+        return self._update({name: {"lower": float(lower), "upper": float(upper), "value": v}})
 
     def only_free(self, names: Iterable[str]) -> "Parameters":
         """Return a copy in which exactly ``names`` are free."""

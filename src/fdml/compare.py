@@ -1,0 +1,120 @@
+"""Steady versus unsteady: one call fits both models and sets the derivatives side by side.
+
+Wells-Keskar Tables 1 and 3 compare the six derivatives of a quasi-steady fit
+with those implied by the unsteady fit (THEORY.md sections 6, 10, 11).  The
+steady column is, by default, the conventional six-derivative model (THEORY.md
+section 10 shows this is what the paper fitted); ``steady_model="steady"``
+uses the quasi-steady Wells-Keskar parameterisation instead.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from .aircraft import Aircraft, load_aircraft
+from .estimate import fit
+from .models import make_model
+from .results import FitResult
+
+__all__ = ["Comparison", "compare_steady_unsteady", "ALTERNATE_NAMES"]
+
+#: The six derivatives of WK Tables 1 and 3, in the tables' order.
+ALTERNATE_NAMES = ("Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q", "Cm_de")
+
+
+def _column(res: FitResult) -> dict[str, tuple[float, float]]:
+    out = {}
+    for n in ALTERNATE_NAMES:
+        if n in res.names:
+            i = res.names.index(n)
+            out[n] = (float(res.values[i]), float(res.stderr[i]))
+        elif n in res.derived:
+            out[n] = res.derived[n]
+    return out
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Steady and unsteady fits of the same data, with their derivative sets.
+
+    Attributes
+    ----------
+    steady, unsteady : FitResult
+    steady_set, unsteady_set : dict
+        ``{name: (value, stderr)}`` for the six derivatives (alternate set).
+    """
+
+    steady: FitResult
+    unsteady: FitResult
+    steady_set: dict
+    unsteady_set: dict
+
+    def shift(self, name: str) -> float:
+        """Steady minus unsteady value of a derivative."""
+        return self.steady_set[name][0] - self.unsteady_set[name][0]
+
+    def table(self, reference: dict | None = None) -> str:
+        """Side-by-side text table; ``reference`` adds columns ``{name: (unsteady, steady)}``."""
+        head = f"{'':8s}{'unsteady':>22s}{'steady':>22s}{'shift/sigma':>13s}"
+        if reference:
+            head += f"{'paper unst.':>13s}{'paper steady':>14s}"
+        lines = [head]
+        for n in ALTERNATE_NAMES:
+            u, su = self.unsteady_set.get(n, (math.nan, math.nan))
+            s, ss = self.steady_set.get(n, (math.nan, math.nan))
+            sig = math.hypot(su, ss)
+            z = (s - u) / sig if sig > 0 and math.isfinite(sig) else math.nan
+            line = f"{n:8s}{u:>12.4g} +/- {su:<6.2g}{s:>12.4g} +/- {ss:<6.2g}{z:>13.2f}"
+            if reference and n in reference:
+                ru, rs = reference[n]
+                line += f"{ru:>13.4g}{rs:>14.4g}"
+            lines.append(line)
+        lines.append("")
+        lines.append(f"cost det R: unsteady {self.unsteady.cost:.4g}, steady {self.steady.cost:.4g}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict of the two derivative sets and both fits."""
+        return {
+            "unsteady": {k: {"value": v, "stderr": s} for k, (v, s) in self.unsteady_set.items()},
+            "steady": {k: {"value": v, "stderr": s} for k, (v, s) in self.steady_set.items()},
+            "fits": {"unsteady": self.unsteady.to_dict(), "steady": self.steady.to_dict()},
+        }
+
+
+def compare_steady_unsteady(
+    data,
+    aircraft: Aircraft | str,
+    *,
+    gust: bool = False,
+    steady_model: str = "derivatives",
+    unsteady_options: dict | None = None,
+    **fit_kwargs,
+) -> Comparison:
+    """Fit the unsteady and a steady model to the same data; return both derivative sets.
+
+    Parameters
+    ----------
+    data : Record, FrequencyData or list
+        As for :func:`fdml.fit`.
+    aircraft : Aircraft or str
+        Preset name, JSON file, or :class:`~fdml.aircraft.Aircraft`.
+    gust : bool, optional
+        Fit the gust column too (the data must carry alpha_w).
+    steady_model : {"derivatives", "steady"}, optional
+    unsteady_options : dict, optional
+        Options for the unsteady model (``tail_lag_chord``, ``gust_lag``, ...).
+    **fit_kwargs
+        Passed to :func:`fdml.fit` for both fits (band, outputs, boundary, ...).
+
+    Returns
+    -------
+    Comparison
+    """
+    ac = load_aircraft(aircraft)
+    mu = make_model("unsteady", ac, gust=gust, **(unsteady_options or {}))
+    ms = make_model(steady_model, ac, gust=gust)
+    ru = fit(data, mu, **fit_kwargs)
+    rs = fit(data, ms, **fit_kwargs)
+    return Comparison(steady=rs, unsteady=ru, steady_set=_column(rs), unsteady_set=_column(ru))

@@ -1,0 +1,58 @@
+"""Shared fixtures: reference data made independently of fdml's own simulator."""
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from fdml.constants import G0
+from fdml.record import Record
+
+
+def three_two_one_one(t, amplitude=0.02, start=1.0, unit=0.3, rise=0.08):
+    """A 3-2-1-1 elevator input (rad) with raised-cosine edges of ``rise`` seconds.
+
+    Written out here so tests do not depend on fdml.maneuvers.  Smooth edges
+    make the sampled input a faithful picture of the continuous one, so that
+    lsim's first-order hold and the Fourier transform's cubic interpolation
+    see the same signal (a sampled step is ambiguous between samples).
+    """
+    de = np.zeros_like(t)
+    a = start
+    level = 0.0
+    for width, sign in ((3, 1), (2, -1), (1, 1), (1, -1), (0, 0)):
+        target = sign * amplitude
+        ramp = np.clip((t - a) / rise, 0.0, 1.0)
+        de += (target - level) * 0.5 * (1 - np.cos(np.pi * ramp))
+        level = target
+        a += width * unit
+    return de
+
+
+def lsim_dimensional(model, t, de):
+    """Noise-free outputs of a dimensional model by scipy.signal.lsim (first-order hold)."""
+    p = model.parameters.values
+    A = np.array([[p["Z_a"], 1 + p["Z_q"]], [p["M_a"], p["M_q"]]])
+    B = np.array([[p["Z_de"]], [p["M_de"]]])
+    k = model.U / G0
+    C = np.array([[1, 0], [0, 1], [k * p["Z_a"], k * p["Z_q"]]])
+    D = np.array([[0], [0], [k * p["Z_de"]]])
+    _, y, _ = signal.lsim(signal.StateSpace(A, B, C, D), de, t, interp=True)
+    return y
+
+
+@pytest.fixture
+def dimensional_case():
+    """(model, t, de, y): Navion dimensional model, 3-2-1-1, 10 s at 50 Hz, noise-free."""
+    from fdml.models import make_model
+
+    m = make_model("dimensional", "navion")
+    t = np.arange(0, 10 + 1e-9, 0.02)
+    de = three_two_one_one(t)
+    return m, t, de, lsim_dimensional(m, t, de)
+
+
+def noisy_record(t, de, y, rng, fraction=0.05, name="sim"):
+    """Record with white noise of ``fraction`` times each output's standard deviation."""
+    sd = fraction * y.std(axis=0)
+    yn = y + rng.normal(size=y.shape) * sd
+    return Record(t, {"de": de, "alpha": yn[:, 0], "q": yn[:, 1], "az": yn[:, 2]}, name=name)
