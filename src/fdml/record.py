@@ -23,7 +23,7 @@ import numpy as np
 
 from .errors import RecordError
 
-__all__ = ["Record", "read_csv", "SIGNALS", "REQUIRED_SIGNALS", "atomic_write_text"]
+__all__ = ["Record", "read_csv", "add_noise", "SIGNALS", "REQUIRED_SIGNALS", "atomic_write_text"]
 
 #: Signals fdml knows, with their units.
 SIGNALS = {"de": "rad", "alpha": "rad", "q": "rad/s", "az": "g", "alpha_w": "rad"}
@@ -248,6 +248,44 @@ class Record:
         """Write the record as CSV (atomically: never a half-written file)."""
         atomic_write_text(path, self.to_csv_text())
         return Path(path)
+
+
+def add_noise(record: Record, noise, rng: np.random.Generator, *, relative: bool = False) -> Record:
+    """Add white Gaussian noise to the outputs of a record.
+
+    Parameters
+    ----------
+    record : Record
+    noise : float or mapping
+        Standard deviation per output (``{"alpha": rad, "q": rad/s, "az": g}``),
+        or one number for all outputs.
+    rng : numpy.random.Generator
+        Source of the noise (never the global generator).
+    relative : bool, optional
+        If True, ``noise`` is a fraction of each output's RMS about its mean.
+
+    Returns
+    -------
+    Record
+        A copy with noisy ``alpha``, ``q``, ``az``; ``meta["noise_std"]`` holds
+        the standard deviations used.
+    """
+    if not isinstance(rng, np.random.Generator):
+        raise RecordError("add_noise needs a numpy Generator (np.random.default_rng(seed))")
+    outs = ("alpha", "q", "az")
+    if isinstance(noise, Mapping):
+        unknown = set(noise) - set(outs)
+        if unknown:
+            raise RecordError(f"noise given for unknown output(s) {sorted(unknown)}; outputs: alpha, q, az")
+        std = {k: float(noise.get(k, 0.0)) for k in outs}
+    else:
+        std = {k: float(noise) for k in outs}
+    if any(not math.isfinite(v) or v < 0 for v in std.values()):
+        raise RecordError(f"noise levels must be finite and non-negative, got {std}")
+    if relative:
+        std = {k: v * float(np.std(record[k])) for k, v in std.items()}
+    noisy = {k: record[k] + std[k] * rng.standard_normal(record.n) for k in outs}
+    return replace(record, signals={**record.signals, **noisy}, meta={**record.meta, "noise_std": std})
 
 
 def _check_finite(a: np.ndarray, label: str, where: str) -> None:

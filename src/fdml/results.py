@@ -277,6 +277,36 @@ class FitResult:
         return self.summary()
 
     # --- JSON ---------------------------------------------------------------------------------
+    def brief(self) -> dict:
+        """The short JSON form printed by ``fdml fit --json``.
+
+        Keys: model, params (name -> {value, stderr}), derived (name ->
+        {value, stderr}), cost, iterations, converged, message, band, outputs,
+        records, boundary, cov_type, warnings.  Infinite standard errors are
+        written as the string "inf".
+        """
+        def num(x):
+            return x if math.isfinite(x) else str(x)
+
+        return {
+            "model": self.kind,
+            "params": {n: {"value": float(v), "stderr": num(float(s))}
+                       for n, v, s in zip(self.names, self.values, self.stderr)},
+            "derived": {k: {"value": v, "stderr": num(s)} for k, (v, s) in self.derived.items()},
+            "fixed": self.fixed,
+            "cost": self.cost,
+            "iterations": self.iterations,
+            "converged": self.converged,
+            "message": self.message,
+            "band": None if self.band is None else list(self.band),
+            "n_freq": self.n_freq,
+            "outputs": list(self.outputs),
+            "records": list(self.records),
+            "boundary": self.boundary,
+            "cov_type": self.cov_type,
+            "warnings": list(self.warnings),
+        }
+
     def to_dict(self) -> dict:
         """JSON-ready dict (format ``fdml.FitResult`` version 1)."""
         from .models import model_to_dict

@@ -1,0 +1,94 @@
+"""The ``fdml`` command line.
+
+Every command is one public library call.  Commands live in
+:mod:`fdml.commands`, one module each, and import what they need only when
+they run, so ``fdml --help`` stays light (no matplotlib, no scipy).  Errors
+print one line on stderr; bad input exits with code 2, other failures with 1.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+
+__all__ = ["main", "build_parser", "EXIT_BAD_INPUT", "EXIT_FAILURE"]
+
+EXIT_BAD_INPUT = 2
+EXIT_FAILURE = 1
+
+#: Command modules under fdml.commands, in help order.
+COMMANDS = ("demo", "fit", "simulate", "response", "aircraft")
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that reports usage errors as one line with exit code 2."""
+
+    def error(self, message):  # pragma: no cover - exercised through main()
+        self.exit(EXIT_BAD_INPUT, f"fdml: error: {message}\n")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser with every registered command."""
+    from . import __version__
+
+    parser = _Parser(prog="fdml", description="Frequency-domain maximum-likelihood identification "
+                     "of aircraft short-period dynamics, with unsteady aerodynamics.")
+    parser.add_argument("--version", action="version", version=f"fdml {__version__}")
+    parser.add_argument("-v", "--verbose", action="store_true", help="show warnings and log messages")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    for name in COMMANDS:
+        importlib.import_module(f"fdml.commands.{name}").register(sub)
+    return parser
+
+
+def print_json(obj) -> None:
+    """Print ``obj`` as JSON on stdout (inf/nan as strings)."""
+
+    def default(o):
+        import numpy as np
+
+        if isinstance(o, np.generic):
+            return o.item()
+        if isinstance(o, np.ndarray):
+            return o.tolist()
+        return str(o)
+
+    sys.stdout.write(json.dumps(obj, indent=1, default=default) + "\n")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command line; returns the exit code."""
+    import logging
+    import warnings
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return EXIT_BAD_INPUT
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="fdml: %(message)s")
+    if not args.verbose:
+        warnings.simplefilter("ignore")
+    from .errors import FdmlError
+
+    try:
+        return int(args.func(args) or 0)
+    except FdmlError as exc:
+        sys.stderr.write(f"fdml: error: {exc}\n")
+        return EXIT_BAD_INPUT
+    except FileNotFoundError as exc:
+        sys.stderr.write(f"fdml: error: {exc.strerror}: {exc.filename}\n")
+        return EXIT_BAD_INPUT
+    except KeyboardInterrupt:  # pragma: no cover
+        sys.stderr.write("fdml: interrupted\n")
+        return 130
+    except Exception as exc:  # pragma: no cover - a bug: say so in one line, keep the type
+        sys.stderr.write(f"fdml: internal error: {type(exc).__name__}: {exc}\n")
+        return EXIT_FAILURE
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""One module per ``fdml`` command; each has ``register(subparsers)`` and ``run(args)``."""
