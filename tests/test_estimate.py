@@ -276,3 +276,14 @@ def test_bad_inputs_give_named_errors(dimensional_case):
         fit(rec, m, outputs="alpha,nz")
     with pytest.raises(BandError, match="LO:HI:STEP"):
         fit(rec, m, band="0.1-10")
+
+
+def test_result_keeps_the_time_record(dimensional_case, tmp_path):
+    m, t, de, y = dimensional_case
+    rec = noisy_record(t, de, y, np.random.default_rng(2))
+    res = fit(rec, m)
+    back = load_result(tmp_path / "r.json") if res.to_json(tmp_path / "r.json") else None
+    for r in (res, back):
+        got = r.record(0)
+        assert np.array_equal(got.t, rec.t) and np.array_equal(got["q"], rec["q"])
+        assert r.time_records[0]["trim_mode"] == "first"

@@ -25,15 +25,20 @@ from .errors import RecordError
 
 __all__ = ["Record", "read_csv", "add_noise", "SIGNALS", "REQUIRED_SIGNALS", "atomic_write_text"]
 
-#: Signals fdml knows, with their units.
-SIGNALS = {"de": "rad", "alpha": "rad", "q": "rad/s", "az": "g", "alpha_w": "rad"}
+#: Signals fdml knows, with their units.  The first five enter fits; the others
+#: (pitch attitude, airspeed, pitch acceleration, longitudinal specific force,
+#: altitude, dynamic pressure) serve data-compatibility checks and gust estimation.
+SIGNALS = {
+    "de": "rad", "alpha": "rad", "q": "rad/s", "az": "g", "alpha_w": "rad",
+    "theta": "rad", "V": "m/s", "qdot": "rad/s^2", "ax": "g", "h": "m", "qbar": "Pa",
+}
 #: Signals every record must have.
 REQUIRED_SIGNALS = ("de", "alpha", "q", "az")
 
 #: Largest plausible perturbation magnitudes in SI units.  A larger value in a
 #: channel almost always means degrees (or deg/s) where radians are due:
 #: 1 rad is 57 deg of angle of attack or elevator, 3 rad/s is 170 deg/s.
-_DEGREE_LIMITS = {"de": 1.0, "alpha": 1.0, "alpha_w": 1.0, "q": 3.0}
+_DEGREE_LIMITS = {"de": 1.0, "alpha": 1.0, "alpha_w": 1.0, "q": 3.0, "theta": 1.6}
 #: Sample-interval jitter tolerated, as a fraction of the mean interval.  The
 #: Fourier front end assumes exact uniform sampling; 1e-3 of dt shifts phase
 #: at 10 rad/s by at most 1e-3 * 10 * dt rad, far below measurement noise.

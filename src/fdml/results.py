@@ -64,6 +64,23 @@ def _f2j(a):
     return [_f2j(x) for x in a]
 
 
+def _jsonable(obj):
+    """A JSON-safe copy of record meta data (arrays to lists, other objects to str)."""
+    if isinstance(obj, dict):
+        return {str(k): _jsonable(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_jsonable(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _jsonable(obj.tolist())
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return str(obj)
+    if obj is None or isinstance(obj, (str, int, float, bool)):
+        return obj
+    return str(obj)
+
+
 def _j2f(v) -> np.ndarray:
     def conv(x):
         if isinstance(x, list):
@@ -121,6 +138,10 @@ class FitResult:
     spectra : tuple of dict
         The fitted spectra (``omega``, ``z``, ``u``, ``inputs``, ...) per record,
         for plots and reports.
+    time_records : tuple of dict
+        The time-domain records as given to the fit (``name``, ``t``,
+        ``signals``, ``meta``, ``trim_mode``), when the fit was given records;
+        see :meth:`record`.
     """
 
     model: object
@@ -150,6 +171,7 @@ class FitResult:
     warnings: tuple = ()
     elapsed: float = 0.0
     spectra: tuple = field(default=(), repr=False)
+    time_records: tuple = field(default=(), repr=False)
 
     # --- construction -------------------------------------------------------------------
     @classmethod
@@ -188,7 +210,13 @@ class FitResult:
             }
             for d in prob.data
         )
+        time_records = tuple(
+            {"name": d.record.name, "t": d.record.t, "signals": dict(d.record.signals),
+             "meta": dict(d.record.meta), "trim_mode": d.trim_mode}
+            for d in prob.data if d.record is not None
+        )
         return cls(
+            time_records=time_records,
             model=model, names=tuple(names), values=np.asarray(theta, float), stderr=np.asarray(stderr),
             cov=cov, corr=corr, cov_naive=cov_naive, R=R, cost_history=tuple(history),
             iterations=iterations, converged=converged, message=message, derived=derived, fixed=fixed,
@@ -348,6 +376,12 @@ class FitResult:
                 }
                 for s in self.spectra
             ],
+            "time_records": [
+                {"name": r["name"], "t": _f2j(r["t"]),
+                 "signals": {k: _f2j(v) for k, v in r["signals"].items()},
+                 "meta": _jsonable(r["meta"]), "trim_mode": r["trim_mode"]}
+                for r in self.time_records
+            ],
         }
 
     def to_json(self, path: str | Path | None = None, indent: int = 1) -> str:
@@ -404,7 +438,23 @@ class FitResult:
             warnings=tuple(d.get("warnings", ())),
             elapsed=d.get("elapsed", 0.0),
             spectra=spectra,
+            time_records=tuple(
+                {"name": r["name"], "t": _j2f(r["t"]),
+                 "signals": {k: _j2f(v) for k, v in r["signals"].items()},
+                 "meta": r["meta"], "trim_mode": r["trim_mode"]}
+                for r in d.get("time_records", [])
+            ),
         )
+
+    def record(self, index: int = 0):
+        """The time-domain record ``index`` as given to the fit (a :class:`~fdml.record.Record`)."""
+        from .record import Record
+
+        if not self.time_records:
+            raise FdmlError("this result holds no time-domain records (the fit was given spectra)")
+        r = self.time_records[index]
+        return Record(np.asarray(r["t"], float), {k: np.asarray(v, float) for k, v in r["signals"].items()},
+                      name=r["name"], meta=r["meta"], check_units=False)
 
     def fitted_spectra(self, record: int = 0) -> np.ndarray:
         """Model output spectra at the estimate for record ``record``, shape (m, 3).

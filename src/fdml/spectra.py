@@ -87,6 +87,9 @@ class FrequencyData:
         |x(T) - trim| / max|x - trim| per output: how far from trim it ends.
     meta : dict
         The record's meta data (airspeed, source, trim values).
+    record : Record or None
+        The time-domain record as given (before trim removal), kept for
+        time-domain cross-checks, plots and reports.
     """
 
     name: str
@@ -106,6 +109,7 @@ class FrequencyData:
     band: tuple | None = None
     end_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
     meta: dict = field(default_factory=dict)
+    record: Record | None = field(default=None, repr=False, compare=False)
 
     @property
     def m(self) -> int:
@@ -262,4 +266,5 @@ def spectra(
         band=band_t,
         end_offset=end_offset,
         meta=dict(rec.meta),
+        record=record,
     )
