@@ -287,3 +287,76 @@ def test_result_keeps_the_time_record(dimensional_case, tmp_path):
         got = r.record(0)
         assert np.array_equal(got.t, rec.t) and np.array_equal(got["q"], rec["q"])
         assert r.time_records[0]["trim_mode"] == "first"
+
+
+def test_elevator_offset_is_caught_by_input_or_state_biases(dimensional_case):
+    # The record's elevator carries a constant 0.002 rad (0.11 deg) offset from the true trim,
+    # and the record is taken as perturbations (trim="none"), with measured boundary terms.
+    m, t, de, y = dimensional_case
+    rec = noisy_record(t, de + 0.002, y, np.random.default_rng(12))
+    kw = dict(trim="none", boundary="measured", biases=False)
+    plain = fit(rec, m, **kw)
+    ib = fit(rec, m, input_bias=True, **kw)
+    assert ib.cost < 0.5 * plain.cost  # the offset explains a large part of the residual
+    e1, se1 = pick(ib)
+    assert np.all(np.abs(e1 - truth(m)) < 3 * se1)
+    assert abs(ib["bias_de"] + 0.002) < 3 * ib.errors["bias_de"]  # the model needs de - 0.002
+    sb = fit(rec, m, state_biases=True, **kw)
+    e2, se2 = pick(sb)
+    assert np.all(np.abs(e2 - truth(m)) < 3 * se2)
+    # the state-equation biases are the elevator offset pushed through B = (Z_de, M_de)
+    p = m.parameters.values
+    assert abs(sb["bias_q_dot"] + 0.002 * p["M_de"]) < 3 * sb.errors["bias_q_dot"]
+    assert sb.nuisance["state_biases"] and "state-equation biases" in str(sb.summary())
+
+
+def test_input_bias_with_estimated_boundary_and_output_biases_is_flagged(dimensional_case):
+    # A constant input offset is exactly a shifted trim: its response is a boundary term plus an
+    # output bias (partial fractions of G(s)/s), so with both estimated it cannot be identified.
+    m, t, de, y = dimensional_case
+    with pytest.warns(IdentifiabilityWarning, match="bias_de"):
+        res = fit(noisy_record(t, de, y, np.random.default_rng(3)), m, input_bias=True)
+    assert math.isinf(res.errors["bias_de"])
+
+
+def test_colored_bounds_follow_coloured_noise(dimensional_case):
+    # band-pass noise where the short period lives (0.3-0.8 Hz): the white-noise form
+    # understates the scatter, the coloured form (smoothed residual spectrum) much less so
+    from scipy import signal
+
+    m, t, de, y = dimensional_case
+    b, a = signal.butter(2, [0.3, 0.8], btype="band", fs=50)
+    est, sw, sc = [], [], []
+    for i in range(40):
+        rng = np.random.default_rng(900 + i)
+        e = signal.lfilter(b, a, rng.normal(size=(y.shape[0] + 200, 3)), axis=0)[200:]
+        yn = y + e / e.std(axis=0) * 0.05 * y.std(axis=0)
+        rec = Record(t, {"de": de, "alpha": yn[:, 0], "q": yn[:, 1], "az": yn[:, 2]})
+        w = fit(rec, m)
+        c = fit(rec, m, cov_type="colored")
+        est.append(pick(w)[0])
+        sw.append(pick(w)[1])
+        sc.append(pick(c)[1])
+    scatter = np.array(est).std(axis=0, ddof=1)
+    rw, rc = scatter / np.mean(sw, axis=0), scatter / np.mean(sc, axis=0)
+    # Z_a and M_a: white understates by about 1.5; coloured within the 25 % + sampling (~11 % for 40)
+    assert rw[0] > 1.3 and rw[3] > 1.3
+    assert np.all(np.abs(rc - 1) < 0.35), rc
+
+
+def test_consistency_of_repeated_manoeuvres(dimensional_case):
+    from fdml.consistency import consistency
+
+    m, t, de, y = dimensional_case
+    fits = [fit(noisy_record(t, de, y, np.random.default_rng(40 + i), name=f"m{i}"), m) for i in range(4)]
+    c = consistency(fits)
+    assert c.names == DIM and c.dof == 3
+    assert c.agree()  # same truth, honest bounds
+    # a different aircraft state in one manoeuvre (M_a 10 % off) is flagged on M_a
+    from conftest import lsim_dimensional
+
+    m2 = m.with_values(M_a=1.1 * m.parameters["M_a"].value)
+    odd = fit(noisy_record(t, de, lsim_dimensional(m2, t, de), np.random.default_rng(50), name="odd"), m)
+    c2 = consistency(fits + [odd])
+    assert not c2.agree() and c2.p_value[DIM.index("M_a")] < 1e-6
+    assert "DISAGREE" in c2.summary()

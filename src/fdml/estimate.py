@@ -56,6 +56,8 @@ from .spectra import FrequencyData, parse_band, spectra
 __all__ = ["fit", "prepare", "Problem"]
 
 _BOUNDARY_NAMES = ("x0_alpha", "x0_q", "xT_alpha", "xT_q")
+#: State-equation biases: constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations.
+_STATE_BIAS_NAMES = ("bias_alpha_dot", "bias_q_dot")
 #: Relative change at which Eq. 26 sensitivities count as settled (THEORY.md 7).
 _SETTLE_TOL = 1e-4
 #: End offset (fraction of the peak) above which a record "ends far from trim".
@@ -81,7 +83,7 @@ class Problem:
     """
 
     def __init__(self, data: list[FrequencyData], model: Model, outputs: tuple[int, ...],
-                 boundary: str, sensitivity: str):
+                 boundary: str, sensitivity: str, state_biases: bool = False, input_bias: bool = False):
         self.data = data
         self.model = model
         self.out_idx = np.array(outputs)
@@ -101,6 +103,13 @@ class Problem:
             if boundary == "estimated":
                 for j, bn in enumerate(_BOUNDARY_NAMES):
                     slots.append(_Slot(bn + suffix, "boundary", r, j))
+            if state_biases:
+                for j, bn in enumerate(_STATE_BIAS_NAMES):
+                    slots.append(_Slot(bn + suffix, "sbias", r, j))
+            if input_bias:
+                slots.append(_Slot("bias_de" + suffix, "ibias", r, 0))
+        self.state_biases = state_biases
+        self.input_bias = input_bias
         self.slots = slots
         self.names = tuple(s.name for s in slots)
         self.model_slots = [i for i, s in enumerate(slots) if s.kind == "model"]
@@ -118,6 +127,8 @@ class Problem:
                 out.append(p[s.name])
             elif s.kind == "bias":
                 out.append(p[f"bias_{OUTPUTS[s.index]}"])
+            elif s.kind in ("sbias", "ibias"):
+                out.append(0.0)
             else:
                 d = self.data[s.record]
                 out.append((d.x0 if s.index < 2 else d.xT)[s.index % 2])
@@ -143,11 +154,13 @@ class Problem:
         return vals
 
     def _nuisance(self, theta: np.ndarray, r: int):
-        """(boundary vector d (m, 2), biases (3,)) of record r."""
+        """(boundary vector d (m, 2), output biases (3,), state biases (2,), input bias) of record r."""
         d = self.data[r]
         vals = self.model.parameters.values
         b = np.array([vals[f"bias_{o}"] for o in OUTPUTS])
         x0, xT = d.x0.copy(), d.xT.copy()
+        sb = np.zeros(2)
+        ib = 0.0
         for i, s in enumerate(self.slots):
             if s.record != r:
                 continue
@@ -155,11 +168,15 @@ class Problem:
                 b[s.index] = theta[i]
             elif s.kind == "boundary":
                 (x0 if s.index < 2 else xT)[s.index % 2] = theta[i]
+            elif s.kind == "sbias":
+                sb[s.index] = theta[i]
+            elif s.kind == "ibias":
+                ib = theta[i]
         if self.boundary == "none":
             bd = np.zeros((d.m, 2), complex)
         else:
             bd = x0[None, :] - xT[None, :] * np.exp(-1j * d.omega * d.T)[:, None]
-        return bd, b
+        return bd, b, sb, ib
 
     # --- predictions ---------------------------------------------------------------------
     def _responses(self, vals: Mapping[str, float]):
@@ -171,9 +188,13 @@ class Problem:
             responses = self._responses(self.model_values(theta))
         out = []
         for r, (d, resp) in enumerate(zip(self.data, responses)):
-            bd, b = self._nuisance(theta, r)
+            bd, b, sb, ib = self._nuisance(theta, r)
             y = np.einsum("mij,mj->mi", resp.G, d.u) + np.einsum("mij,mj->mi", resp.H, bd)
             y = y + d.ones[:, None] * b[None, :]
+            if self.state_biases:
+                y = y + (resp.P @ sb) * d.ones[:, None]  # constant forcing f: f~ = f ones(w)
+            if self.input_bias:
+                y = y + resp.G[:, :, 0] * (ib * d.ones)[:, None]  # constant elevator offset
             out.append(y)
         return out
 
@@ -203,6 +224,10 @@ class Problem:
             if s.kind == "bias":
                 col = np.zeros((d.m, 3), complex)
                 col[:, s.index] = d.ones
+            elif s.kind == "sbias":
+                col = resp.P[:, :, s.index] * d.ones[:, None]
+            elif s.kind == "ibias":
+                col = resp.G[:, :, 0] * d.ones[:, None]
             else:
                 j = s.index % 2
                 factor = np.ones(d.m) if s.index < 2 else -np.exp(-1j * d.omega * d.T)
@@ -299,8 +324,8 @@ def _configure_model(model: Model, free, fix, bounds, biases: bool, out_idx) -> 
 
 
 def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary="estimated",
-            biases="auto", free=None, fix=None, bounds=None, sensitivity="fd", trim="first",
-            trim_window=0.5, end_correction="cubic") -> Problem:
+            biases="auto", state_biases=False, input_bias=False, free=None, fix=None, bounds=None,
+            sensitivity="fd", trim="first", trim_window=0.5, end_correction="cubic") -> Problem:
     """Set up a fit without running it (see :func:`fit` for the arguments)."""
     if not isinstance(model, Model):
         raise ParameterError(f"model must be an fdml Model, got {type(model).__name__}")
@@ -322,7 +347,7 @@ def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary
     elif biases not in (True, False):
         raise FdmlError(f"biases must be 'auto', True or False, got {biases!r}")
     model = _configure_model(model, free, fix, bounds, biases, out_idx)
-    prob = Problem(fdata, model, out_idx, boundary, sensitivity)
+    prob = Problem(fdata, model, out_idx, boundary, sensitivity, bool(state_biases), bool(input_bias))
     p = len(prob.slots)
     if p == 0:
         raise ParameterError("no free parameters: nothing to estimate")
@@ -433,6 +458,8 @@ def fit(
     outputs=None,
     boundary: str = "estimated",
     biases: bool | str = "auto",
+    state_biases: bool = False,
+    input_bias: bool = False,
     free: Sequence[str] | None = None,
     fix: Sequence[str] | Mapping[str, float] | None = None,
     bounds: Mapping[str, tuple] | None = None,
@@ -474,6 +501,15 @@ def fit(
         itself a noisy estimate (the first sample, or a short mean), and its
         error is a constant offset on the whole record, i.e. exactly an
         output bias; left unestimated it biases the low-frequency fit.
+    state_biases : bool, optional
+        Estimate constants ``bias_alpha_dot`` (rad/s) and ``bias_q_dot``
+        (rad/s^2) added to the two state equations, per record: they absorb a
+        trim that is not an equilibrium (an elevator trim error, a trimmed
+        pitch acceleration).
+    input_bias : bool, optional
+        Estimate a constant elevator offset ``bias_de`` (rad) per record: the
+        error of the elevator trim (a special case of state-equation biases
+        along the elevator's input direction).
     free, fix : optional
         Names to free; names (or a ``{name: value}`` mapping) to fix.
     bounds : mapping, optional
@@ -489,11 +525,14 @@ def fit(
     sensitivity : {"fd", "central"}, optional
         Eq. 26 forward differences with step reduction (default) or central
         differences.
-    cov_type : {"white", "naive"}, optional
+    cov_type : {"white", "colored", "naive"}, optional
         ``white`` (default): covariance of the estimate for white measurement
         noise, carried exactly through the transform, the frequency grid and
         the trim removal (a sandwich form); at independent frequency spacing
-        2 pi/T it equals the Cramer-Rao bound.  ``naive``: the inverse of
+        2 pi/T it equals the Cramer-Rao bound.  ``colored``: the same with the
+        noise level following the smoothed residual spectrum (the
+        frequency-domain analogue of the Morelli-Klein correction; use it on
+        real data, where residuals hold model error).  ``naive``: the inverse of
         ``2 Re sum A^H R^-1 A``, which treats every frequency as independent
         and is optimistic on a grid finer than 2 pi/T (THEORY.md section 7).
     trim, trim_window, end_correction :
@@ -511,10 +550,10 @@ def fit(
         raise FdmlError(f"method must be 'lm' or 'gauss-newton', got {method!r}")
     if stop not in ("converge", "paper"):
         raise FdmlError(f"stop must be 'converge' or 'paper', got {stop!r}")
-    if cov_type not in ("white", "naive"):
-        raise FdmlError(f"cov_type must be 'white' or 'naive', got {cov_type!r}")
+    if cov_type not in ("white", "colored", "naive"):
+        raise FdmlError(f"cov_type must be 'white', 'colored' or 'naive', got {cov_type!r}")
     prob = prepare(data, model, omega=omega, band=band, outputs=outputs, boundary=boundary,
-                   biases=biases, free=free,
+                   biases=biases, state_biases=state_biases, input_bias=input_bias, free=free,
                    fix=fix, bounds=bounds, sensitivity=sensitivity, trim=trim, trim_window=trim_window,
                    end_correction=end_correction)
     theta = prob.initial()
@@ -632,7 +671,35 @@ def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi):
     return (False, *last)
 
 
-def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray) -> np.ndarray:
+def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
+    """Relative noise amplitude per frequency and output from the residuals, shape (N, n_out).
+
+    The residual power |v_ij|^2 is averaged over a moving window of
+    +-2 independent frequency spacings (2 * 2 pi / T, at least 3 grid points):
+    a smoothed periodogram of the residual.  Its square root, normalised to
+    unit mean power per output, scales white noise into coloured noise whose
+    spectrum varies slowly over 2 pi / T: the frequency-domain analogue of
+    Morelli and Klein's correction of the Cramer-Rao bounds for coloured
+    residuals.
+    """
+    out = np.empty(V.shape)
+    off = 0
+    for d in prob.data:
+        v = V[off: off + d.m]
+        p2 = np.abs(v) ** 2
+        half = 2 * 2 * math.pi / d.T
+        step = np.median(np.diff(d.omega)) if d.m > 1 else half
+        k = max(int(round(half / step)), 3)
+        kernel = np.ones(2 * k + 1)
+        num = np.apply_along_axis(lambda x: np.convolve(x, kernel, mode="same"), 0, p2)
+        den = np.convolve(np.ones(d.m), kernel, mode="same")[:, None]
+        sm = num / den
+        out[off: off + d.m] = np.sqrt(sm / np.mean(sm, axis=0, keepdims=True))
+        off += d.m
+    return out
+
+
+def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
     """Cov of g = Re sum A^H R^-1 v for white time-domain noise (exact, linear in the noise).
 
     The residual is linear in the sampled noise e_n (one vector per sample,
@@ -647,6 +714,8 @@ def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray) -> np.ndarray:
     """
     W = np.linalg.inv(R)
     C = np.einsum("njp,jk->npk", A.conj(), W)  # A_i^H W, shape (N, p, n_out)
+    if shape is not None:
+        C = C * shape[:, None, :]  # coloured noise: v_i = diag(rho_i) (F P e)_i
     gains = np.concatenate([d.noise_gain(include_trim=False) for d in prob.data])
     p, no = A.shape[2], A.shape[1]
     n_real = 2 * no * sum(d.independent_frequencies() for d in prob.data)
@@ -696,8 +765,9 @@ def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned
     if idx.size:
         Minv = np.linalg.inv(M[np.ix_(idx, idx)])
         cov_naive[np.ix_(idx, idx)] = 0.5 * Minv  # (2 Re sum A^H R^-1 A)^-1
-        if cov_type == "white":
-            Cg = _white_cov_g(prob, A[:, :, idx], R)
+        if cov_type in ("white", "colored"):
+            shape = _residual_shape(prob, V) if cov_type == "colored" else None
+            Cg = _white_cov_g(prob, A[:, :, idx], R, shape)
             cov[np.ix_(idx, idx)] = Minv @ Cg @ Minv
         else:
             cov[np.ix_(idx, idx)] = cov_naive[np.ix_(idx, idx)]

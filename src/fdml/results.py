@@ -142,6 +142,10 @@ class FitResult:
         The time-domain records as given to the fit (``name``, ``t``,
         ``signals``, ``meta``, ``trim_mode``), when the fit was given records;
         see :meth:`record`.
+    nuisance : dict
+        Which nuisance terms the fit used: ``boundary`` (estimated, measured or
+        none), ``output_biases`` (outputs with an estimated bias),
+        ``state_biases`` and ``input_bias`` (bool), ``trim`` (per record).
     """
 
     model: object
@@ -172,6 +176,7 @@ class FitResult:
     elapsed: float = 0.0
     spectra: tuple = field(default=(), repr=False)
     time_records: tuple = field(default=(), repr=False)
+    nuisance: dict = field(default_factory=dict)
 
     # --- construction -------------------------------------------------------------------
     @classmethod
@@ -215,7 +220,16 @@ class FitResult:
              "meta": dict(d.record.meta), "trim_mode": d.trim_mode}
             for d in prob.data if d.record is not None
         )
+        nuisance = {
+            "boundary": prob.boundary,
+            "output_biases": [["alpha", "q", "az"][k] for k in prob.out_idx
+                              if prob.model.parameters[f"bias_{['alpha', 'q', 'az'][k]}"].free],
+            "state_biases": bool(getattr(prob, "state_biases", False)),
+            "input_bias": bool(getattr(prob, "input_bias", False)),
+            "trim": [d.trim_mode for d in prob.data],
+        }
         return cls(
+            nuisance=nuisance,
             time_records=time_records,
             model=model, names=tuple(names), values=np.asarray(theta, float), stderr=np.asarray(stderr),
             cov=cov, corr=corr, cov_naive=cov_naive, R=R, cost_history=tuple(history),
@@ -263,7 +277,17 @@ class FitResult:
         band = "" if self.band is None else f"  band {self.band[0]:g}-{self.band[1]:g} rad/s step {self.band[2]:g}"
         lines.append(f"fdml fit: {self.model.describe()}  records: {', '.join(self.records)}")
         lines.append(f"outputs {', '.join(self.outputs)}; {self.n_freq} frequencies;{band}")
-        lines.append(f"boundary terms: {self.boundary}; standard errors: {self.cov_type}; method {self.method}")
+        nz = self.nuisance
+        extras = []
+        if nz.get("output_biases"):
+            extras.append("output biases " + ",".join(nz["output_biases"]))
+        if nz.get("state_biases"):
+            extras.append("state-equation biases")
+        if nz.get("input_bias"):
+            extras.append("elevator bias")
+        lines.append(f"boundary terms: {self.boundary}; {'; '.join(extras) or 'no biases'}; "
+                     f"trim: {','.join(sorted(set(nz.get('trim', []))))}")
+        lines.append(f"standard errors: {self.cov_type}; method {self.method}")
         verdict = "converged" if self.converged else "NOT converged"
         lines.append(f"{verdict} after {self.iterations} iterations: {self.message}")
         lines.append(f"J = det R = {self.cost:.6g}")
@@ -376,6 +400,7 @@ class FitResult:
                 }
                 for s in self.spectra
             ],
+            "nuisance": self.nuisance,
             "time_records": [
                 {"name": r["name"], "t": _f2j(r["t"]),
                  "signals": {k: _f2j(v) for k, v in r["signals"].items()},
@@ -438,6 +463,7 @@ class FitResult:
             warnings=tuple(d.get("warnings", ())),
             elapsed=d.get("elapsed", 0.0),
             spectra=spectra,
+            nuisance=d.get("nuisance", {}),
             time_records=tuple(
                 {"name": r["name"], "t": _j2f(r["t"]),
                  "signals": {k: _j2f(v) for k, v in r["signals"].items()},
@@ -476,8 +502,12 @@ class FitResult:
         b = np.array([p.get(f"bias_{o}{suffix}", self.model.parameters.values[f"bias_{o}"])
                       for o in ("alpha", "q", "az")])
         u = s["u"][:, : resp.G.shape[2]]
-        return (np.einsum("mij,mj->mi", resp.G, u) + np.einsum("mij,mj->mi", resp.H, bd)
-                + s["ones"][:, None] * b[None])
+        y = (np.einsum("mij,mj->mi", resp.G, u) + np.einsum("mij,mj->mi", resp.H, bd)
+             + s["ones"][:, None] * b[None])
+        sb = np.array([p.get(f"bias_alpha_dot{suffix}", 0.0), p.get(f"bias_q_dot{suffix}", 0.0)])
+        y = y + (resp.P @ sb) * s["ones"][:, None]
+        y = y + resp.G[:, :, 0] * (p.get(f"bias_de{suffix}", 0.0) * s["ones"])[:, None]
+        return y
 
 
 def load_result(path: str | Path) -> FitResult:

@@ -11,8 +11,10 @@ Klein's boundary terms).  The outputs are alpha, q and
 
     G(s) = C(s) M(s)^-1 B(s),        M(s) = s E - A(s)        (Eq. 18)
     H(s) = C(s) M(s)^-1 E - (U/g) e_az e_alpha^T
+    P(s) = C(s) M(s)^-1
 
-where H maps the boundary vector d to the outputs.  The 2 x 2 solve is done
+where H maps the boundary vector d to the outputs and P maps a forcing f~
+added to the right-hand side (a state-equation bias, ``E xdot = A x + B u + f``).  The 2 x 2 solve is done
 in closed form over all frequencies at once.
 """
 
@@ -47,11 +49,14 @@ class ModelResponse:
         Outputs (alpha, q, az) per input (de[, alpha_w]).
     H : ndarray, shape (n, 3, 2)
         Outputs per boundary term d = x(0) - x(T) e^{-sT}, x = [alpha, q].
+    P : ndarray, shape (n, 3, 2)
+        Outputs per state-equation forcing f~ (alpha_dot and q_dot equations).
     """
 
     omega: np.ndarray
     G: np.ndarray
     H: np.ndarray
+    P: np.ndarray
 
 
 def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarray, U: float):
@@ -74,6 +79,7 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
     -------
     G : ndarray, shape (n, 3, n_in)
     H : ndarray, shape (n, 3, 2)
+    P : ndarray, shape (n, 3, 2)
     """
     m00, m01, m10, m11 = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
     det = m00 * m11 - m01 * m10
@@ -90,13 +96,15 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
     G = np.empty((s.size, 3, B.shape[2]), dtype=complex)
     G[:, :2] = X
     G[:, 2] = k * (s[:, None] * X[:, 0] - X[:, 1])
-    E = np.broadcast_to(E, M.shape)
-    Y = inv @ E  # (n, 2, 2): state per boundary term
-    H = np.empty((s.size, 3, 2), dtype=complex)
-    H[:, :2] = Y
-    H[:, 2] = k * (s[:, None] * Y[:, 0] - Y[:, 1])
+    P = np.empty((s.size, 3, 2), dtype=complex)
+    P[:, :2] = inv  # state per unit forcing of each state equation
+    P[:, 2] = k * (s[:, None] * inv[:, 0] - inv[:, 1])
+    if E.ndim == 2 and np.array_equal(E, np.eye(2)):
+        H = P.copy()
+    else:
+        H = P @ np.broadcast_to(E, M.shape)  # state per boundary term: M^-1 E
     H[:, 2, 0] -= k  # finite transform of alpha_dot is s alpha~ - d_alpha
-    return G, H
+    return G, H, P
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -190,8 +198,8 @@ class Model:
         M, B, E = self._matrices(s, p)
         delays = [p["tau_de"]] + ([p["tau_alpha_w"]] if self.gust else [])
         B = B * np.exp(-np.outer(s, delays))[:, None, :]  # pure input delays
-        G, H = solve_short_period(s, M, B, E, self.U)
-        return ModelResponse(omega, G, H)
+        G, H, P = solve_short_period(s, M, B, E, self.U)
+        return ModelResponse(omega, G, H, P)
 
     def frequency_response(self, omega, values: Mapping[str, float] | None = None) -> np.ndarray:
         """G(j omega, theta), shape (3 outputs, n_in inputs, n omega) (Eq. 18).

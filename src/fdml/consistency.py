@@ -1,0 +1,123 @@
+"""Do repeated manoeuvres agree?  A consistency test of estimates and their bounds.
+
+Fits of repeated manoeuvres at one flight condition estimate the same
+parameters.  If the reported standard errors are honest, the spread of the
+estimates about their weighted mean is chi-square distributed with n - 1
+degrees of freedom per parameter.  A large chi-square says the bounds are too
+small (or the condition was not the same); the ratio sqrt(chi2/(n-1)) is the
+factor by which they would have to grow.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from .errors import FdmlError
+
+__all__ = ["ConsistencyResult", "consistency"]
+
+
+@dataclass(frozen=True)
+class ConsistencyResult:
+    """Per-parameter agreement of several fits.
+
+    Attributes
+    ----------
+    names : tuple of str
+    estimates, stderr : ndarray, shape (n_fits, n_params)
+    mean : ndarray
+        Inverse-variance weighted mean per parameter.
+    chi2 : ndarray
+        sum ((theta_r - mean) / sigma_r)^2 per parameter.
+    dof : int
+        n_fits - 1.
+    p_value : ndarray
+        Upper-tail chi-square probability per parameter.
+    scale : ndarray
+        sqrt(chi2 / dof): the factor the bounds would need to grow by.
+    joint_chi2, joint_p : float
+        Sum over parameters (treated as independent): an overall verdict.
+    labels : tuple of str
+        One label per fit (record names).
+    """
+
+    names: tuple
+    labels: tuple
+    estimates: np.ndarray
+    stderr: np.ndarray
+    mean: np.ndarray
+    chi2: np.ndarray
+    dof: int
+    p_value: np.ndarray
+    scale: np.ndarray
+    joint_chi2: float
+    joint_p: float
+
+    def agree(self, alpha: float = 0.05) -> bool:
+        """True if no parameter's test rejects at level ``alpha`` (Bonferroni over parameters)."""
+        return bool(np.all(self.p_value > alpha / len(self.names)))
+
+    def summary(self) -> str:
+        """A text table: estimates per fit, weighted mean, chi2, p, scale."""
+        head = f"{'parameter':12s}" + "".join(f"{lab[:16]:>24s}" for lab in self.labels)
+        head += f"{'mean':>12s}{'chi2':>9s}{'p':>9s}{'scale':>8s}"
+        lines = [f"consistency of {len(self.labels)} fits ({self.dof} degrees of freedom per parameter)", head]
+        for j, n in enumerate(self.names):
+            cells = "".join(f"{self.estimates[i, j]:>12.4g} +/- {self.stderr[i, j]:<7.2g}"
+                            for i in range(len(self.labels)))
+            lines.append(f"{n:12s}{cells}{self.mean[j]:>12.4g}{self.chi2[j]:>9.2f}"
+                         f"{self.p_value[j]:>9.3g}{self.scale[j]:>8.2f}")
+        verdict = "agree" if self.agree() else "DISAGREE"
+        lines.append(f"joint chi2 = {self.joint_chi2:.2f} on {self.dof * len(self.names)} dof, "
+                     f"p = {self.joint_p:.3g}: the fits {verdict} within their bounds")
+        return "\n".join(lines)
+
+
+def consistency(results: Sequence, names: Sequence[str] | None = None) -> ConsistencyResult:
+    """Test whether fits of repeated manoeuvres agree within their standard errors.
+
+    Parameters
+    ----------
+    results : sequence of FitResult
+        At least two fits of the same model.
+    names : sequence of str, optional
+        Parameters to test (default: the model parameters common to all fits,
+        without nuisance terms).
+
+    Returns
+    -------
+    ConsistencyResult
+    """
+    results = list(results)
+    if len(results) < 2:
+        raise FdmlError("a consistency test needs at least two fits")
+    if names is None:
+        common = [n for n in results[0].names if n in results[0].model.parameters
+                  and not n.startswith("bias_") and all(n in r.names for r in results)]
+        names = common
+    if not names:
+        raise FdmlError("the fits share no estimated parameter to compare")
+    for r in results:
+        missing = [n for n in names if n not in r.names]
+        if missing:
+            raise FdmlError(f"fit of {', '.join(r.records)} did not estimate {', '.join(missing)}")
+    est = np.array([[r.values[r.names.index(n)] for n in names] for r in results])
+    se = np.array([[r.stderr[r.names.index(n)] for n in names] for r in results])
+    if not np.all(np.isfinite(se)) or np.any(se <= 0):
+        raise FdmlError("a standard error is zero or infinite: the test needs finite bounds")
+    w = 1.0 / se**2
+    mean = np.sum(w * est, axis=0) / np.sum(w, axis=0)
+    chi2 = np.sum(((est - mean) / se) ** 2, axis=0)
+    dof = len(results) - 1
+    p = stats.chi2.sf(chi2, dof)
+    joint = float(np.sum(chi2))
+    labels = tuple(", ".join(r.records) for r in results)
+    return ConsistencyResult(
+        names=tuple(names), labels=labels, estimates=est, stderr=se, mean=mean, chi2=chi2, dof=dof,
+        p_value=p, scale=np.sqrt(chi2 / dof), joint_chi2=joint,
+        joint_p=float(stats.chi2.sf(joint, dof * len(names))),
+    )
