@@ -27,10 +27,12 @@ __all__ = ["Record", "read_csv", "add_noise", "SIGNALS", "REQUIRED_SIGNALS", "at
 
 #: Signals fdml knows, with their units.  The first five enter fits; the others
 #: (pitch attitude, airspeed, pitch acceleration, longitudinal specific force,
-#: altitude, dynamic pressure) serve data-compatibility checks and gust estimation.
+#: altitude, dynamic pressure, inertial vertical speed ``hdot`` positive up) serve
+#: data-compatibility checks and gust estimation.
 SIGNALS = {
     "de": "rad", "alpha": "rad", "q": "rad/s", "az": "g", "alpha_w": "rad",
     "theta": "rad", "V": "m/s", "qdot": "rad/s^2", "ax": "g", "h": "m", "qbar": "Pa",
+    "hdot": "m/s",
 }
 #: Signals every record must have.
 REQUIRED_SIGNALS = ("de", "alpha", "q", "az")

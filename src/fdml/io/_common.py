@@ -1,0 +1,99 @@
+"""Shared steps of the loaders: build a Record, window it, report trim, wrap errors."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import RecordError
+from ..record import Record
+
+#: Leading window over which ``meta["trim_values"]`` are averaged, s.  Half a
+#: second is many samples at any flight-test rate (5 at 10 Hz, 25 at 50 Hz) and
+#: short against the short-period time scale, so the mean is the trim state
+#: before the input starts on records that begin in trim.
+TRIM_WINDOW = 0.5
+
+_TRIM_MODES = (None, "none", "first", "mean")
+#: A window edge this many sample intervals beyond a sample still includes it.
+WINDOW_TOL = 0.01
+
+
+def check_path(path) -> Path:
+    """A readable file, or a RecordError that names it."""
+    p = Path(path)
+    if not p.exists():
+        raise RecordError(f"record file {p} does not exist")
+    if p.is_dir():
+        raise RecordError(f"record file {p} is a directory, not a file")
+    if p.stat().st_size == 0:
+        raise RecordError(f"record file {p} is empty")
+    return p
+
+
+def check_trim(trim) -> None:
+    if trim not in _TRIM_MODES:
+        raise RecordError(f"unknown trim mode {trim!r}; use None/'none' (keep trim), 'first' or 'mean'")
+
+
+def trim_values(t: np.ndarray, signals: dict, window: float = TRIM_WINDOW) -> dict:
+    """Mean of every signal over the leading ``window`` seconds (SI)."""
+    dt = (t[-1] - t[0]) / (t.size - 1)
+    k = min(t.size, int(round(window / dt)) + 1)
+    return {name: float(np.mean(v[:k])) for name, v in signals.items()}
+
+
+def finish(path: Path, t, signals: dict, meta: dict, *, name: str | None, t0, t1, trim,
+           trim_window: float = TRIM_WINDOW, check_units: bool = True) -> Record:
+    """Build the Record, cut the window, record trim values, optionally remove trim.
+
+    Flight-condition entries that depend on the window (``U``, mean ``rho``)
+    are computed by the caller from the windowed arrays through
+    ``meta["_per_sample"]``: a dict of SI arrays averaged here after windowing.
+    """
+    check_trim(trim)
+    per_sample = meta.pop("_per_sample", {})
+    where = str(path)
+    try:
+        rec = Record(t, signals, name=name or path.stem, meta=meta, check_units=check_units)
+    except RecordError as exc:
+        raise RecordError(f"{where}: {exc}") from None
+    keep = np.ones(rec.n, dtype=bool)
+    if t0 is not None or t1 is not None:
+        for label, v in (("t0", t0), ("t1", t1)):
+            if v is not None and not (isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(v)):
+                raise RecordError(f"{where}: window {label} must be a finite number of seconds, got {v!r}")
+        # Time stamps in files carry rounding (HFB-320: 30.00001 s for 30 s), so a
+        # window edge within WINDOW_TOL sample intervals of a sample includes it.
+        tol = WINDOW_TOL * rec.dt
+        a = rec.t[0] if t0 is None else float(t0)
+        b = rec.t[-1] if t1 is None else float(t1)
+        if not a < b:
+            raise RecordError(f"{where}: window start {a:g} s is not before its end {b:g} s")
+        if a < rec.t[0] - tol or b > rec.t[-1] + tol:
+            raise RecordError(f"{where}: window [{a:g}, {b:g}] s lies outside the record "
+                              f"[{rec.t[0]:g}, {rec.t[-1]:g}] s")
+        lo, hi = max(a - tol, rec.t[0]), min(b + tol, rec.t[-1])
+        keep = (rec.t >= lo) & (rec.t <= hi)
+        if int(keep.sum()) < 4:
+            raise RecordError(f"{where}: window [{a:g}, {b:g}] s holds only {int(keep.sum())} samples; "
+                              "at least 4 are needed")
+        rec = rec.window(rec.t[keep][0], rec.t[keep][-1])
+        rec = replace(rec, meta={**rec.meta, "window": [a, b]})
+    extra = {}
+    for key, arr in per_sample.items():
+        extra[key] = float(np.mean(np.asarray(arr, dtype=float)[keep]))
+    tv = trim_values(rec.t, rec.signals, trim_window)
+    meta2 = {**rec.meta, **extra, "trim_values": tv, "trim_values_window": trim_window}
+    rec = replace(rec, meta=meta2)
+    if trim not in (None, "none"):
+        rec = rec.remove_trim(trim, window=trim_window)
+    return rec
+
+
+def wrap_read_error(path: Path, what: str, exc: BaseException) -> RecordError:
+    msg = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return RecordError(f"{path}: cannot read it as {what} (corrupt or truncated file?): {msg}")

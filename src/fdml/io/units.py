@@ -1,0 +1,126 @@
+"""Units of recorded channels and their conversion to fdml's SI units.
+
+Every fdml signal has a physical quantity (angle, angular rate, ...) and one
+target unit, :data:`fdml.record.SIGNALS`: radians for angles, rad/s, rad/s^2,
+m/s, m, Pa, and standard gravity (g) for the specific forces ``az`` and
+``ax`` (THEORY.md Eq. 5).  :func:`to_si` multiplies a recorded channel by the
+exact factor of its unit (NIST SP 811 factors from :mod:`fdml.constants`) and
+refuses a unit that is unknown or belongs to another quantity, so a
+conversion can never be silently wrong.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from ..constants import DEG, FT, G0, KNOT, LBF, SLUG
+from ..errors import RecordError
+
+__all__ = ["QUANTITY", "UNITS", "normalise_unit", "unit_factor", "to_si", "units_text"]
+
+#: Physical quantity of each fdml signal (and of the time column ``t``).
+QUANTITY = {
+    "t": "time",
+    "de": "angle",
+    "alpha": "angle",
+    "alpha_w": "angle",
+    "theta": "angle",
+    "q": "angular rate",
+    "qdot": "angular acceleration",
+    "az": "specific force",
+    "ax": "specific force",
+    "V": "speed",
+    "hdot": "speed",
+    "h": "length",
+    "qbar": "pressure",
+}
+
+#: Known units per quantity: factor that turns a value in that unit into fdml's unit.
+#: Keys are the canonical spellings produced by :func:`normalise_unit`.
+UNITS = {
+    "time": {"s": 1.0, "ms": 1e-3, "min": 60.0},
+    "angle": {"rad": 1.0, "deg": DEG, "mrad": 1e-3},
+    "angular rate": {"rad/s": 1.0, "deg/s": DEG},
+    "angular acceleration": {"rad/s^2": 1.0, "deg/s^2": DEG},
+    # specific forces are kept in units of standard gravity
+    "specific force": {"g": 1.0, "m/s^2": 1.0 / G0, "ft/s^2": FT / G0},
+    "speed": {"m/s": 1.0, "ft/s": FT, "kt": KNOT, "km/h": 1.0 / 3.6, "ft/min": FT / 60.0},
+    "length": {"m": 1.0, "ft": FT, "km": 1000.0},
+    "pressure": {"pa": 1.0, "hpa": 100.0, "kpa": 1000.0, "mbar": 100.0, "lbf/ft^2": LBF / FT**2},
+    "density": {"kg/m^3": 1.0, "slug/ft^3": SLUG / FT**3},
+    "mass": {"kg": 1.0, "slug": SLUG, "lb": 0.45359237},
+    "inertia": {"kg m^2": 1.0, "slug ft^2": SLUG * FT**2},
+    "area": {"m^2": 1.0, "ft^2": FT**2},
+}
+
+_ALIASES = {
+    "sec": "s", "second": "s", "seconds": "s", "msec": "ms",
+    "degree": "deg", "degrees": "deg", "radian": "rad", "radians": "rad",
+    "deg/sec": "deg/s", "rad/sec": "rad/s", "dps": "deg/s", "rps": "rad/s",
+    "deg/s/s": "deg/s^2", "rad/s/s": "rad/s^2",
+    "gs": "g", "g0": "g", "gee": "g",
+    "m/s/s": "m/s^2", "ft/s/s": "ft/s^2", "mps2": "m/s^2", "fps2": "ft/s^2",
+    "mps": "m/s", "fps": "ft/s", "ft/sec": "ft/s", "kts": "kt", "knot": "kt", "knots": "kt", "kn": "kt",
+    "kmh": "km/h", "kph": "km/h", "fpm": "ft/min",
+    "feet": "ft", "foot": "ft", "meter": "m", "meters": "m", "metre": "m", "metres": "m",
+    "psf": "lbf/ft^2", "lb/ft^2": "lbf/ft^2", "n/m^2": "pa",
+    "slugs": "slug", "lbm": "lb",
+    "kgm^2": "kg m^2", "kg*m^2": "kg m^2", "slug-ft^2": "slug ft^2", "slugft^2": "slug ft^2",
+    "slug*ft^2": "slug ft^2",
+}
+
+
+def normalise_unit(unit: str) -> str:
+    """Canonical spelling of a unit string (``"deg/sec"`` -> ``"deg/s"``, ``"m/s2"`` -> ``"m/s^2"``)."""
+    if not isinstance(unit, str):
+        raise RecordError(f"a unit must be a string such as 'deg' or 'm/s^2', got {unit!r}")
+    u = unit.strip().lower().replace("**", "^").replace("²", "^2").replace("³", "^3")
+    u = re.sub(r"\s+", " ", u)
+    u = u.replace(" / ", "/").replace("/ ", "/").replace(" /", "/")
+    u = re.sub(r"\bsec\b", "s", u)
+    u = re.sub(r"(?<=[a-z])([23])$", r"^\1", u)  # m/s2 -> m/s^2, ft2 -> ft^2, slug/ft3 -> slug/ft^3
+    u = re.sub(r"(?<=[a-z])([23])(?=[/ ])", r"^\1", u)
+    return _ALIASES.get(u, u)
+
+
+def unit_factor(unit: str, quantity: str, *, what: str = "") -> float:
+    """Factor turning a value in ``unit`` into fdml's unit of ``quantity``.
+
+    Raises :class:`RecordError` naming ``what`` when the unit is unknown or
+    measures another quantity (e.g. ``deg`` for an acceleration).
+    """
+    u = normalise_unit(unit)
+    table = UNITS[quantity]
+    if u in table:
+        return float(table[u])
+    label = f"{what}: " if what else ""
+    for other, tab in UNITS.items():
+        if u in tab:
+            raise RecordError(
+                f"{label}unit {unit!r} measures {other}, but this channel is {_article(quantity)} {quantity} "
+                f"(units: {', '.join(_display(k) for k in table)})"
+            )
+    raise RecordError(f"{label}unknown unit {unit!r} for {_article(quantity)} {quantity}; "
+                      f"known: {', '.join(_display(k) for k in table)}")
+
+
+def to_si(values, unit: str, signal: str, *, what: str = "") -> np.ndarray:
+    """Convert a recorded channel of fdml signal ``signal`` from ``unit`` to fdml's unit."""
+    if signal not in QUANTITY:
+        raise RecordError(f"{what + ': ' if what else ''}unknown signal {signal!r}; known: {', '.join(QUANTITY)}")
+    return np.asarray(values, dtype=float) * unit_factor(unit, QUANTITY[signal], what=what or signal)
+
+
+def units_text() -> str:
+    """One line per quantity listing the accepted units (for help texts)."""
+    return "\n".join(f"{q}: {', '.join(_display(k) for k in tab)}" for q, tab in UNITS.items())
+
+
+def _display(u: str) -> str:
+    return {"pa": "Pa", "hpa": "hPa", "kpa": "kPa"}.get(u, u)
+
+
+def _article(word: str) -> str:
+    return "an" if word[0] in "aeiou" else "a"
