@@ -5,6 +5,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from fdml import fourier
 import pytest
 
 from fdml.errors import BandError, FdmlError, RecordError
@@ -375,3 +377,27 @@ def test_bad_options_and_shapes():
         fourier_adjoint(np.ones(4), 10, 0.1, PAPER[:5])
     with pytest.raises(RecordError, match="integer"):
         transform_weights(10.0, 0.1, PAPER[:5])
+
+
+@pytest.mark.parametrize("n", [16, 17, 376, 3001])
+@pytest.mark.parametrize("grid", ["even", "uneven"])
+def test_gram_matrices_match_explicit_weights(n, grid):
+    # closed-form Dirichlet sums plus end columns against W W^H built from transform_weights;
+    # both are sums of ~n terms of size dt^2: rounding ~ n eps relative
+    om = np.linspace(0.3, 9.0, 40) if grid == "even" else np.r_[np.linspace(0.3, 9.0, 30), -2.0, 0.0]
+    for ec in ("cubic", "trapezoid", "none"):
+        F = fourier.transform_weights(n, 0.02, om, end_correction=ec)
+        GH, GT = fourier.gram(n, 0.02, om, end_correction=ec)
+        for got, ref in ((GH, F @ F.conj().T), (GT, F @ F.T)):
+            assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()
+
+
+def test_leading_transform_matches_full_transform():
+    om = np.linspace(0.3, 9.0, 40)
+    for L in (1, 3, 25):
+        w = np.arange(1.0, L + 1)
+        x = np.zeros(500)
+        x[:L] = w
+        ref = fourier.finite_fourier_transform(x, 0.02, om)
+        got = fourier.leading_transform(w, 500, 0.02, om)
+        assert np.allclose(got, ref, rtol=1e-12, atol=1e-15)

@@ -189,7 +189,7 @@ class Problem:
         out = []
         for r, (d, resp) in enumerate(zip(self.data, responses)):
             bd, b, sb, ib = self._nuisance(theta, r)
-            y = np.einsum("mij,mj->mi", resp.G, d.u) + np.einsum("mij,mj->mi", resp.H, bd)
+            y = (resp.G @ d.u[:, :, None])[:, :, 0] + (resp.H @ bd[:, :, None])[:, :, 0]
             y = y + d.ones[:, None] * b[None, :]
             if self.state_biases:
                 y = y + (resp.P @ sb) * d.ones[:, None]  # constant forcing f: f~ = f ones(w)
@@ -208,13 +208,31 @@ class Problem:
         p = len(self.slots)
         A = np.zeros((self.N, self.n_out, p), complex)
         offs = np.cumsum([0] + [d.m for d in self.data])
-        responses = self._responses(self.model_values(theta))
-        if y0 is None:
-            y0 = self.predict(theta, responses)
-        y0s = np.concatenate([y[:, self.out_idx] for y in y0])
-        lo, hi = self.bounds()
-        for i in self.model_slots:
-            A[:, :, i] = self._fd_column(theta, i, y0s, lo[i], hi[i])
+        vals = self.model_values(theta)
+        if self.sensitivity == "analytic":
+            mnames = [self.slots[i].name for i in self.model_slots]
+            responses = []
+            for r, d in enumerate(self.data):
+                parts = ("G",) + (("H",) if self.boundary != "none" else ()) + (("P",) if self.state_biases else ())
+                resp, dG, dH, dP = self.model.sensitivity(d.omega, vals, mnames, parts)
+                responses.append(resp)
+                bd, _, sb, ib = self._nuisance(theta, r)
+                dy = (dG @ d.u[:, :, None])[..., 0]
+                if dH is not None:
+                    dy = dy + (dH @ bd[:, :, None])[..., 0]
+                if self.state_biases:
+                    dy = dy + (dP @ sb) * d.ones[None, :, None]
+                if self.input_bias:
+                    dy = dy + dG[:, :, :, 0] * (ib * d.ones)[None, :, None]
+                A[offs[r]: offs[r + 1], :, self.model_slots] = np.moveaxis(dy[:, :, self.out_idx], 0, -1)
+        else:
+            responses = self._responses(vals)
+            if y0 is None:
+                y0 = self.predict(theta, responses)
+            y0s = np.concatenate([y[:, self.out_idx] for y in y0])
+            lo, hi = self.bounds()
+            for i in self.model_slots:
+                A[:, :, i] = self._fd_column(theta, i, y0s, lo[i], hi[i])
         for i, s in enumerate(self.slots):
             if s.kind == "model":
                 continue
@@ -325,14 +343,15 @@ def _configure_model(model: Model, free, fix, bounds, biases: bool, out_idx) -> 
 
 def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary="estimated",
             biases="auto", state_biases=False, input_bias=False, free=None, fix=None, bounds=None,
-            sensitivity="fd", trim="first", trim_window=0.5, end_correction="cubic") -> Problem:
+            sensitivity="auto", trim="first", trim_window=0.5, end_correction="cubic") -> Problem:
     """Set up a fit without running it (see :func:`fit` for the arguments)."""
     if not isinstance(model, Model):
         raise ParameterError(f"model must be an fdml Model, got {type(model).__name__}")
     if boundary not in ("estimated", "measured", "none"):
         raise FdmlError(f"boundary must be 'estimated', 'measured' or 'none', got {boundary!r}")
-    if sensitivity not in ("fd", "central"):
-        raise FdmlError(f"sensitivity must be 'fd' (Eq. 26) or 'central', got {sensitivity!r}")
+    if sensitivity not in ("auto", "analytic", "fd", "central"):
+        raise FdmlError("sensitivity must be 'auto', 'analytic', 'fd' (Eq. 26) or 'central', "
+                        f"got {sensitivity!r}")
     if outputs is None:
         outputs = OUTPUTS
     if isinstance(outputs, str):
@@ -347,6 +366,11 @@ def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary
     elif biases not in (True, False):
         raise FdmlError(f"biases must be 'auto', True or False, got {biases!r}")
     model = _configure_model(model, free, fix, bounds, biases, out_idx)
+    if sensitivity == "auto":
+        # analytic where every free model parameter has a closed form, else Eq. 26
+        closed = getattr(model, "closed_form_parameters", frozenset())
+        free_model = [n for n in model.parameters.free_names if not n.startswith("bias_")]
+        sensitivity = "analytic" if all(n in closed for n in free_model) else "fd"
     prob = Problem(fdata, model, out_idx, boundary, sensitivity, bool(state_biases), bool(input_bias))
     p = len(prob.slots)
     if p == 0:
@@ -391,19 +415,27 @@ def _cov_R(V: np.ndarray) -> np.ndarray:
 
 
 def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool):
-    """Gradient and Gauss-Newton Hessian of ln det R(theta)."""
-    N = V.shape[0]
+    """Gradient and Gauss-Newton Hessian of ln det R(theta).
+
+    With residual rows v_n and A_n = dy_n/dtheta (so dv = -A dtheta):
+    g = -(2/N) Re sum A^H R^-1 v (the Eq. 23 right-hand side), H1 = (2/N) Re
+    sum A^H R^-1 A (Eq. 23's matrix), and, for the concentrated likelihood,
+    H = H1 - tr(R^-1 dR_k R^-1 dR_l) with dR_k = -(1/N) sum (a_k v^H + v a_k^H).
+    Written as a few matrix products over all frequencies and outputs at once.
+    """
+    N, no, p = A.shape
     W = np.linalg.inv(R)
-    # Cost weights v^* R^-1 v with R = E{v v^*}; for v rows: sum_jk conj(v_j) W_jk v_k.
-    WA = np.einsum("jk,nkp->njp", W, A)
-    H1 = (2.0 / N) * np.real(np.einsum("njp,njq->pq", A.conj(), WA))
-    g = -(2.0 / N) * np.real(np.einsum("njp,nj->p", WA.conj(), V))  # uses W Hermitian
+    WA = W @ A  # (N, no, p); cost weights v^* R^-1 v with R = E{v v^*}
+    A2 = A.reshape(N * no, p)
+    WA2 = WA.reshape(N * no, p)
+    H1 = (2.0 / N) * np.real(A2.conj().T @ WA2)
+    g = -(2.0 / N) * np.real(WA2.conj().T @ V.reshape(-1))  # uses W Hermitian
     if not full:
         return g, H1, H1
-    # dR_k = -(1/N) sum (a_k v^H + v a_k^H)
-    dR = -(np.einsum("njp,nk->pjk", A, V.conj()) + np.einsum("nj,nkp->pjk", V, A.conj())) / N
-    X = np.einsum("ij,pjk->pik", W, dR)
-    H2 = np.real(np.einsum("pij,qji->pq", X, X))
+    S = np.transpose(A, (2, 1, 0)) @ V.conj()  # sum_n a_nk v_n^H, shape (p, no, no)
+    dR = -(S + np.conj(np.transpose(S, (0, 2, 1)))) / N
+    X = W @ dR
+    H2 = np.real(X.reshape(p, no * no) @ np.transpose(X, (0, 2, 1)).reshape(p, no * no).T)
     Hc = H1 - H2
     return g, H1, 0.5 * (Hc + Hc.T)
 
@@ -467,7 +499,7 @@ def fit(
     stop: str = "converge",
     tol: float = 1e-3,
     max_iter: int = 200,
-    sensitivity: str = "fd",
+    sensitivity: str = "auto",
     cov_type: str = "white",
     trim: str = "first",
     trim_window: float = 0.5,
@@ -522,9 +554,15 @@ def fit(
     tol : float, optional
         Convergence: every parameter step below ``tol`` standard errors.
     max_iter : int, optional
-    sensitivity : {"fd", "central"}, optional
-        Eq. 26 forward differences with step reduction (default) or central
-        differences.
+    sensitivity : {"auto", "analytic", "fd", "central"}, optional
+        ``analytic``: derivatives of the model matrices propagated exactly
+        through the solve (closed forms for every model's theta; central
+        differences of the matrices for freed constants).  ``fd``: the paper's
+        Eq. 26 forward differences of the outputs with the step halved until
+        they settle.  ``central``: central differences of the outputs.
+        ``auto`` (default): ``analytic`` when every free model parameter has a
+        closed form, else ``fd``.  Both give the same estimates and bounds to
+        six significant figures or better.
     cov_type : {"white", "colored", "naive"}, optional
         ``white`` (default): covariance of the estimate for white measurement
         noise, carried exactly through the transform, the frequency grid and
@@ -566,6 +604,7 @@ def fit(
     J = _logdet(R)
     history = [math.exp(J)]
     converged, stopped = False, False
+    A_final = None
     message = "maximum number of iterations reached"
     it = 0
     warned: list[str] = []
@@ -575,18 +614,19 @@ def fit(
         at_lo = (theta <= lo) & (g > 0)
         at_hi = (theta >= hi) & (g < 0)
         active = ~(at_lo | at_hi)
-        msgs, _ = _identifiability(H1, names)
-        for m in msgs:
-            if m not in warned:
-                warnings.warn(m, IdentifiabilityWarning, stacklevel=2)
-                warned.append(m)
         # standard errors for the step test: naive CRB (N H1)^-1
-        with np.errstate(divide="ignore", invalid="ignore"):
-            sig = np.sqrt(np.abs(np.diag(np.linalg.pinv(prob.N * H1))))
+        sig = _naive_sigma(prob.N * H1)
         step_n = _solve(H if full else H1, g, active)
         if full and not np.all(np.isfinite(step_n)):
             step_n = _solve(H1, g, active)
         rel_step = np.max(np.abs(step_n) / np.where(sig > 0, sig, np.inf)) if step_n.size else 0.0
+        if stop == "converge" and rel_step < tol:
+            # theta is within tol standard errors of the optimum: stop without the step,
+            # so the sensitivities just computed serve the covariance too
+            converged = True
+            message = f"converged: every step below {tol:g} standard errors after {it - 1} steps"
+            A_final = A
+            break
         J_old = J
         # --- take a step -------------------------------------------------------------
         accepted = False
@@ -614,10 +654,6 @@ def fit(
                 message = f"paper's rule: relative change of det R below 0.01 after {it} iterations"
                 break
         else:
-            if rel_step < tol and abs(J - J_old) < 1e-9 * max(1.0, abs(J)):
-                converged = True
-                message = f"converged: every step below {tol:g} standard errors after {it} iterations"
-                break
             if not accepted:
                 converged = rel_step < 10 * tol
                 message = ("converged: no further decrease of det R" if converged else
@@ -626,7 +662,7 @@ def fit(
     if not converged and not stopped:
         warnings.warn(f"fit did not converge: {message}", ConvergenceWarning, stacklevel=2)
     return _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned,
-                   time.perf_counter() - t_start, stopped, method, stop)
+                   time.perf_counter() - t_start, stopped, method, stop, A_final)
 
 
 def _try(prob, theta, step, lo, hi, J):
@@ -713,7 +749,7 @@ def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray 
     estimated parameters absorb, N_real = 2 n_out x independent frequencies.
     """
     W = np.linalg.inv(R)
-    C = np.einsum("njp,jk->npk", A.conj(), W)  # A_i^H W, shape (N, p, n_out)
+    C = np.conj(np.transpose(A, (0, 2, 1))) @ W  # A_i^H W, shape (N, p, n_out)
     if shape is not None:
         C = C * shape[:, None, :]  # coloured noise: v_i = diag(rho_i) (F P e)_i
     gains = np.concatenate([d.noise_gain(include_trim=False) for d in prob.data])
@@ -729,10 +765,20 @@ def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray 
     for d in prob.data:
         Cr = C[off: off + d.m]
         off += d.m
+        if not (prob.boundary == "measured" and bchan):
+            # frequency-domain form, O(m^2): g = Re sum_i C_i v_i with E{v v^H} = Sigma (x) Psi,
+            # E{v v^T} = Sigma (x) Phi, Psi = (F P)(F P)^H, Phi = (F P)(F P)^T, so
+            # Cov g = 1/2 Re sum_ik [Psi_ik C_i Sigma C_k^H + Phi_ik C_i Sigma C_k^T]
+            Psi, Phi = d.noise_gram()
+            CS = np.transpose(Cr @ Sigma, (1, 0, 2)).reshape(p, -1)
+            Y = np.tensordot(Psi, Cr.conj(), axes=(1, 0))
+            Z = np.tensordot(Phi, Cr, axes=(1, 0))
+            cov += 0.5 * np.real(CS @ np.transpose(Y + Z, (1, 0, 2)).reshape(p, -1).T)
+            continue
         K = d.noise_adjoint(Cr.reshape(d.m, p * no)).reshape(d.n, p, no)
         if prob.boundary == "measured" and bchan:
             H = prob.model.evaluate(d.omega, vals).H[:, prob.out_idx, :]  # (m, n_out, 2)
-            CH = np.einsum("mpk,mkj->mpj", Cr, H)  # (m, p, 2)
+            CH = Cr @ H  # (m, p, 2)
             Q0 = -CH.sum(axis=0)
             QT = np.einsum("mpj,m->pj", CH, np.exp(-1j * d.omega * d.T))
             ell = d.trim_vector()
@@ -742,17 +788,31 @@ def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray 
                 if ell is not None:
                     K[:, :, col] -= np.outer(ell, Q0[:, j] + QT[:, j])
         K = np.real(K)
-        cov += np.einsum("npj,jk,nqk->pq", K, Sigma, K)
+        KS = np.transpose(K @ Sigma, (1, 0, 2)).reshape(p, -1)
+        cov += KS @ np.transpose(K, (1, 0, 2)).reshape(p, -1).T  # sum_n K_n Sigma K_n^T
     return cov
 
 
+def _naive_sigma(F: np.ndarray) -> np.ndarray:
+    """sqrt(diag(F^-1)) for an information matrix F (Cholesky; pseudo-inverse if singular)."""
+    try:
+        L = np.linalg.cholesky(F)
+        Li = np.linalg.solve(L, np.eye(F.shape[0]))
+        return np.sqrt(np.sum(Li**2, axis=0))
+    except np.linalg.LinAlgError:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.sqrt(np.abs(np.diag(np.linalg.pinv(F))))
+
+
 def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned, elapsed, stopped,
-            method, stop) -> FitResult:
+            method, stop, A=None) -> FitResult:
     names = prob.names
-    A = prob.sensitivities(theta)
+    if A is None:
+        A = prob.sensitivities(theta)
     N = prob.N
     W = np.linalg.inv(R)
-    M = np.real(np.einsum("njp,jk,nkq->pq", A.conj(), W, A))  # Re sum A^H R^-1 A
+    p_ = A.shape[2]
+    M = np.real(A.reshape(-1, p_).conj().T @ (W @ A).reshape(-1, p_))  # Re sum A^H R^-1 A
     msgs, dead = _identifiability(2 * M / N, names)
     for m in msgs:
         if m not in warned:

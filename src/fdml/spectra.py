@@ -144,20 +144,43 @@ class FrequencyData:
         only ``||F_i||^2`` is returned: the trim error is a constant offset, so
         a fit with output biases absorbs it completely.
         """
-        k = 16 if self.n >= 16 else self.n
-        w_small = fourier.transform_weights(k, self.dt, self.omega, end_correction=self.end_correction)
-        a2 = np.abs(w_small) ** 2
-        if self.n > k:
-            interior = a2[:, k // 2]
-            row = a2.sum(axis=1) + (self.n - k) * interior
+        if self.n >= 16 and self.end_correction in ("cubic", "trapezoid", "none"):
+            # interior weights dt W e^{-j theta n}; the first K samples carry dt (W e^{-j theta k} + a_k)
+            # and the last K the conjugate pattern, whose modulus is the same
+            theta, W, a, _ = fourier._setup(self.n, self.dt, self.omega, self.end_correction)
+            K = a.shape[1]
+            k = np.arange(K)
+            ends = np.abs(W[:, None] * np.exp(-1j * np.outer(theta, k)) + a) ** 2
+            row = self.dt**2 * (W**2 * (self.n - 2 * K) + 2 * ends.sum(axis=1))
         else:
-            row = a2.sum(axis=1)
+            row = np.sum(np.abs(fourier.transform_weights(self.n, self.dt, self.omega,
+                                                          end_correction=self.end_correction)) ** 2, axis=1)
         ell = self.trim_vector()
         if ell is None or not include_trim:
             return row
         Fl = fourier.finite_fourier_transform(ell, self.dt, self.omega, end_correction=self.end_correction)
         b = self.ones
         return row - 2.0 * np.real(np.conj(b) * Fl) + np.abs(b) ** 2 * float(ell @ ell)
+
+    def noise_gram(self) -> tuple[np.ndarray, np.ndarray]:
+        """(Psi, Phi) = ((F P)(F P)^H, (F P)(F P)^T), shape (m, m) each, in O(m^2) work.
+
+        With v = F P e for unit white noise e, ``E{v v^H} = Psi`` and
+        ``E{v v^T} = Phi``.  ``P = I - 1 l^T`` removes the trim, so
+        ``F P (F P)^H = F F^H - f b^H - b f^H + |l|^2 b b^H`` with ``b = F 1``
+        and ``f = F l`` (:func:`fdml.fourier.gram`, ``leading_transform``).
+        """
+        GH, GT = fourier.gram(self.n, self.dt, self.omega, end_correction=self.end_correction)
+        ell = self.trim_vector()
+        if ell is None:
+            return GH, GT
+        L = self.trim_samples
+        f = fourier.leading_transform(ell[:L], self.n, self.dt, self.omega, end_correction=self.end_correction)
+        b = self.ones
+        l2 = float(ell[:L] @ ell[:L])
+        Psi = GH - np.outer(f, b.conj()) - np.outer(b, f.conj()) + l2 * np.outer(b, b.conj())
+        Phi = GT - np.outer(f, b) - np.outer(b, f) + l2 * np.outer(b, b)
+        return Psi, Phi
 
     def noise_adjoint(self, y: np.ndarray) -> np.ndarray:
         """Apply ``(F P)^T`` to frequency-domain weights: ``sum_i (F P)_in y_i``.

@@ -61,6 +61,8 @@ class DerivativesModel(Model):
     """
 
     kind = "derivatives"
+    closed_form_parameters = Model.closed_form_parameters | {
+        "Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q", "Cm_de", "Cz_adot", "Cm_adot"}
     aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
     adot: bool = False
 
@@ -104,6 +106,42 @@ class DerivativesModel(Model):
             B[:, 1, 1] = km * (p["Cm_a"] + p["Cm_adot"] * cu * s)
         return M, B, E
 
+    def _matrix_derivatives(self, s, p, names):
+        """Closed forms: M = sE - A and B are linear in every derivative."""
+        ac = self.aircraft
+        kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
+        n, n_in = s.size, (2 if self.gust else 1)
+        # name -> (M entries (i, j, value), B entries (i, j, value), E entries (i, j, value))
+        table = {
+            "Cz_a": ([(0, 0, -kz)], [(0, 1, kz)], []),
+            "Cz_q": ([(0, 1, -kz * cu)], [], []),
+            "Cz_de": ([], [(0, 0, kz)], []),
+            "Cm_a": ([(1, 0, -km)], [(1, 1, km)], []),
+            "Cm_q": ([(1, 1, -km * cu)], [], []),
+            "Cm_de": ([], [(1, 0, km)], []),
+            "Cz_adot": ([(0, 0, -kz * cu * s)], [(0, 1, kz * cu * s)], [(0, 0, -kz * cu)]),
+            "Cm_adot": ([(1, 0, -km * cu * s)], [(1, 1, km * cu * s)], [(1, 0, -km * cu)]),
+        }
+        out = super()._matrix_derivatives(s, p, [nm for nm in names if nm not in table])
+        for nm in names:
+            if nm not in table:
+                continue
+            dM = np.zeros((n, 2, 2), complex)
+            dB = np.zeros((n, 2, n_in), complex)
+            ms, bs, es = table[nm]
+            for i, j, v in ms:
+                dM[:, i, j] = v
+            for i, j, v in bs:
+                if j < n_in:
+                    dB[:, i, j] = v
+            dE = None
+            if es:
+                dE = np.zeros((2, 2))
+                for i, j, v in es:
+                    dE[i, j] = v
+            out[nm] = (dM, dB, dE)
+        return out
+
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         """Dimensional equivalents Z_a, Z_q, Z_de, M_a, M_q, M_de."""
         return to_dimensional(self.values(values), self.aircraft)
@@ -125,6 +163,7 @@ class DimensionalModel(Model):
     """
 
     kind = "dimensional"
+    closed_form_parameters = Model.closed_form_parameters | {"Z_a", "Z_q", "Z_de", "M_a", "M_q", "M_de"}
     airspeed: float | None = None
     aircraft: Aircraft | None = None
 
@@ -160,6 +199,28 @@ class DimensionalModel(Model):
             B[:, 0, 1] = p["Z_a"]
             B[:, 1, 1] = p["M_a"]
         return M, B, np.eye(2)
+
+    def _matrix_derivatives(self, s, p, names):
+        """Closed forms: M = sI - A and B hold the derivatives themselves."""
+        n, n_in = s.size, (2 if self.gust else 1)
+        table = {"Z_a": ((0, 0), (0, 1)), "Z_q": ((0, 1), None), "Z_de": (None, (0, 0)),
+                 "M_a": ((1, 0), (1, 1)), "M_q": ((1, 1), None), "M_de": (None, (1, 0))}
+        out = super()._matrix_derivatives(s, p, [nm for nm in names if nm not in table])
+        for nm in names:
+            if nm not in table:
+                continue
+            dM = np.zeros((n, 2, 2), complex)
+            dB = np.zeros((n, 2, n_in), complex)
+            mi, bi = table[nm]
+            if mi is not None:
+                dM[:, mi[0], mi[1]] = -1.0
+            if nm in ("Z_a", "M_a"):
+                if self.gust:
+                    dB[:, bi[0], bi[1]] = 1.0  # the gust enters like alpha
+            elif bi is not None:
+                dB[:, bi[0], bi[1]] = 1.0
+            out[nm] = (dM, dB, None)
+        return out
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         """Non-dimensional derivatives when an aircraft is attached, else empty."""

@@ -55,6 +55,7 @@ def alternate_set(p: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
 @dataclass(frozen=True, kw_only=True)
 class _WKBase(Model):
     aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
+    closed_form_parameters = Model.closed_form_parameters | {"CLa_w", "CLa_t", "deps_da", "Cm_de", "Cz_de"}
 
     def __post_init__(self) -> None:
         if not isinstance(self.aircraft, Aircraft):
@@ -105,6 +106,49 @@ class _WKBase(Model):
             B[:, 0, 1] = -kz * (p["CLa_w"] * K_w + sr * CLt_g)
             B[:, 1, 1] = -km * (l * sr / ac.c_w) * CLt_g
         return M, B, np.eye(2)
+
+    def _matrices(self, s, p):
+        n_w, n_t, e, Kg = self._parts(s, p)
+        return self._force_moment(s, p, p["CLa_w"] * n_w, p["CLa_t"] * n_t, p["deps_da"] * e, Kg)
+
+    def _matrix_derivatives(self, s, p, names):
+        """Closed forms for theta (Eqs. 13-16 are linear in a_w, a_t, eps_ss, Cm_de, Cz_de
+        given the unit-slope transfer functions); central differences for the constants."""
+        theta = {"CLa_w", "CLa_t", "deps_da", "Cm_de", "Cz_de"}
+        out = super()._matrix_derivatives(s, p, [nm for nm in names if nm not in theta])
+        if not theta & set(names):
+            return out
+        ac = self.aircraft
+        kz, km, sr, l, U, c = ac.k_z, ac.k_m, ac.S_t / ac.S_w, p["l_t"], ac.U, ac.c_w
+        n_w, n_t, e, Kg = self._parts(s, p)
+        a_t, eps = p["CLa_t"], p["deps_da"]
+        n, n_in = s.size, (2 if self.gust else 1)
+        for nm in theta & set(names):
+            dM = np.zeros((n, 2, 2), complex)
+            dB = np.zeros((n, 2, n_in), complex)
+            if nm == "Cz_de":
+                dB[:, 0, 0] = kz
+            elif nm == "Cm_de":
+                dB[:, 1, 0] = km
+            else:
+                if nm == "CLa_w":
+                    dCLt = dCLtg = 0.0
+                    dM[:, 0, 0] = kz * n_w
+                elif nm == "CLa_t":
+                    dCLt = n_t * (1.0 - eps * e)  # d C_Lt / d a_t, C_Lt = a_t n_t (1 - eps e)
+                    dM[:, 0, 1] = kz * (l * sr / U) * n_t
+                    dM[:, 1, 1] = km * (l**2 * sr / (c * U)) * n_t
+                    dCLtg = (1.0 - n_t * eps) * Kg[1] if self.gust else 0.0
+                else:  # deps_da
+                    dCLt = -a_t * n_t * e
+                    dCLtg = -a_t * n_t * Kg[1] if self.gust else 0.0
+                dM[:, 0, 0] += kz * sr * dCLt
+                dM[:, 1, 0] = km * (l * sr / c) * dCLt
+                if self.gust:
+                    dB[:, 0, 1] = -kz * ((Kg[0] if nm == "CLa_w" else 0.0) + sr * dCLtg)
+                    dB[:, 1, 1] = -km * (l * sr / c) * dCLtg
+            out[nm] = (dM, dB, None)
+        return out
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         """The alternate set (THEORY.md section 6) at ``values``."""
@@ -172,18 +216,19 @@ class UnsteadyModel(_WKBase):
         fn: IndicialFunction = get_indicial(self.gust_lag)
         return fn.transfer(s, ac.U, ac.c_w)
 
-    def _matrices(self, s, p):
+    def _parts(self, s, p):
+        """Unit-slope transfer functions (n_w, n_t, e, Kg): N = a n, E = eps_ss e."""
         ac = self.aircraft
         c_tail = ac.c_w if self.tail_lag_chord == "c_w" else ac.c_t
-        N_w = lift_lag(s, p["CLa_w"], p["y_w"], p["z_w"], ac.U, ac.c_w)  # Eq. 17, wing
-        N_t = lift_lag(s, p["CLa_t"], p["y_t"], p["z_t"], ac.U, c_tail)  # Eq. 17, tail
-        E = downwash(s, p["deps_da"], p["F"], p["G"], p["H"], p["l_t"], ac.U, ac.c_w)  # Eq. 16
+        n_w = lift_lag(s, 1.0, p["y_w"], p["z_w"], ac.U, ac.c_w)  # Eq. 17, wing
+        n_t = lift_lag(s, 1.0, p["y_t"], p["z_t"], ac.U, c_tail)  # Eq. 17, tail
+        e = downwash(s, 1.0, p["F"], p["G"], p["H"], p["l_t"], ac.U, ac.c_w)  # Eq. 16
         Kg = None
         if self.gust:
             K = self._gust_lag(s, p)
             D = np.exp(-s * p["l_t"] / ac.U) if self.tail_gust_delay else 1.0  # BS-8
             Kg = (K, K * D)
-        return self._force_moment(s, p, N_w, N_t, E, Kg)
+        return n_w, n_t, e, Kg
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         """Alternate set plus the G-part alpha-dot derivatives (THEORY.md section 6).
@@ -221,10 +266,7 @@ class SteadyModel(_WKBase):
     def _default_parameters(self) -> Parameters:
         return Parameters(tuple(self._theta_parameters() + [self._tail_length_parameter()]))
 
-    def _matrices(self, s, p):
+    def _parts(self, s, p):
+        """Quasi-steady limit: n_w = n_t = e = 1, K = 1, no tail delay."""
         one = np.ones_like(s)
-        N_w = p["CLa_w"] * one
-        N_t = p["CLa_t"] * one
-        E = p["deps_da"] * one
-        Kg = (one, one) if self.gust else None
-        return self._force_moment(s, p, N_w, N_t, E, Kg)
+        return one, one, one, ((one, one) if self.gust else None)
