@@ -9,7 +9,6 @@ uses the quasi-steady Wells-Keskar parameterisation instead.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from .aircraft import Aircraft, load_aircraft
@@ -54,25 +53,19 @@ class Comparison:
         """Steady minus unsteady value of a derivative."""
         return self.steady_set[name][0] - self.unsteady_set[name][0]
 
-    def table(self, reference: dict | None = None) -> str:
-        """Side-by-side text table; ``reference`` adds columns ``{name: (unsteady, steady)}``."""
-        head = f"{'':8s}{'unsteady':>22s}{'steady':>22s}{'shift/sigma':>13s}"
-        if reference:
-            head += f"{'paper unst.':>13s}{'paper steady':>14s}"
-        lines = [head]
-        for n in ALTERNATE_NAMES:
-            u, su = self.unsteady_set.get(n, (math.nan, math.nan))
-            s, ss = self.steady_set.get(n, (math.nan, math.nan))
-            sig = math.hypot(su, ss)
-            z = (s - u) / sig if sig > 0 and math.isfinite(sig) else math.nan
-            line = f"{n:8s}{u:>12.4g} +/- {su:<6.2g}{s:>12.4g} +/- {ss:<6.2g}{z:>13.2f}"
-            if reference and n in reference:
-                ru, rs = reference[n]
-                line += f"{ru:>13.4g}{rs:>14.4g}"
-            lines.append(line)
-        lines.append("")
-        lines.append(f"cost det R: unsteady {self.unsteady.cost:.4g}, steady {self.steady.cost:.4g}")
-        return "\n".join(lines)
+    def table(self, reference: dict | None = None, digits: int = 4):
+        """Side-by-side table; ``reference`` adds columns ``{name: (unsteady, steady)}``.
+
+        Returns a :class:`fdml.summary.Summary`: a ``str`` holding the text
+        table, which also renders as Markdown, HTML, LaTeX and a pandas
+        DataFrame (``as_markdown()``, ``as_html()``, ``as_latex()``, ``to_frame()``).
+        """
+        from .summary import comparison_summary
+
+        return comparison_summary(self, reference, digits=digits)
+
+    def _repr_html_(self) -> str:
+        return self.table().as_html()
 
     def to_dict(self) -> dict:
         """JSON-ready dict of the two derivative sets and both fits."""

@@ -1,18 +1,43 @@
 """Figures of fits, with matplotlib (imported only when a plot is made).
 
-Every function takes ``axes=`` (or makes its own figure), returns
-``(figure, axes)`` and never calls ``show()``.
+=========================  =====================================================
+:func:`plot_spectra`       measured against model output spectra, magnitude and
+                           phase per output (WK Figs. 3-5), with the Cramer-Rao
+                           band of the fitted spectrum
+:func:`plot_time_histories` measured time histories against the model simulated
+                           in the time domain from the estimate
+:func:`plot_residual_spectra` |residual| per output against frequency, with the
+                           noise floor implied by R
+:func:`plot_correlation`   the parameter correlation matrix as a heat map
+=========================  =====================================================
+
+Every function takes ``ax=`` / ``axes=`` (or makes its own figure), returns
+``(figure, axes)`` and never calls ``show()``.  Frequency axes are in rad/s
+or, with ``freq_unit="Hz"``, in Hz.  Two computations behind the figures are
+public: :func:`spectra_uncertainty` (the band) and :func:`simulate_fit` (the
+time-domain model response of a fit).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from collections.abc import Sequence
 
 import numpy as np
 
-__all__ = ["plot_spectra"]
+__all__ = [
+    "plot_spectra",
+    "plot_time_histories",
+    "plot_residual_spectra",
+    "plot_correlation",
+    "spectra_uncertainty",
+    "simulate_fit",
+]
 
+_OUTPUTS = ("alpha", "q", "az")
 _LABELS = {"alpha": r"$\tilde\alpha$ (rad s)", "q": r"$\tilde q$ (rad)", "az": r"$\tilde a_z$ (g s)"}
+_DEG = 180.0 / math.pi
 
 
 def _freq(omega: np.ndarray, unit: str):
@@ -23,13 +48,133 @@ def _freq(omega: np.ndarray, unit: str):
     raise ValueError(f"freq_unit must be 'rad/s' or 'Hz', got {unit!r}")
 
 
+def _axes_grid(axes, ax, shape: tuple[int, int], figsize, sharex=True):
+    """(figure, axes array of ``shape``, created) from user axes or a new figure."""
+    if axes is not None and ax is not None:
+        raise ValueError("give axes= or ax=, not both")
+    given = axes if axes is not None else ax
+    if given is None:
+        import matplotlib.pyplot as plt
+
+        fig, arr = plt.subplots(*shape, figsize=figsize, sharex=sharex, squeeze=False)
+        return fig, arr, True
+    arr = np.asarray(given, dtype=object)
+    n = shape[0] * shape[1]
+    if arr.size != n:
+        raise ValueError(f"this figure needs {n} axes {shape}, got {arr.size}")
+    arr = arr.reshape(shape)
+    return arr.flat[0].figure, arr, False
+
+
+def _plain_log_ticks(axis) -> None:
+    """Label a log axis with plain numbers (0.02, 0.1) instead of mathtext (2 x 10^-2).
+
+    Mathtext tick labels cost most of the drawing time of a spectra figure.
+    """
+    from matplotlib import ticker
+
+    class _Plain(ticker.LogFormatter):
+        def _num_to_string(self, x, vmin, vmax):
+            return f"{x:.3g}"
+
+    axis.set_major_formatter(_Plain())
+    axis.set_minor_formatter(_Plain(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
+
+
+def _check_outputs(outputs) -> list[str]:
+    outputs = list(outputs)
+    bad = [o for o in outputs if o not in _OUTPUTS]
+    if bad or not outputs:
+        raise ValueError(f"unknown output(s) {bad or outputs}; choose from {', '.join(_OUTPUTS)}")
+    return outputs
+
+
+def _record_suffix(result, record: int) -> str:
+    return f"[{result.spectra[record]['name']}]" if len(result.spectra) > 1 else ""
+
+
+# --- the Cramer-Rao band of the fitted spectra ---------------------------------------------------
+
+def _perturbed(result, i: int, value: float):
+    vals = np.array(result.values, float)
+    vals[i] = value
+    name = result.names[i]
+    model = result.model
+    if name in model.parameters:
+        model = model.with_values({name: value})
+    return dataclasses.replace(result, values=vals, model=model)
+
+
+def spectra_uncertainty(result, record: int = 0, *, rel_step: float = 1e-6):
+    """Fitted output spectra and their standard deviation from the parameter covariance.
+
+    ``Var y_k(w) = a_k(w) Cov a_k(w)^H`` with ``a_k(w) = d y_k(w) / d theta``
+    the sensitivities of the prediction to every estimated quantity (model
+    parameters and nuisance terms: boundary values, biases) at the estimate,
+    by central differences of :meth:`FitResult.fitted_spectra` (exact for the
+    nuisance terms, which enter linearly).  This is the variance of the
+    complex prediction, ``E|y - E y|^2``: the radius of its uncertainty disc,
+    which bounds the spread of both the magnitude and (divided by |y|) the
+    phase.
+
+    Parameters
+    ----------
+    result : FitResult
+    record : int, optional
+        Record of a multi-record fit.
+    rel_step : float, optional
+        Difference step relative to ``max(|theta_i|, 1e-3)``.
+
+    Returns
+    -------
+    y : ndarray, complex, shape (m, 3)
+        Fitted spectra of alpha, q, a_z (as :meth:`FitResult.fitted_spectra`).
+    sigma : ndarray, shape (m, 3)
+        ``sqrt(Var y)``.  Parameters without a finite standard error (not
+        identifiable) are left out of the sum.
+    """
+    y0 = result.fitted_spectra(record)
+    cov = np.array(result.cov, float)
+    p = len(result.names)
+    ok = np.isfinite(np.diag(cov)) if p else np.zeros(0, bool)
+    cov = np.where(np.isfinite(cov), cov, 0.0)
+    cov[~ok, :] = 0.0
+    cov[:, ~ok] = 0.0
+    suffix = _record_suffix(result, record)
+    params = result.model.parameters
+    A = np.zeros(y0.shape + (p,), complex)
+    for i, name in enumerate(result.names):
+        if not ok[i] or ("[" in name and not name.endswith(suffix or "\0")):
+            continue  # unidentified, or a nuisance term of another record
+        v = float(result.values[i])
+        h = rel_step * max(abs(v), 1e-3)
+        lo, hi = -math.inf, math.inf
+        if name in params:
+            lo, hi = params[name].lower, params[name].upper
+        up, dn = min(v + h, hi), max(v - h, lo)
+        if up == dn:
+            continue
+        A[:, :, i] = (_perturbed(result, i, up).fitted_spectra(record)
+                      - _perturbed(result, i, dn).fitted_spectra(record)) / (up - dn)
+    var = np.einsum("mkp,pq,mkq->mk", A, cov, A.conj()).real
+    return y0, np.sqrt(np.maximum(var, 0.0))
+
+
+# --- spectra -------------------------------------------------------------------------------------
+
 def plot_spectra(results, labels: Sequence[str] | None = None, *, record: int = 0,
-                 outputs: Sequence[str] | None = None, freq_unit: str = "rad/s", axes=None,
-                 title: str | None = None):
+                 outputs: Sequence[str] | None = None, freq_unit: str = "rad/s", mag_unit: str = "abs",
+                 crb: bool = True, sigma: float = 2.0, axes=None, ax=None, title: str | None = None):
     """Measured against fitted output spectra, magnitude and phase (the layout of WK Figs. 3-5).
 
-    Magnitudes are those of the output spectra; phases are taken relative to
-    the elevator spectrum, i.e. the phase of the transfer function.
+    Magnitudes are those of the output spectra (finite Fourier transforms of
+    the trimmed records); phases are taken relative to the elevator
+    spectrum, i.e. the phase of the transfer function, so the manoeuvre's
+    timing drops out.  The shaded band is ``+-sigma`` standard deviations of
+    the fitted spectrum from the parameter covariance (the Cramer-Rao bound
+    for ``cov_type="white"``; see :func:`spectra_uncertainty`): on the
+    magnitude ``|y| +- sigma sd(y)`` (clipped at 1e-3 |y| on a log axis), on
+    the phase ``+- sigma sd(y)/|y|`` rad.
 
     Parameters
     ----------
@@ -42,8 +187,14 @@ def plot_spectra(results, labels: Sequence[str] | None = None, *, record: int = 
     outputs : sequence of str, optional
         Outputs to show (default: those of the first fit).
     freq_unit : {"rad/s", "Hz"}, optional
-    axes : array of Axes, shape (2, n_outputs), optional
-        Magnitude row and phase row; made if not given.
+    mag_unit : {"abs", "dB"}, optional
+        Magnitude on a log axis, or in dB (20 log10).
+    crb : bool, optional
+        Shade the uncertainty band of each fit (default True).
+    sigma : float, optional
+        Band half-width in standard deviations (default 2).
+    axes, ax : array of Axes, shape (2, n_outputs), optional
+        Magnitude row and phase row; made if not given (either name).
     title : str, optional
 
     Returns
@@ -51,35 +202,46 @@ def plot_spectra(results, labels: Sequence[str] | None = None, *, record: int = 
     fig : matplotlib.figure.Figure
     axes : ndarray of Axes, shape (2, n_outputs)
     """
-    import matplotlib.pyplot as plt
-
+    if mag_unit not in ("abs", "dB"):
+        raise ValueError(f"mag_unit must be 'abs' or 'dB', got {mag_unit!r}")
     if not isinstance(results, (list, tuple)):
         results = [results]
     labels = list(labels) if labels is not None else [r.kind for r in results]
-    outputs = list(outputs or results[0].outputs)
+    outputs = _check_outputs(outputs or results[0].outputs)
     spec = results[0].spectra[record]
-    f, flabel = _freq(spec["omega"], freq_unit)
-    if axes is None:
-        fig, axes = plt.subplots(2, len(outputs), figsize=(4.2 * len(outputs), 6), sharex=True, squeeze=False)
-    else:
-        axes = np.asarray(axes).reshape(2, len(outputs))
-        fig = axes[0, 0].figure
-    names = ("alpha", "q", "az")
+    f, flabel = _freq(np.asarray(spec["omega"], float), freq_unit)
+    fig, axes, created = _axes_grid(axes, ax, (2, len(outputs)), (4.2 * len(outputs), 6))
     # phase relative to the elevator spectrum: removes the manoeuvre's timing
     # (exp(-j w t_0)) without dividing magnitudes by the input's spectral zeros
     ref = np.exp(-1j * np.angle(spec["u"][:, 0]))
+    bands = [spectra_uncertainty(r, record) if crb else (r.fitted_spectra(record), None) for r in results]
+
+    def mag(x):
+        return 20 * np.log10(np.maximum(x, 1e-300)) if mag_unit == "dB" else x
+
     for j, out in enumerate(outputs):
-        k = names.index(out)
+        k = _OUTPUTS.index(out)
         z = spec["z"][:, k]
         ax_m, ax_p = axes[0, j], axes[1, j]
-        ax_m.semilogy(f, np.abs(z), "k.", ms=4, label="measured")
+        if mag_unit == "abs":
+            ax_m.set_yscale("log")
+            _plain_log_ticks(ax_m.yaxis)
+        ax_m.plot(f, mag(np.abs(z)), "k.", ms=4, label="measured")
         ax_p.plot(f, np.degrees(np.unwrap(np.angle(z * ref))), "k.", ms=4)
-        for res, lab in zip(results, labels):
-            y = res.fitted_spectra(record)[:, k]
-            ax_m.semilogy(f, np.abs(y), "-", lw=1.5, label=lab)
-            ax_p.plot(f, np.degrees(np.unwrap(np.angle(y * ref))), "-", lw=1.5)
+        for (y_all, sd_all), lab in zip(bands, labels):
+            y = y_all[:, k]
+            (line,) = ax_m.plot(f, mag(np.abs(y)), "-", lw=1.5, label=lab)
+            ph = np.degrees(np.unwrap(np.angle(y * ref)))
+            ax_p.plot(f, ph, "-", lw=1.5, color=line.get_color())
+            if sd_all is not None:
+                a, sd = np.abs(y), sigma * sd_all[:, k]
+                lo = np.maximum(a - sd, 1e-3 * a)
+                ax_m.fill_between(f, mag(lo), mag(a + sd), color=line.get_color(), alpha=0.25, lw=0,
+                                  label=f"{lab} {sigma:g}-sigma band")
+                dph = np.degrees(np.minimum(sd / np.maximum(a, 1e-300), np.pi))
+                ax_p.fill_between(f, ph - dph, ph + dph, color=line.get_color(), alpha=0.25, lw=0)
         ax_m.set_title(out)
-        ax_m.set_ylabel("|" + _LABELS[out] + "|")
+        ax_m.set_ylabel("|" + _LABELS[out] + "|" + (" (dB)" if mag_unit == "dB" else ""))
         ax_p.set_ylabel("phase re elevator (deg)")
         ax_p.set_xlabel(flabel)
         ax_m.grid(True, which="both", alpha=0.3)
@@ -87,5 +249,323 @@ def plot_spectra(results, labels: Sequence[str] | None = None, *, record: int = 
     axes[0, 0].legend(loc="best", fontsize="small")
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
+    if created:
+        fig.tight_layout()
     return fig, axes
+
+
+# --- time histories ------------------------------------------------------------------------------
+
+def simulate_fit(result, record: int = 0, *, trim_window: float = 0.5):
+    """The model's time histories at the estimate for one record of a fit.
+
+    What the frequency-domain model of the record (``z = G u + H d + b 1``,
+    plus the optional state-equation and elevator biases) says in the time
+    domain:
+
+    * the forced response to the record's own trimmed inputs (elevator, and
+      the gust angle for a gust model), simulated from rest with
+      :func:`fdml.simulate.simulate` at the estimated parameters (input
+      delays and, for the unsteady model, the downwash memory term included),
+      with the estimated elevator bias added to the elevator;
+    * the free response from the initial state ``x(0)`` (estimated boundary
+      values ``x0_alpha, x0_q``, or the measured ones for
+      ``boundary="measured"``; none for ``"none"``), with every lag state of
+      the unsteady model starting at zero as in the frequency-domain model,
+      and the response to the estimated state-equation biases (constant
+      forcing from t = 0);
+    * the estimated output biases and the trim removed before the transform
+      (first sample, or the mean of the first ``trim_window`` seconds; the
+      result does not store the window, so give the one used in the fit).
+
+    Not reproduced: the end values ``xT`` (a property of the finite
+    transform, not of the motion; compare them with the simulated end
+    state), measurement noise, and anything outside the fitted band that the
+    frequency-domain fit never saw (slow drift, the phugoid, structural
+    modes): the time-domain residual shows them.  For the unsteady model with
+    F != 0 the small free response from ``x(0)`` leaves out the F term (it
+    has no finite-state form); ``meta["initial_state"]`` says so.
+
+    Parameters
+    ----------
+    result : FitResult
+        A fit made from time-domain records (it keeps them).
+    record : int, optional
+    trim_window : float, optional
+        Leading window of ``trim="mean"``, s.
+
+    Returns
+    -------
+    Record
+        Signals ``alpha`` (rad), ``q`` (rad/s), ``az`` (g) of the model, with
+        the measured inputs; ``meta`` holds ``trim`` (values added back),
+        ``biases``, ``x0`` and ``initial_state`` ("exact", "none" or
+        "approximate: ...").
+    """
+    from .constants import G0
+    from .errors import ParameterError
+    from .record import Record
+    from .simulate import realize, simulate
+
+    raw = result.record(record)
+    tr = result.time_records[record]
+    s = result.spectra[record]
+    mode = tr["trim_mode"]
+    trimmed = raw.remove_trim(mode, window=trim_window) if mode != "none" else raw
+    trim = {k: float(raw[k][0] - trimmed[k][0]) for k in raw.signals}
+    model = result.model
+    suffix = _record_suffix(result, record)
+    p = result.params
+    mvals = model.parameters.values
+    b = np.array([p.get(f"bias_{o}{suffix}", mvals[f"bias_{o}"]) for o in _OUTPUTS])
+    ib = p.get(f"bias_de{suffix}", 0.0)
+    sb = np.array([p.get(f"bias_alpha_dot{suffix}", 0.0), p.get(f"bias_q_dot{suffix}", 0.0)])
+    if result.boundary == "none":
+        x0 = np.zeros(2)
+    else:
+        x0 = np.array([p.get(f"x0_alpha{suffix}", s["x0"][0]), p.get(f"x0_q{suffix}", s["x0"][1])])
+    inputs = {"de": trimmed["de"] + ib}
+    if model.gust:
+        inputs["alpha_w"] = trimmed["alpha_w"]
+    zero_bias = {f"bias_{o}": 0.0 for o in _OUTPUTS}
+    forced = simulate(model, raw.t, inputs, zero_bias)
+    y = np.column_stack([forced[o] for o in _OUTPUTS])
+    state = "none"
+    if np.any(x0 != 0) or np.any(sb != 0):
+        try:
+            real = realize(model, zero_bias)
+            state = "exact"
+        except ParameterError:
+            real = realize(model, {**zero_bias, "F": 0.0})
+            state = "approximate: the F term is left out of the free response"
+        y = y + _free_response(real, raw.t - raw.t[0], x0, sb, model.U / G0)
+    y = y + b[None, :] + np.array([trim.get(o, 0.0) for o in _OUTPUTS])[None, :]
+    signals = {"de": raw["de"], "alpha": y[:, 0], "q": y[:, 1], "az": y[:, 2]}
+    if raw.has("alpha_w"):
+        signals["alpha_w"] = raw["alpha_w"]
+    meta = {"trim": trim, "biases": dict(zip(_OUTPUTS, b.tolist())), "x0": x0.tolist(),
+            "state_biases": sb.tolist(), "elevator_bias": ib, "initial_state": state,
+            "model": model.kind, "source": raw.name}
+    return Record(raw.t, signals, name=f"{raw.name} (model)", meta=meta, check_units=False)
+
+
+def _free_response(real, tau: np.ndarray, x0: np.ndarray, sb: np.ndarray, k: float) -> np.ndarray:
+    """Outputs from x(0) = x0 (lags at zero) under constant state-equation forcing sb, exact on ``tau``.
+
+    The forcing enters the first two states of every fdml realisation (the
+    alpha and q equations); a_z = (U/g)(alpha_dot - q) feels it directly.
+    """
+    from scipy import linalg
+
+    ns = real.A.shape[0]
+    xi0 = np.linalg.lstsq(real.C[:2], x0, rcond=None)[0]  # alpha, q = x0; every other state zero
+    bf = np.zeros(ns)
+    bf[:2] = sb
+    M = np.zeros((ns + 1, ns + 1))
+    M[:ns, :ns] = real.A
+    M[:ns, ns] = bf
+    dt = tau[1] - tau[0]
+    Phi = linalg.expm(M * dt)
+    z = np.empty((tau.size, ns + 1))
+    z[0] = np.append(xi0, 1.0)
+    for i in range(1, tau.size):
+        z[i] = Phi @ z[i - 1]
+    y = z[:, :ns] @ real.C.T
+    y[:, 2] += k * float(real.C[0] @ bf)
+    return y
+
+
+def plot_time_histories(result, record: int = 0, *, outputs: Sequence[str] | None = None,
+                        inputs: bool = True, angle_unit: str = "deg", trim_window: float = 0.5,
+                        axes=None, ax=None, title: str | None = None):
+    """Measured time histories against the model simulated in the time domain from the estimate.
+
+    The cross-check of a frequency-domain fit: the model response comes from
+    :func:`simulate_fit` (forced response to the measured inputs, free
+    response from the estimated initial state, output biases and trim added
+    back; see there for what is and is not reproduced).  Each output's
+    legend gives the RMS of measured minus model.
+
+    Parameters
+    ----------
+    result : FitResult
+        A fit made from time-domain records.
+    record : int, optional
+    outputs : sequence of str, optional
+        Outputs to show (default alpha, q, az).
+    inputs : bool, optional
+        Add a top panel with the elevator (and gust angle) (default True).
+    angle_unit : {"deg", "rad"}, optional
+        Units of alpha, q, the elevator and the gust angle (a_z is in g).
+    trim_window : float, optional
+        Leading window of ``trim="mean"``, s.
+    axes, ax : array of Axes, optional
+        One per panel (inputs first), in a column; made if not given.
+    title : str, optional
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+    axes : ndarray of Axes, shape (n_panels,)
+    """
+    if angle_unit not in ("deg", "rad"):
+        raise ValueError(f"angle_unit must be 'deg' or 'rad', got {angle_unit!r}")
+    outputs = _check_outputs(outputs or _OUTPUTS)
+    meas = result.record(record)
+    model = simulate_fit(result, record, trim_window=trim_window)
+    n = len(outputs) + (1 if inputs else 0)
+    fig, arr, created = _axes_grid(axes, ax, (n, 1), (8, 2.0 * n + 0.6))
+    arr = arr[:, 0]
+    scale = _DEG if angle_unit == "deg" else 1.0
+    unit = {"alpha": angle_unit, "q": f"{angle_unit}/s", "az": "g", "de": angle_unit, "alpha_w": angle_unit}
+    sc = {"alpha": scale, "q": scale, "az": 1.0, "de": scale, "alpha_w": scale}
+    t = meas.t
+    i0 = 0
+    if inputs:
+        a = arr[0]
+        a.plot(t, sc["de"] * meas["de"], "k-", lw=1.0, label=r"$\delta_e$")
+        if meas.has("alpha_w") and result.model.gust:
+            a.plot(t, sc["alpha_w"] * meas["alpha_w"], "-", color="0.5", lw=1.0, label=r"$\alpha_w$")
+        a.set_ylabel(f"input ({unit['de']})")
+        a.legend(loc="best", fontsize="small")
+        a.grid(True, alpha=0.3)
+        i0 = 1
+    names = {"alpha": r"$\alpha$", "q": r"$q$", "az": r"$a_z$"}
+    for j, out in enumerate(outputs):
+        a = arr[i0 + j]
+        ym, yf = sc[out] * meas[out], sc[out] * model[out]
+        rms = float(np.sqrt(np.mean((ym - yf) ** 2)))
+        a.plot(t, yf, "-", lw=2.2, color="C1", alpha=0.85, label=f"model (rms error {rms:.3g} {unit[out]})")
+        a.plot(t, ym, "k-", lw=0.7, label="measured", zorder=3)
+        a.set_ylabel(f"{names[out]} ({unit[out]})")
+        a.legend(loc="best", fontsize="small")
+        a.grid(True, alpha=0.3)
+    arr[-1].set_xlabel("time (s)")
+    if title:
+        fig.suptitle(title)
+    if created:
+        fig.tight_layout()
+    return fig, arr
+
+
+# --- residual spectra ----------------------------------------------------------------------------
+
+def plot_residual_spectra(result, record: int = 0, *, outputs: Sequence[str] | None = None,
+                          freq_unit: str = "rad/s", axes=None, ax=None, title: str | None = None):
+    """|measured - fitted| spectra per output, with the noise floor implied by R.
+
+    For complex Gaussian residuals with covariance R (Eq. 24), ``E|v_k|^2 =
+    R_kk``: the solid line is that RMS level ``sqrt(R_kk)``, the dashed line
+    the level exceeded with probability 5 % (``sqrt(-ln 0.05 R_kk)``, the
+    Rayleigh quantile).  Residuals that cluster above it over a range of
+    frequencies point at model error there, not noise.  Outputs that were not
+    fitted have no R entry and are drawn without a floor.
+
+    Parameters
+    ----------
+    result : FitResult
+    record : int, optional
+    outputs : sequence of str, optional
+        Default: the fitted outputs.
+    freq_unit : {"rad/s", "Hz"}, optional
+    axes, ax : array of Axes, shape (n_outputs,), optional
+    title : str, optional
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+    axes : ndarray of Axes, shape (n_outputs,)
+    """
+    outputs = _check_outputs(outputs or result.outputs)
+    spec = result.spectra[record]
+    f, flabel = _freq(np.asarray(spec["omega"], float), freq_unit)
+    v = spec["z"] - result.fitted_spectra(record)
+    fig, arr, created = _axes_grid(axes, ax, (1, len(outputs)), (4.2 * len(outputs), 3.4))
+    arr = arr[0]
+    R = np.asarray(result.R)
+    for j, out in enumerate(outputs):
+        a = arr[j]
+        k = _OUTPUTS.index(out)
+        a.semilogy(f, np.abs(v[:, k]), ".", ms=4, color="C3", label="|residual|")
+        _plain_log_ticks(a.yaxis)
+        if out in result.outputs:
+            i = result.outputs.index(out)
+            r = math.sqrt(max(float(np.real(R[i, i])), 0.0))
+            a.axhline(r, color="k", lw=1.2, label=r"$\sqrt{R_{kk}}$ (rms)")
+            a.axhline(r * math.sqrt(-math.log(0.05)), color="k", ls="--", lw=1.0, label="95 % level")
+        a.set_title(out)
+        a.set_ylabel("|" + _LABELS[out] + "|")
+        a.set_xlabel(flabel)
+        a.grid(True, which="both", alpha=0.3)
+    arr[0].legend(loc="best", fontsize="small")
+    if title:
+        fig.suptitle(title)
+    if created:
+        fig.tight_layout()
+    return fig, arr
+
+
+# --- correlation ---------------------------------------------------------------------------------
+
+def plot_correlation(result, *, names: Sequence[str] | None = None, nuisance: bool = True,
+                     annotate: bool = True, cmap: str = "RdBu_r", colorbar: bool = True, ax=None,
+                     title: str | None = None):
+    """The correlation matrix of the estimates as an annotated heat map.
+
+    Parameters
+    ----------
+    result : FitResult
+    names : sequence of str, optional
+        Parameters to show, in order (default all estimated ones).
+    nuisance : bool, optional
+        With the default ``names``, include nuisance terms (biases, boundary
+        values); False shows the model parameters only.
+    annotate : bool, optional
+        Write each correlation in its cell (two decimals).
+    cmap : str, optional
+        Diverging colour map, fixed to [-1, 1].
+    colorbar : bool, optional
+    ax : Axes, optional
+    title : str, optional
+
+    Returns
+    -------
+    fig : matplotlib.figure.Figure
+    ax : Axes
+    """
+    all_names = list(result.names)
+    if names is None:
+        params = result.model.parameters
+        names = [n for n in all_names if nuisance or (n in params and not n.startswith("bias_"))]
+    else:
+        bad = [n for n in names if n not in all_names]
+        if bad:
+            raise ValueError(f"not estimated in this fit: {', '.join(bad)}")
+    idx = [all_names.index(n) for n in names]
+    C = np.asarray(result.corr, float)[np.ix_(idx, idx)]
+    n = len(names)
+    size = max(3.5, 0.45 * n + 1.8)
+    fig, arr, created = _axes_grid(None, ax, (1, 1), (size + (1.0 if colorbar else 0.0), size))
+    a = arr[0, 0]
+    import matplotlib
+
+    cm = matplotlib.colormaps[cmap].with_extremes(bad="0.85")  # NaN (unidentified): grey
+    im = a.imshow(np.ma.masked_invalid(C), cmap=cm, vmin=-1.0, vmax=1.0, interpolation="nearest")
+    a.set_xticks(range(n))
+    a.set_yticks(range(n))
+    a.set_xticklabels(names, rotation=60, ha="right", fontsize="small")
+    a.set_yticklabels(names, fontsize="small")
+    if annotate:
+        fs = "x-small" if n > 10 else "small"
+        for i in range(n):
+            for j in range(n):
+                c = C[i, j]
+                txt = "" if not np.isfinite(c) else f"{c + 0.0:.2f}".replace("-0.00", "0.00")
+                a.text(j, i, txt, ha="center", va="center", fontsize=fs,
+                       color="white" if np.isfinite(c) and abs(c) > 0.6 else "black")
+    if colorbar:
+        fig.colorbar(im, ax=a, fraction=0.046, pad=0.04, label="correlation")
+    a.set_title(title or "correlation of the estimates")
+    if created:
+        fig.tight_layout()
+    return fig, a

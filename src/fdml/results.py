@@ -271,52 +271,24 @@ class FitResult:
         raise KeyError(f"{name!r} is neither an estimate, a derived quantity nor a fixed parameter")
 
     # --- text ---------------------------------------------------------------------------
-    def summary(self) -> str:
-        """A readable table: value, standard error, relative error %, flags."""
-        lines = []
-        band = "" if self.band is None else f"  band {self.band[0]:g}-{self.band[1]:g} rad/s step {self.band[2]:g}"
-        lines.append(f"fdml fit: {self.model.describe()}  records: {', '.join(self.records)}")
-        lines.append(f"outputs {', '.join(self.outputs)}; {self.n_freq} frequencies;{band}")
-        nz = self.nuisance
-        extras = []
-        if nz.get("output_biases"):
-            extras.append("output biases " + ",".join(nz["output_biases"]))
-        if nz.get("state_biases"):
-            extras.append("state-equation biases")
-        if nz.get("input_bias"):
-            extras.append("elevator bias")
-        lines.append(f"boundary terms: {self.boundary}; {'; '.join(extras) or 'no biases'}; "
-                     f"trim: {','.join(sorted(set(nz.get('trim', []))))}")
-        lines.append(f"standard errors: {self.cov_type}; method {self.method}")
-        verdict = "converged" if self.converged else "NOT converged"
-        lines.append(f"{verdict} after {self.iterations} iterations: {self.message}")
-        lines.append(f"J = det R = {self.cost:.6g}")
-        lines.append("")
-        lines.append(f"{'parameter':<22s}{'value':>14s}{'std err':>12s}{'rel %':>9s}  flags")
-        for n, v, s in zip(self.names, self.values, self.stderr):
-            rel = abs(s / v) * 100 if v != 0 and math.isfinite(s) else math.inf
-            flags = []
-            if n in self.at_bound:
-                flags.append("at bound")
-            if not math.isfinite(s):
-                flags.append("not identifiable")
-            unit = self._unit(n)
-            lines.append(f"{n:<22s}{v:>14.6g}{s:>12.4g}{rel:>9.2f}  {' '.join(flags)}{unit}")
-        if self.fixed:
-            shown = {k: v for k, v in self.fixed.items() if not (k.startswith("bias_") and v == 0.0)
-                     and not (k.startswith("tau_") and v == 0.0)}
-            if shown:
-                lines.append("")
-                lines.append("fixed: " + ", ".join(f"{k} = {v:.6g}" for k, v in shown.items()))
-        if self.derived:
-            lines.append("")
-            lines.append(f"{'derived':<22s}{'value':>14s}{'std err':>12s}")
-            for k, (v, s) in self.derived.items():
-                lines.append(f"{k:<22s}{v:>14.6g}{s:>12.4g}")
-        if self.warnings:
-            lines.append("")
-            lines.extend(f"warning: {w}" for w in self.warnings)
-        return "\n".join(lines)
+    def summary(self, digits: int = 6):
+        """The fit as a table: value, standard error, relative error %, flags, unit.
+
+        Returns a :class:`fdml.summary.Summary`, a ``str`` holding the text
+        table that also renders as Markdown, HTML (a notebook shows it),
+        LaTeX and a pandas DataFrame (``as_markdown()``, ``as_html()``,
+        ``as_latex()``, ``to_frame()``).
+        """
+        from .summary import fit_summary
+
+        return fit_summary(self, digits=digits)
+
+    def to_frame(self, table: str | None = None):
+        """The summary's ``parameters`` (or ``derived``, ``correlations``) table as a pandas DataFrame."""
+        return self.summary().to_frame(table)
+
+    def _repr_html_(self) -> str:
+        return self.summary().as_html()
 
     def _unit(self, name: str) -> str:
         base = name.split("[")[0]

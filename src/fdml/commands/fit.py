@@ -25,7 +25,24 @@ def register(sub) -> None:
                    help="run to convergence (default) or the paper's 1 %% rule")
     p.add_argument("-o", "--output", metavar="RESULT.json", help="save the full result as JSON")
     p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("--progress", action="store_true",
+                   help="show a progress bar on stderr (needs tqdm: pip install 'fdml[progress]')")
     p.set_defaults(func=run)
+
+
+def _progress_callback(enabled: bool):
+    """A tqdm bar for --progress, or None (with a one-line note when tqdm is missing)."""
+    if not enabled:
+        return None
+    import sys
+
+    from ..progress import TqdmProgress, tqdm_available
+
+    if not tqdm_available():
+        sys.stderr.write("fdml: note: --progress needs tqdm (pip install 'fdml[progress]'); "
+                         "fitting without a progress bar\n")
+        return None
+    return TqdmProgress(desc="fdml fit", leave=False)
 
 
 def run(args) -> int:
@@ -40,9 +57,14 @@ def run(args) -> int:
     model = make_model_from_args(args)
     fixed = assignments(args.fix)
     biases = {"auto": "auto", "yes": True, "no": False}[args.biases]
-    res = fit(records if len(records) > 1 else records[0], model, band=args.band, outputs=args.outputs,
-              fix=fixed, free=args.free, boundary=args.boundary, biases=biases, trim=args.trim,
-              method=args.method, stop=args.stop)
+    bar = _progress_callback(getattr(args, "progress", False))
+    try:
+        res = fit(records if len(records) > 1 else records[0], model, band=args.band, outputs=args.outputs,
+                  fix=fixed, free=args.free, boundary=args.boundary, biases=biases, trim=args.trim,
+                  method=args.method, stop=args.stop, callback=bar)
+    finally:
+        if bar is not None:
+            bar.close()
     t_fit = time.perf_counter()
     if args.output:
         res.to_json(args.output)

@@ -1,0 +1,26 @@
+"""``fdml report RESULT.json``: figures and a Markdown report of a saved fit."""
+
+from __future__ import annotations
+
+
+def register(sub) -> None:
+    p = sub.add_parser("report", help="write the figures and a Markdown report of a saved fit into a folder")
+    p.add_argument("result", metavar="RESULT.json", help="result file written by fdml fit -o")
+    p.add_argument("-o", "--out", metavar="DIR", help="output folder (default RESULT-report beside the file)")
+    p.add_argument("--hz", action="store_true", help="frequency axes in Hz (default rad/s)")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from ..report import write_report  # draws on Figure objects: no display, no pyplot
+
+    files = write_report(args.result, args.out, freq_unit="Hz" if args.hz else "rad/s")
+    if args.json:
+        from ..cli import print_json
+
+        print_json({"files": {k: str(v) for k, v in files.items()}})
+    else:
+        for k, v in files.items():
+            print(f"wrote {k:18s} {v}")
+    return 0

@@ -1,0 +1,184 @@
+"""A fit report in a folder: figures (PNG) and a Markdown page that links them.
+
+:func:`write_report` takes a :class:`~fdml.results.FitResult` or the JSON file
+it was saved to and writes, per record, the measured-against-fitted spectra
+with their Cramer-Rao band, the time-domain cross-check and the residual
+spectra, plus the parameter correlation matrix, and ``report.md`` with the
+summary table, the derived set, correlations, warnings, the convergence
+history and the figure links.  Files are written under temporary names and
+renamed into place only when all of them are done, so a failed report never
+leaves a half-written set.  ``fdml report RESULT.json`` calls it.
+
+Figures are drawn on :class:`matplotlib.figure.Figure` objects directly (no
+pyplot), so the report neither needs a display nor touches pyplot's state.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+__all__ = ["write_report"]
+
+
+def _load(result_or_path):
+    from .results import FitResult, load_result
+
+    if isinstance(result_or_path, FitResult):
+        return result_or_path, None
+    path = Path(result_or_path)
+    return load_result(path), path
+
+
+def _default_dir(source: Path | None) -> Path:
+    if source is None:
+        return Path("fdml-report")
+    return source.with_name(source.stem + "-report")
+
+
+def _figure(figsize):
+    from matplotlib.figure import Figure
+
+    return Figure(figsize=figsize)
+
+
+def write_report(result_or_path, out_dir=None, *, freq_unit: str = "rad/s", dpi: int = 110,
+                 trim_window: float = 0.5) -> dict:
+    """Write a fit's figures and a Markdown report into a folder.
+
+    Parameters
+    ----------
+    result_or_path : FitResult or str or Path
+        A fit, or a result JSON file written by :meth:`FitResult.to_json`.
+    out_dir : str or Path, optional
+        Folder (created if needed).  Default ``<RESULT>-report`` beside the
+        JSON file, or ``./fdml-report`` for a FitResult.
+    freq_unit : {"rad/s", "Hz"}, optional
+        Frequency axis of the spectra figures.
+    dpi : int, optional
+        Resolution of the PNG files.
+    trim_window : float, optional
+        Leading window of ``trim="mean"`` fits, s (for the time histories).
+
+    Returns
+    -------
+    dict of str to Path
+        ``report`` (report.md), ``correlation`` and, per record,
+        ``spectra``, ``time_histories``, ``residual_spectra`` (suffixed
+        ``_<i>`` when the fit has several records).  A time-history figure
+        that cannot be drawn (a fit given spectra only, or an unsteady-model
+        record whose inputs step at t = 0) is left out and the report says why.
+    """
+    from .errors import FdmlError
+    from .plotting import plot_correlation, plot_residual_spectra, plot_spectra, plot_time_histories
+
+    res, source = _load(result_or_path)
+    out = Path(out_dir) if out_dir is not None else _default_dir(source)
+    out.mkdir(parents=True, exist_ok=True)
+    tag = f".tmp-{os.getpid()}"
+    pending: dict[str, tuple[Path, Path]] = {}  # key -> (temporary, final)
+    notes: list[str] = []
+
+    def save(key: str, fig, stem: str) -> None:
+        final = out / f"{stem}.png"
+        tmp = out / f".{stem}{tag}.png"
+        fig.savefig(tmp, dpi=dpi, format="png")
+        pending[key] = (tmp, final)
+
+    multi = len(res.spectra) > 1
+    figures: list[tuple[str, str, str]] = []  # (record label, caption, file name)
+    try:
+        for i, spec in enumerate(res.spectra):
+            sfx = f"_{i}" if multi else ""
+            rname = spec["name"]
+            n_out = len(res.outputs)
+            fig = _figure((4.2 * n_out, 6))
+            axes = fig.subplots(2, n_out, sharex=True, squeeze=False)
+            plot_spectra(res, record=i, freq_unit=freq_unit, axes=axes,
+                         title=f"{rname}: measured and fitted spectra ({res.kind}), 2-sigma band")
+            fig.tight_layout()
+            save("spectra" + sfx, fig, "spectra" + sfx)
+            figures.append((rname, "Measured against fitted spectra with the 2-sigma Cramer-Rao band",
+                            f"spectra{sfx}.png"))
+            if i < len(res.time_records):
+                try:
+                    fig = _figure((8, 2.0 * 4 + 0.6))
+                    axes = fig.subplots(4, 1, sharex=True, squeeze=False)
+                    plot_time_histories(res, record=i, axes=axes, trim_window=trim_window,
+                                        title=f"{rname}: measured and simulated from the estimate")
+                    fig.tight_layout()
+                    save("time_histories" + sfx, fig, "time_histories" + sfx)
+                    figures.append((rname, "Time histories: measured against the model simulated in the "
+                                    "time domain from the estimate", f"time_histories{sfx}.png"))
+                except FdmlError as exc:  # the report goes on without this figure
+                    notes.append(f"record {rname}: time histories not drawn ({exc})")
+            else:
+                notes.append(f"record {rname}: time histories not drawn (the fit was given spectra, "
+                             "not time-domain records)")
+            fig = _figure((4.2 * n_out, 3.4))
+            axes = fig.subplots(1, n_out, squeeze=False)
+            plot_residual_spectra(res, record=i, freq_unit=freq_unit, axes=axes,
+                                  title=f"{rname}: residual spectra and the noise floor implied by R")
+            fig.tight_layout()
+            save("residual_spectra" + sfx, fig, "residual_spectra" + sfx)
+            figures.append((rname, "Residual spectra |z - y| with sqrt(R_kk) and its 95 % level",
+                            f"residual_spectra{sfx}.png"))
+        n = len(res.names)
+        size = max(3.5, 0.45 * n + 1.8)
+        fig = _figure((size + 1.0, size))
+        ax = fig.subplots()
+        plot_correlation(res, ax=ax)
+        fig.tight_layout()
+        save("correlation", fig, "correlation")
+        figures.append(("", "Correlation of the estimates", "correlation.png"))
+        text = _markdown(res, source, figures, notes)
+        md_tmp, md_final = out / f".report{tag}.md", out / "report.md"
+        md_tmp.write_text(text, encoding="utf-8")
+        pending["report"] = (md_tmp, md_final)
+    except BaseException:
+        for tmp, _ in pending.values():
+            tmp.unlink(missing_ok=True)
+        raise
+    for tmp, final in pending.values():
+        os.replace(tmp, final)
+    order = ["report"] + [k for k in pending if k != "report"]
+    return {k: pending[k][1] for k in order}
+
+
+def _markdown(res, source, figures, notes) -> str:
+    from . import __version__
+
+    s = res.summary()
+    lines = [f"# fdml report: {res.model.describe()}", ""]
+    if source is not None:
+        lines.append(f"Result file: `{source.name}` (fdml {__version__}).")
+    else:
+        lines.append(f"fdml {__version__}.")
+    lines += ["", "## Summary", "", s.as_markdown().replace("### ", "#### ", 1), ""]
+    lines += ["## Convergence", ""]
+    verdict = ("stopped by the callback" if res.stopped else "converged" if res.converged else "NOT converged")
+    lines.append(f"{verdict} after {res.iterations} iterations ({res.method}, stop rule {res.stop!r}): "
+                 f"{res.message}.")
+    lines += ["", "| iteration | J = det R | relative change |", "|---:|---:|---:|"]
+    prev = None
+    for k, J in enumerate(res.cost_history):
+        rel = "" if prev is None or prev == 0 else f"{(J - prev) / prev:+.3g}"
+        lines.append(f"| {k} | {J:.6g} | {rel} |")
+        prev = J
+    lines += ["", "## Warnings", ""]
+    if res.warnings or notes:
+        lines += [f"- {w}" for w in res.warnings]
+        lines += [f"- {n}" for n in notes]
+    else:
+        lines.append("None.")
+    lines += ["", "## Figures", ""]
+    current = None
+    for rec, caption, fname in figures:
+        if rec and rec != current:
+            lines += [f"### Record `{rec}`", ""]
+            current = rec
+        elif not rec and current is not None:
+            lines += ["### All records", ""]
+            current = None
+        lines += [f"**{caption}**", "", f"![{caption}]({fname})", ""]
+    return "\n".join(lines).rstrip() + "\n"

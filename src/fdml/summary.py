@@ -1,0 +1,527 @@
+"""Summaries of fits as text, Markdown, HTML, LaTeX and pandas DataFrames.
+
+:func:`fit_summary` (behind :meth:`FitResult.summary`) and
+:func:`comparison_summary` (behind :meth:`Comparison.table`) return a
+:class:`Summary`: a ``str`` holding the plain-text table, so ``print(s)``,
+``"at bound" in s`` and ``str(s)`` behave as they always did, which also
+renders itself in the other formats:
+
+* :meth:`Summary.as_text`, :meth:`Summary.as_markdown`,
+  :meth:`Summary.as_html`, :meth:`Summary.as_latex`;
+* :meth:`Summary.to_frame` (pandas, the optional ``pandas`` extra);
+* ``_repr_html_`` and ``_repr_latex_``, so a summary renders as a table in a
+  notebook.
+
+The content is kept as data (a header of label/value pairs, tables of raw
+numbers, notes), and each format is rendered from it; no format is parsed
+from another.  The layout follows statsmodels' ``Summary`` and lmfit's fit
+report: value, standard error, relative error, and flags that say why a
+standard error is missing (fixed, at a bound, not identifiable).
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["Summary", "Table", "Column", "fit_summary", "comparison_summary", "parameter_unit"]
+
+#: Units of the nuisance terms and derived quantities that are not model parameters.
+_EXTRA_UNITS = {
+    "bias_alpha": "rad", "bias_q": "rad/s", "bias_az": "g", "bias_de": "rad",
+    "bias_alpha_dot": "rad/s", "bias_q_dot": "rad/s^2",
+    "x0_alpha": "rad", "x0_q": "rad/s", "xT_alpha": "rad", "xT_q": "rad/s",
+    "Z_a": "1/s", "Z_q": "-", "Z_de": "1/s", "M_a": "1/s^2", "M_q": "1/s", "M_de": "1/s^2",
+    "Cz_a": "1/rad", "Cz_q": "1/rad", "Cz_de": "1/rad", "Cm_a": "1/rad", "Cm_q": "1/rad", "Cm_de": "1/rad",
+    "Cz_adot_G": "1/rad", "Cm_adot_G": "1/rad",
+}
+
+_COV_TYPES = {
+    "white": "white-noise sandwich (the Cramer-Rao bound at spacing 2 pi/T)",
+    "colored": "coloured-residual sandwich (frequency-domain Morelli-Klein correction)",
+    "naive": "naive (2 Re sum A^H R^-1 A)^-1, every frequency independent",
+}
+
+#: Correlations at or above this magnitude are listed in the summary.
+CORRELATION_LISTED = 0.9
+
+
+def parameter_unit(result, name: str) -> str:
+    """Unit of an estimated, fixed or derived quantity of ``result`` ('' if unknown)."""
+    base = name.split("[")[0]
+    params = result.model.parameters
+    if base in params:
+        unit = params[base].unit
+        if unit:
+            return unit
+    return _EXTRA_UNITS.get(base, "")
+
+
+# --- the Summary object ------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class Column:
+    """One column of a :class:`Table`.
+
+    Attributes
+    ----------
+    key : str
+        Column name in :meth:`Summary.to_frame`.
+    label : str
+        Heading in the rendered formats.
+    kind : {"text", "num", "err", "pct", "z"}
+        How cells are formatted: text as is; ``num`` with the summary's
+        significant digits; ``err`` (standard errors) with 4 significant
+        digits; ``pct`` and ``z`` with two decimals.  Missing numbers (None,
+        NaN) render as empty cells, infinities as ``inf``.
+    """
+
+    key: str
+    label: str
+    kind: str = "text"
+
+
+@dataclass(frozen=True)
+class Table:
+    """A titled table of raw values (numbers stay numbers until rendered).
+
+    Attributes
+    ----------
+    key : str
+        Name used by :meth:`Summary.to_frame` (``"parameters"``, ``"derived"``, ...).
+    title : str
+    columns : tuple of Column
+        The first column is the row label (the DataFrame index).
+    rows : tuple of tuple
+    """
+
+    key: str
+    title: str
+    columns: tuple
+    rows: tuple
+
+
+def _fmt(value, kind: str, digits: int) -> str:
+    if kind == "text":
+        return "" if value is None else str(value)
+    if value is None:
+        return ""
+    x = float(value)
+    if math.isnan(x):
+        return ""
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    if kind == "num":
+        return f"{x:.{digits}g}"
+    if kind == "err":
+        return f"{x:.4g}"
+    return f"{x:.2f}"  # pct, z
+
+
+def _latex_escape(text: str) -> str:
+    out = []
+    for ch in str(text):
+        if ch in "&%$#_{}":
+            out.append("\\" + ch)
+        elif ch == "\\":
+            out.append(r"\textbackslash{}")
+        elif ch == "^":
+            out.append(r"\^{}")
+        elif ch == "~":
+            out.append(r"\textasciitilde{}")
+        else:
+            out.append(ch)
+    return "".join(out)
+
+
+def _md_escape(text: str) -> str:
+    return str(text).replace("|", r"\|")
+
+
+class Summary(str):
+    """A fit summary: the plain-text table as a ``str``, renderable in other formats.
+
+    Parameters
+    ----------
+    title : str
+    header : sequence of (str, str)
+        Label/value pairs describing the fit.
+    tables : sequence of Table
+    notes : sequence of (str, sequence of str)
+        Titled lists of remarks (warnings, fixed values, ...), rendered after
+        the tables.
+    digits : int, optional
+        Significant digits of values (standard errors get 4).
+
+    Notes
+    -----
+    Being a ``str``, a summary prints, compares and concatenates as its text
+    form; ``repr()`` shows the table rather than a quoted string.
+    """
+
+    title: str
+    header: tuple
+    tables: tuple
+    notes: tuple
+    digits: int
+
+    def __new__(cls, title: str, header: Sequence = (), tables: Sequence = (), notes: Sequence = (),
+                digits: int = 6):
+        header = tuple((str(k), str(v)) for k, v in header)
+        tables = tuple(tables)
+        notes = tuple((str(t), tuple(str(x) for x in items)) for t, items in notes if items)
+        text = _render_text(title, header, tables, notes, digits)
+        obj = super().__new__(cls, text)
+        obj.title, obj.header, obj.tables, obj.notes, obj.digits = title, header, tables, notes, digits
+        return obj
+
+    def __repr__(self) -> str:
+        return self.as_text()
+
+    def __reduce__(self):
+        return (Summary, (self.title, self.header, self.tables, self.notes, self.digits))
+
+    # --- formats -------------------------------------------------------------------------
+    def as_text(self) -> str:
+        """The plain-text table (the summary's ``str`` value)."""
+        return str.__str__(self)
+
+    def table(self, key: str) -> Table:
+        """The table named ``key`` (``"parameters"``, ``"derived"``, ``"correlations"``, ...)."""
+        for t in self.tables:
+            if t.key == key:
+                return t
+        raise KeyError(f"no table {key!r} in this summary; tables: {', '.join(t.key for t in self.tables)}")
+
+    def as_markdown(self) -> str:
+        """GitHub-flavoured Markdown: a heading, a bullet list of the header, pipe tables."""
+        lines = [f"### {_md_escape(self.title)}", ""]
+        for k, v in self.header:
+            lines.append(f"- **{_md_escape(k)}**: {_md_escape(v)}")
+        for t in self.tables:
+            lines += ["", f"**{_md_escape(t.title)}**", ""]
+            lines.append("| " + " | ".join(_md_escape(c.label) for c in t.columns) + " |")
+            lines.append("|" + "|".join(":---" if c.kind == "text" else "---:" for c in t.columns) + "|")
+            for row in t.rows:
+                cells = [_md_escape(_fmt(v, c.kind, self.digits)) for v, c in zip(row, t.columns)]
+                lines.append("| " + " | ".join(cells) + " |")
+        for title, items in self.notes:
+            lines += ["", f"**{_md_escape(title)}**", ""]
+            lines += [f"- {_md_escape(x)}" for x in items]
+        return "\n".join(lines) + "\n"
+
+    def as_html(self) -> str:
+        """An HTML fragment (well-formed XHTML: every tag closed, text escaped)."""
+        e = html.escape
+        out = ['<div class="fdml-summary">', f"<h4>{e(self.title)}</h4>"]
+        if self.header:
+            out.append('<table class="fdml-header"><tbody>')
+            for k, v in self.header:
+                out.append(f'<tr><th style="text-align:left">{e(k)}</th><td style="text-align:left">{e(v)}</td></tr>')
+            out.append("</tbody></table>")
+        for t in self.tables:
+            out.append(f'<table class="fdml-table fdml-{e(t.key)}">')
+            out.append(f"<caption>{e(t.title)}</caption>")
+            out.append("<thead><tr>" + "".join(f"<th>{e(c.label)}</th>" for c in t.columns) + "</tr></thead>")
+            out.append("<tbody>")
+            for row in t.rows:
+                cells = []
+                for v, c in zip(row, t.columns):
+                    align = "left" if c.kind == "text" else "right"
+                    cells.append(f'<td style="text-align:{align}">{e(_fmt(v, c.kind, self.digits))}</td>')
+                out.append("<tr>" + "".join(cells) + "</tr>")
+            out.append("</tbody></table>")
+        for title, items in self.notes:
+            out.append(f"<p><b>{e(title)}</b></p><ul>" + "".join(f"<li>{e(x)}</li>" for x in items) + "</ul>")
+        out.append("</div>")
+        return "\n".join(out)
+
+    def as_latex(self) -> str:
+        """LaTeX: a ``center`` block of ``tabular`` environments (no packages needed)."""
+        x = _latex_escape
+        out = [r"\begin{center}", r"\textbf{" + x(self.title) + r"}\\[4pt]"]
+        if self.header:
+            out.append(r"\begin{tabular}{ll}")
+            out.append(r"\hline")
+            for k, v in self.header:
+                out.append(f"{x(k)} & {x(v)} \\\\")
+            out.append(r"\hline")
+            out.append(r"\end{tabular}")
+        for t in self.tables:
+            spec = "".join("l" if c.kind == "text" else "r" for c in t.columns)
+            out += ["", r"\medskip", r"\textit{" + x(t.title) + r"}\\[2pt]", r"\begin{tabular}{" + spec + "}",
+                    r"\hline", " & ".join(x(c.label) for c in t.columns) + r" \\", r"\hline"]
+            for row in t.rows:
+                out.append(" & ".join(x(_fmt(v, c.kind, self.digits)) for v, c in zip(row, t.columns)) + r" \\")
+            out += [r"\hline", r"\end{tabular}"]
+        for title, items in self.notes:
+            out += ["", r"\medskip", r"\textit{" + x(title) + r"}", r"\begin{itemize}"]
+            out += [r"\item " + x(i) for i in items]
+            out.append(r"\end{itemize}")
+        out.append(r"\end{center}")
+        return "\n".join(out) + "\n"
+
+    def to_frame(self, table: str | None = None):
+        """A pandas DataFrame of one table, indexed by its first column.
+
+        Parameters
+        ----------
+        table : str, optional
+            Table key; default the first table (``"parameters"`` for a fit,
+            ``"derivatives"`` for a comparison).
+
+        Returns
+        -------
+        pandas.DataFrame
+            Raw numbers (not rounded); missing values are NaN.  ``attrs`` holds
+            the title and the header as a dict.
+
+        Raises
+        ------
+        ImportError
+            pandas is not installed (``pip install 'fdml[pandas]'``).
+        """
+        try:
+            import pandas as pd
+        except ImportError:  # pragma: no cover - exercised with pandas hidden
+            raise ImportError("Summary.to_frame needs pandas; install the optional extra: "
+                              "pip install 'fdml[pandas]'") from None
+        t = self.tables[0] if table is None else self.table(table)
+        cols = [c.key for c in t.columns]
+        data = [[(np.nan if v is None and c.kind != "text" else v) for v, c in zip(row, t.columns)]
+                for row in t.rows]
+        frame = pd.DataFrame(data, columns=cols)
+        frame = frame.set_index(cols[0])
+        for c in t.columns[1:]:
+            if c.kind != "text":
+                frame[c.key] = frame[c.key].astype(float)
+        frame.attrs["title"] = self.title
+        frame.attrs["header"] = dict(self.header)
+        return frame
+
+    # --- notebook hooks ---------------------------------------------------------------------
+    def _repr_html_(self) -> str:
+        return self.as_html()
+
+    def _repr_latex_(self) -> str:
+        return self.as_latex()
+
+
+def _render_text(title, header, tables, notes, digits) -> str:
+    lines = [title, "=" * min(max(len(title), 20), 100)]
+    if header:
+        w = max(len(k) for k, _ in header) + 1
+        lines += [f"{k + ':':>{w}s} {v}" for k, v in header]
+    for t in tables:
+        cells = [[_fmt(v, c.kind, digits) for v, c in zip(row, t.columns)] for row in t.rows]
+        widths = [max([len(c.label)] + [len(r[j]) for r in cells]) for j, c in enumerate(t.columns)]
+        widths[0] = max(widths[0], 12)
+
+        def line(items):
+            parts = []
+            for j, (s, c) in enumerate(zip(items, t.columns)):
+                parts.append(s.ljust(widths[j]) if c.kind == "text" else s.rjust(widths[j]))
+            return "  ".join(parts).rstrip()
+
+        lines += ["", t.title, line([c.label for c in t.columns])]
+        lines += [line(r) for r in cells]
+    for title_, items in notes:
+        lines += ["", f"{title_}:"]
+        lines += [f"  {x}" for x in items]
+    return "\n".join(lines)
+
+
+# --- fits --------------------------------------------------------------------------------------
+
+def _biases_used(res) -> list[str]:
+    """Which bias terms a fit estimated, from its names (and its ``nuisance`` record)."""
+    bases = [n.split("[")[0] for n in res.names]
+    out = []
+    outs = [b[5:] for b in dict.fromkeys(bases) if b in ("bias_alpha", "bias_q", "bias_az")]
+    if outs:
+        out.append("output biases " + ",".join(outs))
+    if "bias_alpha_dot" in bases or "bias_q_dot" in bases:
+        out.append("state-equation biases")
+    if "bias_de" in bases:
+        out.append("elevator bias")
+    fixed = [k for k, v in res.fixed.items() if k.startswith("bias_") and v != 0.0]
+    if fixed:
+        out.append("fixed " + ", ".join(fixed))
+    return out
+
+
+def _header(res) -> list[tuple[str, str]]:
+    h = [("model", res.model.describe())]
+    ac = getattr(res.model, "aircraft", None)
+    if ac is not None and getattr(ac, "name", None):
+        h.append(("aircraft", f"{ac.name} (U = {ac.U:g} m/s)"))
+    h.append(("records", ", ".join(res.records)))
+    h.append(("outputs", ", ".join(res.outputs)))
+    if res.band is not None:
+        lo, hi, step = res.band
+        band = (f"{lo:g}-{hi:g} rad/s, step {step:g} ({lo / (2 * math.pi):.3g}-{hi / (2 * math.pi):.3g} Hz); "
+                f"{res.n_freq} frequencies")
+    elif res.spectra:
+        w = np.concatenate([np.asarray(s["omega"], float) for s in res.spectra])
+        band = f"{w.min():.4g}-{w.max():.4g} rad/s (given frequencies); {res.n_freq} frequencies"
+    else:
+        band = f"{res.n_freq} frequencies"
+    h.append(("band", band))
+    h.append(("boundary terms", res.boundary))
+    h.append(("biases", "; ".join(_biases_used(res)) or "no biases"))
+    trims = (getattr(res, "nuisance", None) or {}).get("trim") or [r["trim_mode"] for r in res.time_records]
+    if trims:
+        h.append(("trim", ",".join(dict.fromkeys(str(t) for t in trims))))
+    h.append(("standard errors", f"{res.cov_type}: {_COV_TYPES.get(res.cov_type, res.cov_type)}"))
+    h.append(("method", f"{res.method}, stop rule {res.stop!r}"))
+    if res.stopped:
+        verdict = f"stopped by the callback after {res.iterations} iterations"
+    elif res.converged:
+        verdict = f"converged after {res.iterations} iterations"
+    else:
+        verdict = f"NOT converged after {res.iterations} iterations"
+    msg = res.message
+    for prefix in ("converged: ", "converged, "):
+        if msg.startswith(prefix):
+            msg = msg[len(prefix):]
+    h.append(("convergence", f"{verdict}: {msg}"))
+    h.append(("cost J = det R", f"{res.cost:.6g} (start {res.cost_history[0]:.6g})"))
+    h.append(("elapsed", f"{res.elapsed:.3g} s"))
+    return h
+
+
+def _flags(res, name: str, stderr: float) -> str:
+    flags = []
+    if name in res.at_bound:
+        flags.append("at bound")
+    if not math.isfinite(stderr):
+        flags.append("not identifiable")
+    return ", ".join(flags)
+
+
+def _rel(value: float, stderr: float) -> float:
+    if not math.isfinite(stderr):
+        return math.inf
+    if value == 0:
+        return math.inf if stderr > 0 else 0.0
+    return abs(stderr / value) * 100.0
+
+
+_PARAM_COLUMNS = (
+    Column("parameter", "parameter"), Column("value", "value", "num"), Column("stderr", "std err", "err"),
+    Column("rel_err_pct", "rel err %", "pct"), Column("flags", "flags"), Column("unit", "unit"),
+)
+
+
+def _shown_fixed(res) -> dict:
+    """Fixed parameters worth listing (zero biases and zero delays are absent terms, not choices)."""
+    return {k: v for k, v in res.fixed.items()
+            if not (k.startswith("bias_") and v == 0.0) and not (k.startswith("tau_") and v == 0.0)}
+
+
+def fit_summary(res, digits: int = 6) -> Summary:
+    """The :class:`Summary` of a :class:`~fdml.results.FitResult`.
+
+    Tables: ``parameters`` (estimates, then the listed fixed parameters
+    flagged ``fixed``), ``derived`` (the alternate set with delta-method
+    standard errors) and ``correlations`` (pairs at or above 0.9); notes:
+    warnings raised by the fit.
+
+    Parameters
+    ----------
+    res : FitResult
+    digits : int, optional
+        Significant digits of values.
+
+    Returns
+    -------
+    Summary
+    """
+    rows = []
+    for n, v, s in zip(res.names, np.asarray(res.values, float), np.asarray(res.stderr, float)):
+        rows.append((n, float(v), float(s), _rel(float(v), float(s)), _flags(res, n, float(s)),
+                     parameter_unit(res, n)))
+    for k, v in _shown_fixed(res).items():
+        rows.append((k, float(v), None, None, "fixed", parameter_unit(res, k)))
+    tables = [Table("parameters", "Estimates", _PARAM_COLUMNS, tuple(rows))]
+    if res.derived:
+        drows = tuple((k, float(v), float(s), _rel(float(v), float(s)),
+                       "not identifiable" if not math.isfinite(s) else "", parameter_unit(res, k))
+                      for k, (v, s) in res.derived.items())
+        dcols = (Column("quantity", "derived"),) + _PARAM_COLUMNS[1:]
+        tables.append(Table("derived", "Derived set (delta method)", dcols, drows))
+    corr = np.asarray(res.corr, float)
+    pairs = []
+    for i in range(len(res.names)):
+        for j in range(i):
+            r = corr[i, j]
+            if np.isfinite(r) and abs(r) >= CORRELATION_LISTED:
+                pairs.append((res.names[j], res.names[i], float(r)))
+    if pairs:
+        pairs.sort(key=lambda p: -abs(p[2]))
+        ccols = (Column("parameter_1", "parameter"), Column("parameter_2", "with"),
+                 Column("correlation", "correlation", "z"))
+        tables.append(Table("correlations", f"Correlations |r| >= {CORRELATION_LISTED:g}", ccols, tuple(pairs)))
+    notes = [("warnings", list(res.warnings))]
+    title = f"fdml fit: {res.model.describe()}"
+    return Summary(title, _header(res), tables, notes, digits=digits)
+
+
+# --- steady versus unsteady ------------------------------------------------------------------
+
+def comparison_summary(cmp, reference: Mapping | None = None, digits: int = 4) -> Summary:
+    """The :class:`Summary` of a :class:`~fdml.compare.Comparison` (WK Tables 1 and 3 layout).
+
+    Parameters
+    ----------
+    cmp : Comparison
+    reference : mapping, optional
+        ``{name: (unsteady, steady)}``, e.g. a paper's columns.
+    digits : int, optional
+        Significant digits of values.
+
+    Returns
+    -------
+    Summary
+        One table, ``derivatives``: unsteady and steady values with standard
+        errors, and their difference in combined standard errors
+        (``shift/sigma``).
+    """
+    from .compare import ALTERNATE_NAMES
+
+    cols = [Column("derivative", "derivative"),
+            Column("unsteady", "unsteady", "num"), Column("unsteady_stderr", "+/-", "err"),
+            Column("steady", "steady", "num"), Column("steady_stderr", "+/-", "err"),
+            Column("shift_sigma", "shift/sigma", "z")]
+    if reference:
+        cols += [Column("reference_unsteady", "paper unst.", "num"),
+                 Column("reference_steady", "paper steady", "num")]
+    rows = []
+    for n in ALTERNATE_NAMES:
+        u, su = cmp.unsteady_set.get(n, (math.nan, math.nan))
+        s, ss = cmp.steady_set.get(n, (math.nan, math.nan))
+        sig = math.hypot(su, ss)
+        z = (s - u) / sig if sig > 0 and math.isfinite(sig) else math.nan
+        row = [n, u, su, s, ss, z]
+        if reference:
+            ru, rs = reference.get(n, (math.nan, math.nan))
+            row += [ru, rs]
+        rows.append(tuple(row))
+    header = [
+        ("unsteady model", cmp.unsteady.model.describe()),
+        ("steady model", cmp.steady.model.describe()),
+        ("records", ", ".join(cmp.unsteady.records)),
+        ("cost det R", f"unsteady {cmp.unsteady.cost:.4g}, steady {cmp.steady.cost:.4g}"),
+        ("standard errors", f"{cmp.unsteady.cov_type}; q-derivatives per q c/(2U)"),
+    ]
+    notes = [("unsteady fit warnings", list(cmp.unsteady.warnings)),
+             ("steady fit warnings", list(cmp.steady.warnings))]
+    return Summary("steady versus unsteady derivatives", header,
+                   [Table("derivatives", "Derivatives (1/rad)", tuple(cols), tuple(rows))], notes, digits=digits)
+
+
+__all__ += ["CORRELATION_LISTED"]
