@@ -1,0 +1,856 @@
+"""Fit many records: one result file per record, a combined table, resumable, parallel.
+
+:func:`run_batch` fits one model to every record (or manoeuvre window within
+a record) of a folder, a glob or a list, each on its own, and writes
+
+``OUT/results/KEY.json``
+    the full :class:`~fdml.results.FitResult` (readable with
+    :func:`fdml.load_result`) plus a ``batch`` block: the source, the window,
+    the hash of the inputs and the table row;
+``OUT/results/KEY.error.json``
+    instead, for a record that failed: its error (type and one-line message);
+``OUT/table.csv``, ``OUT/table.json``
+    one row per record, in source order: estimates, standard errors, cost,
+    convergence, iterations, fit time, error.
+
+Every file is written under a temporary name and renamed into place, so no
+result file is ever half-written.  A result file whose input hash (record
+file bytes, window, model specification, fit options, fdml version) matches
+is reused, so an interrupted batch resumes without refitting what finished.
+Workers write their result and return only the short row, so the parent
+holds one row per record and peak memory stays flat in the number of records.
+
+Engines: ``"process"`` (the standard library's process pool, default),
+``"serial"`` (in this process) or a ``dask.distributed.Client`` (optional
+``dask`` extra; the record paths and ``OUT`` must then be visible to every
+worker, e.g. on a shared file system).  A task is idempotent: run twice (Dask
+reruns a task whose worker died), it writes the same file by the same atomic
+rename, so every record ends with exactly one result file and one row.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import glob
+import hashlib
+import io
+import json
+import logging
+import math
+import os
+import re
+import time
+import warnings
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import FdmlError
+from .record import atomic_write_text
+
+__all__ = ["run_batch", "BatchSummary", "ModelSpec", "collect_sources", "load_source", "BatchItem",
+           "TABLE_FORMAT"]
+
+logger = logging.getLogger(__name__)
+
+#: JSON format identifier and version of the combined table.
+TABLE_FORMAT = ("fdml.BatchTable", 1)
+#: Identifier of the error file written for a record that failed.
+ERROR_FORMAT = ("fdml.BatchError", 1)
+#: File endings picked up when a source is a folder.
+RECORD_SUFFIXES = (".csv", ".mat", ".asc", ".dat")
+#: Deaths of a local worker process, running a task alone, after which the task is given up.
+_LONE_DEATHS = 2
+_GLOB_CHARS = re.compile(r"[*?\[]")
+
+
+# --- the model specification ----------------------------------------------------------------
+@dataclass(frozen=True)
+class ModelSpec:
+    """A picklable description of a model, rebuilt in every worker.
+
+    Parameters
+    ----------
+    kind : {"unsteady", "steady", "derivatives", "dimensional"}
+    aircraft : str or mapping, optional
+        Preset name, aircraft JSON file or aircraft dict (as
+        :meth:`fdml.Aircraft.to_dict`).  :meth:`normalized` turns names and
+        files into the dict, so workers need no access to the file and the
+        input hash changes when the aircraft does.
+    options : mapping, optional
+        Model options (``gust``, ``airspeed``, ...; see :func:`fdml.make_model`).
+    values : mapping, optional
+        Parameter values (the fit's starting point).
+    fix : mapping or sequence of str, optional
+        Parameters to fix (a mapping also sets their values).
+    free : sequence of str, optional
+        Parameters to free.
+    parameters : list of dict, optional
+        A whole parameter set (:meth:`fdml.Parameters.to_list`), as
+        :meth:`from_model` stores it; applied before ``values``, ``fix``, ``free``.
+    """
+
+    kind: str
+    aircraft: str | Mapping | None = None
+    options: Mapping = field(default_factory=dict)
+    values: Mapping = field(default_factory=dict)
+    fix: Mapping | Sequence = ()
+    free: Sequence = ()
+    parameters: Sequence | None = None
+
+    @classmethod
+    def from_model(cls, model) -> "ModelSpec":
+        """The specification of an existing :class:`~fdml.models.Model` (parameters included)."""
+        from .models import model_to_dict
+
+        d = model_to_dict(model)
+        return cls(kind=d["kind"], aircraft=d["aircraft"], options=d["options"], parameters=d["parameters"])
+
+    @classmethod
+    def coerce(cls, spec) -> "ModelSpec":
+        """A ModelSpec from a ModelSpec, a mapping with its fields, or a Model."""
+        if isinstance(spec, cls):
+            return spec
+        if isinstance(spec, Mapping):
+            unknown = set(spec) - {"kind", "aircraft", "options", "values", "fix", "free", "parameters"}
+            if unknown:
+                raise FdmlError(f"model spec: unknown key(s) {sorted(unknown)}; known: kind, aircraft, "
+                                "options, values, fix, free, parameters")
+            if "kind" not in spec:
+                raise FdmlError("model spec: 'kind' is required (unsteady, steady, derivatives, dimensional)")
+            return cls(**spec)
+        from .models import Model
+
+        if isinstance(spec, Model):
+            return cls.from_model(spec)
+        raise FdmlError(f"model spec must be a ModelSpec, a mapping or a Model, got {type(spec).__name__}")
+
+    def normalized(self) -> "ModelSpec":
+        """Aircraft resolved to its dict, containers made plain (JSON-ready, stable hash)."""
+        ac = self.aircraft
+        if ac is not None:
+            from .aircraft import Aircraft, load_aircraft
+
+            ac = Aircraft.from_dict(ac).to_dict() if isinstance(ac, Mapping) else load_aircraft(ac).to_dict()
+        fix = ({str(k): float(v) for k, v in self.fix.items()} if isinstance(self.fix, Mapping)
+               else [str(n) for n in self.fix])
+        return ModelSpec(kind=str(self.kind), aircraft=ac, options=dict(self.options),
+                         values={str(k): float(v) for k, v in self.values.items()}, fix=fix,
+                         free=[str(n) for n in self.free],
+                         parameters=None if self.parameters is None else [dict(p) for p in self.parameters])
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict (call on a :meth:`normalized` spec)."""
+        return {"kind": self.kind, "aircraft": self.aircraft, "options": dict(self.options),
+                "values": dict(self.values), "fix": self.fix if isinstance(self.fix, Mapping) else list(self.fix),
+                "free": list(self.free), "parameters": self.parameters}
+
+    def build(self):
+        """The :class:`~fdml.models.Model` described."""
+        from .aircraft import Aircraft
+        from .models import make_model
+        from .parameters import Parameters
+
+        ac = self.aircraft
+        if isinstance(ac, Mapping):
+            ac = Aircraft.from_dict(ac, origin="model spec")
+        model = make_model(self.kind, ac, **dict(self.options))
+        if self.parameters is not None:
+            model = model.with_parameters(Parameters.from_list(self.parameters))
+        if self.values:
+            model.parameters.check_names(self.values)
+            model = model.with_values(self.values)
+        if self.fix:
+            model.parameters.check_names(self.fix)
+            model = model.fix(self.fix)
+        if self.free:
+            model.parameters.check_names(self.free)
+            model = model.with_parameters(model.parameters.free(self.free))
+        return model
+
+
+# --- sources --------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BatchItem:
+    """One unit of work: a record file, optionally a window [t0, t1] s within it.
+
+    ``key`` names its result file and its table row; it is unique in a batch.
+    """
+
+    path: str
+    t0: float | None = None
+    t1: float | None = None
+    key: str = ""
+
+
+def _is_window(x) -> bool:
+    return (isinstance(x, tuple) and len(x) in (3, 4) and isinstance(x[0], (str, os.PathLike))
+            and all(v is None or isinstance(v, (int, float)) for v in x[1:3]))
+
+
+def _expand(src) -> list[tuple[str, float | None, float | None, str | None]]:
+    if _is_window(src):
+        t0 = None if src[1] is None else float(src[1])
+        t1 = None if src[2] is None else float(src[2])
+        name = str(src[3]) if len(src) == 4 and src[3] is not None else None
+        return [(str(Path(src[0]).absolute()), t0, t1, name)]
+    if isinstance(src, BatchItem):
+        return [(str(Path(src.path).absolute()), src.t0, src.t1, src.key or None)]
+    if not isinstance(src, (str, os.PathLike)):
+        raise FdmlError(f"batch source must be a path, a glob or (path, t0, t1), got {src!r}")
+    p = Path(src)
+    if p.is_dir():
+        files = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in RECORD_SUFFIXES
+                       and not f.name.startswith("."))
+        if not files:
+            raise FdmlError(f"folder {p} holds no records ({', '.join(RECORD_SUFFIXES)})")
+        return [(str(f.absolute()), None, None, None) for f in files]
+    if not p.exists() and _GLOB_CHARS.search(str(src)):
+        files = sorted(f for f in glob.glob(str(src), recursive=True) if Path(f).is_file())
+        if not files:
+            raise FdmlError(f"no records match {src}")
+        return [(str(Path(f).absolute()), None, None, None) for f in files]
+    # a single file; a missing one becomes an error row, like any other bad record
+    return [(str(p.absolute()), None, None, None)]
+
+
+def _safe(name: str) -> str:
+    return re.sub(r"[^A-Za-z0-9._@+-]", "_", name).lstrip(".") or "record"
+
+
+def collect_sources(sources) -> list[BatchItem]:
+    """Expand ``sources`` into batch items with unique keys, in order.
+
+    Parameters
+    ----------
+    sources : path, glob, (path, t0, t1) or a list of them
+        A folder (its ``*.csv``, ``*.mat``, ``*.asc``, ``*.dat`` files, sorted), a glob
+        pattern, a record file, or a manoeuvre window ``(path, t0, t1)`` (s;
+        None for an open end), optionally ``(path, t0, t1, name)``.
+
+    Returns
+    -------
+    list of BatchItem
+        Keys are the file stem, with ``@T0-T1`` for a window; names that
+        collide get a short hash of their path.  A record listed twice (same
+        file and window) is kept once.
+    """
+    if isinstance(sources, (str, os.PathLike, BatchItem)) or _is_window(sources):
+        sources = [sources]
+    entries, listed = [], set()
+    for src in sources:
+        for e in _expand(src):
+            if e[:3] not in listed:  # a record named twice (a folder and a glob) is fitted once
+                listed.add(e[:3])
+                entries.append(e)
+    if not entries:
+        raise FdmlError("no records to fit")
+    keys = []
+    for path, t0, t1, name in entries:
+        if name is None:
+            name = Path(path).stem
+            if t0 is not None or t1 is not None:
+                name += f"@{'' if t0 is None else f'{t0:g}'}-{'' if t1 is None else f'{t1:g}'}"
+        keys.append(_safe(name))
+    count: dict[str, int] = {}
+    for k in keys:
+        count[k] = count.get(k, 0) + 1
+    items = []
+    for (path, t0, t1, _), k in zip(entries, keys):
+        if count[k] > 1:
+            k = f"{k}-{hashlib.sha1(f'{path}|{t0}|{t1}'.encode()).hexdigest()[:8]}"
+        items.append(BatchItem(path, t0, t1, k))
+    return items
+
+
+def load_source(path, t0: float | None = None, t1: float | None = None, *, name: str | None = None):
+    """Read one record file (and cut a window): the one place the batch reads records.
+
+    Uses :func:`fdml.io.load_record` (any supported format) when it is
+    available, else :func:`fdml.read_csv`.
+    """
+    from dataclasses import replace
+
+    try:
+        from .io import load_record
+    except ImportError:
+        load_record = None
+    if load_record is not None:
+        rec = load_record(path, t0=t0, t1=t1)
+    else:
+        from .record import read_csv
+
+        rec = read_csv(path)
+        if t0 is not None or t1 is not None:
+            rec = rec.window(t0, t1)
+    return replace(rec, name=name) if name else rec
+
+
+# --- hashing --------------------------------------------------------------------------------
+def _canonical(obj) -> str:
+    """Stable JSON text of plain data (numbers, strings, lists, dicts)."""
+
+    def default(o):
+        import numpy as np
+
+        if isinstance(o, np.generic):
+            return o.item()
+        if isinstance(o, np.ndarray):
+            return o.tolist()
+        if isinstance(o, (tuple, set, frozenset)):
+            return sorted(o) if isinstance(o, (set, frozenset)) else list(o)
+        raise FdmlError(f"batch options must be plain data (numbers, strings, lists, dicts); got {o!r}")
+
+    return json.dumps(obj, sort_keys=True, default=default, separators=(",", ":"))
+
+
+def _file_hash(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
+    import inspect
+
+    from .estimate import fit
+
+    kw = dict(fit_kwargs or {})
+    allowed = set(inspect.signature(fit).parameters) - {"data", "model", "callback"}
+    unknown = sorted(set(kw) - allowed)
+    if unknown:
+        raise FdmlError(f"unknown fit option(s) {unknown}; fit takes {', '.join(sorted(allowed))}")
+    _canonical(kw)  # plain data only: it is hashed and shipped to workers
+    return kw
+
+
+# --- the task (runs in a worker) ------------------------------------------------------------
+def _one_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    first = text.splitlines()[0] if text else ""
+    return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+
+
+def _num(x: float):
+    x = float(x)
+    return x if math.isfinite(x) else str(x)
+
+
+def _base_row(task: Mapping) -> dict:
+    return {"index": task["index"], "key": task["key"], "source": task["path"], "t0": task["t0"],
+            "t1": task["t1"], "status": "error", "reused": False, "converged": None, "iterations": None,
+            "cost": None, "elapsed": None, "n_freq": None, "error": "", "warnings": "",
+            "result_file": "", "params": {}, "stderr": {}}
+
+
+def error_row(task: Mapping, exc: BaseException | str) -> dict:
+    """The table row of a record that failed with ``exc``."""
+    row = _base_row(task)
+    row["error"] = exc if isinstance(exc, str) else _one_line(exc)
+    return row
+
+
+def _result_paths(task: Mapping) -> tuple[Path, Path]:
+    d = Path(task["out_dir"]) / "results"
+    return d / f"{task['key']}.json", d / f"{task['key']}.error.json"
+
+
+def _reusable(path: Path, input_hash: str) -> dict | None:
+    try:
+        d = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    b = d.get("batch") if isinstance(d, dict) else None
+    if not isinstance(b, dict) or b.get("input_hash") != input_hash or not isinstance(b.get("row"), dict):
+        return None
+    return b["row"]
+
+
+def _unlink(path: Path) -> None:
+    try:
+        path.unlink()
+    except FileNotFoundError:
+        pass
+
+
+def run_task(task: Mapping) -> dict:
+    """Fit one batch item and write its result file; return its table row.
+
+    Never raises for a bad record: the error goes into the row (and an
+    ``.error.json`` file).  Idempotent: a rerun writes the same file name by
+    an atomic rename.
+    """
+    from . import __version__
+
+    t_start = time.perf_counter()
+    res_path, err_path = _result_paths(task)
+    row = _base_row(task)
+    try:
+        h = hashlib.sha256()
+        h.update(_file_hash(task["path"]).encode())
+        h.update(_canonical({"t0": task["t0"], "t1": task["t1"], "spec": task["spec"],
+                             "fit": task["fit_kwargs"], "fdml": __version__}).encode())
+        input_hash = h.hexdigest()
+    except OSError as exc:
+        from .errors import RecordError
+
+        msg = (f"record file {task['path']} does not exist" if isinstance(exc, FileNotFoundError)
+               else f"cannot read record file {task['path']}: {exc.strerror or exc}")
+        return _write_error(task, row, RecordError(msg), err_path, res_path, None)
+    if task["resume"]:
+        old = _reusable(res_path, input_hash)
+        if old is not None:
+            _unlink(err_path)
+            return {**old, "index": task["index"], "key": task["key"], "source": task["path"],
+                    "t0": task["t0"], "t1": task["t1"], "reused": True}
+    try:
+        from .estimate import fit
+
+        rec = load_source(task["path"], task["t0"], task["t1"], name=task["key"])
+        model = ModelSpec(**task["spec"]).build()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the result keeps its warnings
+            res = fit(rec, model, **task["fit_kwargs"])
+        row.update(status="ok", converged=bool(res.converged), iterations=int(res.iterations),
+                   cost=_num(res.cost), elapsed=float(res.elapsed), n_freq=int(res.n_freq),
+                   warnings="; ".join(res.warnings),
+                   result_file=str(Path("results") / res_path.name),
+                   params={n: float(v) for n, v in zip(res.names, res.values)},
+                   stderr={n: _num(s) for n, s in zip(res.names, res.stderr)})
+        d = res.to_dict()
+        del res, rec
+        row["task_seconds"] = time.perf_counter() - t_start
+        d["batch"] = {"format": TABLE_FORMAT[0], "key": task["key"], "source": task["path"],
+                      "window": [task["t0"], task["t1"]], "input_hash": input_hash,
+                      "spec": task["spec"], "fit_kwargs": task["fit_kwargs"], "row": row}
+        text = json.dumps(d, separators=(",", ":"))
+        del d
+        atomic_write_text(res_path, text)
+        _unlink(err_path)
+        return row
+    except Exception as exc:  # any failure of this record stays with this record
+        return _write_error(task, row, exc, err_path, res_path, input_hash, t_start)
+
+
+def _write_error(task, row, exc, err_path: Path, res_path: Path, input_hash, t_start=None) -> dict:
+    row.update(status="error", error=_one_line(exc), result_file=str(Path("results") / err_path.name),
+               converged=None, params={}, stderr={})
+    if t_start is not None:
+        row["task_seconds"] = time.perf_counter() - t_start
+    doc = {"format": ERROR_FORMAT[0], "version": ERROR_FORMAT[1], "key": task["key"],
+           "source": task["path"], "window": [task["t0"], task["t1"]], "input_hash": input_hash,
+           "error": row["error"], "row": row}
+    try:
+        _unlink(res_path)  # a stale result for other inputs must not stand beside the error
+        atomic_write_text(err_path, json.dumps(doc, indent=1))
+    except Exception as exc2:  # the row still carries the error
+        row["error"] += f" (and the error file could not be written: {_one_line(exc2)})"
+        row["result_file"] = ""
+    return row
+
+
+# --- engines ----------------------------------------------------------------------------------
+def _is_dask_client(engine) -> bool:
+    return type(engine).__module__.split(".")[0] == "distributed" and hasattr(engine, "submit")
+
+
+def _dask_missing() -> FdmlError:
+    return FdmlError("the Dask engine needs the optional 'dask' extra: pip install 'fdml[dask]'")
+
+
+def _resolve_engine(engine, workers):
+    """(kind, client, owned) for an engine argument."""
+    if engine in (None, "process"):
+        return "process", None, False
+    if engine == "serial":
+        return "serial", None, False
+    if _is_dask_client(engine):
+        return "dask", engine, False
+    if isinstance(engine, str) and (engine == "dask" or "://" in engine):
+        try:
+            from distributed import Client, LocalCluster
+        except ImportError:
+            raise _dask_missing() from None
+        if engine == "dask":
+            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
+                                   processes=True, dashboard_address=None)
+            return "dask", Client(cluster), True
+        return "dask", Client(engine), True
+    raise FdmlError(f"engine must be 'process', 'serial', 'dask', a scheduler address or a "
+                    f"dask.distributed.Client, got {engine!r}")
+
+
+def _pool_context():
+    import multiprocessing as mp
+
+    # forkserver: safe beside threads (a Dask client, a progress bar), cheap forks
+    # of a preloaded fdml; spawn where there is no forkserver.
+    if "forkserver" in mp.get_all_start_methods():
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(["fdml.batch", "fdml.montecarlo"])
+        return ctx
+    return mp.get_context("spawn")
+
+
+def execute(fn: Callable[[dict], dict], tasks: Iterable[dict], *, engine="process", workers: int | None = None,
+            on_error: Callable[[dict, BaseException | str], dict]) -> Iterator[dict]:
+    """Run ``fn(task)`` for every task on ``engine``; yield the results as they finish.
+
+    ``fn`` must be a module-level function returning a small dict.  A task
+    whose execution fails outside ``fn`` (a worker process that died under
+    it, run alone, twice; a Dask ``KilledWorker``) yields ``on_error(task, exc)``.  At most a
+    few tasks per worker are in flight, so memory stays flat in the number
+    of tasks.
+    """
+    kind, client, owned = _resolve_engine(engine, workers)
+    try:
+        if kind == "serial":
+            for task in tasks:
+                try:
+                    yield fn(task)
+                except Exception as exc:
+                    yield on_error(task, exc)
+        elif kind == "process":
+            yield from _process_map(fn, tasks, workers or os.cpu_count() or 1, on_error)
+        else:
+            yield from _dask_map(client, fn, tasks, on_error)
+    finally:
+        if owned:
+            cluster = getattr(client, "cluster", None)
+            client.close()
+            if cluster is not None:
+                cluster.close()
+
+
+def _process_map(fn, tasks, workers: int, on_error) -> Iterator[dict]:
+    """Local process pool with a bounded window; survives worker processes that die.
+
+    A dead worker breaks the whole pool, failing every task in flight; those
+    tasks become suspects and are rerun one at a time in a fresh pool, so an
+    innocent task is never blamed.  A task that kills its worker while running
+    alone :data:`_LONE_DEATHS` times yields an error row.
+    """
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+    from concurrent.futures.process import BrokenProcessPool
+
+    it = iter(tasks)
+    suspects: deque = deque()
+    deaths: dict = {}
+    window = 2 * workers
+    exhausted = False
+    while True:
+        ex = ProcessPoolExecutor(max_workers=workers, mp_context=_pool_context())
+        inflight: dict = {}  # future -> (task, ran alone)
+        broken = finished = False
+        try:
+            while True:
+                while not broken and not any(alone for _, alone in inflight.values()):
+                    if suspects:
+                        if inflight:
+                            break  # a suspect runs alone once the others are done
+                        task, alone = suspects.popleft(), True
+                    elif len(inflight) < window and not exhausted:
+                        try:
+                            task, alone = next(it), False
+                        except StopIteration:
+                            exhausted = True
+                            break
+                    else:
+                        break
+                    try:
+                        inflight[ex.submit(fn, task)] = (task, alone)
+                    except BrokenProcessPool:
+                        suspects.appendleft(task)
+                        broken = True
+                if not inflight:
+                    break
+                done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    task, alone = inflight.pop(fut)
+                    try:
+                        out = fut.result()
+                    except BrokenProcessPool:
+                        broken = True
+                        tid = task.get("index", id(task))
+                        if alone:
+                            deaths[tid] = deaths.get(tid, 0) + 1
+                        if deaths.get(tid, 0) >= _LONE_DEATHS:
+                            yield on_error(task, f"WorkerDied: the worker process died {deaths[tid]} times "
+                                                 "running this task alone")
+                        else:
+                            logger.warning("a worker process died; rerunning task %s on its own",
+                                           task.get("key", tid))
+                            suspects.append(task)
+                        continue
+                    except Exception as exc:
+                        out = on_error(task, exc)
+                    yield out
+                if broken and not inflight:
+                    break
+            finished = True
+        finally:
+            ex.shutdown(wait=finished and not broken, cancel_futures=True)
+        if not broken:
+            return
+
+
+def _dask_map(client, fn, tasks, on_error) -> Iterator[dict]:
+    try:
+        from distributed import as_completed
+    except ImportError:  # pragma: no cover - a Client exists, so distributed does
+        raise _dask_missing() from None
+    nthreads = sum(client.nthreads().values()) or 1
+    window = max(4 * nthreads, 16)
+    it = iter(tasks)
+    ac = as_completed()
+    pending: dict = {}
+
+    def submit() -> bool:
+        try:
+            task = next(it)
+        except StopIteration:
+            return False
+        fut = client.submit(fn, task, pure=False)
+        pending[fut.key] = (task, fut)
+        ac.add(fut)
+        return True
+
+    try:
+        for _ in range(window):
+            if not submit():
+                break
+        for fut in ac:
+            task, _ = pending.pop(fut.key)
+            try:
+                out = fut.result()
+            except Exception as exc:  # KilledWorker after repeated deaths, a lost connection...
+                out = on_error(task, exc)
+            fut.release()
+            yield out
+            submit()
+    finally:
+        if pending:  # stopped early: drop what has not run
+            client.cancel([f for _, f in pending.values()])
+
+
+def _progress_handler(progress, total: int, desc: str):
+    """(callback(row, done), close) for a ``progress`` argument."""
+    if progress is None or progress is False:
+        return (lambda row, done: None), (lambda: None)
+    if progress is True or progress == "tqdm":
+        try:
+            from tqdm.auto import tqdm
+        except ImportError:
+            raise FdmlError("progress=True needs tqdm: pip install 'fdml[progress]'") from None
+        bar = tqdm(total=total, desc=desc, unit="record")
+
+        def update(row, done):
+            bar.update(1)
+
+        return update, bar.close
+    if callable(progress):
+        return (lambda row, done: progress(done, total, row)), (lambda: None)
+    raise FdmlError(f"progress must be None, True or a callable(done, total, row), got {progress!r}")
+
+
+# --- summary ----------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class BatchSummary:
+    """What :func:`run_batch` did.
+
+    Attributes
+    ----------
+    out_dir : Path
+    rows : tuple of dict
+        One row per record, in source order (as in ``table.json``).
+    table_csv, table_json : Path
+    n_fitted, n_reused, n_failed : int
+        Records fitted now, reused from an earlier run, failed.
+    wall_time : float
+        Seconds.
+    engine : str
+    """
+
+    out_dir: Path
+    rows: tuple
+    table_csv: Path
+    table_json: Path
+    n_fitted: int
+    n_reused: int
+    n_failed: int
+    wall_time: float
+    engine: str
+
+    @property
+    def n_total(self) -> int:
+        return len(self.rows)
+
+    @property
+    def n_ok(self) -> int:
+        return self.n_total - self.n_failed
+
+    @property
+    def failed(self) -> list[dict]:
+        """Rows of the records that failed."""
+        return [r for r in self.rows if r["status"] != "ok"]
+
+    def to_dict(self) -> dict:
+        """Short JSON form (``fdml batch --json``)."""
+        return {"out_dir": str(self.out_dir), "records": self.n_total, "fitted": self.n_fitted,
+                "reused": self.n_reused, "failed": self.n_failed, "wall_time": self.wall_time,
+                "engine": self.engine, "table_csv": str(self.table_csv), "table_json": str(self.table_json),
+                "errors": {r["key"]: r["error"] for r in self.failed}}
+
+    def to_frame(self):
+        """The table as a pandas DataFrame (pandas is optional)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise FdmlError("to_frame needs pandas: pip install 'fdml[pandas]'") from None
+        return pd.read_csv(self.table_csv)
+
+    def __str__(self) -> str:
+        lines = [f"{self.n_total} records: {self.n_fitted} fitted, {self.n_reused} reused, "
+                 f"{self.n_failed} failed in {self.wall_time:.1f} s ({self.engine})",
+                 f"table: {self.table_csv}"]
+        for r in self.failed:
+            lines.append(f"  {r['key']}: {r['error']}")
+        return "\n".join(lines)
+
+
+_FIXED_COLUMNS = ("key", "source", "t0", "t1", "status", "reused", "converged", "iterations", "cost",
+                  "elapsed", "n_freq", "error", "warnings", "result_file")
+
+
+@contextlib.contextmanager
+def _atomic_open(path: Path):
+    """A text file handle whose content appears at ``path`` only when the block succeeds."""
+    import tempfile
+
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", newline="") as fh:
+            yield fh
+        os.replace(tmp, path)
+    except BaseException:
+        _unlink(Path(tmp))
+        raise
+
+
+def _write_tables(out_dir: Path, rows: Sequence[dict], spec: dict, fit_kwargs: dict) -> tuple[Path, Path]:
+    """table.csv and table.json, streamed row by row (no whole-table string in memory)."""
+    names: list[str] = []
+    for r in rows:
+        for n in r["params"]:
+            if n not in names:
+                names.append(n)
+    csv_path, json_path = out_dir / "table.csv", out_dir / "table.json"
+    with _atomic_open(csv_path) as fh:
+        w = csv.writer(fh, lineterminator="\n")
+        w.writerow(list(_FIXED_COLUMNS) + [c for n in names for c in (n, f"{n}_stderr")])
+        for r in rows:
+            fixed = ["" if r.get(c) is None else r.get(c) for c in _FIXED_COLUMNS]
+            vals = []
+            for n in names:
+                vals.append(r["params"].get(n, ""))
+                vals.append(r["stderr"].get(n, ""))
+            w.writerow(fixed + vals)
+    head = {"format": TABLE_FORMAT[0], "version": TABLE_FORMAT[1], "model": spec, "fit_kwargs": fit_kwargs}
+    with _atomic_open(json_path) as fh:
+        fh.write(json.dumps(head, indent=1)[:-2] + ',\n "rows": [')
+        for i, r in enumerate(rows):
+            fh.write(("\n  " if i == 0 else ",\n  ") + json.dumps({k: v for k, v in r.items() if k != "index"}))
+        fh.write("\n ]\n}\n")
+    return csv_path, json_path
+
+
+def _clean_temporaries(results: Path) -> None:
+    """Remove temporary files left by a crash (``.NAME.json.XXXX.tmp``)."""
+    if results.is_dir():
+        for f in results.glob(".*.tmp"):
+            _unlink(f)
+
+
+# --- the batch ----------------------------------------------------------------------------------
+def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None, engine="process",
+              workers: int | None = None, resume: bool = True, progress=None) -> BatchSummary:
+    """Fit one model to many records, each on its own; stream results to disk.
+
+    Parameters
+    ----------
+    sources : path, glob, (path, t0, t1) or a list of them
+        See :func:`collect_sources`; windows are in s.
+    model_spec : ModelSpec, mapping or Model
+        The model, rebuilt in every worker (see :class:`ModelSpec`).
+    out_dir : path
+        Results go to ``out_dir/results/KEY.json`` (or ``KEY.error.json``), the
+        table to ``out_dir/table.csv`` and ``out_dir/table.json``.
+    fit_kwargs : mapping, optional
+        Options of :func:`fdml.fit` (``band``, ``outputs``, ``boundary``, ...),
+        plain data; they are part of the input hash.
+    engine : {"process", "serial", "dask"}, scheduler address or dask.distributed.Client
+        ``process`` (default): a local process pool of ``workers`` (default
+        all cores); ``serial``: in this process; a Client (or an address, or
+        ``"dask"`` for a local cluster) runs the tasks on Dask (``dask`` extra).
+    workers : int, optional
+        Local worker processes.
+    resume : bool, optional
+        Reuse result files whose input hash matches (default True); False
+        refits everything.
+    progress : None, True or callable, optional
+        True: a tqdm bar (``progress`` extra); a callable is called as
+        ``progress(done, total, row)`` in this process after every record.
+
+    Returns
+    -------
+    BatchSummary
+        A failed record is a row with its error; it never stops the others.
+    """
+    t_start = time.perf_counter()
+    items = collect_sources(sources)
+    spec = ModelSpec.coerce(model_spec).normalized()
+    spec.build()  # a bad model spec is one error now, not one per record
+    spec_d = spec.to_dict()
+    kw = _check_fit_kwargs(fit_kwargs)
+    if workers is not None and (not isinstance(workers, int) or workers < 1):
+        raise FdmlError(f"workers must be a positive integer, got {workers!r}")
+    out = Path(out_dir).absolute()
+    results = out / "results"
+    results.mkdir(parents=True, exist_ok=True)
+    _clean_temporaries(results)
+    tasks = ({"index": i, "key": it.key, "path": it.path, "t0": it.t0, "t1": it.t1, "spec": spec_d,
+              "fit_kwargs": kw, "out_dir": str(out), "resume": bool(resume)} for i, it in enumerate(items))
+    rows: list[dict | None] = [None] * len(items)
+    update, close = _progress_handler(progress, len(items), "fdml batch")
+    kind = _resolve_kind_name(engine)
+    done = 0
+    try:
+        for row in execute(run_task, tasks, engine=engine, workers=workers, on_error=error_row):
+            i = row["index"]
+            if rows[i] is None:
+                done += 1
+            rows[i] = row
+            update(row, done)
+    finally:
+        close()
+    final = [r for r in rows if r is not None]
+    csv_path, json_path = _write_tables(out, final, spec_d, kw)
+    n_failed = sum(r["status"] != "ok" for r in final)
+    n_reused = sum(bool(r.get("reused")) for r in final)
+    return BatchSummary(out_dir=out, rows=tuple(final), table_csv=csv_path, table_json=json_path,
+                        n_fitted=len(final) - n_failed - n_reused, n_reused=n_reused, n_failed=n_failed,
+                        wall_time=time.perf_counter() - t_start, engine=kind)
+
+
+def _resolve_kind_name(engine) -> str:
+    if engine in (None, "process"):
+        return "process"
+    if engine == "serial":
+        return "serial"
+    if _is_dask_client(engine):
+        return "dask"
+    return "dask" if isinstance(engine, str) else str(type(engine).__name__)

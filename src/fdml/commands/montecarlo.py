@@ -1,0 +1,86 @@
+"""``fdml montecarlo``: bias, scatter and scatter/CRB of the estimator over N seeded simulations."""
+
+from __future__ import annotations
+
+from ._common import add_model_arguments, assignments
+
+
+def register(sub) -> None:
+    p = sub.add_parser("montecarlo", help="Monte Carlo study: fit N seeded noisy simulations, "
+                       "bias, scatter and efficiency (scatter/CRB) per parameter")
+    add_model_arguments(p)
+    p.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE", help="truth parameter values")
+    p.add_argument("-n", type=int, default=1000, metavar="N", help="number of runs (default 1000)")
+    p.add_argument("--fit-model", choices=("unsteady", "steady", "derivatives", "dimensional"),
+                   help="model fitted (default: the truth model)")
+    p.add_argument("--maneuver", default="3211", choices=("3211", "doublet", "multisine"))
+    p.add_argument("--duration", type=float, default=10.0, help="record length, s (default 10)")
+    p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
+    p.add_argument("--noise", default="0.03", metavar="FRACTION|alpha=..,q=..,az=..",
+                   help="noise: fraction of each output's RMS (default 0.03) or absolute stds")
+    p.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    p.add_argument("--band", default="0.1:10:0.1", metavar="LO:HI:STEP",
+                   help="frequency band in rad/s (default 0.1:10:0.1)")
+    p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: all cores)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster (needs the 'dask' extra)")
+    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    p.add_argument("-o", "--output", metavar="DIR",
+                   help="write DIR/montecarlo.json, DIR/montecarlo.txt and DIR/montecarlo.png")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import importlib.util
+    from pathlib import Path
+
+    from ..batch import ModelSpec
+    from ..errors import FdmlError
+    from ..montecarlo import monte_carlo
+    from .simulate import _noise
+
+    if args.model != "dimensional" and args.aircraft is None:
+        raise FdmlError(f"the {args.model} model needs --aircraft NAME or FILE.json")
+    if args.model == "dimensional" and args.aircraft is None and args.airspeed is None:
+        raise FdmlError("the dimensional model needs --airspeed U (m/s) or --aircraft")
+    options = {"gust": bool(args.gust)}
+    if args.airspeed is not None:
+        options["airspeed"] = args.airspeed
+    truth = ModelSpec(kind=args.model, aircraft=args.aircraft, options=options, values=assignments(args.set))
+    fit_model = None
+    if args.fit_model and args.fit_model != args.model:
+        fit_model = ModelSpec(kind=args.fit_model, aircraft=args.aircraft, options=options)
+    noise, relative = _noise(args.noise)
+    progress = True if (args.progress and not args.json and importlib.util.find_spec("tqdm")) else None
+    res = monte_carlo(truth, n=args.n, maneuver=args.maneuver, duration=args.duration, dt=args.dt, noise=noise,
+                      seed=args.seed, fit_model=fit_model, fit_kwargs={"band": args.band},
+                      engine=args.scheduler or "process", workers=args.workers, progress=progress)
+    files = {}
+    if args.output:
+        out = Path(args.output)
+        out.mkdir(parents=True, exist_ok=True)
+        res.to_json(out / "montecarlo.json")
+        from ..record import atomic_write_text
+
+        atomic_write_text(out / "montecarlo.txt", res.table() + "\n")
+        files = {"json": str(out / "montecarlo.json"), "table": str(out / "montecarlo.txt")}
+        if importlib.util.find_spec("matplotlib"):
+            import matplotlib
+
+            matplotlib.use("Agg")
+            import matplotlib.pyplot as plt
+
+            fig, _ = res.plot()
+            fig.savefig(out / "montecarlo.png", dpi=120)
+            plt.close(fig)
+            files["figure"] = str(out / "montecarlo.png")
+    if args.json:
+        from ..cli import print_json
+
+        print_json({"n": res.n, "used": res.n_used, "failed": len(res.errors), "wall_time": res.wall_time,
+                    "settings": res.settings, "stats": res.stats(), "files": files})
+    else:
+        print(res.table())
+        for f in files.values():
+            print(f"wrote {f}")
+    return 0 if res.n_used >= 2 else 1

@@ -1,0 +1,443 @@
+"""Monte Carlo studies of the estimator: bias, scatter and efficiency against the Cramer-Rao bound.
+
+:func:`monte_carlo` simulates one manoeuvre of a model with known ("truth")
+parameters, adds N independent draws of white measurement noise (run ``i``
+uses the stream ``np.random.SeedSequence(seed).spawn(n)[i]``, so any run can
+be reproduced alone), fits every noisy record in parallel and returns, per
+estimated model parameter,
+
+* ``truth``, ``mean``, ``bias = mean - truth``;
+* ``scatter``: the standard deviation of the estimates over the runs;
+* ``mean_crb``: the mean of the standard errors the fits reported;
+* ``efficiency = scatter / mean_crb``: 1 for an efficient estimator whose
+  reported uncertainty is right, above 1 if the fits claim more precision
+  than they have.
+
+The tasks run on the engines of :mod:`fdml.batch` (process pool, serial, Dask);
+each returns one short row, so memory stays flat in N.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import warnings
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .batch import ModelSpec, _canonical, _check_fit_kwargs, _one_line, _progress_handler, execute
+from .errors import FdmlError
+
+__all__ = ["monte_carlo", "MonteCarloResult", "load_monte_carlo", "MC_FORMAT"]
+
+#: JSON format identifier and version of a saved study.
+MC_FORMAT = ("fdml.MonteCarloResult", 1)
+
+#: Noise-free records simulated in this process, by settings (the same for every run).
+_CLEAN_CACHE: dict[str, object] = {}
+
+
+def _clean_record(task: Mapping):
+    key = _canonical([task["truth"], task["sim"]])
+    rec = _CLEAN_CACHE.get(key)
+    if rec is None:
+        from .simulate import simulate_maneuver
+
+        sim = dict(task["sim"])
+        truth = ModelSpec(**task["truth"]).build()
+        rec = simulate_maneuver(truth, sim.pop("maneuver"), **sim)
+        if len(_CLEAN_CACHE) > 8:
+            _CLEAN_CACHE.clear()
+        _CLEAN_CACHE[key] = rec
+    return rec
+
+
+def run_trial(task: Mapping) -> dict:
+    """One Monte Carlo run: noise draw ``index``, fit, short row (runs in a worker)."""
+    from dataclasses import replace
+
+    from .estimate import fit
+    from .record import add_noise
+
+    i = task["index"]
+    row = {"index": i, "ok": False, "converged": False, "iterations": 0, "elapsed": math.nan,
+           "values": None, "stderr": None, "error": ""}
+    try:
+        rng = np.random.default_rng(np.random.SeedSequence(task["seed"], spawn_key=(i,)))
+        noise = task["noise"]
+        rec = add_noise(_clean_record(task), noise, rng, relative=not isinstance(noise, Mapping))
+        rec = replace(rec, name=f"run{i}")
+        model = ModelSpec(**task["fit_model"]).build()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = fit(rec, model, **task["fit_kwargs"])
+        p, e = res.params, res.errors
+        row.update(ok=True, converged=bool(res.converged), iterations=int(res.iterations),
+                   elapsed=float(res.elapsed), values=[p[n] for n in task["names"]],
+                   stderr=[e[n] for n in task["names"]])
+    except Exception as exc:  # one failed run is counted, never fatal
+        row["error"] = _one_line(exc)
+    return row
+
+
+def _trial_error(task, exc) -> dict:
+    return {"index": task["index"], "ok": False, "converged": False, "iterations": 0, "elapsed": math.nan,
+            "values": None, "stderr": None, "error": exc if isinstance(exc, str) else _one_line(exc)}
+
+
+@dataclass(frozen=True)
+class MonteCarloResult:
+    """Estimates of N seeded runs and their statistics per parameter.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Estimated model parameters.
+    truth : ndarray (p,)
+        Values that generated the data (nan where the fitted model has a
+        parameter the truth model lacks).
+    estimates, stderr : ndarray (n, p)
+        Per run; nan rows for runs that failed.
+    converged : ndarray of bool (n,)
+    iterations : ndarray of int (n,)
+    fit_seconds : ndarray (n,)
+        In-process time of each fit, s.
+    errors : dict
+        Run index -> error of the runs that failed.
+    settings : dict
+        Models, manoeuvre, noise, seed, fit options, engine.
+    wall_time : float
+        Seconds for the whole study.
+    use_converged_only : bool
+        Statistics over converged runs only (default) or over every run that
+        returned an estimate.
+    """
+
+    names: tuple
+    truth: np.ndarray
+    estimates: np.ndarray
+    stderr: np.ndarray
+    converged: np.ndarray
+    iterations: np.ndarray
+    fit_seconds: np.ndarray
+    errors: dict
+    settings: dict
+    wall_time: float
+    use_converged_only: bool = True
+    units: dict = field(default_factory=dict)
+
+    # --- statistics ---------------------------------------------------------------------
+    @property
+    def n(self) -> int:
+        """Runs attempted."""
+        return int(self.estimates.shape[0])
+
+    @property
+    def used(self) -> np.ndarray:
+        """Mask of the runs that enter the statistics."""
+        ok = np.all(np.isfinite(self.estimates), axis=1)
+        return ok & self.converged if self.use_converged_only else ok
+
+    @property
+    def n_used(self) -> int:
+        return int(self.used.sum())
+
+    @property
+    def mean(self) -> np.ndarray:
+        return self.estimates[self.used].mean(axis=0)
+
+    @property
+    def bias(self) -> np.ndarray:
+        return self.mean - self.truth
+
+    @property
+    def scatter(self) -> np.ndarray:
+        """Sample standard deviation of the estimates (ddof=1)."""
+        return self.estimates[self.used].std(axis=0, ddof=1)
+
+    @property
+    def mean_crb(self) -> np.ndarray:
+        """Mean reported standard error (Cramer-Rao bound)."""
+        return self.stderr[self.used].mean(axis=0)
+
+    @property
+    def efficiency(self) -> np.ndarray:
+        """scatter / mean CRB (1 for an efficient estimator with honest error bars)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.scatter / self.mean_crb
+
+    @property
+    def bias_z(self) -> np.ndarray:
+        """Bias in units of its own standard error, scatter / sqrt(n_used)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return self.bias / (self.scatter / math.sqrt(max(self.n_used, 1)))
+
+    def stats(self) -> list[dict]:
+        """Per parameter: name, truth, mean, bias, scatter, mean_crb, efficiency, bias_z."""
+        cols = (self.truth, self.mean, self.bias, self.scatter, self.mean_crb, self.efficiency, self.bias_z)
+        keys = ("truth", "mean", "bias", "scatter", "mean_crb", "efficiency", "bias_z")
+        return [{"name": n, **{k: float(c[j]) for k, c in zip(keys, cols)}} for j, n in enumerate(self.names)]
+
+    # --- presentation -------------------------------------------------------------------------
+    def table(self, digits: int = 4) -> str:
+        """The statistics as a text table."""
+        s = self.settings
+        head = (f"Monte Carlo: {s.get('truth_kind')} truth, {s.get('fit_kind')} fit, {s.get('maneuver')} "
+                f"{s.get('duration'):g} s at {s.get('dt'):g} s, noise {s.get('noise')}, seed {s.get('seed')}\n"
+                f"{self.n_used} of {self.n} runs used ({int(self.converged.sum())} converged, "
+                f"{len(self.errors)} failed), {self.wall_time:.1f} s wall")
+        cols = ("parameter", "truth", "mean", "bias", "scatter", "mean CRB", "scatter/CRB", "bias/se")
+        rows = []
+        for st in self.stats():
+            rows.append([st["name"]] + [f"{st[k]:.{digits}g}" for k in ("truth", "mean", "bias", "scatter",
+                                                                            "mean_crb")]
+                        + [f"{st['efficiency']:.3f}", f"{st['bias_z']:+.2f}"])
+        widths = [max(len(c), *(len(r[j]) for r in rows)) for j, c in enumerate(cols)]
+        line = lambda cells: "  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(cells, widths)))  # noqa: E731
+        return "\n".join([head, line(cols), line(["-" * w for w in widths])] + [line(r) for r in rows])
+
+    def __str__(self) -> str:
+        return self.table()
+
+    def to_frame(self):
+        """The statistics as a pandas DataFrame indexed by parameter (pandas is optional)."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise FdmlError("to_frame needs pandas: pip install 'fdml[pandas]'") from None
+        return pd.DataFrame(self.stats()).set_index("name")
+
+    def plot(self, ax=None):
+        """Histogram of the estimates per parameter against N(truth, mean CRB).
+
+        Each panel shows the estimates, the truth, the Gaussian of the mean
+        reported CRB about the truth and the Gaussian of the observed mean and
+        scatter; the title gives scatter/CRB.  ``ax``: a sequence of at least
+        as many axes as parameters (or one Axes for one parameter); default a
+        new figure.  Returns ``(figure, axes)``; never calls ``show()``.
+        """
+        p = len(self.names)
+        if ax is None:
+            import matplotlib.pyplot as plt
+
+            ncol = min(p, 3)
+            nrow = math.ceil(p / ncol)
+            fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol, 2.8 * nrow), squeeze=False)
+            axes = list(axes.ravel())
+            for extra in axes[p:]:
+                extra.set_visible(False)
+        else:
+            axes = [ax] if hasattr(ax, "plot") else list(np.ravel(ax))
+            if len(axes) < p:
+                raise FdmlError(f"plot needs {p} axes (one per parameter), got {len(axes)}")
+            fig = axes[0].figure
+        est = self.estimates[self.used]
+        for j, name in enumerate(self.names):
+            a = axes[j]
+            x = est[:, j]
+            a.hist(x, bins=max(10, min(50, int(math.sqrt(x.size)))), density=True, alpha=0.5, color="C0",
+                   label="estimates")
+            lo, hi = np.min(x), np.max(x)
+            grid = np.linspace(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), 200)
+            for mu, sd, style, label in ((self.truth[j], self.mean_crb[j], "C3-", "truth, CRB"),
+                                         (self.mean[j], self.scatter[j], "k--", "mean, scatter")):
+                if math.isfinite(mu) and math.isfinite(sd) and sd > 0:
+                    a.plot(grid, np.exp(-0.5 * ((grid - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi)), style,
+                           lw=1.2, label=label)
+            if math.isfinite(self.truth[j]):
+                a.axvline(self.truth[j], color="C3", lw=0.8)
+            unit = self.units.get(name, "")
+            a.set_xlabel(f"{name} ({unit})" if unit else name)
+            a.set_title(f"{name}: scatter/CRB {self.efficiency[j]:.2f}", fontsize=9)
+            a.set_yticks([])
+        axes[0].legend(fontsize=7)
+        fig.tight_layout()
+        return fig, axes[:p]
+
+    # --- JSON -----------------------------------------------------------------------------------
+    def to_dict(self) -> dict:
+        def arr(a):
+            return [[None if not math.isfinite(v) else v for v in r] for r in np.asarray(a, float).tolist()]
+
+        return {
+            "format": MC_FORMAT[0], "version": MC_FORMAT[1], "names": list(self.names),
+            "truth": [None if not math.isfinite(v) else v for v in self.truth.tolist()],
+            "estimates": arr(self.estimates), "stderr": arr(self.stderr),
+            "converged": self.converged.tolist(), "iterations": self.iterations.tolist(),
+            "fit_seconds": [None if not math.isfinite(v) else v for v in self.fit_seconds.tolist()],
+            "errors": {str(k): v for k, v in self.errors.items()}, "settings": self.settings,
+            "wall_time": self.wall_time, "use_converged_only": self.use_converged_only, "units": self.units,
+            "stats": self.stats(),
+        }
+
+    def to_json(self, path: str | Path | None = None) -> str:
+        """Serialise to JSON text; write it atomically to ``path`` when given."""
+        text = json.dumps(self.to_dict(), indent=1, default=str)
+        if path is not None:
+            from .record import atomic_write_text
+
+            atomic_write_text(path, text)
+        return text
+
+    @classmethod
+    def from_dict(cls, d: Mapping) -> "MonteCarloResult":
+        if d.get("format") != MC_FORMAT[0] or d.get("version") != MC_FORMAT[1]:
+            raise FdmlError("not an fdml Monte Carlo result (format or version field missing or wrong)")
+
+        def arr(a):
+            return np.array([[math.nan if v is None else v for v in r] for r in a], float).reshape(-1, len(d["names"]))
+
+        return cls(
+            names=tuple(d["names"]), truth=np.array([math.nan if v is None else v for v in d["truth"]], float),
+            estimates=arr(d["estimates"]), stderr=arr(d["stderr"]), converged=np.array(d["converged"], bool),
+            iterations=np.array(d["iterations"], int),
+            fit_seconds=np.array([math.nan if v is None else v for v in d["fit_seconds"]], float),
+            errors={int(k): v for k, v in d["errors"].items()}, settings=dict(d["settings"]),
+            wall_time=float(d["wall_time"]), use_converged_only=bool(d.get("use_converged_only", True)),
+            units=dict(d.get("units", {})),
+        )
+
+
+def load_monte_carlo(path: str | Path) -> MonteCarloResult:
+    """Read a study saved by :meth:`MonteCarloResult.to_json`."""
+    path = Path(path)
+    try:
+        d = json.loads(path.read_text())
+    except FileNotFoundError:
+        raise FdmlError(f"Monte Carlo file {path} does not exist") from None
+    except json.JSONDecodeError as exc:
+        raise FdmlError(f"Monte Carlo file {path} is not valid JSON: {exc}") from None
+    return MonteCarloResult.from_dict(d)
+
+
+def _check_noise(noise):
+    if isinstance(noise, Mapping):
+        unknown = set(noise) - {"alpha", "q", "az"}
+        if unknown:
+            raise FdmlError(f"noise given for unknown output(s) {sorted(unknown)}; outputs: alpha, q, az")
+        out = {k: float(v) for k, v in noise.items()}
+        vals = list(out.values())
+    else:
+        try:
+            out = float(noise)
+        except (TypeError, ValueError):
+            raise FdmlError(f"noise must be a fraction of RMS or {{output: std}}, got {noise!r}") from None
+        vals = [out]
+    if not vals or any(not math.isfinite(v) or v < 0 for v in vals) or max(vals) <= 0:
+        raise FdmlError(f"noise must be finite, non-negative and not all zero, got {noise!r}")
+    return out
+
+
+def monte_carlo(model, truth_values: Mapping[str, float] | None = None, n: int = 1000, *, maneuver: str = "3211",
+                duration: float = 10.0, dt: float = 0.02, amplitude: float | None = None, noise=0.03,
+                seed: int = 0, fit_model=None, fit_kwargs: Mapping | None = None, engine="process",
+                workers: int | None = None, progress=None) -> MonteCarloResult:
+    """Fit N seeded noisy simulations of one manoeuvre; statistics per parameter.
+
+    Parameters
+    ----------
+    model : Model, ModelSpec or mapping
+        The truth model (see :class:`fdml.batch.ModelSpec`).
+    truth_values : mapping, optional
+        Parameter values of the truth, overriding the model's.
+    n : int, optional
+        Runs (default 1000).
+    maneuver : {"3211", "doublet", "multisine"}, optional
+    duration, dt : float, optional
+        Record length and sample interval, s.
+    amplitude : float, optional
+        Elevator amplitude, rad (default the generator's).
+    noise : float or mapping, optional
+        A fraction of each output's RMS (default 0.03), or absolute standard
+        deviations ``{"alpha": rad, "q": rad/s, "az": g}``.
+    seed : int, optional
+        Run ``i`` draws from ``np.random.SeedSequence(seed).spawn(n)[i]``.
+    fit_model : Model, ModelSpec or mapping, optional
+        The model fitted (default the truth model, started at the truth).
+    fit_kwargs : mapping, optional
+        Options of :func:`fdml.fit` (plain data).
+    engine, workers, progress :
+        As :func:`fdml.batch.run_batch`.
+
+    Returns
+    -------
+    MonteCarloResult
+    """
+    t_start = time.perf_counter()
+    if not isinstance(n, (int, np.integer)) or n < 2:
+        raise FdmlError(f"n must be an integer >= 2, got {n!r}")
+    if not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise FdmlError(f"seed must be a non-negative integer, got {seed!r}")
+    truth_spec = ModelSpec.coerce(model)
+    if truth_values:
+        from dataclasses import replace
+
+        truth_spec = replace(truth_spec, values={**truth_spec.values, **truth_values})
+    truth_spec = truth_spec.normalized()
+    truth = truth_spec.build()
+    if fit_model is None:
+        fit_spec = ModelSpec.from_model(truth).normalized()
+    else:
+        fit_spec = ModelSpec.coerce(fit_model).normalized()
+    fmodel = fit_spec.build()
+    kw = _check_fit_kwargs(fit_kwargs)
+    noise = _check_noise(noise)
+    # the names the study reports: estimated model parameters, not nuisance terms
+    names = [nm for nm in fmodel.parameters.free_names if not nm.startswith("bias_")]
+    for nm in kw.get("fix", {}) or ():
+        if nm in names:
+            names.remove(nm)
+    names += [nm for nm in (kw.get("free") or ()) if nm not in names and not nm.startswith("bias_")]
+    if not names:
+        raise FdmlError("the fitted model has no free parameters")
+    tvals = truth.parameters.values
+    truth_arr = np.array([tvals.get(nm, math.nan) for nm in names], float)
+    sim = {"maneuver": maneuver, "duration": float(duration), "dt": float(dt)}
+    if amplitude is not None:
+        sim["amplitude"] = float(amplitude)
+    # one clean simulation here: bad settings fail once, not n times
+    from .simulate import simulate_maneuver
+
+    simulate_maneuver(truth, maneuver, **{k: v for k, v in sim.items() if k != "maneuver"})
+    base = {"truth": truth_spec.to_dict(), "fit_model": fit_spec.to_dict(), "sim": sim, "noise": noise,
+            "seed": int(seed), "fit_kwargs": kw, "names": names}
+    tasks = ({**base, "index": i} for i in range(n))
+    p = len(names)
+    est = np.full((n, p), math.nan)
+    se = np.full((n, p), math.nan)
+    conv = np.zeros(n, bool)
+    iters = np.zeros(n, int)
+    secs = np.full(n, math.nan)
+    errors: dict[int, str] = {}
+    update, close = _progress_handler(progress, n, "fdml montecarlo")
+    done = 0
+    try:
+        for row in execute(run_trial, tasks, engine=engine, workers=workers, on_error=_trial_error):
+            i = row["index"]
+            done += 1
+            if row["ok"]:
+                est[i] = row["values"]
+                se[i] = row["stderr"]
+                conv[i] = row["converged"]
+                iters[i] = row["iterations"]
+                secs[i] = row["elapsed"]
+                errors.pop(i, None)
+            else:
+                errors[i] = row["error"]
+            update(row, done)
+    finally:
+        close()
+    from .batch import _resolve_kind_name
+
+    settings = {"truth_kind": truth.kind, "fit_kind": fmodel.kind, "truth_model": truth_spec.to_dict(),
+                "fit_model": fit_spec.to_dict(), **sim, "noise": noise,
+                "noise_relative": not isinstance(noise, Mapping), "seed": int(seed), "n": int(n),
+                "fit_kwargs": kw, "engine": _resolve_kind_name(engine), "workers": workers}
+    units = {nm: fmodel.parameters[nm].unit for nm in names if nm in fmodel.parameters}
+    return MonteCarloResult(names=tuple(names), truth=truth_arr, estimates=est, stderr=se, converged=conv,
+                            iterations=iters, fit_seconds=secs, errors=errors, settings=settings,
+                            wall_time=time.perf_counter() - t_start, units=units)
