@@ -3,57 +3,48 @@
 Data flow: :class:`Record` -> :func:`spectra` -> model (:func:`make_model`)
 -> :func:`fit` -> :class:`FitResult` (summary, JSON, plots).
 
-Heavy or optional parts (plotting, the command line) are imported lazily.
+Names are imported on first use (PEP 562), so ``import fdml`` and the command
+line start fast and load scipy or matplotlib only when a task needs them.
 """
 
 from __future__ import annotations
 
+import importlib
+
 __version__ = "0.1.0"
 
-from .aircraft import Aircraft, get_aircraft, list_aircraft, load_aircraft
-from .errors import (
-    AircraftError,
-    BandError,
-    ConvergenceWarning,
-    DataWarning,
-    FdmlError,
-    FdmlWarning,
-    IdentifiabilityWarning,
-    ParameterError,
-    RecordError,
-)
-from .estimate import fit
-from .models import MODEL_KINDS, Model, make_model
-from .parameters import Parameter, Parameters
-from .record import Record, read_csv
-from .results import FitResult, load_result
-from .spectra import FrequencyData, spectra
+#: public name -> module that defines it
+_LAZY = {
+    "Aircraft": "aircraft", "get_aircraft": "aircraft", "list_aircraft": "aircraft",
+    "load_aircraft": "aircraft",
+    "AircraftError": "errors", "BandError": "errors", "ConvergenceWarning": "errors",
+    "DataWarning": "errors", "FdmlError": "errors", "FdmlWarning": "errors",
+    "IdentifiabilityWarning": "errors", "ParameterError": "errors", "RecordError": "errors",
+    "fit": "estimate",
+    "MODEL_KINDS": "models", "Model": "models", "make_model": "models",
+    "Parameter": "parameters", "Parameters": "parameters",
+    "Record": "record", "read_csv": "record",
+    "FitResult": "results", "load_result": "results",
+    "compare_steady_unsteady": "compare",
+    "fit_time_domain": "timefit",
+}
 
-__all__ = [
-    "__version__",
-    "Aircraft",
-    "get_aircraft",
-    "list_aircraft",
-    "load_aircraft",
-    "AircraftError",
-    "BandError",
-    "ConvergenceWarning",
-    "DataWarning",
-    "FdmlError",
-    "FdmlWarning",
-    "IdentifiabilityWarning",
-    "ParameterError",
-    "RecordError",
-    "fit",
-    "MODEL_KINDS",
-    "Model",
-    "make_model",
-    "Parameter",
-    "Parameters",
-    "Record",
-    "read_csv",
-    "FitResult",
-    "load_result",
-    "FrequencyData",
-    "spectra",
-]
+# spectra() shares its name with its module, so bind it eagerly (numpy only); the
+# simulator and the consistency test stay in their modules (fdml.simulate.simulate,
+# fdml.consistency.consistency) because they load scipy.
+from .spectra import FrequencyData, spectra  # noqa: E402
+
+__all__ = ["__version__", "FrequencyData", "spectra", *_LAZY]
+
+
+def __getattr__(name: str):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'fdml' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import special
 
 from .errors import ParameterError
 
@@ -108,6 +107,8 @@ def downwash(s, eps_ss: float, F: float, G: float, H: float, l: float, U: float,
                 f"the downwash pole time T = (l_t - c_w)/U = {T:.4g} s must be positive: "
                 f"tail length l_t = {l} m must exceed the wing chord c_w = {c} m"
             )
+        from scipy import special  # imported here: only the F term needs it
+
         nz = s != 0
         fterm = np.zeros_like(s)
         sz = s[nz]

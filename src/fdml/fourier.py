@@ -30,7 +30,8 @@ record, W(theta) = (6 + theta^2) (3 - 4 cos theta + cos 2 theta) / (3 theta^4).
 
 The interior sum is evaluated either directly (chunked matrix products) or, on
 evenly spaced frequency grids, by a blocked chirp-z transform
-(:class:`scipy.signal.ZoomFFT`) in O(n log(n_omega)) operations.
+(Bluestein's algorithm on numpy.fft, as :class:`scipy.signal.ZoomFFT` does it)
+in O(n log(n_omega)) operations.
 """
 
 from __future__ import annotations
@@ -39,7 +40,6 @@ import math
 
 import numpy as np
 from numpy.polynomial import polynomial as _poly
-from scipy.signal import ZoomFFT
 
 from fdml.errors import BandError, FdmlError, RecordError
 
@@ -345,6 +345,43 @@ def _czt_layout(theta, n):
     return step, size, nblock, np.outer(np.arange(nblock) * float(size), theta)
 
 
+def _fast_len(n):
+    """Smallest 2^a 3^b 5^c >= n (a fast numpy FFT length)."""
+    best = 1 << max(0, (n - 1).bit_length())
+    p5 = 1
+    while p5 < best:
+        p35 = p5
+        while p35 < best:
+            p2 = p35
+            while p2 < n:
+                p2 *= 2
+            best = min(best, p2)
+            p35 *= 3
+        p5 *= 5
+    return best
+
+
+def _chirpz(x, step, m):
+    """y_k = sum_j x_j exp(-1j step k j), k < m, along the last axis (Bluestein's chirp-z).
+
+    Written with numpy.fft rather than :class:`scipy.signal.ZoomFFT` because
+    importing scipy.signal costs 0.5-1 s (it imports scipy.stats), which would
+    more than double the run time of a whole ``fdml fit``.  As in ZoomFFT, the
+    chirp phases step * j^2 / 2 are computed directly (not as powers of
+    exp(-1j step)), so their rounding does not grow with j^2.
+    """
+    n = x.shape[-1]
+    L = _fast_len(n + m - 1)
+    j = np.arange(n, dtype=float)
+    a = x * _expi(-0.5 * step * j * j)
+    lags = np.r_[np.arange(m, dtype=float), np.zeros(L - n - m + 1), np.arange(-(n - 1), 0, dtype=float)]
+    b = _expi(0.5 * step * lags * lags)
+    b[m: L - n + 1] = 0.0
+    c = np.fft.ifft(np.fft.fft(a, L, axis=-1) * np.fft.fft(b), axis=-1)[..., :m]
+    k = np.arange(m, dtype=float)
+    return c * _expi(-0.5 * step * k * k)
+
+
 def _czt_forward(x, theta):
     """Forward _direct on an even grid: blocked chirp-z, O(n log m)."""
     n, k = x.shape
@@ -353,8 +390,8 @@ def _czt_forward(x, theta):
     padded[:n] = x
     blocks = padded.reshape(nblock, size, k).transpose(0, 2, 1)      # (b, k, j')
     blocks = blocks * np.exp(-1j * theta[0] * np.arange(size))
-    zoom = ZoomFFT(size, theta.size * step, m=theta.size, fs=2 * math.pi)  # e^{-1j step i j'}
-    return np.einsum("bkm,bm->mk", zoom(blocks, axis=-1), np.exp(-1j * offset))
+    zoomed = _chirpz(blocks, step, theta.size)  # sum_j' e^{-1j step i j'}
+    return np.einsum("bkm,bm->mk", zoomed, np.exp(-1j * offset))
 
 
 def _czt_adjoint(z, theta, n):
@@ -362,8 +399,7 @@ def _czt_adjoint(z, theta, n):
     k = z.shape[1]
     step, size, nblock, offset = _czt_layout(theta, n)
     weighted = np.exp(1j * offset)[:, None, :] * z.T[None, :, :]         # (b, k, m)
-    zoom = ZoomFFT(theta.size, -size * step, m=size, fs=2 * math.pi)    # e^{+1j step i j'}
-    part = zoom(weighted, axis=-1) * np.exp(1j * theta[0] * np.arange(size))  # (b, k, j')
+    part = _chirpz(weighted, -step, size) * np.exp(1j * theta[0] * np.arange(size))  # e^{+1j step i j'}
     return part.transpose(0, 2, 1).reshape(nblock * size, k)[:n]
 
 
