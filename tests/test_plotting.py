@@ -213,3 +213,26 @@ def test_plot_correlation(res):
     assert [t.get_text() for t in ax.get_yticklabels()] == ["Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q", "Cm_de"]
     with pytest.raises(ValueError, match="not estimated"):
         plot_correlation(res, names=["Cz_a", "nope"])
+
+
+def test_overlay_of_a_joint_fit_with_an_elevator_bias():
+    """Two records fitted together, each with its own nuisance terms; an elevator trim error."""
+    from fdml.simulate import simulate
+
+    truth = fdml.make_model("derivatives", "navion")
+    recs = []
+    for name, man in (("a", "3211"), ("b", "doublet")):
+        r = simulate_maneuver(truth, man, duration=10.0, dt=0.02)
+        sim = simulate(truth, r.t, {"de": r["de"] + 0.002})  # the true elevator is 0.002 rad off
+        recs.append(Record(r.t, {"de": r["de"] + 0.01, "alpha": sim["alpha"] + 0.05, "q": sim["q"],
+                                 "az": sim["az"] + 1.0}, name=name, check_units=False))
+    fit = fdml.fit(recs, truth, band=(0.2, 8, 0.2), input_bias=True)
+    assert "bias_de[b]" in fit.names
+    for i, r in enumerate(recs):
+        m = simulate_fit(fit, i)
+        assert m.meta["elevator_bias"] == pytest.approx(0.002, rel=0.05)
+        for o in ("alpha", "q", "az"):
+            assert np.max(np.abs(m[o] - r[o])) < 2e-3 * np.ptp(r[o]), (i, o)
+        y, sd = spectra_uncertainty(fit, i)
+        np.testing.assert_allclose(y, fit.fitted_spectra(i))
+        assert np.all(np.isfinite(sd))

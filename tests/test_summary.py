@@ -82,6 +82,7 @@ def test_text_numbers_parse_back(res):
 
 
 def test_flags_fixed_at_bound_not_identifiable(res):
+    pytest.importorskip("pandas")  # the optional extra fdml[pandas]
     se = res.stderr.copy()
     i = res.names.index("Cm_a")
     se[i] = math.inf
@@ -159,6 +160,7 @@ def test_latex_tabular(res):
 # --- DataFrame -------------------------------------------------------------------------------
 
 def test_to_frame_holds_the_raw_numbers(res):
+    pytest.importorskip("pandas")  # the optional extra fdml[pandas]
     f = res.to_frame()
     assert list(f.columns) == ["value", "stderr", "rel_err_pct", "flags", "unit"]
     assert f.index.name == "parameter"
@@ -179,6 +181,7 @@ def test_to_frame_without_pandas_names_the_extra(res, monkeypatch):
 
 
 def test_unknown_table(res):
+    pytest.importorskip("pandas")  # the optional extra fdml[pandas]
     with pytest.raises(KeyError, match="parameters"):
         res.summary().to_frame("nope")
 
@@ -186,6 +189,7 @@ def test_unknown_table(res):
 # --- steady versus unsteady ------------------------------------------------------------------
 
 def test_comparison_table_formats(cmp):
+    pytest.importorskip("pandas")  # the optional extra fdml[pandas]
     ref = {"Cz_a": (-4.99, -4.90), "Cm_q": (-12.77, -14.68)}
     t = cmp.table(reference=ref)
     assert isinstance(t, str) and "shift/sigma" in t and "paper unst." in t
