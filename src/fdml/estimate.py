@@ -64,6 +64,9 @@ _SETTLE_TOL = 1e-4
 #: differences (error O(h^2)) halved until they settle to ~1e-10, so that bounds
 #: agree with the analytic sensitivities to six significant figures.
 _SETTLE_TOL_FINAL = 1e-10
+#: Largest frequency count for the O(m^2) Gram-matrix covariance; above it the
+#: O(n log m) adjoint transform is cheaper in time and memory (m^2 complex entries).
+_GRAM_MAX = 1500
 #: End offset (fraction of the peak) above which a record "ends far from trim".
 _END_OFFSET_WARN = 0.1
 
@@ -793,7 +796,7 @@ def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray 
     for d in prob.data:
         Cr = C[off: off + d.m]
         off += d.m
-        if not (prob.boundary == "measured" and bchan):
+        if not (prob.boundary == "measured" and bchan) and d.m <= _GRAM_MAX:
             # frequency-domain form, O(m^2): g = Re sum_i C_i v_i with E{v v^H} = Sigma (x) Psi,
             # E{v v^T} = Sigma (x) Phi, Psi = (F P)(F P)^H, Phi = (F P)(F P)^T, so
             # Cov g = 1/2 Re sum_ik [Psi_ik C_i Sigma C_k^H + Phi_ik C_i Sigma C_k^T]
