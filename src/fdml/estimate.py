@@ -654,7 +654,8 @@ def fit(
             # theta is within tol standard errors of the optimum: stop without the step,
             # so the sensitivities just computed serve the covariance too
             converged = True
-            message = f"converged: every step below {tol:g} standard errors after {it - 1} steps"
+            it -= 1  # this pass only confirmed convergence: it took no step
+            message = f"converged: every step below {tol:g} standard errors after {it} iterations"
             A_final = A
             break
         rel_prev = rel_step
@@ -708,34 +709,50 @@ def _try(prob, theta, step, lo, hi, J):
 
 
 def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi):
-    """One step on ln det R: Newton with the concentrated Hessian when it is
-    positive definite and lowers the cost, else a Gauss-Newton step with R
-    held (the paper's Eq. 23) with step halving, else Levenberg-Marquardt
-    damping of the Gauss-Newton Hessian."""
+    """One step on ln det R.
+
+    Newton with the concentrated Hessian ``Hc`` when it is positive definite.
+    Where it is not (far from the optimum the dependence of R on theta can make
+    it indefinite), ``Hc + mu I`` with the smallest shift mu (in the metric
+    scaled by diag H1) that makes it positive definite, which keeps the
+    curvature the paper's alternation ignores; mu grows until the cost falls.
+    The paper's Gauss-Newton step with R held (Eq. 23), with step halving, is
+    the last resort.
+    """
     idx = np.flatnonzero(active)
-    try:
-        np.linalg.cholesky(Hc[np.ix_(idx, idx)])
-        ok, *rest = _try(prob, theta, _solve(Hc, g, active), lo, hi, J)
-        if ok:
-            return (True, *rest)
-    except np.linalg.LinAlgError:
-        pass
-    step = _solve(H1, g, active)
     last = None
+    if idx.size:
+        d1 = np.diag(H1)[idx]
+        D = np.sqrt(np.where(d1 > 0, d1, 1.0))
+        Hn = Hc[np.ix_(idx, idx)] / np.outer(D, D)
+        gn = g[idx] / D
+        w, Q = np.linalg.eigh(Hn)
+        top = max(float(w.max()), 1e-300)
+        mu = 0.0 if w.min() > 1e-10 * top else 2.0 * abs(float(w.min())) + 1e-8 * top
+        # strongly indefinite (far from the optimum): the Gauss-Newton step goes further
+        tries = _SHIFT_TRIES if w.min() > -_SHIFT_LIMIT * top else 0
+        for _ in range(tries):
+            step = np.zeros_like(g)
+            step[idx] = -(Q @ ((Q.T @ gn) / (w + mu))) / D
+            ok, *rest = _try(prob, theta, step, lo, hi, J)
+            if ok:
+                return (True, *rest)
+            last = rest
+            mu = 4.0 * mu if mu > 0 else 1e-3 * top
+    step = _solve(H1, g, active)
     for _ in range(12):
         ok, *rest = _try(prob, theta, step, lo, hi, J)
         if ok:
             return (True, *rest)
         last = rest
         step = 0.5 * step  # step halving when the cost rises
-    D = np.where(np.diag(H1) > 0, np.diag(H1), 1.0)
-    lam = 1e-2
-    for _ in range(12):
-        ok, *rest = _try(prob, theta, _solve(H1 + lam * np.diag(D), g, active), lo, hi, J)
-        if ok:
-            return (True, *rest)
-        lam *= 10
     return (False, *last)
+
+
+_SHIFT_TRIES = 12
+#: Shifted Newton only while the most negative curvature of the scaled concentrated
+#: Hessian is within this fraction of the largest one.
+_SHIFT_LIMIT = 0.05
 
 
 def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:

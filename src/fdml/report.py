@@ -100,7 +100,7 @@ def write_report(result_or_path, out_dir=None, *, freq_unit: str = "rad/s", dpi:
             save("spectra" + sfx, fig, "spectra" + sfx)
             figures.append((rname, "Measured against fitted spectra with the 2-sigma Cramer-Rao band",
                             f"spectra{sfx}.png"))
-            if i < len(res.time_records):
+            if i < len(res.time_records) and res.time_records[i] is not None:
                 try:
                     fig = _figure((8, 2.0 * 4 + 0.6))
                     axes = fig.subplots(4, 1, sharex=True, squeeze=False)

@@ -216,10 +216,13 @@ class FitResult:
             for d in prob.data
         )
         time_records = tuple(
-            {"name": d.record.name, "t": d.record.t, "signals": dict(d.record.signals),
+            None if d.record is None else
+            {"name": d.name, "t": d.record.t, "signals": dict(d.record.signals),
              "meta": dict(d.record.meta), "trim_mode": d.trim_mode}
-            for d in prob.data if d.record is not None
+            for d in prob.data
         )
+        if all(r is None for r in time_records):
+            time_records = ()
         nuisance = {
             "boundary": prob.boundary,
             "output_biases": [["alpha", "q", "az"][k] for k in prob.out_idx
@@ -374,6 +377,7 @@ class FitResult:
             ],
             "nuisance": self.nuisance,
             "time_records": [
+                None if r is None else
                 {"name": r["name"], "t": _f2j(r["t"]),
                  "signals": {k: _f2j(v) for k, v in r["signals"].items()},
                  "meta": _jsonable(r["meta"]), "trim_mode": r["trim_mode"]}
@@ -437,6 +441,7 @@ class FitResult:
             spectra=spectra,
             nuisance=d.get("nuisance", {}),
             time_records=tuple(
+                None if r is None else
                 {"name": r["name"], "t": _j2f(r["t"]),
                  "signals": {k: _j2f(v) for k, v in r["signals"].items()},
                  "meta": r["meta"], "trim_mode": r["trim_mode"]}
@@ -448,8 +453,8 @@ class FitResult:
         """The time-domain record ``index`` as given to the fit (a :class:`~fdml.record.Record`)."""
         from .record import Record
 
-        if not self.time_records:
-            raise FdmlError("this result holds no time-domain records (the fit was given spectra)")
+        if not self.time_records or self.time_records[index] is None:
+            raise FdmlError(f"this result holds no time-domain records for record {index} (the fit was given spectra)")
         r = self.time_records[index]
         return Record(np.asarray(r["t"], float), {k: np.asarray(v, float) for k, v in r["signals"].items()},
                       name=r["name"], meta=r["meta"], check_units=False)

@@ -373,7 +373,7 @@ def _header(res) -> list[tuple[str, str]]:
     h.append(("band", band))
     h.append(("boundary terms", res.boundary))
     h.append(("biases", "; ".join(_biases_used(res)) or "no biases"))
-    trims = (getattr(res, "nuisance", None) or {}).get("trim") or [r["trim_mode"] for r in res.time_records]
+    trims = (getattr(res, "nuisance", None) or {}).get("trim") or [r["trim_mode"] for r in res.time_records if r is not None]
     if trims:
         h.append(("trim", ",".join(dict.fromkeys(str(t) for t in trims))))
     h.append(("standard errors", f"{res.cov_type}: {_COV_TYPES.get(res.cov_type, res.cov_type)}"))
