@@ -126,6 +126,8 @@ def fit_time_domain(record: Record, model: Model, *, outputs: Sequence[str] | st
         params = params.free(list(free))
     model = model.with_parameters(params)
     rec = record.remove_trim(trim)
+    # the simulator needs an exactly uniform grid; records are uniform to 1e-3 of dt
+    t_sim = rec.t[0] + rec.dt * np.arange(rec.n)
     if model.gust and not rec.has("alpha_w"):
         raise RecordError(f"record {rec.name!r} has no alpha_w column but the model has a gust input")
     inputs = {"de": rec["de"]}
@@ -147,7 +149,7 @@ def fit_time_domain(record: Record, model: Model, *, outputs: Sequence[str] | st
         nonlocal nfev
         nfev += 1
         vals = dict(base, **dict(zip(names, x[: len(names)])))
-        sim = simulate(model, rec.t, inputs, vals)
+        sim = simulate(model, t_sim, inputs, vals)
         y = np.column_stack([sim[o] for o in outputs])
         return y + (x[len(names):] if nb else 0.0)
 
