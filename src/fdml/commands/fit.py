@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+from ..io.cli import add_record_arguments, record_options
 from ._common import add_model_arguments, assignments, make_model_from_args
 
 
 def register(sub) -> None:
     p = sub.add_parser("fit", help="fit a model to one or more records (CSV: t,de,alpha,q,az[,alpha_w])")
-    p.add_argument("records", nargs="+", metavar="RECORD", help="CSV record(s); several are fitted jointly")
+    p.add_argument("records", nargs="+", metavar="RECORD",
+                   help="record file(s): CSV, SIDPAC .mat, DLR .asc/.mat; several are fitted jointly")
     add_model_arguments(p)
+    add_record_arguments(p)
     p.add_argument("--band", default="0.1:10:0.1", metavar="LO:HI:STEP",
                    help="frequency band in rad/s (default 0.1:10:0.1)")
     p.add_argument("--outputs", default="alpha,q,az", help="outputs in the fit (default alpha,q,az)")
@@ -50,9 +53,9 @@ def run(args) -> int:
 
     t0 = time.perf_counter()
     from ..estimate import fit
-    from ..record import read_csv
+    from ..io import load_records
 
-    records = [read_csv(r) for r in args.records]
+    records = load_records(args.records, **record_options(args))
     t_read = time.perf_counter()
     model = make_model_from_args(args)
     fixed = assignments(args.fix)

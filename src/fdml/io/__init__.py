@@ -36,7 +36,7 @@ from .units import UNITS, to_si
 
 __all__ = [
     "read_sidpac", "read_dlr_asc", "read_dlr_mat", "read_csv_mapped", "read_fdml_csv",
-    "load_record", "load_records", "detect_format", "data_dir", "data_path", "DATA_ENV",
+    "load_record", "load_records", "detect_format", "check_same_rate", "data_dir", "data_path", "DATA_ENV",
     "FORMATS", "LAYOUTS", "UNITS", "to_si",
 ]
 

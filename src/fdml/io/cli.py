@@ -1,0 +1,69 @@
+"""Command-line options for reading records (shared by ``fdml fit`` and ``fdml check``).
+
+Kept free of heavy imports: ``fdml --help`` builds every parser.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = ["add_record_arguments", "record_options", "parse_mapping"]
+
+_FORMATS = ("auto", "sidpac", "dlr-asc", "dlr-mat", "csv", "csv-map")
+
+
+def add_record_arguments(p: argparse.ArgumentParser) -> None:
+    """--format, --t0, --t1, --columns, --units, --sign, --layout."""
+    g = p.add_argument_group("reading records")
+    g.add_argument("--format", default="auto", choices=_FORMATS,
+                   help="record format (default auto: by extension and content)")
+    g.add_argument("--t0", type=float, metavar="S", help="window start, s")
+    g.add_argument("--t1", type=float, metavar="S", help="window end, s")
+    g.add_argument("--columns", metavar="SIG=COL,...",
+                   help="CSV column map, e.g. t=time,de=elev,alpha=AOA,q=q,az=nz (implies --format csv-map)")
+    g.add_argument("--units", metavar="SIG=UNIT,...",
+                   help="units of the mapped columns, e.g. de=deg,alpha=deg,q=deg/s,az=g")
+    g.add_argument("--sign", metavar="SIG=+-1,...", help="sign flips of mapped columns, e.g. az=-1 for n_z up")
+    g.add_argument("--layout", choices=("hfb320", "attas"), help="DLR column layout (default: by column count)")
+
+
+def parse_mapping(text: str | None, what: str) -> dict[str, str]:
+    """``"a=b,c=d"`` -> ``{"a": "b", "c": "d"}``; a RecordError names a malformed item."""
+    from ..errors import RecordError
+
+    out: dict[str, str] = {}
+    if not text:
+        return out
+    for item in text.split(","):
+        k, sep, v = item.partition("=")
+        if not sep or not k.strip() or not v.strip():
+            raise RecordError(f"--{what}: expected NAME=VALUE items separated by commas, got {item!r}")
+        out[k.strip()] = v.strip()
+    return out
+
+
+def record_options(args) -> dict:
+    """Keyword arguments for :func:`fdml.io.load_record` from parsed arguments."""
+    from ..errors import RecordError
+
+    opts: dict = {"format": getattr(args, "format", "auto"), "t0": getattr(args, "t0", None),
+                  "t1": getattr(args, "t1", None)}
+    columns = parse_mapping(getattr(args, "columns", None), "columns")
+    units = parse_mapping(getattr(args, "units", None), "units")
+    sign_txt = parse_mapping(getattr(args, "sign", None), "sign")
+    if columns:
+        if opts["format"] == "auto":
+            opts["format"] = "csv-map"
+        opts["columns"] = columns
+        if units:
+            opts["units"] = units
+        if sign_txt:
+            try:
+                opts["sign"] = {k: int(float(v)) for k, v in sign_txt.items()}
+            except ValueError:
+                raise RecordError(f"--sign: values must be +1 or -1, got {sign_txt}") from None
+    elif units or sign_txt:
+        raise RecordError("--units and --sign apply to a column-mapped CSV: give --columns too")
+    if getattr(args, "layout", None):
+        opts["layout"] = args.layout
+    return opts
