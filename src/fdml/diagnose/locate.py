@@ -1,0 +1,348 @@
+"""Locate: the gap map, channel by frequency band.
+
+For each output channel c and band b, on the independent DFT points of every
+record in the band (see :mod:`fdml.diagnose.data`), the fitted model's
+residual e_c is regressed on
+
+* a *coherent* part: the model's forced response to each input j,
+  ``y_jc(w) = G_jc(w) u_j(w)``, times a low-order polynomial in w
+  (Legendre, level and slope across the band): ``delta_j(w) y_jc(w)`` is a
+  relative error of the model's frequency response, i.e. gain and phase;
+* a *transient* part per record: a constant (what is left of Klein's boundary
+  terms after the fit).
+
+The residual energy splits into the coherent part (input-correlated model
+error: it would repeat on a repeated manoeuvre; the coefficients are shared
+by all records) and the incoherent remainder.  The remainder, divided by its
+degrees of freedom, is the **noise floor** of the cell: the part of the
+misfit that is neither a smooth function of frequency times the input nor a
+transient.  It is estimated per cell, so it follows coloured noise from band
+to band and does not depend on the model being right (model error that is
+smooth over the band goes to the coherent part).  Under "no model error" the
+ratio of the coherent energy per coefficient to the floor is exactly
+F(2 k_C, 2 nu) distributed for noise that is white within the band (the
+p-value of the cell; it ignores the fit's leverage, which makes it slightly
+conservative).
+
+Per cell the report gives the excess (coherent energy in floor units minus
+its noise-only expectation, so 0 under no error), the gain error in dB and
+phase error in degrees of the model against this nonparametric estimate of
+the frequency response (the band average of 1 + delta_de), their 95 %
+confidence bounds, the p-value, Holm's adjusted p-value across the cells
+("significant", family level alpha) and Benjamini-Hochberg's q-value.  A cell
+whose gain error cannot be resolved to better than 3 dB (one standard error)
+is marked "insufficient excitation" and is not tested.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from .data import AnalysisData
+
+__all__ = ["Cell", "GapMap", "default_bands", "gap_map", "cell_design", "holm", "bh"]
+
+#: Largest standard error of the cell gain error (dB) for the cell to be testable.
+MAX_GAIN_SE_DB = 3.0
+#: Polynomial order of the relative error across a band (level + slope).
+COHERENT_ORDER = 2
+#: Transient terms per record and band (a constant).
+TRANSIENT_ORDER = 1
+
+
+def holm(p: np.ndarray) -> np.ndarray:
+    """Holm's step-down adjusted p-values (NaN stays NaN)."""
+    p = np.asarray(p, float)
+    out = np.full_like(p, np.nan)
+    ok = np.flatnonzero(np.isfinite(p))
+    if ok.size == 0:
+        return out
+    order = ok[np.argsort(p[ok])]
+    m = order.size
+    run = 0.0
+    for i, k in enumerate(order):
+        run = max(run, min(1.0, (m - i) * p[k]))
+        out[k] = run
+    return out
+
+
+def bh(p: np.ndarray) -> np.ndarray:
+    """Benjamini-Hochberg q-values (NaN stays NaN)."""
+    p = np.asarray(p, float)
+    out = np.full_like(p, np.nan)
+    ok = np.flatnonzero(np.isfinite(p))
+    if ok.size == 0:
+        return out
+    order = ok[np.argsort(p[ok])]
+    m = order.size
+    q = np.minimum(1.0, p[order] * m / np.arange(1, m + 1))
+    q = np.minimum.accumulate(q[::-1])[::-1]
+    out[order] = q
+    return out
+
+
+def default_bands(data: AnalysisData, n_target: int = 5, min_bins: int | None = None) -> np.ndarray:
+    """Band edges (rad/s): log-spaced over the analysis band, merged until each holds enough DFT points.
+
+    ``min_bins`` defaults to ``max(10, 3 * regressors)``: at least three
+    independent frequencies per regression coefficient, so that the floor has
+    two thirds of the cell's degrees of freedom.
+    """
+    lo, hi = data.band
+    om = np.concatenate([d.omega[m] for d, m in zip(data.spectra, data.dft)])
+    k = COHERENT_ORDER * len(data.inputs) + TRANSIENT_ORDER * data.n_records
+    need = min_bins if min_bins is not None else max(10, 3 * k)
+    edges = list(np.geomspace(lo, hi, n_target + 1))
+    counts = lambda e: [int(np.sum((om >= a) & (om < b))) if i < len(e) - 2 else  # noqa: E731
+                        int(np.sum((om >= a) & (om <= b))) for i, (a, b) in enumerate(zip(e[:-1], e[1:]))]
+    while len(edges) > 2:
+        c = counts(edges)
+        i = int(np.argmin(c))
+        if c[i] >= need:
+            break
+        # merge the smallest band with its smaller neighbour
+        if i == 0:
+            j = 1
+        elif i == len(c) - 1:
+            j = i - 1
+        else:
+            j = i - 1 if c[i - 1] <= c[i + 1] else i + 1
+        del edges[max(i, j)]
+    return np.asarray(edges, float)
+
+
+@dataclass
+class Cell:
+    """One channel x band cell of the gap map."""
+
+    channel: str
+    band: tuple
+    n: int  # DFT points
+    residual_power: float  # mean |e|^2 per DFT point
+    coherent: float  # coherent energy (sum over points)
+    incoherent: float  # incoherent energy (sum)
+    floor: float  # noise floor per point (incoherent / dof)
+    dof: int  # complex dof of the floor
+    k: int  # complex coherent coefficients
+    F: float
+    p: float | None
+    excess: float  # coherent energy / floor - expectation (noise units)
+    gain_db: float | None
+    gain_db_ci: tuple | None
+    phase_deg: float | None
+    phase_deg_ci: tuple | None
+    gain_se_db: float | None
+    excitation: str = "ok"
+    p_holm: float | None = None
+    q_bh: float | None = None
+    significant: bool = False
+    extra: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        def num(x):
+            if x is None:
+                return None
+            x = float(x)
+            return x if math.isfinite(x) else None
+        return {
+            "channel": self.channel,
+            "band": [round(self.band[0], 6), round(self.band[1], 6)],
+            "excess": num(self.excess),
+            "gain_db": num(self.gain_db),
+            "gain_db_ci": None if self.gain_db_ci is None else [num(v) for v in self.gain_db_ci],
+            "phase_deg": num(self.phase_deg),
+            "phase_deg_ci": None if self.phase_deg_ci is None else [num(v) for v in self.phase_deg_ci],
+            "significant": bool(self.significant),
+            "p_value": num(self.p),
+            "p_holm": num(self.p_holm),
+            "q_bh": num(self.q_bh),
+            "coherent_fraction": num(self.coherent / (self.coherent + self.incoherent))
+            if (self.coherent + self.incoherent) > 0 else None,
+            "noise_floor": num(self.floor),
+            "floor_dof": int(2 * self.dof),
+            "excitation": self.excitation,
+            "n_freq": int(self.n),
+            **{k: v for k, v in self.extra.items()},
+        }
+
+
+@dataclass
+class GapMap:
+    """All cells, with the multiple-testing correction applied."""
+
+    cells: list
+    edges: np.ndarray
+    channels: tuple
+    alpha: float
+    method: str = ("noise floor per cell: residual energy not coherent with the inputs (band regression on "
+                   "independent DFT points; model-free for errors smooth across the band)")
+
+    def cell(self, channel: str, b: int) -> Cell:
+        return self.cells[self.channels.index(channel) * (self.edges.size - 1) + b]
+
+    def flagged(self) -> list:
+        return [c for c in self.cells if c.significant]
+
+    def to_list(self) -> list:
+        return [c.to_dict() for c in self.cells]
+
+
+def _legendre(x: np.ndarray, order: int) -> np.ndarray:
+    return np.polynomial.legendre.legvander(x, max(order - 1, 0))[:, :order]
+
+
+@dataclass
+class CellDesign:
+    """Rows and regressors of one cell (shared by before/after evaluations)."""
+
+    rows: np.ndarray  # indices into the stacked analysis rows
+    XT: np.ndarray  # transient regressors (n, kT)
+    XC: np.ndarray  # coherent regressors (n, kC)
+    weights: list  # per input: (column slice, band-average weights over coefficients)
+    inputs: list
+
+
+def cell_design(data: AnalysisData, forced: np.ndarray, c: int, lo: float, hi: float, last: bool) -> CellDesign:
+    """Regressors of cell (channel c, band [lo, hi)) on the stacked DFT rows.
+
+    ``forced`` has shape (N, 3, n_in): the model's forced response y_jc per row.
+    """
+    om = data.stacked_omega()
+    rec = data.stacked_record()
+    dft = data.stacked_dft()
+    inb = (om >= lo) & ((om <= hi) if last else (om < hi))
+    rows = np.flatnonzero(inb & dft)
+    x = 2.0 * (np.log(om[rows]) - math.log(lo)) / (math.log(hi) - math.log(lo)) - 1.0 if rows.size else rows
+    cols_T = []
+    for r in range(data.n_records):
+        sel = (rec[rows] == r).astype(float)
+        if sel.sum() == 0:
+            continue
+        P = _legendre(x, TRANSIENT_ORDER)
+        cols_T.append(P * sel[:, None])
+    XT = np.hstack(cols_T).astype(complex) if cols_T else np.zeros((rows.size, 0), complex)
+    cols_C, weights, used = [], [], []
+    off = 0
+    for j, name in enumerate(data.inputs):
+        y = forced[rows, c, j]
+        if rows.size == 0 or not np.any(np.abs(y) > 0):
+            continue
+        P = _legendre(x, COHERENT_ORDER)
+        cols_C.append(P * y[:, None])
+        w = np.abs(y) ** 2
+        avg = (P * w[:, None]).sum(axis=0) / max(w.sum(), 1e-300)  # |y|^2-weighted band average of delta
+        weights.append((slice(off, off + P.shape[1]), avg))
+        used.append(name)
+        off += P.shape[1]
+    XC = np.hstack(cols_C) if cols_C else np.zeros((rows.size, 0), complex)
+    return CellDesign(rows, XT, XC, weights, used)
+
+
+def _lstsq_rss(X, e):
+    if X.shape[1] == 0:
+        return float(np.vdot(e, e).real), None, None
+    coef, *_ = np.linalg.lstsq(X, e, rcond=None)
+    res = e - X @ coef
+    return float(np.vdot(res, res).real), coef, res
+
+
+def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, floor: float | None = None):
+    """Regress the residual of one cell; returns a :class:`Cell` (``floor`` fixes the noise floor)."""
+    n = design.rows.size
+    kT, kC = design.XT.shape[1], design.XC.shape[1]
+    dof = n - kT - kC
+    ee = e[design.rows]
+    total = float(np.vdot(ee, ee).real)
+    rss0, _, _ = _lstsq_rss(design.XT, ee)
+    X = np.hstack([design.XT, design.XC])
+    rss1, coef, _ = _lstsq_rss(X, ee)
+    coherent = max(rss0 - rss1, 0.0)
+    empty = Cell(channel, band, n, total / max(n, 1), coherent, rss1, math.nan, dof, kC, math.nan, None,
+                 math.nan, None, None, None, None, None, excitation="too few frequencies")
+    if dof < 2 or kC == 0:
+        return empty
+    s2 = rss1 / dof if floor is None else floor
+    if not s2 > 0:
+        return empty
+    F = (coherent / kC) / s2
+    p = float(stats.f.sf(F, 2 * kC, 2 * dof))
+    excess = coherent / s2 - kC * dof / (dof - 1)
+    # gain/phase of the model against the data, input de (the first input used)
+    cov = s2 * np.linalg.pinv(X.conj().T @ X)
+    out = {}
+    for (sl, avg), name in zip(design.weights, design.inputs):
+        idx = np.arange(kT + sl.start, kT + sl.stop)
+        d = complex(avg @ coef[idx])
+        var = float(np.real(avg.conj() @ cov[np.ix_(idx, idx)] @ avg))
+        z = 1.0 + d
+        az = abs(z)
+        se = math.sqrt(max(var, 0.0) / 2.0) / max(az, 1e-12)  # per real component, relative
+        gdb = 20 * math.log10(max(az, 1e-12))
+        ph = math.degrees(math.atan2(z.imag, z.real))
+        se_db = 20 / math.log(10) * se
+        se_deg = math.degrees(se)
+        out[name] = (gdb, (gdb - 1.96 * se_db, gdb + 1.96 * se_db), ph, (ph - 1.96 * se_deg, ph + 1.96 * se_deg),
+                     se_db)
+    prim = out.get("de") or next(iter(out.values()))
+    excitation = "ok" if prim[4] <= MAX_GAIN_SE_DB else "insufficient excitation"
+    extra = {}
+    for name, v in out.items():
+        if name != "de":
+            extra[f"gain_db_{name}"] = v[0]
+            extra[f"phase_deg_{name}"] = v[2]
+    cell = Cell(channel, band, n, total / n, coherent, rss1, s2, dof, kC, F, p if excitation == "ok" else None,
+                excess, prim[0], prim[1], prim[2], prim[3], prim[4], excitation=excitation, extra=extra)
+    return cell
+
+
+def forced_response(data: AnalysisData, model, values=None) -> np.ndarray:
+    """``G_jc(w) u_j(w)`` on the stacked rows, shape (N, 3, n_in)."""
+    out = []
+    for d in data.spectra:
+        G = model.evaluate(d.omega, values).G[:, :, : d.u.shape[1]]
+        out.append(G * d.u[:, None, :])
+    return np.concatenate(out)
+
+
+def gap_map(data: AnalysisData, residual: np.ndarray, forced: np.ndarray, edges: np.ndarray, *,
+            channels=("alpha", "q", "az"), alpha: float = 0.05, floors: dict | None = None,
+            designs: dict | None = None) -> GapMap:
+    """The gap map of one fit.
+
+    Parameters
+    ----------
+    residual : ndarray, shape (N, 3)
+        Residuals z - y on the stacked analysis rows (all three outputs;
+        columns of outputs that were not fitted are ignored via ``channels``).
+    forced : ndarray, shape (N, 3, n_in)
+        The model's forced response (see :func:`forced_response`).
+    edges : ndarray
+        Band edges, rad/s.
+    floors : dict, optional
+        ``{(channel, band index): floor}`` to hold the noise floors of another
+        map (for before/after comparisons).
+    """
+    from .effects import CHANNELS
+
+    cells = []
+    nb = edges.size - 1
+    designs = {} if designs is None else designs
+    for ch in channels:
+        c = CHANNELS.index(ch)
+        for b in range(nb):
+            key = (ch, b)
+            if key not in designs:
+                designs[key] = cell_design(data, forced, c, edges[b], edges[b + 1], b == nb - 1)
+            fl = None if floors is None else floors.get(key)
+            cells.append(evaluate_cell(designs[key], residual[:, c], ch, (edges[b], edges[b + 1]), fl))
+    p = np.array([c.p if c.p is not None else np.nan for c in cells])
+    ph, q = holm(p), bh(p)
+    for cell, a, b_ in zip(cells, ph, q):
+        cell.p_holm = None if not np.isfinite(a) else float(a)
+        cell.q_bh = None if not np.isfinite(b_) else float(b_)
+        cell.significant = bool(np.isfinite(a) and a < alpha)
+    return GapMap(cells, np.asarray(edges), tuple(channels), alpha)

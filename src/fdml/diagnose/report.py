@@ -1,0 +1,165 @@
+"""The diagnosis report: verdict, labels, JSON and the plain-language paragraph.
+
+Labels (DIAGNOSIS.md 2.3 step 7), for a significant candidate, judged on the
+held-out record when one is given, else in-sample:
+
+``confirmed``
+    accepted, alone in its ambiguity set, plausible parameters, the coherent
+    gap in the flagged cells shrinks by at least :data:`SHRINK_CONFIRM`, and no
+    flagged cell is left after the final model;
+``tentative``
+    significant, but the map flagged no cell (the gap is too small to judge a
+    shrink), or other effects fit these data as well (ambiguity set), or it
+    explains the gap but is not the accepted effect;
+``partial``
+    significant, but flagged cells remain, the shrink is below the threshold,
+    or its fitted parameters are implausible: usually an effect outside the
+    library, or a second effect.
+
+A candidate that is not significant has no label (``None``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["DiagnosisReport", "label_for", "SHRINK_CONFIRM", "JSON_KEYS"]
+
+#: Shrink of the flagged coherent gap needed for "confirmed" (chosen on the tuning seed range,
+#: benchmarks/validate_diagnose.py; DIAGNOSIS.md proposes 0.5).
+SHRINK_CONFIRM = 0.5
+#: Keys every JSON report has (issue 4).
+JSON_KEYS = ("verdict", "ranking", "ambiguous", "not_identifiable", "location", "footprint", "unexplained")
+
+
+def label_for(*, significant: bool, accepted: bool, ambiguous: bool, plausible: bool, shrink: float | None,
+              n_flagged: int, n_unexplained: int, threshold: float = SHRINK_CONFIRM) -> str | None:
+    """The confidence label of one candidate (see module doc)."""
+    if not significant:
+        return None
+    if not plausible:
+        return "partial"
+    if n_flagged == 0 or shrink is None:
+        return "tentative"
+    if shrink < threshold:
+        return "partial"
+    if accepted and n_unexplained > 0:
+        return "partial"
+    if ambiguous or not accepted:
+        return "tentative"
+    return "confirmed"
+
+
+def _num(x):
+    if x is None:
+        return None
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return x
+    return x if math.isfinite(x) else None
+
+
+def _clean(obj):
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return [_clean(v) for v in obj.tolist()]
+    if isinstance(obj, (str, type(None))):
+        return obj
+    return _num(obj)
+
+
+@dataclass
+class DiagnosisReport:
+    """What :func:`fdml.diagnose.diagnose` returns.
+
+    The attributes mirror the JSON (:meth:`to_dict`); ``details`` keeps the
+    fitted objects for plots (base and final fits, analysis data, maps).
+    """
+
+    verdict: str
+    status: str
+    problems: list
+    ranking: list
+    ambiguous: list
+    not_identifiable: list
+    location: list
+    footprint: list
+    unexplained: list
+    selected: list = field(default_factory=list)
+    location_after: list = field(default_factory=list)
+    compensation: list = field(default_factory=list)
+    parameter_shifts: dict = field(default_factory=dict)
+    holdout: dict | None = None
+    noise: dict = field(default_factory=dict)
+    settings: dict = field(default_factory=dict)
+    text: str = ""
+    details: dict = field(default_factory=dict, repr=False)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict: the issue's keys first, then the supporting detail."""
+        d = {
+            "verdict": self.verdict,
+            "ranking": self.ranking,
+            "ambiguous": self.ambiguous,
+            "not_identifiable": self.not_identifiable,
+            "location": self.location,
+            "footprint": self.footprint,
+            "unexplained": self.unexplained,
+            "status": self.status,
+            "problems": self.problems,
+            "selected": self.selected,
+            "location_after": self.location_after,
+            "compensation": self.compensation,
+            "parameter_shifts": self.parameter_shifts,
+            "holdout": self.holdout,
+            "noise": self.noise,
+            "settings": self.settings,
+            "summary": self.text,
+        }
+        return _clean(d)
+
+    def to_json(self, path=None, indent: int = 1) -> str:
+        s = json.dumps(self.to_dict(), indent=indent)
+        if path is not None:
+            from ..record import atomic_write_text
+
+            atomic_write_text(path, s + "\n")
+        return s
+
+    def summary(self) -> str:
+        """The plain-language paragraph and a ranking table."""
+        lines = [self.text, ""]
+        if self.ranking:
+            lines.append(f"{'effect':24s} {'LR':>9s} {'p (Holm)':>10s} {'shrink':>7s}  label")
+            for r in self.ranking:
+                ph = r.get("p_holm")
+                sh = r.get("shrink")
+                lines.append(f"{r['effect'] + '@' + r['channel']:24s} {r['lr']:9.2f} "
+                             f"{(f'{ph:.2g}' if ph is not None else '-'):>10s} "
+                             f"{(f'{sh:.2f}' if sh is not None else '-'):>7s}  {r['label'] or '-'}")
+        if self.not_identifiable:
+            lines.append("")
+            lines.append("not testable here: " + "; ".join(f"{n['effect']}@{n['channel']} ({n['reason']})"
+                                                         for n in self.not_identifiable))
+        return "\n".join(lines)
+
+    def __str__(self) -> str:
+        return self.summary()
+
+    def plot(self, path=None):
+        """The figure: gap map before/after and Bode overlays (see :mod:`fdml.diagnose.plots`)."""
+        from .plots import plot_report
+
+        return plot_report(self, path)
