@@ -1,0 +1,802 @@
+r"""Data-compatibility check (flight-path reconstruction) of a longitudinal record.
+
+Before identification, flight-test practice checks that the measured angles,
+rates and accelerations obey the kinematics that link them, and estimates the
+sensor errors that make them disagree (the Braunschweig paper's first key
+point: "the influence of sensor dynamics is eliminated by data compatibility
+check and off-line correction before identification").  The kinematics hold
+whatever the aerodynamics, so this check needs no aircraft model.
+
+Kinematic equations (longitudinal plane, wings level, flat non-rotating
+earth; body axes x forward, z down; fdml's signs: alpha, theta, q positive
+nose up, specific forces a_x, a_z in g with a_z positive **down**, so that
+a_z = -1 g in level flight).  With body inertial velocities u = V cos(alpha),
+w = V sin(alpha) and u_dot = g a_x - g sin(theta) - q w,
+w_dot = g a_z + g cos(theta) + q u::
+
+    alpha_dot = q + (g / V) [a_z cos(alpha) - a_x sin(alpha) + cos(theta - alpha)]
+    theta_dot = q
+    V_dot     = g [a_x cos(alpha) + a_z sin(alpha) - sin(theta - alpha)]
+    h_dot     = V sin(theta - alpha)
+
+In trim (theta = alpha, a_z cos(alpha) - a_x sin(alpha) = -1) alpha_dot = 0;
+linearised about level flight the first equation is THEORY.md Eq. 5,
+Delta a_z = (U/g)(alpha_dot - q).  Without wind V and alpha are both air-
+and inertia-relative; wind makes the check fail (see :mod:`fdml.wind`).
+
+Sensor models (measured from true; the correction inverts them)::
+
+    q_m(t)     = K_q q(t) + b_q
+    a_z,m(t)   = K_az a_z(t - tau_az) + b_az
+    a_x,m(t)   = a_x(t) + b_ax
+    alpha_m(t) = K_alpha alpha(t - tau_alpha) + b_alpha
+    theta_m(t) = theta(t - tau_theta)
+    V_m(t)     = K_V V(t)
+    h_m(t)     = h(t)
+
+The rate gyro is the time reference (only relative shifts are observable);
+theta's scale is the attitude reference (only K_q / K_theta is observable,
+reported as K_q); a theta bias, a V bias and an h bias cannot be told from
+the initial states theta(0), V(0), h(0), which are estimated instead.
+
+Which parameters the data determine depends on the channels present:
+
+* ``b_q``, ``K_q``, ``tau_theta`` need theta (else q and a_z biases act on
+  alpha alike: ``b_q`` is fixed at 0 and the alpha drift goes to ``b_az``);
+* ``b_alpha`` needs the altitude h: only h_dot = V sin(theta - alpha) sees
+  the absolute flight-path angle; in V_dot the alpha terms cancel to first
+  order (a_z sin(alpha) + sin(alpha) ~ 0), and in alpha_dot an alpha bias is a
+  change of alpha(0);
+* ``b_ax`` and ``K_V`` need the airspeed V and a_x.
+
+The parameters are estimated by output error: the equations are integrated
+from the corrected inputs (q, a_z, a_x) by a fourth-order Runge-Kutta scheme
+on the sample grid, the outputs (alpha, theta, V, h, as present) are compared
+with the measurements, and a bounded Levenberg-Marquardt iteration minimises the
+residuals weighted by the inverse of each output's residual standard
+deviation, re-estimated until it settles (maximum likelihood with a diagonal
+noise covariance).  Standard errors come from the Gauss-Newton information
+matrix, corrected for coloured residuals (the residual autocorrelation,
+Bartlett-weighted up to a quarter of the record, enters the sandwich
+M^-1 (J^T Rvv J) M^-1 of Morelli & Klein); the white-noise bounds are kept
+beside them.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .constants import G0
+from .errors import FdmlError, IdentifiabilityWarning, RecordError
+from .record import Record
+
+__all__ = ["check_compatibility", "CompatibilityResult", "ParameterEstimate", "PARAMETERS", "apply_corrections"]
+
+#: Sensor parameters: nominal value, unit, description.
+PARAMETERS = {
+    "b_q": (0.0, "rad/s", "pitch-rate gyro bias"),
+    "K_q": (1.0, "-", "pitch-rate scale factor (relative to theta)"),
+    "b_az": (0.0, "g", "normal accelerometer bias"),
+    "K_az": (1.0, "-", "normal accelerometer scale factor"),
+    "tau_az": (0.0, "s", "a_z time shift relative to q (positive: a_z lags)"),
+    "b_ax": (0.0, "g", "longitudinal accelerometer bias"),
+    "K_alpha": (1.0, "-", "angle-of-attack scale factor"),
+    "b_alpha": (0.0, "rad", "angle-of-attack bias"),
+    "tau_alpha": (0.0, "s", "angle-of-attack time shift relative to q (positive: alpha lags)"),
+    "tau_theta": (0.0, "s", "pitch-attitude time shift relative to q (positive: theta lags)"),
+    "K_V": (1.0, "-", "airspeed scale factor"),
+}
+_STATE_UNITS = {"alpha0": "rad", "theta0": "rad", "V0": "m/s", "h0": "m"}
+#: Largest time shift searched, s (bounds of the tau_* parameters).
+DEFAULT_MAX_SHIFT = 0.25
+#: Outer passes re-estimating the output weights, and the relative change of
+#: the weights at which they count as settled.
+_WEIGHT_PASSES = 10
+_WEIGHT_TOL = 1e-2
+#: A parameter whose estimate lies more than this many standard errors from
+#: its nominal value is reported as significant (three sigma: a 0.3 % false
+#: alarm rate per parameter for Gaussian errors).
+SIGNIFICANT = 3.0
+
+
+@dataclass(frozen=True)
+class ParameterEstimate:
+    """One estimated quantity: value, colour-corrected and white standard errors."""
+
+    name: str
+    value: float
+    stderr: float
+    stderr_white: float
+    unit: str
+    description: str
+    nominal: float
+
+    @property
+    def z(self) -> float:
+        """Distance from the nominal value in standard errors."""
+        return abs(self.value - self.nominal) / self.stderr if self.stderr > 0 else math.inf
+
+    def to_dict(self) -> dict:
+        return {"value": self.value, "stderr": self.stderr, "stderr_white": self.stderr_white, "unit": self.unit,
+                "description": self.description, "nominal": self.nominal}
+
+
+@dataclass(frozen=True)
+class CompatibilityResult:
+    """Result of :func:`check_compatibility`.
+
+    Attributes
+    ----------
+    name : str
+        Record name.
+    params : dict
+        Sensor parameter name -> :class:`ParameterEstimate`.
+    states : dict
+        Initial states (alpha0, theta0, V0, h0 as present) -> ParameterEstimate.
+    fixed : dict
+        Parameters not estimated -> (value, reason).
+    corr : ndarray
+        Correlation matrix of all estimated quantities, in ``names`` order.
+    names : tuple of str
+    outputs : tuple of str
+        Outputs compared (alpha, theta, V, h as present).
+    residual_rms : dict
+        Output -> RMS of the final residual (SI units of the signal).
+    sigma : dict
+        Output -> the weight's standard deviation at convergence.
+    n_used : int
+        Samples per output in the fit (ends excluded by the time-shift margin).
+    converged : bool
+    message : str
+    record : Record or None
+        The corrected record, when asked for (``correct=True``).
+    findings : tuple of str
+    """
+
+    name: str
+    params: dict
+    states: dict
+    fixed: dict
+    corr: np.ndarray
+    names: tuple
+    outputs: tuple
+    residual_rms: dict
+    sigma: dict
+    n_used: int
+    converged: bool
+    message: str
+    record: Record | None = field(default=None, repr=False, compare=False)
+    findings: tuple = ()
+
+    def values(self) -> dict:
+        """All sensor parameters (estimated and fixed) by name."""
+        out = {k: v[0] for k, v in self.fixed.items()}
+        out.update({k: p.value for k, p in self.params.items()})
+        return out
+
+    def apply(self, record: Record) -> Record:
+        """The record corrected with these estimates (see :func:`apply_corrections`)."""
+        return apply_corrections(record, self.values())
+
+    def summary(self) -> str:
+        """Plain-text table of the estimates."""
+        lines = [f"Data compatibility: {self.name}",
+                 f"  outputs {', '.join(self.outputs)}; {self.n_used} samples each; "
+                 f"{'converged' if self.converged else 'NOT converged'} ({self.message})",
+                 "", f"  {'parameter':10s} {'estimate':>12s} {'std err':>10s} {'(white)':>10s}  unit     z    description"]
+        for p in self.params.values():
+            f, u = _display_factor(p.unit)
+            lines.append(f"  {p.name:10s} {p.value * f:12.5g} {p.stderr * f:10.3g} {p.stderr_white * f:10.3g}  "
+                         f"{u:6s} {p.z:5.1f}  {p.description}")
+        if self.fixed:
+            lines.append("")
+            lines.append("  not estimated:")
+            for k, (v, why) in self.fixed.items():
+                f, u = _display_factor(PARAMETERS[k][1])
+                lines.append(f"    {k:10s} = {v * f:g} {u}: {why}")
+        lines.append("")
+        lines.append("  initial states: " + ", ".join(
+            f"{k} = {p.value * _display_factor(p.unit)[0]:.5g} {_display_factor(p.unit)[1]}"
+            for k, p in self.states.items()))
+        lines.append("  residual RMS: " + ", ".join(
+            f"{k} {v * _display_factor(_OUT_UNITS[k])[0]:.3g} {_display_factor(_OUT_UNITS[k])[1]}"
+            for k, v in self.residual_rms.items()))
+        big = [(self.names[i], self.names[j], self.corr[i, j]) for i in range(len(self.names))
+               for j in range(i + 1, len(self.names)) if abs(self.corr[i, j]) > 0.9]
+        if big:
+            lines.append("  correlations above 0.9: " + ", ".join(f"{a}/{b} {c:+.2f}" for a, b, c in big))
+        lines.append("")
+        lines.append("Findings:")
+        lines.extend(f"  - {f}" for f in self.findings)
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict:
+        """JSON-safe dictionary."""
+        return {
+            "name": self.name, "params": {k: p.to_dict() for k, p in self.params.items()},
+            "states": {k: p.to_dict() for k, p in self.states.items()},
+            "fixed": {k: {"value": v, "reason": r} for k, (v, r) in self.fixed.items()},
+            "names": list(self.names), "corr": np.where(np.isfinite(self.corr), self.corr, 0.0).tolist(),
+            "outputs": list(self.outputs), "residual_rms": self.residual_rms, "sigma": self.sigma,
+            "n_used": self.n_used, "converged": self.converged, "message": self.message,
+            "findings": list(self.findings),
+        }
+
+
+_OUT_UNITS = {"alpha": "rad", "theta": "rad", "V": "m/s", "h": "m"}
+
+
+def _display_factor(unit: str) -> tuple[float, str]:
+    return {"rad": (180 / math.pi, "deg"), "rad/s": (180 / math.pi, "deg/s")}.get(unit, (1.0, unit))
+
+
+# --- corrections -------------------------------------------------------------------------------
+def apply_corrections(record: Record, values: dict) -> Record:
+    """Invert the sensor models of :mod:`fdml.compat` on a record.
+
+    ``q = (q_m - b_q)/K_q``, ``a_z(t) = (a_z,m(t + tau_az) - b_az)/K_az``,
+    ``a_x = a_x,m - b_ax``, ``alpha(t) = (alpha_m(t + tau_alpha) - b_alpha)/K_alpha``,
+    ``theta(t) = theta_m(t + tau_theta)``, ``V = V_m/K_V``.  Shifted signals
+    are interpolated with cubic splines; beyond the record's ends the end
+    values are held.  ``meta["compatibility"]`` records the values applied.
+    """
+    from scipy.interpolate import CubicSpline
+
+    v = {k: PARAMETERS[k][0] for k in PARAMETERS}
+    unknown = set(values) - set(PARAMETERS)
+    if unknown:
+        raise FdmlError(f"unknown compatibility parameter(s) {sorted(unknown)}; known: {', '.join(PARAMETERS)}")
+    v.update({k: float(x) for k, x in values.items()})
+    t = record.t
+
+    def shifted(x, tau):
+        if tau == 0.0:
+            return x
+        return CubicSpline(t, x)(np.clip(t + tau, t[0], t[-1]))
+
+    new = {}
+    new["q"] = (record["q"] - v["b_q"]) / v["K_q"]
+    new["az"] = (shifted(record["az"], v["tau_az"]) - v["b_az"]) / v["K_az"]
+    new["alpha"] = (shifted(record["alpha"], v["tau_alpha"]) - v["b_alpha"]) / v["K_alpha"]
+    if record.has("ax"):
+        new["ax"] = record["ax"] - v["b_ax"]
+    if record.has("theta"):
+        new["theta"] = shifted(record["theta"], v["tau_theta"])
+    if record.has("V"):
+        new["V"] = record["V"] / v["K_V"]
+    return replace(record, signals={**record.signals, **new},
+                   meta={**record.meta, "compatibility": {k: v[k] for k in PARAMETERS}})
+
+
+# --- the estimator -------------------------------------------------------------------------------
+def _integrate(a, th, V, h, dt, n, q, az, ax, Vin):
+    """Fourth-order Runge-Kutta integration of the kinematics on the sample grid.
+
+    Inputs are given at the samples and the midpoints (index 2k and 2k+1);
+    ``ax`` None means a_x = sin(theta) (steady flight), ``Vin`` not None
+    means the airspeed is an input rather than a state.  Written out in
+    scalars: this loop is the check's whole cost.
+    """
+    g = G0
+    cos, sin = math.cos, math.sin
+    A = [a] * n
+    TH = [th] * n
+    VV = [V] * n
+    HH = [h] * n
+    hdt = 0.5 * dt
+    sixth = dt / 6.0
+    vstate = Vin is None
+    for k in range(n - 1):
+        i0 = 2 * k
+        q0, q1, q2 = q[i0], q[i0 + 1], q[i0 + 2]
+        z0, z1, z2 = az[i0], az[i0 + 1], az[i0 + 2]
+        # theta depends on q only
+        t1, t2, t3, t4 = th, th + hdt * q0, th + hdt * q1, th + dt * q1
+        if ax is None:
+            x0, x1a, x1b, x2 = sin(t1), sin(t2), sin(t3), sin(t4)
+        else:
+            x0, x1a, x1b, x2 = ax[i0], ax[i0 + 1], ax[i0 + 1], ax[i0 + 2]
+        if vstate:
+            v1 = V
+        else:
+            v1, vm, v4 = Vin[i0], Vin[i0 + 1], Vin[i0 + 2]
+        # stage 1
+        ca, sa = cos(a), sin(a)
+        gm = t1 - a
+        da1 = q0 + g / v1 * (z0 * ca - x0 * sa + cos(gm))
+        dV1 = g * (x0 * ca + z0 * sa - sin(gm)) if vstate else 0.0
+        dh1 = v1 * sin(gm)
+        # stage 2
+        a2 = a + hdt * da1
+        v2 = V + hdt * dV1 if vstate else vm
+        ca, sa = cos(a2), sin(a2)
+        gm = t2 - a2
+        da2 = q1 + g / v2 * (z1 * ca - x1a * sa + cos(gm))
+        dV2 = g * (x1a * ca + z1 * sa - sin(gm)) if vstate else 0.0
+        dh2 = v2 * sin(gm)
+        # stage 3
+        a3 = a + hdt * da2
+        v3 = V + hdt * dV2 if vstate else vm
+        ca, sa = cos(a3), sin(a3)
+        gm = t3 - a3
+        da3 = q1 + g / v3 * (z1 * ca - x1b * sa + cos(gm))
+        dV3 = g * (x1b * ca + z1 * sa - sin(gm)) if vstate else 0.0
+        dh3 = v3 * sin(gm)
+        # stage 4
+        a4 = a + dt * da3
+        vv4 = V + dt * dV3 if vstate else v4
+        ca, sa = cos(a4), sin(a4)
+        gm = t4 - a4
+        da4 = q2 + g / vv4 * (z2 * ca - x2 * sa + cos(gm))
+        dV4 = g * (x2 * ca + z2 * sa - sin(gm)) if vstate else 0.0
+        dh4 = vv4 * sin(gm)
+        a += sixth * (da1 + 2 * da2 + 2 * da3 + da4)
+        th += sixth * (q0 + 4 * q1 + q2)
+        if vstate:
+            V += sixth * (dV1 + 2 * dV2 + 2 * dV3 + dV4)
+        else:
+            V = v4
+        h += sixth * (dh1 + 2 * dh2 + 2 * dh3 + dh4)
+        if not (-10.0 < a < 10.0 and 0.0 < V < 1e5):
+            raise FloatingPointError("kinematic integration diverged")
+        A[k + 1], TH[k + 1], VV[k + 1], HH[k + 1] = a, th, V, h
+    return np.array(A), np.array(TH), np.array(VV), np.array(HH)
+
+
+class _Problem:
+    """Kinematic simulation and residuals for one record."""
+
+    def __init__(self, record: Record, free: list[str], fixed: dict, max_shift: float, U: float):
+        self.rec = record
+        self.t = record.t
+        self.dt = record.dt
+        self.n = record.n
+        self.has_theta = record.has("theta")
+        self.has_h = record.has("h")
+        self.has_ax = record.has("ax")
+        self.V_state = record.has("V") and self.has_ax
+        self.free = free
+        self.fixed = fixed
+        self.U = U
+        states = ["alpha0"]
+        if self.has_theta:
+            states.append("theta0")
+        if self.V_state:
+            states.append("V0")
+        if self.has_h:
+            states.append("h0")
+        self.states = states
+        self.names = free + states
+        outs = ["alpha"]
+        if self.has_theta:
+            outs.append("theta")
+        if self.V_state:
+            outs.append("V")
+        if self.has_h:
+            outs.append("h")
+        self.outputs = tuple(outs)
+        m = int(math.ceil(max_shift / self.dt)) + 1
+        self.sel = slice(m, self.n - m)
+        self.n_used = self.n - 2 * m
+        if self.n_used < 10:
+            raise RecordError(f"record {record.name!r} is too short for a compatibility check with time shifts "
+                              f"of up to {max_shift:g} s ({self.n} samples)")
+        self.meas = {k: record[k] for k in outs}
+        self._cache = {}
+        self.V_meas = record["V"] if record.has("V") else np.full(self.n, U)
+
+    def unpack(self, x):
+        p = dict(self.fixed)
+        p.update(zip(self.names, x))
+        return p
+
+    def _mid(self, name: str, tt: np.ndarray) -> np.ndarray:
+        """A channel at samples and midpoints (cached: it does not depend on the parameters)."""
+        if name not in self._cache:
+            from scipy.interpolate import CubicSpline
+
+            x = self.V_meas if name == "V" else self.rec[name]
+            self._cache[name] = CubicSpline(self.t, x)(tt)
+        return self._cache[name]
+
+    def simulate(self, p) -> dict:
+        """Integrate the kinematics; returns the simulated outputs (as measured, sensor models applied)."""
+        from scipy.interpolate import CubicSpline
+
+        t, dt, n = self.t, self.dt, self.n
+        tt = np.empty(2 * n - 1)
+        tt[0::2] = t
+        tt[1::2] = t[:-1] + 0.5 * dt
+        rec = self.rec
+        # inputs at the samples and the midpoints, by cubic interpolation (fourth order,
+        # like the integrator; linear midpoints would bias slowly varying integrals)
+        q = (self._mid("q", tt) - p["b_q"]) / p["K_q"]
+        if p["tau_az"] != 0.0:
+            az_src = CubicSpline(t, rec["az"])(np.clip(tt + p["tau_az"], t[0], t[-1]))
+        else:
+            az_src = self._mid("az", tt)
+        az = (az_src - p["b_az"]) / p["K_az"]
+        ax = self._mid("ax", tt) - p["b_ax"] if self.has_ax else None
+        if not self.V_state:
+            Vin = self._mid("V", tt) / p["K_V"]
+        A, TH, VV, HH = _integrate(
+            float(p["alpha0"]), float(p["theta0"] if self.has_theta else p["alpha0"]),
+            float(p["V0"]) if self.V_state else float(Vin[0]), float(p.get("h0", 0.0)), dt, n,
+            q.tolist(), az.tolist(), ax.tolist() if ax is not None else None,
+            None if self.V_state else Vin.tolist())
+        out = {}
+
+        def delay(x, tau):
+            return x if tau == 0.0 else CubicSpline(t, x)(t - tau)
+
+        out["alpha"] = p["K_alpha"] * delay(A, p["tau_alpha"]) + p["b_alpha"]
+        if self.has_theta:
+            out["theta"] = delay(TH, p["tau_theta"])
+        if self.V_state:
+            out["V"] = p["K_V"] * VV
+        if self.has_h:
+            out["h"] = HH
+        return out
+
+    def noise_covariance(self, J: np.ndarray, p: dict, sigma: dict) -> np.ndarray:
+        """Covariance of the estimates from white noise on the inputs and outputs.
+
+        Output error treats q, a_z and a_x as exact; their noise is integrated
+        by the kinematics into random walks of theta, alpha, V and h that a
+        residual-based bound cannot see in full (a bias absorbs its trend).
+        Linearised, with c = g/U and L the running-integral operator::
+
+            d alpha = L (dq/K_q) + c L (d a_z/K_az),   d theta = L dq/K_q,
+            d V = g L d a_x,                          d h = -g L L d a_z/K_az
+
+        and measurement noise adds white noise to each output.  The noise
+        levels come from the data (:func:`noise_level`).  Returns
+        M^-1 J^T W^(1/2) (R_in + R_meas) W^(1/2) J M^-1.
+        """
+        n, dt = self.n, self.dt
+        Lm = np.tril(np.ones((n, n)), -1) * dt
+        c = G0 / self.U
+        s_q = noise_level(self.rec["q"]) / p["K_q"]
+        s_az = noise_level(self.rec["az"]) / p["K_az"]
+        s_ax = noise_level(self.rec["ax"]) if self.has_ax else 0.0
+        zero = np.zeros((n, n))
+        blocks = []  # per output: sensitivity to (dq, daz, dax), each n x n
+        for k in self.outputs:
+            if k == "alpha":
+                blocks.append((p["K_alpha"] * Lm, p["K_alpha"] * c * Lm, zero))
+            elif k == "theta":
+                blocks.append((Lm, zero, zero))
+            elif k == "V":
+                blocks.append((zero, zero, p["K_V"] * G0 * Lm))
+            elif k == "h":
+                blocks.append((zero, -G0 * (Lm @ Lm), zero))
+        sel = np.arange(n)[self.sel]
+        Minv = np.linalg.pinv(J.T @ J)
+        mid = np.zeros((J.shape[1], J.shape[1]))
+        AJ = [np.zeros((n, J.shape[1])) for _ in range(3)]
+        for j, k in enumerate(self.outputs):
+            Jk = J[j * self.n_used:(j + 1) * self.n_used]
+            for i in range(3):
+                AJ[i] += blocks[j][i][sel].T @ Jk / sigma[k]
+            s_meas = noise_level(self.meas[k])
+            mid += (s_meas / sigma[k]) ** 2 * (Jk.T @ Jk)
+        for i, s2 in enumerate((s_q**2, s_az**2, s_ax**2)):
+            mid += s2 * (AJ[i].T @ AJ[i])
+        return Minv @ mid @ Minv
+
+    def residuals(self, x, sigma) -> np.ndarray:
+        p = self.unpack(x)
+        try:
+            y = self.simulate(p)
+        except (FloatingPointError, ZeroDivisionError, OverflowError):
+            return np.full(self.n_used * len(self.outputs), 1e6)
+        return np.concatenate([(self.meas[k][self.sel] - y[k][self.sel]) / sigma[k] for k in self.outputs])
+
+
+def _default_free(record: Record) -> tuple[list[str], dict]:
+    """Parameters the record's channels determine, and reasons for the others."""
+    free = ["b_az", "K_alpha", "tau_alpha"]
+    why = {}
+    if record.has("theta"):
+        free += ["b_q", "K_q", "tau_theta"]
+    else:
+        for k in ("b_q", "K_q", "tau_theta"):
+            why[k] = ("no theta: a q bias and an a_z bias drift alpha alike, and a q scale factor has no "
+                      "reference; the alpha drift is given to b_az")
+    if record.has("h"):
+        free.append("b_alpha")
+    else:
+        why["b_alpha"] = ("no altitude: only h_dot = V sin(theta - alpha) sees the absolute flight-path angle; "
+                          "otherwise an alpha bias is a change of the initial alpha")
+    if record.has("ax") and record.has("V"):
+        free.append("b_ax")
+    else:
+        why["b_ax"] = "no airspeed or no a_x: the airspeed equation is not integrated"
+    for k in ("K_az", "tau_az"):
+        why[k] = ("not estimated by default: with a_z near -1 g a scale error looks like a bias "
+                  "(pass estimate= to add it)")
+    why["K_V"] = "not estimated by default (pass estimate= to add it)"
+    return free, why
+
+
+def check_compatibility(record: Record, *, correct: bool = False, estimate=None, fix=None,
+                        max_shift: float = DEFAULT_MAX_SHIFT, U: float | None = None) -> CompatibilityResult:
+    """Estimate sensor biases, scale factors and time shifts from the kinematics.
+
+    Parameters
+    ----------
+    record : Record
+        Needs ``alpha``, ``q``, ``az``; uses ``theta``, ``V``, ``ax`` and ``h``
+        where present (module docstring: which parameter needs which channel).
+        Trim must **not** be removed (the kinematics involve the absolute
+        angles and a_z near -1 g).
+    correct : bool, optional
+        Also return the corrected record (``result.record``).
+    estimate : iterable of str, optional
+        Sensor parameters to estimate (default: those the channels determine,
+        see the module docstring); names from :data:`PARAMETERS`.
+    fix : mapping, optional
+        Values for parameters that are not estimated (default: nominal, 0 or 1).
+    max_shift : float, optional
+        Largest time shift searched, s (default 0.25 s).
+    U : float, optional
+        Airspeed, m/s, for records without ``V`` (default ``meta["U"]``).
+
+    Returns
+    -------
+    CompatibilityResult
+
+    Raises
+    ------
+    RecordError
+        If the record looks trimmed (a_z near 0 instead of -1 g), lacks an
+        airspeed, or is too short.
+    """
+    if not isinstance(record, Record):
+        raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
+    az_mean = float(np.mean(record["az"]))
+    if not -1.6 < az_mean < -0.4:
+        raise RecordError(
+            f"record {record.name!r}: mean a_z is {az_mean:.3g} g; the compatibility check needs the record "
+            "with trim kept (a_z near -1 g in level flight, body z positive down). Load it without trim= "
+            "or add the trim back")
+    if U is None:
+        U = record.meta.get("U")
+    if not record.has("V") and (U is None or not U > 0):
+        raise RecordError(f"record {record.name!r} has no airspeed V: pass U= (m/s)")
+    U = float(U) if U is not None else float(np.mean(record["V"]))
+    free, why = _default_free(record)
+    if estimate is not None:
+        estimate = list(estimate)
+        bad = [k for k in estimate if k not in PARAMETERS]
+        if bad:
+            raise FdmlError(f"unknown compatibility parameter(s) {bad}; known: {', '.join(PARAMETERS)}")
+        free = estimate
+        why = {k: "not requested" for k in PARAMETERS if k not in free}
+    fixed_vals = {k: PARAMETERS[k][0] for k in PARAMETERS if k not in free}
+    for k, v in dict(fix or {}).items():
+        if k not in PARAMETERS:
+            raise FdmlError(f"unknown compatibility parameter {k!r}; known: {', '.join(PARAMETERS)}")
+        if k in free:
+            free.remove(k)
+        fixed_vals[k] = float(v)
+        why[k] = "fixed by the caller"
+    prob = _Problem(record, free, fixed_vals, max_shift, U)
+    # start: nominal sensors, measured initial states
+    x0 = [PARAMETERS[k][0] for k in free]
+    x0.append(float(record["alpha"][0]))
+    if prob.has_theta:
+        x0.append(float(record["theta"][0]))
+    if prob.V_state:
+        x0.append(float(record["V"][0]))
+    if prob.has_h:
+        x0.append(float(record["h"][0]))
+    x0 = np.array(x0, dtype=float)
+    lo = np.full(x0.size, -np.inf)
+    hi = np.full(x0.size, np.inf)
+    for i, k in enumerate(free):
+        if k.startswith("tau_"):
+            lo[i], hi[i] = -max_shift, max_shift
+        elif k.startswith("K_"):
+            lo[i], hi[i] = 0.2, 5.0
+    typ = np.array([_TYPICAL[PARAMETERS[k][1]] for k in free] + [_TYPICAL[_STATE_UNITS[k]] for k in prob.states])
+    sigma = {k: max(noise_level(record[k]), _sigma_floor(record[k])) for k in prob.outputs}
+    x = x0
+    converged = False
+    message = ""
+    for _ in range(_WEIGHT_PASSES):
+        x, r, J, ok, message = _levenberg_marquardt(lambda z: prob.residuals(z, sigma), x, lo, hi, typ)
+        new = {}
+        for j, k in enumerate(prob.outputs):
+            e = r[j * prob.n_used:(j + 1) * prob.n_used] * sigma[k]
+            new[k] = max(float(np.sqrt(np.mean(e**2))), _sigma_floor(record[k]))
+        change = max(abs(new[k] / sigma[k] - 1) for k in sigma)
+        sigma = new
+        if change < _WEIGHT_TOL:
+            converged = ok
+            break
+    else:
+        message = f"output weights still changing by {100 * change:.2g} % after {_WEIGHT_PASSES} passes"
+    # residuals and Jacobian at the settled weights
+    r = prob.residuals(x, sigma)
+    J = _jacobian(lambda z: prob.residuals(z, sigma), x, r, typ, lo, hi)
+    p = prob.unpack(x)
+    cov_w, cov_c = _covariances(J, r, len(prob.outputs), prob.n_used)
+    cov_n = prob.noise_covariance(J, p, sigma)
+    se_w = np.sqrt(np.clip(np.diag(cov_w), 0, None))
+    se_c = np.sqrt(np.clip(np.diag(cov_c), 0, None))
+    se_n = np.sqrt(np.clip(np.diag(cov_n), 0, None))
+    se = np.maximum.reduce([se_w, se_c, se_n])
+    cov = cov_n if np.sum(se_n >= se_c) >= np.sum(se_c > se_n) else cov_c
+    d = np.sqrt(np.clip(np.diag(cov), 0, None))
+    d = np.where(d > 0, d, np.nan)
+    corr = cov / np.outer(d, d)
+    params = {}
+    for i, k in enumerate(free):
+        nom, unit, desc = PARAMETERS[k]
+        params[k] = ParameterEstimate(k, float(x[i]), float(se[i]), float(se_w[i]), unit, desc, nom)
+    states = {}
+    for j, k in enumerate(prob.states):
+        i = len(free) + j
+        states[k] = ParameterEstimate(k, float(x[i]), float(se[i]), float(se_w[i]), _STATE_UNITS[k],
+                                      "initial state", float(x0[i]))
+    y = prob.simulate(p)
+    rms = {k: float(np.sqrt(np.mean((prob.meas[k][prob.sel] - y[k][prob.sel]) ** 2))) for k in prob.outputs}
+    fixed = {k: (fixed_vals[k], why.get(k, "fixed")) for k in PARAMETERS if k not in free}
+    findings = _findings(params, fixed, free, prob, x, se, hi, lo)
+    out = CompatibilityResult(
+        name=record.name, params=params, states=states, fixed=fixed, corr=corr, names=tuple(prob.names),
+        outputs=prob.outputs, residual_rms=rms, sigma=dict(sigma), n_used=prob.n_used,
+        converged=converged, message=str(message), findings=tuple(findings),
+    )
+    if correct:
+        out = replace(out, record=out.apply(record))
+    return out
+
+
+def noise_level(x: np.ndarray) -> float:
+    """Standard deviation of the white noise on a sampled channel.
+
+    Third differences of a smooth signal are of order dt^3 times its third
+    derivative and vanish at flight-test rates, while white noise of
+    variance s^2 gives third differences of variance 20 s^2; the median
+    absolute value (divided by 0.6745, the normal MAD) resists the few large
+    values at step inputs.  Quantisation noise, step/sqrt(12), is the floor.
+    """
+    d3 = np.diff(np.asarray(x, dtype=float), 3)
+    if d3.size == 0:
+        return 0.0
+    s = float(np.median(np.abs(d3)) / 0.6745 / math.sqrt(20.0))
+    return max(s, _sigma_floor(x))
+
+
+#: Typical magnitude per unit: sets finite-difference steps (1e-6 of it).
+_TYPICAL = {"rad/s": 1e-2, "g": 1e-1, "-": 1.0, "s": 1e-1, "rad": 1e-1, "m/s": 10.0, "m": 100.0}
+
+
+def _jacobian(fun, x, r, typ, lo, hi):
+    """Forward-difference Jacobian; steps of 1e-6 typical magnitudes, away from bounds."""
+    J = np.empty((r.size, x.size))
+    for i in range(x.size):
+        h = 1e-6 * typ[i]
+        if x[i] + h > hi[i]:
+            h = -h
+        xp = x.copy()
+        xp[i] += h
+        J[:, i] = (fun(xp) - r) / h
+    return J
+
+
+def _levenberg_marquardt(fun, x, lo, hi, typ, max_iter: int = 100):
+    """Bounded Levenberg-Marquardt on sum r^2 (normal equations; the problem has <= 16 unknowns).
+
+    Stops when no parameter moves by more than 1e-4 of its standard error
+    (estimated from the current Gauss-Newton matrix) or the cost changes by
+    less than 1e-12 relatively.  Returns (x, r, J, converged, message).
+    """
+    x = np.clip(np.asarray(x, float), lo, hi)
+    r = fun(x)
+    cost = float(r @ r)
+    lam = 1e-3
+    m, n = r.size, x.size
+    message = "iteration limit reached"
+    converged = False
+    J = _jacobian(fun, x, r, typ, lo, hi)
+    for _ in range(max_iter):
+        g = J.T @ r
+        H = J.T @ J
+        D = np.diag(H).copy()
+        D[D <= 0] = 1.0
+        while True:
+            try:
+                step = np.linalg.solve(H + lam * np.diag(D), -g)
+            except np.linalg.LinAlgError:
+                step = np.zeros(n)
+            xn = np.clip(x + step, lo, hi)
+            rn = fun(xn)
+            cn = float(rn @ rn)
+            if cn < cost or lam > 1e12:
+                break
+            lam *= 4.0
+        if not cn < cost:
+            converged, message = True, "no further decrease of the cost"
+            break
+        dx = xn - x
+        rel = (cost - cn) / cost
+        x, r, cost = xn, rn, cn
+        lam = max(lam / 3.0, 1e-12)
+        J = _jacobian(fun, x, r, typ, lo, hi)
+        try:
+            se = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)) * cost / max(m - n, 1), 1e-300, None))
+        except np.linalg.LinAlgError:
+            se = np.full(n, np.inf)
+        if np.all(np.abs(dx) < 1e-4 * se) or rel < 1e-12:
+            converged, message = True, "steps below 1e-4 standard errors"
+            break
+    return x, r, J, converged, message
+
+
+def _sigma_floor(x: np.ndarray) -> float:
+    """Smallest credible noise level: the quantisation noise of the channel (step / sqrt 12)."""
+    d = np.abs(np.diff(x))
+    nz = d[d > 1e-3 * np.median(d[d > 0])] if np.any(d > 0) else d
+    step = float(np.min(nz)) if nz.size else 1e-12
+    return max(step / math.sqrt(12), 1e-12)
+
+
+def _covariances(J: np.ndarray, r: np.ndarray, n_out: int, n_used: int):
+    """White (M^-1) and coloured (Morelli-Klein sandwich) covariances of the estimates.
+
+    ``J`` and ``r`` are of the weighted residuals (unit variance per output);
+    the coloured form replaces J^T J in the middle by sum over outputs of
+    sum_l w_l rho(l) (J_k^T S_l J_k), with the residual autocorrelation
+    rho(l) of each output block, Bartlett weights w_l = 1 - l/(L+1) and
+    L = n/4 lags.
+    """
+    M = J.T @ J
+    try:
+        c = np.linalg.cond(M)
+    except np.linalg.LinAlgError:
+        c = np.inf
+    if not np.isfinite(c) or c > 1e14:
+        warnings.warn("compatibility check: the information matrix is (nearly) singular; some parameters are "
+                      "not determined by this record", IdentifiabilityWarning, stacklevel=3)
+    Minv = np.linalg.pinv(M)
+    L = max(1, n_used // 4)
+    mid = np.zeros_like(M)
+    for k in range(n_out):
+        Jk = J[k * n_used:(k + 1) * n_used]
+        e = r[k * n_used:(k + 1) * n_used]
+        var = float(np.mean(e**2))
+        mid += Jk.T @ Jk * var
+        for lag in range(1, L + 1):
+            rho = float(np.mean(e[:-lag] * e[lag:])) * n_used / n_used
+            w = 1.0 - lag / (L + 1)
+            C = Jk[:-lag].T @ Jk[lag:]
+            mid += w * rho * (C + C.T)
+    cov_c = Minv @ mid @ Minv
+    # white form, scaled by the residual variance (1 at convergence of the weights)
+    s2 = float(np.mean(r**2))
+    return Minv * s2, cov_c
+
+
+def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
+    out = []
+    sig = [p for p in params.values() if p.z > SIGNIFICANT]
+    for p in sorted(sig, key=lambda p: -p.z):
+        f, u = _display_factor(p.unit)
+        out.append(f"{p.description} {p.name} = {p.value * f:.4g} +- {p.stderr * f:.2g} {u}: "
+                   f"{p.z:.1f} standard errors from {p.nominal * f:g}, significant")
+    quiet = [p.name for p in params.values() if p.z <= SIGNIFICANT]
+    if quiet:
+        out.append(f"consistent with nominal (within {SIGNIFICANT:g} standard errors): {', '.join(quiet)}")
+    for i, k in enumerate(free):
+        if np.isfinite(hi[i]) and (abs(x[i] - hi[i]) < 1e-6 * (1 + abs(hi[i])) or abs(x[i] - lo[i]) < 1e-6 * (1 + abs(lo[i]))):
+            out.append(f"{k} sits at its bound ({x[i]:g}): the data push it beyond the searched range")
+    if not any(p.z > SIGNIFICANT for p in params.values()):
+        out.insert(0, "the record is kinematically consistent: no sensor error is significant")
+    return out
