@@ -99,8 +99,8 @@ def read_dlr_asc(path, layout: str = "hfb320", t0: float | None = None, t1: floa
     vertical"; the names and the data agree with the README: column 11 reads
     -9.87 m/s^2 in trim, column 12 about 0.)
 
-    Signs need no change.  a_z reads -9.87 m/s^2 = -1.01 g in trim, i.e. body
-    z positive down; q against d theta/dt has slope +0.99 (correlation 0.97);
+    Signs need no change.  a_z reads -9.87 m/s^2 = -1.006 g at the first
+    sample (-0.995 g over the leading 0.5 s), i.e. body z positive down; q against d theta/dt has slope +0.99 (correlation 0.97);
     an equation-error fit of dq/dt gives M_de = -5.1 1/s^2 (trailing edge
     down positive).  Accelerations are divided by g0 = 9.80665 m/s^2.
 
@@ -145,7 +145,7 @@ def read_dlr_mat(path, layout: str = "attas", t0: float | None = None, t1: float
     11 theta deg, 13 alpha deg (ALCG), 15 true airspeed m/s, 16 pressure
     altitude ft, 18 qdot deg/s^2, 22 elevator deg, 34 density kg/m^3.
 
-    Signs need no change: a_z reads -9.63 m/s^2 = -0.98 g over the leading
+    Signs need no change: a_z reads -9.61 m/s^2 = -0.98 g over the leading
     0.5 s (body z positive down); q against d theta/dt has slope +0.98
     (correlation 0.997); an equation-error fit of dq/dt gives
     M_de = -6.8 1/s^2 (trailing edge down positive).
