@@ -21,14 +21,16 @@ def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
     return out
 
 
-def add_model_arguments(p: argparse.ArgumentParser, *, default_model: str = "unsteady") -> None:
-    """--aircraft, --model, --gust, --set/--fix style options shared by commands."""
+def add_model_arguments(p: argparse.ArgumentParser, *, default_model: str = "unsteady",
+                        gust_flag: bool = True) -> None:
+    """--aircraft, --model, --gust, --airspeed options shared by commands."""
     p.add_argument("--aircraft", metavar="NAME|FILE.json",
                    help="preset (navion, sundowner, do128) or an aircraft JSON file")
     p.add_argument("--model", default=default_model,
                    choices=("unsteady", "steady", "derivatives", "dimensional"),
                    help=f"model (default {default_model})")
-    p.add_argument("--gust", action="store_true", help="add the vertical gust input alpha_w")
+    if gust_flag:
+        p.add_argument("--gust", action="store_true", help="add the vertical gust input alpha_w")
     p.add_argument("--airspeed", type=float, metavar="U",
                    help="airspeed in m/s for the dimensional model without --aircraft")
 
@@ -42,11 +44,11 @@ def make_model_from_args(args, values: dict | None = None):
         if args.aircraft is None and args.airspeed is None:
             raise ParameterError("the dimensional model needs --airspeed U (m/s) or --aircraft")
         opts = {"airspeed": args.airspeed} if args.airspeed is not None else {}
-        model = make_model("dimensional", args.aircraft, gust=args.gust, **opts)
+        model = make_model("dimensional", args.aircraft, gust=bool(args.gust), **opts)
     else:
         if args.aircraft is None:
             raise ParameterError(f"the {args.model} model needs --aircraft NAME or FILE.json")
-        model = make_model(args.model, args.aircraft, gust=args.gust)
+        model = make_model(args.model, args.aircraft, gust=bool(args.gust))
     if values:
         model.parameters.check_names(values)
         model = model.with_values(values)

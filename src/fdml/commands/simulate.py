@@ -21,14 +21,15 @@ def _noise(text: str | None):
 
 def register(sub) -> None:
     p = sub.add_parser("simulate", help="simulate a manoeuvre with a model and write a CSV record")
-    add_model_arguments(p)
+    add_model_arguments(p, gust_flag=False)
+    p.add_argument("--gust", nargs="?", type=float, const=1.0, default=None, metavar="STD",
+                   help="fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, "
+                        "recording alpha_w")
     p.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE", help="parameter values")
     p.add_argument("--maneuver", default="3211", choices=("3211", "doublet", "multisine"))
     p.add_argument("--amplitude", type=float, help="elevator amplitude, rad")
     p.add_argument("--duration", type=float, default=10.0, help="record length, s (default 10)")
     p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
-    p.add_argument("--gust-std", "--gust-rms", dest="gust_std", type=float, default=0.0, metavar="STD",
-                   help="Dryden vertical gust RMS, m/s (needs --gust)")
     p.add_argument("--noise", metavar="FRACTION|alpha=..,q=..,az=..",
                    help="measurement noise: fraction of each output's RMS, or absolute stds")
     p.add_argument("--seed", type=int, help="random seed")
@@ -46,7 +47,7 @@ def run(args) -> int:
     model = make_model_from_args(args, assignments(args.set))
     kw = {} if args.amplitude is None else {"amplitude": args.amplitude}
     rec = simulate_maneuver(model, args.maneuver, duration=args.duration, dt=args.dt,
-                            gust_std=args.gust_std, seed=args.seed, **kw)
+                            gust_std=args.gust or 0.0, seed=args.seed, **kw)
     noise, relative = _noise(args.noise)
     if noise is not None:
         seed = None if args.seed is None else args.seed + 1
