@@ -116,7 +116,8 @@ def read_csv_mapped(path, columns: Mapping[str, str], units: Mapping[str, str] |
         text = p.read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise wrap_read_error(p, "a CSV text file", exc) from None
-    lines = [(i, ln) for i, ln in enumerate(text.splitlines(), start=1) if ln.strip() and not ln.lstrip().startswith("#")]
+    lines = [(i, ln) for i, ln in enumerate(text.splitlines(), start=1)
+             if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
         raise RecordError(f"{p}: no header row and no data")
     split = _splitter(p, [ln for _, ln in lines[:20]], delimiter)

@@ -100,7 +100,8 @@ def read_dlr_asc(path, layout: str = "hfb320", t0: float | None = None, t1: floa
     -9.87 m/s^2 in trim, column 12 about 0.)
 
     Signs need no change.  a_z reads -9.87 m/s^2 = -1.006 g at the first
-    sample (-0.995 g over the leading 0.5 s), i.e. body z positive down; q against d theta/dt has slope +0.99 (correlation 0.97);
+    sample (-0.995 g over the leading 0.5 s), i.e. body z positive down; q
+    against d theta/dt has slope +0.99 (correlation 0.97);
     an equation-error fit of dq/dt gives M_de = -5.1 1/s^2 (trailing edge
     down positive).  Accelerations are divided by g0 = 9.80665 m/s^2.
 
