@@ -357,3 +357,40 @@ def test_loaders_do_not_touch_the_source(tmp_path):
     before = copy.read_bytes()
     read_sidpac(copy, trim="first")
     assert copy.read_bytes() == before
+
+
+# --- the command line reads every format ---------------------------------------------------------
+def test_fdml_fit_reads_a_sidpac_record(capsys):
+    import json
+
+    from fdml.cli import main
+
+    path = data_path(TO17)
+    code = main(["fit", str(path), "--model", "dimensional", "--airspeed", "73.25", "--band", "0.63:9.4:0.1",
+                 "--json"])
+    d = json.loads(capsys.readouterr().out)
+    assert code == 0 and d["converged"]
+    # a statically stable aircraft with a conventional elevator (trailing edge down: nose down)
+    assert d["params"]["M_a"]["value"] < 0 and d["params"]["M_de"]["value"] < 0
+    # short-period frequency sqrt(Z_a M_q - M_a) of a Twin Otter: 3-5 rad/s (0.5-0.8 Hz)
+    p = {k: v["value"] for k, v in d["params"].items()}
+    wn = math.sqrt(p["Z_a"] * p["M_q"] - p["M_a"] * (1 + p["Z_q"]))
+    assert 3.0 < wn < 5.0
+
+
+def test_fdml_fit_rejects_mixed_rates_and_bad_maps(tmp_path, capsys):
+    from fdml.cli import main
+
+    code = main(["fit", str(data_path(TO17)), str(data_path(ATTAS)), "--model", "dimensional", "--airspeed", "80"])
+    err = capsys.readouterr().err
+    assert code == 2 and "different sample rates" in err and "fAttasElv1.mat: 25 Hz" in err
+    t, de, alpha, q, az, V = _truth()
+    f = tmp_path / "foreign.csv"
+    _write_foreign_csv(f, t, de, alpha, q, az, V)
+    code = main(["fit", str(f), "--model", "dimensional", "--airspeed", "60", "--columns",
+                 "t=time,de=elev_deg,alpha=AOA,q=pitch_rate,az=n_z", "--units", "de=deg,q=deg/s,az=g"])
+    err = capsys.readouterr().err
+    assert code == 2 and "no column 'n_z' (mapped to az)" in err
+    code = main(["fit", str(f), "--model", "dimensional", "--airspeed", "60", "--units", "de=deg"])
+    err = capsys.readouterr().err
+    assert code == 2 and "give --columns too" in err
