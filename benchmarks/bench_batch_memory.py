@@ -5,11 +5,13 @@ small records (steady Navion, 3-2-1-1, 6 s at 50 Hz, 3 % noise, one CSV
 each) into a temporary folder and fits them in a fresh Python process on the
 process pool.  It reports
 
-* the parent's peak resident set (``resource.getrusage(RUSAGE_SELF)``) and its
-  peak Python heap during the batch (``tracemalloc``);
-* the largest peak resident set of any worker process, and the peak of the
-  whole process tree (parent, forkserver, workers), sampled every 20 ms from
-  /proc (psutil when installed);
+* the parent's peak resident set (``VmHWM`` of /proc/self/status, which,
+  unlike ``getrusage``'s ``ru_maxrss``, does not carry over the peak of the
+  process that forked it) and its peak Python heap during the batch
+  (``tracemalloc``);
+* the largest peak resident set of any worker process (its ``VmHWM``), and the
+  peak of the whole process tree (parent, forkserver, workers) sampled every
+  20 ms from /proc (psutil when installed);
 
 and whether the figures stay flat: results stream to disk, and the parent
 keeps one short table row per record.
@@ -42,14 +44,30 @@ def make_records(folder: Path, n: int) -> None:
         add_noise(clean, 0.03, np.random.default_rng(i), relative=True).to_csv(folder / f"rec{i:04d}.csv")
 
 
+def _status_kb(pid: int | str, key: str) -> int:
+    """A ``VmHWM``/``VmRSS`` line of /proc/PID/status in kB (0 where there is no /proc)."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith(key + ":"):
+                return int(line.split()[1])
+    except OSError:
+        pass
+    return 0
+
+
+def _peak_kb() -> int:
+    import resource
+
+    return _status_kb("self", "VmHWM") or resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+
 def child(folder: str, out: str, workers: int) -> None:
     """Run one batch; print JSON with this process's peak figures."""
-    import resource
     import tracemalloc
 
     from fdml.batch import run_batch
 
-    base_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    base_rss = _peak_kb()
     tracemalloc.start()
     t0 = time.perf_counter()
     s = run_batch(folder, {"kind": "steady", "aircraft": "navion"}, out, workers=workers, resume=False)
@@ -58,7 +76,7 @@ def child(folder: str, out: str, workers: int) -> None:
     tracemalloc.stop()
     print(json.dumps({"n": s.n_total, "failed": s.n_failed, "wall": wall, "heap_peak": heap_peak,
                       "rss_before_kb": base_rss,
-                      "parent_maxrss_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}))
+                      "parent_maxrss_kb": _peak_kb()}))
 
 
 def _rss_tree(pid: int) -> dict[int, int]:
@@ -106,7 +124,8 @@ def measure(n: int, workers: int, root: Path) -> dict:
         while not stop.is_set():
             rss = _rss_tree(proc.pid)
             for k, v in rss.items():
-                peaks[k] = max(peaks.get(k, 0), v)
+                hwm = _status_kb(k, "VmHWM") * 1024  # the true peak, also between samples
+                peaks[k] = max(peaks.get(k, 0), v, hwm)
             tree_peak[0] = max(tree_peak[0], sum(rss.values()))
             time.sleep(0.02)
 

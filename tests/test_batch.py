@@ -291,3 +291,13 @@ def test_batch_command(tmp_path, records, capsys):
     assert code == 0 and d["reused"] == 5 and d["fitted"] == 0
     assert main(["batch", str(records[0]), "--model", "steady", "--out", str(out)]) == 2
     assert "--aircraft" in capsys.readouterr().err
+
+
+def test_optional_extras_are_named_when_missing(tmp_path, records, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # as if the dask extra were not installed
+    with pytest.raises(fdml.FdmlError, match=r"fdml\[dask\]"):
+        run_batch(records[:1], SPEC, tmp_path / "a", engine="tcp://127.0.0.1:8786")
+    monkeypatch.setitem(sys.modules, "tqdm", None)
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+    with pytest.raises(fdml.FdmlError, match=r"fdml\[progress\]"):
+        run_batch(records[:1], SPEC, tmp_path / "b", engine="serial", progress=True)
