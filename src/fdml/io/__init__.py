@@ -7,15 +7,17 @@ conversion applied in ``record.meta``.  Trim is kept unless ``trim=`` asks
 for its removal (the estimator removes it itself); the trim values are
 reported in ``meta["trim_values"]`` either way.
 
-=====================  ==========================================================
-:func:`read_sidpac`    SIDPAC ``fdata`` .mat (NASA; Twin Otter records)
-:func:`read_dlr_asc`   DLR/Jategaonkar .asc (HFB-320 layout, or ATTAS)
-:func:`read_dlr_mat`   DLR/Jategaonkar .mat (ATTAS layout, or HFB-320)
-:func:`read_csv_mapped` CSV with a user-given column map, units and signs
-:func:`load_record`    any of the above by format name or by inspection
-:func:`load_records`   several records, checked to share one sample rate
-:func:`data_dir`       the shared data folder (``$FDML_DATA`` or ``../shared/data``)
-=====================  ==========================================================
+========================  ==========================================================
+:func:`read_sidpac`       SIDPAC ``fdata`` .mat (NASA; Twin Otter records)
+:func:`read_dlr_asc`      DLR/Jategaonkar .asc (HFB-320 layout, or ATTAS)
+:func:`read_dlr_mat`      DLR/Jategaonkar .mat (ATTAS layout, or HFB-320)
+:func:`read_csv_mapped`   CSV with a user-given column map, units and signs
+:func:`read_fdml_csv`     fdml's own CSV (``t,de,alpha,q,az[,...]``) with a window
+:func:`load_record`       any of the above by format name or by inspection
+:func:`load_records`      several records, checked to share one sample rate
+:func:`data_dir`          the shared data folder (``$FDML_DATA`` or ``../shared/data``)
+:func:`data_path`         a file in it, or an error naming the file and where it looked
+========================  ==========================================================
 """
 
 from __future__ import annotations
