@@ -497,7 +497,7 @@ def _intervals(omega, mask):
             j = i
             while j + 1 < mask.size and mask[j + 1]:
                 j += 1
-            out.append((float(omega[i]), float(omega[j])))
+            out.append((float(np.round(omega[i], 10)), float(np.round(omega[j], 10))))
             i = j + 1
         else:
             i += 1
