@@ -3,7 +3,7 @@
 For each batch size (default 10, 100, 1000) the script simulates that many
 small records (steady Navion, 3-2-1-1, 6 s at 50 Hz, 3 % noise, one CSV
 each) into a temporary folder and fits them in a fresh Python process on the
-process pool.  It reports
+process pool (twice: once for the resident sets, once with the heap traced).  It reports
 
 * the parent's peak resident set (``VmHWM`` of /proc/self/status, which,
   unlike ``getrusage``'s ``ru_maxrss``, does not carry over the peak of the
@@ -13,8 +13,9 @@ process pool.  It reports
   peak of the whole process tree (parent, forkserver, workers) sampled every
   20 ms from /proc (psutil when installed);
 
-and whether the figures stay flat: results stream to disk, and the parent
-keeps one short table row per record.
+and whether the figures stay flat: workers write their results to disk and
+return one short row, which the parent appends to a spool file; it keeps only
+the list of sources and a file offset per record.
 
     python benchmarks/bench_batch_memory.py [--sizes 10 100 1000] [--workers 2]
 """
@@ -61,18 +62,23 @@ def _peak_kb() -> int:
     return _status_kb("self", "VmHWM") or resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
 
 
-def child(folder: str, out: str, workers: int) -> None:
-    """Run one batch; print JSON with this process's peak figures."""
+def child(folder: str, out: str, workers: int, trace: bool) -> None:
+    """Run one batch; print JSON with this process's peak figures.
+
+    With ``trace`` the Python heap is traced (tracemalloc's own bookkeeping
+    inflates the resident set, so the RSS figures come from a run without it).
+    """
     import tracemalloc
 
     from fdml.batch import run_batch
 
     base_rss = _peak_kb()
-    tracemalloc.start()
+    if trace:
+        tracemalloc.start()
     t0 = time.perf_counter()
     s = run_batch(folder, {"kind": "steady", "aircraft": "navion"}, out, workers=workers, resume=False)
     wall = time.perf_counter() - t0
-    _, heap_peak = tracemalloc.get_traced_memory()
+    heap_peak = tracemalloc.get_traced_memory()[1] if trace else 0
     tracemalloc.stop()
     print(json.dumps({"n": s.n_total, "failed": s.n_failed, "wall": wall, "heap_peak": heap_peak,
                       "rss_before_kb": base_rss,
@@ -115,7 +121,9 @@ def measure(n: int, workers: int, root: Path) -> dict:
     folder.mkdir()
     make_records(folder, n)
     cmd = [sys.executable, __file__, "--child", str(folder), str(root / f"out{n}"), str(workers)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True)
+    traced = subprocess.run(cmd + ["1"], stdout=subprocess.PIPE, text=True, check=True)
+    heap_peak = json.loads(traced.stdout.strip().splitlines()[-1])["heap_peak"]
+    proc = subprocess.Popen(cmd + ["0"], stdout=subprocess.PIPE, text=True)
     peaks: dict[int, int] = {}
     tree_peak = [0]
     stop = threading.Event()
@@ -137,6 +145,7 @@ def measure(n: int, workers: int, root: Path) -> dict:
     if proc.returncode:
         raise SystemExit(f"batch of {n} failed (exit {proc.returncode})")
     d = json.loads(out.strip().splitlines()[-1])
+    d["heap_peak"] = heap_peak
     others = [v for k, v in peaks.items() if k != proc.pid]
     d["worker_peak"] = max(others) if others else 0
     d["tree_peak"] = tree_peak[0]
@@ -149,10 +158,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sizes", type=int, nargs="+", default=[10, 100, 1000])
     ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--child", nargs=3, metavar=("FOLDER", "OUT", "WORKERS"), help=argparse.SUPPRESS)
+    ap.add_argument("--child", nargs=4, metavar=("FOLDER", "OUT", "WORKERS", "TRACE"), help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
-        child(args.child[0], args.child[1], int(args.child[2]))
+        child(args.child[0], args.child[1], int(args.child[2]), args.child[3] == "1")
         return
     rows = []
     with tempfile.TemporaryDirectory(prefix="fdml-batch-mem-") as tmp:
@@ -177,7 +186,7 @@ def main() -> None:
     flat = all(abs(g) < 0.10 for g in growth.values())
     print(f"from {first['n']} to {last['n']} records ({last['n'] / first['n']:.0f}x): "
           + ", ".join(f"{k} {100 * g:+.1f} %" for k, g in growth.items())
-          + f"; parent heap {per_record_heap:.0f} bytes per record (its table row)")
+          + f"; parent heap {per_record_heap:.0f} bytes per record (its source entry and spool offset)")
     print("peak memory is flat in the number of records" if flat else "peak memory GROWS with the number of records")
 
 

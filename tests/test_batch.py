@@ -175,7 +175,7 @@ def test_a_crash_mid_write_leaves_no_partial_result_and_resume_finishes(tmp_path
     assert counter.calls == ["rec02", "rec03", "rec04"]
     assert [r["reused"] for r in s.rows] == [True, True, False, False, False]
     assert {n: (results / n).stat().st_mtime_ns for n in finished} == mtimes
-    assert not list(results.glob(".*.tmp"))
+    assert not list(out.rglob(".*.tmp"))  # neither the result temporary nor the crashed run's row spool
     assert sorted(p.name for p in results.iterdir()) == [f"rec0{i}.json" for i in range(5)]
     for p in results.iterdir():
         assert fdml.load_result(p).converged

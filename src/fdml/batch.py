@@ -17,8 +17,9 @@ Every file is written under a temporary name and renamed into place, so no
 result file is ever half-written.  A result file whose input hash (record
 file bytes, window, model specification, fit options, fdml version) matches
 is reused, so an interrupted batch resumes without refitting what finished.
-Workers write their result and return only the short row, so the parent
-holds one row per record and peak memory stays flat in the number of records.
+Workers write their result and return only a short row, which the parent
+appends to a spool file; it keeps the list of sources and a file offset per
+record, so peak memory stays flat in the number of records.
 
 Engines: ``"process"`` (the standard library's process pool, default),
 ``"serial"`` (in this process) or a ``dask.distributed.Client`` (optional
@@ -32,6 +33,7 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import functools
 import glob
 import hashlib
 import io
@@ -665,29 +667,34 @@ class BatchSummary:
     Attributes
     ----------
     out_dir : Path
-    rows : tuple of dict
-        One row per record, in source order (as in ``table.json``).
     table_csv, table_json : Path
-    n_fitted, n_reused, n_failed : int
-        Records fitted now, reused from an earlier run, failed.
+    n_total, n_fitted, n_reused, n_failed : int
+        Records in the batch; fitted now, reused from an earlier run, failed.
+    errors : dict
+        Key -> error (type: one-line message) of every record that failed.
     wall_time : float
         Seconds.
     engine : str
+
+    The rows themselves stay on disk (memory flat in the number of records);
+    :attr:`rows` reads them from ``table.json``.
     """
 
     out_dir: Path
-    rows: tuple
     table_csv: Path
     table_json: Path
+    n_total: int
     n_fitted: int
     n_reused: int
     n_failed: int
+    errors: dict
     wall_time: float
     engine: str
 
-    @property
-    def n_total(self) -> int:
-        return len(self.rows)
+    @functools.cached_property
+    def rows(self) -> list[dict]:
+        """One row per record, in source order, as in ``table.json``."""
+        return json.loads(self.table_json.read_text())["rows"]
 
     @property
     def n_ok(self) -> int:
@@ -703,7 +710,7 @@ class BatchSummary:
         return {"out_dir": str(self.out_dir), "records": self.n_total, "fitted": self.n_fitted,
                 "reused": self.n_reused, "failed": self.n_failed, "wall_time": self.wall_time,
                 "engine": self.engine, "table_csv": str(self.table_csv), "table_json": str(self.table_json),
-                "errors": {r["key"]: r["error"] for r in self.failed}}
+                "errors": dict(self.errors)}
 
     def to_frame(self):
         """The table as a pandas DataFrame (pandas is optional)."""
@@ -717,8 +724,8 @@ class BatchSummary:
         lines = [f"{self.n_total} records: {self.n_fitted} fitted, {self.n_reused} reused, "
                  f"{self.n_failed} failed in {self.wall_time:.1f} s ({self.engine})",
                  f"table: {self.table_csv}"]
-        for r in self.failed:
-            lines.append(f"  {r['key']}: {r['error']}")
+        for key, err in self.errors.items():
+            lines.append(f"  {key}: {err}")
         return "\n".join(lines)
 
 
@@ -741,18 +748,55 @@ def _atomic_open(path: Path):
         raise
 
 
-def _write_tables(out_dir: Path, rows: Sequence[dict], spec: dict, fit_kwargs: dict) -> tuple[Path, Path]:
-    """table.csv and table.json, streamed row by row (no whole-table string in memory)."""
-    names: list[str] = []
-    for r in rows:
-        for n in r["params"]:
-            if n not in names:
-                names.append(n)
+class _RowSpool:
+    """Rows as they finish, appended to a file; read back in source order for the tables.
+
+    In memory per record: one file offset (8 bytes) and two flag bytes.
+    """
+
+    def __init__(self, path: Path, n: int):
+        from array import array
+
+        self.path = path
+        self.fh = open(path, "w+b")
+        self.offsets = array("q", [-1]) * n
+        self.failed = bytearray(n)
+        self.reused = bytearray(n)
+        self.names: dict[str, None] = {}  # ordered union of parameter names
+
+    def add(self, row: dict) -> bool:
+        """Store ``row``; True if its record had no row yet."""
+        i = row["index"]
+        self.fh.seek(0, os.SEEK_END)
+        first = self.offsets[i] < 0
+        self.offsets[i] = self.fh.tell()
+        self.fh.write(json.dumps(row, separators=(",", ":")).encode() + b"\n")
+        self.failed[i] = row["status"] != "ok"
+        self.reused[i] = bool(row.get("reused"))
+        for n in row["params"]:
+            self.names.setdefault(n, None)
+        return first
+
+    def rows(self, only_failed: bool = False) -> Iterator[dict]:
+        """The rows in source order."""
+        for i, off in enumerate(self.offsets):
+            if off >= 0 and (self.failed[i] or not only_failed):
+                self.fh.seek(off)
+                yield json.loads(self.fh.readline())
+
+    def close(self) -> None:
+        self.fh.close()
+        _unlink(self.path)
+
+
+def _write_tables(out_dir: Path, spool: _RowSpool, spec: dict, fit_kwargs: dict) -> tuple[Path, Path]:
+    """table.csv and table.json, streamed row by row from the spool."""
+    names = list(spool.names)
     csv_path, json_path = out_dir / "table.csv", out_dir / "table.json"
     with _atomic_open(csv_path) as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(list(_FIXED_COLUMNS) + [c for n in names for c in (n, f"{n}_stderr")])
-        for r in rows:
+        for r in spool.rows():
             fixed = ["" if r.get(c) is None else r.get(c) for c in _FIXED_COLUMNS]
             vals = []
             for n in names:
@@ -762,17 +806,19 @@ def _write_tables(out_dir: Path, rows: Sequence[dict], spec: dict, fit_kwargs: d
     head = {"format": TABLE_FORMAT[0], "version": TABLE_FORMAT[1], "model": spec, "fit_kwargs": fit_kwargs}
     with _atomic_open(json_path) as fh:
         fh.write(json.dumps(head, indent=1)[:-2] + ',\n "rows": [')
-        for i, r in enumerate(rows):
-            fh.write(("\n  " if i == 0 else ",\n  ") + json.dumps({k: v for k, v in r.items() if k != "index"}))
+        for i, r in enumerate(spool.rows()):
+            r.pop("index", None)
+            fh.write(("\n  " if i == 0 else ",\n  ") + json.dumps(r))
         fh.write("\n ]\n}\n")
     return csv_path, json_path
 
 
-def _clean_temporaries(results: Path) -> None:
-    """Remove temporary files left by a crash (``.NAME.json.XXXX.tmp``)."""
-    if results.is_dir():
-        for f in results.glob(".*.tmp"):
-            _unlink(f)
+def _clean_temporaries(out: Path) -> None:
+    """Remove temporary files left by a crash (``.NAME.json.XXXX.tmp``, the row spool)."""
+    for folder in (out, out / "results"):
+        if folder.is_dir():
+            for f in folder.glob(".*.tmp"):
+                _unlink(f)
 
 
 # --- the batch ----------------------------------------------------------------------------------
@@ -821,29 +867,28 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
     out = Path(out_dir).absolute()
     results = out / "results"
     results.mkdir(parents=True, exist_ok=True)
-    _clean_temporaries(results)
+    _clean_temporaries(out)
     tasks = ({"index": i, "key": it.key, "path": it.path, "t0": it.t0, "t1": it.t1, "spec": spec_d,
               "fit_kwargs": kw, "out_dir": str(out), "resume": bool(resume)} for i, it in enumerate(items))
-    rows: list[dict | None] = [None] * len(items)
     update, close = _progress_handler(progress, len(items), "fdml batch")
     kind = _resolve_kind_name(engine)
+    spool = _RowSpool(out / f".rows-{os.getpid()}.jsonl.tmp", len(items))
     done = 0
     try:
-        for row in execute(run_task, tasks, engine=engine, workers=workers, on_error=error_row):
-            i = row["index"]
-            if rows[i] is None:
-                done += 1
-            rows[i] = row
-            update(row, done)
+        try:
+            for row in execute(run_task, tasks, engine=engine, workers=workers, on_error=error_row):
+                done += spool.add(row)
+                update(row, done)
+        finally:
+            close()
+        csv_path, json_path = _write_tables(out, spool, spec_d, kw)
+        n_failed, n_reused = sum(spool.failed), sum(spool.reused)
+        errors = {r["key"]: r["error"] for r in spool.rows(only_failed=True)}
     finally:
-        close()
-    final = [r for r in rows if r is not None]
-    csv_path, json_path = _write_tables(out, final, spec_d, kw)
-    n_failed = sum(r["status"] != "ok" for r in final)
-    n_reused = sum(bool(r.get("reused")) for r in final)
-    return BatchSummary(out_dir=out, rows=tuple(final), table_csv=csv_path, table_json=json_path,
-                        n_fitted=len(final) - n_failed - n_reused, n_reused=n_reused, n_failed=n_failed,
-                        wall_time=time.perf_counter() - t_start, engine=kind)
+        spool.close()
+    return BatchSummary(out_dir=out, table_csv=csv_path, table_json=json_path, n_total=done,
+                        n_fitted=done - n_failed - n_reused, n_reused=n_reused, n_failed=n_failed,
+                        errors=errors, wall_time=time.perf_counter() - t_start, engine=kind)
 
 
 def _resolve_kind_name(engine) -> str:
