@@ -681,7 +681,7 @@ def fit(
             message = f"stopped by the callback after {it} iterations"
             break
         if stop == "paper":
-            if abs(math.exp(J_old) - math.exp(J)) / math.exp(J) < 0.01:  # Eq. 25 rule
+            if abs(math.exp(J_old - J) - 1.0) < 0.01:  # Eq. 25 rule |J_k-1 - J_k| / J_k, J = det R
                 converged = True
                 message = f"paper's rule: relative change of det R below 0.01 after {it} iterations"
                 break
