@@ -57,23 +57,31 @@ class ConsistencyResult:
     joint_chi2: float
     joint_p: float
 
-    def agree(self, alpha: float = 0.05) -> bool:
-        """True if no parameter's test rejects at level ``alpha`` (Bonferroni over parameters)."""
-        return bool(np.all(self.p_value > alpha / len(self.names)))
+    def agree(self, alpha: float = 0.05, joint: bool = False) -> bool:
+        """True if no parameter's test rejects at level ``alpha`` (Bonferroni over parameters).
+
+        With ``joint=True`` the joint chi-square test must not reject either.
+        """
+        ok = bool(np.all(self.p_value > alpha / len(self.names)))
+        return ok and (self.joint_p > alpha if joint else True)
 
     def summary(self) -> str:
         """A text table: estimates per fit, weighted mean, chi2, p, scale."""
-        head = f"{'parameter':12s}" + "".join(f"{lab[:16]:>24s}" for lab in self.labels)
+        w = max(24, max(len(lab) for lab in self.labels) + 2)
+        head = f"{'parameter':12s}" + "".join(f"{lab:>{w}s}" for lab in self.labels)
         head += f"{'mean':>12s}{'chi2':>9s}{'p':>9s}{'scale':>8s}"
         lines = [f"consistency of {len(self.labels)} fits ({self.dof} degrees of freedom per parameter)", head]
         for j, n in enumerate(self.names):
-            cells = "".join(f"{self.estimates[i, j]:>12.4g} +/- {self.stderr[i, j]:<7.2g}"
+            cells = "".join(f"{self.estimates[i, j]:>{w - 12}.4g} +/- {self.stderr[i, j]:<7.2g}"
                             for i in range(len(self.labels)))
             lines.append(f"{n:12s}{cells}{self.mean[j]:>12.4g}{self.chi2[j]:>9.2f}"
                          f"{self.p_value[j]:>9.3g}{self.scale[j]:>8.2f}")
-        verdict = "agree" if self.agree() else "DISAGREE"
-        lines.append(f"joint chi2 = {self.joint_chi2:.2f} on {self.dof * len(self.names)} dof, "
-                     f"p = {self.joint_p:.3g}: the fits {verdict} within their bounds")
+        per = "agree" if self.agree() else "DISAGREE"
+        jv = "agree" if self.joint_p > 0.05 else "DISAGREE"
+        lines.append(f"per parameter (5 %, Bonferroni over {len(self.names)}): the fits {per} within their bounds")
+        lines.append(f"joint: chi2 = {self.joint_chi2:.2f} on {self.dof * len(self.names)} dof, p = {self.joint_p:.3g}: "
+                     f"the fits {jv} (5 %); the bounds would need to grow by "
+                     f"{np.sqrt(self.joint_chi2 / (self.dof * len(self.names))):.2f} to explain the spread")
         return "\n".join(lines)
 
 

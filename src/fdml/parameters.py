@@ -107,6 +107,11 @@ class Parameters:
         if dup:
             raise ParameterError(f"duplicate parameter names: {sorted(dup)}")
 
+    def __repr__(self) -> str:
+        rows = [f"  {p.name:14s} {p.value:12.6g} {'free' if p.free else 'fixed':5s} {p.unit}".rstrip()
+                for p in self.items]
+        return "Parameters(\n" + "\n".join(rows) + "\n)"
+
     # --- mapping-like access -------------------------------------------------
     def __getitem__(self, name: str) -> Parameter:
         for p in self.items:

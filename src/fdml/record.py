@@ -150,6 +150,10 @@ class Record:
         object.__setattr__(self, "signals", sig)
         object.__setattr__(self, "meta", dict(self.meta))
 
+    def __repr__(self) -> str:
+        return (f"<Record {self.name!r}: {self.n} samples at {self.dt:g} s ({self.duration:g} s), "
+                f"signals {', '.join(self.signals)}>")
+
     # --- accessors ---------------------------------------------------------------
     def __getitem__(self, name: str) -> np.ndarray:
         try:

@@ -301,7 +301,12 @@ class FitResult:
         return ""
 
     def __str__(self) -> str:
-        return self.summary()
+        return str(self.summary())
+
+    def __repr__(self) -> str:
+        state = "converged" if self.converged else "not converged"
+        return (f"<FitResult {self.kind}: {len(self.names)} estimates, {state} in {self.iterations} "
+                f"iterations, J = {self.cost:.4g}, records {', '.join(self.records)}>")
 
     # --- JSON ---------------------------------------------------------------------------------
     def brief(self) -> dict:
@@ -385,14 +390,15 @@ class FitResult:
             ],
         }
 
-    def to_json(self, path: str | Path | None = None, indent: int = 1) -> str:
-        """Serialise to JSON text; write it atomically to ``path`` when given."""
+    def to_json(self, path: str | Path | None = None, indent: int = 1):
+        """JSON text, or, given ``path``, write it atomically there and return the path."""
         text = json.dumps(self.to_dict(), indent=indent)
-        if path is not None:
-            from .record import atomic_write_text
+        if path is None:
+            return text
+        from .record import atomic_write_text
 
-            atomic_write_text(path, text)
-        return text
+        atomic_write_text(path, text)
+        return Path(path)
 
     @classmethod
     def from_dict(cls, d: dict) -> "FitResult":
