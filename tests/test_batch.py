@@ -195,6 +195,33 @@ def test_process_pool_and_serial_give_identical_numbers(tmp_path, records):
            [{k: v for k, v in r.items() if k not in drop} for r in tb]
 
 
+def test_process_pool_beside_threads_and_in_unguarded_scripts(tmp_path, records):
+    """With another thread alive the pool uses forkserver; a script without a main guard works."""
+    import threading
+
+    from fdml.batch import _pool_context
+
+    assert _pool_context().get_start_method() == "fork"
+    stop = threading.Event()
+    th = threading.Thread(target=stop.wait, daemon=True)
+    th.start()
+    try:
+        assert _pool_context().get_start_method() == "forkserver"
+        b = run_batch(records[:2], SPEC, tmp_path / "threads", engine="process", workers=2)
+    finally:
+        stop.set()
+        th.join()
+    a = run_batch(records[:2], SPEC, tmp_path / "serial", engine="serial")
+    assert [r["params"] for r in a.rows] == [r["params"] for r in b.rows]
+    script = tmp_path / "unguarded.py"
+    script.write_text(
+        "from fdml.batch import run_batch\n"
+        f"s = run_batch({[str(p) for p in records[:3]]!r}, {SPEC!r}, {str(tmp_path / 'script')!r}, workers=2)\n"
+        "print(s.n_fitted, s.n_failed)\n")
+    proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0 and proc.stdout.split() == ["3", "0"], proc.stderr[-2000:]
+
+
 def test_manoeuvre_windows_within_records(tmp_path, records):
     s = run_batch([(records[0], 0.5, 4.5), (records[0], 1.0, None), records[0]], SPEC, tmp_path / "out",
                   engine="serial")

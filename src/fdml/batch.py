@@ -42,6 +42,7 @@ import logging
 import math
 import os
 import re
+import sys
 import time
 import warnings
 from collections import deque
@@ -487,13 +488,24 @@ def _resolve_engine(engine, workers):
 
 
 def _pool_context():
-    import multiprocessing as mp
+    """The multiprocessing context of the local pool.
 
-    # forkserver: safe beside threads (a Dask client, a progress bar), cheap forks
-    # of a preloaded fdml; spawn where there is no forkserver.
-    if "forkserver" in mp.get_all_start_methods():
+    ``fork`` on Linux while this process has a single thread: no re-import of
+    the caller's ``__main__`` (a script without an ``if __name__ ==
+    "__main__"`` guard works) and nothing to import in the workers.  With
+    other threads alive (a Dask client, a progress bar's monitor) forking is
+    unsafe, so ``forkserver`` (fdml preloaded once, cheap forks after); ``spawn``
+    where neither exists.
+    """
+    import multiprocessing as mp
+    import threading
+
+    methods = mp.get_all_start_methods()
+    if sys.platform.startswith("linux") and "fork" in methods and threading.active_count() == 1:
+        return mp.get_context("fork")
+    if "forkserver" in methods:
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["fdml.batch", "fdml.montecarlo"])
+        ctx.set_forkserver_preload(["fdml.batch", "fdml.montecarlo", "fdml.estimate", "fdml.io"])
         return ctx
     return mp.get_context("spawn")
 
