@@ -19,7 +19,7 @@ EXIT_BAD_INPUT = 2
 EXIT_FAILURE = 1
 
 #: Command modules under fdml.commands, in help order.
-COMMANDS = ("demo", "fit", "check", "simulate", "response", "report", "batch", "montecarlo", "aircraft")
+COMMANDS = ("demo", "fit", "check", "simulate", "response", "report", "batch", "montecarlo", "diagnose", "aircraft")
 
 
 class _Parser(argparse.ArgumentParser):

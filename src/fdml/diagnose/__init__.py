@@ -1,3 +1,75 @@
-"""Sim-to-real gap diagnosis: where the model misses, which effect causes it, how far it shrinks."""
-from .effects import (AugmentedModel, Effect, FreeParameterEffect, MatrixEffect, OutputEffect, Param,
-                      default_library, get_effect, register_effect, registered_effects, unregister_effect)
+"""Sim-to-real gap diagnosis: where the model misses the data, which unmodelled effect causes it,
+and how far the gap shrinks once that effect is added.
+
+=====================  =================================================================
+module                 job
+=====================  =================================================================
+:mod:`.data`           the analysis grid (2x the independent spacing 2 pi/T per record)
+:mod:`.likelihood`     fits under a band-wise noise model; LR = 2 (C0 - C1) / K
+:mod:`.locate`         the gap map: coherent vs incoherent residual per channel x band,
+                       noise floor, gain/phase error with bounds, F tests, Holm/BH
+:mod:`.effects`        nested augmentations of any model; the open registry
+:mod:`.library`        the built-in effects (lift_lag ... unmeasured_gust)
+:mod:`.screen`         score (LM) screen, aliasing, minimum detectable effect
+:mod:`.attribute`      refits, chi2 / chi-bar-square / Davies nulls, Holm, BIC, ambiguity
+:mod:`.disturbance`    unmeasured turbulence on the input-incoherent residual
+:mod:`.shrink`         shrink, footprint, compensation, parameter shifts, hold-out fits
+:mod:`.report`         labels, verdict, JSON; :mod:`.text` the paragraph; :mod:`.plots`
+:mod:`.core`           :func:`diagnose`
+:mod:`.truth`          validation truths (time-domain, one withheld effect)
+:mod:`.validate`       the validation harness
+=====================  =================================================================
+
+Example::
+
+    import fdml
+    from fdml.diagnose import diagnose
+
+    rep = diagnose(records, fdml.make_model("steady", "navion"), holdout=other_record)
+    print(rep.verdict, rep.summary())
+    rep.to_json("diagnosis.json"); rep.plot("diagnosis.png")
+"""
+
+from .core import diagnose
+from .effects import (
+    AugmentedModel,
+    Effect,
+    FreeParameterEffect,
+    MatrixEffect,
+    OutputEffect,
+    Param,
+    default_library,
+    get_effect,
+    register_effect,
+    registered_effects,
+    scale_rows,
+    unregister_effect,
+)
+from .report import JSON_KEYS, DiagnosisReport
+
+
+def validate(*args, **kwargs):
+    """Run the validation harness (see :func:`fdml.diagnose.validate.validate`)."""
+    from .validate import validate as _v
+
+    return _v(*args, **kwargs)
+
+
+__all__ = [
+    "diagnose",
+    "validate",
+    "DiagnosisReport",
+    "JSON_KEYS",
+    "Effect",
+    "OutputEffect",
+    "MatrixEffect",
+    "FreeParameterEffect",
+    "Param",
+    "AugmentedModel",
+    "register_effect",
+    "unregister_effect",
+    "get_effect",
+    "registered_effects",
+    "default_library",
+    "scale_rows",
+]

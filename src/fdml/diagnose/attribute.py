@@ -156,6 +156,15 @@ def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options
     if refine and effect.nuisance_grid:
         nuis = [p.name for p in effect.param_list(cur.model) if p.nuisance]
         m2 = best.model.free(nuis)
+        params = m2.parameters
+        for (gname, (grid, _prof)) in (scr.grid or {}).items():
+            # refine within the searched range: a nuisance parameter that wanders off the grid
+            # turns the effect into a catch-all (a "mode" at the short period with zeta 0.5)
+            params = params.bound(gname, float(grid[0]), float(grid[-1]))
+        for p in effect.param_list(cur.model):
+            if p.nuisance and p.name not in (scr.grid or {}) and p.plausible is not None:
+                params = params.bound(p.name, *p.plausible)
+        m2 = m2.with_parameters(params)
         try:
             f2 = fit_model(data, m2, bands, **options)
             if f2.cost < best.cost:
@@ -179,7 +188,8 @@ def _params(effect: Effect, model, fit: DiagFit) -> tuple[dict, bool]:
 
 
 def attribute_step(data, cur: DiagFit, effects, bands, rows, options: dict, *, alpha: float = 0.05,
-                   refit_top: int = 4, step: int = 0, n_obs: int = 1) -> tuple[list, list]:
+                   refit_top: int = 4, step: int = 0, n_obs: int = 1,
+                   floor_weights: np.ndarray | None = None) -> tuple[list, list]:
     """One attribution step from ``cur``.
 
     Returns
@@ -189,7 +199,7 @@ def attribute_step(data, cur: DiagFit, effects, bands, rows, options: dict, *, a
     skipped : list of Candidate
         Not applicable or not identifiable, with the reason.
     """
-    ctx = ScreenContext(cur, rows, data.oversample, data.spectra, options)
+    ctx = ScreenContext(cur, rows, data.oversample, data.spectra, options, floor_weights)
     tested, skipped = [], []
     usable = []
     for eff in effects:

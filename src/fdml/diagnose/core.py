@@ -159,6 +159,8 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
         rep.location = base_map.to_list()
         return rep
 
+    fw = floor_weights(data, base_map, channels)
+
     # --- attribution: greedy forward selection ------------------------------------------
     gust_eff = _noise_effect(effects)
     det = [e for e in effects if e.kind == "deterministic"]
@@ -171,7 +173,7 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
     remaining = list(det)
     for step in range(max(int(max_effects), 0)):
         tested, skipped = attribute_step(data, cur, remaining, nb, rows, options, alpha=alpha,
-                                         refit_top=refit_top, step=step, n_obs=n_obs)
+                                         refit_top=refit_top, step=step, n_obs=n_obs, floor_weights=fw)
         if step == 0:
             K0 = len(tested) + (1 if gust_eff is not None else 0)
             # Holm over the whole first-step family, the turbulence test included
@@ -322,6 +324,22 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
 
     report.text = paragraph(report)
     return report
+
+
+def floor_weights(data, gmap, channels) -> np.ndarray:
+    """1/sqrt(noise floor) per stacked analysis row and fitted channel, from the gap map's cells."""
+    om = data.stacked_omega()
+    nb = gmap.edges.size - 1
+    b = np.clip(np.searchsorted(gmap.edges, om, side="right") - 1, 0, nb - 1)
+    out = np.ones((om.size, len(channels)))
+    for j, ch in enumerate(channels):
+        fl = np.array([gmap.cell(ch, i).floor for i in range(nb)], float)
+        ok = np.isfinite(fl) & (fl > 0)
+        if not ok.any():
+            continue
+        fl[~ok] = np.median(fl[ok])
+        out[:, j] = 1.0 / np.sqrt(fl[b])
+    return out
 
 
 def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_obs: int, sig: bool) -> dict:

@@ -338,7 +338,8 @@ STRUCTURAL_MODE = OutputEffect(
      Param("r_az", 0.0, plausible=(-0.5, 0.5), unit="g per rad", start=0.01,
            description="mode residue on a_z (peak r/(2 zeta))"),
      Param("omega_s", 10.0, lower=0.1, upper=1e3, unit="rad/s", nuisance=True, description="mode frequency"),
-     Param("zeta_s", MODE_ZETA, lower=0.005, upper=0.5, unit="-", nuisance=True, description="mode damping")),
+     Param("zeta_s", MODE_ZETA, lower=0.005, upper=0.5, plausible=(0.01, 0.15), unit="-", nuisance=True,
+           description="mode damping (refined within its plausible range: lightly damped)")),
     _mode, nuisance_grid={"omega_s": mode_grid},
     signature="a narrow resonance on q and a_z, coherent with the elevator")
 

@@ -20,6 +20,14 @@ no refit.  From the same matrices:
 
 For an effect whose parameter is not identified under the null (a structural
 mode's frequency), the statistic is profiled over a grid of that parameter.
+
+Aliasing and the MDE describe the design and the noise, not the current
+misfit, so they are computed with the gap map's noise floors (per channel and
+band, diagonal; model error that is smooth across a band does not enter
+them).  The residual covariance R_b of a biased base fit holds model error and
+strong cross-channel correlation, and whitening with it made a 1.5 m
+accelerometer offset look 99.8 % aliased; the LM statistic itself keeps the
+likelihood's own weighting (R_b), which is what the refit's LR uses.
 """
 
 from __future__ import annotations
@@ -65,7 +73,8 @@ class ScreenResult:
 class ScreenContext:
     """Whitened residual and base sensitivities of the current fit (computed once per step)."""
 
-    def __init__(self, fit: DiagFit, rows: np.ndarray, oversample: int, spectra, fit_options: dict):
+    def __init__(self, fit: DiagFit, rows: np.ndarray, oversample: int, spectra, fit_options: dict,
+                 floor_weights: np.ndarray | None = None):
         self.fit = fit
         self.rows = rows
         self.K = oversample
@@ -75,11 +84,19 @@ class ScreenContext:
         self.L = np.stack(Ls)[rows]  # (N, n, n)
         A = fit.prob.sensitivities(fit.theta)
         self.r = self._real(self._white(fit.V))
-        Jt = self._real_cols(self._white_cols(A))
-        # orthonormal basis of the base sensitivities (drop numerically dead directions)
-        U, s, _ = np.linalg.svd(Jt, full_matrices=False)
+        self.Q = self._basis(self._real_cols(self._white_cols(A)))
+        # noise-floor metric (diagonal) for aliasing and MDE
+        n = fit.V.shape[1]
+        fw = np.ones((fit.V.shape[0], n)) if floor_weights is None else floor_weights
+        self.Lf = np.einsum("nj,jk->njk", fw, np.eye(n))
+        self.Qf = self._basis(self._real_cols(np.einsum("njk,nkp->njp", self.Lf, A)))
+
+    @staticmethod
+    def _basis(J):
+        """Orthonormal basis of the columns of J (numerically dead directions dropped)."""
+        U, s, _ = np.linalg.svd(J, full_matrices=False)
         keep = s > 1e-10 * (s[0] if s.size else 1.0)
-        self.Q = U[:, keep]
+        return U[:, keep]
 
     def _white(self, V):
         return np.einsum("njk,nk->nj", self.L, V)
@@ -101,8 +118,11 @@ class ScreenContext:
     def perp(self, X):
         return X - self.Q @ (self.Q.T @ X)
 
+    def perp_floor(self, X):
+        return X - self.Qf @ (self.Qf.T @ X)
+
     def candidate_jacobian(self, model, names, steps, one_sided):
-        """Whitened real-stacked d(prediction)/d(eta) for ``names`` at the model's values."""
+        """(likelihood-whitened, floor-whitened) real-stacked d(prediction)/d(eta) at the model's values."""
         prob = prepare(self.spectra, model, sensitivity="central", **self.options)
         theta = np.array([self.fit.params.get(n, model.parameters.values.get(n, 0.0)) for n in prob.names])
         idx = {n: i for i, n in enumerate(prob.names)}
@@ -120,15 +140,17 @@ class ScreenContext:
                 tm[i] -= h
                 cols.append((yp - _stack(prob, tm)) / (2 * h))
         A = np.stack(cols, axis=-1)  # (N, n_out, q)
-        return self._real_cols(self._white_cols(A))
+        return (self._real_cols(self._white_cols(A)),
+                self._real_cols(np.einsum("njk,nkp->njp", self.Lf, A)))
 
 
 def _stack(prob, theta):
     return np.concatenate([y[:, prob.out_idx] for y in prob.predict(theta)])
 
 
-def _lm(ctx: ScreenContext, Je: np.ndarray):
-    """LM statistic, linearised estimate, information and aliasing for whitened columns Je."""
+def _lm(ctx: ScreenContext, Jpair):
+    """LM statistic and linearised estimate (likelihood metric); information and aliasing (floor metric)."""
+    Je, Jf = Jpair
     Jp = ctx.perp(Je)
     rp = ctx.perp(ctx.r)
     G = Jp.T @ Jp
@@ -138,9 +160,11 @@ def _lm(ctx: ScreenContext, Je: np.ndarray):
     except np.linalg.LinAlgError:
         eta = np.linalg.lstsq(G, b, rcond=1e-12)[0]
     lm = 2.0 * float(b @ eta) / ctx.K
-    full = np.einsum("ij,ij->j", Je, Je)
-    alias = 1.0 - np.diag(G) / np.where(full > 0, full, np.inf)
-    info = 2.0 * G / ctx.K
+    Jfp = ctx.perp_floor(Jf)
+    Gf = Jfp.T @ Jfp
+    full = np.einsum("ij,ij->j", Jf, Jf)
+    alias = 1.0 - np.diag(Gf) / np.where(full > 0, full, np.inf)
+    info = 2.0 * Gf / ctx.K
     return max(lm, 0.0), eta, info, np.clip(alias, 0.0, 1.0)
 
 

@@ -129,6 +129,21 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
         shift = (fp[n] - bp[n]) / se if (se and math.isfinite(se) and se > 0) else math.nan
         out[n] = {"base": bp[n], "base_stderr": se, "augmented": fp[n],
                   "augmented_stderr": fit.stderr.get(n, math.nan), "shift_in_stderr": shift}
+    # the derived set (alternate set / dimensional derivatives, THEORY.md 6), delta-method errors
+    try:
+        bd = base.model.derived()
+        ad = fit.model.derived()
+        bse = getattr(base.result, "derived", {}) or {}
+        fse = getattr(fit.result, "derived", {}) or {}
+    except Exception:  # pragma: no cover - a model without a derived set
+        return out
+    for k in bd:
+        if k in out or k not in ad:
+            continue
+        se = bse.get(k, (None, math.nan))[1]
+        shift = (ad[k] - bd[k]) / se if (se and math.isfinite(se) and se > 0) else math.nan
+        out[k] = {"base": bd[k], "base_stderr": se, "augmented": ad[k],
+                  "augmented_stderr": fse.get(k, (None, math.nan))[1], "shift_in_stderr": shift, "derived": True}
     return out
 
 

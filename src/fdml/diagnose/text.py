@@ -27,12 +27,12 @@ def _band(c) -> str:
 def _cell_phrase(c) -> str:
     bits = []
     if c.get("gain_db") is not None:
-        bits.append(f"gain {c['gain_db']:+.2f} dB")
+        bits.append(f"{c['gain_db']:+.2f} dB")
     if c.get("phase_deg") is not None:
-        bits.append(f"phase {c['phase_deg']:+.1f} deg")
+        bits.append(f"{c['phase_deg']:+.1f} deg")
     p = c.get("p_holm")
     ptxt = f", p = {p:.1g}" if p is not None else ""
-    return f"{c['channel']} at {_band(c)} ({', '.join(bits)}{ptxt})"
+    return f"{c['channel']} at {_band(c)} (measured/model {', '.join(bits)}{ptxt})"
 
 
 def _p(p) -> str:

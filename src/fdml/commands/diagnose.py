@@ -1,0 +1,126 @@
+"""``fdml diagnose RECORD ... --base MODEL``: where the model misses, which effect causes it, how far it shrinks.
+
+``fdml diagnose --validate`` runs the validation harness instead (records
+simulated with one withheld effect; see :mod:`fdml.diagnose.validate`).
+"""
+
+from __future__ import annotations
+
+from ..io.cli import add_record_arguments, record_options
+
+
+def register(sub) -> None:
+    p = sub.add_parser("diagnose", help="diagnose the model-to-data gap: locate it, attribute it to an "
+                                        "unmodelled effect, measure how far it shrinks")
+    p.add_argument("records", nargs="*", metavar="RECORD", help="record file(s), fitted jointly")
+    p.add_argument("--aircraft", metavar="NAME|FILE.json",
+                   help="preset (navion, sundowner, do128) or an aircraft JSON file")
+    p.add_argument("--base", default="derivatives", choices=("unsteady", "steady", "derivatives", "dimensional"),
+                   help="base model the effects are added to (default derivatives)")
+    p.add_argument("--gust", action="store_true", help="the records carry the measured gust angle alpha_w")
+    p.add_argument("--airspeed", type=float, metavar="U",
+                   help="airspeed, m/s, for the dimensional model without --aircraft (default: the record's)")
+    add_record_arguments(p)
+    p.add_argument("--band", metavar="LO:HI", help="analysis band, rad/s (default 0.1:10; a :STEP is ignored)")
+    p.add_argument("--bands", metavar="E0,E1,...", help="edges of the gap map's bands, rad/s")
+    p.add_argument("--holdout", nargs="+", metavar="RECORD",
+                   help="record(s) of the same flight condition kept out of the fit, to judge the shrink")
+    p.add_argument("--outputs", default="alpha,q,az", help="outputs in the fit (default alpha,q,az)")
+    p.add_argument("--library", metavar="NAME,...", help="candidate effects (default: all registered)")
+    p.add_argument("--alpha", type=float, default=0.05, help="family-wise level (default 0.05)")
+    p.add_argument("--max-effects", type=int, default=2, help="greedy forward selection limit (default 2)")
+    p.add_argument("--noise", default="band", choices=("band", "white"),
+                   help="noise model of the likelihood (default band)")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.add_argument("-o", "--output", metavar="REPORT.json", help="write the full report (or validation) as JSON")
+    p.add_argument("--figure", metavar="FIG.png", help="write the figure (gap map before/after, Bode overlays)")
+    v = p.add_argument_group("validation harness")
+    v.add_argument("--validate", action="store_true",
+                   help="run the withheld-effect validation instead of diagnosing records")
+    v.add_argument("--quick", action="store_true", help="validation with 1 seed per cell and 6 per null case")
+    v.add_argument("--n-effect", type=int, default=4, help="seeds per truth/size/manoeuvre/noise cell (default 4)")
+    v.add_argument("--n-null", type=int, default=34, help="seeds per null/manoeuvre/noise cell (default 34)")
+    v.add_argument("--seed-base", type=int, default=None,
+                   help="first seed (default: the report range; 0 is the tuning range)")
+    v.add_argument("--processes", type=int, default=None, help="worker processes (default: all CPUs)")
+    p.set_defaults(func=run)
+
+
+def _validate(args) -> int:
+    import sys
+
+    from ..diagnose.validate import REPORT_SEED_BASE, validate
+
+    n_e, n_n = (1, 6) if args.quick else (args.n_effect, args.n_null)
+
+    def progress(done, total):
+        if not args.json:
+            sys.stderr.write(f"\rfdml diagnose --validate: {done}/{total}")
+            if done == total:
+                sys.stderr.write("\n")
+
+    res = validate(n_effect=n_e, n_null=n_n, seed_base=REPORT_SEED_BASE if args.seed_base is None else args.seed_base,
+                   processes=args.processes, progress=progress)
+    if args.output:
+        res.to_json(args.output)
+    if args.json:
+        from ..cli import print_json
+
+        print_json({"settings": res.settings, "scores": res.scores})
+    else:
+        print(res.table())
+    return 0
+
+
+def run(args) -> int:
+    if args.validate:
+        return _validate(args)
+    from ..diagnose import diagnose
+    from ..errors import ParameterError, RecordError
+    from ..io import load_records
+    from ..models import make_model
+
+    if not args.records:
+        raise RecordError("give at least one RECORD to diagnose (or --validate)")
+    opts = record_options(args)
+    records = load_records(args.records, **opts)
+    holdout = load_records(args.holdout, **opts) if args.holdout else None
+    if args.base == "dimensional":
+        if args.aircraft is not None:
+            model = make_model("dimensional", args.aircraft, gust=args.gust)
+        else:
+            U = args.airspeed if args.airspeed is not None else records[0].meta.get("U")
+            if U is None:
+                raise ParameterError("the dimensional base model needs --airspeed U (m/s), --aircraft, or a "
+                                     "record that states its airspeed")
+            model = make_model("dimensional", None, gust=args.gust, airspeed=float(U))
+    else:
+        if args.aircraft is None:
+            raise ParameterError(f"the {args.base} base model needs --aircraft NAME or FILE.json")
+        model = make_model(args.base, args.aircraft, gust=args.gust)
+    bands = None
+    if args.bands:
+        try:
+            bands = [float(x) for x in args.bands.split(",")]
+        except ValueError:
+            raise ParameterError(f"--bands must be numbers separated by commas, got {args.bands!r}") from None
+    library = [x.strip() for x in args.library.split(",")] if args.library else None
+    outputs = [o.strip() for o in args.outputs.split(",") if o.strip()]
+    rep = diagnose(records, model, holdout=holdout, band=args.band, bands=bands, library=library, alpha=args.alpha,
+                   max_effects=args.max_effects, noise=args.noise, outputs=outputs, trim="first")
+    if args.output:
+        rep.to_json(args.output)
+    if args.figure and rep.status == "ok":
+        rep.plot(args.figure)
+    if args.json:
+        from ..cli import print_json
+
+        print_json(rep.to_dict())
+    else:
+        print(rep.summary())
+    if rep.status != "ok":
+        import sys
+
+        sys.stderr.write(f"fdml: error: no verdict: {'; '.join(rep.problems)}\n")
+        return 2
+    return 0

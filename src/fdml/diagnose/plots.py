@@ -1,0 +1,121 @@
+"""The diagnosis figure: gap map before and after, and Bode overlays against the data."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["plot_report"]
+
+_CH = {"alpha": r"$\alpha$", "q": "$q$", "az": "$a_z$"}
+
+
+def _map_array(cells, channels, nb):
+    X = np.full((len(channels), nb), np.nan)
+    sig = np.zeros((len(channels), nb), bool)
+    for i, c in enumerate(cells):
+        r, b = divmod(i, nb)
+        ex = c.get("excess")
+        X[r, b] = np.nan if ex is None else ex
+        sig[r, b] = bool(c.get("significant"))
+    return X, sig
+
+
+def _draw_map(ax, cells, channels, edges, title, vmax):
+    nb = len(edges) - 1
+    X, sig = _map_array(cells, channels, nb)
+    V = np.log10(1.0 + np.maximum(np.nan_to_num(X, nan=0.0), 0.0))
+    im = ax.imshow(V, aspect="auto", cmap="magma_r", vmin=0, vmax=vmax, origin="upper")
+    for r in range(len(channels)):
+        for b in range(nb):
+            c = cells[r * nb + b]
+            txt = "-" if c.get("excess") is None else f"{c['excess']:.0f}"
+            if c.get("gain_db") is not None and c.get("phase_deg") is not None:
+                txt += f"\n{c['gain_db']:+.1f} dB\n{c['phase_deg']:+.1f}°"
+            ax.text(b, r, txt + (" *" if sig[r, b] else ""), ha="center", va="center", fontsize=7,
+                    color="white" if V[r, b] > 0.6 * vmax else "black")
+    ax.set_xticks(range(nb))
+    ax.set_xticklabels([f"{edges[i]:.2g}-{edges[i + 1]:.2g}" for i in range(nb)], fontsize=7)
+    ax.set_yticks(range(len(channels)))
+    ax.set_yticklabels([_CH.get(c, c) for c in channels])
+    ax.set_xlabel("band, rad/s")
+    ax.set_title(title, fontsize=9)
+    return im
+
+
+def plot_report(rep, path=None):
+    """Figure of a :class:`~fdml.diagnose.report.DiagnosisReport`; saved to ``path`` when given.
+
+    Top: the gap map (excess coherent energy in noise-floor units, with the
+    band's gain and phase error; * = significant after Holm) before and after
+    the final model.  Below: magnitude and phase of the elevator frequency
+    response per output, the data (model plus residual over input at the
+    independent frequencies) against the base and the final models.
+    """
+    import matplotlib
+
+    if path is not None:
+        matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    det = rep.details
+    data, base, final = det["data"], det["base_fit"], det["final_fit"]
+    channels, edges = det["channels"], det["edges"]
+    fig = plt.figure(figsize=(11, 9), constrained_layout=True)
+    gs = fig.add_gridspec(3, 3, height_ratios=[1.0, 1.1, 1.1])
+    X0, _ = _map_array(rep.location, channels, len(edges) - 1)
+    vmax = max(float(np.nanmax(np.log10(1 + np.maximum(np.nan_to_num(X0), 0)))) if np.isfinite(X0).any() else 1, 1)
+    ax0 = fig.add_subplot(gs[0, 0:1])
+    _draw_map(ax0, rep.location, channels, edges, "gap map, base model", vmax)
+    ax1 = fig.add_subplot(gs[0, 1:2])
+    lab = "+".join(s["key"] for s in rep.selected) or "(no effect accepted)"
+    im = _draw_map(ax1, rep.location_after or rep.location, channels, edges, f"after: {lab}", vmax)
+    fig.colorbar(im, ax=[ax0, ax1], label="log10(1 + excess)", shrink=0.8)
+    axt = fig.add_subplot(gs[0, 2])
+    axt.axis("off")
+    axt.text(0, 1, _wrap(rep.text, 58), va="top", fontsize=6.5)
+    # Bode overlays (elevator column) at the independent frequencies
+    om = np.concatenate([d.omega[m] for d, m in zip(data.spectra, data.dft)])
+    order = np.argsort(om)
+    rows = np.flatnonzero(data.stacked_dft())
+    u = np.concatenate([d.u[:, 0] for d in data.spectra])[rows]
+    e = base.full_residual()[rows]
+    Gb = np.concatenate([base.model.evaluate(d.omega).G[:, :, 0] for d in data.spectra])[rows]
+    Gf = np.concatenate([final.model.evaluate(d.omega).G[:, :, 0] for d in data.spectra])[rows]
+    good = np.abs(u) > 0.05 * np.max(np.abs(u))
+    Gd = Gb + e / np.where(good, u, 1.0)[:, None]
+    for j, ch in enumerate(("alpha", "q", "az")):
+        axm = fig.add_subplot(gs[1, j])
+        axp = fig.add_subplot(gs[2, j], sharex=axm)
+        k = order[good[order]]
+        ph_b = np.degrees(np.unwrap(np.angle(Gb[order, j])))  # base phase, unwrapped along frequency
+        ref = dict(zip(order.tolist(), ph_b))
+        axm.semilogx(om[k], 20 * np.log10(np.abs(Gd[k, j])), "k.", ms=4, label="data")
+        axp.semilogx(om[k], [ref[i] + np.degrees(np.angle(Gd[i, j] / Gb[i, j])) for i in k], "k.", ms=4)
+        for G, st, name in ((Gb, "C0-", "base"), (Gf, "C3--", "final")):
+            axm.semilogx(om[order], 20 * np.log10(np.abs(G[order, j])), st, lw=1.2, label=name)
+            axp.semilogx(om[order], ph_b + np.degrees(np.angle(G[order, j] / Gb[order, j])), st, lw=1.2)
+        axm.set_title(f"{_CH[ch]} / $\\delta_e$", fontsize=9)
+        axm.set_ylabel("dB")
+        axp.set_ylabel("deg")
+        axp.set_xlabel("rad/s")
+        for x in edges[1:-1]:
+            axm.axvline(x, color="0.8", lw=0.6)
+            axp.axvline(x, color="0.8", lw=0.6)
+        if j == 0:
+            axm.legend(fontsize=7)
+    if path is not None:
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+    return fig
+
+
+def _wrap(text: str, width: int) -> str:
+    import textwrap
+
+    return "\n".join(textwrap.wrap(text, width))
+
+
+def _finite(x) -> bool:  # pragma: no cover - helper
+    return x is not None and math.isfinite(x)

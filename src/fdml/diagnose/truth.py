@@ -1,0 +1,217 @@
+"""Validation truths: time-domain records from a base model plus exactly one withheld effect.
+
+Every record comes from fdml's time-domain simulator (:func:`fdml.simulate.simulate`);
+the effect is applied in the time domain, where it physically acts:
+
+=========================  ==================================================================
+truth                      how it is simulated
+=========================  ==================================================================
+lift_lag, downwash_lag,    the Wells-Keskar unsteady model with that one lag switched on
+gust_lag@alpha_w,          (y_w, G, b1) or the elevator delay tau_de: fdml's simulator
+time_delay@de              (finite-state, exact first-order hold)
+time_delay@alpha|q|az      the sensor's signal delayed, y(t - tau) (cubic interpolation)
+actuator_lag@de            the recorded elevator filtered by 1/(1 + T s) (lsim, first-order
+                           hold) drives the simulation; the record keeps the unfiltered one
+sensor_offset@az           a_z - x q_dot/g, q_dot from the model's state equations
+sensor_offset@alpha        alpha - x q/U
+structural_mode@q,az       the modal responses r_q s w/D and r_az s^2/D to the elevator
+                           (lsim) added to q and a_z
+sensor_scale@ch            (1 + k) times the channel
+unmeasured_gust            Dryden turbulence through the gust model; alpha_w not recorded
+vane_filter (outside the   alpha through a second-order sensor filter w^2/(s^2 + 2 z w s + w^2):
+library)                   a vane's own dynamics, which no candidate models
+=========================  ==================================================================
+
+Sensor noise (added last): white, or coloured (white plus a first-order
+low-pass component whose spectrum at low frequency is 16 times the white
+level), with standard deviation a fraction of each clean channel's RMS.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import interpolate, signal
+
+from ..constants import G0
+from ..errors import ParameterError
+from ..maneuvers import dryden_gust, make_input, time_vector
+from ..record import Record
+from ..simulate import realize, simulate
+from .effects import get_effect, root_model
+
+__all__ = ["simulate_truth", "truth_model", "sensor_noise", "OUT_OF_LIBRARY"]
+
+#: Effects outside the library that the harness can simulate.
+OUT_OF_LIBRARY = ("vane_filter",)
+#: Low-frequency excess of the coloured sensor noise over its white part (power ratio at omega -> 0).
+COLOURED_LF_RATIO = 16.0
+#: Corner of the coloured part, rad/s.
+COLOURED_CORNER = 0.5
+#: Fade-in/out of a measured gust encounter, s.
+GUST_FADE = 2.0
+#: Warm-up simulated before a turbulent record (the Dryden filter starts at rest; L/U is about 10 s), s.
+WARMUP = 40.0
+
+
+#: Output-level effects with a time-domain form here (the others are model parameters).
+_TIME_DOMAIN = ("time_delay@alpha", "time_delay@q", "time_delay@az", "actuator_lag@de", "sensor_offset@az",
+                "sensor_offset@alpha", "structural_mode@q,az", "sensor_scale@alpha", "sensor_scale@q",
+                "sensor_scale@az")
+
+
+def truth_model(base, key: str, values: dict):
+    """The plain fdml model that is the truth for a free-parameter effect (else the base)."""
+    eff = get_effect(key)
+    aug = eff.augment(base).with_values(values)
+    if root_model(aug) is aug:
+        return aug
+    if key not in _TIME_DOMAIN:
+        raise ParameterError(f"no time-domain truth for {key} on the {base.kind} model")
+    return base
+
+
+def _lsim(num, den, u, t):
+    _, y, _ = signal.lsim(signal.TransferFunction(num, den), u, t, interp=True)
+    return np.asarray(y, float)
+
+
+def _delay(t, y, tau):
+    """y(t - tau) with y = 0 before the start (the record starts from rest, trim removed)."""
+    f = interpolate.CubicSpline(t, y)
+    ts = t - tau
+    out = f(np.clip(ts, t[0], t[-1]))
+    out[ts < t[0]] = y[0]
+    return out
+
+
+def _qdot(model, values, t, inputs) -> np.ndarray:
+    """q_dot from the model's state equations (finite-state realisation, exact first-order hold)."""
+    real = realize(model, values)
+    C2 = np.vstack([real.C[1] @ real.A])
+    D2 = np.vstack([real.C[1] @ real.B])
+    u = np.column_stack([np.interp(t - d, t, inputs[nm], left=0.0) for nm, d in real.channels])
+    sys = signal.StateSpace(real.A, real.B, C2, D2)
+    _, y, _ = signal.lsim(sys, u, t, interp=True)
+    return np.asarray(y, float).reshape(t.size)
+
+
+def sensor_noise(rng: np.random.Generator, n: int, dt: float, kind: str = "white") -> np.ndarray:
+    """Unit-variance-white-part sensor noise of ``n`` samples (white or coloured)."""
+    w = rng.standard_normal(n)
+    if kind == "white":
+        return w
+    if kind != "coloured":
+        raise ParameterError(f"noise kind must be 'white' or 'coloured', got {kind!r}")
+    a = math.exp(-COLOURED_CORNER * dt)
+    x = np.empty(n)
+    e = rng.standard_normal(n) * math.sqrt(1 - a * a)
+    x[0] = rng.standard_normal()
+    for i in range(1, n):
+        x[i] = a * x[i - 1] + e[i]
+    # AR(1) spectrum at low frequency is (1 + a)/(1 - a) times its variance density; scale to the ratio
+    c = math.sqrt(COLOURED_LF_RATIO * (1 - a) / (1 + a))
+    return w + c * x
+
+
+def simulate_truth(base, key: str | None, values: dict | None = None, *, maneuver: str = "3211",
+                   duration: float = 20.0, dt: float = 0.02, noise: float = 0.05, noise_kind: str = "white",
+                   seed: int = 0, gust_std: float = 0.0, amplitude: float | None = None,
+                   name: str | None = None) -> Record:
+    """A noisy record of ``base`` plus the effect ``key`` (None: no effect) at ``values``.
+
+    Parameters
+    ----------
+    base : Model
+        The model fitted blind (its values are the truth's base values).
+    key : str or None
+        Effect key (``"time_delay@q"``), ``"unmeasured_gust"``, an
+        out-of-library name (``"vane_filter"``) or None.
+    values : dict
+        Effect parameter values (e.g. ``{"tau_q": 0.03}``; ``vane_filter``:
+        ``{"omega_f": rad/s, "zeta_f": -}``; ``unmeasured_gust``: ``{"sigma_w": m/s}``).
+    maneuver : {"3211", "doublet", "multisine"}
+    noise : float
+        Sensor noise standard deviation as a fraction of each clean channel's RMS.
+    gust_std : float
+        Measured Dryden gust (m/s) driving a gust model (``base.gust``).
+    seed : int
+        Seeds the input phases (multisine), the gust and the noise.
+    """
+    values = dict(values or {})
+    rng = np.random.default_rng(seed)
+    gust_key = key == "unmeasured_gust"
+    turbulent = gust_key
+    # in turbulence the aircraft is never at rest: simulate a warm-up and keep the last `duration` s
+    warm = WARMUP if turbulent else 0.0
+    t = time_vector(duration + warm, dt)
+    n0 = int(round(warm / dt))
+    tr = t[: t.size - n0]  # the kept record's own time axis
+    amp = amplitude if amplitude is not None else math.radians(1.0)
+    if maneuver == "multisine":
+        # a multisine over the first 3/4 of the record, then the input stops (flight-test practice)
+        n1 = int(round(0.75 * (tr.size - 1))) + 1
+        u = make_input("multisine", tr[:n1], amp, omega_lo=0.4, omega_hi=12.0, phases="random", rng=rng)
+        de_rec = np.concatenate([u, np.zeros(tr.size - n1)])
+    elif maneuver == "3211":
+        de_rec = make_input("3211", tr, amp, unit=0.4, rise=0.04)
+    elif maneuver == "doublet":
+        de_rec = make_input("doublet", tr, amp, width=0.4, rise=0.04)
+    else:
+        raise ParameterError(f"unknown manoeuvre {maneuver!r}; use 3211, doublet or multisine")
+    de = np.concatenate([np.zeros(n0), de_rec])
+    inputs = {"de": de}
+    U = base.U
+    if gust_key:
+        inputs["alpha_w"] = dryden_gust(t, values["sigma_w"], U, rng=rng, stationary=False)
+    elif base.gust:
+        # a measured gust encounter: Dryden turbulence faded in and out over GUST_FADE s, so that the
+        # gust and the lag states it drives start and end at zero (fdml's boundary terms cover
+        # alpha and q only; see the note in the diagnose README section)
+        aw = dryden_gust(t, gust_std, U, rng=rng) if gust_std > 0 else np.zeros_like(t)
+        inputs["alpha_w"] = aw * signal.windows.tukey(t.size, min(2 * GUST_FADE / t[-1], 1.0))
+    model = base
+    if gust_key:
+        from .effects import with_gust
+        model = with_gust(base)
+    elif key is not None and key not in OUT_OF_LIBRARY:
+        model = truth_model(base, key, values)
+    sim_inputs = dict(inputs)
+    if key == "actuator_lag@de":
+        sim_inputs["de"] = _lsim([1.0], [values["T_act"], 1.0], de, t)
+    mvals = {k: v for k, v in values.items() if k in model.parameters}
+    rec = simulate(model, t, sim_inputs, mvals or None)
+    y = {k: rec[k].copy() for k in ("alpha", "q", "az")}
+    if key is not None and key.startswith("time_delay@") and key != "time_delay@de":
+        ch = key.split("@")[1]
+        y[ch] = _delay(t, y[ch], values[f"tau_{ch}"])
+    elif key == "sensor_offset@az":
+        y["az"] = y["az"] - values["x_az"] * _qdot(model, mvals or None, t, sim_inputs) / G0
+    elif key == "sensor_offset@alpha":
+        y["alpha"] = y["alpha"] - values["x_alpha"] * y["q"] / U
+    elif key == "structural_mode@q,az":
+        w, z = values["omega_s"], values.get("zeta_s", 0.05)
+        den = [1.0, 2 * z * w, w * w]
+        y["q"] = y["q"] + values["r_q"] * _lsim([w, 0.0], den, de, t)
+        y["az"] = y["az"] + values["r_az"] * _lsim([1.0, 0.0, 0.0], den, de, t)
+    elif key is not None and key.startswith("sensor_scale@"):
+        ch = key.split("@")[1]
+        y[ch] = (1.0 + values[f"k_{ch}"]) * y[ch]
+    elif key == "vane_filter":
+        w, z = values.get("omega_f", 12.0), values.get("zeta_f", 0.3)
+        y["alpha"] = _lsim([w * w], [1.0, 2 * z * w, w * w], y["alpha"], t)
+    keep = slice(n0, t.size)
+    y = {k: v[keep] for k, v in y.items()}
+    for ch in ("alpha", "q", "az"):
+        if noise > 0:
+            y[ch] = y[ch] + noise * float(np.std(y[ch])) * sensor_noise(rng, tr.size, dt, noise_kind)
+    signals = {"de": de[keep], **y}
+    if base.gust:
+        signals["alpha_w"] = inputs["alpha_w"][keep]
+    t = tr
+    meta = {"truth": key, "values": values, "maneuver": maneuver, "noise": noise, "noise_kind": noise_kind,
+            "seed": seed, "U": U}
+    if "alpha_w" in inputs:
+        meta["gust_rms_in_record"] = float(np.std(inputs["alpha_w"][keep]) * U)  # realised sigma_w, m/s
+    return Record(t, signals, name=name or f"{key or 'none'}-{maneuver}-{seed}", meta=meta, check_units=False)

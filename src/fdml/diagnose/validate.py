@@ -1,0 +1,403 @@
+"""Proof on data whose effect is withheld: the validation harness.
+
+Each run simulates a record (and an independent hold-out record of another
+manoeuvre) from a truth that is the base model plus exactly one effect
+(:mod:`fdml.diagnose.truth`), or no effect, or an effect outside the library,
+and runs :func:`fdml.diagnose.diagnose` blind with the base model.  The
+scores (DIAGNOSIS.md 3.2) are
+
+* the confusion matrix, truth effect by verdict;
+* detection (any verdict), top-1 attribution (verdict = truth), in-set (truth
+  in the verdict's ambiguity set), the right channel;
+* the false-alarm rate on no-effect records, white and coloured sensor noise,
+  with Wilson 95 % intervals;
+* the median hold-out shrink when the truth is the verdict;
+* for an effect outside the library, how often it is labelled ``partial`` (or
+  no verdict) rather than confidently wrong (``confirmed``).
+
+Seeds: the *tuning* range (``seed_base = 0``) is where the label threshold
+is chosen (:func:`tune_threshold`); the *report* range (``seed_base =
+REPORT_SEED_BASE``) is where the figures come from.  The two never overlap.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from collections import Counter, defaultdict
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from .report import SHRINK_CONFIRM, label_for
+
+__all__ = ["Scenario", "scenarios", "run_scenario", "validate", "ValidationResult", "score", "tune_threshold",
+           "wilson", "REPORT_SEED_BASE", "TRUTHS", "NULLS"]
+
+#: First seed of the report range (the tuning range starts at 0 and stays far below).
+REPORT_SEED_BASE = 1_000_000
+#: Analysis band of the validation, rad/s.
+BAND = (0.3, 12.0)
+#: Measured-gust RMS (m/s) for the gust-lag truths.
+GUST_STD = 1.5
+MANEUVERS = ("3211", "doublet", "multisine")
+NOISES = (0.03, 0.06)
+HOLDOUT_OF = {"3211": "doublet", "doublet": "3211", "multisine": "multisine"}
+
+#: Truths: key -> (small values, large values).  Sizes are physical ("small" near detectability at
+#: 6 % noise, "large" a clearly visible effect).
+TRUTHS = {
+    "lift_lag@alpha": ({"y_w": 0.2}, {"y_w": 0.4}),
+    "downwash_lag@q": ({"G": 0.15}, {"G": 0.5}),
+    "gust_lag@alpha_w": ({"b1": 3.0}, {"b1": 7.5}),
+    "time_delay@de": ({"tau_de": 0.015}, {"tau_de": 0.04}),
+    "time_delay@q": ({"tau_q": 0.015}, {"tau_q": 0.04}),
+    "actuator_lag@de": ({"T_act": 0.02}, {"T_act": 0.05}),
+    "sensor_offset@az": ({"x_az": 0.5}, {"x_az": 1.5}),
+    "sensor_offset@alpha": ({"x_alpha": 1.0}, {"x_alpha": 3.0}),
+    "structural_mode@q,az": ({"r_q": 0.01, "r_az": 0.01, "omega_s": 9.0, "zeta_s": 0.04},
+                             {"r_q": 0.03, "r_az": 0.03, "omega_s": 9.0, "zeta_s": 0.04}),
+    "sensor_scale@alpha": ({"k_alpha": 0.04}, {"k_alpha": 0.1}),
+    "unmeasured_gust": ({"sigma_w": 0.25}, {"sigma_w": 0.5}),
+    "vane_filter": ({"omega_f": 10.0, "zeta_f": 0.3}, {"omega_f": 7.0, "zeta_f": 0.3}),
+}
+#: Truth cases outside the library.
+OUT_OF_LIBRARY = ("vane_filter",)
+#: Null cases: name -> noise kind.
+NULLS = {"none-white": "white", "none-coloured": "coloured"}
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """One validation run."""
+
+    truth: str | None
+    values: dict
+    size: str
+    maneuver: str
+    noise: float
+    noise_kind: str
+    seed: int
+    case: str = ""
+
+    @property
+    def truth_name(self) -> str:
+        if self.truth is None:
+            return "none"
+        return self.truth.split("@")[0]
+
+
+def scenarios(*, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SEED_BASE,
+              truths=None, nulls=None) -> list:
+    """The scenario list: every truth x size x manoeuvre x noise level x ``n_effect`` seeds, and
+    every null x manoeuvre x noise level x ``n_null`` seeds."""
+    out = []
+    seed = seed_base
+    for key in (TRUTHS if truths is None else truths):
+        small, large = TRUTHS[key]
+        for size, vals in (("small", small), ("large", large)):
+            for man in MANEUVERS:
+                for nz in NOISES:
+                    for _ in range(n_effect):
+                        out.append(Scenario(key, dict(vals), size, man, nz, "white", seed, key))
+                        seed += 1
+    for name in (NULLS if nulls is None else nulls):
+        for man in MANEUVERS:
+            for nz in NOISES:
+                for _ in range(n_null):
+                    out.append(Scenario(None, {}, "-", man, nz, NULLS[name], seed, name))
+                    seed += 1
+    return out
+
+
+def _base(sc: Scenario):
+    from ..models import make_model
+
+    return make_model("steady", "navion", gust=sc.truth == "gust_lag@alpha_w")
+
+
+def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
+    """Simulate one scenario (record + hold-out), diagnose it blind, return a flat row."""
+    import warnings
+
+    from .core import diagnose
+    from .truth import simulate_truth
+
+    base = _base(sc)
+    kw = dict(noise=sc.noise, noise_kind=sc.noise_kind, gust_std=GUST_STD)
+    t0 = time.perf_counter()
+    rec = simulate_truth(base, sc.truth, sc.values, maneuver=sc.maneuver, seed=sc.seed, **kw)
+    hold = simulate_truth(base, sc.truth, sc.values, maneuver=HOLDOUT_OF[sc.maneuver], seed=sc.seed + 7_919_000,
+                          **kw)
+    row = {**{k: v for k, v in asdict(sc).items() if k != "values"}, "values": json.dumps(sc.values),
+           "truth_name": sc.truth_name}
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            rep = diagnose(rec, base, holdout=hold, band=BAND, **(diagnose_options or {}))
+    except Exception as exc:  # a crash is a result too: recorded, never hidden
+        row.update(status=f"error: {type(exc).__name__}: {exc}", verdict="error", verdict_key="error")
+        return row
+    sel = rep.selected[0] if rep.selected else None
+    g = next((r for r in rep.ranking if r["effect"] == "unmeasured_gust"), None)
+    if sel is None and rep.verdict == "unmeasured_gust":
+        sel = g
+    truth_rows = [r for r in rep.ranking if sc.truth and (r["key"] == sc.truth or r["effect"] == sc.truth)
+                  and r["step"] == 0]
+    tr = truth_rows[0] if truth_rows else None
+    hold_info = rep.holdout or {}
+    row.update(
+        status=rep.status,
+        verdict=rep.verdict,
+        verdict_key=sel["key"] if sel else "none",
+        label=sel["label"] if sel else None,
+        ambiguous=json.dumps(rep.ambiguous),
+        ambiguous_names=json.dumps(sorted({a.split("@")[0] for a in rep.ambiguous})),
+        n_accepted=len(rep.selected),
+        second=rep.selected[1]["key"] if len(rep.selected) > 1 else None,
+        shrink=sel.get("shrink") if sel else None,
+        shrink_in_sample=sel.get("shrink_in_sample") if sel else None,
+        shrink_holdout=sel.get("shrink_holdout") if sel else None,
+        plausible=sel.get("plausible", True) if sel else None,
+        flagged_before=sum(1 for c in rep.location if c.get("significant")),
+        flagged_before_holdout=hold_info.get("flagged_before"),
+        unexplained_in_sample=sum(1 for u in rep.unexplained if u.get("where") == "in-sample"),
+        unexplained_holdout=sum(1 for u in rep.unexplained if u.get("where") == "holdout"),
+        truth_lr=tr["lr"] if tr else None,
+        truth_p_holm=tr["p_holm"] if tr else None,
+        truth_not_identifiable=any(n["key"] == sc.truth for n in rep.not_identifiable) if sc.truth else False,
+        elapsed=time.perf_counter() - t0,
+    )
+    return row
+
+
+def _run(args):
+    sc, opts = args
+    return run_scenario(sc, diagnose_options=opts)
+
+
+def wilson(k: int, n: int, z: float = 1.96) -> tuple:
+    """Wilson score interval of a proportion k/n."""
+    if n == 0:
+        return (math.nan, math.nan)
+    p = k / n
+    den = 1 + z * z / n
+    c = (p + z * z / (2 * n)) / den
+    h = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
+    return (max(c - h, 0.0), min(c + h, 1.0))
+
+
+def relabel(row: dict, threshold: float) -> str | None:
+    """The verdict's label recomputed at another shrink threshold (no re-run needed)."""
+    if row.get("verdict") in (None, "none", "error"):
+        return None
+    if row.get("verdict") == "unmeasured_gust":
+        return row.get("label")
+    amb = len(json.loads(row.get("ambiguous") or "[]")) > 0
+    n_flag = row.get("flagged_before_holdout")
+    n_unexp = row.get("unexplained_holdout")
+    shr = row.get("shrink")
+    return label_for(significant=True, accepted=True, ambiguous=amb, plausible=bool(row.get("plausible", True)),
+                     shrink=shr, n_flagged=n_flag or 0, n_unexplained=n_unexp or 0, threshold=threshold)
+
+
+def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
+    """Scores of a set of runs (see module doc)."""
+    by = defaultdict(list)
+    for r in rows:
+        by[r["case"]].append(r)
+    eff, nulls, ool = {}, {}, {}
+    verdicts = sorted({r["verdict"] for r in rows} | {"none"})
+    confusion = {}
+    for case, rs in by.items():
+        n = len(rs)
+        labels = [relabel(r, threshold) for r in rs]
+        conf = Counter(r["verdict"] for r in rs)
+        confusion[case] = {v: conf.get(v, 0) for v in verdicts}
+        errors = sum(1 for r in rs if r["verdict"] == "error")
+        if case in NULLS:
+            k = sum(1 for r in rs if r["verdict"] not in ("none",))
+            nulls[case] = {"n": n, "false_alarms": k, "rate": k / n, "wilson95": wilson(k, n),
+                           "fired": dict(Counter(r["verdict_key"] for r in rs if r["verdict"] != "none")),
+                           "errors": errors}
+            continue
+        name = rs[0]["truth_name"]
+        det = [r for r in rs if r["verdict"] not in ("none", "error")]
+        top1 = [r for r in rs if r["verdict"] == name]
+        inset = [r for r in rs if r["verdict"] == name or name in json.loads(r.get("ambiguous_names") or "[]")]
+        chan = [r for r in rs if r["verdict_key"] == rs[0]["truth"] or (name == "unmeasured_gust"
+                                                                         and r["verdict"] == name)]
+        shr = [r["shrink"] for r in top1 if r.get("shrink") is not None]
+        lab_top = Counter(lab for r, lab in zip(rs, labels) if r["verdict"] == name)
+        entry = {"n": n, "detected": len(det) / n, "top1": len(top1) / n, "top1_wilson95": wilson(len(top1), n),
+                 "in_set": len(inset) / n, "channel": len(chan) / n,
+                 "median_shrink": float(np.median(shr)) if shr else None,
+                 "confirmed_when_top1": lab_top.get("confirmed", 0) / max(len(top1), 1),
+                 "labels_when_top1": dict(lab_top), "errors": errors}
+        by_size = {}
+        for size in ("small", "large"):
+            rr = [r for r in rs if r["size"] == size]
+            if rr:
+                t1 = sum(1 for r in rr if r["verdict"] == name)
+                by_size[size] = {"n": len(rr), "top1": t1 / len(rr),
+                                 "detected": sum(1 for r in rr if r["verdict"] not in ("none", "error")) / len(rr)}
+        entry["by_size"] = by_size
+        if case in OUT_OF_LIBRARY:
+            wrong_conf = sum(1 for r, lab in zip(rs, labels) if r["verdict"] not in ("none", "error")
+                             and lab == "confirmed")
+            partial = sum(1 for r, lab in zip(rs, labels) if r["verdict"] in ("none",) or lab in ("partial",))
+            ool[case] = {"n": n, "confidently_wrong": wrong_conf / n, "partial_or_none": partial / n,
+                         "not_confirmed": 1 - wrong_conf / n, "labels": dict(Counter(str(x) for x in labels)),
+                         "verdicts": dict(Counter(r["verdict_key"] for r in rs))}
+            continue
+        eff[case] = entry
+    lib = [c for c in eff]
+    overall_top1 = (sum(eff[c]["top1"] * eff[c]["n"] for c in lib) / max(sum(eff[c]["n"] for c in lib), 1))
+    return {"threshold": threshold, "effects": eff, "nulls": nulls, "out_of_library": ool,
+            "confusion": confusion, "top1_overall": overall_top1,
+            "median_time_s": float(np.median([r["elapsed"] for r in rows if "elapsed" in r])) if rows else None}
+
+
+def tune_threshold(rows: list, grid=(0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9), cost: float = 2.0) -> float:
+    """Shrink threshold for "confirmed" chosen on tuning runs.
+
+    Maximises ``P(confirmed and right) - cost * P(confirmed and wrong)`` over every run with a
+    verdict: "right" is a verdict naming the withheld effect; "wrong" is any other verdict on a
+    library truth, any verdict on an effect outside the library, or a false alarm on a null record.
+    A confident wrong answer counts ``cost`` (2) times a correct one left tentative or partial; ties go
+    to the higher (more conservative) threshold.
+    """
+    best, best_j = SHRINK_CONFIRM, -math.inf
+    for th in sorted(grid, reverse=True):
+        good = bad = n = 0
+        for r in rows:
+            if r.get("verdict") in (None, "error"):
+                continue
+            n += 1
+            if r["verdict"] == "none":
+                continue
+            lab = relabel(r, th)
+            if lab != "confirmed":
+                continue
+            if r.get("truth") is not None and r["case"] not in OUT_OF_LIBRARY and r["verdict"] == r["truth_name"]:
+                good += 1
+            else:
+                bad += 1
+        j = (good - cost * bad) / max(n, 1)
+        if j > best_j + 1e-12:
+            best, best_j = th, j
+    return float(best)
+
+
+@dataclass
+class ValidationResult:
+    """Rows of every run and their scores."""
+
+    rows: list
+    scores: dict
+    settings: dict = field(default_factory=dict)
+
+    def table(self) -> str:
+        return format_scores(self.scores)
+
+    def to_json(self, path=None) -> str:
+        s = json.dumps({"settings": self.settings, "scores": self.scores, "rows": self.rows}, indent=1,
+                       default=str)
+        if path is not None:
+            from ..record import atomic_write_text
+
+            atomic_write_text(path, s + "\n")
+        return s
+
+
+def format_scores(s: dict) -> str:
+    """The validation table as text."""
+    out = [f"label threshold (shrink for 'confirmed'): {s['threshold']:.2f}", ""]
+    out.append(f"{'truth':22s} {'n':>4s} {'detect':>7s} {'top-1':>6s} {'[Wilson 95%]':>15s} {'in-set':>7s} "
+               f"{'chan':>5s} {'shrink':>7s} {'conf|top1':>9s} {'top1 small/large':>17s}")
+    for k, v in sorted(s["effects"].items()):
+        w = v["top1_wilson95"]
+        bs = v.get("by_size", {})
+        sl = f"{bs.get('small', {}).get('top1', float('nan')):.2f}/{bs.get('large', {}).get('top1', float('nan')):.2f}"
+        ms = v["median_shrink"]
+        out.append(f"{k:22s} {v['n']:4d} {v['detected']:7.2f} {v['top1']:6.2f} [{w[0]:.2f}, {w[1]:.2f}]   "
+                   f"{v['in_set']:7.2f} {v['channel']:5.2f} {(f'{ms:.2f}' if ms is not None else '-'):>7s} "
+                   f"{v['confirmed_when_top1']:9.2f} {sl:>17s}")
+    out.append(f"top-1 over library effects: {s['top1_overall']:.3f}")
+    out.append("")
+    for k, v in s["nulls"].items():
+        w = v["wilson95"]
+        out.append(f"false alarms {k:14s} {v['false_alarms']}/{v['n']} = {v['rate']:.3f} [{w[0]:.3f}, {w[1]:.3f}]"
+                   f"  fired: {v['fired']}")
+    for k, v in s["out_of_library"].items():
+        out.append(f"out of library {k}: n={v['n']}, confidently wrong {v['confidently_wrong']:.2f}, partial or no "
+                   f"verdict {v['partial_or_none']:.2f}, labels {v['labels']}, verdicts {v['verdicts']}")
+    out.append("")
+    cols = sorted({c for row in s["confusion"].values() for c in row})
+    out.append("confusion (rows truth case, columns verdict):")
+    out.append(f"{'':22s} " + " ".join(f"{c[:8]:>8s}" for c in cols))
+    for k in sorted(s["confusion"]):
+        out.append(f"{k:22s} " + " ".join(f"{s['confusion'][k].get(c, 0):8d}" for c in cols))
+    if s.get("median_time_s"):
+        out.append(f"\nmedian time per diagnosis (record + hold-out): {s['median_time_s']:.2f} s")
+    return "\n".join(out)
+
+
+def validate(*, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SEED_BASE, processes: int | None = None,
+             truths=None, nulls=None, threshold: float | None = None, rows_path=None, progress=None,
+             diagnose_options: dict | None = None) -> ValidationResult:
+    """Run the validation harness.
+
+    Parameters
+    ----------
+    n_effect, n_null : int
+        Seeds per (truth, size, manoeuvre, noise level) and per (null, manoeuvre, noise level): the
+        defaults give 48 runs per effect and 204 per null case.
+    seed_base : int
+        First seed (default the report range; 0 is the tuning range).
+    processes : int, optional
+        Worker processes (default: the CPU count).
+    truths, nulls : sequence of str, optional
+        Subsets of :data:`TRUTHS` and :data:`NULLS`.
+    threshold : float, optional
+        Label threshold for scoring (default the library's).
+    rows_path : path, optional
+        Append every finished row as one JSON line (a long run can be resumed/inspected).
+    progress : callable, optional
+        ``progress(done, total)`` after every run.
+    """
+    scs = scenarios(n_effect=n_effect, n_null=n_null, seed_base=seed_base, truths=truths, nulls=nulls)
+    args = [(sc, diagnose_options) for sc in scs]
+    procs = processes or os.cpu_count() or 1
+    rows = []
+    fh = open(rows_path, "a") if rows_path else None
+    try:
+        if procs > 1:
+            import multiprocessing as mp
+
+            with mp.get_context("fork").Pool(procs) as pool:
+                for i, row in enumerate(pool.imap_unordered(_run, args, chunksize=1)):
+                    rows.append(row)
+                    if fh:
+                        fh.write(json.dumps(row, default=str) + "\n")
+                        fh.flush()
+                    if progress:
+                        progress(i + 1, len(args))
+        else:
+            for i, a in enumerate(args):
+                row = _run(a)
+                rows.append(row)
+                if fh:
+                    fh.write(json.dumps(row, default=str) + "\n")
+                    fh.flush()
+                if progress:
+                    progress(i + 1, len(args))
+    finally:
+        if fh:
+            fh.close()
+    th = SHRINK_CONFIRM if threshold is None else threshold
+    settings = {"n_effect": n_effect, "n_null": n_null, "seed_base": seed_base, "band": BAND,
+                "maneuvers": MANEUVERS, "noise_levels": NOISES, "gust_std": GUST_STD, "base_model": "steady navion"}
+    return ValidationResult(rows, score(rows, th), settings)
