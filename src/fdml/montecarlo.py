@@ -221,7 +221,8 @@ class MonteCarloResult:
         new figure.  Returns ``(figure, axes)``; never calls ``show()``.
         """
         p = len(self.names)
-        if ax is None:
+        created = ax is None
+        if created:
             import matplotlib.pyplot as plt
 
             ncol = min(p, 3)
@@ -255,7 +256,8 @@ class MonteCarloResult:
             a.set_title(f"{name}: scatter/CRB {self.efficiency[j]:.2f}", fontsize=9)
             a.set_yticks([])
         axes[0].legend(fontsize=7)
-        fig.tight_layout()
+        if created:
+            fig.tight_layout()
         return fig, axes[:p]
 
     # --- JSON -----------------------------------------------------------------------------------
