@@ -262,7 +262,7 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
         hold = {"records": hdata.names(), "location": h_before.to_list(), "location_after": h_final_same.to_list(),
                 "shrink": hs_final, "flagged_before": hn_flag, "unexplained": h_unexp}
 
-    acc_keys = [a.key for a in accepted]
+    acc_keys = [(a.key, a.step) for a in accepted]
     amb_first = ambiguity[0] if ambiguity else []
     n_unexp_label = (len(hold["unexplained"]) if hold else len([u for u in unexplained if u["where"] == "in-sample"]))
     ranking = []
@@ -273,14 +273,16 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
         shr, nflag = (h if h is not None else (in_sample, nfl)) if hold else (in_sample, nfl)
         amb = False
         for a, s in zip(accepted, ambiguity):
-            if a.key == c.key:
+            if a.key == c.key and a.step == c.step:
                 amb = len(s) > 1
-        lab = label_for(significant=sig, accepted=c.key in acc_keys, ambiguous=amb, plausible=c.plausible,
+        acc = (c.key, c.step) in acc_keys
+        lab = label_for(significant=sig, accepted=acc, ambiguous=amb, plausible=c.plausible,
                         shrink=shr, n_flagged=nflag, n_unexplained=n_unexp_label, threshold=shrink_threshold)
-        ranking.append(_rank_entry(c, lab, shr, in_sample, h[0] if h else None, c.key in acc_keys, n_obs, sig))
+        ranking.append(_rank_entry(c, lab, shr, in_sample, h[0] if h else None, acc, n_obs, sig))
     if gust is not None:
-        glab = label_for(significant=gust_sig, accepted=gust_sig, ambiguous=False, plausible=True,
-                         shrink=gust.share, n_flagged=1, n_unexplained=0, threshold=0.0) if gust_sig else None
+        # a noise-kind effect is judged on its likelihood gain, not on the coherent gap (which it cannot
+        # close): confirmed when no coherent gap is left unexplained, else partial
+        glab = ("confirmed" if n_unexp_label == 0 else "partial") if gust_sig else None
         ranking.append({
             "effect": "unmeasured_gust", "key": gust_eff.key, "channel": gust_eff.channel, "lr": gust.lr,
             "p_value": gust.p, "p_holm": min(1.0, gust.p * max(K0 or 1, 1)), "shrink": gust.share,

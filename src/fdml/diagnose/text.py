@@ -58,8 +58,7 @@ def paragraph(rep) -> str:
     sel = rep.selected
     if sel:
         for i, s in enumerate(sel):
-            params = ", ".join(_fmt_param(k, v) for k, v in s["params"].items()
-                               if k not in ("omega_s", "zeta_s") or True)
+            params = ", ".join(_fmt_param(k, v) for k, v in s["params"].items())
             sh = s.get("shrink")
             hs = s.get("shrink_holdout")
             shtxt = (f"explains {100 * sh:.0f} % of the coherent gap in the flagged cells"
@@ -69,11 +68,15 @@ def paragraph(rep) -> str:
             lead = "Cause" if i == 0 else "A further effect"
             out.append(f"{lead}: {s['effect']} on {s['channel']} ({params}) {shtxt}; LR = {s['lr']:.1f}, "
                        f"p = {_p(s.get('p_holm'))} after Holm; label {s['label']}.")
-        fp = [f for f in rep.footprint if f.get("effect") == sel[0]["key"] and f.get("share")]
-        if fp:
-            top = max(fp, key=lambda f: f["share"])
-            out.append(f"It acts mostly on {top['channel']} at {_band(top)} ({100 * top['share']:.0f} % of its "
-                       "footprint).")
+            if i == 0:
+                fp = [f for f in rep.footprint if f.get("effect") == s["key"] and f.get("share")]
+                if fp:
+                    top = max(fp, key=lambda f: f["share"])
+                    out.append(f"It acts mostly on {top['channel']} at {_band(top)} ({100 * top['share']:.0f} % "
+                               "of its footprint).")
+                if not s.get("plausible", True):
+                    out.append("Its fitted size lies outside the plausible range: it may be absorbing "
+                               "something else.")
         shifts = sel[0].get("parameter_shifts") or {}
         big = sorted(((k, v) for k, v in shifts.items() if v.get("shift_in_stderr") is not None
                       and math.isfinite(v["shift_in_stderr"])), key=lambda kv: -abs(kv[1]["shift_in_stderr"]))
@@ -82,6 +85,10 @@ def paragraph(rep) -> str:
             out.append("Without it the base estimates were biased: " + ", ".join(
                 f"{k} {v['base']:.4g} -> {v['augmented']:.4g} ({v['shift_in_stderr']:+.1f} s.e.)" for k, v in big)
                 + ".")
+        g = next((r for r in rep.ranking if r["effect"] == "unmeasured_gust" and r.get("significant")), None)
+        if g:
+            out.append(f"Unmeasured turbulence is also present (sigma_w = {g['params']['sigma_w']['value']:.2g} m/s, "
+                       f"p = {_p(g['p_holm'])}).")
     elif rep.verdict == "unmeasured_gust":
         g = next(r for r in rep.ranking if r["effect"] == "unmeasured_gust")
         out.append(f"Cause: unmeasured turbulence (sigma_w = {g['params']['sigma_w']['value']:.2g} m/s) explains "
