@@ -876,7 +876,12 @@ def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned
         if cov_type in ("white", "colored"):
             shape = _residual_shape(prob, V) if cov_type == "colored" else None
             Cg = _white_cov_g(prob, A[:, :, idx], R, shape)
-            cov[np.ix_(idx, idx)] = Minv @ Cg @ Minv
+            # R is estimated from the same residuals, so the weights are random: with N_eff
+            # independent frequencies and n_out outputs the variance grows by about
+            # N_eff / (N_eff - n_out) (verified by Monte Carlo: 6, 10 and 20 s records)
+            n_eff = sum(d.independent_frequencies() for d in prob.data)
+            inflate = n_eff / max(n_eff - prob.n_out, 1.0)
+            cov[np.ix_(idx, idx)] = inflate * (Minv @ Cg @ Minv)
         else:
             cov[np.ix_(idx, idx)] = cov_naive[np.ix_(idx, idx)]
     for k in np.flatnonzero(~live):
