@@ -171,7 +171,9 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
     ambiguity: list = []
     K0 = None
     remaining = list(det)
+    step_fits = []  # the fit each step's candidates are added to
     for step in range(max(int(max_effects), 0)):
+        step_fits.append(cur)
         tested, skipped = attribute_step(data, cur, remaining, nb, rows, options, alpha=alpha,
                                          refit_top=refit_top, step=step, n_obs=n_obs, floor_weights=fw)
         if step == 0:
@@ -224,14 +226,19 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
         gust_sig = gust_p_adj < alpha
 
     # --- shrink, footprint, labels ---------------------------------------------------------
-    refitted0 = [c for c in all_tested if c.refitted]
-    maps_after = {}
-    for c in refitted0:
-        before = base_map if c.step == 0 else None
-        if before is None:
-            continue
-        maps_after[c.key] = fit_map(data, c.fit, edges, alpha=alpha, channels=channels, before=base_map,
-                                    designs=designs)
+    # Shrink is judged on flagged cells only (rule 6), with the base floors and regressors.  A
+    # candidate at forward step k is compared with the model it was added to (step k's fit) on the
+    # cells still flagged there, so a second effect is credited with the share of the *remaining*
+    # gap it removes.
+    refitted = [c for c in all_tested if c.refitted]
+    step_maps = {0: base_map}
+    for k in range(1, len(step_fits)):
+        step_maps[k] = fit_map(data, step_fits[k], edges, alpha=alpha, channels=channels, before=base_map,
+                               designs=designs)
+    in_shr = {}
+    for c in refitted:
+        after = fit_map(data, c.fit, edges, alpha=alpha, channels=channels, before=base_map, designs=designs)
+        in_shr[(c.key, c.step)] = shrink(step_maps[c.step], after)
     final = cur
     final_map_same = fit_map(data, final, edges, alpha=alpha, channels=channels, before=base_map, designs=designs)
     final_map = fit_map(data, final, edges, alpha=alpha, channels=channels)
@@ -246,12 +253,14 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
         h_designs = {}
         h_base = frozen_fit(hdata, base_fit.model, hnb, options)
         h_before = fit_map(hdata, h_base, edges, alpha=alpha, channels=channels, designs=h_designs)
-        for c in refitted0:
-            if c.step != 0:
-                continue
+        h_step = {0: h_before}
+        for k in range(1, len(step_fits)):
+            hk = frozen_fit(hdata, step_fits[k].model, hnb, options)
+            h_step[k] = fit_map(hdata, hk, edges, alpha=alpha, channels=channels, before=h_before, designs=h_designs)
+        for c in refitted:
             hf = frozen_fit(hdata, c.fit.model, hnb, options)
             h_after = fit_map(hdata, hf, edges, alpha=alpha, channels=channels, before=h_before, designs=h_designs)
-            h_shr[c.key] = shrink(h_before, h_after)
+            h_shr[(c.key, c.step)] = shrink(h_step[c.step], h_after)
         h_final = frozen_fit(hdata, final.model, hnb, options)
         h_final_same = fit_map(hdata, h_final, edges, alpha=alpha, channels=channels, before=h_before,
                                designs=h_designs)
@@ -268,8 +277,8 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
     ranking = []
     for c in all_tested:
         sig = c.significant(alpha) and c.refitted
-        in_sample, nfl = shrink(base_map, maps_after[c.key]) if c.key in maps_after else (None, 0)
-        h = h_shr.get(c.key)
+        in_sample, nfl = in_shr.get((c.key, c.step), (None, 0))
+        h = h_shr.get((c.key, c.step))
         shr, nflag = (h if h is not None else (in_sample, nfl)) if hold else (in_sample, nfl)
         amb = False
         for a, s in zip(accepted, ambiguity):

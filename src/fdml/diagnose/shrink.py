@@ -43,12 +43,13 @@ def fit_map(data: AnalysisData, fit, edges, *, alpha: float, channels, before: G
     return gap_map(data, e, forced, edges, channels=channels, alpha=alpha, floors=floors, designs=designs)
 
 
-def shrink(before: GapMap, after: GapMap) -> tuple[float | None, int]:
+def shrink(before: GapMap, after: GapMap, cells: list | None = None) -> tuple[float | None, int]:
     """(shrink of the coherent gap over the flagged cells, number of flagged cells).
 
-    None when no cell was flagged before (the gap is too small to judge).
+    ``cells`` (indices) defaults to the cells ``before`` flags.  None when no cell was flagged
+    (the gap is too small to judge) or no excess is left in them.
     """
-    idx = [i for i, c in enumerate(before.cells) if c.significant]
+    idx = [i for i, c in enumerate(before.cells) if c.significant] if cells is None else list(cells)
     if not idx:
         return None, 0
     xb = sum(max(before.cells[i].excess, 0.0) for i in idx)
