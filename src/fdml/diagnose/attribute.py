@@ -64,6 +64,7 @@ class Candidate:
     screen: ScreenResult | None = None
     fit: DiagFit | None = None
     lr: float = 0.0
+    lr_test: float | None = None  # the statistic tested (the grid LR for a nuisance-grid effect)
     df: int = 0
     q_eff: int = 0
     null: str = "chi2"
@@ -138,7 +139,12 @@ def _null_kind(effect: Effect, model, screen_res: ScreenResult | None) -> tuple[
 
 
 def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options, *, refine: bool = True):
-    """Refit one candidate from the linearised start; returns the best DiagFit found."""
+    """Refit one candidate from the linearised start.
+
+    Returns (best fit, cost at the grid value of any nuisance parameter): the test uses the latter,
+    since Davies' bound is for the supremum over the grid; the continuous refinement of the
+    nuisance parameters (frequency, damping) only improves the estimate and the shrink.
+    """
     aug = effect.augment(cur.model)
     aug = aug.with_values(effect.nulls(cur.model))
     if scr.nuisance:
@@ -153,6 +159,7 @@ def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options
         start2 = {k: nulls[k] + 2.0 * (v - nulls[k]) for k, v in start.items()}
         fits.append(fit_model(data, aug, bands, start=start2, **options))
     best = min(fits, key=lambda f: f.cost)
+    grid_cost = best.cost
     if refine and effect.nuisance_grid:
         nuis = [p.name for p in effect.param_list(cur.model) if p.nuisance]
         m2 = best.model.free(nuis)
@@ -171,7 +178,7 @@ def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options
                 best = f2
         except Exception:  # a refinement that fails keeps the grid fit  # pragma: no cover
             pass
-    return best
+    return best, grid_cost
 
 
 def _params(effect: Effect, model, fit: DiagFit) -> tuple[dict, bool]:
@@ -231,16 +238,18 @@ def attribute_step(data, cur: DiagFit, effects, bands, rows, options: dict, *, a
         p_lm, _ = p_value(c.screen.lm, c.df, c.null, V=V, n_grid=ng)
         if i < refit_top or p_lm < alpha / K:
             try:
-                c.fit = _refit(data, cur, c.effect, c.screen, bands, options)
+                c.fit, grid_cost = _refit(data, cur, c.effect, c.screen, bands, options)
             except Exception as exc:  # pragma: no cover - reported, never fatal
                 c.reason = f"refit failed: {exc}"
                 continue
             c.refitted = True
             c.lr = likelihood_ratio(cur.cost, c.fit.cost, data.oversample)
+            c.lr_test = likelihood_ratio(cur.cost, grid_cost, data.oversample)
             c.params, c.plausible = _params(c.effect, cur.model, c.fit)
     for c in tested:
         V, ng = _grid_variation(c.screen)
-        c.p, c.logp = p_value(c.lr, c.df, c.null, V=V, n_grid=ng)
+        u = c.lr_test if (c.refitted and c.lr_test is not None) else c.lr
+        c.p, c.logp = p_value(u, c.df, c.null, V=V, n_grid=ng)
         nuis = len([p for p in c.effect.param_list(cur.model) if p.nuisance])
         c.q_eff = c.df + nuis
     ph = holm(np.array([c.p for c in tested]))

@@ -20,7 +20,7 @@ from .data import analysis_data
 from .disturbance import gust_test
 from .effects import Effect, default_library, registered_effects
 from .likelihood import fit_model, likelihood_ratio, noise_bands
-from .locate import default_bands
+from .locate import default_bands, holm
 from .report import SHRINK_CONFIRM, DiagnosisReport, label_for
 from .shrink import compensation, fit_map, footprint, frozen_fit, parameter_shifts, shrink
 
@@ -179,7 +179,6 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
         if step == 0:
             K0 = len(tested) + (1 if gust_eff is not None else 0)
             # Holm over the whole first-step family, the turbulence test included
-            from .locate import holm
             ps = [c.p for c in tested] + ([1.0] if gust_eff is not None else [])
             for c, a in zip(tested, holm(np.array(ps))):
                 c.p_holm = float(a)

@@ -176,9 +176,3 @@ def analysis_data(records, band=None, *, oversample: int = 2, trim: str = "first
     inputs = ("de", "alpha_w") if gust else ("de",)
     return AnalysisData(tuple(out), tuple(masks), K, (lo, hi), inputs)
 
-
-def dft_only(data: AnalysisData) -> list[FrequencyData]:  # pragma: no cover - convenience
-    """The records' spectra restricted to the DFT points."""
-    from dataclasses import replace
-
-    return [replace(d, omega=d.omega[m], z=d.z[m], u=d.u[m], ones=d.ones[m]) for d, m in zip(data.spectra, data.dft)]

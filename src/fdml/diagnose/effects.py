@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -572,6 +572,3 @@ def default_library(names: Sequence[str] | None = None) -> tuple:
 def _ensure_builtins() -> None:
     from . import library  # noqa: F401  (registers the built-in effects on import)
 
-
-def model_fields_equal(a: Model, b: Model) -> bool:  # pragma: no cover - debugging helper
-    return all(getattr(a, f.name) == getattr(b, f.name) for f in fields(a) if f.name != "parameters")

@@ -88,8 +88,7 @@ def footprint(data: AnalysisData, fit: DiagFit, nulls: dict, before: GapMap, cha
     for n, v in nulls.items():
         if n in fit.names:
             theta0[fit.names.index(n)] = v
-    # nuisance (non-free) effect parameters live in the model, not in theta
-    from dataclasses import replace as _r  # noqa: F401
+    # nuisance (non-free) effect parameters live in the model, not in theta (see _predict_null)
     delta = _predict_rows(fit, fit.theta) - _predict_null(fit, theta0, nulls)
     return _cell_energy(data, delta, before, channels)
 
