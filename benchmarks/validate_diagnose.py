@@ -61,9 +61,11 @@ def main(argv=None) -> int:
                    progress=progress)
     sys.stderr.write("\n")
     if tune:
-        th = tune_threshold(res.rows)
+        th, rule = tune_threshold(res.rows, return_rule=True)
         s = score(res.rows, th)
-        (OUT / "tuning.json").write_text(json.dumps({"threshold": th, "scores": s}, indent=1, default=str))
+        (OUT / "tuning.json").write_text(json.dumps({"threshold": th, "rule": rule, "scores": s}, indent=1,
+                                                    default=str))
+        print(f"chosen remaining-gap rule: {rule}")
         (OUT / "tuning_table.txt").write_text(format_scores(s) + "\n")
         print(f"chosen threshold: {th}")
         print(format_scores(s))

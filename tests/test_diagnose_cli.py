@@ -89,7 +89,8 @@ def test_scoring_counts_what_it_says():
          "verdict_key": "none", "elapsed": 1.0},
         {"case": "vane_filter", "truth": "vane_filter", "truth_name": "vane_filter", "size": "large",
          "verdict": "time_delay", "verdict_key": "time_delay@alpha", "ambiguous": "[]", "ambiguous_names": "[]",
-         "shrink": 0.7, "flagged_before_holdout": 2, "unexplained_holdout": 2, "plausible": True, "elapsed": 1.0},
+         "shrink": 0.7, "flagged_before_holdout": 2, "unexplained_holdout": 2, "unexplained_in_sample": 1,
+         "plausible": True, "elapsed": 1.0},
     ]
     s = score(rows, 0.5)
     e = s["effects"]["time_delay@q"]
@@ -97,6 +98,8 @@ def test_scoring_counts_what_it_says():
     assert s["nulls"]["none-white"]["rate"] == 0.0
     assert s["out_of_library"]["vane_filter"]["confidently_wrong"] == 0.0  # flagged cells remain: partial
     assert 0.3 <= tune_threshold(rows) <= 0.9
+    rows[3]["unexplained_in_sample"] = 0  # the out-of-library fit closed the in-sample gap: now "confirmed"
+    assert score(rows, 0.5)["out_of_library"]["vane_filter"]["confidently_wrong"] == 1.0
     lo, hi = wilson(5, 100)
     assert lo < 0.05 < hi and hi - lo < 0.1
 

@@ -272,7 +272,8 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
 
     acc_keys = [(a.key, a.step) for a in accepted]
     amb_first = ambiguity[0] if ambiguity else []
-    n_unexp_label = (len(hold["unexplained"]) if hold else len([u for u in unexplained if u["where"] == "in-sample"]))
+    # remaining gap for the labels: the final fit's own map (report.UNEXPLAINED_RULE)
+    n_unexp_label = len([u for u in unexplained if u["where"] == "in-sample"])
     ranking = []
     for c in all_tested:
         sig = c.significant(alpha) and c.refitted

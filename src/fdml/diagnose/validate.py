@@ -31,7 +31,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from .report import SHRINK_CONFIRM, label_for
+from .report import SHRINK_CONFIRM, UNEXPLAINED_RULE, label_for
 
 __all__ = ["Scenario", "scenarios", "run_scenario", "validate", "ValidationResult", "score", "tune_threshold",
            "wilson", "REPORT_SEED_BASE", "TRUTHS", "NULLS"]
@@ -189,18 +189,22 @@ def wilson(k: int, n: int, z: float = 1.96) -> tuple:
     return (max(c - h, 0.0), min(c + h, 1.0))
 
 
-def relabel(row: dict, threshold: float) -> str | None:
-    """The verdict's label recomputed at another shrink threshold (no re-run needed)."""
+def relabel(row: dict, threshold: float, unexplained: str = UNEXPLAINED_RULE) -> str | None:
+    """The verdict's label recomputed at another shrink threshold and remaining-gap rule (no re-run).
+
+    ``unexplained`` says which remaining flagged cells make the label partial: ``"in-sample"`` (after
+    the final fit) or ``"holdout"`` (on the held-out record with the parameters frozen).
+    """
     if row.get("verdict") in (None, "none", "error"):
         return None
+    n_unexp = row.get("unexplained_in_sample" if unexplained == "in-sample" else "unexplained_holdout") or 0
     if row.get("verdict") == "unmeasured_gust":
-        return row.get("label")
+        return "confirmed" if n_unexp == 0 else "partial"
     amb = len(json.loads(row.get("ambiguous") or "[]")) > 0
     n_flag = row.get("flagged_before_holdout")
-    n_unexp = row.get("unexplained_holdout")
     shr = row.get("shrink")
     return label_for(significant=True, accepted=True, ambiguous=amb, plausible=bool(row.get("plausible", True)),
-                     shrink=shr, n_flagged=n_flag or 0, n_unexplained=n_unexp or 0, threshold=threshold)
+                     shrink=shr, n_flagged=n_flag or 0, n_unexplained=n_unexp, threshold=threshold)
 
 
 def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
@@ -260,35 +264,36 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
             "median_time_s": float(np.median([r["elapsed"] for r in rows if "elapsed" in r])) if rows else None}
 
 
-def tune_threshold(rows: list, grid=(0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9), cost: float = 2.0) -> float:
-    """Shrink threshold for "confirmed" chosen on tuning runs.
+def tune_threshold(rows: list, grid=(0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9), cost: float = 2.0,
+                   rules=("holdout", "in-sample"), return_rule: bool = False):
+    """Label rule chosen on tuning runs: the shrink threshold for "confirmed" and which remaining cells count.
 
-    Maximises ``P(confirmed and right) - cost * P(confirmed and wrong)`` over every run with a
-    verdict: "right" is a verdict naming the withheld effect; "wrong" is any other verdict on a
-    library truth, any verdict on an effect outside the library, or a false alarm on a null record.
-    A confident wrong answer counts ``cost`` (2) times a correct one left tentative or partial; ties go
-    to the higher (more conservative) threshold.
+    Maximises ``P(confirmed and right) - cost * P(confirmed and wrong)`` over every run: "right" is a
+    verdict naming the withheld effect; "wrong" is any other verdict on a library truth, any verdict
+    on an effect outside the library, or a false alarm on a null record.  A confident wrong answer
+    counts ``cost`` (2) times a correct one left tentative or partial; ties go to the more
+    conservative choice (higher threshold; the hold-out rule).
+
+    Returns the threshold, or ``(threshold, rule)`` with ``return_rule``.
     """
-    best, best_j = SHRINK_CONFIRM, -math.inf
-    for th in sorted(grid, reverse=True):
-        good = bad = n = 0
-        for r in rows:
-            if r.get("verdict") in (None, "error"):
-                continue
-            n += 1
-            if r["verdict"] == "none":
-                continue
-            lab = relabel(r, th)
-            if lab != "confirmed":
-                continue
-            if r.get("truth") is not None and r["case"] not in OUT_OF_LIBRARY and r["verdict"] == r["truth_name"]:
-                good += 1
-            else:
-                bad += 1
-        j = (good - cost * bad) / max(n, 1)
-        if j > best_j + 1e-12:
-            best, best_j = th, j
-    return float(best)
+    best, best_rule, best_j = SHRINK_CONFIRM, UNEXPLAINED_RULE, -math.inf
+    for rule in rules:
+        for th in sorted(grid, reverse=True):
+            good = bad = n = 0
+            for r in rows:
+                if r.get("verdict") in (None, "error"):
+                    continue
+                n += 1
+                if r["verdict"] == "none" or relabel(r, th, rule) != "confirmed":
+                    continue
+                if r.get("truth") is not None and r["case"] not in OUT_OF_LIBRARY and r["verdict"] == r["truth_name"]:
+                    good += 1
+                else:
+                    bad += 1
+            j = (good - cost * bad) / max(n, 1)
+            if j > best_j + 1e-12:
+                best, best_rule, best_j = th, rule, j
+    return (float(best), best_rule) if return_rule else float(best)
 
 
 @dataclass
