@@ -152,6 +152,15 @@ class Model:
         """Return (M, B, E) for ``s`` (see :func:`solve_short_period`)."""
         raise NotImplementedError
 
+    def matrices(self, omega, values: Mapping[str, float] | None = None):
+        """(M, B, E) of ``E (s x - d) = A(s) x + B(s) u`` at ``omega`` (rad/s), M = s E - A.
+
+        ``M`` has shape (n, 2, 2), ``B`` (n, 2, n_in) without the input delays,
+        ``E`` (2, 2) or (n, 2, 2); the state is x = [alpha, q].
+        """
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        return self._matrices(1j * omega, self.values(values))
+
     @property
     def U(self) -> float:  # pragma: no cover - abstract
         """Airspeed, m/s."""
