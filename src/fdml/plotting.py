@@ -240,6 +240,15 @@ def plot_spectra(results, labels: Sequence[str] | None = None, *, record: int = 
                                   label=f"{lab} {sigma:g}-sigma band")
                 dph = np.degrees(np.minimum(sd / np.maximum(a, 1e-300), np.pi))
                 ax_p.fill_between(f, ph - dph, ph + dph, color=line.get_color(), alpha=0.25, lw=0)
+        # scale the magnitude axis to the data and fits, not to the band: where the band is
+        # wider than the spectrum (lowest frequencies, bias and boundary terms) it is clipped
+        curves = [np.abs(z)] + [np.abs(y_all[:, k]) for y_all, _ in bands]
+        top = max(float(np.max(c)) for c in curves)
+        bottom = min(float(np.min(c[c > 0])) if np.any(c > 0) else top for c in curves)
+        if mag_unit == "abs" and top > 0:
+            ax_m.set_ylim(bottom / 2.0, top * 2.0)
+        elif top > 0:
+            ax_m.set_ylim(mag(bottom) - 6.0, mag(top) + 6.0)
         ax_m.set_title(out)
         ax_m.set_ylabel("|" + _LABELS[out] + "|" + (" (dB)" if mag_unit == "dB" else ""))
         ax_p.set_ylabel("phase re elevator (deg)")
