@@ -36,7 +36,6 @@ import csv
 import functools
 import glob
 import hashlib
-import io
 import json
 import logging
 import math

@@ -51,7 +51,7 @@ from .errors import (
 from .models.base import OUTPUTS, Model
 from .record import Record
 from .results import FitResult, IterationInfo
-from .spectra import FrequencyData, parse_band, spectra
+from .spectra import FrequencyData, spectra
 
 __all__ = ["fit", "prepare", "Problem"]
 

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import BandError, RecordError
 from ..record import Record
-from ..spectra import FrequencyData, spectra
+from ..spectra import spectra
 
 __all__ = ["AnalysisData", "analysis_data", "parse_diag_band", "DEFAULT_DIAG_BAND"]
 
