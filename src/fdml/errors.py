@@ -28,6 +28,15 @@ class AircraftError(FdmlError):
     """An aircraft description is incomplete or inconsistent."""
 
 
+class OutputError(FdmlError):
+    """An output path is unsafe or unwritable: it is one of the inputs, a device, a FIFO,
+    a folder, or its folder cannot be written."""
+
+
+class DataCheckError(FdmlError):
+    """A data check found a problem and ``strict`` asked for it to be fatal."""
+
+
 class FdmlWarning(UserWarning):
     """Base class for fdml warnings."""
 
@@ -54,6 +63,8 @@ __all__ = [
     "BandError",
     "ParameterError",
     "AircraftError",
+    "OutputError",
+    "DataCheckError",
     "FdmlWarning",
     "ConvergenceWarning",
     "IdentifiabilityWarning",

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FdmlError
+from .findings import Finding
 
 __all__ = ["FitResult", "IterationInfo", "load_result", "RESULT_FORMAT"]
 
@@ -146,6 +147,9 @@ class FitResult:
         Which nuisance terms the fit used: ``boundary`` (estimated, measured or
         none), ``output_biases`` (outputs with an estimated bias),
         ``state_biases`` and ``input_bias`` (bool), ``trim`` (per record).
+    findings : tuple of Finding
+        What the data check (:func:`fdml.datacheck.check_data`) found in the
+        records, each with a stable code; see :mod:`fdml.findings`.
     """
 
     model: object
@@ -177,6 +181,7 @@ class FitResult:
     spectra: tuple = field(default=(), repr=False)
     time_records: tuple = field(default=(), repr=False)
     nuisance: dict = field(default_factory=dict)
+    findings: tuple = ()
 
     # --- construction -------------------------------------------------------------------
     @classmethod
@@ -381,6 +386,7 @@ class FitResult:
                 for s in self.spectra
             ],
             "nuisance": self.nuisance,
+            "findings": [f.to_dict() for f in self.findings],
             "time_records": [
                 None if r is None else
                 {"name": r["name"], "t": _f2j(r["t"]),
@@ -446,6 +452,7 @@ class FitResult:
             elapsed=d.get("elapsed", 0.0),
             spectra=spectra,
             nuisance=d.get("nuisance", {}),
+            findings=tuple(Finding.from_dict(f) for f in d.get("findings", ())),
             time_records=tuple(
                 None if r is None else
                 {"name": r["name"], "t": _j2f(r["t"]),
