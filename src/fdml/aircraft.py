@@ -21,6 +21,7 @@ from .errors import AircraftError
 __all__ = [
     "Aircraft",
     "REQUIRED_KEYS",
+    "MAX_AIRSPEED",
     "CONSTANT_KEYS",
     "GENERIC_CONSTANTS",
     "get_aircraft",
@@ -35,6 +36,15 @@ _UNITS = {
     "S_w": "m^2", "c_w": "m", "S_t": "m^2", "c_t": "m", "l_t": "m",
     "mass": "kg", "Iy": "kg m^2", "U": "m/s", "rho": "kg/m^3",
 }
+
+#: Largest airspeed fdml accepts, m/s.  No aircraft has flown faster in the
+#: atmosphere than the X-15 (2021 m/s, Mach 6.7); 3000 m/s leaves room for that
+#: and still refuses what is certainly a unit slip (mm/s, or a speed in km/h
+#: typed with a factor 1000) before it reaches the models, where U enters
+#: squared and cubed: U = 1e50 m/s overflowed to OverflowError, 1e154 to a
+#: response table of NaN.  (The unsteady Wagner/Kussner lag terms are
+#: incompressible theory: validity is the user's call, not this limit's.)
+MAX_AIRSPEED = 3000.0
 
 #: Optional model constants an aircraft may carry, by parameter name.
 CONSTANT_KEYS = (
@@ -101,17 +111,27 @@ class Aircraft:
     description: str = ""
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name.strip():
+            raise AircraftError(f"aircraft name must be a non-empty string, got {self.name!r}")
         for key in REQUIRED_KEYS[1:]:
-            v = getattr(self, key)
-            try:
-                v = float(v)
-            except (TypeError, ValueError):
-                raise AircraftError(f"aircraft {self.name!r}: {key} must be a number, got {v!r}") from None
-            if not math.isfinite(v) or v <= 0:
+            # every field is a size, a mass, an inertia, a speed or a density: positive
+            v = _real(getattr(self, key), f"aircraft {self.name!r}: {key} ({_UNITS[key]})")
+            if v <= 0:
                 raise AircraftError(
                     f"aircraft {self.name!r}: {key} must be positive and finite ({_UNITS[key]}), got {v!r}"
                 )
             object.__setattr__(self, key, v)
+        if self.U > MAX_AIRSPEED:
+            raise AircraftError(f"aircraft {self.name!r}: airspeed U = {self.U:g} m/s is not physical "
+                                f"(limit {MAX_AIRSPEED:g} m/s); give U in m/s")
+        if not isinstance(self.sources, Mapping) or not all(
+                isinstance(k, str) and isinstance(v, str) for k, v in self.sources.items()):
+            raise AircraftError(f"aircraft {self.name!r}: sources must map keys to text, "
+                                f'e.g. {{"mass": "POH p. 6"}}, got {self.sources!r}')
+        if isinstance(self.assumed, str) or not all(isinstance(k, str) for k in self.assumed):
+            raise AircraftError(f"aircraft {self.name!r}: assumed must be a list of key names, got {self.assumed!r}")
+        if not isinstance(self.description, str):
+            raise AircraftError(f"aircraft {self.name!r}: description must be text, got {self.description!r}")
         unknown = set(self.constants) - set(CONSTANT_KEYS)
         if unknown:
             raise AircraftError(
@@ -120,13 +140,7 @@ class Aircraft:
             )
         consts = dict(GENERIC_CONSTANTS)
         for k, v in self.constants.items():
-            try:
-                fv = float(v)
-            except (TypeError, ValueError):
-                raise AircraftError(f"aircraft {self.name!r}: constant {k} must be a number, got {v!r}") from None
-            if not math.isfinite(fv):
-                raise AircraftError(f"aircraft {self.name!r}: constant {k} is not finite")
-            consts[k] = fv
+            consts[k] = _real(v, f"aircraft {self.name!r}: constant {k}")
         object.__setattr__(self, "constants", consts)
         object.__setattr__(self, "sources", dict(self.sources))
         object.__setattr__(self, "assumed", frozenset(self.assumed))
@@ -181,14 +195,22 @@ class Aircraft:
         extra = set(d) - set(REQUIRED_KEYS) - set(CONSTANT_KEYS) - {"description", "sources", "assumed"}
         if extra:
             raise AircraftError(f"{origin}: unknown key(s) {', '.join(sorted(extra))}")
-        return cls(
-            name=str(d["name"]),
-            **{k: d[k] for k in REQUIRED_KEYS[1:]},
-            constants={k: d[k] for k in CONSTANT_KEYS if k in d},
-            sources=d.get("sources", {}),
-            assumed=frozenset(d.get("assumed", ())),
-            description=d.get("description", ""),
-        )
+        assumed = d.get("assumed", ())
+        if isinstance(assumed, (str, Mapping)) or not isinstance(assumed, (list, tuple)) or any(
+                k not in REQUIRED_KEYS and k not in CONSTANT_KEYS for k in assumed):
+            raise AircraftError(f"{origin}: assumed must be a list of key names "
+                                f"(e.g. [\"S_t\", \"b1\"]), got {assumed!r}")
+        try:
+            return cls(
+                name=str(d["name"]),
+                **{k: d[k] for k in REQUIRED_KEYS[1:]},
+                constants={k: d[k] for k in CONSTANT_KEYS if k in d},
+                sources=d.get("sources", {}),
+                assumed=frozenset(assumed),
+                description=d.get("description", ""),
+            )
+        except AircraftError as exc:
+            raise AircraftError(f"{origin}: {exc}") from None  # name the user's file
 
     def describe(self) -> str:
         """Multi-line text: every value with its unit, source and assumed flag."""
@@ -203,6 +225,18 @@ class Aircraft:
         flag = " [assumed]" if key in self.assumed else ""
         src = self.sources.get(key, "generic default" if key in CONSTANT_KEYS else "")
         return f"  {key:8s} = {value:12.6g} {unit:8s}{flag}  {src}"
+
+
+def _real(value, what: str) -> float:
+    """``value`` as a finite float; a bool, a string (even ``"12"``), NaN or inf is an AircraftError."""
+    import numbers
+
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise AircraftError(f"{what} must be a number, got {value!r} ({type(value).__name__})")
+    v = float(value)
+    if not math.isfinite(v):
+        raise AircraftError(f"{what} must be finite, got {value!r}")
+    return v
 
 
 def list_aircraft() -> list[str]:
@@ -234,8 +268,24 @@ def load_aircraft(spec: str | Path | Aircraft) -> Aircraft:
         raise AircraftError(f"unknown aircraft {spec_s!r}: not a preset ({', '.join(list_aircraft())}) nor a JSON file")
     if not path.exists():
         raise AircraftError(f"aircraft file {spec_s} does not exist")
+    if path.is_dir():
+        raise AircraftError(f"aircraft file {spec_s} is a folder, not a JSON file")
     try:
-        d = json.loads(path.read_text())
+        text = path.read_text(encoding="utf-8-sig")  # JSON is UTF-8 (RFC 8259); a BOM is tolerated
+    except UnicodeDecodeError as exc:
+        raise AircraftError(f"aircraft file {spec_s} is not UTF-8 text (byte {exc.start}: "
+                            f"{exc.object[exc.start:exc.start + 1]!r}); save it as UTF-8") from None
+    except OSError as exc:
+        raise AircraftError(f"cannot read aircraft file {spec_s}: {exc.strerror or exc}") from None
+    try:
+        d = json.loads(text, parse_constant=_no_constant)
     except json.JSONDecodeError as exc:
         raise AircraftError(f"aircraft file {spec_s} is not valid JSON: {exc}") from None
+    except ValueError as exc:  # NaN / Infinity, which JSON does not have
+        raise AircraftError(f"aircraft file {spec_s}: {exc}") from None
     return Aircraft.from_dict(d, origin=f"aircraft file {spec_s}")
+
+
+def _no_constant(name: str):
+    """json ``parse_constant`` hook: Python's json reads NaN and Infinity, JSON has neither."""
+    raise ValueError(f"{name} is not a JSON number")

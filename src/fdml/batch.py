@@ -50,7 +50,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import FdmlError
-from .record import atomic_write_text
+from .jsoncodec import dumps as _dumps
+from .outputs import atomic_open, atomic_write_text
 
 __all__ = ["run_batch", "BatchSummary", "ModelSpec", "collect_sources", "load_source", "BatchItem",
            "TABLE_FORMAT"]
@@ -136,11 +137,14 @@ class ModelSpec:
             from .aircraft import Aircraft, load_aircraft
 
             ac = Aircraft.from_dict(ac).to_dict() if isinstance(ac, Mapping) else load_aircraft(ac).to_dict()
+        from .parameters import as_names, check_fix_free
+
+        check_fix_free(self.fix, self.free)  # a str is one name; both fixed and freed is an error
         fix = ({str(k): float(v) for k, v in self.fix.items()} if isinstance(self.fix, Mapping)
-               else [str(n) for n in self.fix])
+               else as_names(self.fix, "fix"))
         return ModelSpec(kind=str(self.kind), aircraft=ac, options=dict(self.options),
                          values={str(k): float(v) for k, v in self.values.items()}, fix=fix,
-                         free=[str(n) for n in self.free],
+                         free=as_names(self.free, "free"),
                          parameters=None if self.parameters is None else [dict(p) for p in self.parameters])
 
     def to_dict(self) -> dict:
@@ -294,18 +298,10 @@ def load_source(path, t0: float | None = None, t1: float | None = None, *, name:
 def _canonical(obj) -> str:
     """Stable JSON text of plain data (numbers, strings, lists, dicts)."""
 
-    def default(o):
-        import numpy as np
-
-        if isinstance(o, np.generic):
-            return o.item()
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-        if isinstance(o, (tuple, set, frozenset)):
-            return sorted(o) if isinstance(o, (set, frozenset)) else list(o)
-        raise FdmlError(f"batch options must be plain data (numbers, strings, lists, dicts); got {o!r}")
-
-    return json.dumps(obj, sort_keys=True, default=default, separators=(",", ":"))
+    try:
+        return _dumps(obj, compact=True, sort_keys=True, default=None)
+    except TypeError as exc:
+        raise FdmlError(f"batch options must be plain data (numbers, strings, lists, dicts); {exc}") from None
 
 
 def _file_hash(path: str) -> str:
@@ -326,6 +322,10 @@ def _check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
     unknown = sorted(set(kw) - allowed)
     if unknown:
         raise FdmlError(f"unknown fit option(s) {unknown}; fit takes {', '.join(sorted(allowed))}")
+    if kw.get("band") is not None:
+        from .spectra import parse_band
+
+        parse_band(kw["band"])  # refuse a bad band before any task: it would fail every one of them
     _canonical(kw)  # plain data only: it is hashed and shipped to workers
     return kw
 
@@ -345,7 +345,7 @@ def _num(x: float):
 def _base_row(task: Mapping) -> dict:
     return {"index": task["index"], "key": task["key"], "source": task["path"], "t0": task["t0"],
             "t1": task["t1"], "status": "error", "reused": False, "converged": None, "iterations": None,
-            "cost": None, "elapsed": None, "n_freq": None, "error": "", "warnings": "",
+            "cost": None, "elapsed": None, "n_freq": None, "error": "", "warnings": "", "findings": "",
             "result_file": "", "params": {}, "stderr": {}}
 
 
@@ -420,6 +420,7 @@ def run_task(task: Mapping) -> dict:
         row.update(status="ok", converged=bool(res.converged), iterations=int(res.iterations),
                    cost=_num(res.cost), elapsed=float(res.elapsed), n_freq=int(res.n_freq),
                    warnings="; ".join(res.warnings),
+                   findings=" ".join(f.code for f in res.findings),
                    result_file=str(Path("results") / res_path.name),
                    params={n: float(v) for n, v in zip(res.names, res.values)},
                    stderr={n: _num(s) for n, s in zip(res.names, res.stderr)})
@@ -429,7 +430,7 @@ def run_task(task: Mapping) -> dict:
         d["batch"] = {"format": TABLE_FORMAT[0], "key": task["key"], "source": task["path"],
                       "window": [task["t0"], task["t1"]], "input_hash": input_hash,
                       "spec": task["spec"], "fit_kwargs": task["fit_kwargs"], "row": row}
-        text = json.dumps(d, separators=(",", ":"))
+        text = _dumps(d, compact=True)
         del d
         atomic_write_text(res_path, text)
         _unlink(err_path)
@@ -448,7 +449,7 @@ def _write_error(task, row, exc, err_path: Path, res_path: Path, input_hash, t_s
            "error": row["error"], "row": row}
     try:
         _unlink(res_path)  # a stale result for other inputs must not stand beside the error
-        atomic_write_text(err_path, json.dumps(doc, indent=1))
+        atomic_write_text(err_path, _dumps(doc, indent=1))
     except Exception as exc2:  # the row still carries the error
         row["error"] += f" (and the error file could not be written: {_one_line(exc2)})"
         row["result_file"] = ""
@@ -509,6 +510,147 @@ def _pool_context():
     return mp.get_context("spawn")
 
 
+# --- processes: a run ends with its parent --------------------------------------------------------
+#: Signals that, at their default disposition, end a run by an exception (so its ``finally`` runs).
+_ENDING_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+#: Seconds a terminated worker process gets to exit before it is killed.
+_STOP_GRACE = 2.0
+#: ``prctl`` option: the signal this process gets when its parent ends (``linux/prctl.h``).
+_PR_SET_PDEATHSIG = 1
+
+
+@contextlib.contextmanager
+def _signals_end_the_run() -> Iterator[None]:
+    """While the block runs, SIGTERM and SIGHUP raise ``SystemExit(128 + signal number)`` here.
+
+    At their default disposition they would kill this process at once and skip
+    the ``finally`` blocks that cancel the tasks, end the worker processes,
+    close the Dask cluster fdml started and remove temporary files; raising
+    runs them, and the exit status is still the shell's 128 + signal number
+    (143 for SIGTERM).  SIGINT raises KeyboardInterrupt as Python's own handler
+    does (only installed where SIGINT is at its default).  A signal that is
+    ignored (SIGHUP under ``nohup``) or has the caller's own handler is left
+    alone, so nested runs install nothing.  The first signal puts the previous
+    handlers back: a second one during the clean-up kills at once (the workers
+    then end by :func:`_die_with_parent`).  Handlers can only be installed from
+    the main thread; in any other thread this does nothing.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous: dict = {}
+
+    def restore() -> None:
+        for sig, old in previous.items():
+            if signal.getsignal(sig) is handler:  # not a handler someone installed since
+                signal.signal(sig, old)
+
+    def handler(signum, frame):
+        restore()
+        if signum == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise SystemExit(128 + signum)
+
+    for name in _ENDING_SIGNALS:
+        sig = getattr(signal, name, None)
+        if sig is not None and signal.getsignal(sig) == signal.SIG_DFL:
+            previous[sig] = signal.signal(sig, handler)
+    try:
+        yield
+    finally:
+        restore()
+
+
+def _die_with_parent(owner: int, start_method: str) -> None:
+    """Have Linux SIGKILL this process when its parent process ends; a no-op elsewhere.
+
+    SIGKILL of the pool's owner runs no clean-up, so the workers must notice on
+    their own.  ``prctl(PR_SET_PDEATHSIG)`` rather than a thread polling
+    :func:`os.getppid`: the kernel delivers it even while the worker is deep in
+    a numpy/LAPACK call that holds the GIL (when a polling thread cannot run),
+    at once rather than at the next poll, and it costs nothing while the worker
+    works.  The parent is the owner (``fork``, ``spawn``) or the forkserver,
+    which exits when the owner does, so the workers end either way.  The signal
+    follows the *thread* that forked the worker; the pool is created and fed by
+    the thread that iterates :func:`execute`, which lives as long as the run.
+    Without prctl (macOS, Windows) a worker of a killed owner is not ended by
+    this (SIGTERM, SIGHUP and SIGINT still are, by the owner's clean-up).
+
+    Parameters
+    ----------
+    owner : int
+        Process id of the process that created the pool.
+    start_method : str
+        Its multiprocessing start method.
+    """
+    import ctypes
+    import signal
+
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        zero = ctypes.c_ulong(0)
+        if libc.prctl(_PR_SET_PDEATHSIG, ctypes.c_ulong(signal.SIGKILL), zero, zero, zero) != 0:
+            return
+    except (OSError, AttributeError):  # no libc symbol table or no prctl: nothing to ask
+        return
+    # the owner may have died before prctl took effect: then no signal will ever come
+    if start_method != "forkserver" and os.getppid() != owner:
+        os._exit(1)
+
+
+def _worker_init(owner: int, start_method: str) -> None:
+    """Initializer of a local pool worker: it ends with the process that owns the pool.
+
+    Ctrl-C reaches the whole process group, so SIGINT is ignored here and the
+    owner ends the workers itself; SIGTERM and SIGHUP handlers inherited from
+    the owner by ``fork`` (those of :func:`_signals_end_the_run`) go back to
+    the default, which ends the worker; then :func:`_die_with_parent`.
+    """
+    import signal
+
+    with contextlib.suppress(ValueError, OSError):  # never break the pool over this
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        for name in ("SIGTERM", "SIGHUP"):
+            sig = getattr(signal, name, None)
+            if sig is not None and callable(signal.getsignal(sig)):
+                signal.signal(sig, signal.SIG_DFL)
+    _die_with_parent(owner, start_method)
+
+
+def _stop_pool(ex) -> None:
+    """Cancel the tasks not started and end the worker processes now (a run that did not finish).
+
+    ``shutdown(cancel_futures=True)`` alone lets every worker finish the task it
+    runs, minutes for a long fit, and keeps the owner waiting for them at exit.
+    Python 3.14 has the public ``terminate_workers()``; before it the worker
+    processes are reachable only through the executor's private ``_processes``
+    (process id -> :class:`multiprocessing.Process`), read here before
+    ``shutdown`` drops it.  A worker still alive :data:`_STOP_GRACE` s after
+    SIGTERM is killed.
+    """
+    procs = list((getattr(ex, "_processes", None) or {}).values())
+    terminate = getattr(ex, "terminate_workers", None)
+    if terminate is not None:
+        terminate()
+    else:
+        ex.shutdown(wait=False, cancel_futures=True)
+        for p in procs:
+            with contextlib.suppress(ValueError, OSError):  # closed, or already gone
+                p.terminate()
+    deadline = time.monotonic() + _STOP_GRACE
+    for p in procs:
+        with contextlib.suppress(ValueError, OSError):
+            p.join(max(0.0, deadline - time.monotonic()))
+            if p.exitcode is None:
+                p.kill()
+                p.join(_STOP_GRACE)
+
+
 def execute(fn: Callable[[dict], dict], tasks: Iterable[dict], *, engine="process", workers: int | None = None,
             on_error: Callable[[dict, BaseException | str], dict]) -> Iterator[dict]:
     """Run ``fn(task)`` for every task on ``engine``; yield the results as they finish.
@@ -518,25 +660,35 @@ def execute(fn: Callable[[dict], dict], tasks: Iterable[dict], *, engine="proces
     it, run alone, twice; a Dask ``KilledWorker``) yields ``on_error(task, exc)``.  At most a
     few tasks per worker are in flight, so memory stays flat in the number
     of tasks.
+
+    The run ends with this process, whatever ends it.  While the generator
+    runs, SIGTERM and SIGHUP raise here (:func:`_signals_end_the_run`), so on
+    any exception, or when the caller closes the generator early (close it:
+    ``contextlib.closing``), the ``finally`` blocks end the run: local workers
+    are terminated at once (not left to finish their task), a Dask cluster
+    started here is closed, and the futures of a caller's Client are cancelled
+    (the Client stays open).  Local workers also die with SIGKILL of this
+    process (:func:`_die_with_parent`, Linux).
     """
-    kind, client, owned = _resolve_engine(engine, workers)
-    try:
-        if kind == "serial":
-            for task in tasks:
-                try:
-                    yield fn(task)
-                except Exception as exc:
-                    yield on_error(task, exc)
-        elif kind == "process":
-            yield from _process_map(fn, tasks, workers or os.cpu_count() or 1, on_error)
-        else:
-            yield from _dask_map(client, fn, tasks, on_error)
-    finally:
-        if owned:
-            cluster = getattr(client, "cluster", None)
-            client.close()
-            if cluster is not None:
-                cluster.close()
+    with _signals_end_the_run():
+        kind, client, owned = _resolve_engine(engine, workers)
+        try:
+            if kind == "serial":
+                for task in tasks:
+                    try:
+                        yield fn(task)
+                    except Exception as exc:
+                        yield on_error(task, exc)
+            elif kind == "process":
+                yield from _process_map(fn, tasks, workers or os.cpu_count() or 1, on_error)
+            else:
+                yield from _dask_map(client, fn, tasks, on_error)
+        finally:
+            if owned:
+                cluster = getattr(client, "cluster", None)
+                client.close()
+                if cluster is not None:
+                    cluster.close()
 
 
 def _process_map(fn, tasks, workers: int, on_error) -> Iterator[dict]:
@@ -556,7 +708,9 @@ def _process_map(fn, tasks, workers: int, on_error) -> Iterator[dict]:
     window = 2 * workers
     exhausted = False
     while True:
-        ex = ProcessPoolExecutor(max_workers=workers, mp_context=_pool_context())
+        ctx = _pool_context()
+        ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
+                                 initargs=(os.getpid(), ctx.get_start_method()))
         inflight: dict = {}  # future -> (task, ran alone)
         broken = finished = False
         try:
@@ -606,7 +760,10 @@ def _process_map(fn, tasks, workers: int, on_error) -> Iterator[dict]:
                     break
             finished = True
         finally:
-            ex.shutdown(wait=finished and not broken, cancel_futures=True)
+            if finished:
+                ex.shutdown(wait=not broken, cancel_futures=True)
+            else:  # a signal, an error, or the caller stopped early: end the workers now
+                _stop_pool(ex)
         if not broken:
             return
 
@@ -741,22 +898,12 @@ class BatchSummary:
 
 
 _FIXED_COLUMNS = ("key", "source", "t0", "t1", "status", "reused", "converged", "iterations", "cost",
-                  "elapsed", "n_freq", "error", "warnings", "result_file")
+                  "elapsed", "n_freq", "error", "warnings", "findings", "result_file")
 
 
-@contextlib.contextmanager
 def _atomic_open(path: Path):
     """A text file handle whose content appears at ``path`` only when the block succeeds."""
-    import tempfile
-
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            yield fh
-        os.replace(tmp, path)
-    except BaseException:
-        _unlink(Path(tmp))
-        raise
+    return atomic_open(path, "w", what="batch table")
 
 
 class _RowSpool:
@@ -781,7 +928,7 @@ class _RowSpool:
         self.fh.seek(0, os.SEEK_END)
         first = self.offsets[i] < 0
         self.offsets[i] = self.fh.tell()
-        self.fh.write(json.dumps(row, separators=(",", ":")).encode() + b"\n")
+        self.fh.write(_dumps(row, compact=True).encode() + b"\n")
         self.failed[i] = row["status"] != "ok"
         self.reused[i] = bool(row.get("reused"))
         for n in row["params"]:
@@ -816,20 +963,116 @@ def _write_tables(out_dir: Path, spool: _RowSpool, spec: dict, fit_kwargs: dict)
             w.writerow(fixed + vals)
     head = {"format": TABLE_FORMAT[0], "version": TABLE_FORMAT[1], "model": spec, "fit_kwargs": fit_kwargs}
     with _atomic_open(json_path) as fh:
-        fh.write(json.dumps(head, indent=1)[:-2] + ',\n "rows": [')
+        fh.write(_dumps(head, indent=1)[:-2] + ',\n "rows": [')
         for i, r in enumerate(spool.rows()):
             r.pop("index", None)
-            fh.write(("\n  " if i == 0 else ",\n  ") + json.dumps(r))
+            fh.write(("\n  " if i == 0 else ",\n  ") + _dumps(r, indent=None))
         fh.write("\n ]\n}\n")
     return csv_path, json_path
 
 
-def _clean_temporaries(out: Path) -> None:
-    """Remove temporary files left by a crash (``.NAME.json.XXXX.tmp``, the row spool)."""
-    for folder in (out, out / "results"):
-        if folder.is_dir():
-            for f in folder.glob(".*.tmp"):
+#: Lock file of a batch output folder: the batch writing into the folder holds its ``flock``.
+LOCK_NAME = ".fdml-batch.lock"
+
+
+def _try_flock(fd) -> bool:
+    """Lock ``fd`` (a descriptor or a file) exclusively without waiting; False if another holds it."""
+    import fcntl
+
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
+
+
+def _clean_stale(out: Path, own: Path) -> None:
+    """Remove the temporary files of batches that are gone; call with the folder lock held.
+
+    With the lock held no other batch writes a result or a table here, so
+    every ``results/.*.tmp`` and ``.table.csv.*.tmp``/``.table.json.*.tmp`` was
+    left by a batch that crashed.  A row spool (``.rows-PID.jsonl.tmp``) is
+    stale only when no process holds its ``flock``: a batch waiting for this
+    folder already holds its own.  Other ``.*.tmp`` files in the folder (an
+    ``fdml fit -o`` into it in progress) are not the batch's and are left alone.
+    """
+    stale = [*(out / "results").glob(".*.tmp"), *out.glob(".table.csv.*.tmp"), *out.glob(".table.json.*.tmp")]
+    for f in stale:
+        _unlink(f)
+    for f in out.glob(".rows-*.jsonl.tmp"):
+        if f == own:
+            continue
+        try:
+            fd = os.open(f, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+        except OSError:  # gone meanwhile, or not ours to open: leave it
+            continue
+        try:
+            if _try_flock(fd):  # nobody holds it: its batch is gone
                 _unlink(f)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+
+
+@contextlib.contextmanager
+def _folder_lock(out: Path, spool: "_RowSpool") -> Iterator[None]:
+    """Hold the output folder ``out`` for a whole batch; a second batch into it waits.
+
+    The lock is an ``flock`` on ``out/.fdml-batch.lock`` (the file stays; the
+    kernel releases the lock when the holder ends, however it ends, so a crash
+    never leaves the folder locked).  A second batch into the same folder
+    waits for the first to finish, saying so once on the log, then runs (and
+    reuses what the first fitted, if its inputs are the same): two batches
+    into one folder give the same files as one after the other.  Once held,
+    the temporary files of batches that are gone are removed
+    (:func:`_clean_stale`).  ``spool``'s file is locked first, so that a batch
+    taking the folder meanwhile sees it is live.  Where ``fcntl`` does not
+    exist (Windows), or the file system refuses locks, the batch runs unlocked
+    (with a warning for the latter) and removes no temporary file.
+
+    Raises
+    ------
+    OutputError
+        The lock file cannot be created or is not a regular file.
+    """
+    try:
+        import fcntl
+    except ImportError:
+        yield
+        return
+    import socket
+    import stat
+
+    from .errors import OutputError
+
+    with contextlib.suppress(OSError):
+        _try_flock(spool.fh)
+    path = out / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK, 0o666)
+    except OSError as exc:
+        raise OutputError(f"cannot open the batch lock file {path}: {exc.strerror or exc}") from None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            raise OutputError(f"batch lock file {path} exists and is not a regular file")
+        try:
+            if not _try_flock(fd):
+                holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "unknown process"
+                logger.warning("%s is in use by another fdml batch (%s); waiting for it to finish", out, holder)
+                fcntl.flock(fd, fcntl.LOCK_EX)
+            locked = True
+        except OSError as exc:  # a file system without locks (some network or FUSE mounts)
+            logger.warning("cannot lock %s (%s): a concurrent batch into it is not detected and temporary "
+                           "files of earlier runs are kept", out, exc.strerror or exc)
+            locked = False
+        if locked:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode(), 0)
+            _clean_stale(out, spool.path)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
 
 
 # --- the batch ----------------------------------------------------------------------------------
@@ -866,6 +1109,15 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
     -------
     BatchSummary
         A failed record is a row with its error; it never stops the others.
+
+    Notes
+    -----
+    One batch at a time writes into ``out_dir``: a second batch into the same
+    folder *waits* for the first to finish (it logs that it waits), then runs,
+    so concurrent batches give what the same batches one after the other give;
+    see :func:`_folder_lock`.  SIGTERM, SIGHUP or SIGINT to this process end
+    the run cleanly: the workers are ended, no partial file is left, and a
+    rerun resumes (see :func:`execute`).
     """
     t_start = time.perf_counter()
     items = collect_sources(sources)
@@ -878,16 +1130,21 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
     out = Path(out_dir).absolute()
     results = out / "results"
     results.mkdir(parents=True, exist_ok=True)
-    _clean_temporaries(out)
     tasks = ({"index": i, "key": it.key, "path": it.path, "t0": it.t0, "t1": it.t1, "spec": spec_d,
               "fit_kwargs": kw, "out_dir": str(out), "resume": bool(resume)} for i, it in enumerate(items))
     update, close = _progress_handler(progress, len(items), "fdml batch")
     kind = _resolve_kind_name(engine)
     spool = _RowSpool(out / f".rows-{os.getpid()}.jsonl.tmp", len(items))
     done = 0
+    run = contextlib.ExitStack()  # closed in reverse: the engine, the folder lock, signal handlers, the spool
     try:
         try:
-            for row in execute(run_task, tasks, engine=engine, workers=workers, on_error=error_row):
+            run.callback(spool.close)
+            run.enter_context(_signals_end_the_run())
+            run.enter_context(_folder_lock(out, spool))
+            rows = run.enter_context(contextlib.closing(
+                execute(run_task, tasks, engine=engine, workers=workers, on_error=error_row)))
+            for row in rows:
                 done += spool.add(row)
                 update(row, done)
         finally:
@@ -896,7 +1153,7 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
         n_failed, n_reused = sum(spool.failed), sum(spool.reused)
         errors = {r["key"]: r["error"] for r in spool.rows(only_failed=True)}
     finally:
-        spool.close()
+        run.close()
     return BatchSummary(out_dir=out, table_csv=csv_path, table_json=json_path, n_total=done,
                         n_fitted=done - n_failed - n_reused, n_reused=n_reused, n_failed=n_failed,
                         errors=errors, wall_time=time.perf_counter() - t_start, engine=kind)

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import sys
 
 __all__ = ["main", "build_parser", "EXIT_BAD_INPUT", "EXIT_FAILURE"]
 
 EXIT_BAD_INPUT = 2
 EXIT_FAILURE = 1
+#: A closed stdout pipe: 128 + SIGPIPE, as a shell reports a process ended by SIGPIPE.
+EXIT_CLOSED_PIPE = 141
 
 #: Command modules under fdml.commands, in help order.
 COMMANDS = ("demo", "fit", "check", "simulate", "response", "report", "batch", "montecarlo", "diagnose", "aircraft")
@@ -44,18 +45,47 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def print_json(obj) -> None:
-    """Print ``obj`` as JSON on stdout (inf/nan as strings)."""
+    """Print ``obj`` as JSON on stdout (inf/nan as strings; :func:`fdml.jsoncodec.dumps`)."""
+    from .jsoncodec import dumps
 
-    def default(o):
-        import numpy as np
+    sys.stdout.write(dumps(obj, indent=1) + "\n")
 
-        if isinstance(o, np.generic):
-            return o.item()
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-        return str(o)
 
-    sys.stdout.write(json.dumps(obj, indent=1, default=default) + "\n")
+def _closed_pipe() -> int:
+    """The reader of stdout went away (``fdml fit ... | head -1``): end quietly.
+
+    The Python documentation's recipe (signal module, "Note on SIGPIPE"):
+    point stdout at devnull so that the flush at interpreter exit cannot fail
+    again.  The exit code is the shell's for a process ended by SIGPIPE.
+    """
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # no file descriptor behind stdout (an in-process capture)
+        pass
+    return EXIT_CLOSED_PIPE
+
+
+def _stdout_closed() -> bool:
+    """True when stdout is a pipe whose reader has gone (poll reports an error on it).
+
+    A BrokenPipeError from anywhere else (a worker's pipe) is a failure to report.
+    Where poll is unavailable, a BrokenPipeError is taken to be stdout's.
+    """
+    import select
+
+    if not hasattr(select, "poll"):  # pragma: no cover - Windows
+        return True
+    try:
+        fd = sys.stdout.fileno()
+    except (OSError, ValueError, AttributeError):  # an in-process capture: not a pipe
+        return False
+    poller = select.poll()
+    poller.register(fd, select.POLLOUT)
+    return any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poller.poll(0))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -75,7 +105,14 @@ def main(argv: list[str] | None = None) -> int:
     from .errors import FdmlError
 
     try:
-        return int(args.func(args) or 0)
+        code = int(args.func(args) or 0)
+        sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
+        return code
+    except BrokenPipeError as exc:
+        if _stdout_closed():
+            return _closed_pipe()
+        sys.stderr.write(f"fdml: internal error: {type(exc).__name__}: {exc}\n")
+        return EXIT_FAILURE
     except FdmlError as exc:
         sys.stderr.write(f"fdml: error: {exc}\n")
         return EXIT_BAD_INPUT

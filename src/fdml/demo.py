@@ -16,7 +16,8 @@ import numpy as np
 
 from .compare import Comparison, compare_steady_unsteady
 from .models import make_model
-from .record import Record, add_noise, atomic_write_text
+from .outputs import atomic_savefig, atomic_write_text, check_output, check_output_dir
+from .record import Record, add_noise
 
 __all__ = ["DemoResult", "run_demo", "WK_TABLE1"]
 
@@ -73,15 +74,18 @@ def run_demo(out_dir: str | Path = "fdml-demo", *, seed: int = 1, noise: float =
     from .simulate import simulate_maneuver
 
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    names = {"record": "navion_3211.csv", "unsteady": "unsteady.json", "steady": "steady.json",
+             "summary": "summary.txt", "figure": "bode.png"}
+    check_output_dir(out, what="demo folder")  # every output checked before the work
+    for key, name in names.items():
+        check_output(out / name, what=f"demo {key} file")
     truth = make_model("unsteady", "navion")
     clean = simulate_maneuver(truth, "3211", duration=duration, dt=dt)
     rec = add_noise(clean, noise, np.random.default_rng(seed), relative=True)
     rec = Record(rec.t, rec.signals, name="navion_3211", meta=rec.meta)
     cmp = compare_steady_unsteady(rec, "navion")
     table = cmp.table(reference=WK_TABLE1)
-    files = {"record": out / "navion_3211.csv", "unsteady": out / "unsteady.json",
-             "steady": out / "steady.json", "summary": out / "summary.txt"}
+    files = {k: out / names[k] for k in ("record", "unsteady", "steady", "summary")}
     rec.to_csv(files["record"])
     cmp.unsteady.to_json(files["unsteady"])
     cmp.steady.to_json(files["steady"])
@@ -98,9 +102,9 @@ def run_demo(out_dir: str | Path = "fdml-demo", *, seed: int = 1, noise: float =
 
         fig, _ = plot_spectra([cmp.unsteady, cmp.steady], ["unsteady fit", "steady fit"],
                               title="Navion 3-2-1-1: measured and fitted spectra")
-        files["figure"] = out / "bode.png"
-        tmp = out / ".bode.tmp.png"
-        fig.savefig(tmp, dpi=110)
-        tmp.replace(files["figure"])
-        plt.close(fig)
+        files["figure"] = out / names["figure"]
+        try:
+            atomic_savefig(fig, files["figure"], dpi=110)
+        finally:
+            plt.close(fig)
     return DemoResult(comparison=cmp, record=rec, table=table, files=files)

@@ -35,7 +35,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -49,6 +49,7 @@ from .errors import (
     RecordError,
 )
 from .models.base import OUTPUTS, Model
+from .parameters import as_names, check_fix_free
 from .record import Record
 from .results import FitResult, IterationInfo
 from .spectra import FrequencyData, spectra
@@ -331,10 +332,48 @@ def _as_data(data, model: Model, omega, band, trim, trim_window, end_correction)
         if not model.gust and item.u.shape[1] > 1:
             item = _drop_gust(item)
         out.append(item)
+    _refuse_duplicates(out)
     names = [d.name for d in out]
     if len(set(names)) != len(names):
         out = [_renamed(d, f"{d.name}#{i}") for i, d in enumerate(out)]
     return out
+
+
+def _sample_keys(d: FrequencyData) -> set:
+    """Fingerprints of what a fit sees: the time samples (when the record is known) and the spectra."""
+    import hashlib
+
+    def digest(tag, *arrays):
+        h = hashlib.sha256(tag.encode())
+        for a in arrays:
+            h.update(np.ascontiguousarray(a).tobytes())
+        return h.hexdigest()
+
+    keys = {digest("spectra", d.omega, d.z, d.u)}
+    rec = d.record
+    if rec is not None:  # the samples and the interval; a shift of the time origin changes nothing
+        keys.add(digest(f"samples {rec.n} {rec.dt:.12g} " + ",".join(sorted(rec.signals)),
+                        *(rec.signals[k] for k in sorted(rec.signals))))
+    return keys
+
+
+def _refuse_duplicates(items: list[FrequencyData]) -> None:
+    """Refuse the same record given twice: it counts the same noise twice, so the standard errors
+    shrink by sqrt(2) for no information."""
+    seen: dict[str, int] = {}
+    for i, d in enumerate(items):
+        keys = _sample_keys(d)
+        j = next((seen[k] for k in keys if k in seen), None)
+        if j is not None:
+            first, second = (_label(x) for x in (items[j], d))
+            raise RecordError(f"records {j + 1} ({first}) and {i + 1} ({second}) have the same samples: the same "
+                              "record given twice would shrink the standard errors by sqrt(2); give it once")
+        seen.update(dict.fromkeys(keys, i))
+
+
+def _label(d: FrequencyData) -> str:
+    src = (d.record.meta.get("source") if d.record is not None else None) or d.meta.get("source")
+    return f"{d.name!r}, {src}" if src else repr(d.name)
 
 
 def _drop_gust(d: FrequencyData) -> FrequencyData:
@@ -351,15 +390,17 @@ def _configure_model(model: Model, free, fix, bounds, biases: bool, out_idx) -> 
     params = model.parameters
     if biases:
         params = params.free([f"bias_{OUTPUTS[k]}" for k in out_idx])
+    check_fix_free(fix, free)  # a str is one name, not its characters (parameters.as_names)
     if fix:
         if isinstance(fix, Mapping):
             params.check_names(fix)
             params = params.fix(fix)
         else:
-            params = params.fix(list(fix))
+            params.check_names(as_names(fix, "fix"))
+            params = params.fix(as_names(fix, "fix"))
     if free:
-        params.check_names(free)
-        params = params.free(list(free))
+        params.check_names(as_names(free, "free"))
+        params = params.free(as_names(free, "free"))
     if bounds:
         for name, (lo, hi) in bounds.items():
             params.check_names([name])
@@ -531,6 +572,8 @@ def fit(
     trim_window: float = 0.5,
     end_correction: str = "cubic",
     callback: Callable[[IterationInfo], bool | None] | None = None,
+    check: bool = True,
+    strict: bool = False,
 ) -> FitResult:
     """Fit a model to one or more records by frequency-domain maximum likelihood.
 
@@ -569,7 +612,9 @@ def fit(
         error of the elevator trim (a special case of state-equation biases
         along the elevator's input direction).
     free, fix : optional
-        Names to free; names (or a ``{name: value}`` mapping) to fix.
+        Names to free; names (or a ``{name: value}`` mapping) to fix.  A str
+        is one name (``fix="Cm_de"``) or several separated by commas, as for
+        ``outputs``.  A name in both is an error, not "the last wins".
     bounds : mapping, optional
         ``{name: (lower, upper)}``; None for an open side.
     method : {"lm", "gauss-newton"}, optional
@@ -604,6 +649,14 @@ def fit(
     callback : callable, optional
         Called after every iteration with an :class:`IterationInfo`; return
         True to stop the fit cleanly (the result says so).
+    check : bool, optional
+        Run the data check (:func:`fdml.datacheck.check_data`: units, signs,
+        swapped channels, no response) on every record given in the time
+        domain (default True); its findings are issued as
+        :class:`~fdml.errors.DataWarning` and kept in ``FitResult.findings``.
+    strict : bool, optional
+        Raise :class:`~fdml.errors.DataCheckError` before fitting when the
+        data check finds anything (default False).
 
     Returns
     -------
@@ -620,6 +673,7 @@ def fit(
                    biases=biases, state_biases=state_biases, input_bias=input_bias, free=free,
                    fix=fix, bounds=bounds, sensitivity=sensitivity, trim=trim, trim_window=trim_window,
                    end_correction=end_correction)
+    found = _data_findings(prob, strict) if check else ()
     theta = prob.initial()
     lo, hi = prob.bounds()
     theta = _project(theta, lo, hi)
@@ -687,14 +741,33 @@ def fit(
                 break
         else:
             if not accepted:
-                converged = rel_step < 10 * tol
+                converged = bool(rel_step < 10 * tol)  # a plain bool: numpy's is not JSON
                 message = ("converged: no further decrease of det R" if converged else
                            "stalled: no step decreases det R")
                 break
     if not converged and not stopped:
         warnings.warn(f"fit did not converge: {message}", ConvergenceWarning, stacklevel=2)
-    return _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned,
-                   time.perf_counter() - t_start, stopped, method, stop, A_final)
+    res = _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned,
+                  time.perf_counter() - t_start, stopped, method, stop, A_final)
+    return replace(res, findings=found) if found else res
+
+
+def _data_findings(prob: Problem, strict: bool) -> tuple:
+    """The data check on every record the fit was given in the time domain; issued as warnings."""
+    from .datacheck import check_data
+    from .findings import emit, raise_if_strict
+
+    try:
+        U = float(prob.model.U)
+    except (AttributeError, NotImplementedError, TypeError, ValueError):
+        U = None
+    found = []
+    for d in prob.data:
+        if d.record is not None:
+            found.extend(check_data(d.record, airspeed=U, data=d).findings)
+    raise_if_strict(found, strict)
+    emit(found, stacklevel=3)
+    return tuple(found)
 
 
 def _try(prob, theta, step, lo, hi, J):

@@ -43,7 +43,7 @@ from numpy.polynomial import polynomial as _poly
 
 from fdml.errors import BandError, FdmlError, RecordError
 
-__all__ = ["omega_band", "finite_fourier_transform", "transform_weights", "fourier_adjoint",
+__all__ = ["omega_band", "check_band", "MAX_BAND_FREQUENCIES", "finite_fourier_transform", "transform_weights", "fourier_adjoint",
            "is_evenly_spaced", "gram", "leading_transform"]
 
 _METHODS = ("auto", "czt", "direct")
@@ -59,8 +59,15 @@ _CZT_MIN_WORK = 10_000
 _SERIES_MAX_THETA = 1.0
 #: Terms of that series: the first neglected term is below 1/20! ~ 4e-19.
 _SERIES_TERMS = 20
-#: Largest band omega_band will build.
-_MAX_BAND = 10_000_000
+#: Largest number of frequencies in a band.  The estimator holds, per frequency,
+#: a 3 x p complex sensitivity block and the spectra of every channel, so memory
+#: grows linearly with the count: a steady-model fit of a 500-sample record on
+#: 1e5 frequencies peaks at about 0.6 GB and 20 s (measured), so 1e6 would need
+#: about 6 GB and end in MemoryError on a workstation.  1e5 is also far more than
+#: the data carry: frequencies closer than 2 pi/T add no information, and even a
+#: 1000 s record over 0-100 rad/s (beyond any short-period band) has only about
+#: 16,000 independent ones.  The paper's grid has 100.
+MAX_BAND_FREQUENCIES = 100_000
 
 
 def _lagrange_basis(nodes):
@@ -124,29 +131,71 @@ def omega_band(lo=0.1, hi=10.0, step=0.1):
     Raises
     ------
     BandError
-        Non-finite values, lo < 0, step <= 0, hi < lo, or more than 1e7 points.
+        Non-finite values, lo < 0, step <= 0, hi < lo, or more than
+        :data:`MAX_BAND_FREQUENCIES` points (see :func:`check_band`).
+    """
+    lo, hi, step, count = check_band(lo, hi, step, what="omega_band")
+    return lo + step * np.arange(count)
+
+
+def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False):
+    """Validate a band (rad/s) before anything is built from it.
+
+    The one check behind every band fdml accepts (``--band``, ``--omega``,
+    ``band=``): :func:`omega_band`, :func:`fdml.spectra.parse_band` and the
+    diagnosis band parser all call it.
+
+    Parameters
+    ----------
+    lo, hi : float
+        Lowest and highest frequency, rad/s (finite, ``0 <= lo <= hi``).
+    step : float, optional
+        Grid step, rad/s (finite, > 0); None for a band without a grid.
+    what : str, optional
+        How the band is named in messages (``--band``, ``omega_band``...).
+    positive : bool, optional
+        Require ``lo > 0`` (a fit band: the finite Fourier transform of the
+        output bias is singular at 0 rad/s).
+
+    Returns
+    -------
+    lo, hi, step, count : float, float, float or None, int
+        ``count`` is the number of grid points (0 without a step).
+
+    Raises
+    ------
+    BandError
+        Non-finite values, a negative (or, with ``positive``, zero) ``lo``,
+        ``hi < lo``, ``step <= 0``, or more than :data:`MAX_BAND_FREQUENCIES`
+        grid points.
     """
     values = {}
     for name, value in {"lo": lo, "hi": hi, "step": step}.items():
+        if name == "step" and value is None:
+            values[name] = None
+            continue
         try:
-            values[name] = float(value)
-        except (TypeError, ValueError):
+            values[name] = math.nan if isinstance(value, (bool, str)) else float(value)
+        except (TypeError, ValueError, OverflowError):
             values[name] = math.nan
         if not math.isfinite(values[name]):
-            raise BandError(f"omega_band: {name} = {value!r} is not a finite number (rad/s)")
+            raise BandError(f"{what}: {name} = {value!r} is not a finite number (rad/s)")
     lo, hi, step = values["lo"], values["hi"], values["step"]
-    if lo < 0:
-        raise BandError(f"omega_band: lo = {lo} rad/s is negative; frequencies start at 0")
-    if step <= 0:
-        raise BandError(f"omega_band: step = {step} rad/s must be positive")
+    if lo < 0 or (positive and lo == 0):
+        raise BandError(f"{what}: lo = {lo:g} rad/s must be {'positive' if positive else 'non-negative'}")
     if hi < lo:
-        raise BandError(f"omega_band: hi = {hi} rad/s is below lo = {lo} rad/s")
-    ratio = (hi - lo) / step
-    count = round(ratio) if math.isclose(ratio, round(ratio), rel_tol=1e-9, abs_tol=1e-9) \
-        else math.floor(ratio)
-    if count + 1 > _MAX_BAND:
-        raise BandError(f"omega_band: {count + 1} frequencies is too many (step {step} rad/s)")
-    return lo + step * np.arange(count + 1)
+        raise BandError(f"{what}: hi = {hi:g} rad/s is below lo = {lo:g} rad/s (the band is LO:HI:STEP)")
+    if step is None:
+        return lo, hi, None, 0
+    if step <= 0:
+        raise BandError(f"{what}: step = {step:g} rad/s must be positive")
+    ratio = (hi - lo) / step  # may overflow to inf (1e300:1e308:1e-10): caught below
+    count = round(ratio) if ratio < MAX_BAND_FREQUENCIES and math.isclose(
+        ratio, round(ratio), rel_tol=1e-9, abs_tol=1e-9) else math.floor(min(ratio, 1e300))
+    if count + 1 > MAX_BAND_FREQUENCIES:
+        raise BandError(f"{what}: {lo:g}:{hi:g}:{step:g} rad/s has {ratio + 1:.3g} frequencies, more than "
+                        f"the {MAX_BAND_FREQUENCIES:,} fdml accepts; use a larger step or a narrower band")
+    return lo, hi, step, count + 1
 
 
 def _moments(theta):

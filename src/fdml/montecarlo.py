@@ -19,7 +19,6 @@ each returns one short row, so memory stays flat in N.
 
 from __future__ import annotations
 
-import json
 import math
 import time
 import warnings
@@ -276,44 +275,52 @@ class MonteCarloResult:
             "stats": self.stats(),
         }
 
-    def to_json(self, path: str | Path | None = None) -> str:
-        """Serialise to JSON text; write it atomically to ``path`` when given."""
-        text = json.dumps(self.to_dict(), indent=1, default=str)
-        if path is not None:
-            from .record import atomic_write_text
+    def to_json(self, path: str | Path | None = None, *, inputs=()) -> str:
+        """Serialise to JSON text; write it atomically to ``path`` when given (never over ``inputs``)."""
+        from .jsoncodec import dumps, write_json
 
-            atomic_write_text(path, text)
-        return text
+        d = self.to_dict()
+        if path is not None:
+            write_json(path, d, inputs=inputs, what="Monte Carlo file")
+        return dumps(d, indent=1)
 
     @classmethod
-    def from_dict(cls, d: Mapping) -> "MonteCarloResult":
-        if d.get("format") != MC_FORMAT[0] or d.get("version") != MC_FORMAT[1]:
-            raise FdmlError("not an fdml Monte Carlo result (format or version field missing or wrong)")
+    def from_dict(cls, d: Mapping, *, source: str = "fdml Monte Carlo result") -> "MonteCarloResult":
+        """Inverse of :meth:`to_dict`; a key missing or of the wrong type or shape raises
+        :class:`FdmlError` ``"<source>: key '<key>' ..."``."""
+        from .jsoncodec import Fields
 
-        def arr(a):
-            return np.array([[math.nan if v is None else v for v in r] for r in a], float).reshape(-1, len(d["names"]))
-
+        f = Fields(d, source)
+        fmt = f.raw("format", None)
+        if fmt != MC_FORMAT[0]:
+            raise f.error("format", ("is missing" if fmt is None else f"is {str(fmt)[:40]!r}")
+                          + f": not an fdml Monte Carlo result ({MC_FORMAT[0]!r})")
+        f.version("version", MC_FORMAT[1])
+        names = f.strings("names")
+        p = len(names)
+        estimates = (np.empty((0, p)) if f.raw("estimates") == []
+                     else f.floats("estimates", (None, p), nulls=True))
+        n = estimates.shape[0]
+        errors = {}
+        for k, v in f.mapping("errors").items():
+            if not k.strip().lstrip("-").isdigit():
+                raise f.error("errors", f"must map run numbers to messages, has the key {k[:40]!r}")
+            errors[int(k)] = v
         return cls(
-            names=tuple(d["names"]), truth=np.array([math.nan if v is None else v for v in d["truth"]], float),
-            estimates=arr(d["estimates"]), stderr=arr(d["stderr"]), converged=np.array(d["converged"], bool),
-            iterations=np.array(d["iterations"], int),
-            fit_seconds=np.array([math.nan if v is None else v for v in d["fit_seconds"]], float),
-            errors={int(k): v for k, v in d["errors"].items()}, settings=dict(d["settings"]),
-            wall_time=float(d["wall_time"]), use_converged_only=bool(d.get("use_converged_only", True)),
-            units=dict(d.get("units", {})),
+            names=names, truth=f.floats("truth", (p,), nulls=True), estimates=estimates,
+            stderr=f.floats("stderr", (n, p), nulls=True), converged=f.flags("converged", n),
+            iterations=f.integers("iterations", n), fit_seconds=f.floats("fit_seconds", (n,), nulls=True),
+            errors=errors, settings=f.mapping("settings"), wall_time=f.number("wall_time"),
+            use_converged_only=f.boolean("use_converged_only", default=True), units=f.mapping("units", default={}),
         )
 
 
 def load_monte_carlo(path: str | Path) -> MonteCarloResult:
     """Read a study saved by :meth:`MonteCarloResult.to_json`."""
+    from .jsoncodec import read_json
+
     path = Path(path)
-    try:
-        d = json.loads(path.read_text())
-    except FileNotFoundError:
-        raise FdmlError(f"Monte Carlo file {path} does not exist") from None
-    except json.JSONDecodeError as exc:
-        raise FdmlError(f"Monte Carlo file {path} is not valid JSON: {exc}") from None
-    return MonteCarloResult.from_dict(d)
+    return MonteCarloResult.from_dict(read_json(path, what="Monte Carlo file"), source=f"Monte Carlo file {path}")
 
 
 def _check_noise(noise):
@@ -374,6 +381,8 @@ def monte_carlo(model, truth_values: Mapping[str, float] | None = None, n: int =
         raise FdmlError(f"n must be an integer >= 2, got {n!r}")
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise FdmlError(f"seed must be a non-negative integer, got {seed!r}")
+    if workers is not None and (not isinstance(workers, (int, np.integer)) or workers < 1):
+        raise FdmlError(f"workers must be a positive integer, got {workers!r}")  # as run_batch
     truth_spec = ModelSpec.coerce(model)
     if truth_values:
         from dataclasses import replace
@@ -417,8 +426,9 @@ def monte_carlo(model, truth_values: Mapping[str, float] | None = None, n: int =
     errors: dict[int, str] = {}
     update, close = _progress_handler(progress, n, "fdml montecarlo")
     done = 0
+    rows = execute(run_trial, tasks, engine=engine, workers=workers, on_error=_trial_error)
     try:
-        for row in execute(run_trial, tasks, engine=engine, workers=workers, on_error=_trial_error):
+        for row in rows:
             i = row["index"]
             done += 1
             if row["ok"]:
@@ -432,6 +442,7 @@ def monte_carlo(model, truth_values: Mapping[str, float] | None = None, n: int =
                 errors[i] = row["error"]
             update(row, done)
     finally:
+        rows.close()  # at once on any exception (a signal included): the workers end with the run
         close()
     from .batch import _resolve_kind_name
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import ParameterError
 
-__all__ = ["Parameter", "Parameters"]
+__all__ = ["Parameter", "Parameters", "as_names", "check_fix_free"]
 
 
 @dataclass(frozen=True)
@@ -204,3 +204,46 @@ class Parameters:
     def from_list(cls, items: Iterable[Mapping]) -> "Parameters":
         """Inverse of :meth:`to_list`."""
         return cls(tuple(Parameter.from_dict(d) for d in items))
+
+
+def as_names(value, what: str) -> list[str]:
+    """Parameter names given as ``fix``/``free``: a str is one name (or several, comma-separated).
+
+    A str is not iterated character by character (``"Cm_de"`` is one name,
+    not ``C``, ``m``, ...); commas separate names as they do for ``outputs``.
+
+    Parameters
+    ----------
+    value : None, str or iterable of str
+    what : str
+        The argument's name, for messages (``"fix"``, ``"free"``).
+
+    Returns
+    -------
+    list of str
+    """
+    if value is None:
+        return []
+    if isinstance(value, str):
+        return [n.strip() for n in value.split(",") if n.strip()]
+    if isinstance(value, Mapping):
+        value = list(value)
+    try:
+        names = list(value)
+    except TypeError:
+        raise ParameterError(f"{what} must be parameter names (a str or a list of str), got {value!r}") from None
+    bad = [n for n in names if not isinstance(n, str)]
+    if bad:
+        raise ParameterError(f"{what} must be parameter names (str), got {bad[0]!r}")
+    return names
+
+
+def check_fix_free(fix, free) -> None:
+    """Refuse a parameter named both in ``fix`` and in ``free`` (``--fix`` and ``--free``).
+
+    Which one should win is not knowable, so neither does: the user decides.
+    """
+    both = [n for n in as_names(fix, "fix") if n in set(as_names(free, "free"))]
+    if both:
+        raise ParameterError(f"parameter(s) {', '.join(both)} named in both fix and free (--fix and --free): "
+                             "a parameter is either fixed or free; drop it from one of them")

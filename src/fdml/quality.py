@@ -521,16 +521,21 @@ def _coherence(record: Record, outputs, lo: float, hi: float):
         covered = float(np.mean(w_grid >= w1))
         n_in_band = int(np.sum((w1 * np.arange(1, nper // 2 + 1) >= lo) & (w1 * np.arange(1, nper // 2 + 1) <= hi)))
         if covered >= 0.5 and n_in_band >= MIN_COHERENCE_ESTIMATES:
-            w_out = np.zeros(0)
-            for k in outputs:
-                if k not in record.signals:
-                    continue
-                f, g = signal.coherence(de, record[k], fs=fs, window="hann", nperseg=nper, noverlap=nover,
-                                        detrend="constant")
-                w = 2 * math.pi * f
-                sel = (w >= lo) & (w <= hi) & (w > 0)
-                coh[k] = g[sel]
-                w_out = w[sel]
+            names = [k for k in outputs if k in record.signals]
+            Y = np.vstack([record[k] for k in names]) if names else np.zeros((0, n))
+            # one Welch pass for all auto spectra and one for the cross spectra (what
+            # scipy.signal.coherence computes, output by output, in three passes each)
+            opts = dict(fs=fs, window="hann", nperseg=nper, noverlap=nover, detrend="constant")
+            f, Pxx = signal.welch(de, **opts)
+            _, Pyy = signal.welch(Y, axis=-1, **opts)
+            _, Pxy = signal.csd(de[None, :], Y, axis=-1, **opts)
+            w = 2 * math.pi * f
+            sel = (w >= lo) & (w <= hi) & (w > 0)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                g = np.abs(Pxy) ** 2 / (Pxx[None, :] * Pyy)
+            for i, k in enumerate(names):
+                coh[k] = np.nan_to_num(g[i, sel])
+            w_out = w[sel]
             thr = 1 - COHERENCE_ALPHA ** (1 / max(n_seg - 1, 1))
             method = (f"Welch (scipy.signal.coherence), {nper}-sample Hann segments ({nper * dt:.3g} s), 50 % "
                       f"overlap, {n_seg} segments: resolution {w1:.3g} rad/s; 5 % significance threshold "

@@ -13,8 +13,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
-import tempfile
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -22,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import RecordError
+from .outputs import atomic_write_text  # re-exported: fdml.record.atomic_write_text predates fdml.outputs
 
 __all__ = ["Record", "read_csv", "add_noise", "SIGNALS", "REQUIRED_SIGNALS", "atomic_write_text"]
 
@@ -45,27 +44,20 @@ _DEGREE_LIMITS = {"de": 1.0, "alpha": 1.0, "alpha_w": 1.0, "q": 3.0, "theta": 1.
 #: Fourier front end assumes exact uniform sampling; 1e-3 of dt shifts phase
 #: at 10 rad/s by at most 1e-3 * 10 * dt rad, far below measurement noise.
 _JITTER_TOL = 1e-3
-
-
-def atomic_write_text(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file and a rename.
-
-    No reader ever sees a half-written file, and an error leaves any previous
-    file untouched.
-    """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+#: Sample rates of flight records, Hz.  Below 1 Hz (Nyquist pi rad/s) no record
+#: resolves a short-period mode (1.5-10 rad/s); data systems sample at most a
+#: few kHz.  A record whose sample interval in seconds is slower than 1 Hz, but
+#: a plausible rate if read as milliseconds or microseconds, has its time in
+#: that unit: t = 0, 20, 40, ... is 50 Hz in ms, not one sample per 20 s.
+_RATE_RANGE_HZ = (1.0, 2000.0)
+#: Longest plausible record at 1-2 Hz, s.  Time in ms at 1-2 kHz gives an
+#: interval of 0.5-1 "s", inside the rate range, so the length decides: a
+#: record of 1-2 Hz samples lasting more than an hour holds no short-period
+#: manoeuvre (those last seconds to minutes), while a 10 s record at 2 kHz in
+#: ms is 10,000 "s" long.
+_SLOW_RECORD_MAX_S = 3600.0
+#: Time-unit candidates for :func:`_time_unit_problem`: name and factor to seconds.
+_TIME_UNITS = (("milliseconds", 1e-3), ("microseconds", 1e-6))
 
 
 @dataclass(frozen=True)
@@ -120,6 +112,9 @@ class Record:
                 f"mean {mean_dt:.6g} s by {100 * jitter:.3g} % (limit {100 * _JITTER_TOL:.2g} %); "
                 "resample the record onto a uniform grid first"
             )
+        unit_problem = _time_unit_problem(mean_dt, float(t[-1] - t[0]))
+        if unit_problem:
+            raise RecordError(f"{where}: {unit_problem}")
         missing = [k for k in self.require if k not in self.signals]
         if missing:
             raise RecordError(
@@ -299,6 +294,30 @@ def add_noise(record: Record, noise, rng: np.random.Generator, *, relative: bool
     return replace(record, signals={**record.signals, **noisy}, meta={**record.meta, "noise_std": std})
 
 
+def _time_unit_problem(dt: float, duration: float) -> str | None:
+    """A message if time is evidently not in seconds (see :data:`_RATE_RANGE_HZ`), else None.
+
+    Parameters
+    ----------
+    dt : float
+        Mean sample interval in the record's time unit.
+    duration : float
+        Record length in the same unit.
+    """
+    lo_hz, hi_hz = _RATE_RANGE_HZ
+    slow_and_long = dt >= 1.0 / (2 * lo_hz) and duration > _SLOW_RECORD_MAX_S
+    if dt <= 1.0 / lo_hz and not slow_and_long:
+        return None
+    fits = [(unit, f) for unit, f in _TIME_UNITS if 1.0 / hi_hz <= dt * f <= 1.0 / lo_hz]
+    if not fits:
+        return (f"sample interval {dt:g} s ({1 / dt:.3g} Hz) is slower than any flight record "
+                f"({lo_hz:g}-{hi_hz:g} Hz); give time in seconds")
+    unit, f = fits[0]
+    also = f" (or {fits[1][0]})" if len(fits) > 1 else ""
+    return (f"time looks like {unit}{also}: sample interval {dt:g} and record length {duration:g} are "
+            f"{dt * f:g} s ({1 / (dt * f):.4g} Hz) and {duration * f:g} s in {unit}; give time in seconds")
+
+
 def _check_finite(a: np.ndarray, label: str, where: str) -> None:
     bad = ~np.isfinite(a)
     if np.any(bad):
@@ -315,12 +334,14 @@ def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = T
     A header row naming ``t`` (s), ``de`` (rad), ``alpha`` (rad), ``q``
     (rad/s), ``az`` (g, positive down) and optionally ``alpha_w`` (rad); other
     columns are ignored.  The record is returned as recorded (trim not removed).
+    The file is UTF-8 (a byte-order mark, as spreadsheet programs write, is
+    accepted); a column fdml reads that appears twice in the header is an error.
     """
     path = Path(path)
     if not path.exists():
         raise RecordError(f"record file {path} does not exist")
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8-sig")  # utf-8-sig: drops a leading BOM
     except (OSError, UnicodeDecodeError) as exc:
         raise RecordError(f"cannot read record file {path}: {exc}") from None
     rows = list(csv.reader(io.StringIO(text)))
@@ -330,6 +351,10 @@ def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = T
     header = [h.strip() for h in rows[0]]
     if "t" not in header:
         raise RecordError(f"record file {path}: no 't' column in the header {header}; expected t,de,alpha,q,az")
+    for h in ("t", *SIGNALS):  # columns fdml ignores may repeat; one it reads must be unambiguous
+        if header.count(h) > 1:
+            raise RecordError(f"record file {path}: column {h!r} appears {header.count(h)} times in the header; "
+                              "keep one")
     cols = {}
     for i, r in enumerate(rows[1:], start=2):
         if len(r) != len(header):
@@ -346,4 +371,8 @@ def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = T
     for i, h in enumerate(header):
         cols[h] = data[:, i]
     signals = {k: cols[k] for k in SIGNALS if k in cols}
-    return Record(cols["t"], signals, name=name or path.stem, meta={"source": str(path)}, check_units=check_units)
+    try:
+        return Record(cols["t"], signals, name=name or path.stem, meta={"source": str(path)},
+                      check_units=check_units)
+    except RecordError as exc:
+        raise RecordError(f"record file {path}: {exc}") from None

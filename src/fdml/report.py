@@ -6,8 +6,11 @@ with their Cramer-Rao band, the time-domain cross-check and the residual
 spectra, plus the parameter correlation matrix, and ``report.md`` with the
 summary table, the derived set, correlations, warnings, the convergence
 history and the figure links.  Files are written under temporary names and
-renamed into place only when all of them are done, so a failed report never
-leaves a half-written set.  ``fdml report RESULT.json`` calls it.
+renamed into place only when all of them are done
+(:class:`fdml.outputs.StagedOutputs`), so a failed report never leaves a
+half-written set; the folder and every file in it are checked first, so a
+report never writes over the result it reads.  ``fdml report RESULT.json``
+calls it.
 
 Figures are drawn on :class:`matplotlib.figure.Figure` objects directly (no
 pyplot), so the report neither needs a display nor touches pyplot's state.
@@ -15,7 +18,6 @@ pyplot), so the report neither needs a display nor touches pyplot's state.
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 __all__ = ["write_report"]
@@ -70,24 +72,25 @@ def write_report(result_or_path, out_dir=None, *, freq_unit: str = "rad/s", dpi:
         record whose inputs step at t = 0) is left out and the report says why.
     """
     from .errors import FdmlError
+    from .outputs import StagedOutputs, check_output, check_output_dir
     from .plotting import plot_correlation, plot_residual_spectra, plot_spectra, plot_time_histories
 
     res, source = _load(result_or_path)
     out = Path(out_dir) if out_dir is not None else _default_dir(source)
-    out.mkdir(parents=True, exist_ok=True)
-    tag = f".tmp-{os.getpid()}"
-    pending: dict[str, tuple[Path, Path]] = {}  # key -> (temporary, final)
+    inputs = [] if source is None else [source]
+    check_output_dir(out, inputs, what="report folder")  # every output checked before any drawing
+    for name in _file_names(len(res.spectra)):
+        check_output(out / name, inputs, what="report file")
+    staged = StagedOutputs(inputs)  # nothing is renamed into place before every file is written
+    pending: dict[str, Path] = {}  # key -> final path
     notes: list[str] = []
 
     def save(key: str, fig, stem: str) -> None:
-        final = out / f"{stem}.png"
-        tmp = out / f".{stem}{tag}.png"
-        fig.savefig(tmp, dpi=dpi, format="png")
-        pending[key] = (tmp, final)
+        pending[key] = staged.savefig(fig, out / f"{stem}.png", dpi=dpi, format="png")
 
     multi = len(res.spectra) > 1
     figures: list[tuple[str, str, str]] = []  # (record label, caption, file name)
-    try:
+    with staged:
         for i, spec in enumerate(res.spectra):
             sfx = f"_{i}" if multi else ""
             rname = spec["name"]
@@ -132,17 +135,16 @@ def write_report(result_or_path, out_dir=None, *, freq_unit: str = "rad/s", dpi:
         save("correlation", fig, "correlation")
         figures.append(("", "Correlation of the estimates", "correlation.png"))
         text = _markdown(res, source, figures, notes)
-        md_tmp, md_final = out / f".report{tag}.md", out / "report.md"
-        md_tmp.write_text(text, encoding="utf-8")
-        pending["report"] = (md_tmp, md_final)
-    except BaseException:
-        for tmp, _ in pending.values():
-            tmp.unlink(missing_ok=True)
-        raise
-    for tmp, final in pending.values():
-        os.replace(tmp, final)
+        pending["report"] = staged.write_text(out / "report.md", text, what="report file")
     order = ["report"] + [k for k in pending if k != "report"]
-    return {k: pending[k][1] for k in order}
+    return {k: pending[k] for k in order}
+
+
+def _file_names(n_records: int) -> list[str]:
+    """Every file name a report of ``n_records`` records may write."""
+    sfx = [f"_{i}" for i in range(n_records)] if n_records > 1 else [""]
+    stems = [f"{k}{s}" for s in sfx for k in ("spectra", "time_histories", "residual_spectra")]
+    return ["report.md", "correlation.png"] + [f"{s}.png" for s in stems]
 
 
 def _markdown(res, source, figures, notes) -> str:

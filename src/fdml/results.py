@@ -10,7 +10,6 @@ versioned JSON without loss (:meth:`FitResult.to_json`, :func:`load_result`).
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import FdmlError
+from .findings import KINDS as _FINDING_KINDS
 from .findings import Finding
+from .jsoncodec import Fields, dumps, read_json, to_jsonable, write_json
 
 __all__ = ["FitResult", "IterationInfo", "load_result", "RESULT_FORMAT"]
 
@@ -45,49 +46,6 @@ class IterationInfo:
     cost: float
     params: dict
     step_in_stderr: float
-
-
-def _c2j(a: np.ndarray):
-    a = np.asarray(a)
-    return {"re": a.real.tolist(), "im": a.imag.tolist()}
-
-
-def _j2c(d) -> np.ndarray:
-    return np.asarray(d["re"], float) + 1j * np.asarray(d["im"], float)
-
-
-def _f2j(a):
-    """Float array to nested lists with inf/nan as strings (JSON has neither)."""
-    a = np.asarray(a, float)
-    if a.ndim == 0:
-        x = float(a)
-        return x if math.isfinite(x) else str(x)
-    return [_f2j(x) for x in a]
-
-
-def _jsonable(obj):
-    """A JSON-safe copy of record meta data (arrays to lists, other objects to str)."""
-    if isinstance(obj, dict):
-        return {str(k): _jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
-    if isinstance(obj, float) and not math.isfinite(obj):
-        return str(obj)
-    if obj is None or isinstance(obj, (str, int, float, bool)):
-        return obj
-    return str(obj)
-
-
-def _j2f(v) -> np.ndarray:
-    def conv(x):
-        if isinstance(x, list):
-            return [conv(y) for y in x]
-        return float(x)
-    return np.asarray(conv(v), float)
 
 
 @dataclass(frozen=True)
@@ -319,7 +277,8 @@ class FitResult:
 
         Keys: model, params (name -> {value, stderr}), derived (name ->
         {value, stderr}), cost, iterations, converged, message, band, outputs,
-        records, boundary, cov_type, warnings.  Infinite standard errors are
+        records, boundary, cov_type, warnings, findings (the data check's,
+        each with its ``code``).  Infinite standard errors are
         written as the string "inf".
         """
         def num(x):
@@ -342,124 +301,133 @@ class FitResult:
             "boundary": self.boundary,
             "cov_type": self.cov_type,
             "warnings": list(self.warnings),
+            "findings": [f.to_dict() for f in self.findings],
         }
 
     def to_dict(self) -> dict:
-        """JSON-ready dict (format ``fdml.FitResult`` version 1)."""
+        """JSON-ready dict (format ``fdml.FitResult`` version 1), through :func:`fdml.jsoncodec.to_jsonable`.
+
+        Float arrays are nested lists, complex arrays ``{"re": ..., "im": ...}``,
+        non-finite numbers the strings ``"nan"``, ``"inf"``, ``"-inf"``.
+        """
         from .models import model_to_dict
 
-        return {
+        def f(a):
+            return np.asarray(a, float)
+
+        def c(a):
+            return np.asarray(a, complex)
+
+        return to_jsonable({
             "format": RESULT_FORMAT[0],
             "version": RESULT_FORMAT[1],
             "model": model_to_dict(self.model),
             "names": list(self.names),
-            "values": _f2j(self.values),
-            "stderr": _f2j(self.stderr),
-            "cov": _f2j(self.cov),
-            "corr": _f2j(self.corr),
-            "cov_naive": _f2j(self.cov_naive),
-            "R": _c2j(self.R),
-            "cost_history": list(self.cost_history),
-            "iterations": self.iterations,
-            "converged": self.converged,
+            "values": f(self.values),
+            "stderr": f(self.stderr),
+            "cov": f(self.cov),
+            "corr": f(self.corr),
+            "cov_naive": f(self.cov_naive),
+            "R": c(self.R),
+            "cost_history": [float(x) for x in self.cost_history],
+            "iterations": int(self.iterations),
+            "converged": bool(self.converged),
             "message": self.message,
-            "derived": {k: [v, s if math.isfinite(s) else str(s)] for k, (v, s) in self.derived.items()},
-            "fixed": self.fixed,
+            "derived": {k: [float(v), float(s)] for k, (v, s) in self.derived.items()},
+            "fixed": {k: float(v) for k, v in self.fixed.items()},
             "at_bound": list(self.at_bound),
             "outputs": list(self.outputs),
-            "band": None if self.band is None else list(self.band),
-            "n_freq": self.n_freq,
+            "band": None if self.band is None else [float(x) for x in self.band],
+            "n_freq": int(self.n_freq),
             "records": list(self.records),
             "boundary": self.boundary,
             "cov_type": self.cov_type,
             "method": self.method,
             "stop": self.stop,
-            "stopped": self.stopped,
+            "stopped": bool(self.stopped),
             "warnings": list(self.warnings),
-            "elapsed": self.elapsed,
+            "elapsed": float(self.elapsed),
             "spectra": [
                 {
-                    "name": s["name"], "omega": _f2j(s["omega"]), "z": _c2j(s["z"]), "u": _c2j(s["u"]),
-                    "inputs": s["inputs"], "x0": _f2j(s["x0"]), "xT": _f2j(s["xT"]), "T": s["T"],
-                    "dt": s["dt"], "n": s["n"], "ones": _c2j(s["ones"]),
+                    "name": s["name"], "omega": f(s["omega"]), "z": c(s["z"]), "u": c(s["u"]),
+                    "inputs": list(s["inputs"]), "x0": f(s["x0"]), "xT": f(s["xT"]), "T": float(s["T"]),
+                    "dt": float(s["dt"]), "n": int(s["n"]), "ones": c(s["ones"]),
                 }
                 for s in self.spectra
             ],
             "nuisance": self.nuisance,
-            "findings": [f.to_dict() for f in self.findings],
+            "findings": [x.to_dict() for x in self.findings],
             "time_records": [
                 None if r is None else
-                {"name": r["name"], "t": _f2j(r["t"]),
-                 "signals": {k: _f2j(v) for k, v in r["signals"].items()},
-                 "meta": _jsonable(r["meta"]), "trim_mode": r["trim_mode"]}
+                {"name": r["name"], "t": f(r["t"]), "signals": {k: f(v) for k, v in r["signals"].items()},
+                 "meta": r["meta"], "trim_mode": r["trim_mode"]}
                 for r in self.time_records
             ],
-        }
+        })
 
-    def to_json(self, path: str | Path | None = None, indent: int = 1):
-        """JSON text, or, given ``path``, write it atomically there and return the path."""
-        text = json.dumps(self.to_dict(), indent=indent)
+    def to_json(self, path: str | Path | None = None, indent: int = 1, *, inputs=()):
+        """JSON text, or, given ``path``, write it atomically there and return the path.
+
+        ``inputs`` (paths) are files the result must not replace (see
+        :func:`fdml.outputs.atomic_write_text`).
+        """
         if path is None:
-            return text
-        from .record import atomic_write_text
-
-        atomic_write_text(path, text)
-        return Path(path)
+            return dumps(self.to_dict(), indent=indent)
+        return write_json(path, self.to_dict(), inputs=inputs, indent=indent)
 
     @classmethod
-    def from_dict(cls, d: dict) -> "FitResult":
-        """Inverse of :meth:`to_dict`."""
-        from .models import model_from_dict
+    def from_dict(cls, d: dict, *, source: str = "fdml result") -> "FitResult":
+        """Inverse of :meth:`to_dict`.
 
-        if d.get("format") != RESULT_FORMAT[0]:
-            raise FdmlError("not an fdml result file (format field missing or wrong)")
-        if d.get("version") != RESULT_FORMAT[1]:
-            raise FdmlError(f"fdml result version {d.get('version')} is not supported (expected {RESULT_FORMAT[1]})")
-        spectra = tuple(
-            {
-                "name": s["name"], "omega": _j2f(s["omega"]), "z": _j2c(s["z"]), "u": _j2c(s["u"]),
-                "inputs": s["inputs"], "x0": _j2f(s["x0"]), "xT": _j2f(s["xT"]), "T": s["T"],
-                "dt": s["dt"], "n": s["n"], "ones": _j2c(s["ones"]),
-            }
-            for s in d.get("spectra", [])
-        )
+        Every key is checked for presence, type and shape; a problem raises
+        :class:`~fdml.errors.FdmlError` ``"<source>: key '<key>' ..."``
+        (``source`` names the file, e.g. ``"result file run.json"``).
+        """
+        f = Fields(d, source)
+        fmt = f.raw("format", None)
+        if fmt is None:
+            raise f.error("format", "is missing: not an fdml result file")
+        if fmt != RESULT_FORMAT[0]:
+            raise f.error("format", f"is {str(fmt)[:40]!r}, not {RESULT_FORMAT[0]!r}: not an fdml result file")
+        f.version("version", RESULT_FORMAT[1])
+        model = _model_from_fields(f)
+        names = f.strings("names")
+        n = len(names)
+        outputs = f.strings("outputs", choices=("alpha", "q", "az"))
+        k = len(outputs)
+        spectra = tuple(_spectrum_from_fields(s) for s in f.items("spectra", default=[]))
         return cls(
-            model=model_from_dict(d["model"]),
-            names=tuple(d["names"]),
-            values=_j2f(d["values"]),
-            stderr=_j2f(d["stderr"]),
-            cov=_j2f(d["cov"]),
-            corr=_j2f(d["corr"]),
-            cov_naive=_j2f(d["cov_naive"]),
-            R=_j2c(d["R"]),
-            cost_history=tuple(d["cost_history"]),
-            iterations=d["iterations"],
-            converged=d["converged"],
-            message=d["message"],
-            derived={k: (float(v[0]), float(v[1])) for k, v in d["derived"].items()},
-            fixed=dict(d["fixed"]),
-            at_bound=tuple(d["at_bound"]),
-            outputs=tuple(d["outputs"]),
-            band=None if d["band"] is None else tuple(d["band"]),
-            n_freq=d["n_freq"],
-            records=tuple(d["records"]),
-            boundary=d["boundary"],
-            cov_type=d["cov_type"],
-            method=d.get("method", "lm"),
-            stop=d.get("stop", "converge"),
-            stopped=d.get("stopped", False),
-            warnings=tuple(d.get("warnings", ())),
-            elapsed=d.get("elapsed", 0.0),
+            model=model,
+            names=names,
+            values=f.floats("values", (n,)),
+            stderr=f.floats("stderr", (n,)),
+            cov=f.floats("cov", (n, n)),
+            corr=f.floats("corr", (n, n)),
+            cov_naive=f.floats("cov_naive", (n, n)),
+            R=f.complexes("R", (k, k)),
+            cost_history=f.numbers("cost_history", min_length=1),
+            iterations=f.integer("iterations", minimum=0),
+            converged=f.boolean("converged"),
+            message=f.string("message"),
+            derived=_derived_from_fields(f),
+            fixed={name: _number_in(f, "fixed", name, v) for name, v in f.mapping("fixed").items()},
+            at_bound=f.strings("at_bound"),
+            outputs=outputs,
+            band=None if f.raw("band") is None else f.numbers("band", length=3),
+            n_freq=f.integer("n_freq", minimum=0),
+            records=f.strings("records"),
+            boundary=f.string("boundary"),
+            cov_type=f.string("cov_type"),
+            method=f.string("method", default="lm"),
+            stop=f.string("stop", default="converge"),
+            stopped=f.boolean("stopped", default=False),
+            warnings=f.strings("warnings", default=()),
+            elapsed=f.number("elapsed", default=0.0),
             spectra=spectra,
-            nuisance=d.get("nuisance", {}),
-            findings=tuple(Finding.from_dict(f) for f in d.get("findings", ())),
-            time_records=tuple(
-                None if r is None else
-                {"name": r["name"], "t": _j2f(r["t"]),
-                 "signals": {k: _j2f(v) for k, v in r["signals"].items()},
-                 "meta": r["meta"], "trim_mode": r["trim_mode"]}
-                for r in d.get("time_records", [])
-            ),
+            nuisance=f.mapping("nuisance", default={}),
+            findings=tuple(_finding_from_fields(x) for x in f.items("findings", default=[])),
+            time_records=tuple(None if r is None else _time_record_from_fields(r)
+                               for r in f.items("time_records", default=[], allow_none=True)),
         )
 
     def record(self, index: int = 0):
@@ -500,13 +468,79 @@ class FitResult:
         return y
 
 
-def load_result(path: str | Path) -> FitResult:
-    """Read a result saved by :meth:`FitResult.to_json`."""
-    path = Path(path)
-    if not path.exists():
-        raise FdmlError(f"result file {path} does not exist")
+def _number_in(f: Fields, key: str, name: str, v) -> float:
+    """A number inside the object ``key`` (for messages ``key 'fixed.Cm_a' ...``)."""
+    return Fields({name: v}, f.source, f"{f.name(key)}.").number(name)
+
+
+def _derived_from_fields(f: Fields) -> dict:
+    out = {}
+    for name, v in f.mapping("derived").items():
+        pair = Fields({name: v}, f.source, f"{f.name('derived')}.").numbers(name, length=2)
+        out[name] = (pair[0], pair[1])
+    return out
+
+
+def _model_from_fields(f: Fields):
+    """The saved model, checked key by key, then built by :func:`fdml.models.model_from_dict`."""
+    from .models import model_from_dict
+
+    m = f.sub("model")
+    kind = m.string("kind")
+    options = m.mapping("options", default={})
+    aircraft = None if m.raw("aircraft", None) is None else m.mapping("aircraft")
+    params = []
+    for p in m.items("parameters"):
+        params.append({"name": p.string("name"), "value": p.number("value"),
+                       "free": p.boolean("free", default=True),
+                       "lower": p.number("lower", default=None, allow_none=True),
+                       "upper": p.number("upper", default=None, allow_none=True),
+                       "unit": p.string("unit", default=""), "description": p.string("description", default="")})
     try:
-        d = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise FdmlError(f"result file {path} is not valid JSON: {exc}") from None
-    return FitResult.from_dict(d)
+        return model_from_dict({"kind": kind, "options": options, "aircraft": aircraft, "parameters": params})
+    except FdmlError as exc:
+        raise f.error("model", f"does not describe a model: {exc}") from None
+    except (TypeError, ValueError, LookupError, AttributeError, ArithmeticError) as exc:
+        raise f.error("model", f"does not describe a model: {type(exc).__name__}: {exc}") from None
+
+
+def _spectrum_from_fields(s: Fields) -> dict:
+    omega = s.floats("omega", (None,))
+    m = omega.size
+    return {
+        "name": s.string("name"), "omega": omega, "z": s.complexes("z", (m, None)),
+        "u": s.complexes("u", (m, None)), "inputs": list(s.strings("inputs")),
+        "x0": s.floats("x0", (2,)), "xT": s.floats("xT", (2,)), "T": s.number("T"), "dt": s.number("dt"),
+        "n": s.integer("n", minimum=0), "ones": s.complexes("ones", (m,)),
+    }
+
+
+def _time_record_from_fields(r: Fields) -> dict:
+    t = r.floats("t", (None,))
+    sig = r.sub("signals")
+    return {"name": r.string("name"), "t": t,
+            "signals": {k: sig.floats(k, (t.size,)) for k in sig.doc},
+            "meta": r.mapping("meta"), "trim_mode": r.string("trim_mode")}
+
+
+def _finding_from_fields(x: Fields) -> Finding:
+    return Finding(code=x.string("code"), message=x.string("message"),
+                   kind=x.string("kind", default="data", choices=_FINDING_KINDS),
+                   record=x.string("record", default=None, allow_none=True),
+                   value=x.number("value", default=None, allow_none=True),
+                   expected=x.number("expected", default=None, allow_none=True))
+
+
+def load_result(path: str | Path) -> FitResult:
+    """Read a result saved by :meth:`FitResult.to_json`.
+
+    Raises
+    ------
+    FdmlError
+        One line naming ``path``: the file is missing, a folder, not UTF-8 or
+        not JSON (:func:`fdml.jsoncodec.read_json`), or a key is missing or of
+        the wrong type or shape (:meth:`FitResult.from_dict`).
+    """
+    path = Path(path)
+    what = f"result file {path}"
+    return FitResult.from_dict(read_json(path, what="result file"), source=what)

@@ -776,6 +776,8 @@ def simulate_maneuver(model, maneuver: str = "3211", *, duration: float = 10.0, 
     Record
         As :func:`simulate`; ``meta`` also holds ``maneuver`` and ``seed``.
     """
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+        raise ParameterError(f"seed must be None or an integer >= 0 (numpy seeds cannot be negative), got {seed!r}")
     rng = np.random.default_rng(seed)
     t = time_vector(duration, dt)
     if maneuver == "multisine" and "rng" not in input_kw and input_kw.get("phases") == "random":

@@ -27,22 +27,41 @@ DEFAULT_BAND = (0.1, 10.0, 0.1)
 OUTPUT_NAMES = ("alpha", "q", "az")
 
 
-def parse_band(band) -> tuple[float, float, float]:
-    """Normalise a band given as ``(lo, hi, step)`` or ``"LO:HI:STEP"`` (rad/s)."""
+def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[float, float, float]:
+    """Normalise and check a band given as ``(lo, hi, step)`` or ``"LO:HI:STEP"`` (rad/s).
+
+    Parameters
+    ----------
+    band : tuple, str or None
+        None gives :data:`DEFAULT_BAND`.
+    what : str, optional
+        How the band is named in messages (``"--band"`` on the command line).
+    positive : bool, optional
+        Require ``lo > 0`` (default: a fit band; the output-bias regressor is
+        singular at 0 rad/s).  ``fdml response`` accepts 0.
+
+    Raises
+    ------
+    BandError
+        A malformed band, or one :func:`fdml.fourier.check_band` refuses
+        (non-finite, ``hi < lo``, ``step <= 0``, too many frequencies), so a
+        command can refuse it before any work starts.
+    """
     if band is None:
         return DEFAULT_BAND
     if isinstance(band, str):
         parts = band.split(":")
         if len(parts) != 3:
-            raise BandError(f"band {band!r} must be LO:HI:STEP in rad/s, e.g. 0.1:10:0.1")
+            raise BandError(f"{what} {band!r} must be LO:HI:STEP in rad/s, e.g. 0.1:10:0.1")
         try:
             band = tuple(float(x) for x in parts)
         except ValueError:
-            raise BandError(f"band {band!r} must be three numbers LO:HI:STEP in rad/s") from None
+            raise BandError(f"{what} {band!r} must be three numbers LO:HI:STEP in rad/s") from None
     try:
         lo, hi, step = (float(x) for x in band)
     except (TypeError, ValueError):
-        raise BandError(f"band {band!r} must be (lo, hi, step) in rad/s") from None
+        raise BandError(f"{what} {band!r} must be (lo, hi, step) in rad/s") from None
+    lo, hi, step, _ = fourier.check_band(lo, hi, step, what=what, positive=positive)
     return lo, hi, step
 
 

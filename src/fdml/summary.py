@@ -429,7 +429,8 @@ def fit_summary(res, digits: int = 6) -> Summary:
     Tables: ``parameters`` (estimates, then the listed fixed parameters
     flagged ``fixed``), ``derived`` (the alternate set with delta-method
     standard errors) and ``correlations`` (pairs at or above 0.9); notes:
-    warnings raised by the fit.
+    the data check's findings (with their codes) and the warnings raised by
+    the fit.
 
     Parameters
     ----------
@@ -466,7 +467,7 @@ def fit_summary(res, digits: int = 6) -> Summary:
         ccols = (Column("parameter_1", "parameter"), Column("parameter_2", "with"),
                  Column("correlation", "correlation", "z"))
         tables.append(Table("correlations", f"Correlations |r| >= {CORRELATION_LISTED:g}", ccols, tuple(pairs)))
-    notes = [("warnings", list(res.warnings))]
+    notes = [("data check", [str(f) for f in getattr(res, "findings", ())]), ("warnings", list(res.warnings))]
     title = f"fdml fit: {res.model.describe()}"
     return Summary(title, _header(res), tables, notes, digits=digits)
 

@@ -53,3 +53,34 @@ def make_model_from_args(args, values: dict | None = None):
         model.parameters.check_names(values)
         model = model.with_values(values)
     return model
+
+
+def check_band_option(text, option: str = "--band", *, positive: bool = True) -> None:
+    """Refuse a malformed or unusable band before any work (fdml's one band check).
+
+    ``montecarlo`` and ``batch`` would otherwise fail every run one by one and
+    print a table of NaN; the message names ``option``.
+    """
+    from ..spectra import parse_band
+
+    parse_band(text, what=option, positive=positive)
+
+
+def _integer(text: str, lowest: int, what: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if value < lowest:
+        raise argparse.ArgumentTypeError(f"must be {what}, got {value}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1 (counts of workers, runs); usage error (exit 2) otherwise."""
+    return _integer(text, 1, "a positive integer")
+
+
+def seed_int(text: str) -> int:
+    """argparse type: a random seed, an integer >= 0 (numpy's SeedSequence refuses negative seeds)."""
+    return _integer(text, 0, "a non-negative integer (numpy seeds cannot be negative)")

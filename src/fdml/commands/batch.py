@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._common import add_model_arguments, assignments
+from ._common import add_model_arguments, assignments, check_band_option, positive_int
 
 
 def register(sub) -> None:
@@ -20,13 +20,16 @@ def register(sub) -> None:
     p.add_argument("--method", default="lm", choices=("lm", "gauss-newton"))
     p.add_argument("--out", default="fdml-batch", metavar="DIR",
                    help="output folder: results/KEY.json and table.csv, table.json (default ./fdml-batch)")
-    p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: all cores)")
+    p.add_argument("--workers", type=positive_int, metavar="N", help="local worker processes (default: all cores)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on a Dask cluster (tcp://HOST:PORT; needs the 'dask' extra)")
     p.add_argument("--serial", action="store_true", help="fit in this process, one record after another")
     p.add_argument("--no-resume", dest="resume", action="store_false",
                    help="refit everything (default: reuse results whose inputs are unchanged)")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
+    p.add_argument("--strict", action="store_true",
+                   help="a record whose data check finds anything (units, signs, channels, response) "
+                        "fails with that finding as its error")
     p.add_argument("--json", action="store_true", help="machine-readable summary")
     p.set_defaults(func=run)
 
@@ -51,6 +54,31 @@ def parse_source(text: str):
     return (path, t0, t1)
 
 
+def check_batch_outputs(sources, out_dir, aircraft=None) -> None:
+    """Refuse, before any fit, an output folder or file that is a source, a folder or a device.
+
+    The outputs are ``out_dir``, ``out_dir/results``, the two tables and every
+    record's result and error file; the inputs are the record files, the source
+    folders and the aircraft JSON.
+    """
+    from pathlib import Path
+
+    from ..batch import collect_sources
+    from ..outputs import Inputs, check_output, check_output_dir
+
+    items = collect_sources(sources)
+    folders = [s for s in sources if isinstance(s, str) and Path(s).is_dir()]
+    inputs = Inputs([it.path for it in items] + folders + [aircraft])  # stat each input once
+    out = Path(out_dir)
+    check_output_dir(out, inputs)
+    check_output_dir(out / "results", inputs)
+    for name in ("table.csv", "table.json"):
+        check_output(out / name, inputs, what="batch table")
+    for it in items:
+        for name in (f"{it.key}.json", f"{it.key}.error.json"):
+            check_output(out / "results" / name, inputs, what="batch result file")
+
+
 def run(args) -> int:
     from ..batch import ModelSpec, run_batch
     from ..errors import FdmlError
@@ -59,6 +87,7 @@ def run(args) -> int:
         raise FdmlError("the dimensional model needs --airspeed U (m/s) or --aircraft")
     if args.model != "dimensional" and args.aircraft is None:
         raise FdmlError(f"the {args.model} model needs --aircraft NAME or FILE.json")
+    check_band_option(args.band)  # up front: a bad band would fail every record one by one
     options = {"gust": bool(args.gust)}
     if args.airspeed is not None:
         options["airspeed"] = args.airspeed
@@ -66,6 +95,8 @@ def run(args) -> int:
                      free=list(args.free))
     fit_kwargs = {"band": args.band, "outputs": args.outputs, "boundary": args.boundary, "trim": args.trim,
                   "method": args.method}
+    if args.strict:
+        fit_kwargs["strict"] = True
     if args.serial and args.scheduler:
         raise FdmlError("give --serial or --scheduler, not both")
     engine = "serial" if args.serial else (args.scheduler or "process")
@@ -74,7 +105,9 @@ def run(args) -> int:
         import importlib.util
 
         progress = True if importlib.util.find_spec("tqdm") is not None else None
-    summary = run_batch([parse_source(s) for s in args.sources], spec, args.out, fit_kwargs=fit_kwargs,
+    sources = [parse_source(s) for s in args.sources]
+    check_batch_outputs(sources, args.out, args.aircraft)
+    summary = run_batch(sources, spec, args.out, fit_kwargs=fit_kwargs,
                         engine=engine, workers=args.workers, resume=args.resume, progress=progress)
     if args.json:
         from ..cli import print_json

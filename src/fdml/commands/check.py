@@ -16,6 +16,10 @@ def register(sub) -> None:
                    help="quantities the fit will estimate (default 13: dimensional model, biases, boundary)")
     p.add_argument("--compat", action="store_true",
                    help="also estimate sensor biases, scale factors and time shifts from the kinematics")
+    p.add_argument("--airspeed", type=float, metavar="U",
+                   help="true airspeed, m/s, for the a_z slope of the data check (default: the record's)")
+    p.add_argument("--strict", action="store_true",
+                   help="exit with code 2 when the data check finds anything (units, signs, channels, response)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=run)
 
@@ -24,8 +28,15 @@ def run(args) -> int:
     from ..io import load_record
     from ..quality import check_quality
 
+    from ..datacheck import check_data
+    from ..findings import raise_if_strict
+
+    from ._common import check_band_option
+
+    check_band_option(args.band)
     rec = load_record(args.record, **record_options(args))
     report = check_quality(rec, band=args.band, n_params=args.n_params)
+    data_check = check_data(rec, band=args.band, airspeed=args.airspeed)
     compat = None
     if args.compat:
         from ..compat import check_compatibility
@@ -34,13 +45,16 @@ def run(args) -> int:
     if args.json:
         from ..cli import print_json
 
-        out = {"record": args.record, "quality": report.to_dict()}
+        out = {"record": args.record, "quality": report.to_dict(), "data_check": data_check.to_dict()}
         if compat is not None:
             out["compatibility"] = compat.to_dict()
         print_json(out)
     else:
         print(report.summary())
+        print()
+        print(data_check.summary())
         if compat is not None:
             print()
             print(compat.summary())
+    raise_if_strict(data_check.findings, args.strict)
     return 0

@@ -31,6 +31,9 @@ def register(sub) -> None:
     p.add_argument("--max-effects", type=int, default=2, help="greedy forward selection limit (default 2)")
     p.add_argument("--noise", default="band", choices=("band", "white"),
                    help="noise model of the likelihood (default band)")
+    p.add_argument("--strict", action="store_true",
+                   help="exit with code 2 before fitting when the data check finds anything "
+                        "(units, signs, swapped channels, no response)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("-o", "--output", metavar="REPORT.json", help="write the full report (or validation) as JSON")
     p.add_argument("--figure", metavar="FIG.png", help="write the figure (gap map before/after, Bode overlays)")
@@ -52,6 +55,10 @@ def _validate(args) -> int:
     from ..diagnose.validate import REPORT_SEED_BASE, validate
 
     n_e, n_n = (1, 6) if args.quick else (args.n_effect, args.n_null)
+    if args.output:  # before the (long) work
+        from ..outputs import check_output
+
+        check_output(args.output, what="validation file")
 
     def progress(done, total):
         if not args.json:
@@ -72,6 +79,17 @@ def _validate(args) -> int:
     return 0
 
 
+def _check_outputs(args) -> None:
+    """-o and --figure: not an input (records, hold-out records, aircraft JSON), a folder or a device."""
+    from ..outputs import check_output
+
+    inputs = [*args.records, *(args.holdout or []), args.aircraft]
+    if args.output:
+        check_output(args.output, inputs, what="report file")
+    if args.figure:
+        check_output(args.figure, inputs, what="figure")
+
+
 def run(args) -> int:
     if args.validate:
         return _validate(args)
@@ -82,6 +100,7 @@ def run(args) -> int:
 
     if not args.records:
         raise RecordError("give at least one RECORD to diagnose (or --validate)")
+    _check_outputs(args)
     opts = record_options(args)
     records = load_records(args.records, **opts)
     holdout = load_records(args.holdout, **opts) if args.holdout else None
@@ -107,7 +126,8 @@ def run(args) -> int:
     library = [x.strip() for x in args.library.split(",")] if args.library else None
     outputs = [o.strip() for o in args.outputs.split(",") if o.strip()]
     rep = diagnose(records, model, holdout=holdout, band=args.band, bands=bands, library=library, alpha=args.alpha,
-                   max_effects=args.max_effects, noise=args.noise, outputs=outputs, trim="first")
+                   max_effects=args.max_effects, noise=args.noise, outputs=outputs, trim="first",
+                   strict=args.strict)
     if args.output:
         rep.to_json(args.output)
     if args.figure and rep.status == "ok":

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..io.cli import add_record_arguments, record_options
-from ._common import add_model_arguments, assignments, make_model_from_args
+from ._common import add_model_arguments, assignments, check_band_option, make_model_from_args
 
 
 def register(sub) -> None:
@@ -27,6 +27,9 @@ def register(sub) -> None:
     p.add_argument("--stop", default="converge", choices=("converge", "paper"),
                    help="run to convergence (default) or the paper's 1 %% rule")
     p.add_argument("-o", "--output", metavar="RESULT.json", help="save the full result as JSON")
+    p.add_argument("--strict", action="store_true",
+                   help="exit with code 2 before fitting when the data check finds anything "
+                        "(units, signs, swapped channels, no response); estimation warnings stay warnings")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.add_argument("--progress", action="store_true",
                    help="show a progress bar on stderr (needs tqdm: pip install 'fdml[progress]')")
@@ -57,6 +60,11 @@ def run(args) -> int:
 
     from ..spectra import spectra
 
+    if args.output:  # before any work: the result must not replace an input, a folder or a device
+        from ..outputs import check_output
+
+        check_output(args.output, [*args.records, args.aircraft], what="result file")
+    check_band_option(args.band)
     records = load_records(args.records, **record_options(args))
     t_read = time.perf_counter()
     model = make_model_from_args(args)
@@ -68,7 +76,7 @@ def run(args) -> int:
     try:
         res = fit(data if len(data) > 1 else data[0], model, outputs=args.outputs,
                   fix=fixed, free=args.free, boundary=args.boundary, biases=biases,
-                  method=args.method, stop=args.stop, callback=bar)
+                  method=args.method, stop=args.stop, callback=bar, strict=args.strict)
     finally:
         if bar is not None:
             bar.close()

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._common import add_model_arguments, assignments
+from ._common import add_model_arguments, assignments, check_band_option, positive_int, seed_int
 
 
 def register(sub) -> None:
@@ -18,10 +18,10 @@ def register(sub) -> None:
     p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
     p.add_argument("--noise", default="0.03", metavar="FRACTION|alpha=..,q=..,az=..",
                    help="noise: fraction of each output's RMS (default 0.03) or absolute stds")
-    p.add_argument("--seed", type=int, default=0, help="seed (default 0)")
+    p.add_argument("--seed", type=seed_int, default=0, help="seed (default 0)")
     p.add_argument("--band", default="0.1:10:0.1", metavar="LO:HI:STEP",
                    help="frequency band in rad/s (default 0.1:10:0.1)")
-    p.add_argument("--workers", type=int, metavar="N", help="local worker processes (default: all cores)")
+    p.add_argument("--workers", type=positive_int, metavar="N", help="local worker processes (default: all cores)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster (needs the 'dask' extra)")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
     p.add_argument("-o", "--output", metavar="DIR",
@@ -51,17 +51,23 @@ def run(args) -> int:
     if args.fit_model and args.fit_model != args.model:
         fit_model = ModelSpec(kind=args.fit_model, aircraft=args.aircraft, options=options)
     noise, relative = _noise(args.noise)
+    check_band_option(args.band)  # up front: a bad band would fail all N runs one by one
+    if args.output:  # before any work: the folder and its three files
+        from ..outputs import check_output, check_output_dir
+
+        check_output_dir(args.output, [args.aircraft])
+        for name in ("montecarlo.json", "montecarlo.txt", "montecarlo.png"):
+            check_output(Path(args.output) / name, [args.aircraft])
     progress = True if (args.progress and not args.json and importlib.util.find_spec("tqdm")) else None
     res = monte_carlo(truth, n=args.n, maneuver=args.maneuver, duration=args.duration, dt=args.dt, noise=noise,
                       seed=args.seed, fit_model=fit_model, fit_kwargs={"band": args.band},
                       engine=args.scheduler or "process", workers=args.workers, progress=progress)
     files = {}
     if args.output:
-        out = Path(args.output)
-        out.mkdir(parents=True, exist_ok=True)
-        res.to_json(out / "montecarlo.json")
-        from ..record import atomic_write_text
+        from ..outputs import atomic_savefig, atomic_write_text
 
+        out = Path(args.output)
+        res.to_json(out / "montecarlo.json")
         atomic_write_text(out / "montecarlo.txt", res.table() + "\n")
         files = {"json": str(out / "montecarlo.json"), "table": str(out / "montecarlo.txt")}
         if importlib.util.find_spec("matplotlib"):
@@ -71,8 +77,10 @@ def run(args) -> int:
             import matplotlib.pyplot as plt
 
             fig, _ = res.plot()
-            fig.savefig(out / "montecarlo.png", dpi=120)
-            plt.close(fig)
+            try:
+                atomic_savefig(fig, out / "montecarlo.png", dpi=120)
+            finally:
+                plt.close(fig)
             files["figure"] = str(out / "montecarlo.png")
     if args.json:
         from ..cli import print_json

@@ -21,7 +21,7 @@ def run(args) -> int:
     from ..spectra import parse_band
 
     model = make_model_from_args(args, assignments(args.set))
-    omega = omega_band(*parse_band(args.omega))
+    omega = omega_band(*parse_band(args.omega, what="--omega", positive=False))
     G = model.frequency_response(omega)
     if args.json:
         from ..cli import print_json

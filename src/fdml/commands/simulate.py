@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ._common import add_model_arguments, assignments, make_model_from_args
+from ._common import add_model_arguments, assignments, make_model_from_args, seed_int
 
 
 def _noise(text: str | None):
@@ -32,7 +32,7 @@ def register(sub) -> None:
     p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
     p.add_argument("--noise", metavar="FRACTION|alpha=..,q=..,az=..",
                    help="measurement noise: fraction of each output's RMS, or absolute stds")
-    p.add_argument("--seed", type=int, help="random seed")
+    p.add_argument("--seed", type=seed_int, help="random seed (an integer >= 0)")
     p.add_argument("-o", "--output", required=True, metavar="RECORD.csv")
     p.add_argument("--json", action="store_true", help="machine-readable output")
     p.set_defaults(func=run)
@@ -41,9 +41,11 @@ def register(sub) -> None:
 def run(args) -> int:
     import numpy as np
 
+    from ..outputs import check_output
     from ..record import add_noise
     from ..simulate import simulate_maneuver
 
+    check_output(args.output, [args.aircraft], what="record file")  # before any work
     model = make_model_from_args(args, assignments(args.set))
     kw = {} if args.amplitude is None else {"amplitude": args.amplitude}
     rec = simulate_maneuver(model, args.maneuver, duration=args.duration, dt=args.dt,

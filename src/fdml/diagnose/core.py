@@ -47,6 +47,36 @@ def _resolve(records, base):
     return list(records), base, opts
 
 
+def _as_list(records) -> list:
+    if records is None:
+        return []
+    return [records] if isinstance(records, Record) else list(records)
+
+
+def _data_findings(records, model, band, strict: bool) -> list:
+    """The data check on every record, issued as warnings (fdml.datacheck)."""
+    from ..datacheck import check_data
+    from ..findings import emit, raise_if_strict
+
+    try:
+        U = float(model.U)
+    except (AttributeError, NotImplementedError, TypeError, ValueError):
+        U = None
+    lohi = None
+    if band is not None:  # the diagnosis takes LO:HI; the check needs a grid: 100 steps over it
+        lo, hi = (band.split(":")[:2] if isinstance(band, str) else band[:2])
+        lohi = (float(lo), float(hi), (float(hi) - float(lo)) / 100)
+    found = [f for r in records for f in check_data(r, band=lohi, airspeed=U).findings]
+    raise_if_strict(found, strict)
+    emit(found, stacklevel=3)
+    return found
+
+
+def _attach(found: list, rep: DiagnosisReport) -> DiagnosisReport:
+    rep.findings = list(found)
+    return rep
+
+
 def _library(library) -> list:
     if library is None:
         return list(registered_effects())
@@ -69,7 +99,7 @@ def _noise_effect(effects):
 def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, library=None, alpha: float = 0.05,
              max_effects: int = 2, oversample: int = 2, noise: str = "band", refit_top: int = 4, outputs=None,
              boundary: str = "estimated", biases="auto", trim: str = "first",
-             shrink_threshold: float = SHRINK_CONFIRM) -> DiagnosisReport:
+             shrink_threshold: float = SHRINK_CONFIRM, check: bool = True, strict: bool = False) -> DiagnosisReport:
     """Diagnose the gap between a base model and flight records.
 
     Parameters
@@ -107,6 +137,11 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
         As in :func:`fdml.fit`.
     shrink_threshold : float, optional
         Shrink needed for the label "confirmed".
+    check, strict : bool, optional
+        Run the data check (:func:`fdml.datacheck.check_data`) on every
+        record and held-out record (default True; findings kept in
+        ``report.findings``); with ``strict``, raise
+        :class:`~fdml.errors.DataCheckError` on any finding before fitting.
 
     Returns
     -------
@@ -114,6 +149,7 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
     """
     t0 = time.perf_counter()
     records, model, fopts = _resolve(records, base)
+    found = _data_findings(list(records) + _as_list(holdout), model, band, strict) if check else []
     if outputs is None:
         outputs = fopts.get("outputs")
     boundary = fopts.get("boundary", boundary)
@@ -139,11 +175,11 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
     try:
         base_fit = fit_model(data, model, nb, **options)
     except FdmlError as exc:
-        return _empty("base_fit_failed", [f"the base model could not be fitted: {exc}"], settings)
+        return _attach(found, _empty("base_fit_failed", [f"the base model could not be fitted: {exc}"], settings))
     if not base_fit.converged:
-        return _empty("base_not_converged",
+        return _attach(found, _empty("base_not_converged",
                       [f"the base fit did not converge ({base_fit.message}); no effect can be attributed "
-                       "against an unconverged base"], settings)
+                       "against an unconverged base"], settings))
     designs = {}
     base_map = fit_map(data, base_fit, edges, alpha=alpha, channels=channels, designs=designs)
     testable = [c for c in base_map.cells if c.excitation == "ok"]
@@ -157,7 +193,7 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
                      problems + ["no band has enough excitation to say anything about the model; no verdict"],
                      settings)
         rep.location = base_map.to_list()
-        return rep
+        return _attach(found, rep)
 
     fw = floor_weights(data, base_map, channels)
 
@@ -334,7 +370,7 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
     from .text import paragraph
 
     report.text = paragraph(report)
-    return report
+    return _attach(found, report)
 
 
 def floor_weights(data, gmap, channels) -> np.ndarray:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import BandError, RecordError
+from ..fourier import check_band
 from ..record import Record
 from ..spectra import spectra
 
@@ -60,7 +61,8 @@ def parse_diag_band(band) -> tuple[float, float]:
     if len(vals) not in (2, 3):
         raise BandError(f"band {band!r} must be (lo, hi) in rad/s")
     lo, hi = vals[0], vals[1]
-    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+    check_band(lo, hi, None, what="band", positive=True)  # fdml's one band check (no grid here)
+    if not lo < hi:
         raise BandError(f"band must satisfy 0 < lo < hi (rad/s), got {lo:g}:{hi:g}")
     return lo, hi
 

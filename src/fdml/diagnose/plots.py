@@ -106,8 +106,12 @@ def plot_report(rep, path=None):
         if j == 0:
             axm.legend(fontsize=7)
     if path is not None:
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
+        from ..outputs import atomic_savefig
+
+        try:
+            atomic_savefig(fig, path, dpi=110)
+        finally:
+            plt.close(fig)
     return fig
 
 

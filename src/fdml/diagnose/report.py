@@ -29,11 +29,7 @@ flagged cells are reported under ``unexplained`` all the same.
 
 from __future__ import annotations
 
-import json
-import math
 from dataclasses import dataclass, field
-
-import numpy as np
 
 __all__ = ["DiagnosisReport", "label_for", "SHRINK_CONFIRM", "JSON_KEYS"]
 
@@ -67,30 +63,11 @@ def label_for(*, significant: bool, accepted: bool, ambiguous: bool, plausible: 
     return "confirmed"
 
 
-def _num(x):
-    if x is None:
-        return None
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, (int, np.integer)):
-        return int(x)
-    try:
-        x = float(x)
-    except (TypeError, ValueError):
-        return x
-    return x if math.isfinite(x) else None
-
-
 def _clean(obj):
-    if isinstance(obj, dict):
-        return {str(k): _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return [_clean(v) for v in obj.tolist()]
-    if isinstance(obj, (str, type(None))):
-        return obj
-    return _num(obj)
+    """Plain JSON data; the report writes a non-finite number as null (:func:`fdml.jsoncodec.to_jsonable`)."""
+    from ..jsoncodec import to_jsonable
+
+    return to_jsonable(obj, nonfinite="null")
 
 
 @dataclass
@@ -119,6 +96,7 @@ class DiagnosisReport:
     settings: dict = field(default_factory=dict)
     text: str = ""
     details: dict = field(default_factory=dict, repr=False)
+    findings: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         """JSON-ready dict: the issue's keys first, then the supporting detail."""
@@ -140,20 +118,24 @@ class DiagnosisReport:
             "noise": self.noise,
             "settings": self.settings,
             "summary": self.text,
+            "findings": [f.to_dict() for f in self.findings],
         }
         return _clean(d)
 
-    def to_json(self, path=None, indent: int = 1) -> str:
-        s = json.dumps(self.to_dict(), indent=indent)
-        if path is not None:
-            from ..record import atomic_write_text
+    def to_json(self, path=None, indent: int = 1, *, inputs=()) -> str:
+        """JSON text; written atomically to ``path`` when given (never over ``inputs``)."""
+        from ..jsoncodec import dumps, write_json
 
-            atomic_write_text(path, s + "\n")
-        return s
+        d = self.to_dict()
+        if path is not None:
+            write_json(path, d, inputs=inputs, indent=indent, what="diagnosis file")
+        return dumps(d, indent=indent)
 
     def summary(self) -> str:
         """The plain-language paragraph and a ranking table."""
         lines = [self.text, ""]
+        if self.findings:
+            lines[1:1] = ["", "data check:"] + [f"  {f}" for f in self.findings]
         if self.ranking:
             lines.append(f"{'step':>4s} {'effect':26s} {'LR':>9s} {'p (Holm)':>10s} {'shrink':>7s}  label")
             for r in self.ranking:

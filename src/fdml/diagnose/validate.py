@@ -31,6 +31,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..jsoncodec import dumps
 from .report import SHRINK_CONFIRM, UNEXPLAINED_RULE, label_for
 
 __all__ = ["Scenario", "scenarios", "run_scenario", "validate", "ValidationResult", "score", "tune_threshold",
@@ -131,7 +132,7 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
     rec = simulate_truth(base, sc.truth, sc.values, maneuver=sc.maneuver, seed=sc.seed, **kw)
     hold = simulate_truth(base, sc.truth, sc.values, maneuver=HOLDOUT_OF[sc.maneuver], seed=sc.seed + 7_919_000,
                           **kw)
-    row = {**{k: v for k, v in asdict(sc).items() if k != "values"}, "values": json.dumps(sc.values),
+    row = {**{k: v for k, v in asdict(sc).items() if k != "values"}, "values": dumps(sc.values, indent=None),
            "truth_name": sc.truth_name}
     try:
         with warnings.catch_warnings():
@@ -153,8 +154,8 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
         verdict=rep.verdict,
         verdict_key=sel["key"] if sel else "none",
         label=sel["label"] if sel else None,
-        ambiguous=json.dumps(rep.ambiguous),
-        ambiguous_names=json.dumps(sorted({a.split("@")[0] for a in rep.ambiguous})),
+        ambiguous=dumps(rep.ambiguous, indent=None),
+        ambiguous_names=dumps(sorted({a.split("@")[0] for a in rep.ambiguous}), indent=None),
         n_accepted=len(rep.selected),
         second=rep.selected[1]["key"] if len(rep.selected) > 1 else None,
         shrink=sel.get("shrink") if sel else None,
@@ -307,14 +308,14 @@ class ValidationResult:
     def table(self) -> str:
         return format_scores(self.scores)
 
-    def to_json(self, path=None) -> str:
-        s = json.dumps({"settings": self.settings, "scores": self.scores, "rows": self.rows}, indent=1,
-                       default=str)
+    def to_json(self, path=None, *, inputs=()) -> str:
+        """JSON text; written atomically to ``path`` when given (never over ``inputs``)."""
+        d = {"settings": self.settings, "scores": self.scores, "rows": self.rows}
         if path is not None:
-            from ..record import atomic_write_text
+            from ..jsoncodec import write_json
 
-            atomic_write_text(path, s + "\n")
-        return s
+            write_json(path, d, inputs=inputs, what="validation file")
+        return dumps(d, indent=1)
 
 
 def format_scores(s: dict) -> str:
@@ -386,7 +387,7 @@ def validate(*, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SEE
                 for i, row in enumerate(pool.imap_unordered(_run, args, chunksize=1)):
                     rows.append(row)
                     if fh:
-                        fh.write(json.dumps(row, default=str) + "\n")
+                        fh.write(dumps(row, indent=None) + "\n")
                         fh.flush()
                     if progress:
                         progress(i + 1, len(args))
@@ -395,7 +396,7 @@ def validate(*, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SEE
                 row = _run(a)
                 rows.append(row)
                 if fh:
-                    fh.write(json.dumps(row, default=str) + "\n")
+                    fh.write(dumps(row, indent=None) + "\n")
                     fh.flush()
                 if progress:
                     progress(i + 1, len(args))

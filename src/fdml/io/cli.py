@@ -42,6 +42,20 @@ def parse_mapping(text: str | None, what: str) -> dict[str, str]:
     return out
 
 
+def _sign(signal: str, text: str) -> int:
+    """``"-1"`` -> -1; anything but exactly +1 or -1 (``-1.9``, ``2``, ``x``) is a RecordError."""
+    from ..errors import RecordError
+
+    try:
+        value = float(text)
+    except ValueError:
+        value = None
+    if value not in (1.0, -1.0):
+        raise RecordError(f"--sign {signal}={text}: a sign must be +1 or -1; "
+                          "scale factors go in --units (e.g. az=m/s^2)")
+    return int(value)
+
+
 def record_options(args) -> dict:
     """Keyword arguments for :func:`fdml.io.load_record` from parsed arguments."""
     from ..errors import RecordError
@@ -58,10 +72,7 @@ def record_options(args) -> dict:
         if units:
             opts["units"] = units
         if sign_txt:
-            try:
-                opts["sign"] = {k: int(float(v)) for k, v in sign_txt.items()}
-            except ValueError:
-                raise RecordError(f"--sign: values must be +1 or -1, got {sign_txt}") from None
+            opts["sign"] = {k: _sign(k, v) for k, v in sign_txt.items()}
     elif units or sign_txt:
         raise RecordError("--units and --sign apply to a column-mapped CSV: give --columns too")
     if getattr(args, "layout", None):

@@ -109,11 +109,11 @@ def read_csv_mapped(path, columns: Mapping[str, str], units: Mapping[str, str] |
     if extra_sign:
         raise RecordError(f"{p}: sign given for signal(s) not in the column map: {', '.join(extra_sign)}")
     for k, v in sign.items():
-        if v not in (1, -1):
+        if isinstance(v, bool) or v not in (1, -1):  # exactly +-1: a scale factor belongs in units=
             raise RecordError(f"{p}: sign of {k} must be +1 or -1, got {v!r}")
 
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8-sig")  # UTF-8; a leading BOM (spreadsheet export) is dropped
     except (OSError, UnicodeDecodeError) as exc:
         raise wrap_read_error(p, "a CSV text file", exc) from None
     lines = [(i, ln) for i, ln in enumerate(text.splitlines(), start=1)

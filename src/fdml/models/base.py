@@ -308,8 +308,20 @@ class Model:
 
         Outputs are alpha (rad), q (rad/s), a_z (g); inputs de (rad) and, for a
         gust model, alpha_w (rad).  The layout follows python-control.
+
+        Raises
+        ------
+        ParameterError
+            If the response is not finite (overflow from extreme values): a
+            table of NaN is never returned silently.
         """
-        return np.moveaxis(self.evaluate(omega, values).G, 0, -1)
+        G = np.moveaxis(self.evaluate(omega, values).G, 0, -1)
+        if not np.all(np.isfinite(G)):
+            k = int(np.argmax(~np.all(np.isfinite(G), axis=(0, 1))))
+            raise ParameterError(
+                f"{self.describe()}: the frequency response is not finite at {np.ravel(omega)[k]:g} rad/s "
+                f"(overflow: check the airspeed U = {self.U:g} m/s and the parameter values)")
+        return G
 
     def biases(self, values: Mapping[str, float] | None = None) -> np.ndarray:
         """Output biases (alpha rad, q rad/s, az g)."""

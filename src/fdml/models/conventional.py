@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..aircraft import Aircraft
+from ..aircraft import MAX_AIRSPEED, Aircraft
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters
 from .base import Model
@@ -170,8 +170,9 @@ class DimensionalModel(Model):
     def __post_init__(self) -> None:
         if self.aircraft is None and self.airspeed is None:
             raise ParameterError("the dimensional model needs the airspeed U (m/s) or an aircraft")
-        if self.airspeed is not None and not (np.isfinite(self.airspeed) and self.airspeed > 0):
-            raise ParameterError(f"airspeed must be positive (m/s), got {self.airspeed!r}")
+        if self.airspeed is not None and not (np.isfinite(self.airspeed) and 0 < self.airspeed <= MAX_AIRSPEED):
+            raise ParameterError(f"airspeed must be positive and at most {MAX_AIRSPEED:g} m/s "
+                                 f"(fdml.aircraft.MAX_AIRSPEED), got {self.airspeed!r}")
         super().__post_init__()
 
     @property

@@ -1,0 +1,517 @@
+"""The one JSON codec of fdml: results, studies, reports, batch tables and ``--json`` output.
+
+Writing
+    :func:`to_jsonable` turns what fdml holds into plain JSON data: numpy
+    scalars (``bool_``, integers, floats) into Python ones, arrays into nested
+    lists, complex numbers and arrays into ``{"re": [...], "im": [...]}``,
+    non-finite floats into the strings ``"nan"``, ``"inf"`` and ``"-inf"``
+    (JSON has neither; ``nonfinite="null"`` writes ``null`` instead), tuples
+    and sets into lists, paths into strings, mapping keys into strings and
+    objects with a ``to_dict()`` method into its dict.  :func:`dumps` and
+    :func:`write_json` (atomic, through :func:`fdml.outputs.atomic_write_text`)
+    use it, so no writer ever meets a type it cannot encode.
+
+Reading
+    :func:`loads` parses text (a UTF-8 byte-order mark is ignored);
+    :func:`read_json` reads a user's file and turns every way it can be
+    unreadable (missing, a folder, not UTF-8, not JSON) into one
+    :class:`~fdml.errors.FdmlError` line that names the file.
+    :class:`Fields` gives typed access to the keys of a decoded object, so
+    that a hand-edited file with a key missing or of the wrong type or shape
+    is refused with one line naming the file and the key.  The decoders
+    accept what :func:`to_jsonable` writes and also the ``NaN``/``Infinity``
+    tokens and ``null`` that earlier fdml versions wrote.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import stat
+from collections.abc import Mapping
+from pathlib import Path, PurePath
+
+import numpy as np
+
+from .errors import FdmlError
+
+__all__ = [
+    "to_jsonable",
+    "dumps",
+    "loads",
+    "read_json",
+    "write_json",
+    "float_value",
+    "float_array",
+    "complex_array",
+    "Fields",
+]
+
+#: Strings that stand for non-finite floats (lower case; ``str(float)`` and JavaScript spellings).
+_NONFINITE = {"nan": math.nan, "inf": math.inf, "+inf": math.inf, "-inf": -math.inf,
+              "infinity": math.inf, "+infinity": math.inf, "-infinity": -math.inf}
+
+
+# --- writing ------------------------------------------------------------------------------------
+def _float(x: float, nonfinite: str):
+    if math.isfinite(x):
+        return x
+    if nonfinite == "null":
+        return None
+    return str(x)  # "nan", "inf", "-inf"
+
+
+def _complex(a, nonfinite: str) -> dict:
+    a = np.asarray(a)
+    return {"re": _array(a.real.astype(float), nonfinite), "im": _array(a.imag.astype(float), nonfinite)}
+
+
+def _array(a: np.ndarray, nonfinite: str):
+    if a.dtype.kind == "f":
+        if a.ndim == 0:
+            return _float(float(a), nonfinite)
+        if np.all(np.isfinite(a)):
+            return a.tolist()  # fast path: nothing to replace
+        return [_array(x, nonfinite) for x in a]
+    return a.tolist()  # bool, integer, string arrays
+
+
+def to_jsonable(obj, *, default=str, nonfinite: str = "string"):
+    """A copy of ``obj`` made of JSON types only (dict, list, str, int, float, bool, None).
+
+    Parameters
+    ----------
+    obj : object
+        Plain data, numpy scalars and arrays (complex ones as ``{"re", "im"}``),
+        tuples, sets, paths, mappings, and objects with a ``to_dict()`` method,
+        nested in any way.
+    default : callable or None, optional
+        Applied to any other object (default ``str``); None raises
+        :class:`TypeError` instead.
+    nonfinite : {"string", "null"}, optional
+        How NaN and infinities are written: as ``"nan"``, ``"inf"``, ``"-inf"``
+        (default; :func:`float_value` reads them back) or as ``null``.
+
+    Returns
+    -------
+    object
+        Encodable by :func:`json.dumps` with ``allow_nan=False``.
+    """
+    if nonfinite not in ("string", "null"):
+        raise ValueError(f"nonfinite must be 'string' or 'null', got {nonfinite!r}")
+
+    def conv(o):
+        if o is None or isinstance(o, (str, bool)):
+            return o
+        if isinstance(o, (int, np.integer)) and not isinstance(o, np.bool_):
+            return int(o)
+        if isinstance(o, (float, np.floating)):
+            return _float(float(o), nonfinite)
+        if isinstance(o, np.bool_):
+            return bool(o)
+        if isinstance(o, (complex, np.complexfloating)):
+            return _complex(o, nonfinite)
+        if isinstance(o, np.ndarray):
+            if o.dtype.kind == "c":
+                return _complex(o, nonfinite)
+            if o.dtype.kind in "biuf":
+                return _array(o, nonfinite)
+            return [conv(x) for x in o.tolist()]
+        if isinstance(o, Mapping):
+            return {k if isinstance(k, str) else str(conv(k)): conv(v) for k, v in o.items()}
+        if isinstance(o, (list, tuple)):
+            return [conv(x) for x in o]
+        if isinstance(o, (set, frozenset)):
+            items = [conv(x) for x in o]
+            try:
+                return sorted(items)
+            except TypeError:  # mixed types: any stable order will do
+                return sorted(items, key=repr)
+        if isinstance(o, PurePath):
+            return str(o)
+        to_dict = getattr(o, "to_dict", None)
+        if callable(to_dict) and not isinstance(o, type):
+            return conv(to_dict())
+        if default is None:
+            raise TypeError(f"cannot write an object of type {type(o).__name__} as JSON: {o!r}")
+        return conv(default(o))
+
+    return conv(obj)
+
+
+def dumps(obj, *, indent: int | None = 1, compact: bool = False, sort_keys: bool = False, default=str,
+          nonfinite: str = "string") -> str:
+    """JSON text of ``obj`` (see :func:`to_jsonable` for the types and ``default``).
+
+    ``compact=True`` writes one line without spaces (``indent`` ignored);
+    ``indent=None`` one line with the usual spaces.
+    """
+    data = to_jsonable(obj, default=default, nonfinite=nonfinite)
+    if compact:
+        return json.dumps(data, separators=(",", ":"), sort_keys=sort_keys, allow_nan=False)
+    return json.dumps(data, indent=indent, sort_keys=sort_keys, allow_nan=False)
+
+
+def write_json(path, obj, *, inputs=(), indent: int | None = 1, what: str = "output file") -> Path:
+    """Write ``obj`` as JSON to ``path`` atomically; return the path.
+
+    Goes through :func:`fdml.outputs.atomic_write_text`, which refuses to
+    replace any of ``inputs`` or anything that is not a regular file
+    (``what`` names the file in its messages).
+    """
+    from .outputs import atomic_write_text
+
+    atomic_write_text(path, dumps(obj, indent=indent) + "\n", inputs=inputs, what=what)
+    return Path(path)
+
+
+# --- reading ------------------------------------------------------------------------------------
+def loads(text: str | bytes):
+    """Parse JSON text (bytes are read as UTF-8); a leading byte-order mark is ignored.
+
+    Raises :class:`json.JSONDecodeError` (a ``ValueError``) on invalid JSON and
+    :class:`UnicodeDecodeError` on bytes that are not UTF-8.
+    """
+    if isinstance(text, (bytes, bytearray)):
+        text = bytes(text).decode("utf-8-sig")
+    elif text.startswith("\ufeff"):
+        text = text[1:]
+    return json.loads(text)
+
+
+def read_json(path, *, what: str = "result file"):
+    """Read and parse the JSON file ``path``; every failure is one :class:`FdmlError` line.
+
+    Parameters
+    ----------
+    path : str or Path
+    what : str, optional
+        What the file is, for the messages (``"result file"``,
+        ``"Monte Carlo file"``, ``"aircraft file"``).
+
+    Raises
+    ------
+    FdmlError
+        The file does not exist, is a folder or not a regular file, cannot be
+        read, is empty, is not UTF-8 (Latin-1 bytes, for example) or is not
+        valid JSON (with the line and column).
+    """
+    p = Path(path)
+    where = f"{what} {p}"
+    try:
+        st = os.stat(p)
+    except FileNotFoundError:
+        raise FdmlError(f"{where} does not exist") from None
+    except OSError as exc:
+        raise FdmlError(f"{where} cannot be read: {exc.strerror or exc}") from None
+    if stat.S_ISDIR(st.st_mode):
+        raise FdmlError(f"{where} is a folder, not a JSON file")
+    if not stat.S_ISREG(st.st_mode):
+        raise FdmlError(f"{where} is not a regular file (a device, FIFO or socket)")
+    try:
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise FdmlError(f"{where} cannot be read: {exc.strerror or exc}") from None
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise FdmlError(f"{where} is not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start}; "
+                        f"saved as Latin-1 or another code page?)") from None
+    if not text.strip():
+        raise FdmlError(f"{where} is empty")
+    try:
+        return loads(text)
+    except json.JSONDecodeError as exc:
+        raise FdmlError(f"{where} is not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}") from None
+    except RecursionError:
+        raise FdmlError(f"{where} is not usable JSON: nested too deeply") from None
+
+
+def _kind(v) -> str:
+    """The JSON type of a decoded value, for messages."""
+    if v is None:
+        return "null"
+    if isinstance(v, Mapping):
+        return "object"
+    return type(v).__name__
+
+
+def float_value(x) -> float:
+    """A number as written by :func:`to_jsonable`: a JSON number or ``"nan"``, ``"inf"``, ``"-inf"``.
+
+    Raises :class:`TypeError` or :class:`ValueError` for anything else
+    (booleans and other strings included).
+    """
+    if isinstance(x, bool):
+        raise TypeError("must be a number, got bool")
+    if isinstance(x, (int, float)):
+        try:
+            return float(x)
+        except OverflowError:
+            raise ValueError(f"must be a number within the float range, got an integer of {len(str(x))} digits") from None
+    if isinstance(x, str):
+        v = _NONFINITE.get(x.strip().lower())
+        if v is not None:
+            return v
+        raise ValueError(f"must be a number, got the string {x[:40]!r}")
+    raise TypeError(f"must be a number, got {_kind(x)}")
+
+
+class _BadElement(ValueError):
+    """An array element that is not a number (its description in ``args[0]``)."""
+
+
+def _nested(v, depth=0, nulls=False):
+    if isinstance(v, list):
+        if depth > 32:
+            raise _BadElement("lists nested more than 32 deep")
+        return [_nested(x, depth + 1, nulls) for x in v]
+    if v is None and nulls:
+        return math.nan
+    try:
+        return float_value(v)
+    except (TypeError, ValueError):
+        desc = f"the string {v[:40]!r}" if isinstance(v, str) else (
+            "an object" if isinstance(v, Mapping) else f"a value of type {_kind(v)}")
+        if isinstance(v, int) and not isinstance(v, bool):
+            desc = f"an integer of {len(str(v))} digits (beyond the float range)"
+        raise _BadElement(desc) from None
+
+
+def _shape_text(shape) -> str:
+    return " x ".join("any" if s is None else str(s) for s in shape)
+
+
+def _check_shape(a: np.ndarray, shape) -> np.ndarray:
+    if shape is None:
+        return a
+    if a.ndim != len(shape) or any(s is not None and s != n for s, n in zip(shape, a.shape)):
+        got = f"shape {_shape_text(a.shape)}" if a.ndim else "a single number"
+        if len(shape) == 1:
+            want = "a list of numbers" if shape[0] is None else f"a list of {shape[0]} numbers"
+            if a.ndim == 1:
+                got = f"{a.size}"
+        else:
+            want = f"an array of shape {_shape_text(shape)}"
+        raise ValueError(f"must be {want}, got {got}")
+    return a
+
+
+def float_array(v, shape=None, *, nulls: bool = False) -> np.ndarray:
+    """A float array from nested lists of numbers (non-finite ones as strings).
+
+    ``shape`` (a tuple, None for any length of that axis) is checked when
+    given; ``nulls=True`` reads ``null`` as NaN.  Raises :class:`TypeError` or :class:`ValueError` with a message that
+    completes "key 'x' ...".
+    """
+    if shape is not None and len(shape) > 0 and not isinstance(v, list):
+        raise TypeError(f"must be a list of numbers, got {_kind(v)}")
+    try:
+        nested = _nested(v, 0, nulls)
+    except _BadElement as exc:
+        if not isinstance(v, list):
+            raise TypeError(f"must be a number, got {exc.args[0]}") from None
+        raise TypeError(f"must be a list of numbers, holds {exc.args[0]}") from None
+    try:
+        a = np.array(nested, dtype=float)
+    except ValueError:
+        raise ValueError("must be a rectangular array of numbers, got rows of different lengths") from None
+    return _check_shape(a, shape)
+
+
+def complex_array(v, shape=None) -> np.ndarray:
+    """A complex array from ``{"re": ..., "im": ...}`` (see :func:`float_array`)."""
+    if not isinstance(v, Mapping):
+        raise TypeError(f"must be an object with keys 're' and 'im', got {_kind(v)}")
+    missing = [k for k in ("re", "im") if k not in v]
+    if missing:
+        raise ValueError(f"must be an object with keys 're' and 'im'; '{missing[0]}' is missing")
+    re = float_array(v["re"])
+    im = float_array(v["im"])
+    if re.shape != im.shape:
+        raise ValueError(f"has 're' of shape {_shape_text(re.shape)} but 'im' of shape {_shape_text(im.shape)}")
+    return _check_shape(re + 1j * im, shape)
+
+
+_MISSING = object()
+
+
+def _typed_list(v, typ, what: str, length: int | None) -> list:
+    if not isinstance(v, list):
+        raise TypeError(f"must be a list of {what}, got {_kind(v)}")
+    for x in v:
+        if not isinstance(x, typ) or (typ is int and isinstance(x, bool)):
+            raise TypeError(f"must be a list of {what}, holds {_kind(x)}")
+        if typ is int and abs(x) >= 2**63:
+            raise ValueError(f"must be a list of {what} below 2**63, holds one of {len(str(x))} digits")
+    if length is not None and len(v) != length:
+        raise ValueError(f"must have {length} entries, got {len(v)}")
+    return v
+
+
+class Fields:
+    """Typed access to the keys of a decoded JSON object, with one-line errors.
+
+    Every accessor raises :class:`FdmlError` ``"<source>: key '<key>' ..."``
+    when the key is missing (and has no default) or holds the wrong type or
+    shape; nested objects are named ``outer.inner`` or ``outer[i].inner``.
+
+    Parameters
+    ----------
+    doc : object
+        The decoded JSON value that should be an object.
+    source : str
+        What and where, e.g. ``"result file run.json"``.
+    prefix : str, optional
+        Key path of ``doc`` inside the file (for nested objects).
+    """
+
+    def __init__(self, doc, source: str, prefix: str = ""):
+        self.source = source
+        self.prefix = prefix
+        if not isinstance(doc, Mapping):
+            where = f"key '{prefix.rstrip('.')}' must be an object" if prefix else "expected a JSON object"
+            raise FdmlError(f"{source}: {where}, got {_kind(doc)}")
+        self.doc = doc
+
+    def name(self, key: str) -> str:
+        return f"{self.prefix}{key}"
+
+    def error(self, key: str, text: str) -> FdmlError:
+        """The error for ``key``: ``"<source>: key '<key>' <text>"``."""
+        return FdmlError(f"{self.source}: key '{self.name(key)}' {text}")
+
+    def __contains__(self, key) -> bool:
+        return key in self.doc
+
+    def raw(self, key: str, default=_MISSING):
+        if key not in self.doc:
+            if default is _MISSING:
+                raise self.error(key, "is missing")
+            return default
+        return self.doc[key]
+
+    def _get(self, key, default, convert):
+        if key not in self.doc and default is not _MISSING:
+            return default
+        v = self.raw(key)
+        try:
+            return convert(v)
+        except (TypeError, ValueError) as exc:
+            raise self.error(key, str(exc)) from None
+
+    def version(self, key: str, expected: int) -> int:
+        """An integer version equal to ``expected``; a string '1' is named as such."""
+        v = self.raw(key)
+        if isinstance(v, str):
+            if v.strip() == str(expected):
+                raise self.error(key, f"is the string {v!r} where the integer {expected} is expected")
+            raise self.error(key, f"must be the integer {expected}, got the string {v[:40]!r}")
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise self.error(key, f"must be the integer {expected}, got {_kind(v)}")
+        if v != expected:
+            raise self.error(key, f"is {v}: this fdml reads version {expected} only")
+        return v
+
+    def integer(self, key: str, default=_MISSING, minimum: int | None = None) -> int:
+        def conv(v):
+            if isinstance(v, bool) or not isinstance(v, int):
+                raise TypeError(f"must be an integer, got {_kind(v)}")
+            if minimum is not None and v < minimum:
+                raise ValueError(f"must be at least {minimum}, got {v}")
+            return v
+
+        return self._get(key, default, conv)
+
+    def number(self, key: str, default=_MISSING, allow_none: bool = False) -> float | None:
+        def conv(v):
+            if v is None and allow_none:
+                return None
+            return float_value(v)
+
+        return self._get(key, default, conv)
+
+    def boolean(self, key: str, default=_MISSING) -> bool:
+        def conv(v):
+            if not isinstance(v, bool):
+                raise TypeError(f"must be true or false, got {_kind(v)}")
+            return v
+
+        return self._get(key, default, conv)
+
+    def string(self, key: str, default=_MISSING, choices=None, allow_none: bool = False) -> str | None:
+        def conv(v):
+            if v is None and allow_none:
+                return None
+            if not isinstance(v, str):
+                raise TypeError(f"must be a string, got {_kind(v)}")
+            if choices is not None and v not in choices:
+                raise ValueError(f"must be one of {', '.join(map(repr, choices))}, got {v[:40]!r}")
+            return v
+
+        return self._get(key, default, conv)
+
+    def strings(self, key: str, default=_MISSING, length: int | None = None, choices=None) -> tuple:
+        def conv(v):
+            if not isinstance(v, list):
+                raise TypeError(f"must be a list of strings, got {_kind(v)}")
+            bad = next((x for x in v if not isinstance(x, str)), _MISSING)
+            if bad is not _MISSING:
+                raise TypeError(f"must be a list of strings, holds {_kind(bad)}")
+            if length is not None and len(v) != length:
+                raise ValueError(f"must have {length} entries, got {len(v)}")
+            if choices is not None:
+                odd = [x for x in v if x not in choices]
+                if odd:
+                    raise ValueError(f"holds {odd[0][:40]!r}; allowed: {', '.join(choices)}")
+            return tuple(v)
+
+        return self._get(key, default, conv)
+
+    def numbers(self, key: str, default=_MISSING, length: int | None = None, min_length: int = 0) -> tuple:
+        def conv(v):
+            a = float_array(v, (length,))
+            if a.size < min_length:
+                raise ValueError(f"must hold at least {min_length} number(s), got {a.size}")
+            return tuple(a.tolist())
+
+        return self._get(key, default, conv)
+
+    def floats(self, key: str, shape=None, default=_MISSING, nulls: bool = False) -> np.ndarray:
+        return self._get(key, default, lambda v: float_array(v, shape, nulls=nulls))
+
+    def flags(self, key: str, length: int | None = None, default=_MISSING) -> np.ndarray:
+        """A list of true/false as a bool array."""
+        return self._get(key, default, lambda v: np.array(_typed_list(v, bool, "true or false", length), bool))
+
+    def integers(self, key: str, length: int | None = None, default=_MISSING) -> np.ndarray:
+        """A list of integers as an int array."""
+        return self._get(key, default, lambda v: np.array(_typed_list(v, int, "integers", length), int))
+
+    def complexes(self, key: str, shape=None, default=_MISSING) -> np.ndarray:
+        return self._get(key, default, lambda v: complex_array(v, shape))
+
+    def mapping(self, key: str, default=_MISSING) -> dict:
+        def conv(v):
+            if not isinstance(v, Mapping):
+                raise TypeError(f"must be an object, got {_kind(v)}")
+            return dict(v)
+
+        return self._get(key, default, conv)
+
+    def sub(self, key: str, default=_MISSING) -> "Fields | None":
+        """The nested object at ``key`` as :class:`Fields` (``default`` when absent)."""
+        if key not in self.doc and default is not _MISSING:
+            return default
+        return Fields(self.raw(key), self.source, f"{self.name(key)}.")
+
+    def items(self, key: str, default=_MISSING, allow_none: bool = False) -> list:
+        """A list of objects at ``key``, each as :class:`Fields` (None entries kept with ``allow_none``)."""
+        if key not in self.doc and default is not _MISSING:
+            return default
+        v = self.raw(key)
+        if not isinstance(v, list):
+            raise self.error(key, f"must be a list, got {_kind(v)}")
+        return [None if (x is None and allow_none) else Fields(x, self.source, f"{self.name(key)}[{i}].")
+                for i, x in enumerate(v)]

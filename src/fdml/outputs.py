@@ -1,0 +1,408 @@
+"""Safe output files: never an input, never a device, always written atomically.
+
+Every file fdml writes (results, records, reports, figures, batch tables) goes
+through this module, so there is one implementation of the rules:
+
+* an output that is one of the command's inputs (the same file after resolving
+  symbolic and hard links, :func:`os.path.samefile`) is refused;
+* an output that exists and is not a regular file (a folder, a device node, a
+  FIFO, a socket) is refused; a folder output (``check_output_dir``) must be a
+  folder;
+* an output whose folder is a file or cannot be written is refused;
+* the content is written to a temporary file in the same folder
+  (``.NAME.XXXXXXXX.tmp``) and renamed into place, so a reader never sees a
+  half-written file and a failure (full disk, read-only file system) leaves the
+  previous file untouched and no temporary file behind;
+* a symbolic link to a regular file is kept: the new content lands at its target;
+* the new file gets the mode of the file it replaces, or ``0o666`` less the umask.
+
+Every refusal and every failed write is an :class:`~fdml.errors.OutputError`
+whose message names the path the user gave and the reason, never the hidden
+temporary file.  Overwriting an earlier regular file (fdml's own previous
+result) is allowed.
+
+:class:`StagedOutputs` writes several files that appear together (a report's
+figures and its Markdown page): nothing is renamed into place until all of
+them are written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import stat
+import tempfile
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import OutputError
+
+__all__ = ["check_output", "check_output_dir", "atomic_write_text", "atomic_write_bytes", "atomic_open",
+           "atomic_savefig", "StagedOutputs", "Inputs"]
+
+#: Suffix of the temporary files (``fdml.batch`` removes ``.*.tmp`` left by a crash).
+TMP_SUFFIX = ".tmp"
+
+
+# --- checks -------------------------------------------------------------------------------------
+def _kind(mode: int) -> str:
+    """A plain-language name of a non-regular file type."""
+    if stat.S_ISDIR(mode):
+        return "a folder"
+    if stat.S_ISCHR(mode):
+        return "a character device"
+    if stat.S_ISBLK(mode):
+        return "a block device"
+    if stat.S_ISFIFO(mode):
+        return "a FIFO (named pipe)"
+    if stat.S_ISSOCK(mode):
+        return "a socket"
+    return "not a regular file"
+
+
+def _input_paths(inputs) -> list:
+    """The path-like entries of ``inputs`` (a preset name or an in-memory object is skipped)."""
+    if isinstance(inputs, Inputs):
+        return list(inputs.paths)
+    if inputs is None or isinstance(inputs, (str, os.PathLike)):
+        inputs = [] if inputs is None else [inputs]
+    return [p for p in inputs if isinstance(p, (str, os.PathLike))]
+
+
+class Inputs:
+    """A command's input files, identified once by device and inode (what :func:`os.path.samefile` compares).
+
+    Pass it as ``inputs`` when many outputs are checked against many inputs
+    (a batch): each check is then one ``stat`` of the output.
+
+    Parameters
+    ----------
+    paths : iterable of str or Path
+        Inputs; entries that are not paths or do not exist are skipped.
+    """
+
+    def __init__(self, paths: Iterable = ()):
+        self.paths = tuple(_input_paths(paths))
+        ids: dict[tuple[int, int], str] = {}
+        for p in self.paths:
+            try:
+                st = os.stat(p)
+            except (OSError, ValueError):  # missing (a preset name) or unreadable: cannot be written over
+                continue
+            ids.setdefault((st.st_dev, st.st_ino), str(p))
+        self.ids = ids
+
+    def match(self, path) -> str | None:
+        """The input (as given) that is the same file or folder as ``path`` (links followed), else None."""
+        try:
+            st = os.stat(path)
+        except (OSError, ValueError):
+            return None
+        return self.ids.get((st.st_dev, st.st_ino))
+
+
+def _same_as_input(path: Path, inputs) -> str | None:
+    """The input (as given) that is the same file or folder as ``path``, else None."""
+    return (inputs if isinstance(inputs, Inputs) else Inputs(inputs)).match(path)
+
+
+def _target(path: Path) -> Path:
+    """Where a write to ``path`` lands: the end of its symlink chain, or ``path`` itself."""
+    return Path(os.path.realpath(path)) if os.path.islink(path) else path
+
+
+def _check_folder(path: Path, user: str, what: str) -> None:
+    """The nearest existing folder above ``path`` must be a folder we can write into."""
+    anc = path.parent
+    while not os.path.lexists(anc) and anc != anc.parent:
+        anc = anc.parent
+    if not anc.is_dir():
+        raise OutputError(f"{what} {user}: {anc} is not a folder")
+    if not os.access(anc, os.W_OK | os.X_OK):
+        raise OutputError(f"{what} {user}: folder {anc} is not writable")
+
+
+def _stat(path: Path, user: str, what: str) -> os.stat_result | None:
+    """``os.stat(path)`` (links followed), None when nothing is there."""
+    try:
+        return os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except OSError as exc:  # a symlink loop, a folder we may not search
+        raise OutputError(f"{what} {user}: cannot inspect it: {exc.strerror or exc}") from None
+
+
+def check_output(path, inputs: Iterable = (), *, what: str = "output file", folder: bool = False) -> Path:
+    """Refuse an output path that would destroy what the user owns.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output as the user gave it.
+    inputs : iterable of str or Path, optional
+        The files (or folders) the command reads: record files, the aircraft
+        JSON, the result JSON.  Entries that are not paths, or do not exist
+        (a preset name), are skipped.
+    what : str, optional
+        What the output is, for the message ("result file", "figure", ...).
+    folder : bool, optional
+        The output is a folder (created if missing): an existing regular file
+        there is refused instead of an existing folder.
+
+    Returns
+    -------
+    Path
+        Where the output is written: ``path``, or the target of ``path`` when
+        it is a symbolic link to a regular file (the link is kept).
+
+    Raises
+    ------
+    OutputError
+        The output is one of the inputs (symbolic or hard link included); it
+        exists and is not a regular file (not a folder, for ``folder=True``);
+        its folder is a file or is not writable.
+    """
+    user = str(path)
+    p = Path(path)
+    same = _same_as_input(p, inputs)
+    if same is not None:
+        which = "" if same == user else f" (the same file as {same})"
+        raise OutputError(f"{what} {user} is an input of this command{which}; fdml never writes over "
+                          "its inputs: give another name")
+    st = _stat(p, user, what)
+    if folder:
+        if st is not None and not stat.S_ISDIR(st.st_mode):
+            kind = "a file" if stat.S_ISREG(st.st_mode) else _kind(st.st_mode)
+            raise OutputError(f"{what} {user} is {kind}, not a folder: give a folder name")
+        if st is None:
+            _check_folder(_target(p), user, what)
+        elif not os.access(p, os.W_OK | os.X_OK):
+            raise OutputError(f"{what} {user}: folder is not writable")
+        return p
+    if st is not None and not stat.S_ISREG(st.st_mode):
+        if stat.S_ISDIR(st.st_mode):
+            raise OutputError(f"{what} {user} is a folder: give a file name")
+        raise OutputError(f"{what} {user} is {_kind(st.st_mode)}, not a regular file: give a file name")
+    target = _target(p)
+    _check_folder(target, user, what)
+    return target
+
+
+def check_output_dir(path, inputs: Iterable = (), *, what: str = "output folder") -> Path:
+    """:func:`check_output` for a folder output (``folder=True``); returns ``Path(path)``."""
+    return check_output(path, inputs, what=what, folder=True)
+
+
+# --- writing ------------------------------------------------------------------------------------
+def _umask() -> int:
+    """The process umask, read without changing it where the system allows (Linux)."""
+    try:
+        with open("/proc/self/status", encoding="ascii", errors="replace") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    mask = os.umask(0o022)  # elsewhere the only portable way: set and restore at once
+    os.umask(mask)
+    return mask
+
+
+def _reason(exc: BaseException) -> str:
+    """An OSError's reason without its file names (one of them is the temporary file)."""
+    return getattr(exc, "strerror", None) or type(exc).__name__
+
+
+def _remove(path: Path) -> None:
+    with contextlib.suppress(OSError):
+        os.unlink(path)
+
+
+@dataclass(frozen=True)
+class _Pending:
+    """A temporary file waiting to be renamed to ``final``; ``user`` is the path as given."""
+
+    user: str
+    what: str
+    final: Path
+    tmp: Path
+
+    def error(self, exc: BaseException) -> OutputError:
+        return OutputError(f"cannot write {self.what} {self.user}: {_reason(exc)}")
+
+
+class StagedOutputs:
+    """Several output files renamed into place together, once all are written.
+
+    Use as a context manager: on a clean exit every file is renamed into place
+    (:meth:`commit`); on an exception every temporary file is removed and no
+    previous file is touched.
+
+    Parameters
+    ----------
+    inputs : iterable of str or Path, optional
+        The command's inputs; no output may be one of them.
+
+    Examples
+    --------
+    >>> with StagedOutputs(inputs=[result_json]) as out:      # doctest: +SKIP
+    ...     out.savefig(fig, folder / "spectra.png", dpi=110)
+    ...     out.write_text(folder / "report.md", text)
+    """
+
+    def __init__(self, inputs: Iterable = ()):
+        self.inputs = inputs if isinstance(inputs, Inputs) else Inputs(inputs)
+        self._pending: list[_Pending] = []
+
+    # -- staging --
+    def _stage(self, path, what: str) -> tuple[_Pending, int]:
+        final = check_output(path, self.inputs, what=what)
+        user = str(path)
+        try:
+            final.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                mode = stat.S_IMODE(os.stat(final).st_mode) & 0o777
+            except FileNotFoundError:
+                mode = 0o666 & ~_umask()
+            fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=TMP_SUFFIX, dir=final.parent)
+        except OSError as exc:
+            raise OutputError(f"cannot write {what} {user}: {_reason(exc)}") from None
+        pending = _Pending(user, what, final, Path(tmp))
+        try:
+            os.fchmod(fd, mode)
+        except OSError as exc:
+            os.close(fd)
+            _remove(pending.tmp)
+            raise pending.error(exc) from None
+        return pending, fd
+
+    @contextlib.contextmanager
+    def open(self, path, mode: str = "w", *, encoding: str = "utf-8", what: str = "output file") -> Iterator:
+        """A file handle (``"w"`` text, ``"wb"`` binary) whose content is staged for ``path``."""
+        if mode not in ("w", "wt", "wb"):
+            raise ValueError(f"mode must be 'w' or 'wb', got {mode!r}")
+        pending, fd = self._stage(path, what)
+        try:
+            kw = {} if "b" in mode else {"encoding": encoding, "newline": ""}
+            try:
+                fh = os.fdopen(fd, mode, **kw)
+            except BaseException:
+                os.close(fd)
+                raise
+            with fh:
+                yield fh
+        except OSError as exc:
+            _remove(pending.tmp)
+            raise pending.error(exc) from None
+        except BaseException:
+            _remove(pending.tmp)
+            raise
+        self._pending.append(pending)
+
+    def write_bytes(self, path, data: bytes, *, what: str = "output file") -> Path:
+        """Stage ``data`` for ``path``; returns ``Path(path)``."""
+        with self.open(path, "wb", what=what) as fh:
+            fh.write(data)
+        return Path(path)
+
+    def write_text(self, path, text: str, *, encoding: str = "utf-8", what: str = "output file") -> Path:
+        """Stage ``text`` for ``path`` (no newline translation); returns ``Path(path)``."""
+        with self.open(path, "w", encoding=encoding, what=what) as fh:
+            fh.write(text)
+        return Path(path)
+
+    def savefig(self, fig, path, *, what: str = "figure", **savefig_kwargs) -> Path:
+        """Stage ``fig.savefig`` for ``path``; the format comes from ``path``'s suffix unless given."""
+        fmt = savefig_kwargs.pop("format", None) or Path(path).suffix[1:].lower() or None
+        with self.open(path, "wb", what=what) as fh:
+            fig.savefig(fh, format=fmt, **savefig_kwargs)
+        return Path(path)
+
+    # -- finishing --
+    def commit(self) -> None:
+        """Rename every staged file into place (in staging order)."""
+        pending, self._pending = self._pending, []
+        for i, p in enumerate(pending):
+            st, err = None, None
+            try:
+                st = os.stat(p.final)
+            except (FileNotFoundError, NotADirectoryError):
+                pass
+            except OSError as exc:
+                err = exc
+            if st is not None and not stat.S_ISREG(st.st_mode):  # appeared while we wrote
+                err = OutputError(f"{p.what} {p.user} is {_kind(st.st_mode)}, not a regular file: "
+                                  "give a file name")
+            if err is None:
+                try:
+                    os.replace(p.tmp, p.final)
+                    continue
+                except OSError as exc:
+                    err = exc
+            for q in pending[i:]:
+                _remove(q.tmp)
+            raise err if isinstance(err, OutputError) else p.error(err) from None
+
+    def discard(self) -> None:
+        """Remove every staged temporary file; nothing at the final paths changes."""
+        pending, self._pending = self._pending, []
+        for p in pending:
+            _remove(p.tmp)
+
+    def __enter__(self) -> "StagedOutputs":
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        if exc_type is None:
+            self.commit()
+        else:
+            self.discard()
+        return False
+
+
+# --- one file at a time -------------------------------------------------------------------------
+@contextlib.contextmanager
+def atomic_open(path, mode: str = "w", *, inputs: Iterable = (), encoding: str = "utf-8",
+                what: str = "output file") -> Iterator:
+    """A file handle whose content appears at ``path`` only when the block succeeds.
+
+    Parameters
+    ----------
+    path : str or Path
+    mode : {"w", "wb"}
+        Text (UTF-8, no newline translation) or binary.
+    inputs : iterable of str or Path, optional
+        The command's inputs (see :func:`check_output`).
+
+    Raises
+    ------
+    OutputError
+        The path is refused by :func:`check_output`, or the write failed (the
+        previous file, if any, is left as it was).
+    """
+    with StagedOutputs(inputs) as out, out.open(path, mode, encoding=encoding, what=what) as fh:
+        yield fh
+
+
+def atomic_write_text(path, text: str, *, inputs: Iterable = (), encoding: str = "utf-8",
+                      what: str = "output file") -> Path:
+    """Write ``text`` to ``path`` atomically (see :func:`atomic_open`); returns ``Path(path)``."""
+    with StagedOutputs(inputs) as out:
+        return out.write_text(path, text, encoding=encoding, what=what)
+
+
+def atomic_write_bytes(path, data: bytes, *, inputs: Iterable = (), what: str = "output file") -> Path:
+    """Write ``data`` to ``path`` atomically (see :func:`atomic_open`); returns ``Path(path)``."""
+    with StagedOutputs(inputs) as out:
+        return out.write_bytes(path, data, what=what)
+
+
+def atomic_savefig(fig, path, *, inputs: Iterable = (), what: str = "figure", **savefig_kwargs) -> Path:
+    """``fig.savefig(path, **savefig_kwargs)`` atomically: a failure leaves no truncated figure.
+
+    The format comes from ``path``'s suffix unless ``format=`` is given (the
+    temporary file's own suffix is never consulted).
+    """
+    with StagedOutputs(inputs) as out:
+        return out.savefig(fig, path, what=what, **savefig_kwargs)

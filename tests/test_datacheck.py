@@ -1,0 +1,213 @@
+"""The data check: corrupted copies are named, clean records of every kind pass.
+
+The corrupted copies are made from a Navion dimensional-model 3-2-1-1 computed
+by scipy.signal.lsim (tests/conftest.py), independent of fdml's simulator; the
+clean records that must pass come from fdml's time-domain simulator with what a
+real record varies (manoeuvre, edges, sample rate, turbulence, a start off trim,
+a small alpha delay), and from the real flight records.
+"""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import fdml
+from fdml.cli import main
+from fdml.constants import G0
+from fdml.datacheck import DEG, check_data
+from fdml.errors import DataCheckError, DataWarning
+from fdml.record import Record
+
+from conftest import lsim_dimensional, three_two_one_one
+
+NAVION = fdml.make_model("dimensional", "navion")
+
+
+@pytest.fixture(scope="module")
+def navion_3211():
+    """Navion 3-2-1-1 of 1 deg, 12 s at 50 Hz, 3 % output noise (lsim, independent of fdml)."""
+    t = np.arange(0, 12 + 1e-9, 0.02)
+    de = three_two_one_one(t, amplitude=math.radians(1.0))
+    y = lsim_dimensional(NAVION, t, de)
+    rng = np.random.default_rng(7)
+    y = y + rng.normal(size=y.shape) * 0.03 * y.std(axis=0)
+    return Record(t, {"de": de, "alpha": y[:, 0], "q": y[:, 1], "az": y[:, 2]}, name="navion")
+
+
+def _corrupt(rec: Record, how: str) -> Record:
+    s = dict(rec.signals)
+    rng = np.random.default_rng(3)
+    if how == "de_deg":
+        s["de"] = s["de"] * DEG
+    elif how == "alpha_deg":
+        s["alpha"] = s["alpha"] * DEG
+    elif how == "q_deg":
+        s["q"] = s["q"] * DEG
+    elif how == "az_ms2":
+        s["az"] = s["az"] * G0
+    elif how == "az_flip":
+        s["az"] = -s["az"]
+    elif how == "q_flip":
+        s["q"] = -s["q"]
+    elif how == "alpha_q_swapped":
+        s["alpha"], s["q"] = s["q"], s["alpha"]
+    elif how == "q_az_swapped":
+        s["q"], s["az"] = s["az"], s["q"]
+    elif how == "white_noise":
+        for k in ("alpha", "q", "az"):
+            s[k] = rng.normal(size=rec.n) * s[k].std()
+    return Record(rec.t, s, name=how, check_units=False)
+
+
+# case, expected code, expected estimate (value) or None, relative tolerance of the estimate.
+# Tolerances: the slopes come from a regression on 3 %-noise spectra over 0.1-10 rad/s and
+# are within about 1 % of the truth (clean copies: a = 0.998, b/(g/U) = 0.998); 3 % allows
+# for the noise draw.
+CORRUPTED = [
+    ("de_deg", "units.elevator", None, None),
+    ("alpha_deg", "units.alpha", DEG, 0.03),
+    ("q_deg", "units.q", DEG, 0.03),
+    ("az_ms2", "units.az", G0, 0.03),
+    ("az_flip", "sign.az", -G0 / NAVION.U, 0.03),
+    ("q_flip", "sign.q", -1.0, 0.03),
+    ("alpha_q_swapped", "channels.swapped", None, None),
+    ("q_az_swapped", "channels.swapped", None, None),
+    ("white_noise", "response.alpha", None, None),
+]
+
+
+@pytest.mark.parametrize("how, code, value, rtol", CORRUPTED, ids=[c[0] for c in CORRUPTED])
+def test_corrupted_copy_is_named(navion_3211, how, code, value, rtol):
+    dc = check_data(_corrupt(navion_3211, how), airspeed=NAVION.U)
+    assert code in dc.codes, dc.summary()
+    if value is not None:
+        f = next(f for f in dc.findings if f.code == code)
+        assert f.value == pytest.approx(value, rel=rtol)
+    if how == "white_noise":
+        assert {"response.alpha", "response.q", "response.az"} <= set(dc.codes)
+    else:  # one error, one finding: nothing else is blamed
+        assert len(dc.findings) == 1, dc.summary()
+
+
+def test_clean_copy_has_no_findings_and_the_identity_slopes(navion_3211):
+    dc = check_data(navion_3211, airspeed=NAVION.U)
+    assert dc.findings == ()
+    k = dc.kinematics
+    # 3 % noise: slopes within 2 % of 1 and g/U (the regression is weighted to the input's band)
+    assert k.slope_q == pytest.approx(1.0, rel=0.02)
+    assert k.slope_az == pytest.approx(G0 / NAVION.U, rel=0.02)
+    assert k.implied_airspeed == pytest.approx(NAVION.U, rel=0.02)
+
+
+def test_without_airspeed_a_sign_error_is_still_found(navion_3211):
+    assert check_data(_corrupt(navion_3211, "az_flip")).codes == ("sign.az",)
+    assert check_data(navion_3211).codes == ()
+
+
+# --- no false alarms on clean records of every kind ------------------------------------------
+CLEAN = [
+    # model, manoeuvre, dt, options
+    ("unsteady", "3211", 0.02, {}),
+    ("unsteady", "doublet", 0.01, {"rise": 0.0}),         # stepped edges, interpolated between samples
+    ("steady", "multisine", 0.05, {}),
+    ("derivatives", "3211", 0.04, {"rise": 0.2}),
+    ("unsteady", "3211", 0.02, {"gust_std": 2.0}),         # strong unmeasured turbulence
+    ("unsteady", "3211", 0.02, {"window": 2.0}),           # record starts mid-manoeuvre, off trim
+    ("unsteady", "3211", 0.02, {"delay": 0.021}),          # the Twin Otter's alpha lag
+    ("dimensional", "doublet", 0.02, {"noise": 0.2}),      # noisy
+]
+
+
+@pytest.mark.parametrize("kind, manoeuvre, dt, opts", CLEAN, ids=[f"{c[0]}-{c[1]}-{c[2]}-{sorted(c[3])}" for c in CLEAN])
+def test_clean_simulated_records_pass(kind, manoeuvre, dt, opts):
+    from fdml.record import add_noise
+    from fdml.simulate import simulate_maneuver
+
+    opts = dict(opts)
+    gust = opts.pop("gust_std", 0.0)
+    window = opts.pop("window", None)
+    delay = opts.pop("delay", None)
+    noise = opts.pop("noise", 0.03)
+    model = fdml.make_model(kind, "navion", gust=gust > 0)
+    rec = simulate_maneuver(model, manoeuvre, duration=14.0, dt=dt, amplitude=math.radians(1.5),
+                            gust_std=gust, seed=11, **opts)
+    if gust:  # the gust is not measured
+        rec = Record(rec.t, {k: v for k, v in rec.signals.items() if k != "alpha_w"}, name="gust")
+    if delay:
+        s = dict(rec.signals)
+        s["alpha"] = np.interp(rec.t - delay, rec.t, s["alpha"])
+        rec = Record(rec.t, s, name="delayed")
+    if window:
+        rec = rec.window(window, None)
+    rec = add_noise(rec, noise, np.random.default_rng(5), relative=True)
+    dc = check_data(rec, airspeed=model.U)
+    assert dc.findings == (), dc.summary()
+
+
+REAL = [("twin_otter/totter_lon_020213f1_017.mat", {}), ("twin_otter/totter_lon_020213f1_018.mat", {}),
+        ("hfb320/hfb320_1_10.asc", {}), ("attas/fAttasElv1.mat", {})]
+
+
+@pytest.mark.parametrize("path, kw", REAL, ids=[p for p, _ in REAL])
+@pytest.mark.parametrize("band", [None, "0.6:9.4:0.05"])
+def test_real_records_pass_and_close_the_identity(path, kw, band):
+    from fdml.io import data_path, load_record
+    from fdml.errors import RecordError
+
+    try:
+        rec = load_record(data_path(path), **kw)
+    except RecordError as exc:
+        pytest.skip(str(exc))
+    dc = check_data(rec, band=band)
+    assert dc.findings == (), dc.summary()
+    k = dc.kinematics
+    # Real sensors: vane upwash and position, accelerometer position (absorbed by the j w q
+    # regressor), alpha lags: a within 5 %, the implied airspeed within 10 % of the record's.
+    assert k.slope_q == pytest.approx(1.0, abs=0.05)
+    assert k.implied_airspeed == pytest.approx(rec.meta["U"], rel=0.10)
+
+
+# --- inside the fit and on the command line --------------------------------------------------
+def test_fit_keeps_findings_warns_and_strict_refuses(navion_3211):
+    bad = _corrupt(navion_3211, "alpha_q_swapped")
+    model = fdml.make_model("dimensional", "navion")
+    with pytest.warns(DataWarning, match=r"\[channels\.swapped\]"):
+        res = fdml.fit(bad, model)
+    assert [f.code for f in res.findings] == ["channels.swapped"]
+    assert "[channels.swapped]" in str(res.summary())
+    back = fdml.results.FitResult.from_dict(json.loads(res.to_json()))
+    assert back.findings == res.findings
+    with pytest.raises(DataCheckError, match="channels.swapped"):
+        fdml.fit(bad, model, strict=True)
+    clean = fdml.fit(navion_3211, model, strict=True)
+    assert clean.findings == ()
+
+
+@pytest.mark.parametrize("command", ["fit", "check"])
+def test_cli_strict_exits_2_and_plain_run_prints_the_code(tmp_path, navion_3211, capsys, command):
+    path = tmp_path / "az_ms2.csv"
+    _corrupt(navion_3211, "az_ms2").to_csv(path)
+    extra = ["--aircraft", "navion", "--model", "dimensional"] if command == "fit" else ["--airspeed",
+                                                                                        str(NAVION.U)]
+    assert main([command, str(path), *extra, "--strict"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "units.az" in err[0]
+    main([command, str(path), *extra])
+    assert "[units.az]" in capsys.readouterr().out
+
+
+def test_check_costs_little_against_a_fit(navion_3211):
+    """The check is always on: it must be a small fraction of the cheapest fit (a ratio, not a time)."""
+    import time
+
+    model = fdml.make_model("dimensional", "navion")
+    t0 = time.perf_counter()
+    for _ in range(5):
+        check_data(navion_3211, airspeed=NAVION.U)
+    t_check = (time.perf_counter() - t0) / 5
+    t0 = time.perf_counter()
+    fdml.fit(navion_3211, model, check=False)
+    t_fit = time.perf_counter() - t0
+    assert t_check < 0.5 * t_fit

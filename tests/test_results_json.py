@@ -1,0 +1,509 @@
+"""Results round-trip through the one JSON codec on every stopping branch of the fit (issue 14).
+
+A result saved with :meth:`FitResult.to_json` must load back field for field,
+whichever branch of :func:`fdml.estimate.fit` ended the iterations; a
+hand-edited or damaged result file must be refused with one line that names
+the file and the key (exit code 2 from ``fdml report``), never a traceback.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fdml.cli import main
+from fdml.errors import FdmlError
+from fdml.estimate import fit
+from fdml.findings import Finding
+from fdml.jsoncodec import dumps, loads, read_json, to_jsonable
+from fdml.models import make_model
+from fdml.record import add_noise
+from fdml.results import FitResult, load_result
+from fdml.simulate import simulate_maneuver
+
+hypothesis = pytest.importorskip("hypothesis")
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+
+# --- fits that end on each branch --------------------------------------------------------------
+def _fit(rec, model, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fit(rec, model, **kw)
+
+
+@pytest.fixture(scope="module")
+def model():
+    return make_model("steady", "navion")
+
+
+@pytest.fixture(scope="module")
+def clean(model):
+    """Noise-free 3-2-1-1, 10 s at 50 Hz."""
+    return simulate_maneuver(model, "3211", duration=10.0, dt=0.02)
+
+
+@pytest.fixture(scope="module")
+def noisy(clean):
+    return add_noise(clean, 0.02, np.random.default_rng(1), relative=True)
+
+
+def _det_r_branch(clean, model):
+    """A fit that ends on "converged: no further decrease of det R".
+
+    The branch needs a step that no longer lowers det R while the step is
+    still between tol and 10 tol standard errors: it happens at noise levels
+    near the arithmetic's resolution, so a few (level, seed) pairs are tried.
+    """
+    for level in (1e-7, 1e-6, 3e-7, 3e-8, 1e-8):
+        for seed in range(1, 6):
+            res = _fit(add_noise(clean, level, np.random.default_rng(seed), relative=True), model)
+            if res.message == "converged: no further decrease of det R":
+                return res
+    pytest.fail("no record tried ends on the 'no further decrease of det R' branch")
+
+
+#: branch -> (how to build it, what identifies it: message prefix, converged, stopped)
+BRANCHES = {
+    "step": ("converged: every step below", True, False),
+    "det_r": ("converged: no further decrease of det R", True, False),
+    "stalled": ("stalled: no step decreases det R", False, False),
+    "max_iter": ("maximum number of iterations reached", False, False),
+    "callback": ("stopped by the callback after 2 iterations", False, True),
+    "paper": ("paper's rule: relative change of det R below 0.01", True, False),
+    "gauss_newton": ("converged: every step below", True, False),
+}
+
+
+@pytest.fixture(scope="module")
+def fits(model, clean, noisy):
+    return {
+        "step": _fit(noisy, model),
+        "det_r": _det_r_branch(clean, model),
+        "stalled": _fit(clean, model),  # the issue's reproduction: noise-free record
+        "max_iter": _fit(noisy, model, max_iter=1),
+        "callback": _fit(noisy, model, callback=lambda info: info.iteration >= 2),
+        "paper": _fit(noisy, model, stop="paper"),
+        "gauss_newton": _fit(noisy, model, method="gauss-newton"),
+    }
+
+
+# --- field-by-field comparison -----------------------------------------------------------------
+def _same_array(a, b, what):
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape, what
+    assert np.iscomplexobj(a) == np.iscomplexobj(b), what
+    # exact: the JSON text holds the shortest repr of each double, which reads back bit for bit;
+    # NaN in the same places (assert_array_equal treats NaN as equal to NaN)
+    np.testing.assert_array_equal(a, b, err_msg=what)
+    assert np.array_equal(np.signbit(a.real), np.signbit(b.real)), what  # -0.0 survives too
+
+
+def _same_number(a, b, what):
+    assert isinstance(b, float), what
+    assert (math.isnan(a) and math.isnan(b)) or a == b, what
+
+
+def assert_same(a: FitResult, b: FitResult) -> None:
+    """Every field of ``a`` equals the one of ``b`` (arrays exactly, NaN where NaN)."""
+    assert a.model == b.model
+    assert a.model.parameters.values == b.model.parameters.values
+    for f in ("values", "stderr", "cov", "corr", "cov_naive", "R"):
+        _same_array(getattr(a, f), getattr(b, f), f)
+    assert len(a.cost_history) == len(b.cost_history)
+    for x, y in zip(a.cost_history, b.cost_history):
+        _same_number(x, y, "cost_history")
+    _same_number(a.elapsed, b.elapsed, "elapsed")
+    for f in ("names", "at_bound", "outputs", "records", "warnings"):
+        assert isinstance(getattr(b, f), tuple), f
+        assert getattr(a, f) == getattr(b, f), f
+    assert isinstance(b.findings, tuple) and len(a.findings) == len(b.findings)
+    for x, y in zip(a.findings, b.findings):
+        assert (x.code, x.message, x.kind, x.record) == (y.code, y.message, y.kind, y.record)
+        for u, v in ((x.value, y.value), (x.expected, y.expected)):
+            assert (u is None and v is None) or _same_number(u, v, "finding") is None
+    for f in ("iterations", "n_freq"):
+        assert type(getattr(b, f)) is int and getattr(a, f) == getattr(b, f), f
+    for f in ("converged", "stopped"):
+        assert type(getattr(b, f)) is bool and getattr(a, f) == getattr(b, f), f
+    for f in ("message", "boundary", "cov_type", "method", "stop", "nuisance"):
+        assert getattr(a, f) == getattr(b, f), f
+    assert a.fixed.keys() == b.fixed.keys()
+    for k in a.fixed:
+        _same_number(a.fixed[k], b.fixed[k], f"fixed {k}")
+    assert (a.band is None) == (b.band is None)
+    if a.band is not None:
+        assert isinstance(b.band, tuple) and len(a.band) == len(b.band)
+        for x, y in zip(a.band, b.band):
+            _same_number(x, y, "band")
+    assert a.derived.keys() == b.derived.keys()
+    for k in a.derived:
+        for x, y in zip(a.derived[k], b.derived[k]):
+            _same_number(x, y, f"derived {k}")
+    assert len(a.spectra) == len(b.spectra)
+    for sa, sb in zip(a.spectra, b.spectra):
+        assert sa.keys() == sb.keys()
+        for k in sa:
+            if isinstance(sa[k], np.ndarray):
+                _same_array(sa[k], sb[k], f"spectra {k}")
+            else:
+                assert sa[k] == sb[k], f"spectra {k}"
+    assert len(a.time_records) == len(b.time_records)
+    for ra, rb in zip(a.time_records, b.time_records):
+        assert ra["name"] == rb["name"] and ra["trim_mode"] == rb["trim_mode"]
+        _same_array(ra["t"], rb["t"], "time_records t")
+        assert ra["signals"].keys() == rb["signals"].keys()
+        for k in ra["signals"]:
+            _same_array(ra["signals"][k], rb["signals"][k], f"time_records signal {k}")
+        assert to_jsonable(ra["meta"]) == rb["meta"]
+    # nothing was forgotten: every field of the dataclass is covered above
+    assert {f.name for f in dataclasses.fields(FitResult)} == {
+        "model", "names", "values", "stderr", "cov", "corr", "cov_naive", "R", "cost_history", "iterations",
+        "converged", "message", "derived", "fixed", "at_bound", "outputs", "band", "n_freq", "records",
+        "boundary", "cov_type", "method", "stop", "stopped", "warnings", "elapsed", "spectra", "time_records",
+        "nuisance", "findings"}
+
+
+FINDINGS = (
+    Finding("units.elevator", "elevator looks like degrees", kind="data", record="sim", value=57.3, expected=1.0),
+    Finding("correlation.high", "Cm_a and Cm_q correlated", kind="estimation", value=math.nan, expected=None),
+)
+
+
+# --- every stopping branch ---------------------------------------------------------------------
+@pytest.mark.parametrize("branch", list(BRANCHES))
+def test_every_branch_round_trips(fits, branch, tmp_path):
+    res = fits[branch]
+    prefix, converged, stopped = BRANCHES[branch]
+    assert res.message.startswith(prefix)
+    assert res.converged is converged and res.stopped is stopped  # plain bools, not numpy.bool_
+    if branch == "gauss_newton":
+        assert res.method == "gauss-newton"
+    if branch == "paper":
+        assert res.stop == "paper"
+    res = dataclasses.replace(res, findings=FINDINGS)  # findings of both kinds, NaN and None values
+    path = res.to_json(tmp_path / f"{branch}.json")
+    back = load_result(path)
+    assert_same(res, back)
+    assert_same(back, FitResult.from_dict(json.loads(res.to_json())))  # text and file agree
+
+
+@pytest.mark.parametrize("branch", ["det_r", "stalled", "callback"])
+def test_report_works_on_reloaded_result(fits, branch, tmp_path, capsys):
+    path = fits[branch].to_json(tmp_path / "r.json")
+    assert main(["report", str(path), "-o", str(tmp_path / "rep")]) == 0
+    assert (tmp_path / "rep" / "report.md").stat().st_size > 0
+    assert "error" not in capsys.readouterr().err
+
+
+def test_cli_reproduction_writes_loadable_result(tmp_path, capsys):
+    """Issue 14: noise-free record, steady model: exit 0 or 1, never 'internal error'."""
+    csv, out = tmp_path / "c.csv", tmp_path / "c.json"
+    assert main(["simulate", "--aircraft", "navion", "--model", "steady", "--noise", "0", "-o", str(csv)]) == 0
+    rc = main(["fit", str(csv), "--aircraft", "navion", "--model", "steady", "-o", str(out)])
+    err = capsys.readouterr().err
+    assert rc in (0, 1), err
+    assert "internal error" not in err
+    res = load_result(out)
+    assert res.records and res.time_records[0]["t"].size == 501  # 10 s at 0.02 s
+    assert (rc == 0) == res.converged
+
+
+# --- the codec ---------------------------------------------------------------------------------
+def test_to_jsonable_types():
+    class WithDict:
+        def to_dict(self):
+            return {"x": np.float32(1.5)}
+
+    d = to_jsonable({
+        "b": np.bool_(True), "i": np.int64(3), "f": np.float64(-0.0), "nan": np.nan, "inf": -np.inf,
+        "a": np.array([[1.0, np.inf]]), "c": np.array([1 + 2j]), "t": (1, 2), "p": Path("a/b"),
+        1: "int key", "o": WithDict(), "s": {3, 1, 2}, "u": np.uint8(7), "bs": np.array([True, False]),
+    })
+    assert d == {"b": True, "i": 3, "f": -0.0, "nan": "nan", "inf": "-inf", "a": [[1.0, "inf"]],
+                 "c": {"re": [1.0], "im": [2.0]}, "t": [1, 2], "p": str(Path("a/b")), "1": "int key",
+                 "o": {"x": 1.5}, "s": [1, 2, 3], "u": 7, "bs": [True, False]}
+    assert type(d["b"]) is bool and type(d["i"]) is int and type(d["u"]) is int
+    json.dumps(d, allow_nan=False)  # strictly valid JSON
+    with pytest.raises(TypeError, match="object"):
+        to_jsonable({"f": object()}, default=None)
+    assert to_jsonable([np.nan, 1.0], nonfinite="null") == [None, 1.0]
+
+
+def test_dumps_compact_and_loads_bom():
+    assert dumps({"a": [1, np.bool_(False)]}, compact=True) == '{"a":[1,false]}'
+    assert loads("\ufeff" + dumps({"a": 1})) == {"a": 1}
+    assert loads(b"\xef\xbb\xbf[1]") == [1]
+
+
+def test_old_result_files_still_read(fits, tmp_path):
+    """Files written before the codec held NaN/Infinity tokens; they still load."""
+    res = fits["stalled"]
+    d = res.to_dict()
+    d["stderr"] = [math.nan if x == "nan" else x for x in d["stderr"]]
+    d["cost_history"] = [math.inf] + d["cost_history"][1:]
+    d["derived"] = {k: [v, math.inf] for k, (v, _) in d["derived"].items()}
+    for key in ("findings", "nuisance", "time_records", "method", "stop", "stopped", "elapsed"):
+        del d[key]  # keys added by later versions have defaults
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(d))  # json's own NaN / Infinity tokens
+    back = load_result(path)
+    assert back.cost_history[0] == math.inf
+    assert all(s == math.inf for _, s in back.derived.values())
+    assert back.findings == () and back.time_records == () and back.method == "lm"
+
+
+# --- hand-edited and damaged files -------------------------------------------------------------
+def _set(d, path, value):
+    *head, last = path
+    for k in head:
+        d = d[k]
+    if value is _DELETE:
+        del d[last]
+    else:
+        d[last] = value
+
+
+_DELETE = object()
+
+#: (what is changed, new value, text the one-line message must hold)
+EDITS = [
+    (("values",), _DELETE, "key 'values' is missing"),
+    (("iterations",), "5", "key 'iterations' must be an integer, got str"),
+    (("iterations",), 5.5, "key 'iterations' must be an integer, got float"),
+    (("converged",), "yes", "key 'converged' must be true or false, got str"),
+    (("values",), "1.0", "key 'values' must be a list of numbers, got str"),
+    (("values",), [1.0, "abc"], "key 'values' must be a list of numbers, holds the string 'abc'"),
+    (("values",), [1.0, 2.0], "key 'values' must be a list of 12 numbers, got 2"),
+    (("cov",), [[1.0, 2.0], [3.0, 4.0]], "key 'cov' must be an array of shape 12 x 12, got shape 2 x 2"),
+    (("corr",), [[1.0], [1.0, 2.0]], "key 'corr' must be a rectangular array"),
+    (("R", "im"), _DELETE, "key 'R' must be an object with keys 're' and 'im'; 'im' is missing"),
+    (("R",), [[1.0]], "key 'R' must be an object with keys 're' and 'im', got list"),
+    (("names",), "Cz_a", "key 'names' must be a list of strings, got str"),
+    (("outputs",), ["alpha", "beta"], "key 'outputs' holds 'beta'"),
+    (("band",), [0.1, 10.0], "key 'band' must be a list of 3 numbers, got 2"),
+    (("cost_history",), [], "key 'cost_history' must hold at least 1 number"),
+    (("message",), None, "key 'message' must be a string, got null"),
+    (("fixed", "l_t"), "4.6", "key 'fixed.l_t' must be a number, got the string '4.6'"),
+    (("derived", "Cm_a"), [1.0], "key 'derived.Cm_a' must be a list of 2 numbers, got 1"),
+    (("version",), "1", "key 'version' is the string '1' where the integer 1 is expected"),
+    (("version",), 2, "key 'version' is 2: this fdml reads version 1 only"),
+    (("format",), _DELETE, "key 'format' is missing: not an fdml result file"),
+    (("format",), "fdml.MonteCarloResult", "key 'format' is 'fdml.MonteCarloResult'"),
+    (("model", "kind"), 3, "key 'model.kind' must be a string, got int"),
+    (("model", "kind"), "jet", "key 'model' does not describe a model"),
+    (("model", "parameters", 0, "value"), "x", "key 'model.parameters[0].value' must be a number"),
+    (("model", "parameters", 0, "free"), "yes", "key 'model.parameters[0].free' must be true or false"),
+    (("spectra", 0, "z"), {"re": [[0.0]], "im": [[0.0]]},
+     "key 'spectra[0].z' must be an array of shape 100 x any, got shape 1 x 1"),
+    (("spectra", 0, "n"), "501", "key 'spectra[0].n' must be an integer, got str"),
+    (("spectra", 0), 7, "key 'spectra[0]' must be an object, got int"),
+    (("time_records", 0, "signals", "alpha"), [0.0, 1.0],
+     "key 'time_records[0].signals.alpha' must be a list of 501 numbers, got 2"),
+    (("findings",), [{"code": "x", "message": "m", "kind": "bogus"}],
+     "key 'findings[0].kind' must be one of 'data', 'estimation', got 'bogus'"),
+    (("findings",), [{"message": "m"}], "key 'findings[0].code' is missing"),
+    (("nuisance",), [], "key 'nuisance' must be an object, got list"),
+]
+
+
+@pytest.fixture(scope="module")
+def saved(fits):
+    """The JSON dict of a real result (the noise-free, stalled fit)."""
+    return fits["stalled"].to_dict()
+
+
+def _one_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("fdml: error: ")
+    return lines[0]
+
+
+@pytest.mark.parametrize("keys, value, expected", EDITS, ids=[".".join(map(str, e[0])) for e in EDITS])
+def test_hand_edited_result_is_refused(saved, tmp_path, capsys, keys, value, expected):
+    d = json.loads(json.dumps(saved))
+    _set(d, keys, value)
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(d))
+    rc = main(["report", str(path), "-o", str(tmp_path / "rep")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2
+    assert f"result file {path}:" in line
+    assert expected in line
+    assert not (tmp_path / "rep").exists()  # refused before any output
+
+
+@pytest.mark.parametrize("content, expected", [
+    (None, "does not exist"),
+    ("folder", "is a folder"),
+    (b'{"format": "fdml.FitResult", "message": "d\xe9j\xe0 vu"}', "is not UTF-8 text (byte 0xe9 at offset 42"),
+    (b'{"format": "fdml.FitResult",\n "version": 1,,}', "is not valid JSON: Expecting property name enclosed in "
+                                                       "double quotes at line 2, column 15"),
+    (b"", "is empty"),
+    (b"[1, 2]", "expected a JSON object, got list"),
+    (b'"fdml"', "expected a JSON object, got str"),
+    (b"[" * 100_000, "nested too deeply"),
+])
+def test_unreadable_result_file(tmp_path, capsys, content, expected):
+    path = tmp_path / "bad.json"
+    if content == "folder":
+        path.mkdir()
+    elif content is not None:
+        path.write_bytes(content)
+    rc = main(["report", str(path), "-o", str(tmp_path / "rep")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2
+    assert str(path) in line and expected in line
+
+
+def test_bom_is_accepted(fits, tmp_path):
+    path = tmp_path / "bom.json"
+    path.write_bytes(b"\xef\xbb\xbf" + fits["step"].to_json().encode())
+    assert_same(fits["step"], load_result(path))
+    with pytest.raises(FdmlError, match="no.json does not exist"):
+        read_json(tmp_path / "no.json", what="aircraft file")
+
+
+def test_monte_carlo_file_is_checked(tmp_path):
+    from fdml.montecarlo import MonteCarloResult, load_monte_carlo
+
+    mc = MonteCarloResult(names=("a", "b"), truth=np.array([1.0, np.nan]), estimates=np.array([[1.0, 2.0], [np.nan, 3.0]]),
+                          stderr=np.ones((2, 2)), converged=np.array([True, False]), iterations=np.array([3, 200]),
+                          fit_seconds=np.array([0.1, 0.2]), errors={1: "failed"}, settings={"seed": 0}, wall_time=1.0)
+    path = tmp_path / "mc.json"
+    mc.to_json(path)
+    back = load_monte_carlo(path)
+    np.testing.assert_array_equal(back.estimates, mc.estimates)
+    np.testing.assert_array_equal(back.truth, mc.truth)
+    assert back.converged.tolist() == [True, False] and back.errors == {1: "failed"}
+    d = json.loads(path.read_text())
+    d["version"] = "1"
+    path.write_text(json.dumps(d))
+    with pytest.raises(FdmlError, match=r"Monte Carlo file .*mc.json: key 'version' is the string '1'"):
+        load_monte_carlo(path)
+    d["version"] = 1
+    d["converged"] = [True]
+    path.write_text(json.dumps(d))
+    with pytest.raises(FdmlError, match=r"mc.json: key 'converged' must have 2 entries, got 1"):
+        load_monte_carlo(path)
+
+
+# --- properties --------------------------------------------------------------------------------
+_floats = st.floats(allow_nan=True, allow_infinity=True)  # includes 0.0, -0.0, subnormals and +-1.8e308
+_special = st.sampled_from([math.nan, math.inf, -math.inf, 1e308, -1e308, 5e-324, -0.0, 1e-300])
+_any_float = st.one_of(_floats, _special)
+
+
+@st.composite
+def perturbed(draw, base: FitResult):
+    """``base`` with some of its numbers, flags and texts replaced by arbitrary ones."""
+
+    def arr(a):
+        a = np.array(a, copy=True)
+        for _ in range(draw(st.integers(0, 3))):
+            idx = tuple(draw(st.integers(0, s - 1)) for s in a.shape)
+            a[idx] = draw(_any_float) + (1j * draw(_any_float) if np.iscomplexobj(a) else 0)
+        return a
+
+    spectra = tuple({**s, "omega": arr(s["omega"]), "z": arr(s["z"]), "T": draw(_any_float)} for s in base.spectra)
+    time_records = tuple({**r, "t": arr(r["t"]), "signals": {k: arr(v) for k, v in r["signals"].items()}}
+                         for r in base.time_records)
+    derived = {k: (draw(_any_float), draw(_any_float)) for k in base.derived}
+    return dataclasses.replace(
+        base, values=arr(base.values), stderr=arr(base.stderr), cov=arr(base.cov), corr=arr(base.corr),
+        cov_naive=arr(base.cov_naive), R=arr(base.R),
+        cost_history=tuple(draw(st.lists(_any_float, min_size=1, max_size=4))),
+        iterations=draw(st.integers(0, 2**62)), converged=draw(st.booleans()), stopped=draw(st.booleans()),
+        message=draw(st.text(max_size=20)), warnings=tuple(draw(st.lists(st.text(max_size=10), max_size=2))),
+        elapsed=draw(_any_float), derived=derived, fixed={k: draw(_any_float) for k in base.fixed},
+        band=draw(st.one_of(st.none(), st.tuples(_any_float, _any_float, _any_float))),
+        n_freq=draw(st.integers(0, 10**6)), spectra=spectra, time_records=time_records,
+        findings=tuple(Finding(draw(st.text(min_size=1, max_size=8)), draw(st.text(max_size=8)),
+                               kind=draw(st.sampled_from(["data", "estimation"])),
+                               record=draw(st.one_of(st.none(), st.text(max_size=5))),
+                               value=draw(st.one_of(st.none(), _any_float)), expected=draw(st.one_of(st.none(), _any_float)))
+                       for _ in range(draw(st.integers(0, 2)))),
+    )
+
+
+@pytest.fixture(scope="module")
+def small_fit(model, noisy):
+    """A real result on a short record: 3 s, 0.05 s steps, a coarse band (fast to write and read)."""
+    return _fit(noisy.window(0.0, 3.0), model, band=(0.5, 10.0, 0.5))
+
+
+@pytest.fixture(scope="module")
+def scratch(tmp_path_factory):
+    return tmp_path_factory.mktemp("roundtrip")
+
+
+# ~100 examples in about 5 s here (limit for the suite: 15 s)
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_property_a_result_always_round_trips(small_fit, scratch, data):
+    res = data.draw(perturbed(small_fit))
+    path = res.to_json(scratch / "r.json")
+    assert_same(res, load_result(path))
+
+
+_json = st.recursive(
+    st.one_of(st.none(), st.booleans(), st.integers(), _any_float, st.text(max_size=8)),
+    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=6), inner, max_size=4)),
+    max_leaves=12,
+)
+
+
+def _key_paths(d, prefix=()):
+    """Every key path into the nested dicts and lists of ``d``."""
+    out = []
+    items = d.items() if isinstance(d, dict) else enumerate(d) if isinstance(d, list) else ()
+    for k, v in items:
+        if isinstance(d, list) and k > 1:
+            break  # two list entries are enough (the arrays are long)
+        out.append(prefix + (k,))
+        out.extend(_key_paths(v, prefix + (k,)))
+    return out
+
+
+def _load_or_fdml_error(path):
+    try:
+        return load_result(path)
+    except FdmlError as exc:
+        assert "\n" not in str(exc) and str(path) in str(exc)
+        return None
+
+
+# ~150 examples in about 5 s here
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_property_arbitrary_json_gives_result_or_fdml_error(small_fit, scratch, data):
+    doc = small_fit.to_dict()
+    paths = _key_paths(doc)
+    for _ in range(data.draw(st.integers(1, 3))):
+        keys = data.draw(st.sampled_from(paths))
+        try:
+            _set(doc, keys, data.draw(st.one_of(st.just(_DELETE), _json)))
+        except (KeyError, IndexError, TypeError):
+            pass  # an earlier edit removed or replaced the parent
+    if data.draw(st.booleans()):
+        doc = data.draw(_json)  # or no result at all
+    path = scratch / "fuzz.json"
+    path.write_text(json.dumps(doc))  # NaN / Infinity tokens included
+    res = _load_or_fdml_error(path)
+    assert res is None or isinstance(res, FitResult)
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(raw=st.one_of(st.binary(max_size=200), st.text(max_size=100).map(lambda s: s.encode("utf-8", "replace"))))
+def test_property_arbitrary_bytes_give_result_or_fdml_error(scratch, raw):
+    path = scratch / "bytes.json"
+    path.write_bytes(raw)
+    assert _load_or_fdml_error(path) is None  # a valid result needs far more than 200 bytes
