@@ -211,3 +211,28 @@ def test_check_costs_little_against_a_fit(navion_3211):
     fdml.fit(navion_3211, model, check=False)
     t_fit = time.perf_counter() - t0
     assert t_check < 0.5 * t_fit
+
+
+def test_batch_table_carries_findings_and_strict_fails_the_record(tmp_path, navion_3211, capsys):
+    import csv
+
+    good, bad = tmp_path / "good.csv", tmp_path / "bad.csv"
+    navion_3211.to_csv(good)
+    _corrupt(navion_3211, "az_ms2").to_csv(bad)
+    common = [str(good), str(bad), "--aircraft", "navion", "--model", "dimensional", "--serial", "--no-progress"]
+    assert main(["batch", *common, "--out", str(tmp_path / "plain")]) == 0
+    rows = {r["key"]: r for r in csv.DictReader(open(tmp_path / "plain" / "table.csv"))}
+    assert rows["good"]["findings"] == "" and rows["bad"]["findings"] == "units.az"
+    assert "bad: units.az" in capsys.readouterr().out
+    assert main(["batch", *common, "--out", str(tmp_path / "strict"), "--strict"]) == 1
+    rows = {r["key"]: r for r in csv.DictReader(open(tmp_path / "strict" / "table.csv"))}
+    assert rows["good"]["status"] == "ok"
+    assert rows["bad"]["status"] == "error" and "units.az" in rows["bad"]["error"]
+
+
+def test_diagnose_keeps_findings_and_strict_refuses(navion_3211):
+    from fdml.diagnose import diagnose
+
+    bad = _corrupt(navion_3211, "q_flip")
+    with pytest.raises(DataCheckError, match="sign.q"):
+        diagnose([bad], fdml.make_model("dimensional", "navion"), strict=True)

@@ -840,6 +840,9 @@ class BatchSummary:
         Records in the batch; fitted now, reused from an earlier run, failed.
     errors : dict
         Key -> error (type: one-line message) of every record that failed.
+    findings : dict
+        Key -> the codes (space-separated) of the data check's findings, for
+        every record fitted with findings (:mod:`fdml.datacheck`).
     wall_time : float
         Seconds.
     engine : str
@@ -858,6 +861,7 @@ class BatchSummary:
     errors: dict
     wall_time: float
     engine: str
+    findings: dict = field(default_factory=dict)
 
     @functools.cached_property
     def rows(self) -> list[dict]:
@@ -878,7 +882,7 @@ class BatchSummary:
         return {"out_dir": str(self.out_dir), "records": self.n_total, "fitted": self.n_fitted,
                 "reused": self.n_reused, "failed": self.n_failed, "wall_time": self.wall_time,
                 "engine": self.engine, "table_csv": str(self.table_csv), "table_json": str(self.table_json),
-                "errors": dict(self.errors)}
+                "errors": dict(self.errors), "findings": dict(self.findings)}
 
     def to_frame(self):
         """The table as a pandas DataFrame (pandas is optional)."""
@@ -894,6 +898,10 @@ class BatchSummary:
                  f"table: {self.table_csv}"]
         for key, err in self.errors.items():
             lines.append(f"  {key}: {err}")
+        if self.findings:
+            lines.append(f"data check: {len(self.findings)} record(s) with findings (column 'findings'; "
+                         "--strict makes them errors)")
+            lines.extend(f"  {key}: {codes}" for key, codes in self.findings.items())
         return "\n".join(lines)
 
 
@@ -909,7 +917,7 @@ def _atomic_open(path: Path):
 class _RowSpool:
     """Rows as they finish, appended to a file; read back in source order for the tables.
 
-    In memory per record: one file offset (8 bytes) and two flag bytes.
+    In memory per record: one file offset (8 bytes) and three flag bytes.
     """
 
     def __init__(self, path: Path, n: int):
@@ -919,6 +927,7 @@ class _RowSpool:
         self.fh = open(path, "w+b")
         self.offsets = array("q", [-1]) * n
         self.failed = bytearray(n)
+        self.flagged = bytearray(n)  # rows whose data check found something
         self.reused = bytearray(n)
         self.names: dict[str, None] = {}  # ordered union of parameter names
 
@@ -930,15 +939,16 @@ class _RowSpool:
         self.offsets[i] = self.fh.tell()
         self.fh.write(_dumps(row, compact=True).encode() + b"\n")
         self.failed[i] = row["status"] != "ok"
+        self.flagged[i] = bool(row.get("findings"))
         self.reused[i] = bool(row.get("reused"))
         for n in row["params"]:
             self.names.setdefault(n, None)
         return first
 
-    def rows(self, only_failed: bool = False) -> Iterator[dict]:
-        """The rows in source order."""
+    def rows(self, only_failed: bool = False, only_flagged: bool = False) -> Iterator[dict]:
+        """The rows in source order (only those that failed, or whose data check found something)."""
         for i, off in enumerate(self.offsets):
-            if off >= 0 and (self.failed[i] or not only_failed):
+            if off >= 0 and (self.failed[i] or not only_failed) and (self.flagged[i] or not only_flagged):
                 self.fh.seek(off)
                 yield json.loads(self.fh.readline())
 
@@ -1152,11 +1162,13 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
         csv_path, json_path = _write_tables(out, spool, spec_d, kw)
         n_failed, n_reused = sum(spool.failed), sum(spool.reused)
         errors = {r["key"]: r["error"] for r in spool.rows(only_failed=True)}
+        findings = {r["key"]: r["findings"] for r in spool.rows(only_flagged=True)}
     finally:
         run.close()
     return BatchSummary(out_dir=out, table_csv=csv_path, table_json=json_path, n_total=done,
                         n_fitted=done - n_failed - n_reused, n_reused=n_reused, n_failed=n_failed,
-                        errors=errors, wall_time=time.perf_counter() - t_start, engine=kind)
+                        errors=errors, wall_time=time.perf_counter() - t_start, engine=kind,
+                        findings=findings)
 
 
 def _resolve_kind_name(engine) -> str:

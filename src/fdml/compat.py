@@ -564,6 +564,11 @@ def check_compatibility(record: Record, *, correct: bool = False, estimate=None,
     if not isinstance(record, Record):
         raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
     az_mean = float(np.mean(record["az"]))
+    if 0.4 < az_mean < 1.6:
+        raise RecordError(
+            f"record {record.name!r}: mean a_z is {az_mean:+.3g} g; in level flight fdml's a_z (body z, "
+            "positive down, THEORY.md Eq. 5) is near -1 g: the sign looks flipped (a normal acceleration "
+            "a_n, positive up?). Load it with the sign reversed (--sign az=-1)")
     if not -1.6 < az_mean < -0.4:
         raise RecordError(
             f"record {record.name!r}: mean a_z is {az_mean:.3g} g; the compatibility check needs the record "

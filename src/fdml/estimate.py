@@ -42,12 +42,12 @@ import numpy as np
 from .errors import (
     BandError,
     ConvergenceWarning,
-    DataWarning,
     FdmlError,
     IdentifiabilityWarning,
     ParameterError,
     RecordError,
 )
+from .findings import emit, raise_if_strict
 from .models.base import OUTPUTS, Model
 from .parameters import as_names, check_fix_free
 from .record import Record
@@ -449,16 +449,25 @@ def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary
             f"the band carries about {n_indep:.0f} independent real data (record length x band width) "
             f"for {p} free parameters: lengthen the record or widen the band"
         )
-    if boundary == "none":
-        for d in fdata:
+    return prob
+
+
+def _end_findings(prob: Problem) -> list:
+    """Records that end far from trim while boundary='none' (THEORY.md section 7)."""
+    from .findings import Finding
+
+    out = []
+    if prob.boundary == "none":
+        for d in prob.data:
             far = [OUTPUTS[k] for k in (0, 1) if d.end_offset[k] > _END_OFFSET_WARN]
             if far:
-                warnings.warn(
-                    f"record {d.name!r} ends far from trim in {', '.join(far)} "
-                    f"({100 * max(d.end_offset[:2]):.0f} % of the peak) and boundary='none': the transform "
-                    "sees a truncated response; use boundary='estimated' or 'measured'",
-                    DataWarning, stacklevel=3)
-    return prob
+                out.append(Finding(
+                    "boundary.truncated",
+                    f"the record ends far from trim in {', '.join(far)} ({100 * max(d.end_offset[:2]):.0f} % of "
+                    "the peak) and boundary='none': the transform sees a truncated response; use "
+                    "boundary='estimated' or 'measured'", kind="estimation", record=d.name,
+                    value=float(max(d.end_offset[:2])), expected=_END_OFFSET_WARN))
+    return out
 
 
 def _logdet(R: np.ndarray) -> float:
@@ -673,7 +682,8 @@ def fit(
                    biases=biases, state_biases=state_biases, input_bias=input_bias, free=free,
                    fix=fix, bounds=bounds, sensitivity=sensitivity, trim=trim, trim_window=trim_window,
                    end_correction=end_correction)
-    found = _data_findings(prob, strict) if check else ()
+    found = (_data_findings(prob, strict) if check else []) + _end_findings(prob)
+    emit(found, stacklevel=2)
     theta = prob.initial()
     lo, hi = prob.bounds()
     theta = _project(theta, lo, hi)
@@ -746,16 +756,16 @@ def fit(
                            "stalled: no step decreases det R")
                 break
     if not converged and not stopped:
-        warnings.warn(f"fit did not converge: {message}", ConvergenceWarning, stacklevel=2)
+        warned.append(f"fit did not converge: {message}")  # kept in the result, as every warning
+        warnings.warn(warned[-1], ConvergenceWarning, stacklevel=2)
     res = _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned,
                   time.perf_counter() - t_start, stopped, method, stop, A_final)
-    return replace(res, findings=found) if found else res
+    return replace(res, findings=tuple(found)) if found else res
 
 
-def _data_findings(prob: Problem, strict: bool) -> tuple:
-    """The data check on every record the fit was given in the time domain; issued as warnings."""
+def _data_findings(prob: Problem, strict: bool) -> list:
+    """The data check on every record the fit was given in the time domain (strict: raise)."""
     from .datacheck import check_data
-    from .findings import emit, raise_if_strict
 
     try:
         U = float(prob.model.U)
@@ -766,8 +776,7 @@ def _data_findings(prob: Problem, strict: bool) -> tuple:
         if d.record is not None:
             found.extend(check_data(d.record, airspeed=U, data=d).findings)
     raise_if_strict(found, strict)
-    emit(found, stacklevel=3)
-    return tuple(found)
+    return found
 
 
 def _try(prob, theta, step, lo, hi, J):

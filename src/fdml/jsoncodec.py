@@ -331,7 +331,9 @@ def complex_array(v, shape=None) -> np.ndarray:
     im = float_array(v["im"])
     if re.shape != im.shape:
         raise ValueError(f"has 're' of shape {_shape_text(re.shape)} but 'im' of shape {_shape_text(im.shape)}")
-    return _check_shape(re + 1j * im, shape)
+    out = np.empty(re.shape, complex)
+    out.real, out.imag = re, im  # not re + 1j * im: 1j * inf is nan + inf j
+    return _check_shape(out, shape)
 
 
 _MISSING = object()

@@ -37,17 +37,26 @@ def run(args) -> int:
     rec = load_record(args.record, **record_options(args))
     report = check_quality(rec, band=args.band, n_params=args.n_params)
     data_check = check_data(rec, band=args.band, airspeed=args.airspeed)
-    compat = None
+    from ..errors import RecordError
+
+    compat, compat_note = None, None
     if args.compat:
         from ..compat import check_compatibility
 
-        compat = check_compatibility(rec)
+        try:
+            compat = check_compatibility(rec)
+        except RecordError as exc:  # a perturbation record: the data check above covers Eq. 5
+            if "trim kept" not in str(exc):
+                raise
+            compat_note = f"compatibility check skipped: {exc}"
     if args.json:
         from ..cli import print_json
 
         out = {"record": args.record, "quality": report.to_dict(), "data_check": data_check.to_dict()}
         if compat is not None:
             out["compatibility"] = compat.to_dict()
+        elif compat_note:
+            out["compatibility"] = {"skipped": compat_note}
         print_json(out)
     else:
         print(report.summary())
@@ -56,5 +65,8 @@ def run(args) -> int:
         if compat is not None:
             print()
             print(compat.summary())
+        elif compat_note:
+            print()
+            print(compat_note)
     raise_if_strict(data_check.findings, args.strict)
     return 0
