@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import lsim_dimensional, three_two_one_one
 
 import fdml
 from fdml.cli import main
@@ -19,8 +20,6 @@ from fdml.constants import G0
 from fdml.datacheck import DEG, check_data
 from fdml.errors import DataCheckError, DataWarning
 from fdml.record import Record
-
-from conftest import lsim_dimensional, three_two_one_one
 
 NAVION = fdml.make_model("dimensional", "navion")
 
@@ -120,7 +119,8 @@ CLEAN = [
 ]
 
 
-@pytest.mark.parametrize("kind, manoeuvre, dt, opts", CLEAN, ids=[f"{c[0]}-{c[1]}-{c[2]}-{sorted(c[3])}" for c in CLEAN])
+@pytest.mark.parametrize("kind, manoeuvre, dt, opts", CLEAN,
+                         ids=[f"{c[0]}-{c[1]}-{c[2]}-{sorted(c[3])}" for c in CLEAN])
 def test_clean_simulated_records_pass(kind, manoeuvre, dt, opts):
     from fdml.record import add_noise
     from fdml.simulate import simulate_maneuver
@@ -153,8 +153,8 @@ REAL = [("twin_otter/totter_lon_020213f1_017.mat", {}), ("twin_otter/totter_lon_
 @pytest.mark.parametrize("path, kw", REAL, ids=[p for p, _ in REAL])
 @pytest.mark.parametrize("band", [None, "0.6:9.4:0.05"])
 def test_real_records_pass_and_close_the_identity(path, kw, band):
-    from fdml.io import data_path, load_record
     from fdml.errors import RecordError
+    from fdml.io import data_path, load_record
 
     try:
         rec = load_record(data_path(path), **kw)
@@ -221,11 +221,13 @@ def test_batch_table_carries_findings_and_strict_fails_the_record(tmp_path, navi
     _corrupt(navion_3211, "az_ms2").to_csv(bad)
     common = [str(good), str(bad), "--aircraft", "navion", "--model", "dimensional", "--serial", "--no-progress"]
     assert main(["batch", *common, "--out", str(tmp_path / "plain")]) == 0
-    rows = {r["key"]: r for r in csv.DictReader(open(tmp_path / "plain" / "table.csv"))}
+    with open(tmp_path / "plain" / "table.csv") as fh:
+        rows = {r["key"]: r for r in csv.DictReader(fh)}
     assert rows["good"]["findings"] == "" and rows["bad"]["findings"] == "units.az"
     assert "bad: units.az" in capsys.readouterr().out
     assert main(["batch", *common, "--out", str(tmp_path / "strict"), "--strict"]) == 1
-    rows = {r["key"]: r for r in csv.DictReader(open(tmp_path / "strict" / "table.csv"))}
+    with open(tmp_path / "strict" / "table.csv") as fh:
+        rows = {r["key"]: r for r in csv.DictReader(fh)}
     assert rows["good"]["status"] == "ok"
     assert rows["bad"]["status"] == "error" and "units.az" in rows["bad"]["error"]
 

@@ -344,7 +344,7 @@ def test_figure_format_comes_from_the_final_name(tmp_path):
 
 
 def test_report_write_failing_leaves_no_report(fitted, monkeypatch, capsys):
-    rec, res = fitted
+    _, res = fitted
     _full_disk_after(monkeypatch, 1000)
     out = res.parent / "rep"
     code = main(["report", str(res), "-o", str(out)])
@@ -353,10 +353,9 @@ def test_report_write_failing_leaves_no_report(fitted, monkeypatch, capsys):
 
 
 def test_staged_outputs_appear_together(tmp_path):
-    with pytest.raises(RuntimeError):
-        with outputs.StagedOutputs() as out:
-            out.write_text(tmp_path / "a.txt", "a")
-            raise RuntimeError("drawing failed")
+    with pytest.raises(RuntimeError), outputs.StagedOutputs() as out:
+        out.write_text(tmp_path / "a.txt", "a")
+        raise RuntimeError("drawing failed")
     assert not list(tmp_path.iterdir())
     with outputs.StagedOutputs() as out:
         out.write_text(tmp_path / "a.txt", "a")
@@ -382,7 +381,9 @@ def test_closed_pipe_ends_quietly(how, tmp_path, record_bytes):
         argv = ["fit", str(rec), *FIT, "--json"]
     else:  # about 1.6 MB of JSON, far beyond a pipe's buffer: the writes after the first line fail
         argv = ["response", "--aircraft", "navion", "--model", "steady", "--omega", "0.01:100:0.01", "--json"]
-    env = {**os.environ, "MPLBACKEND": "Agg"}
+    # block-buffered stdout as in a normal shell: with PYTHONUNBUFFERED a large write to a closed
+    # pipe can end without an error, and the case would prove nothing
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"} | {"MPLBACKEND": "Agg"}
     proc = subprocess.Popen([sys.executable, "-m", "fdml", *argv], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, env=env)
     if how == "closed after one line":

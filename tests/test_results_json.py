@@ -103,7 +103,8 @@ def _same_array(a, b, what):
     # exact: the JSON text holds the shortest repr of each double, which reads back bit for bit;
     # NaN in the same places (assert_array_equal treats NaN as equal to NaN)
     np.testing.assert_array_equal(a, b, err_msg=what)
-    assert np.array_equal(np.signbit(a.real), np.signbit(b.real)), what  # -0.0 survives too
+    for x, y in ((a.real, b.real), (a.imag, b.imag)):  # -0.0 survives too (a NaN's sign need not)
+        assert np.array_equal(np.signbit(x) & ~np.isnan(x), np.signbit(y) & ~np.isnan(y)), what
 
 
 def _same_number(a, b, what):
@@ -153,6 +154,8 @@ def assert_same(a: FitResult, b: FitResult) -> None:
         for k in sa:
             if isinstance(sa[k], np.ndarray):
                 _same_array(sa[k], sb[k], f"spectra {k}")
+            elif isinstance(sa[k], float):
+                _same_number(sa[k], sb[k], f"spectra {k}")
             else:
                 assert sa[k] == sb[k], f"spectra {k}"
     assert len(a.time_records) == len(b.time_records)
@@ -214,6 +217,19 @@ def test_cli_reproduction_writes_loadable_result(tmp_path, capsys):
     res = load_result(out)
     assert res.records and res.time_records[0]["t"].size == 501  # 10 s at 0.02 s
     assert (rc == 0) == res.converged
+
+
+def test_batch_keeps_a_noise_free_record(clean, tmp_path):
+    """Issue 14: batch marked noise-free records failed (the result file could not be written)."""
+    from fdml.batch import run_batch
+
+    clean.to_csv(tmp_path / "clean.csv")
+    summary = run_batch([str(tmp_path / "clean.csv")], {"kind": "steady", "aircraft": "navion"}, tmp_path / "out",
+                        engine="serial")
+    (row,) = summary.rows
+    assert row["status"] == "ok", row.get("error")
+    res = load_result(tmp_path / "out" / row["result_file"])
+    assert res.converged is row["converged"]
 
 
 # --- the codec ---------------------------------------------------------------------------------
@@ -410,7 +426,7 @@ def perturbed(draw, base: FitResult):
         a = np.array(a, copy=True)
         for _ in range(draw(st.integers(0, 3))):
             idx = tuple(draw(st.integers(0, s - 1)) for s in a.shape)
-            a[idx] = draw(_any_float) + (1j * draw(_any_float) if np.iscomplexobj(a) else 0)
+            a[idx] = complex(draw(_any_float), draw(_any_float)) if np.iscomplexobj(a) else draw(_any_float)
         return a
 
     spectra = tuple({**s, "omega": arr(s["omega"]), "z": arr(s["z"]), "T": draw(_any_float)} for s in base.spectra)

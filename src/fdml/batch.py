@@ -565,19 +565,21 @@ def _signals_end_the_run() -> Iterator[None]:
 
 
 def _die_with_parent(owner: int, start_method: str) -> None:
-    """Have Linux SIGKILL this process when its parent process ends; a no-op elsewhere.
+    """End this worker process when the process that owns its pool ends, even by SIGKILL.
 
-    SIGKILL of the pool's owner runs no clean-up, so the workers must notice on
-    their own.  ``prctl(PR_SET_PDEATHSIG)`` rather than a thread polling
-    :func:`os.getppid`: the kernel delivers it even while the worker is deep in
-    a numpy/LAPACK call that holds the GIL (when a polling thread cannot run),
-    at once rather than at the next poll, and it costs nothing while the worker
-    works.  The parent is the owner (``fork``, ``spawn``) or the forkserver,
-    which exits when the owner does, so the workers end either way.  The signal
-    follows the *thread* that forked the worker; the pool is created and fed by
-    the thread that iterates :func:`execute`, which lives as long as the run.
-    Without prctl (macOS, Windows) a worker of a killed owner is not ended by
-    this (SIGTERM, SIGHUP and SIGINT still are, by the owner's clean-up).
+    SIGKILL of the owner runs no clean-up, so the workers must notice on their
+    own.  On Linux with ``fork`` or ``spawn`` (the owner is the parent):
+    ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (:func:`_kill_with_parent`), chosen
+    over a thread that polls :func:`os.getppid` because the kernel delivers it
+    at once, even while the worker is deep in a numpy/LAPACK call that holds
+    the GIL, and it costs nothing while the worker works.  With
+    ``forkserver`` the parent is the forkserver, which exits only when no
+    process holds the owner's "alive" pipe, and every worker holds it (to be a
+    forkserver client itself): the forkserver outlives the owner and the
+    parent-death signal never comes.  There, and where prctl does not exist
+    (macOS), a daemon thread blocks on :func:`multiprocessing.parent_process`'s
+    sentinel (readable once the owner has ended; no polling) and then ends the
+    worker (:func:`_watch_parent`).
 
     Parameters
     ----------
@@ -586,21 +588,50 @@ def _die_with_parent(owner: int, start_method: str) -> None:
     start_method : str
         Its multiprocessing start method.
     """
+    if start_method != "forkserver" and _kill_with_parent(owner):
+        return
+    _watch_parent()
+
+
+def _kill_with_parent(owner: int) -> bool:
+    """Ask Linux to SIGKILL this process when its parent ends; False where that is not possible.
+
+    The signal follows the *thread* that forked the worker: the pool is
+    created and fed by the thread that iterates :func:`execute`, which lives as
+    long as the run.
+    """
     import ctypes
     import signal
 
     if not sys.platform.startswith("linux"):
-        return
+        return False
     try:
         libc = ctypes.CDLL(None, use_errno=True)
         zero = ctypes.c_ulong(0)
         if libc.prctl(_PR_SET_PDEATHSIG, ctypes.c_ulong(signal.SIGKILL), zero, zero, zero) != 0:
-            return
-    except (OSError, AttributeError):  # no libc symbol table or no prctl: nothing to ask
-        return
-    # the owner may have died before prctl took effect: then no signal will ever come
-    if start_method != "forkserver" and os.getppid() != owner:
+            return False
+    except (OSError, AttributeError):  # no libc symbol table or no prctl
+        return False
+    if os.getppid() != owner:  # the owner died before prctl took effect: no signal will come
         os._exit(1)
+    return True
+
+
+def _watch_parent() -> None:
+    """A daemon thread that ends this process once the owner's sentinel says it has ended."""
+    import multiprocessing
+    import multiprocessing.connection
+    import threading
+
+    sentinel = getattr(multiprocessing.parent_process(), "sentinel", None)
+    if sentinel is None:  # not a multiprocessing child: nothing to watch
+        return
+
+    def watch() -> None:
+        multiprocessing.connection.wait([sentinel])  # blocks, GIL released, until the owner ends
+        os._exit(1)
+
+    threading.Thread(target=watch, name="fdml-parent-watch", daemon=True).start()
 
 
 def _worker_init(owner: int, start_method: str) -> None:
@@ -1026,7 +1057,7 @@ def _clean_stale(out: Path, own: Path) -> None:
 
 
 @contextlib.contextmanager
-def _folder_lock(out: Path, spool: "_RowSpool") -> Iterator[None]:
+def _folder_lock(out: Path, spool: _RowSpool) -> Iterator[None]:
     """Hold the output folder ``out`` for a whole batch; a second batch into it waits.
 
     The lock is an ``flock`` on ``out/.fdml-batch.lock`` (the file stays; the
@@ -1046,6 +1077,13 @@ def _folder_lock(out: Path, spool: "_RowSpool") -> Iterator[None]:
     OutputError
         The lock file cannot be created or is not a regular file.
     """
+    import multiprocessing
+
+    if getattr(multiprocessing.current_process(), "_inheriting", False):
+        # a worker re-running an unguarded main script (spawn, forkserver) would wait for
+        # its own parent's lock forever; multiprocessing reads the same private flag
+        raise FdmlError("run_batch was called while a worker process imports the main script: put the "
+                        "call under `if __name__ == '__main__':`")
     try:
         import fcntl
     except ImportError:

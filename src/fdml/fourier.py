@@ -184,7 +184,8 @@ def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False)
     if lo < 0 or (positive and lo == 0):
         raise BandError(f"{what}: lo = {lo:g} rad/s must be {'positive' if positive else 'non-negative'}")
     if hi < lo:
-        raise BandError(f"{what}: hi = {hi:g} rad/s is below lo = {lo:g} rad/s (the band is LO:HI:STEP)")
+        form = "LO:HI" if step is None else "LO:HI:STEP"
+        raise BandError(f"{what}: hi = {hi:g} rad/s is below lo = {lo:g} rad/s (the band is {form})")
     if step is None:
         return lo, hi, None, 0
     if step <= 0:

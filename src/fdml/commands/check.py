@@ -25,12 +25,10 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..io import load_record
-    from ..quality import check_quality
-
     from ..datacheck import check_data
     from ..findings import raise_if_strict
-
+    from ..io import load_record
+    from ..quality import check_quality
     from ._common import check_band_option
 
     check_band_option(args.band)
