@@ -8,8 +8,8 @@ import pytest
 import fdml
 from fdml.constants import G0
 from fdml.diagnose import OutputEffect, Param, get_effect, register_effect, registered_effects, scale_rows
-from fdml.diagnose.effects import unregister_effect, with_gust
-from fdml.diagnose.library import to_unsteady_equivalent
+from fdml.models.effects import unregister_effect, with_gust
+from fdml.models.effect_library import to_unsteady_equivalent
 from fdml.errors import ParameterError
 
 OMEGA = np.linspace(0.3, 12.0, 40)

@@ -166,12 +166,13 @@ def assert_same(a: FitResult, b: FitResult) -> None:
         for k in ra["signals"]:
             _same_array(ra["signals"][k], rb["signals"][k], f"time_records signal {k}")
         assert to_jsonable(ra["meta"]) == rb["meta"]
+    assert a.adequacy == b.adequacy  # fdml.adequacy: floats and strings only, so exact
     # nothing was forgotten: every field of the dataclass is covered above
     assert {f.name for f in dataclasses.fields(FitResult)} == {
         "model", "names", "values", "stderr", "cov", "corr", "cov_naive", "R", "cost_history", "iterations",
         "converged", "message", "derived", "fixed", "at_bound", "outputs", "band", "n_freq", "records",
         "boundary", "cov_type", "method", "stop", "stopped", "warnings", "elapsed", "spectra", "time_records",
-        "nuisance", "findings"}
+        "nuisance", "findings", "adequacy"}
 
 
 FINDINGS = (

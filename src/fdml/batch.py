@@ -93,6 +93,9 @@ class ModelSpec:
     parameters : list of dict, optional
         A whole parameter set (:meth:`fdml.Parameters.to_list`), as
         :meth:`from_model` stores it; applied before ``values``, ``fix``, ``free``.
+    effects : sequence of str, optional
+        Effects made part of the model (``"time_delay@alpha"``; see
+        :func:`fdml.make_model`), in order.
     """
 
     kind: str
@@ -102,6 +105,7 @@ class ModelSpec:
     fix: Mapping | Sequence = ()
     free: Sequence = ()
     parameters: Sequence | None = None
+    effects: Sequence = ()
 
     @classmethod
     def from_model(cls, model) -> "ModelSpec":
@@ -109,7 +113,8 @@ class ModelSpec:
         from .models import model_to_dict
 
         d = model_to_dict(model)
-        return cls(kind=d["kind"], aircraft=d["aircraft"], options=d["options"], parameters=d["parameters"])
+        return cls(kind=d["kind"], aircraft=d["aircraft"], options=d["options"], parameters=d["parameters"],
+                   effects=tuple(d.get("effects", ())))
 
     @classmethod
     def coerce(cls, spec) -> "ModelSpec":
@@ -117,10 +122,10 @@ class ModelSpec:
         if isinstance(spec, cls):
             return spec
         if isinstance(spec, Mapping):
-            unknown = set(spec) - {"kind", "aircraft", "options", "values", "fix", "free", "parameters"}
+            unknown = set(spec) - {"kind", "aircraft", "options", "values", "fix", "free", "parameters", "effects"}
             if unknown:
                 raise FdmlError(f"model spec: unknown key(s) {sorted(unknown)}; known: kind, aircraft, "
-                                "options, values, fix, free, parameters")
+                                "options, values, fix, free, parameters, effects")
             if "kind" not in spec:
                 raise FdmlError("model spec: 'kind' is required (unsteady, steady, derivatives, dimensional)")
             return cls(**spec)
@@ -145,13 +150,14 @@ class ModelSpec:
         return ModelSpec(kind=str(self.kind), aircraft=ac, options=dict(self.options),
                          values={str(k): float(v) for k, v in self.values.items()}, fix=fix,
                          free=as_names(self.free, "free"),
-                         parameters=None if self.parameters is None else [dict(p) for p in self.parameters])
+                         parameters=None if self.parameters is None else [dict(p) for p in self.parameters],
+                         effects=_effect_keys(self.effects))
 
     def to_dict(self) -> dict:
         """JSON-ready dict (call on a :meth:`normalized` spec)."""
         return {"kind": self.kind, "aircraft": self.aircraft, "options": dict(self.options),
                 "values": dict(self.values), "fix": self.fix if isinstance(self.fix, Mapping) else list(self.fix),
-                "free": list(self.free), "parameters": self.parameters}
+                "free": list(self.free), "parameters": self.parameters, "effects": list(self.effects)}
 
     def build(self):
         """The :class:`~fdml.models.Model` described."""
@@ -163,8 +169,12 @@ class ModelSpec:
         if isinstance(ac, Mapping):
             ac = Aircraft.from_dict(ac, origin="model spec")
         model = make_model(self.kind, ac, **dict(self.options))
-        if self.parameters is not None:
-            model = model.with_parameters(Parameters.from_list(self.parameters))
+        if self.parameters is not None:  # a saved model: its base kind plus its effects, as model_to_dict
+            from .models.effects import assemble
+
+            model = assemble(model, self.effects).with_parameters(Parameters.from_list(self.parameters))
+        elif self.effects:
+            model = model.with_effects(list(self.effects))
         if self.values:
             model.parameters.check_names(self.values)
             model = model.with_values(self.values)
@@ -175,6 +185,22 @@ class ModelSpec:
             model.parameters.check_names(self.free)
             model = model.with_parameters(model.parameters.free(self.free))
         return model
+
+
+def _effect_keys(effects) -> list:
+    """Effect names as canonical ``name@channel`` keys (a stable hash; an unknown name fails here)."""
+    from .errors import ParameterError
+    from .models.effects import resolve_effect
+
+    if isinstance(effects, str):
+        effects = [effects]
+    out = []
+    for e in effects:
+        try:
+            out.append(resolve_effect(e).key)
+        except ParameterError:  # NAME alone with several variants: resolved against the model in build()
+            out.append(str(e).strip())
+    return out
 
 
 # --- sources --------------------------------------------------------------------------------

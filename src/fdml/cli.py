@@ -20,7 +20,8 @@ EXIT_FAILURE = 1
 EXIT_CLOSED_PIPE = 141
 
 #: Command modules under fdml.commands, in help order.
-COMMANDS = ("demo", "fit", "check", "simulate", "response", "report", "batch", "montecarlo", "diagnose", "aircraft")
+COMMANDS = ("demo", "fit", "check", "simulate", "response", "report", "batch", "montecarlo", "diagnose", "aircraft",
+            "effects")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -57,6 +57,10 @@ class BoundsWarning(FdmlWarning):
     """Frequency-grid correlation or other effects make bounds less reliable."""
 
 
+class AdequacyWarning(FdmlWarning):
+    """A fit's adequacy check (fdml.adequacy) flagged an unmodelled effect or non-white residuals."""
+
+
 __all__ = [
     "FdmlError",
     "RecordError",
@@ -70,4 +74,5 @@ __all__ = [
     "IdentifiabilityWarning",
     "DataWarning",
     "BoundsWarning",
+    "AdequacyWarning",
 ]

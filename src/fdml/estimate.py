@@ -48,17 +48,32 @@ from .errors import (
     RecordError,
 )
 from .findings import emit, raise_if_strict
-from .models.base import OUTPUTS, Model
+from .models.base import OUTPUTS, Model, ModelResponse
+from .models.measurement import (
+    BOUNDARY_NAMES,
+    INPUT_BIAS_NAME,
+    NUISANCE_NAMES,
+    OUTPUT_BIAS_NAMES,
+    STATE_BIAS_NAMES,
+    Nuisance,
+    end_shift,
+    nuisance_columns,
+)
+from .models.measurement import predict as _measure
 from .parameters import as_names, check_fix_free
 from .record import Record
 from .results import FitResult, IterationInfo
 from .spectra import FrequencyData, spectra
 
-__all__ = ["fit", "prepare", "Problem"]
+__all__ = ["fit", "prepare", "Problem", "NoiseModel"]
 
-_BOUNDARY_NAMES = ("x0_alpha", "x0_q", "xT_alpha", "xT_q")
+_BOUNDARY_NAMES = BOUNDARY_NAMES  # x(0), x(T) of alpha and q (THEORY.md section 7)
 #: State-equation biases: constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations.
-_STATE_BIAS_NAMES = ("bias_alpha_dot", "bias_q_dot")
+_STATE_BIAS_NAMES = STATE_BIAS_NAMES
+#: Base name of each nuisance slot kind, by the slot's index (fdml.models.measurement order).
+_NUISANCE_BASE = {"bias": OUTPUT_BIAS_NAMES, "boundary": BOUNDARY_NAMES, "sbias": STATE_BIAS_NAMES,
+                  "ibias": (INPUT_BIAS_NAME,)}
+_BOUNDARY_COLS = [NUISANCE_NAMES.index(n) for n in BOUNDARY_NAMES]
 #: Relative change at which Eq. 26 sensitivities count as settled (THEORY.md 7).
 _SETTLE_TOL = 1e-4
 #: The same for the sensitivities behind the final covariance, taken as central
@@ -105,7 +120,7 @@ class Problem:
         for r, d in enumerate(data):
             suffix = f"[{d.name}]" if multi else ""
             for k in outputs:
-                bname = f"bias_{OUTPUTS[k]}"
+                bname = OUTPUT_BIAS_NAMES[k]
                 if model.parameters[bname].free:
                     slots.append(_Slot(bname + suffix, "bias", r, k))
             if boundary == "estimated":
@@ -115,12 +130,20 @@ class Problem:
                 for j, bn in enumerate(_STATE_BIAS_NAMES):
                     slots.append(_Slot(bn + suffix, "sbias", r, j))
             if input_bias:
-                slots.append(_Slot("bias_de" + suffix, "ibias", r, 0))
+                slots.append(_Slot(INPUT_BIAS_NAME + suffix, "ibias", r, 0))
         self.state_biases = state_biases
         self.input_bias = input_bias
         self.slots = slots
         self.names = tuple(s.name for s in slots)
         self.model_slots = [i for i, s in enumerate(slots) if s.kind == "model"]
+        # per record: the nuisance slots and their places in the measurement model's nuisance vector
+        self._nu = []
+        for r in range(len(data)):
+            own = [i for i, s in enumerate(slots) if s.record == r]
+            cols = [NUISANCE_NAMES.index(_NUISANCE_BASE[slots[i].kind][slots[i].index]) for i in own]
+            self._nu.append((np.array(own, int), np.array(cols, int)))
+        self._shift = [end_shift(d.omega, d.T) for d in data]  # exp(-j w T) of each record
+        self._eta0 = (None, [])  # (model, fixed nuisance values per record): see _nuisance
         self.N = sum(d.m for d in data)
         self.n_out = len(outputs)
         self._steps = {}
@@ -161,30 +184,16 @@ class Problem:
             vals[self.slots[i].name] = float(theta[i])
         return vals
 
-    def _nuisance(self, theta: np.ndarray, r: int):
-        """(boundary vector d (m, 2), output biases (3,), state biases (2,), input bias) of record r."""
-        d = self.data[r]
-        vals = self.model.parameters.values
-        b = np.array([vals[f"bias_{o}"] for o in OUTPUTS])
-        x0, xT = d.x0.copy(), d.xT.copy()
-        sb = np.zeros(2)
-        ib = 0.0
-        for i, s in enumerate(self.slots):
-            if s.record != r:
-                continue
-            if s.kind == "bias":
-                b[s.index] = theta[i]
-            elif s.kind == "boundary":
-                (x0 if s.index < 2 else xT)[s.index % 2] = theta[i]
-            elif s.kind == "sbias":
-                sb[s.index] = theta[i]
-            elif s.kind == "ibias":
-                ib = theta[i]
-        if self.boundary == "none":
-            bd = np.zeros((d.m, 2), complex)
-        else:
-            bd = x0[None, :] - xT[None, :] * np.exp(-1j * d.omega * d.T)[:, None]
-        return bd, b, sb, ib
+    def _nuisance(self, theta: np.ndarray, r: int) -> Nuisance:
+        """Nuisance values of record r: estimates from theta, else the model's biases and measured x(0), x(T)."""
+        if self._eta0[0] is not self.model:  # NUISANCE_NAMES order; the model's biases (it may be swapped)
+            b = self.model.biases()
+            self._eta0 = (self.model, [np.concatenate([b, d.x0, d.xT, np.zeros(3)]) for d in self.data])
+        own, cols = self._nu[r]
+        eta = self._eta0[1][r].copy()
+        eta[cols] = theta[own]
+        return Nuisance.from_vector(eta, boundary=self.boundary != "none", state_biases=self.state_biases,
+                                    input_bias=self.input_bias)
 
     # --- predictions ---------------------------------------------------------------------
     def _responses(self, vals: Mapping[str, float]):
@@ -196,14 +205,9 @@ class Problem:
             responses = self._responses(self.model_values(theta))
         out = []
         for r, (d, resp) in enumerate(zip(self.data, responses)):
-            bd, b, sb, ib = self._nuisance(theta, r)
-            y = (resp.G @ d.u[:, :, None])[:, :, 0] + (resp.H @ bd[:, :, None])[:, :, 0]
-            y = y + d.ones[:, None] * b[None, :]
-            if self.state_biases:
-                y = y + (resp.P @ sb) * d.ones[:, None]  # constant forcing f: f~ = f ones(w)
-            if self.input_bias:
-                y = y + resp.G[:, :, 0] * (ib * d.ones)[:, None]  # constant elevator offset
-            out.append(y)
+            nu = self._nuisance(theta, r)  # Eqs. 18-19 with section 7's boundary terms
+            out.append(_measure(resp, d.u, d.ones, nu.boundary(self._shift[r]), nu.biases, nu.state_biases,
+                                nu.input_bias))
         return out
 
     def residuals(self, theta: np.ndarray, responses=None) -> np.ndarray:
@@ -225,14 +229,10 @@ class Problem:
                 parts = ("G",) + (("H",) if self.boundary != "none" else ()) + (("P",) if self.state_biases else ())
                 resp, dG, dH, dP = self.model.sensitivity(d.omega, vals, mnames, parts)
                 responses.append(resp)
-                bd, _, sb, ib = self._nuisance(theta, r)
-                dy = (dG @ d.u[:, :, None])[..., 0]
-                if dH is not None:
-                    dy = dy + (dH @ bd[:, :, None])[..., 0]
-                if self.state_biases:
-                    dy = dy + (dP @ sb) * d.ones[None, :, None]
-                if self.input_bias:
-                    dy = dy + dG[:, :, :, 0] * (ib * d.ones)[None, :, None]
+                nu = self._nuisance(theta, r)
+                # y is linear in (G, H, P) without the output biases: dy = predict of the derivatives
+                dy = _measure(ModelResponse(d.omega, dG, dH, dP), d.u, d.ones, nu.boundary(self._shift[r]),
+                              None, nu.state_biases, nu.input_bias)
                 A[offs[r]: offs[r + 1], :, self.model_slots] = np.moveaxis(dy[:, :, self.out_idx], 0, -1)
         else:
             responses = self._responses(vals)
@@ -242,24 +242,11 @@ class Problem:
             lo, hi = self.bounds()
             for i in self.model_slots:
                 A[:, :, i] = self._fd_column(theta, i, y0s, lo[i], hi[i], tol)
-        for i, s in enumerate(self.slots):
-            if s.kind == "model":
-                continue
-            r = s.record
-            d, resp = self.data[r], responses[r]
-            sl = slice(offs[r], offs[r + 1])
-            if s.kind == "bias":
-                col = np.zeros((d.m, 3), complex)
-                col[:, s.index] = d.ones
-            elif s.kind == "sbias":
-                col = resp.P[:, :, s.index] * d.ones[:, None]
-            elif s.kind == "ibias":
-                col = resp.G[:, :, 0] * d.ones[:, None]
-            else:
-                j = s.index % 2
-                factor = np.ones(d.m) if s.index < 2 else -np.exp(-1j * d.omega * d.T)
-                col = resp.H[:, :, j] * factor[:, None]  # d = x0 - xT exp(-jwT)
-            A[sl, :, i] = col[:, self.out_idx]
+        for r, d in enumerate(self.data):
+            own, cols = self._nu[r]
+            if own.size:  # exact: every nuisance value enters linearly
+                C = nuisance_columns(responses[r], self._shift[r], d.ones)[:, self.out_idx]
+                A[offs[r]: offs[r + 1], :, own] = C[:, :, cols]
         return A
 
     def _eval_stacked(self, theta: np.ndarray) -> np.ndarray:
@@ -433,6 +420,7 @@ def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary
     elif biases not in (True, False):
         raise FdmlError(f"biases must be 'auto', True or False, got {biases!r}")
     model = _configure_model(model, free, fix, bounds, biases, out_idx)
+    _check_model_effects(model, [OUTPUTS[i] for i in out_idx], fdata[0].omega)  # H1: effects vs outputs
     if sensitivity == "auto":
         # analytic where every free model parameter has a closed form, else Eq. 26
         closed = getattr(model, "closed_form_parameters", frozenset())
@@ -450,6 +438,19 @@ def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary
             f"for {p} free parameters: lengthen the record or widen the band"
         )
     return prob
+
+
+def _check_model_effects(model: Model, outputs, omega) -> None:
+    """Refuse effects on channels the fit lacks, or not identifiable with these outputs (one line)."""
+    from .models.effects import check_effects, confounded_effect_parameters
+
+    check_effects(model, outputs)
+    bad = confounded_effect_parameters(model, omega, outputs)
+    if bad:
+        key, name, _ = bad[0]
+        raise ParameterError(
+            f"effect {key}: {name} is not identifiable with outputs {','.join(outputs)} (any value is matched "
+            f"by the other free parameters); add a channel that separates it (e.g. az) or fix {name}")
 
 
 def _end_findings(prob: Problem) -> list:
@@ -470,7 +471,11 @@ def _end_findings(prob: Problem) -> list:
     return out
 
 
-def _logdet(R: np.ndarray) -> float:
+def _logdet(R: np.ndarray, rows: np.ndarray | None = None) -> float:
+    """ln det R (Eq. 25); for band-wise R_b (``rows``: band of each residual row), (1/N) sum_b N_b ln det R_b."""
+    if rows is not None:
+        counts = np.bincount(rows, minlength=R.shape[0])
+        return sum(float(c) * _logdet(Rb) for c, Rb in zip(counts, R) if c) / rows.size
     sign, ld = np.linalg.slogdet(R)
     if sign == 0 or not np.isfinite(ld):
         raise FdmlError("the residual covariance R is singular: an output is fitted exactly or is all zero")
@@ -483,15 +488,67 @@ def _logdet(R: np.ndarray) -> float:
 _R_FLOOR = 1e-12
 
 
-def _cov_R(V: np.ndarray) -> np.ndarray:
+def _cov_R(V: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """Eq. 24 over all rows, shape (n, n); with ``rows`` (band of each row), R_b per band, shape (nb, n, n)."""
+    if rows is not None:
+        return np.stack([_cov_R(V[rows == b]) if np.any(rows == b) else np.eye(V.shape[1])
+                         for b in range(int(rows.max()) + 1)])
     # Eq. 24: R_jk = (1/N) sum_i v_ij conj(v_ik) (THEORY.md 7, conjugation convention)
     R = V.T @ V.conj() / V.shape[0]
     floor = _R_FLOOR * float(np.max(np.real(np.diag(R))))
     return R + floor * np.eye(R.shape[0]) if floor > 0 else R
 
 
-def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool):
-    """Gradient and Gauss-Newton Hessian of ln det R(theta).
+def _weights(R: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+    """R^-1, shape (n, n); band-wise, R_b^-1 of each residual row, shape (N, n, n)."""
+    return np.linalg.inv(R) if rows is None else np.linalg.inv(R)[rows]
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """The noise model of the likelihood: which residual covariance the estimator concentrates out.
+
+    ``NoiseModel()`` (white, the default of :func:`fit`): one R over the whole band (Eq. 24), cost
+    ln det R (Eq. 25).  ``NoiseModel(edges)``: one R_b per frequency band [e_b, e_b+1) (Eq. 24 within
+    each band), cost (1/N) sum_b N_b ln det R_b: the likelihood of noise whose spectrum is flat within
+    each band but not across them (coloured sensor noise, turbulence; fdml.diagnose uses it).
+
+    Attributes
+    ----------
+    edges : tuple of float
+        Band edges, rad/s, increasing; empty (or two edges, one band) is white.
+    """
+
+    edges: tuple = ()
+
+    def __post_init__(self):
+        try:
+            e = tuple(float(x) for x in self.edges)
+        except (TypeError, ValueError):
+            e = (math.nan,)
+        if len(e) == 1 or not all(map(math.isfinite, e)) or any(b <= a for a, b in zip(e, e[1:])):
+            raise FdmlError(f"noise band edges must be two or more increasing numbers in rad/s, got {self.edges!r}")
+        object.__setattr__(self, "edges", e)
+
+    @property
+    def n(self) -> int:
+        """Number of noise bands (1: white)."""
+        return max(len(self.edges) - 1, 1)
+
+    def assign(self, omega) -> np.ndarray:
+        """Band index of each frequency (rad/s); frequencies beyond the edges join the outer bands."""
+        if self.n == 1:
+            return np.zeros(np.shape(omega), int)
+        idx = np.searchsorted(np.asarray(self.edges), omega, side="right") - 1
+        return np.clip(idx, 0, self.n - 1)
+
+    def rows(self, prob: Problem) -> np.ndarray | None:
+        """Band of each stacked residual row of ``prob`` (records in order); None when white."""
+        return None if self.n == 1 else self.assign(np.concatenate([d.omega for d in prob.data]))
+
+
+def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np.ndarray | None = None):
+    """Gradient and Gauss-Newton Hessian of ln det R(theta) (band-wise: of (1/N) sum_b N_b ln det R_b).
 
     With residual rows v_n and A_n = dy_n/dtheta (so dv = -A dtheta):
     g = -(2/N) Re sum A^H R^-1 v (the Eq. 23 right-hand side), H1 = (2/N) Re
@@ -500,7 +557,7 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool):
     Written as a few matrix products over all frequencies and outputs at once.
     """
     N, no, p = A.shape
-    W = np.linalg.inv(R)
+    W = _weights(R, rows)
     WA = W @ A  # (N, no, p); cost weights v^* R^-1 v with R = E{v v^*}
     A2 = A.reshape(N * no, p)
     WA2 = WA.reshape(N * no, p)
@@ -508,10 +565,17 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool):
     g = -(2.0 / N) * np.real(WA2.conj().T @ V.reshape(-1))  # uses W Hermitian
     if not full:
         return g, H1, H1
-    S = np.transpose(A, (2, 1, 0)) @ V.conj()  # sum_n a_nk v_n^H, shape (p, no, no)
-    dR = -(S + np.conj(np.transpose(S, (0, 2, 1)))) / N
-    X = W @ dR
-    H2 = np.real(X.reshape(p, no * no) @ np.transpose(X, (0, 2, 1)).reshape(p, no * no).T)
+    H2 = np.zeros((p, p))
+    # band-wise noise: the same term per band, weighted N_b / N (one band: white)
+    groups = [(slice(None), N, W)] if rows is None else [
+        (rows == b, int(np.sum(rows == b)), Wb) for b, Wb in enumerate(np.linalg.inv(R))]
+    for sel, Nb, Wb in groups:
+        if Nb == 0:
+            continue
+        S = np.transpose(A[sel], (2, 1, 0)) @ V[sel].conj()  # sum_n a_nk v_n^H, shape (p, no, no)
+        dR = -(S + np.conj(np.transpose(S, (0, 2, 1)))) / Nb
+        X = Wb @ dR
+        H2 += (Nb / N) * np.real(X.reshape(p, no * no) @ np.transpose(X, (0, 2, 1)).reshape(p, no * no).T)
     Hc = H1 - H2
     return g, H1, 0.5 * (Hc + Hc.T)
 
@@ -577,12 +641,14 @@ def fit(
     max_iter: int = 200,
     sensitivity: str = "auto",
     cov_type: str = "white",
+    noise: NoiseModel | None = None,
     trim: str = "first",
     trim_window: float = 0.5,
     end_correction: str = "cubic",
     callback: Callable[[IterationInfo], bool | None] | None = None,
     check: bool = True,
     strict: bool = False,
+    adequacy: bool = True,
 ) -> FitResult:
     """Fit a model to one or more records by frequency-domain maximum likelihood.
 
@@ -653,6 +719,12 @@ def fit(
         real data, where residuals hold model error).  ``naive``: the inverse of
         ``2 Re sum A^H R^-1 A``, which treats every frequency as independent
         and is optimistic on a grid finer than 2 pi/T (THEORY.md section 7).
+    noise : NoiseModel, optional
+        The noise model of the likelihood: white, one R over the band (Eq. 24;
+        the default), or ``NoiseModel(edges)``, one R_b per frequency band
+        (edges in rad/s).  With band-wise noise, ``R`` in the result is still
+        Eq. 24 over the whole band, ``cost`` is exp((1/N) sum_b N_b ln det R_b),
+        and the ``white`` covariance scales the noise to each band's level.
     trim, trim_window, end_correction :
         Passed to :func:`fdml.spectra.spectra` for records.
     callback : callable, optional
@@ -666,6 +738,12 @@ def fit(
     strict : bool, optional
         Raise :class:`~fdml.errors.DataCheckError` before fitting when the
         data check finds anything (default False).
+    adequacy : bool, optional
+        After a converged fit, check its adequacy (:func:`fdml.adequacy.check`:
+        score tests of the effect library, residual coherence and whiteness,
+        no refits); kept in ``FitResult.adequacy``, and an
+        :class:`~fdml.errors.AdequacyWarning` names a flagged effect and the
+        command that refits with it.  False skips it (default True).
 
     Returns
     -------
@@ -678,6 +756,9 @@ def fit(
         raise FdmlError(f"stop must be 'converge' or 'paper', got {stop!r}")
     if cov_type not in ("white", "colored", "naive"):
         raise FdmlError(f"cov_type must be 'white', 'colored' or 'naive', got {cov_type!r}")
+    noise = NoiseModel() if noise is None else noise
+    if not isinstance(noise, NoiseModel):
+        raise FdmlError(f"noise must be an fdml.estimate.NoiseModel, got {type(noise).__name__}")
     prob = prepare(data, model, omega=omega, band=band, outputs=outputs, boundary=boundary,
                    biases=biases, state_biases=state_biases, input_bias=input_bias, free=free,
                    fix=fix, bounds=bounds, sensitivity=sensitivity, trim=trim, trim_window=trim_window,
@@ -690,8 +771,9 @@ def fit(
     full = method == "lm"
     names = prob.names
     V = prob.residuals(theta)
-    R = _cov_R(V)
-    J = _logdet(R)
+    rows = noise.rows(prob)  # band of each residual row (None: white)
+    R = _cov_R(V, rows)
+    J = _logdet(R, rows)
     history = [math.exp(J)]
     converged, stopped = False, False
     A_final = None
@@ -704,7 +786,7 @@ def fit(
         # differences, so the fixed point (and the bounds) match the analytic sensitivities
         tight = prob.sensitivity == "fd" and rel_prev < 1e-2
         A = prob.sensitivities(theta, tol=_SETTLE_TOL_FINAL if tight else _SETTLE_TOL)
-        g, H1, H = _grad_hess(A, V, R, full)
+        g, H1, H = _grad_hess(A, V, R, full, rows)
         at_lo = (theta <= lo) & (g > 0)
         at_hi = (theta >= hi) & (g < 0)
         active = ~(at_lo | at_hi)
@@ -727,11 +809,11 @@ def fit(
         # --- take a step -------------------------------------------------------------
         accepted = False
         if full:
-            accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, H, J, active, lo, hi)
+            accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, H, J, active, lo, hi, rows)
         else:
             step = step_n
             for _ in range(30):
-                accepted, t_new, V_new, R_new, J_new = _try(prob, theta, step, lo, hi, J)
+                accepted, t_new, V_new, R_new, J_new = _try(prob, theta, step, lo, hi, J, rows)
                 if accepted:
                     break
                 step = 0.5 * step  # step halving when the cost rises
@@ -759,8 +841,13 @@ def fit(
         warned.append(f"fit did not converge: {message}")  # kept in the result, as every warning
         warnings.warn(warned[-1], ConvergenceWarning, stacklevel=2)
     res = _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned,
-                  time.perf_counter() - t_start, stopped, method, stop, A_final)
-    return replace(res, findings=tuple(found)) if found else res
+                  time.perf_counter() - t_start, stopped, method, stop, A_final, rows)
+    res = replace(res, findings=tuple(found)) if found else res
+    if adequacy and converged:
+        from .adequacy import attach
+
+        res = attach(prob, res, V)  # fdml.adequacy: checks the fit, warns when it flags anything
+    return res
 
 
 def _data_findings(prob: Problem, strict: bool) -> list:
@@ -779,18 +866,18 @@ def _data_findings(prob: Problem, strict: bool) -> list:
     return found
 
 
-def _try(prob, theta, step, lo, hi, J):
+def _try(prob, theta, step, lo, hi, J, rows=None):
     t_new = _project(theta + step, lo, hi)
     V_new = prob.residuals(t_new)
-    R_new = _cov_R(V_new)
+    R_new = _cov_R(V_new, rows)
     try:
-        J_new = _logdet(R_new)
+        J_new = _logdet(R_new, rows)
     except FdmlError:  # an exactly singular R at a trial point: reject the trial
         return False, t_new, V_new, R_new, math.inf
     return J_new <= J + 1e-12 * abs(J), t_new, V_new, R_new, J_new
 
 
-def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi):
+def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi, rows=None):
     """One step on ln det R.
 
     Newton with the concentrated Hessian ``Hc`` when it is positive definite.
@@ -816,14 +903,14 @@ def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi):
         for _ in range(tries):
             step = np.zeros_like(g)
             step[idx] = -(Q @ ((Q.T @ gn) / (w + mu))) / D
-            ok, *rest = _try(prob, theta, step, lo, hi, J)
+            ok, *rest = _try(prob, theta, step, lo, hi, J, rows)
             if ok:
                 return (True, *rest)
             last = rest
             mu = 4.0 * mu if mu > 0 else 1e-3 * top
     step = _solve(H1, g, active)
     for _ in range(12):
-        ok, *rest = _try(prob, theta, step, lo, hi, J)
+        ok, *rest = _try(prob, theta, step, lo, hi, J, rows)
         if ok:
             return (True, *rest)
         last = rest
@@ -865,7 +952,8 @@ def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
     return out
 
 
-def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
+def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray | None = None,
+                 W: np.ndarray | None = None) -> np.ndarray:
     """Cov of g = Re sum A^H R^-1 v for white time-domain noise (exact, linear in the noise).
 
     The residual is linear in the sampled noise e_n (one vector per sample,
@@ -878,7 +966,7 @@ def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray 
     conservative), scaled by N_real/(N_real - p) for the noise the p
     estimated parameters absorb, N_real = 2 n_out x independent frequencies.
     """
-    W = np.linalg.inv(R)
+    W = np.linalg.inv(R) if W is None else W  # the fit's weights (band-wise: per row)
     C = np.conj(np.transpose(A, (0, 2, 1))) @ W  # A_i^H W, shape (N, p, n_out)
     if shape is not None:
         C = C * shape[:, None, :]  # coloured noise: v_i = diag(rho_i) (F P e)_i
@@ -907,10 +995,10 @@ def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray 
             continue
         K = d.noise_adjoint(Cr.reshape(d.m, p * no)).reshape(d.n, p, no)
         if prob.boundary == "measured" and bchan:
-            H = prob.model.evaluate(d.omega, vals).H[:, prob.out_idx, :]  # (m, n_out, 2)
-            CH = Cr @ H  # (m, p, 2)
-            Q0 = -CH.sum(axis=0)
-            QT = np.einsum("mpj,m->pj", CH, np.exp(-1j * d.omega * d.T))
+            # v = z - y: the noise of the measured x(0), x(T) enters through y's exact boundary columns
+            X = nuisance_columns(prob.model.evaluate(d.omega, vals), end_shift(d.omega, d.T), d.ones)
+            CX = Cr @ X[:, prob.out_idx][:, :, _BOUNDARY_COLS]  # (m, p, 4): x0_alpha, x0_q, xT_alpha, xT_q
+            Q0, QT = -CX[:, :, :2].sum(axis=0), -CX[:, :, 2:].sum(axis=0)
             ell = d.trim_vector()
             for j, col in bchan:
                 K[0, :, col] += Q0[:, j]
@@ -935,12 +1023,12 @@ def _naive_sigma(F: np.ndarray) -> np.ndarray:
 
 
 def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned, elapsed, stopped,
-            method, stop, A=None) -> FitResult:
+            method, stop, A=None, rows=None) -> FitResult:
     names = prob.names
     if A is None:  # Eq. 26 columns for the bounds are the tight central differences
         A = prob.sensitivities(theta, tol=_SETTLE_TOL_FINAL)
     N = prob.N
-    W = np.linalg.inv(R)
+    W = _weights(R, rows)  # band-wise noise: R_b^-1 per row
     p_ = A.shape[2]
     M = np.real(A.reshape(-1, p_).conj().T @ (W @ A).reshape(-1, p_))  # Re sum A^H R^-1 A
     msgs, dead = _identifiability(2 * M / N, names)
@@ -957,7 +1045,10 @@ def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned
         cov_naive[np.ix_(idx, idx)] = 0.5 * Minv  # (2 Re sum A^H R^-1 A)^-1
         if cov_type in ("white", "colored"):
             shape = _residual_shape(prob, V) if cov_type == "colored" else None
-            Cg = _white_cov_g(prob, A[:, :, idx], R, shape)
+            if rows is not None and shape is None:  # the noise model's own level per band and output
+                shape = np.sqrt(np.real(np.diagonal(R, axis1=1, axis2=2))[rows]
+                                / np.real(np.diag(_cov_R(V)))[None, :])
+            Cg = _white_cov_g(prob, A[:, :, idx], R if rows is None else _cov_R(V), shape, W)
             # R is estimated from the same residuals, so the weights are random: with N_eff
             # independent frequencies and n_out outputs the variance grows by about
             # N_eff / (N_eff - n_out) (verified by Monte Carlo: 6, 10 and 20 s records)
@@ -983,6 +1074,6 @@ def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned
                                     if prob.slots[i].kind == "model"})
     return FitResult.build(
         prob=prob, model=model, theta=theta, cov=cov, cov_naive=cov_naive, stderr=stderr, corr=corr,
-        R=R, history=history, iterations=it, converged=converged, message=message, cov_type=cov_type,
-        warnings=tuple(warned), elapsed=elapsed, stopped=stopped, method=method, stop=stop,
+        R=R if rows is None else _cov_R(V), history=history, iterations=it, converged=converged,
+        message=message, cov_type=cov_type, warnings=tuple(warned), elapsed=elapsed, stopped=stopped, method=method, stop=stop,
     )

@@ -1,26 +1,30 @@
 """Export fitted models to python-control.
 
 * :func:`to_frd` - a ``control.FrequencyResponseData`` of G(j omega) for every
-  model (the unsteady one included), at given frequencies;
-* :func:`to_statespace` - a ``control.StateSpace`` for the rational models
-  (``steady``, ``derivatives``, ``dimensional``), with named signals:
-  outputs ``alpha`` (rad), ``q`` (rad/s), ``az`` (g); inputs ``de`` and, for
-  a gust model, ``alpha_w`` (rad); states ``alpha``, ``q``.
+  model (the unsteady one and every effect included; delays exact), at given
+  frequencies;
+* :func:`to_statespace` - a ``control.StateSpace`` of the model's own
+  finite-state realisation (:meth:`fdml.models.Model.realize`, composed through
+  its effects), with named signals: outputs ``alpha`` (rad), ``q`` (rad/s),
+  ``az`` (g); inputs ``de`` and, for a gust model, ``alpha_w`` (rad);
+* :func:`to_control` - either, with a record of how delays were treated
+  (exact in a frequency response, or a Pade approximation of a given order).
 
-The ``unsteady`` model has no finite-state form: the F term of the downwash
-(THEORY.md Eq. 2, section 4) behaves like ``s ln s``; use :func:`to_frd`.
-Input delays (``tau_de``, ``tau_alpha_w``) are not rational either:
+The ``unsteady`` model with F != 0 has no finite-state form: the F term of the
+downwash (THEORY.md Eq. 2, section 4) behaves like ``s ln s``; use :func:`to_frd`.
+Pure delays (``tau_de``, ``tau_alpha_w``, sensor delays) are not rational either:
 :func:`to_statespace` refuses them unless asked for a Pade approximation.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
-from .constants import G0
 from .errors import ParameterError
 
-__all__ = ["to_frd", "to_statespace", "descriptor_matrices"]
+__all__ = ["to_frd", "to_statespace", "to_control", "ControlExport", "descriptor_matrices"]
 
 _OUTPUTS = ("alpha", "q", "az")
 _RATIONAL = ("steady", "derivatives", "dimensional")
@@ -119,28 +123,29 @@ def _not_rational(model) -> str:
 
 
 def to_statespace(result_or_model, *, pade: int | None = None, name: str | None = None):
-    """A rational model as a ``control.StateSpace`` with named signals.
+    """A model as a ``control.StateSpace`` with named signals, from :meth:`Model.realize`.
 
-    The model ``E x' = A x + B0 u + B1 u'`` (x = [alpha, q]; E differs from
-    the identity with alpha-dot derivatives, B1 is nonzero only for a gust
-    model with them) becomes, with ``x = xi + E^-1 B1 u``,
+    The realisation is the one :func:`fdml.simulate.simulate` integrates,
+    composed through the model's effects: for the conventional models the
+    descriptor form ``E x' = A x + B0 u + B1 u'`` with ``x = xi + E^-1 B1 u``,
 
         xi' = E^-1 A xi + E^-1 (B0 + A E^-1 B1) u
         [alpha, q] = xi + E^-1 B1 u,   a_z = (U/g)(alpha' - q)    (THEORY.md Eq. 5)
 
     so the states are alpha and q themselves whenever B1 = 0 (then named
-    ``alpha``, ``q``; otherwise ``xi_alpha``, ``xi_q``).
+    ``alpha``, ``q``; otherwise ``xi_alpha``, ``xi_q``); effects and lags add
+    states ``x2``, ``x3``, ...
 
     Parameters
     ----------
     result_or_model : FitResult or Model
-        ``steady``, ``derivatives`` or ``dimensional``; a fit's model is taken
-        at the estimate.
+        A finite-state model (every kind except ``unsteady`` with F != 0); a
+        fit's model is taken at the estimate.
     pade : int, optional
-        Order of a Pade approximation of nonzero input delays (``tau_de``,
-        ``tau_alpha_w``), placed in series with each delayed input (its
-        states are named ``<input>_delay<i>``).  Without it a nonzero delay
-        raises.
+        Order of a Pade approximation of the pure delays (input delays
+        ``tau_de``, ``tau_alpha_w``, the tail gust delay, sensor delays of an
+        effect), placed in series with each delayed input or output (states
+        ``<signal>_delay<i>``).  Without it a nonzero delay raises.
     name : str, optional
         System name (default ``"fdml <kind>"``).
 
@@ -150,76 +155,137 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
         Outputs ``alpha`` (rad), ``q`` (rad/s), ``az`` (g); inputs ``de``
         [, ``alpha_w``] (rad).  Its frequency response equals
         ``model.frequency_response`` (to rounding; exactly so only without
-        delays).
+        delays).  :func:`to_control` also says whether delays were approximated.
 
     Raises
     ------
     ParameterError
-        An unsteady model (use :func:`to_frd`); a nonzero delay without
-        ``pade``; a gust model with ``Cz_adot != 0``, whose a_z responds to
-        the rate of alpha_w (G grows like s: improper).
+        No finite-state form (use :func:`to_frd`); a nonzero delay without
+        ``pade``; an improper response (a gust model with ``Cz_adot != 0``,
+        whose a_z responds to the rate of alpha_w).
     """
     import control
 
     model = _model_of(result_or_model)
-    if model.kind not in _RATIONAL:
-        raise ParameterError(_not_rational(model))
-    E, A, B0, B1 = descriptor_matrices(model)
-    Ei = np.linalg.inv(E)
-    k = model.U / G0  # Eq. 5
-    D12 = Ei @ B1  # x = xi + D12 u
-    if np.any(D12[0] != 0.0):
+    try:
+        real = model.realize()
+    except ParameterError as exc:
+        if "finite-state" in str(exc):
+            raise ParameterError(_not_rational(model)) from None
+        raise
+    if np.any(real.Dd):
         raise ParameterError(
             "a_z = (U/g)(alpha_dot - q) of this model responds to the rate of alpha_w (Cz_adot != 0 with a "
             "gust input): the system is improper and has no state-space form; use fdml.export.to_frd")
-    Ax = Ei @ A
-    Bx = Ei @ (B0 + A @ D12)
-    C = np.zeros((3, 2))
-    D = np.zeros((3, B0.shape[1]))
-    C[:2] = np.eye(2)
-    D[:2] = D12
-    C[2] = k * (Ax[0] - C[1])  # alpha' = xi_alpha' (D12[0] = 0)
-    D[2] = k * (Bx[0] - D[1])
-    states = ["alpha", "q"] if not np.any(D12) else ["xi_alpha", "xi_q"]
     inputs = list(model.inputs)
+    n = real.states
+    C2 = real.C[:2, :2]
+    first = ["alpha", "q"] if np.array_equal(C2, np.eye(2)) and not np.any(real.D[:2]) else ["xi_alpha", "xi_q"]
+    states = first + [f"x{i}" for i in range(2, n)]
     sysname = name or f"fdml {model.kind}"
-    sys = control.StateSpace(Ax, Bx, C, D, inputs=inputs, outputs=list(_OUTPUTS), states=states,
-                             name=sysname)
-    p = model.values()
-    delays = {"de": p["tau_de"], "alpha_w": p.get("tau_alpha_w", 0.0)}
-    if not any(delays[i] for i in inputs):
-        return sys
-    if pade is None:
-        named = ", ".join(f"tau_{i} = {delays[i]:g} s" for i in inputs if delays[i])
-        raise ParameterError(f"the model has input delays ({named}), which are not rational: pass pade=N "
+    chans = [f"u{j}" for j in range(len(real.channels))]
+    plant = control.StateSpace(real.A, real.B, real.C, real.D, inputs=chans, outputs=list(_OUTPUTS),
+                               states=states, name=sysname)
+    delays = [d for _, d in real.channels] + list(real.output_delays)
+    if any(delays) and pade is None:
+        raise ParameterError("the model has pure delays (input or sensor), which are not rational: pass pade=N "
                              "for a Pade approximation of order N, or use fdml.export.to_frd")
-    if int(pade) != pade or pade < 1:
+    if pade is not None and (int(pade) != pade or pade < 1):
         raise ParameterError(f"pade must be a positive integer order, got {pade!r}")
-    # delay block: one Pade approximant per delayed input, block-diagonal, states named
+    # inputs -> channels: each channel is its signal through its delay (identity when undelayed)
+    spread = np.array([[1.0 if nm == sig else 0.0 for sig in inputs] for nm, _ in real.channels])
+    ind = _delay_block([d for _, d in real.channels], [f"{nm}_delay" for nm, _ in real.channels], pade)
+    outd = _delay_block(list(real.output_delays), [f"{o}_delay" for o in _OUTPUTS], pade)
+    A, B, C, D, names = _series(ind, (plant.A, plant.B, plant.C, plant.D, states), outd)
+    return control.StateSpace(A, B @ spread, C, D @ spread, inputs=inputs, outputs=list(_OUTPUTS),
+                              states=names, name=sysname)
+
+
+def _delay_block(delays, labels, pade):
+    """Block-diagonal Pade approximants of ``delays`` (identity where zero): (A, B, C, D, state names)."""
+    import control
     from scipy.linalg import block_diag
 
     As, Bs, Cs, Ds, names = [], [], [], [], []
-    for i in inputs:
-        if delays[i]:
-            num, den = control.pade(delays[i], int(pade))
-            blk = control.ss(control.tf(num, den))
+    for d, lab in zip(delays, labels):
+        if d:
+            blk = control.ss(control.tf(*control.pade(d, int(pade))))
             As.append(blk.A)
             Bs.append(blk.B)
             Cs.append(blk.C)
             Ds.append(blk.D)
-            names += [f"{i}_delay{j}" for j in range(blk.nstates)]
+            names += [f"{lab}{j}" for j in range(blk.nstates)]
         else:
             As.append(np.zeros((0, 0)))
             Bs.append(np.zeros((0, 1)))
             Cs.append(np.zeros((1, 0)))
             Ds.append(np.eye(1))
-    delay = control.StateSpace(block_diag(*As), block_diag(*Bs), block_diag(*Cs), block_diag(*Ds),
-                               inputs=inputs, outputs=inputs, states=names, name="delays")
-    # x' = [sys; delay]: the plant keeps its states first
-    na, nd = sys.nstates, delay.nstates
-    Af = np.block([[sys.A, sys.B @ delay.C], [np.zeros((nd, na)), delay.A]])
-    Bf = np.vstack([sys.B @ delay.D, delay.B])
-    Cf = np.hstack([sys.C, sys.D @ delay.C])
-    Df = sys.D @ delay.D
-    return control.StateSpace(Af, Bf, Cf, Df, inputs=inputs, outputs=list(_OUTPUTS),
-                              states=list(sys.state_labels) + names, name=sysname)
+    return block_diag(*As), block_diag(*Bs), block_diag(*Cs), block_diag(*Ds), names
+
+
+def _series(first, second, third):
+    """State space of ``third(second(first(u)))``; the plant's (second) states come first."""
+    A1, B1, C1, D1, n1 = first
+    A2, B2, C2, D2, n2 = second
+    A3, B3, C3, D3, n3 = third
+    k1, k2, k3 = A1.shape[0], A2.shape[0], A3.shape[0]
+    A = np.zeros((k1 + k2 + k3,) * 2)
+    A[:k2, :k2] = A2
+    A[:k2, k2:k2 + k1] = B2 @ C1
+    A[k2:k2 + k1, k2:k2 + k1] = A1
+    A[k2 + k1:, :k2] = B3 @ C2
+    A[k2 + k1:, k2:k2 + k1] = B3 @ D2 @ C1
+    A[k2 + k1:, k2 + k1:] = A3
+    B = np.vstack([B2 @ D1, B1, B3 @ D2 @ D1])
+    C = np.hstack([D3 @ C2, D3 @ D2 @ C1, C3])
+    D = D3 @ D2 @ D1
+    return A, B, C, D, list(n2) + list(n1) + list(n3)
+
+
+@dataclass(frozen=True)
+class ControlExport:
+    """A python-control system and how its delays were treated.
+
+    Attributes
+    ----------
+    system : control.FrequencyResponseData or control.StateSpace
+    form : {"frd", "statespace"}
+    delays : {"none", "exact", "pade"}
+        ``"exact"``: a frequency response holds every delay exactly;
+        ``"pade"``: the state space approximates them (order ``pade_order``).
+    pade_order : int or None
+    """
+
+    system: object
+    form: str
+    delays: str
+    pade_order: int | None = None
+
+
+def to_control(result_or_model, *, form: str = "frd", omega=None, pade: int | None = None,
+               name: str | None = None) -> ControlExport:
+    """Export to python-control, saying how delays were treated (see :class:`ControlExport`).
+
+    Parameters
+    ----------
+    form : {"frd", "statespace"}
+        A frequency response (delays exact; needs ``omega`` for a model) or a
+        state space (delays by a Pade approximation of order ``pade``).
+    """
+    model = _model_of(result_or_model)
+    if form == "frd":
+        has = _has_delays(model)
+        return ControlExport(to_frd(result_or_model, omega, name=name), "frd", "exact" if has else "none")
+    if form != "statespace":
+        raise ParameterError(f"form must be 'frd' or 'statespace', got {form!r}")
+    has = _has_delays(model)
+    sys = to_statespace(result_or_model, pade=pade if has else None, name=name)
+    return ControlExport(sys, "statespace", "pade" if has else "none", int(pade) if has else None)
+
+
+def _has_delays(model) -> bool:
+    try:
+        real = model.realize()
+    except ParameterError:
+        return True  # no finite-state form (the F term): only the exact frequency response exists
+    return any(d for _, d in real.channels) or any(real.output_delays)

@@ -318,21 +318,15 @@ def simulate_fit(result, record: int = 0, *, trim_window: float = 0.5):
 
     raw = result.record(record)
     tr = result.time_records[record]
-    s = result.spectra[record]
     mode = tr["trim_mode"]
     trimmed = raw.remove_trim(mode, window=trim_window) if mode != "none" else raw
     trim = {k: float(raw[k][0] - trimmed[k][0]) for k in raw.signals}
     model = result.model
-    suffix = _record_suffix(result, record)
-    p = result.params
-    mvals = model.parameters.values
-    b = np.array([p.get(f"bias_{o}{suffix}", mvals[f"bias_{o}"]) for o in _OUTPUTS])
-    ib = p.get(f"bias_de{suffix}", 0.0)
-    sb = np.array([p.get(f"bias_alpha_dot{suffix}", 0.0), p.get(f"bias_q_dot{suffix}", 0.0)])
-    if result.boundary == "none":
-        x0 = np.zeros(2)
-    else:
-        x0 = np.array([p.get(f"x0_alpha{suffix}", s["x0"][0]), p.get(f"x0_q{suffix}", s["x0"][1])])
+    nu = result.nuisance_values(record)  # the values the frequency-domain measurement model uses
+    b = nu.biases
+    ib = 0.0 if nu.input_bias is None else nu.input_bias
+    sb = np.zeros(2) if nu.state_biases is None else nu.state_biases
+    x0 = np.zeros(2) if nu.x0 is None else nu.x0
     inputs = {"de": trimmed["de"] + ib}
     if model.gust:
         inputs["alpha_w"] = trimmed["alpha_w"]

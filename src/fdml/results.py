@@ -108,6 +108,10 @@ class FitResult:
     findings : tuple of Finding
         What the data check (:func:`fdml.datacheck.check_data`) found in the
         records, each with a stable code; see :mod:`fdml.findings`.
+    adequacy : fdml.adequacy.Adequacy or None
+        The fit's adequacy check (score tests of the effect library,
+        residual coherence and whiteness; :mod:`fdml.adequacy`), None when
+        skipped (``fit(..., adequacy=False)``) or the fit did not converge.
     """
 
     model: object
@@ -140,6 +144,7 @@ class FitResult:
     time_records: tuple = field(default=(), repr=False)
     nuisance: dict = field(default_factory=dict)
     findings: tuple = ()
+    adequacy: object = None
 
     # --- construction -------------------------------------------------------------------
     @classmethod
@@ -278,7 +283,8 @@ class FitResult:
         Keys: model, params (name -> {value, stderr}), derived (name ->
         {value, stderr}), cost, iterations, converged, message, band, outputs,
         records, boundary, cov_type, warnings, findings (the data check's,
-        each with its ``code``).  Infinite standard errors are
+        each with its ``code``), adequacy (flagged effects and residual
+        checks, :meth:`fdml.adequacy.Adequacy.brief`).  Infinite standard errors are
         written as the string "inf".
         """
         def num(x):
@@ -302,6 +308,7 @@ class FitResult:
             "cov_type": self.cov_type,
             "warnings": list(self.warnings),
             "findings": [f.to_dict() for f in self.findings],
+            "adequacy": None if self.adequacy is None else self.adequacy.brief(),
         }
 
     def to_dict(self) -> dict:
@@ -357,6 +364,7 @@ class FitResult:
             ],
             "nuisance": self.nuisance,
             "findings": [x.to_dict() for x in self.findings],
+            "adequacy": None if self.adequacy is None else self.adequacy.to_dict(),
             "time_records": [
                 None if r is None else
                 {"name": r["name"], "t": f(r["t"]), "signals": {k: f(v) for k, v in r["signals"].items()},
@@ -426,6 +434,7 @@ class FitResult:
             spectra=spectra,
             nuisance=f.mapping("nuisance", default={}),
             findings=tuple(_finding_from_fields(x) for x in f.items("findings", default=[])),
+            adequacy=_adequacy_from_fields(f),
             time_records=tuple(None if r is None else _time_record_from_fields(r)
                                for r in f.items("time_records", default=[], allow_none=True)),
         )
@@ -440,32 +449,35 @@ class FitResult:
         return Record(np.asarray(r["t"], float), {k: np.asarray(v, float) for k, v in r["signals"].items()},
                       name=r["name"], meta=r["meta"], check_units=False)
 
+    def nuisance_values(self, record: int = 0):
+        """Nuisance values of record ``record`` as arrays (:class:`fdml.models.measurement.Nuisance`).
+
+        Estimated values where the fit estimated them, else the model's
+        (fixed) output biases and the measured boundary values; no boundary
+        terms for ``boundary="none"``.
+        """
+        from .models.measurement import Nuisance
+
+        s = self.spectra[record]
+        suffix = f"[{s['name']}]" if len(self.spectra) > 1 else ""
+        return Nuisance.from_values(self.params, suffix, biases=self.model.biases(), x0=s["x0"], xT=s["xT"],
+                                    boundary=self.boundary != "none")
+
     def fitted_spectra(self, record: int = 0) -> np.ndarray:
         """Model output spectra at the estimate for record ``record``, shape (m, 3).
 
         Includes the estimated (or measured) boundary terms and biases, so that
-        it is directly comparable with the measured ``spectra[record]["z"]``.
+        it is directly comparable with the measured ``spectra[record]["z"]``:
+        :func:`fdml.models.measurement.predict`, as in the fit.
         """
+        from .models.measurement import end_shift, predict
+
         s = self.spectra[record]
         resp = self.model.evaluate(s["omega"])
-        multi = len(self.spectra) > 1
-        suffix = f"[{s['name']}]" if multi else ""
-        p = self.params
-        x0 = np.array([p.get(f"x0_alpha{suffix}", s["x0"][0]), p.get(f"x0_q{suffix}", s["x0"][1])])
-        xT = np.array([p.get(f"xT_alpha{suffix}", s["xT"][0]), p.get(f"xT_q{suffix}", s["xT"][1])])
-        if self.boundary == "none":
-            bd = np.zeros((s["omega"].size, 2), complex)
-        else:
-            bd = x0[None] - xT[None] * np.exp(-1j * s["omega"] * s["T"])[:, None]
-        b = np.array([p.get(f"bias_{o}{suffix}", self.model.parameters.values[f"bias_{o}"])
-                      for o in ("alpha", "q", "az")])
+        nu = self.nuisance_values(record)
         u = s["u"][:, : resp.G.shape[2]]
-        y = (np.einsum("mij,mj->mi", resp.G, u) + np.einsum("mij,mj->mi", resp.H, bd)
-             + s["ones"][:, None] * b[None])
-        sb = np.array([p.get(f"bias_alpha_dot{suffix}", 0.0), p.get(f"bias_q_dot{suffix}", 0.0)])
-        y = y + (resp.P @ sb) * s["ones"][:, None]
-        y = y + resp.G[:, :, 0] * (p.get(f"bias_de{suffix}", 0.0) * s["ones"])[:, None]
-        return y
+        return predict(resp, u, s["ones"], nu.boundary(end_shift(s["omega"], s["T"])), nu.biases,
+                       nu.state_biases, nu.input_bias)
 
 
 def _number_in(f: Fields, key: str, name: str, v) -> float:
@@ -496,8 +508,10 @@ def _model_from_fields(f: Fields):
                        "lower": p.number("lower", default=None, allow_none=True),
                        "upper": p.number("upper", default=None, allow_none=True),
                        "unit": p.string("unit", default=""), "description": p.string("description", default="")})
+    effects = list(m.strings("effects", default=()))  # effect keys (H1, issue 8)
     try:
-        return model_from_dict({"kind": kind, "options": options, "aircraft": aircraft, "parameters": params})
+        return model_from_dict({"kind": kind, "options": options, "aircraft": aircraft, "parameters": params,
+                                "effects": effects})
     except FdmlError as exc:
         raise f.error("model", f"does not describe a model: {exc}") from None
     except (TypeError, ValueError, LookupError, AttributeError, ArithmeticError) as exc:
@@ -529,6 +543,15 @@ def _finding_from_fields(x: Fields) -> Finding:
                    record=x.string("record", default=None, allow_none=True),
                    value=x.number("value", default=None, allow_none=True),
                    expected=x.number("expected", default=None, allow_none=True))
+
+
+def _adequacy_from_fields(f: Fields):
+    """The saved adequacy check (absent or null in files from before it existed: None)."""
+    if f.raw("adequacy", None) is None:
+        return None
+    from .adequacy import Adequacy
+
+    return Adequacy.from_fields(f.sub("adequacy"))
 
 
 def load_result(path: str | Path) -> FitResult:

@@ -11,7 +11,7 @@ Two integrators, chosen by the model:
   the sampled inputs (matrix exponential of the augmented system), exact for
   inputs that are piecewise linear between the samples.  The descriptor form
   ``E x' = A x + B0 u + B1 u'`` of the alpha-dot derivatives is reduced to a
-  proper state-space system by ``z = E x - B1 u``, so no input is
+  proper state-space system by ``xi = x - E^-1 B1 u``, so no input is
   differentiated to propagate the states.  The unsteady model's lags (THEORY.md
   section 4), the Kussner gust lag (BS-15/16, or an exponential-sum indicial
   preset) and the tail gust delay (BS-8) are realised as states and delayed
@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import interpolate, linalg, signal
@@ -93,36 +93,75 @@ class _System:
     rF: float = 0.0
     T: float = 0.0
     kappa: float = 0.0
+    #: Pure delays of the output channels (alpha, q, a_z), s: y_i(t) = (C x + D u + ...)_i(t - d_i).
+    out_delay: tuple = (0.0, 0.0, 0.0)
 
 
-def _from_descriptor(E, A, B0, B1, U: float, channels) -> _System:
-    """Proper state space of ``E x' = A x + B0 u + B1 u'`` with x = [alpha, q].
+@dataclass(frozen=True)
+class Descriptor:
+    """``E x' = A x + B0 u + B1 u'`` with x = [alpha, q, extra states...] and input channels.
 
-    With ``z = E x - B1 u``: ``z' = A x + B0 u`` and ``x = E^-1 (z + B1 u)``, so
-    the states never see u'.  Only a_z = (U/g)(alpha_dot - q) keeps a direct
-    feedthrough ``(U/g) e_alpha^T E^-1 B1 u'`` when B1 has an alpha row.
+    The form of the conventional models (and of the matrix-level effects that
+    act on them, :meth:`fdml.models.effects.MatrixEffect.realize`); the outputs
+    are alpha = x_0, q = x_1 and a_z = (U/g)(alpha' - q) (THEORY.md Eq. 5).
     """
+
+    E: np.ndarray
+    A: np.ndarray
+    B0: np.ndarray
+    B1: np.ndarray
+    channels: tuple
+
+    def with_state(self, a_row: np.ndarray, a_col: np.ndarray) -> "Descriptor":
+        """One more state ``x_n`` with ``x_n' = a_row . [x, x_n]`` feeding ``A[:, n] = a_col`` (E_nn = 1)."""
+        n = self.A.shape[0]
+        E = np.eye(n + 1)
+        E[:n, :n] = self.E
+        A = np.zeros((n + 1, n + 1))
+        A[:n, :n] = self.A
+        A[:n, n] = a_col
+        A[n] = a_row
+        pad = np.zeros((1, self.B0.shape[1]))
+        return Descriptor(E, A, np.vstack([self.B0, pad]), np.vstack([self.B1, pad]), self.channels)
+
+
+def _from_descriptor(d: Descriptor, U: float) -> _System:
+    """Proper state space of ``E x' = A x + B0 u + B1 u'`` (x_0 = alpha, x_1 = q).
+
+    With ``xi = x - E^-1 B1 u``: ``xi' = E^-1 A xi + E^-1 (B0 + A E^-1 B1) u``,
+    so the states never see u' (and are alpha, q themselves when B1 = 0).
+    Only a_z = (U/g)(alpha' - q) keeps a direct feedthrough
+    ``(U/g) e_alpha^T E^-1 B1 u'`` when B1 has an alpha row.
+    """
+    E, A, B0, B1 = d.E, d.A, d.B0, d.B1
     Ei = np.linalg.inv(E)
-    nu = B0.shape[1]
-    Az = A @ Ei
-    Bz = A @ Ei @ B1 + B0
+    n, nu = B0.shape
+    Ax = Ei @ A
+    D12 = Ei @ B1  # x = xi + D12 u
+    Bx = Ei @ (B0 + A @ D12)
     k = U / G0  # Eq. 5
-    C = np.zeros((3, 2))
+    C = np.zeros((3, n))
     D = np.zeros((3, nu))
     Dd = np.zeros((3, nu))
-    C[:2] = Ei
-    D[:2] = Ei @ B1
-    xdot_z = Ei @ Az  # x' = Ei (A x + B0 u + B1 u') in terms of z, u, u'
-    xdot_u = Ei @ (A @ Ei @ B1 + B0)
-    C[2] = k * (xdot_z[0] - C[1])
-    D[2] = k * (xdot_u[0] - D[1])
-    Dd[2] = k * (Ei @ B1)[0]
-    zeros = np.zeros(2)
-    return _System(Az, Bz, C, D, Dd, tuple(channels), zeros, np.zeros(3), zeros, np.zeros(nu))
+    C[:2] = np.eye(n)[:2]
+    D[:2] = D12[:2]
+    C[2] = k * (Ax[0] - C[1])
+    D[2] = k * (Bx[0] - D[1])
+    Dd[2] = k * D12[0]
+    zeros = np.zeros(n)
+    return _System(Ax, Bx, C, D, Dd, tuple(d.channels), zeros, np.zeros(3), zeros, np.zeros(nu))
 
 
-def _conventional_system(model, p) -> _System:
-    """``dimensional`` and ``derivatives`` models (models/conventional.py)."""
+def _conventional_system(model, p, matrix_effects=()) -> _System:
+    """``dimensional`` and ``derivatives`` models (models/conventional.py), with matrix-level effects."""
+    d = _conventional_descriptor(model, p)
+    for eff in matrix_effects:
+        d = eff.realize(d, p, model)
+    return _from_descriptor(d, model.U)
+
+
+def _conventional_descriptor(model, p) -> Descriptor:
+    """E, A, B0, B1 of the ``dimensional`` and ``derivatives`` models (models/conventional.py)."""
     gust = model.gust
     channels = [("de", p["tau_de"])] + ([("alpha_w", p["tau_alpha_w"])] if gust else [])
     nu = len(channels)
@@ -143,7 +182,7 @@ def _conventional_system(model, p) -> _System:
         if gust:  # the gust enters as aerodynamic angle of attack, and its rate in the adot terms
             B0[:, 1] = kz * p["Cz_a"], km * p["Cm_a"]
             B1[:, 1] = kz * p["Cz_adot"] * cu, km * p["Cm_adot"] * cu
-    return _from_descriptor(E, A, B0, B1, model.U, channels)
+    return Descriptor(E, A, B0, B1, tuple(channels))
 
 
 class _Rows:
@@ -167,7 +206,7 @@ class _Rows:
         return np.zeros(self.size)
 
 
-def _wells_keskar_system(model, p) -> _System:
+def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
     """``unsteady`` (THEORY.md section 4 finite-state form, section 8 gust) and ``steady``.
 
     Mirrors models/wells_keskar.py term by term:
@@ -192,11 +231,19 @@ def _wells_keskar_system(model, p) -> _System:
         lam_t = 2.0 * p["z_t"] * U / c_tail  # Eq. 17, tail (c_w as printed, or c_t)
         lam_G = 2.0 * p["H"] * U / c  # Eq. 16: 2 H U / c_w
         tail_delay = model.tail_gust_delay
+    tail_tau = l / U  # BS-8: tau_t = l/U
+    opts = {}
+    for eff in matrix_effects:  # e.g. gust_lag@tail: {"tail_tau": tau_tail}
+        opts = eff.realize(opts, p, model)
+    if "tail_tau" in opts:
+        tail_delay, tail_tau = True, opts.pop("tail_tau")
+    if opts:
+        raise ParameterError(f"the {model.kind} model cannot realise {sorted(opts)}")
     channels = [("de", p["tau_de"])]
     if model.gust:
         channels.append(("alpha_w", p["tau_alpha_w"]))
         if tail_delay:
-            channels.append(("alpha_w", p["tau_alpha_w"] + l / U))  # BS-8: tau_t = l/U
+            channels.append(("alpha_w", p["tau_alpha_w"] + tail_tau))
     # --- states: alpha, q, the lift and downwash lags that are present, gust lags
     names = ["alpha", "q"]
     for name, amp in (("x_w", y_w), ("x_t", y_t), ("x_G", G)):
@@ -270,14 +317,131 @@ def _wells_keskar_system(model, p) -> _System:
 
 
 def _system(model, p) -> _System:
-    kind = getattr(model, "kind", None)
+    """The model's state space, composed through its effects (matrix-level, then output-level, in order)."""
+    from .models.effects import MatrixEffect, applied_effects, root_model
+
+    root, effects = root_model(model), applied_effects(model)
+    matrix = [e for e in effects if isinstance(e, MatrixEffect)]
+    kind = getattr(root, "kind", None)
     if kind in ("dimensional", "derivatives"):
-        return _conventional_system(model, p)
-    if kind in ("unsteady", "steady"):
-        return _wells_keskar_system(model, p)
-    raise ParameterError(
-        f"cannot simulate a {kind!r} model; simulate supports dimensional, derivatives, steady and unsteady"
-    )
+        sys = _conventional_system(root, p, matrix)
+    elif kind in ("unsteady", "steady"):
+        sys = _wells_keskar_system(root, p, matrix)
+    else:
+        raise ParameterError(
+            f"cannot simulate a {kind!r} model; simulate supports dimensional, derivatives, steady and unsteady"
+        )
+    for eff in effects:
+        if not isinstance(eff, MatrixEffect):
+            sys = eff.realize(sys, p, root)
+    return sys
+
+
+# --- state-space algebra of the output-level effects (THEORY.md Eq. 5 for a_z) -------------------
+
+def _pad_states(sys: _System, k: int) -> _System:
+    """``sys`` with ``k`` more states, all zero (appended after the existing ones)."""
+    n, nu = sys.B.shape
+    A = np.zeros((n + k, n + k))
+    A[:n, :n] = sys.A
+    z = np.zeros(k)
+    return replace(sys, A=A, B=np.vstack([sys.B, np.zeros((k, nu))]), C=np.hstack([sys.C, np.zeros((3, k))]),
+                   bF=np.concatenate([sys.bF, z]), rx=np.concatenate([sys.rx, z]))
+
+
+def _same_delay(sys: _System, rows, what: str) -> None:
+    if len({sys.out_delay[r] for r in rows}) > 1:
+        raise ParameterError(f"{what}: the channels it combines carry different output delays; "
+                             "list the time_delay effect after it")
+
+
+def delay_output(sys: _System, row: int, tau: float) -> _System:
+    """Output ``row`` delayed by ``tau`` s: y_row(t - tau) (a negative tau is an advance)."""
+    d = list(sys.out_delay)
+    d[row] += float(tau)
+    return replace(sys, out_delay=tuple(d))
+
+
+def scale_output(sys: _System, row: int, factor: float) -> _System:
+    """Output ``row`` times ``factor``."""
+    C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
+    for a in (C, D, Dd, dF):
+        a[row] = a[row] * factor
+    return replace(sys, C=C, D=D, Dd=Dd, dF=dF)
+
+
+def mix_output(sys: _System, dst: int, src: int, k: float) -> _System:
+    """Output ``dst`` plus ``k`` times output ``src``."""
+    _same_delay(sys, (dst, src), "mixing two outputs")
+    C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
+    for a in (C, D, Dd, dF):
+        a[dst] = a[dst] + k * a[src]
+    return replace(sys, C=C, D=D, Dd=Dd, dF=dF)
+
+
+def add_output_rate(sys: _System, dst: int, src: int, k: float) -> _System:
+    """Output ``dst`` plus ``k`` times the time derivative of output ``src`` (x' = A x + B u + bF eps_F)."""
+    _same_delay(sys, (dst, src), "adding an output rate")
+    if np.any(sys.Dd[src]) or sys.dF[src] != 0.0:
+        raise ParameterError("the rate of this output needs the second derivative of an input: no realisation")
+    C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
+    C[dst] = C[dst] + k * (sys.C[src] @ sys.A)
+    D[dst] = D[dst] + k * (sys.C[src] @ sys.B)
+    Dd[dst] = Dd[dst] + k * sys.D[src]
+    dF[dst] = dF[dst] + k * (sys.C[src] @ sys.bF)
+    return replace(sys, C=C, D=D, Dd=Dd, dF=dF)
+
+
+def filter_input(sys: _System, signal_name: str, T: float) -> _System:
+    """Every channel of ``signal_name`` through ``1/(1 + T s)`` (one state per channel; T = 0: unchanged).
+
+    With the filtered input ``v = x_f``, ``x_f' = (u - x_f)/T``, the old input
+    column moves onto the new state, and a feedthrough of ``v'`` becomes
+    ``(u - x_f)/T``.
+    """
+    if T == 0.0:
+        return sys
+    for j, (nm, _d) in enumerate(sys.channels):
+        if nm != signal_name:
+            continue
+        n = sys.A.shape[0]
+        s2 = _pad_states(sys, 1)
+        A, B, C, D, Dd = s2.A, s2.B.copy(), s2.C.copy(), sys.D.copy(), sys.Dd.copy()
+        rx, ru = s2.rx.copy(), sys.ru.copy()
+        A[:n, n] = sys.B[:, j]
+        A[n, n] = -1.0 / T
+        B[:, j] = 0.0
+        B[n, j] = 1.0 / T
+        C[:, n] = sys.D[:, j] - sys.Dd[:, j] / T
+        D[:, j] = sys.Dd[:, j] / T
+        Dd[:, j] = 0.0
+        rx[n], ru[j] = sys.ru[j], 0.0
+        sys = replace(s2, A=A, B=B, C=C, D=D, Dd=Dd, rx=rx, ru=ru)
+    return sys
+
+
+def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -> _System:
+    """A structural mode driven by the undelayed elevator: q += r_q s w/D, a_z += r_az s^2/D.
+
+    D = s^2 + 2 zeta w s + w^2; states eta and eta' of eta = w^2/D de.
+    """
+    if sys.out_delay[1] or sys.out_delay[2]:
+        raise ParameterError("a structural mode after a q or a_z delay: list the time_delay effect after it")
+    n, nu = sys.B.shape
+    s2 = _pad_states(sys, 2)
+    B = np.hstack([s2.B, np.zeros((n + 2, 1))])
+    A, C = s2.A, s2.C
+    A[n, n + 1] = 1.0
+    A[n + 1, n] = -omega ** 2
+    A[n + 1, n + 1] = -2.0 * zeta * omega
+    B[n + 1, nu] = omega ** 2
+    C[1, n + 1] += r_q / omega
+    C[2, n] -= r_az
+    C[2, n + 1] -= 2.0 * zeta * r_az / omega
+    D = np.hstack([sys.D, np.zeros((3, 1))])
+    D[2, nu] = r_az
+    return replace(s2, B=B, C=C, D=D, Dd=np.hstack([sys.Dd, np.zeros((3, 1))]),
+                   ru=np.concatenate([sys.ru, [0.0]]), channels=sys.channels + (("de", 0.0),))
 
 
 @dataclass(frozen=True)
@@ -295,6 +459,9 @@ class Realization:
         alpha-dot derivatives, whose a_z feels alpha_w_dot directly).
     channels : tuple of (str, float)
         Input channels: signal name (``de`` or ``alpha_w``) and delay, s.
+    output_delays : tuple of float
+        Pure delays of the outputs (alpha, q, a_z), s (sensor delays):
+        ``G_i(s)`` is multiplied by ``exp(-s d_i)``.
     states : int
         Number of states.
     """
@@ -305,6 +472,7 @@ class Realization:
     D: np.ndarray
     Dd: np.ndarray
     channels: tuple
+    output_delays: tuple = (0.0, 0.0, 0.0)
 
     @property
     def states(self) -> int:
@@ -318,6 +486,7 @@ class Realization:
         X = np.linalg.solve(s[:, None, None] * I - self.A, np.broadcast_to(self.B, (s.size,) + self.B.shape))
         Gc = self.C @ X + self.D + s[:, None, None] * self.Dd  # (n, 3, channels)
         Gc = Gc * np.exp(-np.outer(s, [d for _, d in self.channels]))[:, None, :]
+        Gc = Gc * np.exp(-np.outer(s, self.output_delays))[:, :, None]
         names = list(dict.fromkeys(nm for nm, _ in self.channels))
         G = np.zeros((s.size, 3, len(names)), dtype=complex)
         for j, (nm, _d) in enumerate(self.channels):
@@ -343,7 +512,7 @@ def realize(model, values=None) -> Realization:
     sys = _system(model, model.values(values))
     if sys.kappa != 0.0:
         raise ParameterError("the unsteady model with F != 0 has no finite-state realisation (THEORY.md section 4)")
-    return Realization(sys.A, sys.B, sys.C, sys.D, sys.Dd, sys.channels)
+    return Realization(sys.A, sys.B, sys.C, sys.D, sys.Dd, sys.channels, tuple(sys.out_delay))
 
 
 # --- integrators ----------------------------------------------------------------------
@@ -681,6 +850,7 @@ def simulate(model, t, inputs, values=None, *, noise=None, rng=None, substeps=No
         integration = {"method": "exact first-order-hold discretisation (matrix exponential)"}
     else:
         y, integration = _simulate_memory(sys, tau, dt, sig, substeps, pole_steps)
+    y = _delay_outputs(y, tau, sys.out_delay)
     y = y + np.array([p[f"bias_{k}"] for k in _OUTPUTS])
     if noise:
         for i, k in enumerate(_OUTPUTS):  # fixed channel order: reproducible for a given seed
@@ -691,6 +861,22 @@ def simulate(model, t, inputs, values=None, *, noise=None, rng=None, substeps=No
         signals["alpha_w"] = sig["alpha_w"]
     meta = {"model": model.kind, "values": p, "noise": noise, "U": model.U, "integration": integration}
     return Record(t, signals, name=name, meta=meta, check_units=False)
+
+
+def _delay_outputs(y: np.ndarray, tau: np.ndarray, delays) -> np.ndarray:
+    """Each output column y_i(t - d_i) by a cubic spline (interpolation error O(dt^4)).
+
+    Zero before the start (the simulation starts from rest), held after the end
+    (a negative delay, an advance, reaches past the last sample).
+    """
+    y = y.copy()
+    for i, d in enumerate(delays):
+        if d:
+            ts = tau - d
+            yi = interpolate.CubicSpline(tau, y[:, i])(np.clip(ts, tau[0], tau[-1]))
+            yi[ts < tau[0]] = 0.0
+            y[:, i] = yi
+    return y
 
 
 def _delayed(tau_out, u, delay: float, tau_in) -> np.ndarray:

@@ -136,8 +136,10 @@ class FrequencyData:
         return self.omega.size
 
     def boundary(self) -> np.ndarray:
-        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, 2)."""
-        return self.x0[None, :] - self.xT[None, :] * np.exp(-1j * self.omega * self.T)[:, None]
+        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, 2) (THEORY.md section 7)."""
+        from .models.measurement import boundary_vector, end_shift
+
+        return boundary_vector(self.x0, self.xT, end_shift(self.omega, self.T))
 
     def independent_frequencies(self) -> float:
         """Approximate number of independent frequencies, (band width) T / (2 pi) + 1."""

@@ -429,8 +429,9 @@ def fit_summary(res, digits: int = 6) -> Summary:
     Tables: ``parameters`` (estimates, then the listed fixed parameters
     flagged ``fixed``), ``derived`` (the alternate set with delta-method
     standard errors) and ``correlations`` (pairs at or above 0.9); notes:
-    the data check's findings (with their codes) and the warnings raised by
-    the fit.
+    the data check's findings (with their codes), the adequacy check
+    (:mod:`fdml.adequacy`: flagged effects, or that nothing was flagged) and
+    the warnings raised by the fit.
 
     Parameters
     ----------
@@ -468,6 +469,8 @@ def fit_summary(res, digits: int = 6) -> Summary:
                  Column("correlation", "correlation", "z"))
         tables.append(Table("correlations", f"Correlations |r| >= {CORRELATION_LISTED:g}", ccols, tuple(pairs)))
     notes = [("data check", [str(f) for f in getattr(res, "findings", ())]), ("warnings", list(res.warnings))]
+    if getattr(res, "adequacy", None) is not None:  # fdml.adequacy: score tests and residual checks
+        notes.insert(1, ("adequacy", res.adequacy.lines()))
     title = f"fdml fit: {res.model.describe()}"
     return Summary(title, _header(res), tables, notes, digits=digits)
 

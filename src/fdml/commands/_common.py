@@ -33,6 +33,32 @@ def add_model_arguments(p: argparse.ArgumentParser, *, default_model: str = "uns
         p.add_argument("--gust", action="store_true", help="add the vertical gust input alpha_w")
     p.add_argument("--airspeed", type=float, metavar="U",
                    help="airspeed in m/s for the dimensional model without --aircraft")
+    add_effect_argument(p)
+
+
+def add_effect_argument(p: argparse.ArgumentParser) -> None:
+    """--effect NAME[:CHANNEL], repeatable (each occurrence adds effects; a comma list is several)."""
+    p.add_argument("--effect", action="extend", type=_effect_list, default=[], metavar="NAME[:CHANNEL]",
+                   help="make an effect part of the model, free at its null (repeatable; "
+                        "'fdml effects' lists them), e.g. --effect time_delay:alpha --effect sensor_offset:az")
+
+
+def _effect_list(text: str) -> list[str]:
+    """``time_delay:alpha`` -> [it]; ``a:x,b`` splits at commas that start a new effect name.
+
+    A channel list such as ``structural_mode:q,az`` stays one effect: a comma
+    piece without ':' or '@' after one with a channel continues that channel.
+    """
+    out: list[str] = []
+    for piece in (x.strip() for x in text.split(",")):
+        if not piece:
+            continue
+        if out and ("@" in out[-1] or ":" in out[-1]) and ":" not in piece and "@" not in piece \
+                and piece in ("alpha", "q", "az", "a_z", "de", "alpha_w", "tail"):
+            out[-1] = f"{out[-1]},{piece}"
+        else:
+            out.append(piece)
+    return out
 
 
 def make_model_from_args(args, values: dict | None = None):
@@ -49,10 +75,34 @@ def make_model_from_args(args, values: dict | None = None):
         if args.aircraft is None:
             raise ParameterError(f"the {args.model} model needs --aircraft NAME or FILE.json")
         model = make_model(args.model, args.aircraft, gust=bool(args.gust))
+    effects = list(getattr(args, "effect", None) or ())
+    if effects:
+        model = model.with_effects(effects)
     if values:
         model.parameters.check_names(values)
         model = model.with_values(values)
     return model
+
+
+def model_spec_from_args(args, **fields):
+    """The :class:`fdml.batch.ModelSpec` named by the arguments (batch, montecarlo), effects included.
+
+    The effects are resolved here, so a bad name fails before any work.
+    """
+    from ..batch import ModelSpec
+    from ..errors import FdmlError
+
+    if args.model == "dimensional" and args.aircraft is None and args.airspeed is None:
+        raise FdmlError("the dimensional model needs --airspeed U (m/s) or --aircraft")
+    if args.model != "dimensional" and args.aircraft is None:
+        raise FdmlError(f"the {args.model} model needs --aircraft NAME or FILE.json")
+    options = {"gust": bool(args.gust)}
+    if args.airspeed is not None:
+        options["airspeed"] = args.airspeed
+    spec = ModelSpec(kind=args.model, aircraft=args.aircraft, options=options,
+                     effects=tuple(getattr(args, "effect", None) or ()), **fields)
+    spec.build()  # an unknown effect, parameter or option: one line now, not once per record
+    return spec
 
 
 def check_band_option(text, option: str = "--band", *, positive: bool = True) -> None:

@@ -2,7 +2,13 @@
 
 from __future__ import annotations
 
-from ._common import add_model_arguments, assignments, check_band_option, positive_int
+from ._common import (
+    add_model_arguments,
+    assignments,
+    check_band_option,
+    model_spec_from_args,
+    positive_int,
+)
 
 
 def register(sub) -> None:
@@ -80,19 +86,11 @@ def check_batch_outputs(sources, out_dir, aircraft=None) -> None:
 
 
 def run(args) -> int:
-    from ..batch import ModelSpec, run_batch
+    from ..batch import run_batch
     from ..errors import FdmlError
 
-    if args.model == "dimensional" and args.aircraft is None and args.airspeed is None:
-        raise FdmlError("the dimensional model needs --airspeed U (m/s) or --aircraft")
-    if args.model != "dimensional" and args.aircraft is None:
-        raise FdmlError(f"the {args.model} model needs --aircraft NAME or FILE.json")
     check_band_option(args.band)  # up front: a bad band would fail every record one by one
-    options = {"gust": bool(args.gust)}
-    if args.airspeed is not None:
-        options["airspeed"] = args.airspeed
-    spec = ModelSpec(kind=args.model, aircraft=args.aircraft, options=options, fix=assignments(args.fix),
-                     free=list(args.free))
+    spec = model_spec_from_args(args, fix=assignments(args.fix), free=list(args.free))
     fit_kwargs = {"band": args.band, "outputs": args.outputs, "boundary": args.boundary, "trim": args.trim,
                   "method": args.method}
     if args.strict:

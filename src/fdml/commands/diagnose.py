@@ -35,7 +35,12 @@ def register(sub) -> None:
                    help="exit with code 2 before fitting when the data check finds anything "
                         "(units, signs, swapped channels, no response)")
     p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("-o", "--output", metavar="REPORT.json", help="write the full report (or validation) as JSON")
+    p.add_argument("-o", "--output", metavar="REPORT.json",
+                   help="write the full report (or validation) as JSON; its 'recommended' is the fit of the base "
+                        "model plus the accepted effects, as fdml fit --json prints it")
+    p.add_argument("--recommended-output", metavar="FIT.json",
+                   help="write the recommended fit (the base model plus the accepted effects, fitted by fdml fit on "
+                        "the analysis grid) as a fit result file, which fdml report reads")
     p.add_argument("--figure", metavar="FIG.png", help="write the figure (gap map before/after, Bode overlays)")
     v = p.add_argument_group("validation harness")
     v.add_argument("--validate", action="store_true",
@@ -88,6 +93,8 @@ def _check_outputs(args) -> None:
         check_output(args.output, inputs, what="report file")
     if args.figure:
         check_output(args.figure, inputs, what="figure")
+    if args.recommended_output:
+        check_output(args.recommended_output, inputs, what="result file")
 
 
 def run(args) -> int:
@@ -130,6 +137,8 @@ def run(args) -> int:
                    strict=args.strict)
     if args.output:
         rep.to_json(args.output)
+    if args.recommended_output and rep.recommended is not None:
+        rep.recommended.to_json(args.recommended_output)
     if args.figure and rep.status == "ok":
         rep.plot(args.figure)
     if args.json:
@@ -138,9 +147,13 @@ def run(args) -> int:
         print_json(rep.to_dict())
     else:
         print(rep.summary())
-    if rep.status != "ok":
-        import sys
+    import sys
 
+    if rep.status != "ok":
         sys.stderr.write(f"fdml: error: no verdict: {'; '.join(rep.problems)}\n")
+        return 2
+    if args.recommended_output and rep.recommended is None:
+        sys.stderr.write(f"fdml: error: the recommended model could not be fitted; {args.recommended_output} "
+                         "was not written\n")
         return 2
     return 0

@@ -34,6 +34,42 @@ def register(sub) -> None:
     p.add_argument("--progress", action="store_true",
                    help="show a progress bar on stderr (needs tqdm: pip install 'fdml[progress]')")
     p.set_defaults(func=run)
+    global _SUBPARSERS
+    _SUBPARSERS = sub  # for the commands quoted by the adequacy warning (_commands)
+
+
+_SUBPARSERS = None
+#: Options the quoted commands leave out: where results go and how they are shown.
+_NOT_QUOTED = ("output", "json", "progress", "func", "command", "verbose")
+
+
+def _argv_of(parser, args, *, rename=None) -> list:
+    """``args`` as the argv of ``parser``: positionals, then every option not at its default.
+
+    ``rename`` maps an attribute of ``args`` to the dest of ``parser`` (fit's model -> diagnose's base);
+    options ``parser`` does not have are left out.
+    """
+    rename = rename or {}
+    vals = {rename.get(k, k): v for k, v in vars(args).items() if k not in _NOT_QUOTED}
+    pos, opt = [], []
+    for a in parser._actions:
+        if a.dest not in vals or a.dest == "help":
+            continue
+        v = vals[a.dest]
+        if not a.option_strings:
+            pos += [str(x) for x in (v if isinstance(v, list) else [v])]
+        elif v != a.default and v is not None and not (a.choices and v not in a.choices):
+            flag = max(a.option_strings, key=len)
+            opt += [flag] if a.nargs == 0 else [flag, *(str(x) for x in (v if isinstance(v, list) else [v]))]
+    return pos + opt
+
+
+def _commands(args) -> tuple[list, list | None]:
+    """(this ``fdml fit`` command, the ``fdml diagnose`` command for the same records and model)."""
+    fit_argv = ["fdml", "fit", *_argv_of(_SUBPARSERS.choices["fit"], args)]
+    diag = _SUBPARSERS.choices.get("diagnose")
+    diag_argv = None if diag is None else ["fdml", "diagnose", *_argv_of(diag, args, rename={"model": "base"})]
+    return fit_argv, diag_argv
 
 
 def _progress_callback(enabled: bool):
@@ -73,10 +109,13 @@ def run(args) -> int:
     data = [spectra(r, band=args.band, trim=args.trim) for r in records]  # the Fourier front end
     t_transform = time.perf_counter()
     bar = _progress_callback(getattr(args, "progress", False))
+    from ..adequacy import invocation
+
     try:
-        res = fit(data if len(data) > 1 else data[0], model, outputs=args.outputs,
-                  fix=fixed, free=args.free, boundary=args.boundary, biases=biases,
-                  method=args.method, stop=args.stop, callback=bar, strict=args.strict)
+        with invocation(*_commands(args)):  # the adequacy warning quotes this command with --effect added
+            res = fit(data if len(data) > 1 else data[0], model, outputs=args.outputs,
+                      fix=fixed, free=args.free, boundary=args.boundary, biases=biases,
+                      method=args.method, stop=args.stop, callback=bar, strict=args.strict)
     finally:
         if bar is not None:
             bar.close()

@@ -2,7 +2,14 @@
 
 from __future__ import annotations
 
-from ._common import add_model_arguments, assignments, check_band_option, positive_int, seed_int
+from ._common import (
+    add_model_arguments,
+    assignments,
+    check_band_option,
+    model_spec_from_args,
+    positive_int,
+    seed_int,
+)
 
 
 def register(sub) -> None:
@@ -35,21 +42,14 @@ def run(args) -> int:
     from pathlib import Path
 
     from ..batch import ModelSpec
-    from ..errors import FdmlError
     from ..montecarlo import monte_carlo
     from .simulate import _noise
 
-    if args.model != "dimensional" and args.aircraft is None:
-        raise FdmlError(f"the {args.model} model needs --aircraft NAME or FILE.json")
-    if args.model == "dimensional" and args.aircraft is None and args.airspeed is None:
-        raise FdmlError("the dimensional model needs --airspeed U (m/s) or --aircraft")
-    options = {"gust": bool(args.gust)}
-    if args.airspeed is not None:
-        options["airspeed"] = args.airspeed
-    truth = ModelSpec(kind=args.model, aircraft=args.aircraft, options=options, values=assignments(args.set))
+    truth = model_spec_from_args(args, values=assignments(args.set))
     fit_model = None
     if args.fit_model and args.fit_model != args.model:
-        fit_model = ModelSpec(kind=args.fit_model, aircraft=args.aircraft, options=options)
+        fit_model = ModelSpec(kind=args.fit_model, aircraft=args.aircraft, options=truth.options,
+                              effects=truth.effects)
     noise, relative = _noise(args.noise)
     check_band_option(args.band)  # up front: a bad band would fail all N runs one by one
     if args.output:  # before any work: the folder and its three files

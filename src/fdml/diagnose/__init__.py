@@ -31,7 +31,7 @@ Example::
 """
 
 from .core import diagnose
-from .effects import (
+from ..models.effects import (
     AugmentedModel,
     Effect,
     FreeParameterEffect,

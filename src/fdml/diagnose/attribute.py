@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import special, stats
 
-from .effects import Effect
+from ..models.effects import Effect
 from .likelihood import DiagFit, fit_model, likelihood_ratio
 from .locate import holm
 from .screen import ScreenContext, ScreenResult, screen

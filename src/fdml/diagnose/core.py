@@ -9,6 +9,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -18,7 +19,7 @@ from ..record import Record
 from .attribute import Candidate, attribute_step, choose, p_value
 from .data import analysis_data
 from .disturbance import gust_test
-from .effects import Effect, default_library, registered_effects
+from ..models.effects import Effect, default_library, registered_effects
 from .likelihood import fit_model, likelihood_ratio, noise_bands
 from .locate import default_bands, holm
 from .report import SHRINK_CONFIRM, DiagnosisReport, label_for
@@ -72,11 +73,6 @@ def _data_findings(records, model, band, strict: bool) -> list:
     return found
 
 
-def _attach(found: list, rep: DiagnosisReport) -> DiagnosisReport:
-    rep.findings = list(found)
-    return rep
-
-
 def _library(library) -> list:
     if library is None:
         return list(registered_effects())
@@ -94,6 +90,62 @@ def _library(library) -> list:
 
 def _noise_effect(effects):
     return next((e for e in effects if e.kind == "noise" and e.name == "unmeasured_gust"), None)
+
+
+@dataclass(frozen=True)
+class _Setup:
+    """What every phase of a diagnosis needs: analysis data, noise model, gap-map bands, options."""
+
+    data: object  # AnalysisData
+    nb: object  # NoiseModel: the band-wise noise of every fit
+    rows: np.ndarray  # noise band of each stacked analysis row
+    edges: np.ndarray  # gap-map band edges, rad/s
+    channels: tuple
+    options: dict  # outputs, boundary, biases (as fdml.fit)
+    effects: tuple
+    alpha: float
+    n_obs: int  # real independent observations (for BIC)
+    settings: dict
+    model: Model  # the base model as given (its gust option sets the hold-out's inputs)
+    oversample: int
+    noise: str
+    trim: str
+    shrink_threshold: float
+    designs: dict = field(default_factory=dict, repr=False)  # gap-map regressors, shared by every in-sample map
+
+    def fit_map(self, fit, before=None):
+        """The gap map of an in-sample fit (with ``before``: that map's noise floors held)."""
+        return fit_map(self.data, fit, self.edges, alpha=self.alpha, channels=self.channels, before=before,
+                       designs=self.designs)
+
+
+@dataclass(frozen=True)
+class _Selection:
+    """Forward selection's outcome (phase 2)."""
+
+    accepted: list  # Candidates, in the order accepted
+    ambiguity: list  # per accepted candidate, its ambiguity set
+    tested: list  # every tested Candidate of every step
+    skipped: dict  # key -> Candidate not testable (first step), and the turbulence test if it could not run
+    family: int | None  # size of the first step's family (Holm), the turbulence test included
+    step_fits: list  # the fit each step's candidates were added to
+    final: object  # DiagFit after the last accepted effect
+    gust: object  # GustTest or None
+    gust_sig: bool
+    gust_effect: object
+
+
+@dataclass(frozen=True)
+class _Shrink:
+    """Shrink in-sample and on the hold-out records (phase 3)."""
+
+    in_sample: dict  # (key, step) -> (shrink, flagged cells)
+    holdout: dict  # (key, step) -> (shrink, flagged cells) on the hold-out records
+    final_map: object  # final fit's map with the base floors
+    unexplained: list
+    shrink_final: float | None
+    n_flagged: int
+    hold: dict | None  # the report's hold-out section
 
 
 def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, library=None, alpha: float = 0.05,
@@ -146,6 +198,8 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
     Returns
     -------
     DiagnosisReport
+        Its ``recommended`` is :func:`fdml.fit` of the base model plus the
+        accepted effects (see :func:`recommended_fit`).
     """
     t0 = time.perf_counter()
     records, model, fopts = _resolve(records, base)
@@ -155,63 +209,79 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
     boundary = fopts.get("boundary", boundary)
     if not (0 < alpha < 1):
         raise ParameterError(f"alpha must lie in (0, 1), got {alpha}")
+    su = _setup(records, model, band=band, bands=bands, library=library, alpha=alpha, max_effects=max_effects,
+                oversample=oversample, noise=noise, refit_top=refit_top, outputs=outputs, boundary=boundary,
+                biases=biases, trim=trim, shrink_threshold=shrink_threshold)
+    try:
+        base_fit = fit_model(su.data, model, su.nb, **su.options)
+    except FdmlError as exc:
+        return _empty("base_fit_failed", [f"the base model could not be fitted: {exc}"], su.settings, found)
+    if not base_fit.converged:
+        return _empty("base_not_converged",
+                      [f"the base fit did not converge ({base_fit.message}); no effect can be attributed "
+                       "against an unconverged base"], su.settings, found)
+    base_map, problems = _locate(su, base_fit)
+    if not any(c.excitation == "ok" for c in base_map.cells):
+        return _empty("insufficient_excitation",
+                      problems + ["no band has enough excitation to say anything about the model; no verdict"],
+                      su.settings, found, location=base_map.to_list())
+    sel = _select(su, base_fit, base_map, max_effects=max_effects, refit_top=refit_top)
+    shr = _shrink_holdout(su, base_fit, base_map, sel, holdout)
+    rec = recommended_fit(su.data, base_fit.model, [a.effect for a in sel.accepted], start=sel.final.model,
+                          **su.options)
+    return _assemble(su, base_fit, base_map, sel, shr, problems, found, rec, t0)
+
+
+def _setup(records, model, *, band, bands, library, alpha, max_effects, oversample, noise, refit_top, outputs,
+           boundary, biases, trim, shrink_threshold) -> _Setup:
+    """Analysis data, noise bands, gap-map edges and the settings (bad options raise here)."""
     effects = _library(library)
     data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust)
     nb = noise_bands(data, mode=noise)
-    rows = nb.assign(data.stacked_omega())
-    options = {"outputs": outputs, "boundary": boundary, "biases": biases}
     channels = tuple(outputs.split(",") if isinstance(outputs, str) else (outputs or ("alpha", "q", "az")))
     channels = tuple(c.strip() for c in channels)
     edges = np.asarray(bands, float) if bands is not None else default_bands(data)
     if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
         raise ParameterError("bands must be increasing edges in rad/s, at least two")
-    n_out = len(channels)
-    n_obs = 2 * data.n_dft * n_out
     settings = {"alpha": alpha, "band": list(data.band), "bands": edges.tolist(), "oversample": oversample,
-                "noise": noise, "noise_bands": nb.edges.tolist(), "refit_top": refit_top, "max_effects": max_effects,
+                "noise": noise, "noise_bands": list(nb.edges), "refit_top": refit_top, "max_effects": max_effects,
                 "records": data.names(), "independent_frequencies": data.n_dft, "base_model": model.describe(),
                 "shrink_threshold": shrink_threshold, "outputs": list(channels)}
+    return _Setup(data=data, nb=nb, rows=nb.assign(data.stacked_omega()), edges=edges, channels=channels,
+                  options={"outputs": outputs, "boundary": boundary, "biases": biases}, effects=tuple(effects),
+                  alpha=alpha, n_obs=2 * data.n_dft * len(channels), settings=settings, model=model,
+                  oversample=oversample, noise=noise, trim=trim, shrink_threshold=shrink_threshold)
+
+
+# --- phase 1: locate ---------------------------------------------------------------------------------------------
+
+def _locate(su: _Setup, base_fit):
+    """The base fit's gap map, and the cells too thinly excited to test (as problems)."""
+    base_map = su.fit_map(base_fit)
     problems = []
-    try:
-        base_fit = fit_model(data, model, nb, **options)
-    except FdmlError as exc:
-        return _attach(found, _empty("base_fit_failed", [f"the base model could not be fitted: {exc}"], settings))
-    if not base_fit.converged:
-        return _attach(found, _empty("base_not_converged",
-                      [f"the base fit did not converge ({base_fit.message}); no effect can be attributed "
-                       "against an unconverged base"], settings))
-    designs = {}
-    base_map = fit_map(data, base_fit, edges, alpha=alpha, channels=channels, designs=designs)
-    testable = [c for c in base_map.cells if c.excitation == "ok"]
-    thin = [c for c in base_map.cells if c.excitation != "ok"]
-    for c in thin:
-        problems.append(f"{c.channel} {c.band[0]:.3g}-{c.band[1]:.3g} rad/s: {c.excitation} "
-                        f"(gain resolvable to {c.gain_se_db:.2g} dB only)" if c.gain_se_db else
-                        f"{c.channel} {c.band[0]:.3g}-{c.band[1]:.3g} rad/s: {c.excitation}")
-    if not testable:
-        rep = _empty("insufficient_excitation",
-                     problems + ["no band has enough excitation to say anything about the model; no verdict"],
-                     settings)
-        rep.location = base_map.to_list()
-        return _attach(found, rep)
+    for c in base_map.cells:
+        if c.excitation == "ok":
+            continue
+        where = f"{c.channel} {c.band[0]:.3g}-{c.band[1]:.3g} rad/s: {c.excitation}"
+        problems.append(f"{where} (gain resolvable to {c.gain_se_db:.2g} dB only)" if c.gain_se_db else where)
+    return base_map, problems
 
-    fw = floor_weights(data, base_map, channels)
 
-    # --- attribution: greedy forward selection ------------------------------------------
-    gust_eff = _noise_effect(effects)
-    det = [e for e in effects if e.kind == "deterministic"]
+# --- phase 2: attribution by greedy forward selection, then turbulence -------------------------------------------
+
+def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int) -> _Selection:
+    """Greedy forward selection of deterministic effects, then the unmeasured-turbulence test."""
+    fw = floor_weights(su.data, base_map, su.channels)
+    gust_eff = _noise_effect(su.effects)
     cur = base_fit
-    accepted: list = []
-    all_tested: list = []
+    accepted, ambiguity, all_tested, step_fits = [], [], [], []
     skipped_all: dict = {}
-    ambiguity: list = []
     K0 = None
-    remaining = list(det)
-    step_fits = []  # the fit each step's candidates are added to
+    remaining = [e for e in su.effects if e.kind == "deterministic"]
     for step in range(max(int(max_effects), 0)):
         step_fits.append(cur)
-        tested, skipped = attribute_step(data, cur, remaining, nb, rows, options, alpha=alpha,
-                                         refit_top=refit_top, step=step, n_obs=n_obs, floor_weights=fw)
+        tested, skipped = attribute_step(su.data, cur, remaining, su.nb, su.rows, su.options, alpha=su.alpha,
+                                         refit_top=refit_top, step=step, n_obs=su.n_obs, floor_weights=fw)
         if step == 0:
             K0 = len(tested) + (1 if gust_eff is not None else 0)
             # Holm over the whole first-step family, the turbulence test included
@@ -221,156 +291,221 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
             for s in skipped:
                 skipped_all.setdefault(s.key, s)
         all_tested.extend(tested)
-        best, amb = choose(tested, alpha, n_obs, rows, data.stacked_dft())
+        best, amb = choose(tested, su.alpha, su.n_obs, su.rows, su.data.stacked_dft())
         if best is None:
             break
         if accepted:
-            # backward check: is the earlier effect still needed next to the new one?
-            prev = accepted[-1]
-            try:
-                only_new = fit_model(data, best.effect.augment(base_fit.model), nb, start=best.fit.params, **options)
-                lr_prev = likelihood_ratio(only_new.cost, best.fit.cost, data.oversample)
-                p_prev, _ = p_value(lr_prev, prev.df, prev.null)
-                if p_prev >= alpha:
-                    logger.info("backward check drops %s (p = %.3g) once %s is in", prev.key, p_prev, best.key)
-                    accepted.remove(prev)
-                    prev.reason = f"dropped by the backward check (p = {p_prev:.3g} once {best.key} is in)"
-            except FdmlError:  # pragma: no cover
-                pass
+            _backward_check(su, base_fit, accepted, best)
         accepted.append(best)
         ambiguity.append(amb)
         cur = best.fit
         remaining = [e for e in remaining if e.key != best.key]
+    gust, gust_sig = _turbulence(su, cur, gust_eff, K0, skipped_all)
+    return _Selection(accepted=accepted, ambiguity=ambiguity, tested=all_tested, skipped=skipped_all, family=K0,
+                      step_fits=step_fits, final=cur, gust=gust, gust_sig=gust_sig, gust_effect=gust_eff)
 
-    # --- unmeasured turbulence, after the deterministic effects ---------------------------
+
+def _backward_check(su: _Setup, base_fit, accepted: list, best) -> None:
+    """Is the effect accepted last still needed next to the new one?  Drops it from ``accepted`` if not."""
+    prev = accepted[-1]
+    try:
+        only_new = fit_model(su.data, best.effect.augment(base_fit.model), su.nb, start=best.fit.params,
+                             **su.options)
+        lr_prev = likelihood_ratio(only_new.cost, best.fit.cost, su.data.oversample)
+        p_prev, _ = p_value(lr_prev, prev.df, prev.null)
+    except FdmlError:  # pragma: no cover
+        return
+    if p_prev >= su.alpha:
+        logger.info("backward check drops %s (p = %.3g) once %s is in", prev.key, p_prev, best.key)
+        accepted.remove(prev)
+        prev.reason = f"dropped by the backward check (p = {p_prev:.3g} once {best.key} is in)"
+
+
+def _turbulence(su: _Setup, cur, gust_eff, K0, skipped_all: dict):
+    """Unmeasured turbulence, tested after the deterministic effects: (GustTest or None, significant)."""
+    if gust_eff is None:
+        return None, False
     gust = None
-    gust_sig = False
-    if gust_eff is not None:
-        why = gust_eff.applicable(cur.model, inputs=data.inputs, outputs=channels)
-        if why is None and len(channels) >= 2:
-            try:
-                gust = gust_test(data, cur, edges)
-            except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:
-                skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False,
-                                                      reason=f"cannot be evaluated: {exc}")
-        else:
+    why = gust_eff.applicable(cur.model, inputs=su.data.inputs, outputs=su.channels)
+    if why is None and len(su.channels) >= 2:
+        try:
+            gust = gust_test(su.data, cur, su.edges)
+        except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:
             skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False,
-                                                  reason=why or "needs at least two output channels")
-    if gust is not None:
-        gust_p_adj = min(1.0, gust.p * max(K0 or 1, 1))
-        gust_sig = gust_p_adj < alpha
+                                                  reason=f"cannot be evaluated: {exc}")
+    else:
+        skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False,
+                                              reason=why or "needs at least two output channels")
+    if gust is None:
+        return None, False
+    return gust, min(1.0, gust.p * max(K0 or 1, 1)) < su.alpha
 
-    # --- shrink, footprint, labels ---------------------------------------------------------
-    # Shrink is judged on flagged cells only (rule 6), with the base floors and regressors.  A
-    # candidate at forward step k is compared with the model it was added to (step k's fit) on the
-    # cells still flagged there, so a second effect is credited with the share of the *remaining*
-    # gap it removes.
-    refitted = [c for c in all_tested if c.refitted]
+
+# --- phase 3: shrink, in-sample and on the hold-out records ------------------------------------------------------
+
+def _shrink_holdout(su: _Setup, base_fit, base_map, sel: _Selection, holdout) -> _Shrink:
+    """Shrink of every refitted candidate and of the final fit (flagged cells only, rule 6).
+
+    A candidate at forward step k is compared with the model it was added to (step k's fit) on the
+    cells still flagged there, so a second effect is credited with the share of the *remaining* gap
+    it removes.
+    """
+    refitted = [c for c in sel.tested if c.refitted]
     step_maps = {0: base_map}
-    for k in range(1, len(step_fits)):
-        step_maps[k] = fit_map(data, step_fits[k], edges, alpha=alpha, channels=channels, before=base_map,
-                               designs=designs)
-    in_shr = {}
-    for c in refitted:
-        after = fit_map(data, c.fit, edges, alpha=alpha, channels=channels, before=base_map, designs=designs)
-        in_shr[(c.key, c.step)] = shrink(step_maps[c.step], after)
-    final = cur
-    final_map_same = fit_map(data, final, edges, alpha=alpha, channels=channels, before=base_map, designs=designs)
-    final_map = fit_map(data, final, edges, alpha=alpha, channels=channels)
+    for k in range(1, len(sel.step_fits)):
+        step_maps[k] = su.fit_map(sel.step_fits[k], before=base_map)
+    in_shr = {(c.key, c.step): shrink(step_maps[c.step], su.fit_map(c.fit, before=base_map)) for c in refitted}
+    final_map_same = su.fit_map(sel.final, before=base_map)
+    final_map = su.fit_map(sel.final)
     unexplained = [dict(c.to_dict(), where="in-sample") for c in final_map.cells if c.significant]
     shrink_final, n_flag = shrink(base_map, final_map_same)
-
-    hold = None
-    h_shr = {}
+    h_shr, hold = {}, None
     if holdout is not None:
-        hdata = analysis_data(holdout, data.band, oversample=oversample, trim=trim, gust=model.gust)
-        hnb = noise_bands(hdata, mode=noise)
-        h_designs = {}
-        h_base = frozen_fit(hdata, base_fit.model, hnb, options)
-        h_before = fit_map(hdata, h_base, edges, alpha=alpha, channels=channels, designs=h_designs)
-        h_step = {0: h_before}
-        for k in range(1, len(step_fits)):
-            hk = frozen_fit(hdata, step_fits[k].model, hnb, options)
-            h_step[k] = fit_map(hdata, hk, edges, alpha=alpha, channels=channels, before=h_before, designs=h_designs)
-        for c in refitted:
-            hf = frozen_fit(hdata, c.fit.model, hnb, options)
-            h_after = fit_map(hdata, hf, edges, alpha=alpha, channels=channels, before=h_before, designs=h_designs)
-            h_shr[(c.key, c.step)] = shrink(h_step[c.step], h_after)
-        h_final = frozen_fit(hdata, final.model, hnb, options)
-        h_final_same = fit_map(hdata, h_final, edges, alpha=alpha, channels=channels, before=h_before,
-                               designs=h_designs)
-        h_final_own = fit_map(hdata, h_final, edges, alpha=alpha, channels=channels)
-        h_unexp = [dict(c.to_dict(), where="holdout") for c in h_final_own.cells if c.significant]
-        unexplained += h_unexp
-        hs_final, hn_flag = shrink(h_before, h_final_same)
-        hold = {"records": hdata.names(), "location": h_before.to_list(), "location_after": h_final_same.to_list(),
-                "shrink": hs_final, "flagged_before": hn_flag, "unexplained": h_unexp}
+        h_shr, hold = _holdout(su, base_fit, sel, refitted, holdout)
+        unexplained += hold["unexplained"]
+    return _Shrink(in_sample=in_shr, holdout=h_shr, final_map=final_map_same, unexplained=unexplained,
+                   shrink_final=shrink_final, n_flagged=n_flag, hold=hold)
 
-    acc_keys = [(a.key, a.step) for a in accepted]
-    amb_first = ambiguity[0] if ambiguity else []
+
+def _holdout(su: _Setup, base_fit, sel: _Selection, refitted: list, holdout):
+    """Shrink on the hold-out records with every model parameter frozen: ({(key, step): shrink}, section)."""
+    hdata = analysis_data(holdout, su.data.band, oversample=su.oversample, trim=su.trim, gust=su.model.gust)
+    hnb = noise_bands(hdata, mode=su.noise)
+    designs: dict = {}
+
+    def hmap(model, before=None):
+        hf = frozen_fit(hdata, model, hnb, su.options)
+        return fit_map(hdata, hf, su.edges, alpha=su.alpha, channels=su.channels, before=before, designs=designs)
+
+    h_before = hmap(base_fit.model)
+    h_step = {0: h_before}
+    for k in range(1, len(sel.step_fits)):
+        h_step[k] = hmap(sel.step_fits[k].model, h_before)
+    h_shr = {(c.key, c.step): shrink(h_step[c.step], hmap(c.fit.model, h_before)) for c in refitted}
+    h_final = frozen_fit(hdata, sel.final.model, hnb, su.options)
+    h_final_same = fit_map(hdata, h_final, su.edges, alpha=su.alpha, channels=su.channels, before=h_before,
+                           designs=designs)
+    h_final_own = fit_map(hdata, h_final, su.edges, alpha=su.alpha, channels=su.channels)
+    h_unexp = [dict(c.to_dict(), where="holdout") for c in h_final_own.cells if c.significant]
+    hs_final, hn_flag = shrink(h_before, h_final_same)
+    return h_shr, {"records": hdata.names(), "location": h_before.to_list(), "location_after": h_final_same.to_list(),
+                   "shrink": hs_final, "flagged_before": hn_flag, "unexplained": h_unexp}
+
+
+# --- the recommended model -------------------------------------------------------------------------------------
+
+def recommended_fit(data, base_model: Model, effects, *, start: Model | None = None, outputs=None,
+                    boundary: str = "estimated", biases="auto"):
+    """:func:`fdml.fit` of ``base_model`` plus ``effects`` on the diagnosis's analysis grid.
+
+    The model is built as a user would build it (``base_model.with_effects(*effects)``), so its result
+    saves and reloads like any fit; start values are the diagnosis's final estimates (``start``).
+    Otherwise ``fdml fit``'s defaults: white noise, the ``white`` covariance.  None when it cannot be
+    fitted (the reason is logged).
+
+    Parameters
+    ----------
+    data : AnalysisData
+    base_model : Model
+        The base model (values: the base fit's estimates).
+    effects : sequence of Effect
+        The accepted effects, in order.
+    start : Model, optional
+        A model whose parameter values (shared names) start the fit.
+    outputs, boundary, biases :
+        As in :func:`fdml.fit`.
+
+    Returns
+    -------
+    FitResult or None
+    """
+    import warnings
+
+    from ..estimate import fit as fdml_fit
+
+    model = base_model.with_effects(*effects) if effects else base_model
+    if start is not None:
+        sv = start.parameters.values
+        model = model.with_values({k: v for k, v in sv.items() if k in model.parameters and math.isfinite(v)})
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the diagnosis has checked the records; the result keeps warnings
+            return fdml_fit(list(data.spectra), model, outputs=outputs, boundary=boundary, biases=biases, check=False)
+    except FdmlError as exc:
+        logger.warning("the recommended model could not be fitted: %s", exc)
+        return None
+
+
+# --- phase 4: the report -----------------------------------------------------------------------------------------
+
+def _assemble(su: _Setup, base_fit, base_map, sel: _Selection, shr: _Shrink, problems: list, found: list,
+              recommended, t0: float) -> DiagnosisReport:
+    """Labels, verdict, footprints and compensation of the accepted effects: the frozen report."""
+    from .text import paragraph
+
+    ranking = _ranking(su, sel, shr)
+    verdict = sel.accepted[0].name if sel.accepted else ("unmeasured_gust" if sel.gust_sig else "none")
+    not_ident = [{"effect": s.effect.name, "channel": s.effect.channel, "key": s.key, "reason": s.reason}
+                 for s in sel.skipped.values()]
+    fp, comp, selected = [], [], []
+    for a in sel.accepted:
+        nulls = a.effect.nulls(base_fit.model if a.step == 0 else a.fit.model)
+        fp += [dict(x, effect=a.key) for x in footprint(su.data, a.fit, nulls, base_map, su.channels)]
+        if a.step == 0:
+            comp = compensation(su.data, a.fit, base_fit, nulls, base_map, su.channels)
+        entry = next(r for r in ranking if r["key"] == a.key and r["step"] == a.step)
+        selected.append({**entry, "parameter_shifts": parameter_shifts(base_fit, a.fit)})
+    shifts = parameter_shifts(base_fit, sel.final) if sel.accepted else {}
+    amb_first = sel.ambiguity[0] if sel.ambiguity else []
+    ambiguous = [c.key for c in amb_first if sel.accepted and c.key != sel.accepted[0].key]
+    gust = sel.gust
+    report = DiagnosisReport(
+        verdict=verdict, status="ok", problems=problems, ranking=ranking, ambiguous=ambiguous,
+        not_identifiable=not_ident, location=base_map.to_list(), footprint=fp, unexplained=shr.unexplained,
+        selected=selected, location_after=shr.final_map.to_list(), compensation=comp, parameter_shifts=shifts,
+        holdout=shr.hold,
+        noise={"model": su.noise, "bands": list(su.nb.edges), "floor_method": base_map.method,
+               "gust_test": None if gust is None else {"lr": gust.lr, "p": gust.p, "sigma_w": gust.sigma_w,
+                                                       "share": gust.share, "samples": gust.n_samples}},
+        settings={**su.settings, "elapsed_s": time.perf_counter() - t0, "shrink_in_sample": shr.shrink_final,
+                  "flagged_before": shr.n_flagged, "family_size": sel.family},
+        details={"data": su.data, "base_fit": base_fit, "final_fit": sel.final, "base_map": base_map,
+                 "final_map": shr.final_map, "edges": su.edges, "accepted": sel.accepted, "channels": su.channels},
+        findings=tuple(found), recommended=recommended,
+    )
+    return replace(report, text=paragraph(report))
+
+
+def _ranking(su: _Setup, sel: _Selection, shr: _Shrink) -> list:
+    """One entry per tested candidate (and the turbulence test), with its label."""
+    acc_keys = [(a.key, a.step) for a in sel.accepted]
     # remaining gap for the labels: the final fit's own map (report.UNEXPLAINED_RULE)
-    n_unexp_label = len([u for u in unexplained if u["where"] == "in-sample"])
+    n_unexp_label = len([u for u in shr.unexplained if u["where"] == "in-sample"])
     ranking = []
-    for c in all_tested:
-        sig = c.significant(alpha) and c.refitted
-        in_sample, nfl = in_shr.get((c.key, c.step), (None, 0))
-        h = h_shr.get((c.key, c.step))
-        shr, nflag = (h if h is not None else (in_sample, nfl)) if hold else (in_sample, nfl)
-        amb = False
-        for a, s in zip(accepted, ambiguity):
-            if a.key == c.key and a.step == c.step:
-                amb = len(s) > 1
+    for c in sel.tested:
+        sig = c.significant(su.alpha) and c.refitted
+        in_sample, nfl = shr.in_sample.get((c.key, c.step), (None, 0))
+        h = shr.holdout.get((c.key, c.step))
+        shr_, nflag = h if (shr.hold and h is not None) else (in_sample, nfl)
+        amb = any(len(s) > 1 for a, s in zip(sel.accepted, sel.ambiguity) if a.key == c.key and a.step == c.step)
         acc = (c.key, c.step) in acc_keys
-        lab = label_for(significant=sig, accepted=acc, ambiguous=amb, plausible=c.plausible,
-                        shrink=shr, n_flagged=nflag, n_unexplained=n_unexp_label, threshold=shrink_threshold)
-        ranking.append(_rank_entry(c, lab, shr, in_sample, h[0] if h else None, acc, n_obs, sig))
+        lab = label_for(significant=sig, accepted=acc, ambiguous=amb, plausible=c.plausible, shrink=shr_,
+                        n_flagged=nflag, n_unexplained=n_unexp_label, threshold=su.shrink_threshold)
+        ranking.append(_rank_entry(c, lab, shr_, in_sample, h[0] if h else None, acc, su.n_obs, sig))
+    gust, K0 = sel.gust, sel.family
     if gust is not None:
         # a noise-kind effect is judged on its likelihood gain, not on the coherent gap (which it cannot
         # close): confirmed when no coherent gap is left unexplained, else partial
-        glab = ("confirmed" if n_unexp_label == 0 else "partial") if gust_sig else None
+        glab = ("confirmed" if n_unexp_label == 0 else "partial") if sel.gust_sig else None
+        ge = sel.gust_effect
         ranking.append({
-            "effect": "unmeasured_gust", "key": gust_eff.key, "channel": gust_eff.channel, "lr": gust.lr,
+            "effect": "unmeasured_gust", "key": ge.key, "channel": ge.channel, "lr": gust.lr,
             "p_value": gust.p, "p_holm": min(1.0, gust.p * max(K0 or 1, 1)), "shrink": gust.share,
             "label": glab, "params": {"sigma_w": {"value": gust.sigma_w, "stderr": gust.sigma_w_se, "unit": "m/s"}},
-            "df": 1, "null": "chibar", "accepted": gust_sig, "step": len(accepted), "refitted": True,
-            "shrink_in_sample": gust.share, "shrink_holdout": None, "significant": gust_sig,
+            "df": 1, "null": "chibar", "accepted": sel.gust_sig, "step": len(sel.accepted), "refitted": True,
+            "shrink_in_sample": gust.share, "shrink_holdout": None, "significant": sel.gust_sig,
             "note": "noise kind: shrink is the share of the input-incoherent residual power it explains"})
-
-    # --- verdict -------------------------------------------------------------------------------
-    verdict = accepted[0].name if accepted else ("unmeasured_gust" if gust_sig else "none")
-    not_ident = [{"effect": s.effect.name, "channel": s.effect.channel, "key": s.key, "reason": s.reason}
-                 for s in skipped_all.values()]
-    fp, comp, shifts, selected = [], [], {}, []
-    for a in accepted:
-        nulls = a.effect.nulls(base_fit.model if a.step == 0 else a.fit.model)
-        f = footprint(data, a.fit, nulls, base_map, channels)
-        for x in f:
-            x["effect"] = a.key
-        fp += f
-        if a.step == 0:
-            comp = compensation(data, a.fit, base_fit, nulls, base_map, channels)
-        entry = next(r for r in ranking if r["key"] == a.key and r["step"] == a.step)
-        selected.append({**entry, "parameter_shifts": parameter_shifts(base_fit, a.fit)})
-    if accepted:
-        shifts = parameter_shifts(base_fit, final)
-    ambiguous = [c.key for c in amb_first if accepted and c.key != accepted[0].key]
-    report = DiagnosisReport(
-        verdict=verdict, status="ok", problems=problems, ranking=ranking, ambiguous=ambiguous,
-        not_identifiable=not_ident, location=base_map.to_list(), footprint=fp, unexplained=unexplained,
-        selected=selected, location_after=final_map_same.to_list(), compensation=comp, parameter_shifts=shifts,
-        holdout=hold,
-        noise={"model": noise, "bands": nb.edges.tolist(), "floor_method": base_map.method,
-               "gust_test": None if gust is None else {"lr": gust.lr, "p": gust.p, "sigma_w": gust.sigma_w,
-                                                       "share": gust.share, "samples": gust.n_samples}},
-        settings={**settings, "elapsed_s": time.perf_counter() - t0, "shrink_in_sample": shrink_final,
-                  "flagged_before": n_flag, "family_size": K0},
-        details={"data": data, "base_fit": base_fit, "final_fit": final, "base_map": base_map,
-                 "final_map": final_map_same, "edges": edges, "accepted": accepted, "channels": channels},
-    )
-    from .text import paragraph
-
-    report.text = paragraph(report)
-    return _attach(found, report)
+    return ranking
 
 
 def floor_weights(data, gmap, channels) -> np.ndarray:
@@ -410,8 +545,7 @@ def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_
     }
 
 
-def _empty(status: str, problems: list, settings: dict) -> DiagnosisReport:
-    rep = DiagnosisReport(verdict="none", status=status, problems=problems, ranking=[], ambiguous=[],
-                          not_identifiable=[], location=[], footprint=[], unexplained=[], settings=settings)
-    rep.text = "No verdict: " + "; ".join(problems)
-    return rep
+def _empty(status: str, problems: list, settings: dict, found: list, location: list | None = None) -> DiagnosisReport:
+    return DiagnosisReport(verdict="none", status=status, problems=problems, ranking=[], ambiguous=[],
+                           not_identifiable=[], location=location or [], footprint=[], unexplained=[],
+                           settings=settings, text="No verdict: " + "; ".join(problems), findings=tuple(found))

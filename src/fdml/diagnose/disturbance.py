@@ -45,7 +45,7 @@ from scipy import optimize, stats
 
 from ..maneuvers import DRYDEN_L, dryden_psd
 from .data import AnalysisData
-from .effects import with_gust
+from ..models.effects import with_gust
 from .locate import _legendre
 
 __all__ = ["GustTest", "gust_test"]

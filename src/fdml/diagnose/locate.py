@@ -326,7 +326,7 @@ def gap_map(data: AnalysisData, residual: np.ndarray, forced: np.ndarray, edges:
         ``{(channel, band index): floor}`` to hold the noise floors of another
         map (for before/after comparisons).
     """
-    from .effects import CHANNELS
+    from ..models.effects import CHANNELS
 
     cells = []
     nb = edges.size - 1

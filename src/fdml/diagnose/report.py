@@ -70,12 +70,16 @@ def _clean(obj):
     return to_jsonable(obj, nonfinite="null")
 
 
-@dataclass
+@dataclass(frozen=True)
 class DiagnosisReport:
-    """What :func:`fdml.diagnose.diagnose` returns.
+    """What :func:`fdml.diagnose.diagnose` returns (frozen).
 
     The attributes mirror the JSON (:meth:`to_dict`); ``details`` keeps the
-    fitted objects for plots (base and final fits, analysis data, maps).
+    fitted objects for plots (base and final fits, analysis data, maps);
+    ``findings`` holds the data check's findings (:mod:`fdml.findings`);
+    ``recommended`` is the :class:`~fdml.results.FitResult` of the base
+    model plus the accepted effects (None without a verdict), in the JSON as
+    ``fdml fit --json`` prints a fit (:meth:`FitResult.brief`).
     """
 
     verdict: str
@@ -96,7 +100,8 @@ class DiagnosisReport:
     settings: dict = field(default_factory=dict)
     text: str = ""
     details: dict = field(default_factory=dict, repr=False)
-    findings: list = field(default_factory=list)
+    findings: tuple = ()
+    recommended: object = field(default=None, repr=False)
 
     def to_dict(self) -> dict:
         """JSON-ready dict: the issue's keys first, then the supporting detail."""
@@ -119,6 +124,7 @@ class DiagnosisReport:
             "settings": self.settings,
             "summary": self.text,
             "findings": [f.to_dict() for f in self.findings],
+            "recommended": None if self.recommended is None else self.recommended.brief(),
         }
         return _clean(d)
 
@@ -147,6 +153,10 @@ class DiagnosisReport:
                              f"{(f'{ph:.2g}' if ph is not None else '-'):>10s} "
                              f"{(f'{sh:.2f}' if sh is not None else '-'):>7s}  {r['label'] or '-'}"
                              + ("  <- accepted" if r.get("accepted") else ""))
+        if self.recommended is not None:
+            r = self.recommended
+            lines += ["", f"recommended model: {r.model.describe()} ({'converged' if r.converged else 'NOT converged'}"
+                          f", {len(r.names)} estimates); fdml diagnose --recommended-output FIT.json saves it"]
         if self.not_identifiable:
             lines.append("")
             lines.append("not testable here: " + "; ".join(f"{n['effect']}@{n['channel']} ({n['reason']})"

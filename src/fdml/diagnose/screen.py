@@ -32,6 +32,7 @@ likelihood's own weighting (R_b), which is what the refit's LR uses.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -39,7 +40,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from ..estimate import prepare
-from .effects import Effect
+from ..models.effects import Effect
 from .likelihood import DiagFit, whitener
 
 __all__ = ["ScreenContext", "ScreenResult", "screen", "power_noncentrality"]
@@ -48,6 +49,7 @@ __all__ = ["ScreenContext", "ScreenResult", "screen", "power_noncentrality"]
 ALIAS_LIMIT = 0.99
 
 
+@functools.lru_cache(maxsize=256)  # a root search of ncx2.sf: the same (level, df) for every candidate
 def power_noncentrality(level: float, df: int = 1, power: float = 0.8) -> float:
     """Non-centrality lambda* of a chi-square(df) test at ``level`` with the given power."""
     crit = stats.chi2.isf(level, df)

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..estimate import fit as fdml_fit
 from .data import AnalysisData
-from .effects import CHANNELS
+from ..models.effects import CHANNELS
 from .likelihood import DiagFit, NoiseBands, band_cost
 from .locate import GapMap, forced_response, gap_map
 

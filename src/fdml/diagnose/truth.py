@@ -39,7 +39,7 @@ from ..errors import ParameterError
 from ..maneuvers import dryden_gust, make_input, time_vector
 from ..record import Record
 from ..simulate import realize, simulate
-from .effects import get_effect, root_model
+from ..models.effects import get_effect, root_model
 
 __all__ = ["simulate_truth", "truth_model", "sensor_noise", "OUT_OF_LIBRARY"]
 
@@ -173,7 +173,7 @@ def simulate_truth(base, key: str | None, values: dict | None = None, *, maneuve
         inputs["alpha_w"] = aw * signal.windows.tukey(t.size, min(2 * GUST_FADE / t[-1], 1.0))
     model = base
     if gust_key:
-        from .effects import with_gust
+        from ..models.effects import with_gust
         model = with_gust(base)
     elif key is not None and key not in OUT_OF_LIBRARY:
         model = truth_model(base, key, values)

@@ -26,7 +26,7 @@ MODEL_KINDS = {
 }
 
 
-def make_model(kind: str, aircraft: Aircraft | str | None = None, **options) -> Model:
+def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(), **options) -> Model:
     """Build a model by name.
 
     Parameters
@@ -35,6 +35,10 @@ def make_model(kind: str, aircraft: Aircraft | str | None = None, **options) -> 
     aircraft : Aircraft or str, optional
         An :class:`~fdml.aircraft.Aircraft`, a preset name or a JSON file path.
         Required except for ``dimensional`` given ``airspeed=``.
+    effects : sequence, optional
+        Effects made part of the model (``"time_delay:alpha"``,
+        ``"sensor_offset@az"``, ``"actuator_lag"`` or Effect objects), each
+        free at its null value; ``fdml effects`` lists them.
     **options
         Model options (``gust``, ``output_bias``, ``adot``, ``airspeed``,
         ``tail_lag_chord``, ``gust_lag``, ``tail_gust_delay``).
@@ -50,9 +54,10 @@ def make_model(kind: str, aircraft: Aircraft | str | None = None, **options) -> 
     if aircraft is not None:
         aircraft = load_aircraft(aircraft)
     try:
-        return cls(aircraft=aircraft, **options)
+        model = cls(aircraft=aircraft, **options)
     except TypeError as exc:
         raise ParameterError(f"bad option for the {kind} model: {exc}") from None
+    return model.with_effects(effects) if effects else model
 
 
 __all__ = [
@@ -72,29 +77,44 @@ __all__ = [
 
 
 def model_to_dict(model: Model) -> dict:
-    """JSON-ready description of a model: kind, options, aircraft, parameters."""
+    """JSON-ready description of a model: base kind, options, aircraft, effects, parameters.
+
+    A model with effects is saved as its base model's kind and options plus
+    the effect keys (``"time_delay@alpha"``) in order; the parameters are the
+    whole set, the effects' included.
+    """
     import dataclasses
 
+    from .effects import AugmentedModel
+
+    base = model.root if isinstance(model, AugmentedModel) else model
+    if isinstance(model, AugmentedModel) and not model.requested:
+        raise ParameterError(f"{model.describe()}: built by the diagnosis, not with_effects; "
+                             "rebuild it with model.with_effects(...) to save it")
     opts = {}
-    for f in dataclasses.fields(model):
+    for f in dataclasses.fields(base):
         if f.name in ("aircraft", "parameters"):
             continue
-        opts[f.name] = getattr(model, f.name)
-    ac = getattr(model, "aircraft", None)
-    return {
-        "kind": model.kind,
+        opts[f.name] = getattr(base, f.name)
+    ac = getattr(base, "aircraft", None)
+    out = {
+        "kind": base.kind,
         "options": opts,
         "aircraft": None if ac is None else ac.to_dict(),
         "parameters": model.parameters.to_list(),
     }
+    if model.parts:
+        out["effects"] = [e.key for e in model.parts]
+    return out
 
 
 def model_from_dict(d: dict) -> Model:
     """Inverse of :func:`model_to_dict`."""
     from ..parameters import Parameters
+    from .effects import assemble
 
     ac = None if d.get("aircraft") is None else Aircraft.from_dict(d["aircraft"], origin="saved model")
-    model = make_model(d["kind"], ac, **d.get("options", {}))
+    model = assemble(make_model(d["kind"], ac, **d.get("options", {})), d.get("effects") or ())
     return model.with_parameters(Parameters.from_list(d["parameters"]))
 
 

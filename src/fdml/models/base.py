@@ -364,6 +364,33 @@ class Model:
             J[:, j] = [(du[k] - dd[k]) / (2 * h) for k in keys]
         return keys, J
 
+    def with_effects(self, *effects) -> "Model":
+        """This model plus effects: keys ``NAME``, ``NAME:CHANNEL``, ``NAME@CHANNEL`` or Effect objects.
+
+        Each effect's parameters are free at their null values (where the
+        model is unchanged); see :func:`fdml.models.effects.with_effects`.
+        ``model.with_effects("time_delay:alpha", "sensor_offset:az")``.
+        """
+        from .effects import with_effects
+
+        flat = [e for item in effects for e in ([item] if isinstance(item, str) or not hasattr(item, "__iter__")
+                                                 else item)]
+        return with_effects(self, flat)
+
+    @property
+    def parts(self) -> tuple:
+        """The effects this model is made of (none for a plain model)."""
+        return ()
+
+    def realize(self, values: Mapping[str, float] | None = None):
+        """Finite-state realisation (:class:`fdml.simulate.Realization`), composed through the effects.
+
+        The one the simulator integrates and :func:`fdml.export.to_statespace` exports.
+        """
+        from ..simulate import realize
+
+        return realize(self, values)
+
     def describe(self) -> str:
         """One line naming the model and its options."""
         opts = ["gust" if self.gust else "elevator only"]

@@ -1,0 +1,579 @@
+"""Every fit checks its own adequacy: score tests of the effect library and residual checks.
+
+After a fit, from the base fit alone (no refits):
+
+* every applicable deterministic effect of the library
+  (:mod:`fdml.models.effect_library`) is screened with the diagnosis's score
+  (Lagrange-multiplier) screen, :func:`fdml.diagnose.screen.screen`, on the
+  fit's own grid and white-noise likelihood (one residual covariance R,
+  THEORY.md Eq. 24).  The screen's linearised estimate eta_lin is one
+  Gauss-Newton step from the base fit along the effect and the base
+  parameters together; the statistic tested is the likelihood ratio at that
+  one-step estimate,
+
+      LR_1 = 2 N_ind (ln det R_0 - ln det R_1),
+
+  with R_1 the residual covariance after the step and N_ind the independent
+  frequencies (a grid finer than 2 pi/T counts each one K = 2 pi/(T dw) times,
+  see :mod:`fdml.diagnose.data`).  Under the null LR_1 and the score statistic
+  agree to first order (both chi2); under the alternative the score statistic,
+  which weights the residual with R_0 (inflated by the very misfit it tests),
+  is far weaker: on the Twin Otter 018 record the alpha delay has LM 7.0,
+  LR_1 14.8 and a refitted LR of 29.6 (``fdml diagnose``).  Both are kept;
+* the null distribution is the diagnosis's (chi2, chi-bar-square for a
+  parameter whose null is on a bound, Davies' bound for a parameter not
+  identified under the null: :func:`fdml.diagnose.attribute.p_value`);
+* two residual checks on the independent frequencies (grid spacing >= 2 pi/T):
+  *coherence*, the squared multiple coherence of each output's residual with
+  the inputs in each band (F test, ``F = (n - q)/q c/(1 - c) ~ F(2q, 2(n - q))``
+  for complex Gaussian residuals independent of the inputs), and *whiteness*,
+  Bartlett's test that each output's residual power (divided by the transform's
+  noise gain) is the same in every band (``|v|^2`` is sigma^2 chi2_2 / 2, so
+  each band's mean power is a variance estimate on 2 n_b degrees of freedom).
+  Each is Bonferroni-combined over its cells (valid under any dependence);
+* Holm's step-down correction (:func:`fdml.diagnose.locate.holm`) over the
+  whole family (the identifiable effects and the two residual checks); a test
+  whose Holm p-value is below ``alpha`` (default :data:`ALPHA`) is flagged.
+
+The false-alarm rate over simulated records (time-domain simulator) is
+measured by ``benchmarks/adequacy_false_alarms.py``; the cost relative to the
+fit by ``benchmarks/bench_adequacy.py``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import math
+import shlex
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from .diagnose.screen import ScreenContext
+from .errors import FdmlError
+from .jsoncodec import Fields
+
+__all__ = ["ALPHA", "EffectTest", "ResidualCheck", "Adequacy", "check", "advice", "invocation"]
+
+#: Family-wise level of the adequacy check (every fit runs it: 1 in 100 adequate fits warns).
+ALPHA = 0.01
+#: Bands of the residual checks: at most this many, each with at least MIN_BAND independent frequencies.
+MAX_BANDS = 4
+MIN_BAND = 6
+
+_COMMAND: contextvars.ContextVar = contextvars.ContextVar("fdml_adequacy_command", default=None)
+
+
+@contextlib.contextmanager
+def invocation(fit_argv, diagnose_argv=None):
+    """Within the block, warnings quote these commands (argv lists, ``fdml fit ...`` and ``fdml diagnose ...``)."""
+    token = _COMMAND.set((list(fit_argv), None if diagnose_argv is None else list(diagnose_argv)))
+    try:
+        yield
+    finally:
+        _COMMAND.reset(token)
+
+
+@dataclass(frozen=True)
+class EffectTest:
+    """The score screen of one library effect at the base fit.
+
+    Attributes
+    ----------
+    key, effect, channel : str
+        ``time_delay@alpha``, ``time_delay``, ``alpha``.
+    statistic : float
+        Likelihood ratio at the one-step estimate (LR_1, see module doc).
+    lm : float
+        The score (LM) statistic of the diagnosis's screen.
+    df : int
+    null : str
+        ``chi2``, ``chibar`` or ``davies``.
+    p_value, p_holm : float
+        Unadjusted and Holm-adjusted (whole family) p-values.
+    expected : dict
+        One-step estimate of every tested parameter, ``{name: value}`` (its unit in ``units``).
+    units : dict
+    """
+
+    key: str
+    effect: str
+    channel: str
+    statistic: float
+    lm: float
+    df: int
+    null: str
+    p_value: float
+    p_holm: float
+    expected: dict
+    units: dict
+
+    @property
+    def option(self) -> str:
+        """The ``--effect`` value that adds it: ``time_delay:alpha``."""
+        return f"{self.effect}:{self.channel}"
+
+    def describe(self) -> str:
+        vals = ", ".join(f"{k} = {_fmt(v, self.units.get(k, ''))}" for k, v in self.expected.items())
+        return f"{self.key} ({vals}; LR {self.statistic:.3g}, p {self.p_value:.2g}, Holm p {self.p_holm:.2g})"
+
+
+@dataclass(frozen=True)
+class ResidualCheck:
+    """A residual check (``coherence`` or ``whiteness``), Bonferroni over its cells.
+
+    ``worst`` names the cell with the smallest p-value (``record/channel band lo-hi rad/s``);
+    ``cells`` is the number of cells (0: not testable, p = 1).
+    """
+
+    name: str
+    statistic: float
+    p_value: float
+    p_holm: float
+    cells: int
+    worst: str
+
+
+@dataclass(frozen=True)
+class Adequacy:
+    """The adequacy check of one fit (:func:`check`).
+
+    Attributes
+    ----------
+    alpha : float
+        Family-wise level.
+    effects : tuple of EffectTest
+        Every tested (identifiable) effect, most significant first.
+    skipped : tuple of (key, reason)
+        Effects that do not apply or that these data cannot test.
+    whiteness, coherence : ResidualCheck
+    elapsed : float
+        Seconds spent.
+    """
+
+    alpha: float
+    effects: tuple
+    skipped: tuple
+    whiteness: ResidualCheck
+    coherence: ResidualCheck
+    elapsed: float = 0.0
+
+    @property
+    def flagged(self) -> tuple:
+        """The effects whose Holm p-value is below ``alpha``."""
+        return tuple(e for e in self.effects if e.p_holm < self.alpha)
+
+    @property
+    def residual_flags(self) -> tuple:
+        return tuple(c for c in (self.coherence, self.whiteness) if c.p_holm < self.alpha)
+
+    @property
+    def adequate(self) -> bool:
+        """Nothing flagged."""
+        return not self.flagged and not self.residual_flags
+
+    def brief(self) -> dict:
+        """The short form of ``fdml fit --json``: flagged effects and residual checks."""
+        return {"adequate": self.adequate, "alpha": self.alpha,
+                "flagged": [_effect_dict(e) for e in self.flagged],
+                "whiteness": _check_dict(self.whiteness), "coherence": _check_dict(self.coherence)}
+
+    def to_dict(self) -> dict:
+        return {"alpha": self.alpha, "effects": [_effect_dict(e) for e in self.effects],
+                "skipped": [{"key": k, "reason": r} for k, r in self.skipped], "whiteness": _check_dict(self.whiteness),
+                "coherence": _check_dict(self.coherence), "elapsed": self.elapsed}
+
+    @classmethod
+    def from_fields(cls, f: Fields) -> "Adequacy":
+        """Inverse of :meth:`to_dict`, every key checked (``f``: :class:`fdml.jsoncodec.Fields` of the object)."""
+        return cls(alpha=f.number("alpha"), effects=tuple(_effect_from(e) for e in f.items("effects")),
+                   skipped=tuple((x.string("key"), x.string("reason")) for x in f.items("skipped", default=[])),
+                   whiteness=_check_from(f.sub("whiteness")), coherence=_check_from(f.sub("coherence")),
+                   elapsed=f.number("elapsed", default=0.0))
+
+    def lines(self) -> list:
+        """Text lines of the summary's adequacy section."""
+        out = []
+        for e in self.flagged:
+            out.append(f"FLAGGED {e.describe()}")
+        for c in self.residual_flags:
+            out.append(f"FLAGGED residual {c.name}: p {c.p_value:.2g}, Holm p {c.p_holm:.2g} (worst: {c.worst})")
+        if self.adequate:
+            top = self.effects[0] if self.effects else None
+            more = f"; smallest Holm p {top.p_holm:.2g} ({top.key})" if top is not None else ""
+            out.append(f"nothing flagged at family level {self.alpha:g} ({len(self.effects)} effects, "
+                       f"coherence and whiteness of the residuals tested{more})")
+        else:
+            out.append(f"family level {self.alpha:g}, {len(self.effects) + 2} tests, Holm-corrected")
+        return out
+
+
+def _fmt(v: float, unit: str) -> str:
+    if unit == "s" and abs(v) < 1.0:
+        return f"{v * 1e3:.3g} ms"
+    return f"{v:.3g} {unit}".rstrip()
+
+
+def _effect_dict(e: EffectTest) -> dict:
+    return {"key": e.key, "effect": e.effect, "channel": e.channel, "statistic": e.statistic, "lm": e.lm,
+            "df": e.df, "null": e.null, "p_value": e.p_value, "p_holm": e.p_holm,
+            "expected": dict(e.expected), "units": dict(e.units)}
+
+
+def _effect_from(f: Fields) -> EffectTest:
+    exp = f.mapping("expected")
+    return EffectTest(key=f.string("key"), effect=f.string("effect"), channel=f.string("channel"),
+                      statistic=f.number("statistic"), lm=f.number("lm"), df=f.integer("df", minimum=0),
+                      null=f.string("null", choices=("chi2", "chibar", "davies")), p_value=f.number("p_value"),
+                      p_holm=f.number("p_holm"),
+                      expected={k: Fields(exp, f.source, f"{f.name('expected')}.").number(k) for k in exp},
+                      units={k: str(v) for k, v in f.mapping("units", default={}).items()})
+
+
+def _check_dict(c: ResidualCheck) -> dict:
+    return {"name": c.name, "statistic": c.statistic, "p_value": c.p_value, "p_holm": c.p_holm,
+            "cells": c.cells, "worst": c.worst}
+
+
+def _check_from(f: Fields) -> ResidualCheck:
+    return ResidualCheck(name=f.string("name", choices=("whiteness", "coherence")), statistic=f.number("statistic"),
+                         p_value=f.number("p_value"), p_holm=f.number("p_holm"),
+                         cells=f.integer("cells", minimum=0), worst=f.string("worst"))
+
+
+# --- the check ------------------------------------------------------------------------------------
+
+def _oversampling(prob) -> np.ndarray:
+    """K per record: grid points per independent frequency 2 pi/T (at least 1)."""
+    out = []
+    for d in prob.data:
+        step = float(np.median(np.diff(d.omega))) if d.m > 1 else 2 * math.pi / d.T
+        out.append(max(1.0, 2 * math.pi / (d.T * step)))
+    return np.array(out)
+
+
+@dataclass(frozen=True)
+class _BaseFit:
+    """The fit as the diagnosis's score screen reads it (model, theta, residual V, band covariances Rs)."""
+
+    model: object
+    names: tuple
+    theta: np.ndarray
+    V: np.ndarray
+    Rs: list
+    prob: object
+    params: dict  # estimates by name (read once per candidate parameter by the screen)
+
+
+class _Context(ScreenContext):
+    """The score screen's context, with a fast path for output-level effects.
+
+    ``candidate_jacobian`` of an output-level effect on top of the base model
+    applies the effect to the base model's response, computed once, as
+    :meth:`fdml.models.effects.AugmentedModel.evaluate` does, and predicts
+    through the fit's own problem (``Problem.predict`` with given responses):
+    the same central differences as the screen's, without re-preparing and
+    re-solving the model for every step (matrix-level and free-parameter
+    effects take the screen's own path).
+    """
+
+    def candidate_jacobian(self, model, names, steps, one_sided):
+        eff = _output_effect_on(model, self.fit.model)
+        out = (super().candidate_jacobian(model, names, steps, one_sided) if eff is None else
+               self._output_jacobian(eff, model, names, steps, one_sided))
+        self.last = (tuple(names), dict(model.parameters.values), out)  # reused by the one-step LR
+        return out
+
+    def jacobian_at(self, model, plist):
+        """The last candidate Jacobian when it was taken at ``model``'s values, else a new one (central).
+
+        ``plist``: the effect's tested parameters (:class:`fdml.models.effects.Param`).
+        """
+        names = tuple(p.name for p in plist)
+        last = getattr(self, "last", None)
+        if last is not None and last[0] == names and last[1] == dict(model.parameters.values):
+            return last[2]
+        return self.candidate_jacobian(model, names, [p.typical() for p in plist], [False] * len(names))
+
+    def _output_jacobian(self, eff, model, names, steps, one_sided):
+        from .models.base import ModelResponse
+        from .models.effects import root_model
+
+        prob, root = self.fit.prob, root_model(self.fit.model)
+        if getattr(self, "_base", None) is None:
+            self._base = [self.fit.model.evaluate(d.omega) for d in prob.data]
+        vals = model.parameters.values
+
+        def stack(p):
+            resp = []
+            for d, r in zip(prob.data, self._base):
+                G, H, P = eff.output(1j * d.omega, p, r.G, r.H, r.P, root)
+                resp.append(ModelResponse(d.omega, G, H, P))
+            return np.concatenate([y[:, prob.out_idx] for y in prob.predict(self.fit.theta, resp)])
+
+        cols = []
+        for n, h, os_ in zip(names, steps, one_sided):
+            up = stack({**vals, n: vals[n] + h})
+            down = stack(vals) if os_ else stack({**vals, n: vals[n] - h})
+            cols.append((up - down) / (h if os_ else 2 * h))
+        A = np.stack(cols, axis=-1)
+        return (self._real_cols(self._white_cols(A)), self._real_cols(np.einsum("njk,nkp->njp", self.Lf, A)))
+
+
+def _output_effect_on(model, base):
+    """The output-level effect ``model`` adds on top of ``base`` (None when it is not just that)."""
+    from .models.effects import AugmentedModel, MatrixEffect, OutputEffect, applied_effects
+
+    if not isinstance(model, AugmentedModel) or not model.effects:
+        return None
+    eff = model.effects[-1]
+    if not isinstance(eff, OutputEffect) or isinstance(eff, MatrixEffect):
+        return None
+    if tuple(model.effects[:-1]) != tuple(applied_effects(base)):
+        return None
+    return eff
+
+
+def _context(prob, model, theta, V, R):
+    """The screen's context on the fit's own grid: one R, each record's rows counted 1/K times."""
+    from .models.base import OUTPUTS
+
+    K = _oversampling(prob)
+    rows = np.concatenate([np.full(d.m, i) for i, d in enumerate(prob.data)])
+    # the whitener of R K_i divides record i's rows by sqrt(K_i): the LM sum then counts independent frequencies
+    theta = np.asarray(theta, float)
+    base = _BaseFit(model, tuple(prob.names), theta, V, [R * k for k in K], prob,
+                    dict(zip(prob.names, theta.tolist())))
+    floor = 1.0 / np.sqrt(np.maximum(np.real(np.diag(R)), 1e-300))
+    fw = floor[None, :] / np.sqrt(K[rows])[:, None]  # diagonal white-noise floors for aliasing and the MDE
+    options = {"outputs": [OUTPUTS[k] for k in prob.out_idx], "boundary": prob.boundary, "biases": False,
+               "state_biases": bool(prob.state_biases), "input_bias": bool(prob.input_bias)}
+    ctx = _Context(base, rows, 1, prob.data, options, fw)
+    return ctx, K[rows]
+
+
+def _logdet_weighted(ctx, r: np.ndarray, Kr: np.ndarray) -> tuple[float, float]:
+    """(ln det of the K-weighted covariance of the whitened residual r, independent frequencies)."""
+    M = r.size // 2
+    c = (r[:M] + 1j * r[M:]).reshape(Kr.size, -1) * np.sqrt(Kr)[:, None]
+    w = 1.0 / Kr
+    S = (c.T * w) @ c.conj() / w.sum()
+    return float(np.linalg.slogdet(S)[1]), float(w.sum())
+
+
+def _one_step_lr(ctx, effect, scr, Kr) -> float:
+    """LR at the one-step estimate: base parameters re-projected, the effect at eta_lin (module doc)."""
+    model = ctx.fit.model
+    nulls = effect.nulls(model)
+    aug = effect.augment(model).with_values(nulls)
+    if scr.nuisance:
+        aug = aug.with_values(scr.nuisance)
+    plist = [p for p in effect.param_list(model) if not p.nuisance]
+    names = [p.name for p in plist]
+    Je, _ = ctx.jacobian_at(aug, plist)
+    eta = np.array([scr.eta_lin[n] - nulls[n] for n in names])
+    l0, n_ind = _logdet_weighted(ctx, ctx.r, Kr)
+    l1, _ = _logdet_weighted(ctx, ctx.r - ctx.perp(Je @ eta), Kr)
+    return max(2.0 * n_ind * (l0 - l1), 0.0)
+
+
+def _test_effects(prob, model, theta, V, R, alpha: float, library=None):
+    """(tests as dicts, skipped) for every applicable deterministic effect."""
+    from .diagnose.attribute import _grid_variation, _null_kind, p_value
+    from .diagnose.screen import screen
+    from .models.effects import registered_effects
+
+    ctx, Kr = _context(prob, model, theta, V, R)
+    inputs = tuple(prob.data[0].inputs)
+    outputs = tuple(ctx.options["outputs"])
+    usable, skipped = [], []
+    for eff in (library if library is not None else registered_effects()):
+        if eff.kind != "deterministic":
+            continue
+        why = eff.applicable(model, inputs=inputs, outputs=outputs)
+        (skipped.append((eff.key, why)) if why else usable.append(eff))
+    ctx.family_size = max(len(usable), 1)
+    band = (float(min(d.omega[0] for d in prob.data)), float(max(d.omega[-1] for d in prob.data)))
+    tests = []
+    for eff in usable:
+        try:
+            scr = screen(ctx, eff, level=alpha, band=band)
+            if not scr.identifiable:
+                skipped.append((eff.key, scr.reason))
+                continue
+            lr = _one_step_lr(ctx, eff, scr, Kr) if scr.lm > 0 else 0.0
+        except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:
+            skipped.append((eff.key, f"cannot be evaluated: {exc}"))
+            continue
+        null, q = _null_kind(eff, model, scr)
+        Vg, ng = _grid_variation(scr)
+        p, _ = p_value(lr, q, null, V=Vg, n_grid=ng)
+        units = {p_.name: p_.unit for p_ in eff.param_list(model)}
+        tests.append(dict(key=eff.key, effect=eff.name, channel=eff.channel, statistic=float(lr), lm=float(scr.lm),
+                          df=int(q), null=null, p_value=float(p), expected=dict(scr.eta_lin),
+                          units={k: units.get(k, "") for k in scr.eta_lin}))
+    return tests, skipped
+
+
+def _independent(d) -> np.ndarray:
+    """Grid indices at spacing >= 2 pi/T (the residuals there are independent, THEORY.md section 7)."""
+    step = float(np.median(np.diff(d.omega))) if d.m > 1 else 1.0
+    k = max(int(math.ceil(2 * math.pi / (d.T * step) - 1e-9)), 1)
+    return np.arange(0, d.m, k)
+
+
+def _bands(n: int) -> list:
+    nb = max(min(MAX_BANDS, n // MIN_BAND), 1)
+    return np.array_split(np.arange(n), nb)
+
+
+def _residual_checks(prob, V) -> tuple[tuple, tuple]:
+    """(coherence, whiteness) as (statistic, p, cells, worst) each, Bonferroni over cells."""
+    from .models.base import OUTPUTS
+
+    coh, white = [], []
+    off = 0
+    for d in prob.data:
+        v = V[off: off + d.m]
+        off += d.m
+        idx = _independent(d)
+        u = d.u[idx]
+        gain = d.noise_gain(include_trim=False)[idx]
+        for j, k in enumerate(prob.out_idx):
+            ch = OUTPUTS[k]
+            vj = v[idx, j]
+            bands = _bands(idx.size)
+            for b in bands:
+                coh.append(_coherence_cell(u[b], vj[b], f"{d.name}/{ch} {d.omega[idx[b[0]]]:.3g}-"
+                                                        f"{d.omega[idx[b[-1]]]:.3g} rad/s"))
+            if len(bands) >= 2:
+                white.append(_bartlett_cell(np.abs(vj) ** 2 / gain, bands, f"{d.name}/{ch}"))
+    return _bonferroni(coh), _bonferroni(white)
+
+
+def _coherence_cell(u: np.ndarray, v: np.ndarray, where: str):
+    """Multiple coherence of v with the inputs u and its F-test p-value (module doc)."""
+    n, q = u.shape
+    if n <= q + 1:
+        return 0.0, 1.0, where
+    coef, *_ = np.linalg.lstsq(u, v, rcond=None)
+    fitted = float(np.sum(np.abs(u @ coef) ** 2))
+    total = float(np.sum(np.abs(v) ** 2))
+    c = min(fitted / total, 1.0 - 1e-15) if total > 0 else 0.0
+    F = (n - q) / q * c / (1.0 - c)
+    return c, float(stats.f.sf(F, 2 * q, 2 * (n - q))), where
+
+
+def _bartlett_cell(power: np.ndarray, bands: list, where: str):
+    """Bartlett's test of equal mean power across bands, each band a variance on 2 n_b degrees of freedom."""
+    nu = np.array([2.0 * b.size for b in bands])
+    s2 = np.array([power[b].mean() for b in bands])
+    pooled = float(np.sum(nu * s2) / nu.sum())
+    k = len(bands)
+    M = nu.sum() * math.log(pooled) - float(np.sum(nu * np.log(s2)))
+    C = 1.0 + (np.sum(1.0 / nu) - 1.0 / nu.sum()) / (3.0 * (k - 1))
+    return M / C, float(stats.chi2.sf(M / C, k - 1)), where
+
+
+def _bonferroni(cells: list) -> tuple:
+    if not cells:
+        return 0.0, 1.0, 0, "not testable (too few independent frequencies)"
+    stat, p, where = min(cells, key=lambda c: c[1])
+    return float(stat), min(1.0, p * len(cells)), len(cells), where
+
+
+def check(prob, theta, V, R, *, alpha: float = ALPHA, library=None) -> Adequacy:
+    """The adequacy check of a fit, from its problem and estimate (no refits).
+
+    Parameters
+    ----------
+    prob : fdml.estimate.Problem
+        The fitted problem (data, configured model, nuisance terms).
+    theta : ndarray
+        The estimate (``prob.names`` order).
+    V : ndarray, complex, shape (N, n_out)
+        Residuals at the estimate.
+    R : ndarray, complex, shape (n_out, n_out)
+        Residual covariance (Eq. 24).
+    alpha : float, optional
+        Family-wise level (default :data:`ALPHA`).
+    library : sequence of Effect, optional
+        Effects to screen (default: every registered one).
+
+    Returns
+    -------
+    Adequacy
+    """
+    from .diagnose.locate import holm
+
+    if not 0 < alpha < 1:
+        raise FdmlError(f"adequacy level alpha must lie in (0, 1), got {alpha}")
+    t0 = time.perf_counter()
+    model = prob.model.with_values(prob.model_values(np.asarray(theta, float)))
+    tests, skipped = _test_effects(prob, model, theta, V, R, alpha, library)
+    coh, white = _residual_checks(prob, V)
+    ph = holm(np.array([t["p_value"] for t in tests] + [coh[1], white[1]]))
+    effects = sorted((EffectTest(**t, p_holm=float(h)) for t, h in zip(tests, ph)),
+                     key=lambda e: (e.p_holm, e.p_value, -e.statistic))
+    return Adequacy(alpha=float(alpha), effects=tuple(effects), skipped=tuple(skipped),
+                    coherence=ResidualCheck("coherence", coh[0], coh[1], float(ph[-2]), coh[2], coh[3]),
+                    whiteness=ResidualCheck("whiteness", white[0], white[1], float(ph[-1]), white[2], white[3]),
+                    elapsed=time.perf_counter() - t0)
+
+
+# --- the warning ----------------------------------------------------------------------------------
+
+def advice(adequacy: Adequacy) -> str | None:
+    """The warning text for a flagged fit (None when nothing is flagged).
+
+    It names the most significant flagged effect and the command that refits
+    with it (the running ``fdml fit`` command with ``--effect NAME:CHANNEL``
+    when the command line set one with :func:`invocation`), or runs the
+    diagnosis.
+    """
+    if adequacy.adequate:
+        return None
+    cmd = _COMMAND.get()
+    fit_argv, diag_argv = cmd if cmd is not None else (None, None)
+    diag = shlex.join(diag_argv) if diag_argv else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
+    if adequacy.flagged:
+        top = adequacy.flagged[0]
+        others = [e.key for e in adequacy.flagged[1:]]
+        refit = (shlex.join([*fit_argv, "--effect", top.option]) if fit_argv else
+                 f"fdml fit RECORD ... --effect {top.option} (Python: model.with_effects({top.option!r}))")
+        also = f"; also flagged: {', '.join(others)}" if others else ""
+        return (f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}; "
+                f"or run the full diagnosis: {diag}")
+    c = adequacy.residual_flags[0]
+    return (f"the fit's residuals fail the {c.name} check (Holm p {c.p_holm:.2g}, worst {c.worst}) but no "
+            f"library effect explains them: the bounds assume white noise (try cov_type='colored'); "
+            f"run the full diagnosis: {diag}")
+
+
+def attach(prob, result, V):
+    """``result`` with its adequacy check (``FitResult.adequacy``) and, when it flags, the warning.
+
+    Called by :func:`fdml.estimate.fit` after a converged fit.  The warning
+    (:class:`~fdml.errors.AdequacyWarning`) is also kept in ``result.warnings``,
+    as every warning of a fit.  A check that cannot run says so in a warning;
+    it never fails the fit.
+    """
+    import warnings
+    from dataclasses import replace
+
+    from .errors import AdequacyWarning
+
+    try:
+        found = check(prob, result.values, V, result.R)
+    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:
+        msg = f"the adequacy check could not run: {exc}"
+        warnings.warn(msg, AdequacyWarning, stacklevel=3)
+        return replace(result, warnings=(*result.warnings, msg))
+    msg = advice(found)
+    if msg is None:
+        return replace(result, adequacy=found)
+    warnings.warn(msg, AdequacyWarning, stacklevel=3)
+    return replace(result, adequacy=found, warnings=(*result.warnings, msg))

@@ -1,0 +1,470 @@
+"""The built-in library of candidate effects (registered on import).
+
+=====================  =========  ============================================================
+effect                 channel    augmentation (null in brackets)
+=====================  =========  ============================================================
+lift_lag               alpha      Wells-Keskar wing lift lag y_w (Eq. 1/17) [0 on a steady
+                                  model, the base value on the unsteady one]; Z_alpha times
+                                  1 - y s/(s + 2 z U/c) on the derivatives/dimensional models
+downwash_lag           q          Wells-Keskar downwash lag amplitude G (Eq. 2/16), or an
+                                  alpha-dot moment (Cm_adot, M_adot) [0]
+gust_lag               alpha_w    Kussner lag of the measured gust: b1 (BS-12) or a lag
+                                  T_gust [0]
+gust_lag               tail       delay of the gust at the tail, tau_tail (BS-8) [0]
+time_delay             de         pure input delay tau_de [0, one-sided]
+time_delay             alpha|q|az pure delay on one output channel [0, two-sided]
+actuator_lag           de         recorded -> effective elevator 1/(1 + T_act s) [0]
+sensor_offset          az         accelerometer x_az ahead of the c.g.: a_z - x q_dot/g [0]
+sensor_offset          alpha      vane x_alpha ahead of the c.g.: alpha - x q/U [0]
+structural_mode        q,az       lightly damped mode on q (s w/D) and a_z (s^2/D),
+                                  D = s^2 + 2 zeta w s + w^2, residues r_q, r_az [0]
+sensor_scale           alpha|q|az gain error 1 + k on one channel [0]
+unmeasured_gust        alpha,q,az turbulence sigma_w along the model's gust column
+                                  (noise kind; tested on the input-incoherent residual) [0]
+=====================  =========  ============================================================
+
+Effect sizes are in physical units (s, m, -, rad/s per rad ...); each
+parameter carries a plausible range used by the identifiability screen
+(minimum detectable effect) and the plausibility check.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..constants import G0
+from ..errors import ParameterError
+from .base import Model
+from .effects import (
+    CHANNELS,
+    Effect,
+    FreeParameterEffect,
+    MatrixEffect,
+    OutputEffect,
+    Param,
+    register_effect,
+    root_model,
+    scale_rows,
+)
+
+__all__ = ["Dispatch", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
+
+#: R. T. Jones' one-term lift-lag rate for an AR 6 elliptic wing, per semichord
+#: (THEORY.md section 2, [MEM]); used when the aircraft gives none.
+JONES_Z = 0.381
+#: Default structural-mode damping ratio during the frequency grid search.
+MODE_ZETA = 0.05
+
+
+class Dispatch(Effect):
+    """One library effect implemented differently per base-model kind."""
+
+    def __init__(self, name: str, channel: str, impls: dict, *, signature: str = "", needs=()):
+        self.name = name
+        self.channel = channel
+        self.impls = dict(impls)
+        self.signature = signature
+        self.needs = tuple(needs)
+        first = next(iter(self.impls.values()))
+        self.params = first.params
+        self.nuisance_grid = first.nuisance_grid
+
+    def impl(self, model: Model):
+        return self.impls.get(root_model(model).kind)
+
+    def applicable(self, model, inputs=("de",), outputs=CHANNELS):
+        imp = self.impl(model)
+        if imp is None:
+            return f"not defined for the {root_model(model).kind} model"
+        return imp.applicable(model, inputs, outputs)
+
+    def param_list(self, model):
+        imp = self.impl(model)
+        return imp.param_list(model) if imp is not None else self.params
+
+    def nulls(self, model):
+        return self.impl(model).nulls(model)
+
+    def augment(self, model):
+        return self.impl(model).augment(model)
+
+    def simulate(self, t, signals, values, model):
+        return self.impl(model).simulate(t, signals, values, model)
+
+
+# --- base-model helpers ----------------------------------------------------------------------
+
+def to_unsteady_equivalent(root: Model) -> Model:
+    """The steady Wells-Keskar model rewritten as the unsteady one with every lag off.
+
+    With y_w = y_t = F = G = 0, b1 = 0 (K = 1) and no tail gust delay, Eqs. 13-17
+    reduce exactly to the quasi-steady model (THEORY.md section 6); so the
+    lag parameters can be freed one at a time as nested augmentations.
+    """
+    if root.kind == "unsteady":
+        return root
+    if root.kind != "steady":
+        raise ParameterError(f"no unsteady equivalent of the {root.kind} model")
+    from . import make_model
+
+    u = make_model("unsteady", root.aircraft, gust=root.gust, output_bias=root.output_bias,
+                   tail_gust_delay=False)
+    vals = {k: v for k, v in root.parameters.values.items() if k in u.parameters}
+    vals.update({"y_w": 0.0, "y_t": 0.0, "F": 0.0, "G": 0.0})
+    if root.gust:
+        vals["b1"] = 0.0
+    params = u.parameters.with_values(vals)
+    free = [n for n in root.parameters.free_names if n in params]
+    params = params.only_free(free)
+    return u.with_parameters(params)
+
+
+def _chord(root: Model) -> float | None:
+    ac = getattr(root, "aircraft", None)
+    return None if ac is None else float(ac.c_w)
+
+
+def _needs_chord(root: Model) -> str | None:
+    return None if _chord(root) is not None else "needs the wing chord (give an aircraft)"
+
+
+def _needs_gust(root: Model) -> str | None:
+    return None if root.gust else "needs the measured gust angle alpha_w in the model (--gust)"
+
+
+# --- lift lag --------------------------------------------------------------------------------
+
+def _lift_lag_constants(p, root):
+    """(Z_alpha, lag rate 2 z U / c) of the lift lag on a conventional base model."""
+    ac = root.aircraft
+    z = float(ac.constants.get("z_w", JONES_Z)) or JONES_Z
+    lam = 2.0 * z * root.U / ac.c_w  # Eq. 17 rate 2 z U / c, 1/s
+    # Z_alpha = A00 = -M00 at s = 0 (M = sE - A with constant A on these models)
+    M0 = root._matrices(np.zeros(1, complex), {k: p[k] for k in root.parameters.names})[0]
+    return -M0[0, 0, 0].real, lam
+
+
+def _lift_lag_matrix(s, p, M, B, E, root):
+    Za, lam = _lift_lag_constants(p, root)
+    M = M.copy()
+    M[:, 0, 0] = M[:, 0, 0] + Za * p["y_lift"] * s / (s + lam)  # A00 -> Z_a (1 - y s/(s + lam))
+    return M, B, E
+
+
+def _lift_lag_realize(d, p, root):
+    """Z_a (1 - y s/(s + lam)) alpha = Z_a (1 - y) alpha + Z_a y x_l,  x_l' = lam (alpha - x_l)."""
+    Za, lam = _lift_lag_constants(p, root)
+    y = p["y_lift"]
+    n = d.A.shape[0]
+    col = np.zeros(n)
+    col[0] = Za * y
+    row = np.zeros(n + 1)
+    row[0], row[n] = lam, -lam
+    d = d.with_state(row, col)
+    d.A[0, 0] -= Za * y
+    return d
+
+
+_LIFT_Y = dict(lower=0.0, upper=1.0, plausible=(0.0, 0.6), unit="-", start=0.05,
+               description="wing lift-lag amplitude (Eq. 1)")
+
+LIFT_LAG = Dispatch("lift_lag", "alpha", {
+    "unsteady": FreeParameterEffect("lift_lag", "alpha", Param("y_w", None, **_LIFT_Y),
+                                    ("unsteady", "steady"), convert=to_unsteady_equivalent),
+    "steady": FreeParameterEffect("lift_lag", "alpha", Param("y_w", None, **_LIFT_Y),
+                                  ("unsteady", "steady"), convert=to_unsteady_equivalent),
+    "derivatives": MatrixEffect("lift_lag", "alpha", (Param("y_lift", 0.0, **_LIFT_Y),), _lift_lag_matrix,
+                                applies=_needs_chord, realize=_lift_lag_realize),
+    "dimensional": MatrixEffect("lift_lag", "alpha", (Param("y_lift", 0.0, **_LIFT_Y),), _lift_lag_matrix,
+                                applies=_needs_chord, realize=_lift_lag_realize),
+}, signature="lift builds up with a lag: alpha and a_z, magnitude dip and phase lag in the short-period band")
+
+
+# --- downwash lag --------------------------------------------------------------------------
+
+def _adot_matrix(s, p, M, B, E, root):
+    M = M.copy()
+    M[:, 1, 0] = M[:, 1, 0] - s * p["M_adot"]  # q_dot += M_adot alpha_dot: E[1,0] = -M_adot
+    if root.gust:
+        B = B.copy()
+        B[:, 1, 1] = B[:, 1, 1] + s * p["M_adot"]  # the gust enters as alpha + alpha_w
+    return M, B, E
+
+
+def _adot_realize(d, p, root):
+    """q' = ... + M_adot (alpha' [+ alpha_w']): E[1, 0] = -M_adot, B1[1, alpha_w] = M_adot."""
+    E, B1 = d.E.copy(), d.B1.copy()
+    E[1, 0] -= p["M_adot"]
+    if root.gust:
+        B1[1, 1] += p["M_adot"]
+    return type(d)(E, d.A, d.B0, B1, d.channels)
+
+
+DOWNWASH_LAG = Dispatch("downwash_lag", "q", {
+    "unsteady": FreeParameterEffect("downwash_lag", "q", Param("G", None, lower=0.0, upper=1.0,
+                                    plausible=(0.0, 1.0), unit="-", start=0.05,
+                                    description="downwash lag amplitude (Eq. 2)"),
+                                    ("unsteady", "steady"), convert=to_unsteady_equivalent, bounds=(0.0, 1.0)),
+    "steady": FreeParameterEffect("downwash_lag", "q", Param("G", None, lower=0.0, upper=1.0,
+                                  plausible=(0.0, 1.0), unit="-", start=0.05,
+                                  description="downwash lag amplitude (Eq. 2)"),
+                                  ("unsteady", "steady"), convert=to_unsteady_equivalent, bounds=(0.0, 1.0)),
+    "derivatives": FreeParameterEffect("downwash_lag", "q", Param("Cm_adot", None, plausible=(-20.0, 5.0),
+                                       unit="1/rad", start=0.5), ("derivatives",)),
+    "dimensional": MatrixEffect("downwash_lag", "q", (Param("M_adot", 0.0, plausible=(-5.0, 1.0), unit="1/s",
+                                                            start=0.05),), _adot_matrix,
+                                realize=_adot_realize),
+}, signature="tail downwash lags alpha: q (and alpha) in the short-period band, like an alpha-dot moment")
+
+
+# --- gust lag ---------------------------------------------------------------------------------
+
+def _gust_lag_output(s, p, G, H, P, root):
+    G = G.copy()
+    G[:, :, 1] = G[:, :, 1] / (1.0 + s[:, None] * p["T_gust"])
+    return G, H, P
+
+
+def _filter_realize(signal_name: str, name: str):
+    def fn(sys, p, root):
+        from ..simulate import filter_input
+
+        return filter_input(sys, signal_name, p[name])
+    return fn
+
+
+def _tail_realize(opts, p, root):
+    """The Wells-Keskar realisation with the tail's gust channel delayed by tau_tail (BS-8)."""
+    return {**opts, "tail_tau": p["tau_tail"]}
+
+
+def _tail_delay_matrix(s, p, M, B, E, root):
+    """Delay the tail's share of the gust forcing by tau_tail (BS-8)."""
+    ac = root.aircraft
+    l_t = p["l_t"]
+    B = B.copy()
+    tail_m = B[:, 1, 1]  # the moment comes from the tail only (Eq. 7)
+    tail_z = tail_m * ac.k_z * ac.c_w / (ac.k_m * l_t)  # its z-force share: -kz (St/Sw) C_Lt_g
+    f = np.exp(-s * p["tau_tail"]) - 1.0
+    B[:, 1, 1] = B[:, 1, 1] + tail_m * f
+    B[:, 0, 1] = B[:, 0, 1] + tail_z * f
+    return M, B, E
+
+
+def _tail_applies(root):
+    why = _needs_gust(root)
+    if why:
+        return why
+    if getattr(root, "tail_gust_delay", False):
+        return "the base model already delays the gust at the tail"
+    return None
+
+
+_B1 = dict(lower=0.0, upper=40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5,
+           description="Kussner lag length (BS-12)")
+GUST_LAG = Dispatch("gust_lag", "alpha_w", {
+    "unsteady": FreeParameterEffect("gust_lag", "alpha_w", Param("b1", None, **_B1), ("unsteady", "steady"),
+                                    convert=to_unsteady_equivalent, needs=("alpha_w",)),
+    "steady": FreeParameterEffect("gust_lag", "alpha_w", Param("b1", None, **_B1), ("unsteady", "steady"),
+                                  convert=to_unsteady_equivalent, needs=("alpha_w",)),
+    "derivatives": OutputEffect("gust_lag", "alpha_w", (Param("T_gust", 0.0, lower=0.0, upper=2.0,
+                                plausible=(0.0, 0.5), unit="s", start=0.01),), _gust_lag_output,
+                                needs=("alpha_w",), applies=_needs_gust,
+                                realize=_filter_realize("alpha_w", "T_gust")),
+    "dimensional": OutputEffect("gust_lag", "alpha_w", (Param("T_gust", 0.0, lower=0.0, upper=2.0,
+                                plausible=(0.0, 0.5), unit="s", start=0.01),), _gust_lag_output,
+                                needs=("alpha_w",), applies=_needs_gust,
+                                realize=_filter_realize("alpha_w", "T_gust")),
+}, needs=("alpha_w",), signature="gust lift builds up with a lag: alpha and a_z, coherent with alpha_w")
+
+_TAIL = (Param("tau_tail", 0.0, lower=0.0, upper=1.0, plausible=(0.0, 0.3), unit="s", start=0.01,
+               description="gust delay at the tail (BS-8)"),)
+GUST_TAIL = Dispatch("gust_lag", "tail", {
+    "unsteady": MatrixEffect("gust_lag", "tail", _TAIL, _tail_delay_matrix, needs=("alpha_w",),
+                             applies=_tail_applies, realize=_tail_realize),
+    "steady": MatrixEffect("gust_lag", "tail", _TAIL, _tail_delay_matrix, needs=("alpha_w",),
+                           applies=_tail_applies, realize=_tail_realize),
+}, needs=("alpha_w",), signature="the gust reaches the tail l_t/U later: q, coherent with alpha_w")
+
+
+# --- time delay ------------------------------------------------------------------------------
+
+TIME_DELAY_DE = FreeParameterEffect(
+    "time_delay", "de", Param("tau_de", None, lower=0.0, upper=0.5, plausible=(0.0, 0.15), unit="s",
+                              start=0.002, description="elevator time delay"),
+    ("unsteady", "steady", "derivatives", "dimensional"),
+    signature="phase lag -omega tau on every output, growing with frequency")
+
+
+def _output_delay(row: int, name: str):
+    def fn(s, p, G, H, P, root):
+        return scale_rows(G, H, P, row, np.exp(-s * p[name]))
+    return fn
+
+
+def _delay_realize(row: int, name: str):
+    def fn(sys, p, root):
+        from ..simulate import delay_output
+
+        return delay_output(sys, row, p[name])
+    return fn
+
+
+def _make_output_delay(ch: str) -> OutputEffect:
+    row = CHANNELS.index(ch)
+    name = f"tau_{ch}"
+    return OutputEffect("time_delay", ch, (Param(name, 0.0, lower=-0.5, upper=0.5, plausible=(-0.15, 0.15),
+                                                 unit="s", start=0.002, description=f"delay of the {ch} sensor"),),
+                        _output_delay(row, name), signature=f"phase lag on {ch} only, growing with frequency",
+                        realize=_delay_realize(row, name))
+
+
+# --- actuator lag ----------------------------------------------------------------------------
+
+def _actuator(s, p, G, H, P, root):
+    G = G.copy()
+    G[:, :, 0] = G[:, :, 0] / (1.0 + s[:, None] * p["T_act"])
+    return G, H, P
+
+
+ACTUATOR_LAG = OutputEffect(
+    "actuator_lag", "de", (Param("T_act", 0.0, lower=0.0, upper=1.0, plausible=(0.0, 0.15), unit="s",
+                                 start=0.002, description="first-order lag, recorded to effective elevator"),),
+    _actuator, signature="phase lag and roll-off above 1/T on every output",
+    realize=_filter_realize("de", "T_act"))
+
+
+# --- sensor position ---------------------------------------------------------------------------
+
+def _accel_offset(s, p, G, H, P, root):
+    k = -p["x_az"] / G0  # a_z at x ahead of the c.g. = a_z - x q_dot / g
+    G, H, P = G.copy(), H.copy(), P.copy()
+    G[:, 2] = G[:, 2] + k * s[:, None] * G[:, 1]
+    P[:, 2] = P[:, 2] + k * s[:, None] * P[:, 1]
+    H[:, 2] = H[:, 2] + k * s[:, None] * H[:, 1]
+    H[:, 2, 1] = H[:, 2, 1] - k  # finite transform of q_dot is s q~ - d_q (Klein boundary term)
+    return G, H, P
+
+
+def _vane_offset(s, p, G, H, P, root):
+    k = -p["x_alpha"] / root.U  # alpha at x ahead of the c.g. = alpha - x q / U
+    G, H, P = G.copy(), H.copy(), P.copy()
+    G[:, 0] = G[:, 0] + k * G[:, 1]
+    H[:, 0] = H[:, 0] + k * H[:, 1]
+    P[:, 0] = P[:, 0] + k * P[:, 1]
+    return G, H, P
+
+
+def _accel_offset_realize(sys, p, root):
+    from ..simulate import add_output_rate
+
+    return add_output_rate(sys, 2, 1, -p["x_az"] / G0)  # a_z - x q_dot / g
+
+
+def _vane_offset_realize(sys, p, root):
+    from ..simulate import mix_output
+
+    return mix_output(sys, 0, 1, -p["x_alpha"] / root.U)  # alpha - x q / U
+
+
+SENSOR_OFFSET_AZ = OutputEffect(
+    "sensor_offset", "az", (Param("x_az", 0.0, lower=-30.0, upper=30.0, plausible=(-10.0, 10.0), unit="m",
+                                  start=0.05, description="accelerometer ahead of the c.g."),),
+    _accel_offset, signature="a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
+    realize=_accel_offset_realize)
+SENSOR_OFFSET_ALPHA = OutputEffect(
+    "sensor_offset", "alpha", (Param("x_alpha", 0.0, lower=-30.0, upper=30.0, plausible=(-10.0, 10.0),
+                                     unit="m", start=0.05, description="alpha vane ahead of the c.g."),),
+    _vane_offset, signature="alpha picks up -x q/U: phase change on alpha", realize=_vane_offset_realize)
+
+
+# --- structural mode -------------------------------------------------------------------------
+
+def _mode(s, p, G, H, P, root):
+    w, z = p["omega_s"], p["zeta_s"]
+    D = s**2 + 2.0 * z * w * s + w**2
+    G = G.copy()
+    G[:, 1, 0] = G[:, 1, 0] + p["r_q"] * s * w / D  # modal rate: s eta, eta = w^2/D de (unit static gain)
+    G[:, 2, 0] = G[:, 2, 0] + p["r_az"] * s**2 / D  # modal acceleration: s^2 eta / w^2
+    return G, H, P
+
+
+def _mode_realize(sys, p, root):
+    from ..simulate import add_mode
+
+    return add_mode(sys, p["r_q"], p["r_az"], p["omega_s"], p["zeta_s"])
+
+
+def mode_grid(lo: float, hi: float, zeta: float = MODE_ZETA) -> np.ndarray:
+    """Log-spaced mode frequencies over [lo, hi], one half-power bandwidth apart (ratio 1 + zeta)."""
+    lo, hi = max(lo, 1e-3), max(hi, 2e-3)
+    n = max(int(math.ceil(math.log(hi / lo) / math.log(1.0 + zeta))) + 1, 2)
+    return np.geomspace(lo, hi, n)
+
+
+STRUCTURAL_MODE = OutputEffect(
+    "structural_mode", "q,az",
+    (Param("r_q", 0.0, plausible=(-0.5, 0.5), unit="rad/s per rad", start=0.01,
+           description="mode residue on q (peak r/(2 zeta))"),
+     Param("r_az", 0.0, plausible=(-0.5, 0.5), unit="g per rad", start=0.01,
+           description="mode residue on a_z (peak r/(2 zeta))"),
+     Param("omega_s", 10.0, lower=0.1, upper=1e3, unit="rad/s", nuisance=True, description="mode frequency"),
+     Param("zeta_s", MODE_ZETA, lower=0.005, upper=0.5, plausible=(0.01, 0.15), unit="-", nuisance=True,
+           description="mode damping (refined within its plausible range: lightly damped)")),
+    _mode, nuisance_grid={"omega_s": mode_grid},
+    signature="a narrow resonance on q and a_z, coherent with the elevator", realize=_mode_realize)
+
+
+# --- sensor scale ----------------------------------------------------------------------------
+
+def _scale(row: int, name: str):
+    def fn(s, p, G, H, P, root):
+        return scale_rows(G, H, P, row, 1.0 + p[name])
+    return fn
+
+
+def _scale_realize(row: int, name: str):
+    def fn(sys, p, root):
+        from ..simulate import scale_output
+
+        return scale_output(sys, row, 1.0 + p[name])
+    return fn
+
+
+def _make_scale(ch: str) -> OutputEffect:
+    name = f"k_{ch}"
+    return OutputEffect("sensor_scale", ch, (Param(name, 0.0, lower=-0.9, upper=2.0, plausible=(-0.2, 0.2),
+                                                   unit="-", start=0.005, description=f"gain error of {ch}"),),
+                        _scale(CHANNELS.index(ch), name), signature=f"{ch} too large or small at every frequency",
+                        realize=_scale_realize(CHANNELS.index(ch), name))
+
+
+# --- unmeasured gust (noise kind) ---------------------------------------------------------------
+
+class UnmeasuredGust(Effect):
+    """Turbulence that was not measured: extra residual covariance along the gust column.
+
+    Tested by :mod:`fdml.diagnose.disturbance` on the part of the residual that
+    is incoherent with the inputs, after the deterministic effects.
+    """
+
+    name = "unmeasured_gust"
+    channel = "alpha,q,az"
+    kind = "noise"
+    params = (Param("sigma_w", 0.0, lower=0.0, upper=50.0, plausible=(0.0, 5.0), unit="m/s",
+                    description="RMS vertical gust velocity (Dryden)"),)
+    signature = "residuals incoherent with the inputs but correlated across channels like the gust column"
+
+    def augment(self, model):  # the test does not refit the model
+        return model
+
+
+#: The built-in effects, in the order the library lists them.
+BUILTINS = (LIFT_LAG, DOWNWASH_LAG, GUST_LAG, GUST_TAIL, TIME_DELAY_DE, *(_make_output_delay(c) for c in CHANNELS),
+            ACTUATOR_LAG, SENSOR_OFFSET_AZ, SENSOR_OFFSET_ALPHA, STRUCTURAL_MODE,
+            *(_make_scale(c) for c in CHANNELS), UnmeasuredGust())
+
+for _eff in BUILTINS:
+    register_effect(_eff, replace_existing=True)

@@ -1,0 +1,215 @@
+"""The forward measurement model of every fit, written once.
+
+The output spectra of one record are modelled as (THEORY.md Eqs. 18-19, with
+Klein's boundary terms of section 7)
+
+    y(w) = G(w) u(w) + H(w) d(w) + b 1(w) + P(w) f 1(w) + G_de(w) b_de 1(w),
+    d(w) = x(0) - x(T) exp(-j w T),        x = [alpha, q],
+
+with ``G``, ``H``, ``P`` a :class:`~fdml.models.base.ModelResponse`, ``u`` the
+input spectra, ``1(w)`` the transform of a unit constant over the record
+(``FrequencyData.ones``), ``b`` the output biases (alpha rad, q rad/s, a_z g),
+``f`` the state-equation biases (constants added to the alpha_dot and q_dot
+equations, rad/s and rad/s^2), ``b_de`` an elevator offset (rad) and ``d`` the
+boundary vector.  The measured spectra are ``z = y + v`` (Eq. 19).
+
+Every nuisance quantity enters linearly, so its sensitivity is exact:
+:func:`nuisance_columns` gives ``dy/d eta`` for the ten per-record nuisance
+values ``eta`` in the order of :data:`NUISANCE_NAMES`, and :func:`predict`
+with ``biases=None`` is linear in the response, so the sensitivity of ``y`` to
+a model parameter is ``predict`` of the response's derivative.  The estimator
+(:class:`fdml.estimate.Problem`), the saved result
+(:meth:`fdml.results.FitResult.fitted_spectra`) and the time-domain view
+(:func:`fdml.plotting.simulate_fit`, through :meth:`FitResult.nuisance_values`) all
+use this module; none keeps its own formula.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import NamedTuple
+
+import numpy as np
+
+__all__ = [
+    "BOUNDARY_NAMES",
+    "INPUT_BIAS_NAME",
+    "NUISANCE_NAMES",
+    "OUTPUT_BIAS_NAMES",
+    "STATE_BIAS_NAMES",
+    "Nuisance",
+    "boundary_vector",
+    "end_shift",
+    "nuisance_columns",
+    "predict",
+]
+
+#: Output biases b: alpha (rad), q (rad/s), a_z (g).
+OUTPUT_BIAS_NAMES = ("bias_alpha", "bias_q", "bias_az")
+#: Boundary values of section 7: x(0) and x(T) of alpha (rad) and q (rad/s).
+BOUNDARY_NAMES = ("x0_alpha", "x0_q", "xT_alpha", "xT_q")
+#: State-equation biases f: alpha_dot (rad/s) and q_dot (rad/s^2) equations.
+STATE_BIAS_NAMES = ("bias_alpha_dot", "bias_q_dot")
+#: Elevator offset b_de (rad).
+INPUT_BIAS_NAME = "bias_de"
+#: Per-record nuisance values, in the column order of :func:`nuisance_columns`.
+NUISANCE_NAMES = OUTPUT_BIAS_NAMES + BOUNDARY_NAMES + STATE_BIAS_NAMES + (INPUT_BIAS_NAME,)
+
+
+class Nuisance(NamedTuple):
+    """The nuisance values of one record, as arrays (immutable; a tuple, cheap in the fit's inner loop).
+
+    Attributes
+    ----------
+    biases : ndarray, shape (3,)
+        Output biases b (alpha rad, q rad/s, a_z g).
+    x0, xT : ndarray, shape (2,), or None
+        Boundary values x(0), x(T) of [alpha rad, q rad/s]; None without
+        boundary terms (``boundary="none"``).
+    state_biases : ndarray, shape (2,), or None
+        State-equation biases f (rad/s, rad/s^2); None when not in the model.
+    input_bias : float or None
+        Elevator offset b_de (rad); None when not in the model.
+    """
+
+    biases: np.ndarray
+    x0: np.ndarray | None = None
+    xT: np.ndarray | None = None
+    state_biases: np.ndarray | None = None
+    input_bias: float | None = None
+
+    @classmethod
+    def from_vector(cls, eta: np.ndarray, *, boundary: bool, state_biases: bool,
+                    input_bias: bool) -> Nuisance:
+        """From the ten values ``eta`` in :data:`NUISANCE_NAMES` order; flags say which terms are on."""
+        eta = np.asarray(eta, float)
+        return cls(biases=eta[0:3], x0=eta[3:5] if boundary else None, xT=eta[5:7] if boundary else None,
+                   state_biases=eta[7:9] if state_biases else None,
+                   input_bias=float(eta[9]) if input_bias else None)
+
+    @classmethod
+    def from_values(cls, values: Mapping[str, float], suffix: str, *, biases, x0, xT,
+                    boundary: bool) -> Nuisance:
+        """From estimates by name (``bias_alpha[suffix]``, ``x0_q[suffix]``, ...).
+
+        ``biases``, ``x0``, ``xT`` are the values of the terms that were not
+        estimated (the model's fixed biases, the measured boundary values).
+        State-equation and elevator biases are on when any of their names is
+        present.  The one place where the names of a result's per-record
+        nuisance estimates are read.
+        """
+        def get(names, default):
+            return np.array([values.get(n + suffix, v) for n, v in zip(names, default)], float)
+
+        sb_on = any(n + suffix in values for n in STATE_BIAS_NAMES)
+        ib = values.get(INPUT_BIAS_NAME + suffix)
+        return cls(biases=get(OUTPUT_BIAS_NAMES, biases),
+                   x0=get(BOUNDARY_NAMES[:2], x0) if boundary else None,
+                   xT=get(BOUNDARY_NAMES[2:], xT) if boundary else None,
+                   state_biases=get(STATE_BIAS_NAMES, (0.0, 0.0)) if sb_on else None,
+                   input_bias=None if ib is None else float(ib))
+
+    def boundary(self, shift: np.ndarray) -> np.ndarray | None:
+        """The boundary vector d(w) (:func:`boundary_vector`), or None without boundary terms."""
+        return None if self.x0 is None else boundary_vector(self.x0, self.xT, shift)
+
+
+def end_shift(omega: np.ndarray, T: float) -> np.ndarray:
+    """``exp(-j w T)``, shape (m,): the factor of x(T) in the transform of a record of length T, s."""
+    return np.exp(-1j * np.asarray(omega, float) * T)
+
+
+def boundary_vector(x0: np.ndarray, xT: np.ndarray, shift: np.ndarray) -> np.ndarray:
+    """Klein's boundary vector ``d(w) = x(0) - x(T) exp(-j w T)`` (THEORY.md section 7).
+
+    Parameters
+    ----------
+    x0, xT : ndarray, shape (2,)
+        alpha (rad) and q (rad/s) at t = 0 and t = T.
+    shift : ndarray, complex, shape (m,)
+        ``exp(-j w T)`` (:func:`end_shift`).
+
+    Returns
+    -------
+    ndarray, complex, shape (m, 2)
+    """
+    return x0[None, :] - xT[None, :] * shift[:, None]
+
+
+def predict(response, u: np.ndarray, ones: np.ndarray, boundary: np.ndarray | None = None,
+            biases: np.ndarray | None = None, state_biases: np.ndarray | None = None,
+            input_bias: float | None = None) -> np.ndarray:
+    """Model output spectra ``y = G u + H d + b 1 + P f 1 + G_de b_de 1`` (Eqs. 18-19, section 7).
+
+    Parameters
+    ----------
+    response : ModelResponse or any object with ``G``, ``H``, ``P``
+        ``G`` of shape (..., m, 3, n_in), ``H`` and ``P`` (..., m, 3, 2); any
+        leading axes (e.g. one per parameter for derivatives of the response)
+        broadcast.  ``H`` is read only with ``boundary``, ``P`` only with
+        ``state_biases``.
+    u : ndarray, complex, shape (m, n_in)
+        Input spectra (elevator rad s, gust angle rad s).
+    ones : ndarray, complex, shape (m,)
+        Transform of a unit constant over the record, s.
+    boundary : ndarray, complex, shape (m, 2), optional
+        Boundary vector d (:func:`boundary_vector`); None for no boundary terms.
+    biases : ndarray, shape (3,), optional
+        Output biases (alpha rad, q rad/s, a_z g).  Leave None for the
+        derivative of ``y`` with respect to a model parameter: the result is
+        then linear in ``response``.
+    state_biases : ndarray, shape (2,), optional
+        Constants f added to the alpha_dot (rad/s) and q_dot (rad/s^2)
+        equations: a constant forcing, whose transform is ``f 1(w)``.
+    input_bias : float, optional
+        Constant elevator offset, rad, entering through G's elevator column.
+
+    Returns
+    -------
+    ndarray, complex, shape (..., m, 3)
+        alpha (rad s), q (rad), a_z (g s).
+    """
+    G = response.G
+    y = (G @ u[:, :, None])[..., 0]
+    if boundary is not None:
+        y = y + (response.H @ boundary[:, :, None])[..., 0]
+    if biases is not None:
+        y = y + ones[:, None] * biases[None, :]
+    if state_biases is not None:
+        y = y + (response.P @ state_biases) * ones[:, None]  # f~ = f 1(w)
+    if input_bias is not None:
+        y = y + G[..., 0] * (input_bias * ones)[:, None]  # elevator de + b_de
+    return y
+
+
+def nuisance_columns(response, shift: np.ndarray, ones: np.ndarray) -> np.ndarray:
+    """Exact sensitivities ``dy/d eta`` of :func:`predict` to the nuisance values.
+
+    Columns in :data:`NUISANCE_NAMES` order: output biases ``e_k 1(w)``;
+    x(0): ``H``; x(T): ``-H exp(-j w T)`` (from ``d = x(0) - x(T) exp(-j w T)``);
+    state-equation biases ``P 1(w)``; elevator offset ``G_de 1(w)``.  Every
+    term is linear in its value, so ``predict`` with nuisance values ``eta``
+    equals ``predict`` with none plus ``nuisance_columns @ eta``.
+
+    Parameters
+    ----------
+    response : ModelResponse
+        ``G`` (m, 3, n_in), ``H`` and ``P`` (m, 3, 2).
+    shift : ndarray, complex, shape (m,)
+        ``exp(-j w T)`` (:func:`end_shift`).
+    ones : ndarray, complex, shape (m,)
+        Transform of a unit constant, s.
+
+    Returns
+    -------
+    ndarray, complex, shape (m, 3, 10)
+    """
+    m = shift.size
+    C = np.zeros((m, 3, len(NUISANCE_NAMES)), complex)
+    k = np.arange(3)
+    C[:, k, k] = ones[:, None]
+    C[:, :, 3:5] = response.H
+    C[:, :, 5:7] = -response.H * shift[:, None, None]
+    C[:, :, 7:9] = response.P * ones[:, None, None]
+    C[:, :, 9] = response.G[:, :, 0] * ones[:, None]
+    return C
