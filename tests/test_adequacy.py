@@ -36,7 +36,7 @@ def _twin_otter():
 def _delayed_record(seed=3):
     """A 12 s 3-2-1-1 from the time-domain simulator with alpha delayed by TAU, shifted sample by sample."""
     dt = 0.01
-    k = int(round(TAU / dt))
+    k = round(TAU / dt)
     sim = simulate_maneuver(NAVION, "3211", duration=12.0 + TAU, dt=dt, noise=NOISE, seed=seed,
                             amplitude=math.radians(2.0))
     n = sim.t.size - k

@@ -56,7 +56,7 @@ from .diagnose.screen import ScreenContext
 from .errors import FdmlError
 from .jsoncodec import Fields
 
-__all__ = ["ALPHA", "EffectTest", "ResidualCheck", "Adequacy", "check", "advice", "invocation"]
+__all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "advice", "check", "invocation"]
 
 #: Family-wise level of the adequacy check (every fit runs it: 1 in 100 adequate fits warns).
 ALPHA = 0.01
@@ -187,7 +187,7 @@ class Adequacy:
                 "coherence": _check_dict(self.coherence), "elapsed": self.elapsed}
 
     @classmethod
-    def from_fields(cls, f: Fields) -> "Adequacy":
+    def from_fields(cls, f: Fields) -> Adequacy:
         """Inverse of :meth:`to_dict`, every key checked (``f``: :class:`fdml.jsoncodec.Fields` of the object)."""
         return cls(alpha=f.number("alpha"), effects=tuple(_effect_from(e) for e in f.items("effects")),
                    skipped=tuple((x.string("key"), x.string("reason")) for x in f.items("skipped", default=[])),
@@ -325,7 +325,12 @@ class _Context(ScreenContext):
 
 def _output_effect_on(model, base):
     """The output-level effect ``model`` adds on top of ``base`` (None when it is not just that)."""
-    from .models.effects import AugmentedModel, MatrixEffect, OutputEffect, applied_effects
+    from .models.effects import (
+        AugmentedModel,
+        MatrixEffect,
+        OutputEffect,
+        applied_effects,
+    )
 
     if not isinstance(model, AugmentedModel) or not model.effects:
         return None
@@ -412,16 +417,16 @@ def _test_effects(prob, model, theta, V, R, alpha: float, library=None):
         Vg, ng = _grid_variation(scr)
         p, _ = p_value(lr, q, null, V=Vg, n_grid=ng)
         units = {p_.name: p_.unit for p_ in eff.param_list(model)}
-        tests.append(dict(key=eff.key, effect=eff.name, channel=eff.channel, statistic=float(lr), lm=float(scr.lm),
-                          df=int(q), null=null, p_value=float(p), expected=dict(scr.eta_lin),
-                          units={k: units.get(k, "") for k in scr.eta_lin}))
+        tests.append({"key": eff.key, "effect": eff.name, "channel": eff.channel, "statistic": float(lr), "lm": float(scr.lm),
+                          "df": int(q), "null": null, "p_value": float(p), "expected": dict(scr.eta_lin),
+                          "units": {k: units.get(k, "") for k in scr.eta_lin}})
     return tests, skipped
 
 
 def _independent(d) -> np.ndarray:
     """Grid indices at spacing >= 2 pi/T (the residuals there are independent, THEORY.md section 7)."""
     step = float(np.median(np.diff(d.omega))) if d.m > 1 else 1.0
-    k = max(int(math.ceil(2 * math.pi / (d.T * step) - 1e-9)), 1)
+    k = max(math.ceil(2 * math.pi / (d.T * step) - 1e-9), 1)
     return np.arange(0, d.m, k)
 
 

@@ -113,10 +113,12 @@ class _Setup:
     shrink_threshold: float
     designs: dict = field(default_factory=dict, repr=False)  # gap-map regressors, shared by every in-sample map
 
-    def fit_map(self, fit, before=None):
-        """The gap map of an in-sample fit (with ``before``: that map's noise floors held)."""
+    def fit_map(self, fit, before=None, *, own: bool = False):
+        """The gap map of an in-sample fit: with ``before``, that map's noise floors held; the regressors
+        (forced responses) are the base fit's, shared by every map (same regressors before and after),
+        unless ``own`` (the fit's own regressors, for the remaining gap)."""
         return fit_map(self.data, fit, self.edges, alpha=self.alpha, channels=self.channels, before=before,
-                       designs=self.designs)
+                       designs=None if own else self.designs)
 
 
 @dataclass(frozen=True)
@@ -356,7 +358,7 @@ def _shrink_holdout(su: _Setup, base_fit, base_map, sel: _Selection, holdout) ->
         step_maps[k] = su.fit_map(sel.step_fits[k], before=base_map)
     in_shr = {(c.key, c.step): shrink(step_maps[c.step], su.fit_map(c.fit, before=base_map)) for c in refitted}
     final_map_same = su.fit_map(sel.final, before=base_map)
-    final_map = su.fit_map(sel.final)
+    final_map = su.fit_map(sel.final, own=True)
     unexplained = [dict(c.to_dict(), where="in-sample") for c in final_map.cells if c.significant]
     shrink_final, n_flag = shrink(base_map, final_map_same)
     h_shr, hold = {}, None

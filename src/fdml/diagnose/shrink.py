@@ -155,7 +155,8 @@ def frozen_fit(data: AnalysisData, model, bands: NoiseBands, options: dict) -> D
     items = list(data.spectra)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = fdml_fit(items, frozen, cov_type="naive", **options)
+        # the records were checked once (core._data_findings); a frozen model needs no adequacy check
+        res = fdml_fit(items, frozen, cov_type="naive", check=False, adequacy=False, **options)
         prob = prepare(items, res.model, **options)
     theta = np.array([res.params[n] for n in prob.names], float)
     V = prob.residuals(theta)
