@@ -17,9 +17,9 @@ import warnings
 
 warnings.simplefilter("ignore")
 
-import fdml  # noqa: E402
-from fdml.diagnose import diagnose  # noqa: E402
-from fdml.diagnose.truth import simulate_truth  # noqa: E402
+import fdml
+from fdml.diagnose import diagnose
+from fdml.diagnose.truth import simulate_truth
 
 BAND = (0.2, 12.0)
 FIT_BAND = (0.2, 12.0, 0.1)
@@ -51,8 +51,8 @@ def main(argv=None) -> int:
     print(f"{'case':16s} {'fit':>14s} {'diagnose':>14s} {'ratio':>7s}  verdict")
     for label, (key, vals) in CASES.items():
         base, rec = record(key, vals)
-        t_fit, c_fit, _ = best(lambda: fdml.fit(rec, base, band=FIT_BAND), a.reps)
-        t_diag, c_diag, rep = best(lambda: diagnose(rec, base, band=BAND), a.reps)
+        t_fit, c_fit, _ = best(lambda rec=rec, base=base: fdml.fit(rec, base, band=FIT_BAND), a.reps)
+        t_diag, c_diag, rep = best(lambda rec=rec, base=base: diagnose(rec, base, band=BAND), a.reps)
         print(f"{label:16s} {t_fit:6.3f} ({c_fit:5.3f}) {t_diag:6.3f} ({c_diag:5.3f}) {t_diag / t_fit:7.1f}  "
               f"{rep.verdict}")
     if a.profile:

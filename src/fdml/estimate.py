@@ -31,6 +31,7 @@ applies the paper's rule, relative change of J below 0.01.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 import warnings
@@ -65,7 +66,7 @@ from .record import Record
 from .results import FitResult, IterationInfo
 from .spectra import FrequencyData, spectra
 
-__all__ = ["fit", "prepare", "Problem", "NoiseModel"]
+__all__ = ["NoiseModel", "Problem", "fit", "prepare"]
 
 _BOUNDARY_NAMES = BOUNDARY_NAMES  # x(0), x(T) of alpha and q (THEORY.md section 7)
 #: State-equation biases: constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations.
@@ -526,7 +527,7 @@ class NoiseModel:
             e = tuple(float(x) for x in self.edges)
         except (TypeError, ValueError):
             e = (math.nan,)
-        if len(e) == 1 or not all(map(math.isfinite, e)) or any(b <= a for a, b in zip(e, e[1:])):
+        if len(e) == 1 or not all(map(math.isfinite, e)) or any(b <= a for a, b in itertools.pairwise(e)):
             raise FdmlError(f"noise band edges must be two or more increasing numbers in rad/s, got {self.edges!r}")
         object.__setattr__(self, "edges", e)
 

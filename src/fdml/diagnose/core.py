@@ -15,17 +15,24 @@ import numpy as np
 
 from ..errors import FdmlError, ParameterError
 from ..models.base import Model
+from ..models.effects import Effect, default_library, registered_effects
 from ..record import Record
 from .attribute import Candidate, attribute_step, choose, p_value
 from .data import analysis_data
 from .disturbance import gust_test
-from ..models.effects import Effect, default_library, registered_effects
 from .likelihood import fit_model, likelihood_ratio, noise_bands
 from .locate import default_bands, holm
 from .report import SHRINK_CONFIRM, DiagnosisReport, label_for
-from .shrink import compensation, fit_map, footprint, frozen_fit, parameter_shifts, shrink
+from .shrink import (
+    compensation,
+    fit_map,
+    footprint,
+    frozen_fit,
+    parameter_shifts,
+    shrink,
+)
 
-__all__ = ["diagnose"]
+__all__ = ["diagnose", "recommended_fit"]
 
 logger = logging.getLogger(__name__)
 
@@ -220,8 +227,8 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
         return _empty("base_fit_failed", [f"the base model could not be fitted: {exc}"], su.settings, found)
     if not base_fit.converged:
         return _empty("base_not_converged",
-                      [f"the base fit did not converge ({base_fit.message}); no effect can be attributed "
-                       "against an unconverged base"], su.settings, found)
+                      [(f"the base fit did not converge ({base_fit.message}); no effect can be attributed "
+                        "against an unconverged base")], su.settings, found)
     base_map, problems = _locate(su, base_fit)
     if not any(c.excitation == "ok" for c in base_map.cells):
         return _empty("insufficient_excitation",

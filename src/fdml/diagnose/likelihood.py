@@ -34,7 +34,7 @@ from ..estimate import fit as fdml_fit
 from ..models.base import Model
 from .data import AnalysisData
 
-__all__ = ["NoiseBands", "noise_bands", "DiagFit", "fit_model", "band_cost", "likelihood_ratio", "whitener"]
+__all__ = ["DiagFit", "NoiseBands", "band_cost", "fit_model", "likelihood_ratio", "noise_bands", "whitener"]
 
 #: The diagnosis's noise bands are the estimator's band-wise noise model.
 NoiseBands = NoiseModel

@@ -155,8 +155,9 @@ class DiagnosisReport:
                              + ("  <- accepted" if r.get("accepted") else ""))
         if self.recommended is not None:
             r = self.recommended
-            lines += ["", f"recommended model: {r.model.describe()} ({'converged' if r.converged else 'NOT converged'}"
-                          f", {len(r.names)} estimates); fdml diagnose --recommended-output FIT.json saves it"]
+            state = "converged" if r.converged else "NOT converged"
+            lines += ["", (f"recommended model: {r.model.describe()} ({state}, {len(r.names)} estimates); "
+                           "fdml diagnose --recommended-output FIT.json saves it")]
         if self.not_identifiable:
             lines.append("")
             lines.append("not testable here: " + "; ".join(f"{n['effect']}@{n['channel']} ({n['reason']})"
