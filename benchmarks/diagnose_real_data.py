@@ -1,4 +1,4 @@
-"""``fdml.diagnose`` on the real flight records (../shared/data or $FDML_DATA), with the base model a
+"""``fdml.diagnose`` on the real flight records ($FDML_DATA, e.g. ../shared/data), with the base model a
 flight-test engineer starts from when there is no geometry: the dimensional short-period model.
 
     python benchmarks/diagnose_real_data.py            # all cases

@@ -1,4 +1,4 @@
-"""fdml on the real flight records of ../shared/data: the proof asked for in issue 3.
+"""fdml on the real flight records in $FDML_DATA (e.g. ../shared/data): the proof asked for in issue 3.
 
 Run with ``python benchmarks/real_records.py [OUT_DIR]``.  For the Twin Otter
 manoeuvres 017 and 018 (each alone and both together), an HFB-320 short-period

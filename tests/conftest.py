@@ -1,8 +1,18 @@
-"""Shared fixtures: reference data made independently of fdml's own simulator."""
+"""Shared fixtures: reference data made independently of fdml's own simulator.
+
+Tests that read the real flight records get them through :func:`fdml.io.data_path`,
+which needs ``FDML_DATA`` (fdml never searches the tree for a data folder).  When
+``FDML_DATA`` is unset, such a test is skipped with a reason naming it (below); when
+it is set but a file is missing, the test fails naming the file.
+"""
+
+import os
 
 import numpy as np
 import pytest
 from scipy import signal
+
+import fdml.io.paths as _paths
 
 from fdml.constants import G0
 from fdml.record import Record
@@ -56,3 +66,36 @@ def noisy_record(t, de, y, rng, fraction=0.05, name="sim"):
     sd = fraction * y.std(axis=0)
     yn = y + rng.normal(size=y.shape) * sd
     return Record(t, {"de": de, "alpha": yn[:, 0], "q": yn[:, 1], "az": yn[:, 2]}, name=name)
+
+
+# --- hypothesis profiles ------------------------------------------------------------------------
+# "ci" (default): a bounded number of examples, tests/test_properties.py in well under a minute.
+# "long" (pytest --hypothesis-profile=long): the fuzzing run, over 100,000 examples in all.
+# Both keep no example database (no .hypothesis folder in the checkout) and give every example
+# a deadline; test_properties.py also guards each example against hangs with SIGALRM.
+try:
+    from datetime import timedelta
+
+    from hypothesis import settings as _hsettings
+except ImportError:  # hypothesis is in the test extra
+    pass
+else:
+    _hsettings.register_profile("ci", max_examples=60, deadline=timedelta(seconds=5), database=None,
+                                print_blob=True)
+    _hsettings.register_profile("long", max_examples=7000, deadline=timedelta(seconds=10), database=None,
+                                print_blob=True)
+    _hsettings.load_profile("ci")
+
+
+# --- real flight records: skip, naming FDML_DATA, when it is unset ---------------------------------
+_library_data_dir = _paths.data_dir
+
+
+def _data_dir_or_skip():
+    """fdml.io.paths.data_dir for the tests: a skip naming FDML_DATA when it is unset."""
+    if not os.environ.get(_paths.DATA_ENV):
+        pytest.skip(f"needs the real flight records: set {_paths.DATA_ENV}=/path/to/shared/data")
+    return _library_data_dir()
+
+
+_paths.data_dir = _data_dir_or_skip  # data_path looks data_dir up here at call time

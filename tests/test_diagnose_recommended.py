@@ -74,3 +74,14 @@ def test_recommended_without_an_effect_is_the_base_fit():
     assert set(rep.recommended.params) == set(rep.details["base_fit"].names)
     with pytest.raises(AttributeError):  # the report is frozen
         rep.verdict = "time_delay"
+
+
+def test_fit_json_names_the_effects_with_their_parameters(diagnosed):
+    ((_, rep), (_, fit_json)), _ = diagnosed
+    assert fit_json["effects"] == []  # the plain fit: no effects (its model field reads "steady")
+    rec = rep["recommended"]
+    assert [e["key"] for e in rec["effects"]] == ["time_delay@q"]
+    tau = rec["effects"][0]["parameters"]["tau_q"]
+    assert tau["unit"] == "s"
+    # the same estimate and standard error as the params entry (one fit, two views of it)
+    assert (tau["value"], tau["stderr"]) == (rec["params"]["tau_q"]["value"], rec["params"]["tau_q"]["stderr"])

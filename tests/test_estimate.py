@@ -403,3 +403,22 @@ def test_monte_carlo_unsteady_model_from_the_time_domain_simulator():
     truth = np.array([m.parameters[n].value for n in theta])
     # the simulator matches the model to ~1e-4, far inside the noise: the mean recovers the truth
     assert np.all(np.abs(est.mean(axis=0) - truth) < 4 * est.std(axis=0) / math.sqrt(50))
+
+
+def test_fit_refuses_an_input_without_power_in_the_band():
+    """A constant elevator: refused before fitting, naming the record and the band (issue 9), not
+    fitted into Cm_de = -2.9e137; the measure is fdml.quality's, so fdml check says the same."""
+    from fdml.errors import RecordError
+    from fdml.quality import check_quality
+    from fdml.simulate import simulate_maneuver
+
+    m = make_model("dimensional", "navion")
+    rec = simulate_maneuver(m, "3211", duration=10.0, noise=0.02, seed=2)
+    flat = Record(rec.t, {**rec.signals, "de": np.full(rec.n, 0.01)}, name="flat elevator")
+    with pytest.raises(RecordError, match=r"'flat elevator'.*no power in the band 0\.2-8 rad/s"):
+        fit(flat, m, band=(0.2, 8.0, 0.2))
+    assert not check_quality(flat, (0.2, 8.0, 0.2)).sufficient
+    # an input whose power lies far above the band: more than 40 dB down throughout it
+    fast = Record(rec.t, {**rec.signals, "de": 0.01 * np.sin(60.0 * rec.t)}, name="fast")
+    with pytest.raises(RecordError, match="'fast'.*no power in the band"):
+        fit(fast, m, band=(0.2, 2.0, 0.2))

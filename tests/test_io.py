@@ -1,7 +1,7 @@
 """Loaders for real flight records: units, signs, windows, trim, and every bad-input case.
 
-The real records are read from ../shared/data (or $FDML_DATA).  A missing file is
-an error naming it (fdml.io.data_path raises), never a skip.
+The real records are read from $FDML_DATA.  With FDML_DATA set, a missing file is
+an error naming it (fdml.io.data_path raises); unset, those tests skip naming FDML_DATA.
 """
 
 import math
@@ -44,10 +44,22 @@ def test_fdml_data_must_be_a_directory(tmp_path, monkeypatch):
         data_path(TO17)
 
 
-def test_data_dir_found_by_walking_up(monkeypatch):
+def test_data_dir_is_fdml_data_only(tmp_path, monkeypatch):
+    """No search up the tree: without FDML_DATA there is no data folder, even beside a shared/data."""
+    (tmp_path / "shared" / "data").mkdir(parents=True)
+    monkeypatch.chdir(tmp_path / "shared")
     monkeypatch.delenv("FDML_DATA", raising=False)
-    d = data_dir()
-    assert d.name == "data" and d.parent.name == "shared" and (d / "README.md").exists()
+    with pytest.raises(RecordError, match="FDML_DATA is not set"):
+        data_dir()
+    monkeypatch.setenv("FDML_DATA", str(tmp_path / "shared" / "data"))
+    assert data_dir() == tmp_path / "shared" / "data"
+
+
+def test_real_record_tests_skip_naming_fdml_data(monkeypatch):
+    """tests/conftest.py turns data_path without FDML_DATA into a skip whose reason names it."""
+    monkeypatch.delenv("FDML_DATA", raising=False)
+    with pytest.raises(pytest.skip.Exception, match="FDML_DATA"):
+        data_path(TO17)
 
 
 # --- Twin Otter (SIDPAC) ----------------------------------------------------------------------

@@ -1,6 +1,7 @@
-"""fdml on the real flight records of ../shared/data (or $FDML_DATA): issue 3's proof.
+"""fdml on the real flight records in $FDML_DATA: issue 3's proof.
 
-A missing file fails with its name (fdml.io.data_path), never skips.  The
+With FDML_DATA set, a missing file fails with its name (fdml.io.data_path);
+unset, the tests skip naming FDML_DATA (tests/conftest.py).  The
 frequency-domain fits are checked against fdml's time-domain output-error fit
 of the same model on the same record (an independent estimator sharing only the
 model equations), and the two Twin Otter manoeuvres, flown at one condition,

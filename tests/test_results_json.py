@@ -167,12 +167,13 @@ def assert_same(a: FitResult, b: FitResult) -> None:
             _same_array(ra["signals"][k], rb["signals"][k], f"time_records signal {k}")
         assert to_jsonable(ra["meta"]) == rb["meta"]
     assert a.adequacy == b.adequacy  # fdml.adequacy: floats and strings only, so exact
+    assert to_jsonable(a.provenance) == b.provenance  # plain data (fdml.conditions)
     # nothing was forgotten: every field of the dataclass is covered above
     assert {f.name for f in dataclasses.fields(FitResult)} == {
         "model", "names", "values", "stderr", "cov", "corr", "cov_naive", "R", "cost_history", "iterations",
         "converged", "message", "derived", "fixed", "at_bound", "outputs", "band", "n_freq", "records",
         "boundary", "cov_type", "method", "stop", "stopped", "warnings", "elapsed", "spectra", "time_records",
-        "nuisance", "findings", "adequacy"}
+        "nuisance", "findings", "adequacy", "provenance"}
 
 
 FINDINGS = (

@@ -416,3 +416,33 @@ def test_dryden_variance_and_correlation():
     assert total == pytest.approx(sigma**2, rel=1e-8)
     with pytest.raises(ParameterError, match="rng"):
         dryden_gust(t, sigma, U, L, rng=None)
+
+
+def test_simulate_maneuver_noise_fraction_as_the_command_line():
+    """noise=0.02 is 2 % of each output's RMS about its mean, as ``fdml simulate --noise 0.02`` (issue 9)."""
+    model = make_model("dimensional", "navion")
+    clean = simulate_maneuver(model, "3211", duration=20.0, dt=0.02, seed=4)
+    noisy = simulate_maneuver(model, "3211", duration=20.0, dt=0.02, seed=4, noise=0.02)
+    assert noisy.meta["noise_fraction"] == 0.02
+    for k in ("alpha", "q", "az"):
+        std = 0.02 * np.std(clean[k])
+        assert noisy.meta["noise"][k] == pytest.approx(std, rel=1e-12)
+        # 1001 samples: the sample std of the added noise is within 4 x 1/sqrt(2 n) = 9 % of std
+        assert np.std(noisy[k] - clean[k]) == pytest.approx(std, rel=0.09)
+    for bad in (-0.1, float("nan"), float("inf"), "0.02", True, [0.02]):
+        with pytest.raises(ParameterError, match="noise"):
+            simulate_maneuver(model, "3211", noise=bad)
+
+
+def test_cli_simulate_noise_is_the_library_noise(tmp_path):
+    """The command line passes --noise through: its record equals simulate_maneuver's, sample for sample."""
+    from fdml.cli import main
+    from fdml.record import read_csv
+
+    out = tmp_path / "r.csv"
+    assert main(["simulate", "--aircraft", "navion", "--model", "dimensional", "--noise", "0.03", "--seed", "5",
+                 "--duration", "6", "-o", str(out)]) == 0
+    lib = simulate_maneuver(make_model("dimensional", "navion"), "3211", duration=6.0, noise=0.03, seed=5)
+    cli = read_csv(out)
+    for k in ("de", "alpha", "q", "az"):
+        np.testing.assert_allclose(cli[k], lib[k], rtol=0, atol=1e-15)  # CSV keeps 17 digits

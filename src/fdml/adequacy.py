@@ -4,7 +4,7 @@ After a fit, from the base fit alone (no refits):
 
 * every applicable deterministic effect of the library
   (:mod:`fdml.models.effect_library`) is screened with the diagnosis's score
-  (Lagrange-multiplier) screen, :func:`fdml.diagnose.screen.screen`, on the
+  (Lagrange-multiplier) screen, :func:`fdml.score.screen`, on the
   fit's own grid and white-noise likelihood (one residual covariance R,
   THEORY.md Eq. 24).  The screen's linearised estimate eta_lin is one
   Gauss-Newton step from the base fit along the effect and the base
@@ -22,7 +22,7 @@ After a fit, from the base fit alone (no refits):
   LR_1 14.8 and a refitted LR of 29.6 (``fdml diagnose``).  Both are kept;
 * the null distribution is the diagnosis's (chi2, chi-bar-square for a
   parameter whose null is on a bound, Davies' bound for a parameter not
-  identified under the null: :func:`fdml.diagnose.attribute.p_value`);
+  identified under the null: :func:`fdml.score.p_value`);
 * two residual checks on the independent frequencies (grid spacing >= 2 pi/T):
   *coherence*, the squared multiple coherence of each output's residual with
   the inputs in each band (F test, ``F = (n - q)/q c/(1 - c) ~ F(2q, 2(n - q))``
@@ -31,13 +31,16 @@ After a fit, from the base fit alone (no refits):
   noise gain) is the same in every band (``|v|^2`` is sigma^2 chi2_2 / 2, so
   each band's mean power is a variance estimate on 2 n_b degrees of freedom).
   Each is Bonferroni-combined over its cells (valid under any dependence);
-* Holm's step-down correction (:func:`fdml.diagnose.locate.holm`) over the
+* Holm's step-down correction (:func:`fdml.score.holm`) over the
   whole family (the identifiable effects and the two residual checks); a test
   whose Holm p-value is below ``alpha`` (default :data:`ALPHA`) is flagged.
 
 The false-alarm rate over simulated records (time-domain simulator) is
 measured by ``benchmarks/adequacy_false_alarms.py``; the cost relative to the
-fit by ``benchmarks/bench_adequacy.py``.
+fit by ``benchmarks/bench_adequacy.py``.  The candidate sensitivities are
+array operations on the fit's own problem (:class:`_Context`), and nothing
+here imports the diagnosis package (:mod:`fdml.score` holds the statistics
+both use).
 """
 
 from __future__ import annotations
@@ -47,14 +50,14 @@ import contextvars
 import math
 import shlex
 import time
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
 
-from .diagnose.screen import ScreenContext
 from .errors import FdmlError
 from .jsoncodec import Fields
+from .score import ScreenContext, chi2_sf, f_sf, grid_variation, holm, null_kind, p_value, screen
 
 __all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "advice", "check", "invocation"]
 
@@ -65,6 +68,8 @@ MAX_BANDS = 4
 MIN_BAND = 6
 
 _COMMAND: contextvars.ContextVar = contextvars.ContextVar("fdml_adequacy_command", default=None)
+#: Output effects whose function evaluates a nuisance grid at once (checked once each, see _Context._agrees).
+_VECTORISES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 @contextlib.contextmanager
@@ -269,58 +274,148 @@ class _BaseFit:
 
 
 class _Context(ScreenContext):
-    """The score screen's context, with a fast path for output-level effects.
+    """The score screen's context on the fit's own problem, with the candidate sensitivities as array operations.
 
-    ``candidate_jacobian`` of an output-level effect on top of the base model
-    applies the effect to the base model's response, computed once, as
-    :meth:`fdml.models.effects.AugmentedModel.evaluate` does, and predicts
-    through the fit's own problem (``Problem.predict`` with given responses):
-    the same central differences as the screen's, without re-preparing and
-    re-solving the model for every step (matrix-level and free-parameter
-    effects take the screen's own path).
+    The screen's own :meth:`fdml.score.ScreenContext.candidate_jacobian`
+    prepares a problem for every candidate model and predicts it twice per
+    parameter.  Here the change of the prediction is measured directly:
+    without output biases the measurement (Eqs. 18-19) is linear in the
+    response (G, H, P), so the central difference of the predictions is the
+    measurement of the central difference of the responses
+    (:meth:`fdml.estimate.Problem.linear_predict`, the fit's own boundary
+    terms), all parameters at once.  The responses: an output-level effect on
+    top of the base model acts on the base model's response, computed once
+    (as :meth:`fdml.models.effects.AugmentedModel.evaluate` does); any other
+    candidate evaluates its own model.  Over a nuisance grid (a structural
+    mode's frequency) an output-level effect is evaluated at every grid value
+    in one call, the grid value an array along the frequency rows; an effect
+    function that does not take that is evaluated value by value.
     """
+
+    _base_responses = None
 
     def candidate_jacobian(self, model, names, steps, one_sided):
         eff = _output_effect_on(model, self.fit.model)
-        out = (super().candidate_jacobian(model, names, steps, one_sided) if eff is None else
-               self._output_jacobian(eff, model, names, steps, one_sided))
-        self.last = (tuple(names), dict(model.parameters.values), out)  # reused by the one-step LR
-        return out
-
-    def jacobian_at(self, model, plist):
-        """The last candidate Jacobian when it was taken at ``model``'s values, else a new one (central).
-
-        ``plist``: the effect's tested parameters (:class:`fdml.models.effects.Param`).
-        """
-        names = tuple(p.name for p in plist)
-        last = getattr(self, "last", None)
-        if last is not None and last[0] == names and last[1] == dict(model.parameters.values):
-            return last[2]
-        return self.candidate_jacobian(model, names, [p.typical() for p in plist], [False] * len(names))
-
-    def _output_jacobian(self, eff, model, names, steps, one_sided):
-        from .models.base import ModelResponse
-        from .models.effects import root_model
-
-        prob, root = self.fit.prob, root_model(self.fit.model)
-        if getattr(self, "_base", None) is None:
-            self._base = [self.fit.model.evaluate(d.omega) for d in prob.data]
         vals = model.parameters.values
+        cols = [self._column(eff, model, {**vals, n: vals[n] + h}, vals if os_ else {**vals, n: vals[n] - h},
+                             h if os_ else 2 * h) for n, h, os_ in zip(names, steps, one_sided)]
+        changes = [[_stack_changes([c[r][i] for c in cols], self._base()[r], i) for i in range(3)]
+                   for r in range(len(self.fit.prob.data))]
+        return self.pair(self._measure(changes))
 
-        def stack(p):
-            resp = []
-            for d, r in zip(prob.data, self._base):
-                G, H, P = eff.output(1j * d.omega, p, r.G, r.H, r.P, root)
-                resp.append(ModelResponse(d.omega, G, H, P))
-            return np.concatenate([y[:, prob.out_idx] for y in prob.predict(self.fit.theta, resp)])
+    def grid_jacobians(self, model, names, steps, one_sided, gname, grid):
+        eff = _output_effect_on(model, self.fit.model)
+        if eff is not None:
+            try:
+                Je, Jf = self._grid_jacobians(eff, model, names, steps, one_sided, gname, grid)
+            except (TypeError, ValueError, IndexError, ArithmeticError):
+                Je = None  # the effect function takes scalar parameters only
+            if Je is not None and self._agrees(Je, model, names, steps, one_sided, gname, grid):
+                return Je, Jf
+        return super().grid_jacobians(model, names, steps, one_sided, gname, grid)
 
-        cols = []
-        for n, h, os_ in zip(names, steps, one_sided):
-            up = stack({**vals, n: vals[n] + h})
-            down = stack(vals) if os_ else stack({**vals, n: vals[n] - h})
-            cols.append((up - down) / (h if os_ else 2 * h))
-        A = np.stack(cols, axis=-1)
-        return (self._real_cols(self._white_cols(A)), self._real_cols(np.einsum("njk,nkp->njp", self.Lf, A)))
+    def _agrees(self, Je, model, names, steps, one_sided, gname, grid) -> bool:
+        """The grid evaluation equals the value-by-value one at the grid's ends (a guard on the effect function).
+
+        Checked once per effect object and process (:data:`_VECTORISES`): whether a function takes
+        an array-valued parameter is a property of its code.
+        """
+        eff = _output_effect_on(model, self.fit.model)
+        if _VECTORISES.get(eff) is not None:
+            return _VECTORISES[eff]
+        ok = True
+        for k in (0, grid.size - 1):
+            ref = self.candidate_jacobian(model.with_values({gname: float(grid[k])}), names, steps, one_sided)[0]
+            ok = ok and bool(np.allclose(Je[:, k, :], ref, rtol=1e-9,
+                                         atol=1e-12 * max(np.max(np.abs(ref)), 1e-300)))
+        _VECTORISES[eff] = ok
+        return ok
+
+    def _base(self) -> list:
+        if self._base_responses is None:
+            self._base_responses = [_ghp(self.fit.model.evaluate(d.omega)) for d in self.fit.prob.data]
+        return self._base_responses
+
+    def _response(self, eff, model, p) -> list:
+        """(G, H, P) per record of ``model`` at the values ``p``."""
+        if eff is None:
+            return [_ghp(model.evaluate(d.omega, p)) for d in self.fit.prob.data]
+        root = _root(self.fit.model)
+        return [eff.output(1j * d.omega, p, *r, root) for d, r in zip(self.fit.prob.data, self._base())]
+
+    def _column(self, eff, model, up, down, step) -> list:
+        """Per record, the central (or forward) difference of the responses, (dG, dH, dP); None: unchanged."""
+        return [tuple(None if a is b else (a - b) / step for a, b in zip(ru, rd))
+                for ru, rd in zip(self._response(eff, model, up), self._response(eff, model, down))]
+
+    def _measure(self, changes: list) -> np.ndarray:
+        """dy/d eta, shape (N, n_out, q), from per-record response changes with a leading parameter axis."""
+        from .models.base import ModelResponse
+
+        prob = self.fit.prob
+        dy = [prob.linear_predict(self.fit.theta, r, ModelResponse(d.omega, *ch))[..., prob.out_idx]
+              for r, (d, ch) in enumerate(zip(prob.data, changes))]
+        return np.moveaxis(np.concatenate(dy, axis=-2), 0, -1)
+
+    def _grid_jacobians(self, eff, model, names, steps, one_sided, gname, grid):
+        """(Je, Jf) of shape (M, g, q): every grid value in one call of the effect per step."""
+        g, q = grid.size, len(names)
+        vals = dict(model.parameters.values)
+        root = _root(self.fit.model)
+        changes = []
+        for d, r in zip(self.fit.prob.data, self._base()):
+            m = d.m
+            s = np.tile(1j * d.omega, g)
+            base = tuple(np.tile(x, (g, 1, 1)) for x in r)
+            at = {**vals, gname: np.repeat(grid, m)}
+
+            def out(p):
+                res = eff.output(s, p, *base, root)
+                if any(np.shape(x) != np.shape(b) for x, b in zip(res, base)):
+                    raise ValueError("the effect does not evaluate a grid at once")
+                return res
+
+            cols = [[None] * 3 for _ in range(q)]
+            for j, (n, h, os_) in enumerate(zip(names, steps, one_sided)):
+                up = out({**at, n: vals[n] + h})
+                down = out(at) if os_ else out({**at, n: vals[n] - h})
+                cols[j] = [None if a is b and c is b else (a - c).reshape((g, m) + b.shape[1:]) / (h if os_ else 2 * h)
+                           for a, c, b in zip(up, down, base)]
+            changes.append([_stack_grid([c[i] for c in cols], r[i], g) for i in range(3)])
+        Je, Jf = self.pair(self._measure(changes))
+        return Je.reshape(-1, g, q), Jf.reshape(-1, g, q)
+
+
+def _stack_changes(cols: list, like: np.ndarray, i: int) -> np.ndarray:
+    """The q response changes of one part (G, H or P) stacked on a leading axis; unchanged ones are zero.
+
+    A part no parameter changes is a zero of leading size 1 (it broadcasts in the measurement).
+    """
+    if all(c is None for c in cols):
+        return np.zeros((1,) + like[i].shape, complex)
+    return np.stack([np.zeros(like[i].shape, complex) if c is None else c for c in cols])
+
+
+def _stack_grid(cols: list, like: np.ndarray, g: int) -> np.ndarray:
+    """Grid changes (g, m, ...) of q parameters as (g q, m, ...), grid value first; zero of size 1 if none."""
+    if all(c is None for c in cols):
+        return np.zeros((1,) + like.shape, complex)
+    out = np.zeros((g, len(cols)) + like.shape, complex)
+    for j, c in enumerate(cols):
+        if c is not None:
+            out[:, j] = c
+    return out.reshape((-1,) + like.shape)
+
+
+def _ghp(r) -> tuple:
+    """(G, H, P) of a :class:`fdml.models.base.ModelResponse`."""
+    return r.G, r.H, r.P
+
+
+def _root(model):
+    from .models.effects import root_model
+
+    return root_model(model)
 
 
 def _output_effect_on(model, base):
@@ -342,8 +437,11 @@ def _output_effect_on(model, base):
     return eff
 
 
-def _context(prob, model, theta, V, R):
-    """The screen's context on the fit's own grid: one R, each record's rows counted 1/K times."""
+def _context(prob, model, theta, V, R, A=None):
+    """The screen's context on the fit's own grid: one R, each record's rows counted 1/K times.
+
+    ``A``: the fit's sensitivities at ``theta`` (``prob.sensitivities(theta)``) when the caller has them.
+    """
     from .models.base import OUTPUTS
 
     K = _oversampling(prob)
@@ -356,7 +454,7 @@ def _context(prob, model, theta, V, R):
     fw = floor[None, :] / np.sqrt(K[rows])[:, None]  # diagonal white-noise floors for aliasing and the MDE
     options = {"outputs": [OUTPUTS[k] for k in prob.out_idx], "boundary": prob.boundary, "biases": False,
                "state_biases": bool(prob.state_biases), "input_bias": bool(prob.input_bias)}
-    ctx = _Context(base, rows, 1, prob.data, options, fw)
+    ctx = _Context(base, rows, 1, prob.data, options, fw, sensitivities=A)
     return ctx, K[rows]
 
 
@@ -370,28 +468,26 @@ def _logdet_weighted(ctx, r: np.ndarray, Kr: np.ndarray) -> tuple[float, float]:
 
 
 def _one_step_lr(ctx, effect, scr, Kr) -> float:
-    """LR at the one-step estimate: base parameters re-projected, the effect at eta_lin (module doc)."""
-    model = ctx.fit.model
-    nulls = effect.nulls(model)
-    aug = effect.augment(model).with_values(nulls)
-    if scr.nuisance:
-        aug = aug.with_values(scr.nuisance)
-    plist = [p for p in effect.param_list(model) if not p.nuisance]
-    names = [p.name for p in plist]
-    Je, _ = ctx.jacobian_at(aug, plist)
-    eta = np.array([scr.eta_lin[n] - nulls[n] for n in names])
-    l0, n_ind = _logdet_weighted(ctx, ctx.r, Kr)
+    """LR at the one-step estimate: base parameters re-projected, the effect at eta_lin (module doc).
+
+    The step is along the screen's own candidate sensitivities (``scr.jacobian``, at the best
+    grid value of a nuisance-grid effect).
+    """
+    nulls = effect.nulls(ctx.fit.model)
+    Je = scr.jacobian[0]
+    eta = np.array([v - nulls[n] for n, v in scr.eta_lin.items()])
+    if getattr(ctx, "logdet0", None) is None:  # the base fit's: the same for every effect
+        ctx.logdet0 = _logdet_weighted(ctx, ctx.r, Kr)
+    l0, n_ind = ctx.logdet0
     l1, _ = _logdet_weighted(ctx, ctx.r - ctx.perp(Je @ eta), Kr)
     return max(2.0 * n_ind * (l0 - l1), 0.0)
 
 
-def _test_effects(prob, model, theta, V, R, alpha: float, library=None):
+def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
     """(tests as dicts, skipped) for every applicable deterministic effect."""
-    from .diagnose.attribute import _grid_variation, _null_kind, p_value
-    from .diagnose.screen import screen
     from .models.effects import registered_effects
 
-    ctx, Kr = _context(prob, model, theta, V, R)
+    ctx, Kr = _context(prob, model, theta, V, R, A)
     inputs = tuple(prob.data[0].inputs)
     outputs = tuple(ctx.options["outputs"])
     usable, skipped = [], []
@@ -413,13 +509,13 @@ def _test_effects(prob, model, theta, V, R, alpha: float, library=None):
         except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:
             skipped.append((eff.key, f"cannot be evaluated: {exc}"))
             continue
-        null, q = _null_kind(eff, model, scr)
-        Vg, ng = _grid_variation(scr)
+        null, q = null_kind(eff, model, scr)
+        Vg, ng = grid_variation(scr)
         p, _ = p_value(lr, q, null, V=Vg, n_grid=ng)
         units = {p_.name: p_.unit for p_ in eff.param_list(model)}
-        tests.append({"key": eff.key, "effect": eff.name, "channel": eff.channel, "statistic": float(lr), "lm": float(scr.lm),
-                          "df": int(q), "null": null, "p_value": float(p), "expected": dict(scr.eta_lin),
-                          "units": {k: units.get(k, "") for k in scr.eta_lin}})
+        tests.append({"key": eff.key, "effect": eff.name, "channel": eff.channel, "statistic": float(lr),
+                      "lm": float(scr.lm), "df": int(q), "null": null, "p_value": float(p),
+                      "expected": dict(scr.eta_lin), "units": {k: units.get(k, "") for k in scr.eta_lin}})
     return tests, skipped
 
 
@@ -469,7 +565,7 @@ def _coherence_cell(u: np.ndarray, v: np.ndarray, where: str):
     total = float(np.sum(np.abs(v) ** 2))
     c = min(fitted / total, 1.0 - 1e-15) if total > 0 else 0.0
     F = (n - q) / q * c / (1.0 - c)
-    return c, float(stats.f.sf(F, 2 * q, 2 * (n - q))), where
+    return c, f_sf(F, 2 * q, 2 * (n - q)), where
 
 
 def _bartlett_cell(power: np.ndarray, bands: list, where: str):
@@ -480,7 +576,7 @@ def _bartlett_cell(power: np.ndarray, bands: list, where: str):
     k = len(bands)
     M = nu.sum() * math.log(pooled) - float(np.sum(nu * np.log(s2)))
     C = 1.0 + (np.sum(1.0 / nu) - 1.0 / nu.sum()) / (3.0 * (k - 1))
-    return M / C, float(stats.chi2.sf(M / C, k - 1)), where
+    return M / C, chi2_sf(M / C, k - 1), where
 
 
 def _bonferroni(cells: list) -> tuple:
@@ -490,7 +586,7 @@ def _bonferroni(cells: list) -> tuple:
     return float(stat), min(1.0, p * len(cells)), len(cells), where
 
 
-def check(prob, theta, V, R, *, alpha: float = ALPHA, library=None) -> Adequacy:
+def check(prob, theta, V, R, *, alpha: float = ALPHA, library=None, sensitivities=None) -> Adequacy:
     """The adequacy check of a fit, from its problem and estimate (no refits).
 
     Parameters
@@ -507,18 +603,18 @@ def check(prob, theta, V, R, *, alpha: float = ALPHA, library=None) -> Adequacy:
         Family-wise level (default :data:`ALPHA`).
     library : sequence of Effect, optional
         Effects to screen (default: every registered one).
+    sensitivities : ndarray, complex, shape (N, n_out, p), optional
+        ``prob.sensitivities(theta)`` when the caller has them (the fit's last ones).
 
     Returns
     -------
     Adequacy
     """
-    from .diagnose.locate import holm
-
     if not 0 < alpha < 1:
         raise FdmlError(f"adequacy level alpha must lie in (0, 1), got {alpha}")
     t0 = time.perf_counter()
     model = prob.model.with_values(prob.model_values(np.asarray(theta, float)))
-    tests, skipped = _test_effects(prob, model, theta, V, R, alpha, library)
+    tests, skipped = _test_effects(prob, model, theta, V, R, alpha, library, sensitivities)
     coh, white = _residual_checks(prob, V)
     ph = holm(np.array([t["p_value"] for t in tests] + [coh[1], white[1]]))
     effects = sorted((EffectTest(**t, p_holm=float(h)) for t, h in zip(tests, ph)),
@@ -558,10 +654,11 @@ def advice(adequacy: Adequacy) -> str | None:
             f"run the full diagnosis: {diag}")
 
 
-def attach(prob, result, V):
+def attach(prob, result, V, sensitivities=None):
     """``result`` with its adequacy check (``FitResult.adequacy``) and, when it flags, the warning.
 
-    Called by :func:`fdml.estimate.fit` after a converged fit.  The warning
+    Called by :func:`fdml.estimate.fit` after a converged fit (``sensitivities``: the fit's
+    ``prob.sensitivities`` at the estimate, when it has them).  The warning
     (:class:`~fdml.errors.AdequacyWarning`) is also kept in ``result.warnings``,
     as every warning of a fit.  A check that cannot run says so in a warning;
     it never fails the fit.
@@ -572,7 +669,7 @@ def attach(prob, result, V):
     from .errors import AdequacyWarning
 
     try:
-        found = check(prob, result.values, V, result.R)
+        found = check(prob, result.values, V, result.R, sensitivities=sensitivities)
     except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:
         msg = f"the adequacy check could not run: {exc}"
         warnings.warn(msg, AdequacyWarning, stacklevel=3)

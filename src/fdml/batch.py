@@ -297,11 +297,12 @@ def collect_sources(sources) -> list[BatchItem]:
     return items
 
 
-def load_source(path, t0: float | None = None, t1: float | None = None, *, name: str | None = None):
+def load_source(path, t0: float | None = None, t1: float | None = None, *, name: str | None = None, **read):
     """Read one record file (and cut a window): the one place the batch reads records.
 
-    Uses :func:`fdml.io.load_record` (any supported format) when it is
-    available, else :func:`fdml.read_csv`.
+    Uses :func:`fdml.io.load_record` (any supported format; ``read`` are its
+    options: ``format``, ``columns``, ``units``, ``sign``, ``layout``) when it
+    is available, else :func:`fdml.read_csv`.
     """
     from dataclasses import replace
 
@@ -310,7 +311,7 @@ def load_source(path, t0: float | None = None, t1: float | None = None, *, name:
     except ImportError:
         load_record = None
     if load_record is not None:
-        rec = load_record(path, t0=t0, t1=t1)
+        rec = load_record(path, t0=t0, t1=t1, **read)
     else:
         from .record import read_csv
 
@@ -420,8 +421,11 @@ def run_task(task: Mapping) -> dict:
     try:
         h = hashlib.sha256()
         h.update(_file_hash(task["path"]).encode())
-        h.update(_canonical({"t0": task["t0"], "t1": task["t1"], "spec": task["spec"],
-                             "fit": task["fit_kwargs"], "fdml": __version__}).encode())
+        key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_kwargs"],
+               "fdml": __version__}
+        if task.get("read"):  # absent when empty: the hash of a batch without reading options is unchanged
+            key["read"] = task["read"]
+        h.update(_canonical(key).encode())
         input_hash = h.hexdigest()
     except OSError as exc:
         from .errors import RecordError
@@ -438,7 +442,7 @@ def run_task(task: Mapping) -> dict:
     try:
         from .estimate import fit
 
-        rec = load_source(task["path"], task["t0"], task["t1"], name=task["key"])
+        rec = load_source(task["path"], task["t0"], task["t1"], name=task["key"], **task.get("read", {}))
         model = ModelSpec(**task["spec"]).build()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the result keeps its warnings
@@ -1151,7 +1155,8 @@ def _folder_lock(out: Path, spool: _RowSpool) -> Iterator[None]:
 
 # --- the batch ----------------------------------------------------------------------------------
 def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None, engine="process",
-              workers: int | None = None, resume: bool = True, progress=None) -> BatchSummary:
+              workers: int | None = None, resume: bool = True, progress=None,
+              read_kwargs: Mapping | None = None) -> BatchSummary:
     """Fit one model to many records, each on its own; stream results to disk.
 
     Parameters
@@ -1178,6 +1183,10 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
     progress : None, True or callable, optional
         True: a tqdm bar (``progress`` extra); a callable is called as
         ``progress(done, total, row)`` in this process after every record.
+    read_kwargs : mapping, optional
+        Options of :func:`fdml.io.load_record` for every record (``format``,
+        ``columns``, ``units``, ``sign``, ``layout``), plain data; part of the
+        input hash.
 
     Returns
     -------
@@ -1199,13 +1208,16 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
     spec.build()  # a bad model spec is one error now, not one per record
     spec_d = spec.to_dict()
     kw = _check_fit_kwargs(fit_kwargs)
+    read = dict(read_kwargs or {})
+    _canonical(read)  # plain data only: it is hashed and shipped to workers
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise FdmlError(f"workers must be a positive integer, got {workers!r}")
     out = Path(out_dir).absolute()
     results = out / "results"
     results.mkdir(parents=True, exist_ok=True)
     tasks = ({"index": i, "key": it.key, "path": it.path, "t0": it.t0, "t1": it.t1, "spec": spec_d,
-              "fit_kwargs": kw, "out_dir": str(out), "resume": bool(resume)} for i, it in enumerate(items))
+              "fit_kwargs": kw, "read": read, "out_dir": str(out), "resume": bool(resume)}
+             for i, it in enumerate(items))
     update, close = _progress_handler(progress, len(items), "fdml batch")
     kind = _resolve_kind_name(engine)
     spool = _RowSpool(out / f".rows-{os.getpid()}.jsonl.tmp", len(items))

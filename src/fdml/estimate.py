@@ -66,7 +66,7 @@ from .record import Record
 from .results import FitResult, IterationInfo
 from .spectra import FrequencyData, spectra
 
-__all__ = ["NoiseModel", "Problem", "fit", "prepare"]
+__all__ = ["NoiseModel", "Problem", "fit", "parse_outputs", "prepare"]
 
 _BOUNDARY_NAMES = BOUNDARY_NAMES  # x(0), x(T) of alpha and q (THEORY.md section 7)
 #: State-equation biases: constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations.
@@ -211,6 +211,18 @@ class Problem:
                                 nu.input_bias))
         return out
 
+    def linear_predict(self, theta: np.ndarray, r: int, change) -> np.ndarray:
+        """The change of record ``r``'s predicted outputs for a change of the model response.
+
+        Without the output biases y is linear in (G, H, P) (Eqs. 18-19 with section 7's
+        boundary terms at ``theta``), so this is ``dy`` for ``change`` = (dG, dH, dP), any
+        object with ``G``, ``H``, ``P`` whose leading axes (one per parameter, say)
+        broadcast; shape (..., m_r, 3), all outputs.
+        """
+        d = self.data[r]
+        nu = self._nuisance(theta, r)
+        return _measure(change, d.u, d.ones, nu.boundary(self._shift[r]), None, nu.state_biases, nu.input_bias)
+
     def residuals(self, theta: np.ndarray, responses=None) -> np.ndarray:
         """Stacked residuals v = z - y over records, selected outputs, shape (N, n_out)."""
         ys = self.predict(theta, responses)
@@ -230,10 +242,7 @@ class Problem:
                 parts = ("G",) + (("H",) if self.boundary != "none" else ()) + (("P",) if self.state_biases else ())
                 resp, dG, dH, dP = self.model.sensitivity(d.omega, vals, mnames, parts)
                 responses.append(resp)
-                nu = self._nuisance(theta, r)
-                # y is linear in (G, H, P) without the output biases: dy = predict of the derivatives
-                dy = _measure(ModelResponse(d.omega, dG, dH, dP), d.u, d.ones, nu.boundary(self._shift[r]),
-                              None, nu.state_biases, nu.input_bias)
+                dy = self.linear_predict(theta, r, ModelResponse(d.omega, dG, dH, dP))
                 A[offs[r]: offs[r + 1], :, self.model_slots] = np.moveaxis(dy[:, :, self.out_idx], 0, -1)
         else:
             responses = self._responses(vals)
@@ -396,6 +405,32 @@ def _configure_model(model: Model, free, fix, bounds, biases: bool, out_idx) -> 
     return model.with_parameters(params)
 
 
+def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
+    """The fitted outputs as a tuple of names, from a sequence or ``"alpha,q,az"``.
+
+    None gives all of :data:`~fdml.models.base.OUTPUTS`.  An unknown name, a
+    name given twice (``alpha,alpha``) or an empty list is an
+    :class:`~fdml.errors.FdmlError` naming it (``what`` names the option).
+    """
+    if outputs is None:
+        return tuple(OUTPUTS)
+    if isinstance(outputs, str):
+        items = [o.strip() for o in outputs.split(",")]
+    else:
+        items = [str(o).strip() for o in outputs]
+    if not items or not any(items):
+        raise FdmlError(f"{what}: empty; choose from {', '.join(OUTPUTS)}")
+    if "" in items:
+        raise FdmlError(f"{what} {outputs!r}: an empty item; give names separated by commas")
+    bad = [o for o in items if o not in OUTPUTS]
+    if bad:
+        raise FdmlError(f"{what}: unknown output(s) {bad}; choose from {', '.join(OUTPUTS)}")
+    dup = sorted({o for o in items if items.count(o) > 1})
+    if dup:
+        raise FdmlError(f"{what}: {', '.join(dup)} given more than once; name each output once")
+    return tuple(items)
+
+
 def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary="estimated",
             biases="auto", state_biases=False, input_bias=False, free=None, fix=None, bounds=None,
             sensitivity="auto", trim="first", trim_window=0.5, end_correction="cubic") -> Problem:
@@ -407,15 +442,9 @@ def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary
     if sensitivity not in ("auto", "analytic", "fd", "central"):
         raise FdmlError("sensitivity must be 'auto', 'analytic', 'fd' (Eq. 26) or 'central', "
                         f"got {sensitivity!r}")
-    if outputs is None:
-        outputs = OUTPUTS
-    if isinstance(outputs, str):
-        outputs = [o.strip() for o in outputs.split(",") if o.strip()]
-    bad = [o for o in outputs if o not in OUTPUTS]
-    if bad or not outputs:
-        raise FdmlError(f"unknown output(s) {bad or outputs}; choose from {', '.join(OUTPUTS)}")
-    out_idx = tuple(OUTPUTS.index(o) for o in dict.fromkeys(outputs))
+    out_idx = tuple(OUTPUTS.index(o) for o in parse_outputs(outputs))
     fdata = _as_data(data, model, omega, band, trim, trim_window, end_correction)
+    _refuse_unexcited(fdata)
     if biases == "auto":
         biases = any(d.trim_mode != "none" for d in fdata)
     elif biases not in (True, False):
@@ -439,6 +468,28 @@ def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary
             f"for {p} free parameters: lengthen the record or widen the band"
         )
     return prob
+
+
+def _refuse_unexcited(fdata: list[FrequencyData]) -> None:
+    """Refuse a record whose inputs carry no power in the band (fdml.quality's measure, as ``fdml check``).
+
+    Without input power the input derivatives are unidentifiable and the
+    iterations run away (Cm_de = -2.9e137 on a constant elevator).
+    """
+    from .quality import LOW_INPUT_DB, unexcited
+
+    for d in fdata:
+        if d.record is not None:
+            dead = all(unexcited(d.record[k], d.record.dt, d.omega) for k in d.inputs)
+        else:  # spectra given without their record: only an input that is exactly zero is known dead
+            dead = not np.any(d.u)
+        if dead:
+            names = " and ".join("elevator" if k == "de" else k for k in (d.inputs or ("de",)))
+            raise RecordError(
+                f"record {d.name!r}: the {names} carr{'y' if ' and ' in names else 'ies'} no power in the band "
+                f"{d.omega[0]:g}-{d.omega[-1]:g} rad/s (never moving, or more than {LOW_INPUT_DB:g} dB below "
+                "its peak throughout): nothing to identify; see fdml check"
+            )
 
 
 def _check_model_effects(model: Model, outputs, omega) -> None:
@@ -847,7 +898,10 @@ def fit(
     if adequacy and converged:
         from .adequacy import attach
 
-        res = attach(prob, res, V)  # fdml.adequacy: checks the fit, warns when it flags anything
+        # fdml.adequacy: checks the fit, warns when it flags anything; analytic sensitivities at the
+        # estimate do not depend on the settling tolerance, so the last ones serve the check too
+        A_est = A_final if prob.sensitivity == "analytic" else None
+        res = attach(prob, res, V, A_est)
     return res
 
 

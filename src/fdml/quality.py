@@ -271,6 +271,8 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
 
     if not isinstance(record, Record):
         raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
+    if isinstance(n_params, bool) or not isinstance(n_params, (int, np.integer)) or n_params < 1:
+        raise RecordError(f"n_params (the number of estimated quantities) must be an integer >= 1, got {n_params!r}")
     band = parse_band(band)
     lo, hi, step = band
     if hi > record.nyquist:
@@ -317,19 +319,9 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
     # spectrum on a dense grid (8x zero-padded FFT, dt X_k ~ the Fourier integral)
     # gives the global peak and the share of energy inside the band; the band values
     # themselves come from fdml's end-corrected transform on the band grid.
-    de = record["de"]
-    x = de - de[0]
-    nfft = 8 * n
-    Xd = dt * np.fft.rfft(x, nfft)
-    w_fft = 2 * np.pi * np.fft.rfftfreq(nfft, dt)
-    E = np.abs(Xd) ** 2
+    E, w_fft, input_db, peak = _input_energy(record["de"], dt, omega)
     tot = float(np.sum(E))
     frac = float(np.sum(E[(w_fft >= lo) & (w_fft <= hi)]) / tot) if tot > 0 else 0.0
-    U = fourier.finite_fourier_transform(x, dt, omega)
-    P = np.abs(U) ** 2
-    peak = float(max(np.max(E), np.max(P)))
-    with np.errstate(divide="ignore"):
-        input_db = 10 * np.log10(P / peak) if peak > 0 else np.full(P.shape, -np.inf)
     low_mask = input_db < -LOW_INPUT_DB
     low_input = _intervals(omega, low_mask)
 
@@ -389,6 +381,33 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
         independent_frequencies=independent, useful_frequencies=useful, required_frequencies=required,
         n_params=int(n_params), sufficient=bool(sufficient), findings=tuple(findings),
     )
+
+
+def _input_energy(u: np.ndarray, dt: float, omega: np.ndarray):
+    """Energy spectrum of an input as the estimator sees it (trim = first sample removed).
+
+    Returns ``(E, w_fft, input_db, peak)``: the energy on a dense grid (8x
+    zero-padded FFT, dt X_k ~ the Fourier integral) at ``w_fft`` rad/s, the
+    level at ``omega`` (fdml's end-corrected transform) in dB below the peak
+    over all frequencies, and that peak (0 for an input that never moves).
+    """
+    from . import fourier
+
+    x = np.asarray(u, dtype=float) - u[0]
+    E = np.abs(dt * np.fft.rfft(x, 8 * x.size)) ** 2
+    w_fft = 2 * np.pi * np.fft.rfftfreq(8 * x.size, dt)
+    P = np.abs(fourier.finite_fourier_transform(x, dt, omega)) ** 2
+    peak = float(max(np.max(E), np.max(P)))
+    with np.errstate(divide="ignore"):
+        input_db = 10 * np.log10(P / peak) if peak > 0 else np.full(P.shape, -np.inf)
+    return E, w_fft, input_db, peak
+
+
+def unexcited(u: np.ndarray, dt: float, omega: np.ndarray) -> bool:
+    """True if an input carries no power in the band: it never moves, or every band frequency
+    is more than :data:`LOW_INPUT_DB` below its peak (the measure of :func:`check_quality`)."""
+    _, _, input_db, peak = _input_energy(u, dt, omega)
+    return peak == 0 or bool(np.all(input_db < -LOW_INPUT_DB))
 
 
 # --- channel checks ---------------------------------------------------------------------------

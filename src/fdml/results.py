@@ -112,6 +112,11 @@ class FitResult:
         The fit's adequacy check (score tests of the effect library,
         residual coherence and whiteness; :mod:`fdml.adequacy`), None when
         skipped (``fit(..., adequacy=False)``) or the fit did not converge.
+    provenance : dict
+        Where the model's flight condition came from, when a command set it
+        (``fdml fit``): ``airspeed`` ``{"value", "source"}`` (``record``,
+        ``--airspeed`` or ``aircraft``) and ``record_conditions`` (what the
+        records carry); see :mod:`fdml.conditions`.
     """
 
     model: object
@@ -145,6 +150,7 @@ class FitResult:
     nuisance: dict = field(default_factory=dict)
     findings: tuple = ()
     adequacy: object = None
+    provenance: dict = field(default_factory=dict)
 
     # --- construction -------------------------------------------------------------------
     @classmethod
@@ -280,11 +286,11 @@ class FitResult:
     def brief(self) -> dict:
         """The short JSON form printed by ``fdml fit --json``.
 
-        Keys: model, params (name -> {value, stderr}), derived (name ->
-        {value, stderr}), cost, iterations, converged, message, band, outputs,
+        Keys: model, effects (:meth:`effects_brief`), params (name -> {value,
+        stderr}), derived (name -> {value, stderr}), cost, iterations, converged, message, band, outputs,
         records, boundary, cov_type, warnings, findings (the data check's,
         each with its ``code``), adequacy (flagged effects and residual
-        checks, :meth:`fdml.adequacy.Adequacy.brief`).  Infinite standard errors are
+        checks, :meth:`fdml.adequacy.Adequacy.brief`), provenance.  Infinite standard errors are
         written as the string "inf".
         """
         def num(x):
@@ -292,6 +298,7 @@ class FitResult:
 
         return {
             "model": self.kind,
+            "effects": self.effects_brief(),
             "params": {n: {"value": float(v), "stderr": num(float(s))}
                        for n, v, s in zip(self.names, self.values, self.stderr)},
             "derived": {k: {"value": v, "stderr": num(s)} for k, (v, s) in self.derived.items()},
@@ -309,7 +316,28 @@ class FitResult:
             "warnings": list(self.warnings),
             "findings": [f.to_dict() for f in self.findings],
             "adequacy": None if self.adequacy is None else self.adequacy.brief(),
+            "provenance": self.provenance,  # I1: where the flight condition came from (fdml.conditions)
         }
+
+    def effects_brief(self) -> list:
+        """The model's effects in order: ``[{"key", "parameters": {name: {value, stderr, unit}}}]``.
+
+        ``stderr`` is None for a parameter the fit held fixed (the string "inf" when
+        infinite); a plain model has none (``[]``).
+        """
+        from .models.effects import root_model
+
+        se = dict(zip(self.names, (float(x) for x in self.stderr)))
+        vals = self.model.parameters.values
+        out = []
+        for eff in getattr(self.model, "parts", ()):
+            pars = {}
+            for p in eff.param_list(root_model(self.model)):
+                s = se.get(p.name)
+                pars[p.name] = {"value": float(vals[p.name]), "unit": p.unit,
+                                "stderr": None if s is None else (s if math.isfinite(s) else str(s))}
+            out.append({"key": eff.key, "parameters": pars})
+        return out
 
     def to_dict(self) -> dict:
         """JSON-ready dict (format ``fdml.FitResult`` version 1), through :func:`fdml.jsoncodec.to_jsonable`.
@@ -365,6 +393,7 @@ class FitResult:
             "nuisance": self.nuisance,
             "findings": [x.to_dict() for x in self.findings],
             "adequacy": None if self.adequacy is None else self.adequacy.to_dict(),
+            "provenance": self.provenance,
             "time_records": [
                 None if r is None else
                 {"name": r["name"], "t": f(r["t"]), "signals": {k: f(v) for k, v in r["signals"].items()},
@@ -435,6 +464,7 @@ class FitResult:
             nuisance=f.mapping("nuisance", default={}),
             findings=tuple(_finding_from_fields(x) for x in f.items("findings", default=[])),
             adequacy=_adequacy_from_fields(f),
+            provenance=f.mapping("provenance", default={}),
             time_records=tuple(None if r is None else _time_record_from_fields(r)
                                for r in f.items("time_records", default=[], allow_none=True)),
         )

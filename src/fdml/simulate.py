@@ -44,7 +44,7 @@ from .aero import get_indicial
 from .constants import G0
 from .errors import ParameterError, RecordError
 from .maneuvers import DEFAULT_AMPLITUDE, DRYDEN_L, dryden_gust, make_input, time_vector
-from .record import Record
+from .record import Record, add_noise
 
 __all__ = [
     "simulate",
@@ -237,6 +237,7 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
         opts = eff.realize(opts, p, model)
     if "tail_tau" in opts:
         tail_delay, tail_tau = True, opts.pop("tail_tau")
+    post = opts.pop("system", ())  # e.g. downwash_lag@tail: callables on the finished system
     if opts:
         raise ParameterError(f"the {model.kind} model cannot realise {sorted(opts)}")
     channels = [("de", p["tau_de"])]
@@ -309,11 +310,14 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
                 f"tail length l_t = {l} m must exceed the wing chord c_w = {c} m"
             )
         kappa = eps_ss * F * c / U  # section 4: eps_F = eps_ss F (c_w/U) PV int alpha_dot/(t - tau - T)
-    return _System(
+    sys = _System(
         A=rows[:, :ns], B=rows[:, ns:ns + nu], C=out[:, :ns], D=out[:, ns:ns + nu], Dd=np.zeros((3, nu)),
         channels=tuple(channels), bF=rows[:, -1], dF=out[:, -1],
         rx=dyn["alpha"][:ns], ru=dyn["alpha"][ns:ns + nu], rF=float(dyn["alpha"][-1]), T=T, kappa=kappa,
     )
+    for fn in post:
+        sys = fn(sys)
+    return sys
 
 
 def _system(model, p) -> _System:
@@ -756,6 +760,18 @@ def _check_inputs(model, t: np.ndarray, inputs) -> dict[str, np.ndarray]:
     return out
 
 
+def _noise_fraction(noise) -> float | None:
+    """``noise`` as a fraction of RMS (a number), or None for a mapping of standard deviations or None."""
+    if noise is None or isinstance(noise, Mapping):
+        return None
+    if isinstance(noise, bool) or not isinstance(noise, (int, float, np.integer, np.floating)):
+        raise ParameterError(f"noise must be a fraction of each output's RMS (a number such as 0.02) or a "
+                             f"mapping {{'alpha': rad, 'q': rad/s, 'az': g}} of standard deviations, got {noise!r}")
+    if not (math.isfinite(noise) and noise >= 0):
+        raise ParameterError(f"noise fraction must be finite and >= 0, got {noise!r}")
+    return float(noise)
+
+
 def _check_noise(noise, rng):
     if noise is None:
         return None
@@ -947,8 +963,11 @@ def simulate_maneuver(model, maneuver: str = "3211", *, duration: float = 10.0, 
         RMS of the vertical gust velocity w_g, m/s; > 0 needs a gust model.
     gust_length : float, optional
         Dryden scale length L, m.
-    noise : mapping, optional
-        Measurement noise standard deviations (see :func:`simulate`).
+    noise : float or mapping, optional
+        Measurement noise.  A number is a fraction of each output's RMS about
+        its mean in the noise-free record (``fdml simulate --noise 0.02``;
+        :func:`fdml.record.add_noise` with ``relative=True``); a mapping gives
+        standard deviations by output (see :func:`simulate`).
     seed : int, optional
         Seed of ``np.random.default_rng`` for the gust and the noise.
     values : mapping, optional
@@ -977,6 +996,12 @@ def simulate_maneuver(model, maneuver: str = "3211", *, duration: float = 10.0, 
                              else np.zeros_like(t))
     elif gust_std > 0:
         raise ParameterError("gust_std > 0 needs a model with a gust input (make_model(..., gust=True))")
-    rec = simulate(model, t, inputs, values, noise=noise, rng=rng if noise else None, name=f"{maneuver} simulation")
+    fraction = _noise_fraction(noise)
+    absolute = None if fraction is not None else noise
+    rec = simulate(model, t, inputs, values, noise=absolute, rng=rng if absolute else None,
+                   name=f"{maneuver} simulation")
     meta = {**rec.meta, "maneuver": maneuver, "seed": seed, "gust_std": gust_std}
+    if fraction is not None:
+        rec = add_noise(rec, fraction, rng, relative=True)
+        meta.update(noise=rec.meta["noise_std"], noise_fraction=fraction)
     return Record(rec.t, rec.signals, name=rec.name, meta=meta, check_units=False)

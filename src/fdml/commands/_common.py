@@ -21,24 +21,9 @@ def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
     return out
 
 
-def add_model_arguments(p: argparse.ArgumentParser, *, default_model: str = "unsteady",
-                        gust_flag: bool = True) -> None:
-    """--aircraft, --model, --gust, --airspeed options shared by commands."""
-    p.add_argument("--aircraft", metavar="NAME|FILE.json",
-                   help="preset (navion, sundowner, do128) or an aircraft JSON file")
-    p.add_argument("--model", default=default_model,
-                   choices=("unsteady", "steady", "derivatives", "dimensional"),
-                   help=f"model (default {default_model})")
-    if gust_flag:
-        p.add_argument("--gust", action="store_true", help="add the vertical gust input alpha_w")
-    p.add_argument("--airspeed", type=float, metavar="U",
-                   help="airspeed in m/s for the dimensional model without --aircraft")
-    add_effect_argument(p)
-
-
 def add_effect_argument(p: argparse.ArgumentParser) -> None:
     """--effect NAME[:CHANNEL], repeatable (each occurrence adds effects; a comma list is several)."""
-    p.add_argument("--effect", action="extend", type=_effect_list, default=[], metavar="NAME[:CHANNEL]",
+    p.add_argument("--effect", action="extend", type=_effect_list, default=None, metavar="NAME[:CHANNEL]",
                    help="make an effect part of the model, free at its null (repeatable; "
                         "'fdml effects' lists them), e.g. --effect time_delay:alpha --effect sensor_offset:az")
 
@@ -62,44 +47,77 @@ def _effect_list(text: str) -> list[str]:
 
 
 def make_model_from_args(args, values: dict | None = None):
-    """Build the model named by the arguments, with ``values`` set."""
+    """Build the model named by the arguments, with ``values`` set (no records: see :func:`model_for_records`)."""
+    return model_for_records(args, (), values)[0]
+
+
+def model_for_records(args, records, values: dict | None = None):
+    """(model, provenance) by the model rule of :mod:`fdml.commands._options`.
+
+    Without ``--model``: unsteady with ``--aircraft``, else dimensional, whose
+    airspeed is ``--airspeed`` or else the records' mean airspeed.
+    ``provenance`` says where the airspeed came from (``--airspeed``,
+    ``aircraft`` or ``record``) and lists the flight condition the records
+    carry (:func:`fdml.conditions.record_conditions`).
+    """
+    from ..conditions import record_airspeed, record_conditions
     from ..errors import ParameterError
     from ..models import make_model
+    from ._options import default_model
 
-    if args.model == "dimensional":
-        if args.aircraft is None and args.airspeed is None:
-            raise ParameterError("the dimensional model needs --airspeed U (m/s) or --aircraft")
-        opts = {"airspeed": args.airspeed} if args.airspeed is not None else {}
-        model = make_model("dimensional", args.aircraft, gust=bool(args.gust), **opts)
-    else:
+    kind = default_model(args)
+    opts = {"gust": bool(args.gust)}
+    if args.airspeed is not None:
+        opts["airspeed"] = args.airspeed
+    source = "--airspeed" if args.airspeed is not None else "aircraft"
+    if kind == "dimensional" and args.aircraft is None and args.airspeed is None:
+        U = record_airspeed(records)
+        if U is None:
+            raise ParameterError("the dimensional model needs --airspeed U (m/s) or --aircraft"
+                                 + (", or a record that carries its airspeed" if records else ""))
+        opts["airspeed"], source = U, "record"
+    elif kind != "dimensional":
         if args.aircraft is None:
-            raise ParameterError(f"the {args.model} model needs --aircraft NAME or FILE.json")
-        model = make_model(args.model, args.aircraft, gust=bool(args.gust))
+            raise ParameterError(f"the {kind} model needs --aircraft NAME or FILE.json")
+        if args.airspeed is not None:
+            raise ParameterError(f"--airspeed applies to the dimensional model; the {kind} model takes "
+                                 "the airspeed of --aircraft")
+        opts.pop("airspeed", None)
+    model = make_model(kind, args.aircraft, **opts)
     effects = list(getattr(args, "effect", None) or ())
     if effects:
         model = model.with_effects(effects)
     if values:
         model.parameters.check_names(values)
         model = model.with_values(values)
-    return model
+    provenance = {"model": {"kind": kind, "source": "--model" if getattr(args, "model", None) else "model rule"},
+                  "airspeed": {"value": float(model.U), "unit": "m/s", "source": source}}
+    cond = record_conditions(records)
+    if cond:
+        provenance["record_conditions"] = cond
+    return model, provenance
 
 
 def model_spec_from_args(args, **fields):
     """The :class:`fdml.batch.ModelSpec` named by the arguments (batch, montecarlo), effects included.
 
-    The effects are resolved here, so a bad name fails before any work.
+    The model rule of :func:`model_for_records`, without records (the
+    dimensional model needs ``--airspeed`` or ``--aircraft``).  The effects are
+    resolved here, so a bad name fails before any work.
     """
     from ..batch import ModelSpec
     from ..errors import FdmlError
+    from ._options import default_model
 
-    if args.model == "dimensional" and args.aircraft is None and args.airspeed is None:
+    kind = default_model(args)
+    if kind == "dimensional" and args.aircraft is None and args.airspeed is None:
         raise FdmlError("the dimensional model needs --airspeed U (m/s) or --aircraft")
-    if args.model != "dimensional" and args.aircraft is None:
-        raise FdmlError(f"the {args.model} model needs --aircraft NAME or FILE.json")
+    if kind != "dimensional" and args.aircraft is None:
+        raise FdmlError(f"the {kind} model needs --aircraft NAME or FILE.json")
     options = {"gust": bool(args.gust)}
     if args.airspeed is not None:
         options["airspeed"] = args.airspeed
-    spec = ModelSpec(kind=args.model, aircraft=args.aircraft, options=options,
+    spec = ModelSpec(kind=kind, aircraft=args.aircraft, options=options,
                      effects=tuple(getattr(args, "effect", None) or ()), **fields)
     spec.build()  # an unknown effect, parameter or option: one line now, not once per record
     return spec

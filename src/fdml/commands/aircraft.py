@@ -7,7 +7,9 @@ def register(sub) -> None:
     p = sub.add_parser("aircraft", help="list the aircraft presets or show one with its sources")
     p.add_argument("action", choices=("list", "show"))
     p.add_argument("name", nargs="?", help="preset name or aircraft JSON file (for show)")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
+    from . import _options as O
+
+    O.add_json_option(p)
     p.set_defaults(func=run)
 
 

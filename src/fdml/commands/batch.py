@@ -2,42 +2,37 @@
 
 from __future__ import annotations
 
-from ._common import (
-    add_model_arguments,
-    assignments,
-    check_band_option,
-    model_spec_from_args,
-    positive_int,
-)
+from . import _options as O
+from ._common import assignments, check_band_option, model_spec_from_args
 
 
 def register(sub) -> None:
-    p = sub.add_parser("batch", help="fit a model to every record of folders, globs or files (resumable)")
+    p = sub.add_parser("batch", help="fit a model to every record of folders, globs or files (resumable)",
+                       description="Fit one model to many records, one result file each.  Model rule: "
+                                   + O.MODEL_RULE_NO_RECORD + " (one airspeed for all records).")
     p.add_argument("sources", nargs="+", metavar="SOURCE",
                    help="a folder, a glob, a record file, or FILE@T0:T1 for a manoeuvre window (s)")
-    add_model_arguments(p)
-    p.add_argument("--band", default="0.1:10:0.1", metavar="LO:HI:STEP",
-                   help="frequency band in rad/s (default 0.1:10:0.1)")
-    p.add_argument("--outputs", default="alpha,q,az", help="outputs in the fit (default alpha,q,az)")
-    p.add_argument("--fix", nargs="*", default=[], metavar="NAME=VALUE", help="fix parameters")
-    p.add_argument("--free", nargs="*", default=[], metavar="NAME", help="free parameters")
-    p.add_argument("--boundary", default="estimated", choices=("estimated", "measured", "none"))
-    p.add_argument("--trim", default="first", choices=("first", "mean", "none"))
-    p.add_argument("--method", default="lm", choices=("lm", "gauss-newton"))
-    p.add_argument("--out", default="fdml-batch", metavar="DIR",
-                   help="output folder: results/KEY.json and table.csv, table.json (default ./fdml-batch)")
-    p.add_argument("--workers", type=positive_int, metavar="N", help="local worker processes (default: all cores)")
+    O.add_model_options(p, reads_records=False)
+    O.add_record_options(p)
+    O.add_band_option(p)
+    O.add_fit_options(p)
+    O.add_output_option(p, kind="folder", metavar="DIR", old=("--out",),
+                        help="results/KEY.json and table.csv, table.json (default ./fdml-batch)")
+    O.add_workers_option(p)
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="run on a Dask cluster (tcp://HOST:PORT; needs the 'dask' extra)")
     p.add_argument("--serial", action="store_true", help="fit in this process, one record after another")
     p.add_argument("--no-resume", dest="resume", action="store_false",
                    help="refit everything (default: reuse results whose inputs are unchanged)")
-    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
-    p.add_argument("--strict", action="store_true",
-                   help="a record whose data check finds anything (units, signs, channels, response) "
-                        "fails with that finding as its error")
-    p.add_argument("--json", action="store_true", help="machine-readable summary")
+    O.add_progress_option(p, default_on=True)
+    O.add_strict_option(p, "a record whose data check finds anything (units, signs, channels, response) "
+                           "fails with that finding as its error")
+    O.add_json_option(p, "machine-readable summary")
     p.set_defaults(func=run)
+
+
+#: Where the batch writes when -o is not given.
+DEFAULT_OUTPUT = "fdml-batch"
 
 
 def parse_source(text: str):
@@ -85,27 +80,58 @@ def check_batch_outputs(sources, out_dir, aircraft=None) -> None:
             check_output(out / "results" / name, inputs, what="batch result file")
 
 
+def _read_kwargs(args) -> dict:
+    """The record-reading options of ``fdml fit`` (format, columns, units, signs, layout) for every source.
+
+    --t0/--t1 are the window of a source given without its own ``@T0:T1``.
+    """
+    from ..io.cli import record_options
+
+    opts = record_options(args)
+    for key in ("t0", "t1"):
+        opts.pop(key, None)
+    if opts.get("format") == "auto":
+        del opts["format"]
+    return opts
+
+
+def _windowed(source, args):
+    """A source with the --t0/--t1 window when it has none of its own."""
+    if isinstance(source, tuple) or (args.t0 is None and args.t1 is None):
+        return source
+    from pathlib import Path
+
+    if Path(source).is_dir() or any(c in str(source) for c in "*?["):
+        from ..errors import FdmlError
+
+        raise FdmlError(f"--t0/--t1 apply to record files; {source!r} is a folder or a glob: give FILE@T0:T1")
+    return (source, args.t0, args.t1)
+
+
 def run(args) -> int:
     from ..batch import run_batch
     from ..errors import FdmlError
 
-    check_band_option(args.band)  # up front: a bad band would fail every record one by one
-    spec = model_spec_from_args(args, fix=assignments(args.fix), free=list(args.free))
-    fit_kwargs = {"band": args.band, "outputs": args.outputs, "boundary": args.boundary, "trim": args.trim,
-                  "method": args.method}
+    band = args.band
+    check_band_option(band)  # up front: a bad band would fail every record one by one
+    spec = model_spec_from_args(args, fix=assignments(args.fix), free=list(args.free or []))
+    fit_kwargs = O.fit_kwargs(args)
+    if band is not None:
+        fit_kwargs["band"] = band
     if args.strict:
         fit_kwargs["strict"] = True
     if args.serial and args.scheduler:
         raise FdmlError("give --serial or --scheduler, not both")
     engine = "serial" if args.serial else (args.scheduler or "process")
     progress = None
-    if args.progress and not args.json:
+    if O.progress_wanted(args, default_on=True):
         import importlib.util
 
         progress = True if importlib.util.find_spec("tqdm") is not None else None
-    sources = [parse_source(s) for s in args.sources]
-    check_batch_outputs(sources, args.out, args.aircraft)
-    summary = run_batch(sources, spec, args.out, fit_kwargs=fit_kwargs,
+    out = args.output or DEFAULT_OUTPUT
+    sources = [_windowed(parse_source(s), args) for s in args.sources]
+    check_batch_outputs(sources, out, args.aircraft)
+    summary = run_batch(sources, spec, out, fit_kwargs=fit_kwargs, read_kwargs=_read_kwargs(args),
                         engine=engine, workers=args.workers, resume=args.resume, progress=progress)
     if args.json:
         from ..cli import print_json

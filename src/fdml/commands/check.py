@@ -2,25 +2,23 @@
 
 from __future__ import annotations
 
-from ..io.cli import add_record_arguments, record_options
+from . import _options as O
 
 
 def register(sub) -> None:
     p = sub.add_parser("check", help="data quality of a record (sampling, dropouts, saturation, excitation, "
                                      "coherence); --compat adds the kinematic compatibility check")
     p.add_argument("record", metavar="RECORD", help="record file (SIDPAC .mat, DLR .asc/.mat, CSV)")
-    add_record_arguments(p)
-    p.add_argument("--band", default="0.1:10:0.1", metavar="LO:HI:STEP",
-                   help="frequency band in rad/s (default 0.1:10:0.1)")
+    O.add_record_options(p)
+    O.add_band_option(p)
     p.add_argument("--n-params", type=int, default=13, metavar="N",
                    help="quantities the fit will estimate (default 13: dimensional model, biases, boundary)")
     p.add_argument("--compat", action="store_true",
                    help="also estimate sensor biases, scale factors and time shifts from the kinematics")
     p.add_argument("--airspeed", type=float, metavar="U",
                    help="true airspeed, m/s, for the a_z slope of the data check (default: the record's)")
-    p.add_argument("--strict", action="store_true",
-                   help="exit with code 2 when the data check finds anything (units, signs, channels, response)")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
+    O.add_strict_option(p, "exit with code 2 when the data check finds anything (units, signs, channels, response)")
+    O.add_json_option(p)
     p.set_defaults(func=run)
 
 
@@ -28,13 +26,15 @@ def run(args) -> int:
     from ..datacheck import check_data
     from ..findings import raise_if_strict
     from ..io import load_record
+    from ..io.cli import record_options
     from ..quality import check_quality
     from ._common import check_band_option
 
-    check_band_option(args.band)
+    band = args.band
+    check_band_option(band)
     rec = load_record(args.record, **record_options(args))
-    report = check_quality(rec, band=args.band, n_params=args.n_params)
-    data_check = check_data(rec, band=args.band, airspeed=args.airspeed)
+    report = check_quality(rec, band=band, n_params=args.n_params)
+    data_check = check_data(rec, band=band, airspeed=args.airspeed)
     from ..errors import RecordError
 
     compat, compat_note = None, None
@@ -66,5 +66,5 @@ def run(args) -> int:
         elif compat_note:
             print()
             print(compat_note)
-    raise_if_strict(data_check.findings, args.strict)
+    raise_if_strict(data_check.findings, bool(args.strict))
     return 0

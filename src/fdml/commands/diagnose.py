@@ -1,4 +1,4 @@
-"""``fdml diagnose RECORD ... --base MODEL``: where the model misses, which effect causes it, how far it shrinks.
+"""``fdml diagnose RECORD ... --model MODEL``: where the model misses, which effect causes it, how far it shrinks.
 
 ``fdml diagnose --validate`` runs the validation harness instead (records
 simulated with one withheld effect; see :mod:`fdml.diagnose.validate`).
@@ -6,38 +6,38 @@ simulated with one withheld effect; see :mod:`fdml.diagnose.validate`).
 
 from __future__ import annotations
 
-from ..io.cli import add_record_arguments, record_options
+from . import _options as O
 
 
 def register(sub) -> None:
     p = sub.add_parser("diagnose", help="diagnose the model-to-data gap: locate it, attribute it to an "
-                                        "unmodelled effect, measure how far it shrinks")
+                                        "unmodelled effect, measure how far it shrinks",
+                       description="Diagnose the model-to-data gap of a base model.  Model rule: "
+                                   + O.MODEL_RULE + ".")
     p.add_argument("records", nargs="*", metavar="RECORD", help="record file(s), fitted jointly")
-    p.add_argument("--aircraft", metavar="NAME|FILE.json",
-                   help="preset (navion, sundowner, do128) or an aircraft JSON file")
-    p.add_argument("--base", default="derivatives", choices=("unsteady", "steady", "derivatives", "dimensional"),
-                   help="base model the effects are added to (default derivatives)")
-    p.add_argument("--gust", action="store_true", help="the records carry the measured gust angle alpha_w")
-    p.add_argument("--airspeed", type=float, metavar="U",
-                   help="airspeed, m/s, for the dimensional model without --aircraft (default: the record's)")
-    add_record_arguments(p)
-    p.add_argument("--band", metavar="LO:HI", help="analysis band, rad/s (default 0.1:10; a :STEP is ignored)")
+    O.add_model_options(p, what="base model the effects are added to", old=("--base",))
+    O.add_record_options(p)
+    lo_hi = _default_lo_hi()
+    O.add_band_option(p, step=False, help=f"analysis band, rad/s (default {lo_hi}; a :STEP is ignored: the "
+                                          "diagnosis uses each record's spacing 2 pi/(K T))")
     p.add_argument("--bands", metavar="E0,E1,...", help="edges of the gap map's bands, rad/s")
-    p.add_argument("--holdout", nargs="+", metavar="RECORD",
-                   help="record(s) of the same flight condition kept out of the fit, to judge the shrink")
-    p.add_argument("--outputs", default="alpha,q,az", help="outputs in the fit (default alpha,q,az)")
+    O.accumulating(p, "--holdout", metavar="RECORD",
+                   help="record(s) of the same flight condition kept out of the fit, to judge the shrink "
+                        "(repeatable)")
+    p.add_argument("--outputs", metavar="NAME,...", default=None,
+                   help="outputs in the fit, comma-separated, each once (default alpha,q,az)")
     p.add_argument("--library", metavar="NAME,...", help="candidate effects (default: all registered)")
     p.add_argument("--alpha", type=float, default=0.05, help="family-wise level (default 0.05)")
     p.add_argument("--max-effects", type=int, default=2, help="greedy forward selection limit (default 2)")
-    p.add_argument("--noise", default="band", choices=("band", "white"),
+    p.add_argument("--noise-model", choices=("band", "white"), default=None,
                    help="noise model of the likelihood (default band)")
-    p.add_argument("--strict", action="store_true",
-                   help="exit with code 2 before fitting when the data check finds anything "
-                        "(units, signs, swapped channels, no response)")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.add_argument("-o", "--output", metavar="REPORT.json",
-                   help="write the full report (or validation) as JSON; its 'recommended' is the fit of the base "
-                        "model plus the accepted effects, as fdml fit --json prints it")
+    O.hidden_alias(p, "--noise", "noise_model", choices=("band", "white"))
+    O.add_strict_option(p, "exit with code 2 before fitting when the data check finds anything "
+                           "(units, signs, swapped channels, no response)")
+    O.add_json_option(p)
+    O.add_output_option(p, kind="file", metavar="REPORT.json",
+                        help="the full report (or validation) as JSON; its 'recommended' is the fit of the base "
+                             "model plus the accepted effects, as fdml fit --json prints it")
     p.add_argument("--recommended-output", metavar="FIT.json",
                    help="write the recommended fit (the base model plus the accepted effects, fitted by fdml fit on "
                         "the analysis grid) as a fit result file, which fdml report reads")
@@ -50,8 +50,14 @@ def register(sub) -> None:
     v.add_argument("--n-null", type=int, default=34, help="seeds per null/manoeuvre/noise cell (default 34)")
     v.add_argument("--seed-base", type=int, default=None,
                    help="first seed (default: the report range; 0 is the tuning range)")
-    v.add_argument("--processes", type=int, default=None, help="worker processes (default: all CPUs)")
+    O.add_workers_option(v, old=("--processes",))
+    O.add_progress_option(v, default_on=True)
     p.set_defaults(func=run)
+
+
+def _default_lo_hi() -> str:
+    """``LO:HI`` of fdml's default band (the diagnosis's default, :data:`fdml.diagnose.data.DEFAULT_DIAG_BAND`)."""
+    return O.DEFAULT_BAND_TEXT.rsplit(":", 1)[0]
 
 
 def _validate(args) -> int:
@@ -65,14 +71,16 @@ def _validate(args) -> int:
 
         check_output(args.output, what="validation file")
 
+    show = O.progress_wanted(args, default_on=True)
+
     def progress(done, total):
-        if not args.json:
+        if show:
             sys.stderr.write(f"\rfdml diagnose --validate: {done}/{total}")
             if done == total:
                 sys.stderr.write("\n")
 
     res = validate(n_effect=n_e, n_null=n_n, seed_base=REPORT_SEED_BASE if args.seed_base is None else args.seed_base,
-                   processes=args.processes, progress=progress)
+                   processes=args.workers, progress=progress)
     if args.output:
         res.to_json(args.output)
     if args.json:
@@ -102,8 +110,10 @@ def run(args) -> int:
         return _validate(args)
     from ..diagnose import diagnose
     from ..errors import ParameterError, RecordError
+    from ..estimate import parse_outputs
     from ..io import load_records
-    from ..models import make_model
+    from ..io.cli import record_options
+    from ._common import model_for_records
 
     if not args.records:
         raise RecordError("give at least one RECORD to diagnose (or --validate)")
@@ -111,19 +121,7 @@ def run(args) -> int:
     opts = record_options(args)
     records = load_records(args.records, **opts)
     holdout = load_records(args.holdout, **opts) if args.holdout else None
-    if args.base == "dimensional":
-        if args.aircraft is not None:
-            model = make_model("dimensional", args.aircraft, gust=args.gust)
-        else:
-            U = args.airspeed if args.airspeed is not None else records[0].meta.get("U")
-            if U is None:
-                raise ParameterError("the dimensional base model needs --airspeed U (m/s), --aircraft, or a "
-                                     "record that states its airspeed")
-            model = make_model("dimensional", None, gust=args.gust, airspeed=float(U))
-    else:
-        if args.aircraft is None:
-            raise ParameterError(f"the {args.base} base model needs --aircraft NAME or FILE.json")
-        model = make_model(args.base, args.aircraft, gust=args.gust)
+    model, _ = model_for_records(args, records)
     bands = None
     if args.bands:
         try:
@@ -131,10 +129,10 @@ def run(args) -> int:
         except ValueError:
             raise ParameterError(f"--bands must be numbers separated by commas, got {args.bands!r}") from None
     library = [x.strip() for x in args.library.split(",")] if args.library else None
-    outputs = [o.strip() for o in args.outputs.split(",") if o.strip()]
+    outputs = list(parse_outputs(args.outputs, what="--outputs"))
     rep = diagnose(records, model, holdout=holdout, band=args.band, bands=bands, library=library, alpha=args.alpha,
-                   max_effects=args.max_effects, noise=args.noise, outputs=outputs, trim="first",
-                   strict=args.strict)
+                   max_effects=args.max_effects, outputs=outputs, trim="first",
+                   strict=bool(args.strict), **({} if args.noise_model is None else {"noise": args.noise_model}))
     if args.output:
         rep.to_json(args.output)
     if args.recommended_output and rep.recommended is not None:

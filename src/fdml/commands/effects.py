@@ -6,7 +6,9 @@ from __future__ import annotations
 def register(sub) -> None:
     p = sub.add_parser("effects", help="list the effects a model can include: channels, parameters, units, "
                        "null values and plausible ranges")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
+    from . import _options as O
+
+    O.add_json_option(p)
     p.set_defaults(func=run)
 
 

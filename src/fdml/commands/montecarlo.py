@@ -2,38 +2,36 @@
 
 from __future__ import annotations
 
-from ._common import (
-    add_model_arguments,
-    assignments,
-    check_band_option,
-    model_spec_from_args,
-    positive_int,
-    seed_int,
-)
+from . import _options as O
+from ._common import assignments, check_band_option, model_spec_from_args, seed_int
+
+#: Noise when --noise is not given: a fraction of each output's RMS.
+DEFAULT_NOISE = "0.03"
 
 
 def register(sub) -> None:
     p = sub.add_parser("montecarlo", help="Monte Carlo study: fit N seeded noisy simulations, "
-                       "bias, scatter and efficiency (scatter/CRB) per parameter")
-    add_model_arguments(p)
-    p.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE", help="truth parameter values")
+                       "bias, scatter and efficiency (scatter/CRB) per parameter",
+                       description="Monte Carlo study.  --model is the truth model (simulated, and fitted unless "
+                                   "--fit-model names another); "
+                                   "model rule, when --model is not given: " + O.MODEL_RULE_NO_RECORD + ".")
+    O.add_model_options(p, reads_records=False, what="truth model, simulated and fitted")
+    O.add_set_option(p, "truth parameter values")
     p.add_argument("-n", type=int, default=1000, metavar="N", help="number of runs (default 1000)")
-    p.add_argument("--fit-model", choices=("unsteady", "steady", "derivatives", "dimensional"),
-                   help="model fitted (default: the truth model)")
+    p.add_argument("--fit-model", choices=O.MODEL_CHOICES, default=None,
+                   help="a different model to fit to the truth model's records (default: the truth model)")
     p.add_argument("--maneuver", default="3211", choices=("3211", "doublet", "multisine"))
     p.add_argument("--duration", type=float, default=10.0, help="record length, s (default 10)")
     p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
-    p.add_argument("--noise", default="0.03", metavar="FRACTION|alpha=..,q=..,az=..",
-                   help="noise: fraction of each output's RMS (default 0.03) or absolute stds")
+    O.add_noise_option(p, default=DEFAULT_NOISE)
     p.add_argument("--seed", type=seed_int, default=0, help="seed (default 0)")
-    p.add_argument("--band", default="0.1:10:0.1", metavar="LO:HI:STEP",
-                   help="frequency band in rad/s (default 0.1:10:0.1)")
-    p.add_argument("--workers", type=positive_int, metavar="N", help="local worker processes (default: all cores)")
+    O.add_band_option(p)
+    O.add_workers_option(p)
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster (needs the 'dask' extra)")
-    p.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
-    p.add_argument("-o", "--output", metavar="DIR",
-                   help="write DIR/montecarlo.json, DIR/montecarlo.txt and DIR/montecarlo.png")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
+    O.add_progress_option(p, default_on=True)
+    O.add_output_option(p, kind="folder", metavar="DIR",
+                        help="DIR/montecarlo.json, DIR/montecarlo.txt and DIR/montecarlo.png")
+    O.add_json_option(p)
     p.set_defaults(func=run)
 
 
@@ -47,20 +45,21 @@ def run(args) -> int:
 
     truth = model_spec_from_args(args, values=assignments(args.set))
     fit_model = None
-    if args.fit_model and args.fit_model != args.model:
+    if args.fit_model and args.fit_model != truth.kind:
         fit_model = ModelSpec(kind=args.fit_model, aircraft=args.aircraft, options=truth.options,
                               effects=truth.effects)
-    noise, relative = _noise(args.noise)
-    check_band_option(args.band)  # up front: a bad band would fail all N runs one by one
+    noise, relative = _noise(args.noise or DEFAULT_NOISE)
+    band = args.band
+    check_band_option(band)  # up front: a bad band would fail all N runs one by one
     if args.output:  # before any work: the folder and its three files
         from ..outputs import check_output, check_output_dir
 
         check_output_dir(args.output, [args.aircraft])
         for name in ("montecarlo.json", "montecarlo.txt", "montecarlo.png"):
             check_output(Path(args.output) / name, [args.aircraft])
-    progress = True if (args.progress and not args.json and importlib.util.find_spec("tqdm")) else None
+    progress = True if (O.progress_wanted(args, default_on=True) and importlib.util.find_spec("tqdm")) else None
     res = monte_carlo(truth, n=args.n, maneuver=args.maneuver, duration=args.duration, dt=args.dt, noise=noise,
-                      seed=args.seed, fit_model=fit_model, fit_kwargs={"band": args.band},
+                      seed=args.seed, fit_model=fit_model, fit_kwargs={} if band is None else {"band": band},
                       engine=args.scheduler or "process", workers=args.workers, progress=progress)
     files = {}
     if args.output:

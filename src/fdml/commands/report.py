@@ -6,16 +6,19 @@ from __future__ import annotations
 def register(sub) -> None:
     p = sub.add_parser("report", help="write the figures and a Markdown report of a saved fit into a folder")
     p.add_argument("result", metavar="RESULT.json", help="result file written by fdml fit -o")
-    p.add_argument("-o", "--out", metavar="DIR", help="output folder (default RESULT-report beside the file)")
+    from . import _options as O
+
+    O.add_output_option(p, kind="folder", metavar="DIR", old=("--out",),
+                        help="figures and report.md (default RESULT-report beside the file)")
     p.add_argument("--hz", action="store_true", help="frequency axes in Hz (default rad/s)")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
+    O.add_json_option(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from ..report import write_report  # draws on Figure objects: no display, no pyplot
 
-    files = write_report(args.result, args.out, freq_unit="Hz" if args.hz else "rad/s")
+    files = write_report(args.result, args.output, freq_unit="Hz" if args.hz else "rad/s")
     if args.json:
         from ..cli import print_json
 

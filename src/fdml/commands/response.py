@@ -2,15 +2,19 @@
 
 from __future__ import annotations
 
-from ._common import add_model_arguments, assignments, make_model_from_args
+from . import _options as O
+from ._common import assignments, make_model_from_args
 
 
 def register(sub) -> None:
-    p = sub.add_parser("response", help="frequency response G(jw) of a model")
-    add_model_arguments(p)
-    p.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE", help="parameter values")
-    p.add_argument("--omega", default="0.1:10:0.1", metavar="LO:HI:STEP", help="frequencies, rad/s")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p = sub.add_parser("response", help="frequency response G(jw) of a model",
+                       description="Frequency response of a model.  "
+                                   "Model rule, when --model is not given: " + O.MODEL_RULE_NO_RECORD + ".")
+    O.add_model_options(p, reads_records=False)
+    O.add_set_option(p)
+    O.add_band_option(p, old=("--omega",),
+                      help=f"frequencies, rad/s (default {O.DEFAULT_BAND_TEXT}; LO may be 0)")
+    O.add_json_option(p)
     p.set_defaults(func=run)
 
 
@@ -21,7 +25,7 @@ def run(args) -> int:
     from ..spectra import parse_band
 
     model = make_model_from_args(args, assignments(args.set))
-    omega = omega_band(*parse_band(args.omega, what="--omega", positive=False))
+    omega = omega_band(*parse_band(args.band, what="--band/--omega", positive=False))
     G = model.frequency_response(omega)
     if args.json:
         from ..cli import print_json

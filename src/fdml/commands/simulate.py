@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from ._common import add_model_arguments, assignments, make_model_from_args, seed_int
+from . import _options as O
+from ._common import assignments, make_model_from_args, seed_int
 
 
 def _noise(text: str | None):
@@ -20,40 +21,32 @@ def _noise(text: str | None):
 
 
 def register(sub) -> None:
-    p = sub.add_parser("simulate", help="simulate a manoeuvre with a model and write a CSV record")
-    add_model_arguments(p, gust_flag=False)
-    p.add_argument("--gust", nargs="?", type=float, const=1.0, default=None, metavar="STD",
-                   help="fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, "
-                        "recording alpha_w")
-    p.add_argument("--set", nargs="*", default=[], metavar="NAME=VALUE", help="parameter values")
+    p = sub.add_parser("simulate", help="simulate a manoeuvre with a model and write a CSV record",
+                       description="Simulate a manoeuvre.  "
+                                   "Model rule, when --model is not given: " + O.MODEL_RULE_NO_RECORD + ".")
+    O.add_model_options(p, gust="std", reads_records=False)
+    O.add_set_option(p)
     p.add_argument("--maneuver", default="3211", choices=("3211", "doublet", "multisine"))
     p.add_argument("--amplitude", type=float, help="elevator amplitude, rad")
     p.add_argument("--duration", type=float, default=10.0, help="record length, s (default 10)")
     p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
-    p.add_argument("--noise", metavar="FRACTION|alpha=..,q=..,az=..",
-                   help="measurement noise: fraction of each output's RMS, or absolute stds")
+    O.add_noise_option(p)
     p.add_argument("--seed", type=seed_int, help="random seed (an integer >= 0)")
-    p.add_argument("-o", "--output", required=True, metavar="RECORD.csv")
-    p.add_argument("--json", action="store_true", help="machine-readable output")
+    O.add_output_option(p, kind="file", metavar="RECORD.csv", required=True, help="the simulated record (CSV)")
+    O.add_json_option(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    import numpy as np
-
     from ..outputs import check_output
-    from ..record import add_noise
     from ..simulate import simulate_maneuver
 
     check_output(args.output, [args.aircraft], what="record file")  # before any work
     model = make_model_from_args(args, assignments(args.set))
     kw = {} if args.amplitude is None else {"amplitude": args.amplitude}
+    noise, _relative = _noise(args.noise)  # a number is a fraction of RMS in simulate_maneuver too
     rec = simulate_maneuver(model, args.maneuver, duration=args.duration, dt=args.dt,
-                            gust_std=args.gust or 0.0, seed=args.seed, **kw)
-    noise, relative = _noise(args.noise)
-    if noise is not None:
-        seed = None if args.seed is None else args.seed + 1
-        rec = add_noise(rec, noise, np.random.default_rng(seed), relative=relative)
+                            gust_std=args.gust or 0.0, seed=args.seed, noise=noise, **kw)
     rec.to_csv(args.output)
     if args.json:
         from ..cli import print_json

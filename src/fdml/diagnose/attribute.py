@@ -42,12 +42,12 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import special, stats
 
 from ..models.effects import Effect
+from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, screen
+from ..score import grid_variation as _grid_variation
+from ..score import null_kind as _null_kind
 from .likelihood import DiagFit, fit_model, likelihood_ratio
-from .locate import holm
-from .screen import ScreenContext, ScreenResult, screen
 
 __all__ = ["Candidate", "attribute_step", "p_value", "davies_bound", "choose"]
 
@@ -88,54 +88,6 @@ class Candidate:
 
     def significant(self, alpha: float) -> bool:
         return self.p_holm is not None and self.p_holm < alpha
-
-
-def davies_bound(u: float, q: int, V: float) -> float:
-    """Davies (1987): P(sup of a chi2(q) process > u) <= P(chi2_q > u) + V u^((q-1)/2) e^(-u/2) 2^(-q/2)/Gamma(q/2)."""
-    if u <= 0:
-        return 1.0
-    log_term = (math.log(max(V, 1e-300)) + 0.5 * (q - 1) * math.log(u) - 0.5 * u - 0.5 * q * math.log(2.0)
-                - special.gammaln(0.5 * q))
-    return float(stats.chi2.sf(u, q) + math.exp(log_term))
-
-
-def p_value(lr: float, q: int, null: str, *, V: float = 0.0, n_grid: int = 1) -> tuple[float, float]:
-    """(p, log p) of a likelihood-ratio statistic under the named null distribution."""
-    lr = max(float(lr), 0.0)
-    if null == "chibar":
-        if lr <= 0:
-            return 1.0, 0.0
-        lp = math.log(0.5) + float(stats.chi2.logsf(lr, 1))
-        return math.exp(lp), lp
-    if null == "davies":
-        lp_chi = float(stats.chi2.logsf(lr, q))
-        bonf = math.log(max(n_grid, 1)) + lp_chi
-        dv = davies_bound(lr, q, V)
-        lp = min(bonf, math.log(dv) if dv > 0 else lp_chi + math.log(max(V, 1.0) + 1.0))
-        lp = min(lp, 0.0)
-        return math.exp(lp), lp
-    lp = float(stats.chi2.logsf(lr, q))
-    return math.exp(lp), lp
-
-
-def _null_kind(effect: Effect, model, screen_res: ScreenResult | None) -> tuple[str, int]:
-    plist = [p for p in effect.param_list(model) if not p.nuisance]
-    q = len(plist)
-    if effect.nuisance_grid:
-        return "davies", q
-    if q == 1:
-        p = plist[0]
-        null = effect.nulls(model)[p.name]
-        aug_par = None
-        try:
-            aug_par = effect.augment(model).parameters[p.name]
-        except Exception:  # pragma: no cover - augment validated before
-            pass
-        lo = aug_par.lower if aug_par is not None else p.lower
-        hi = aug_par.upper if aug_par is not None else p.upper
-        if null <= lo or null >= hi:
-            return "chibar", 1
-    return "chi2", q
 
 
 def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options, *, refine: bool = True):
@@ -258,14 +210,6 @@ def attribute_step(data, cur: DiagFit, effects, bands, rows, options: dict, *, a
     logn = math.log(max(n_obs, 2))
     tested.sort(key=lambda c: (c.q_eff * logn - c.lr))
     return tested, skipped
-
-
-def _grid_variation(scr: ScreenResult | None) -> tuple[float, int]:
-    if scr is None or not scr.grid:
-        return 0.0, 1
-    (_, (grid, prof)), = scr.grid.items()
-    r = np.sqrt(np.maximum(prof, 0.0))
-    return float(np.sum(np.abs(np.diff(r)))), int(grid.size)
 
 
 def _outputs(options):

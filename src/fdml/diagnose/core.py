@@ -218,6 +218,8 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
     boundary = fopts.get("boundary", boundary)
     if not (0 < alpha < 1):
         raise ParameterError(f"alpha must lie in (0, 1), got {alpha}")
+    if isinstance(max_effects, bool) or not isinstance(max_effects, (int, np.integer)) or max_effects < 0:
+        raise ParameterError(f"max_effects must be an integer >= 0, got {max_effects!r}")
     su = _setup(records, model, band=band, bands=bands, library=library, alpha=alpha, max_effects=max_effects,
                 oversample=oversample, noise=noise, refit_top=refit_top, outputs=outputs, boundary=boundary,
                 biases=biases, trim=trim, shrink_threshold=shrink_threshold)

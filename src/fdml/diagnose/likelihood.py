@@ -32,6 +32,7 @@ from ..errors import FdmlError
 from ..estimate import NoiseModel, _cov_R, _logdet, prepare
 from ..estimate import fit as fdml_fit
 from ..models.base import Model
+from ..score import whitener  # noqa: F401  (re-exported: the diagnosis's name for it)
 from .data import AnalysisData
 
 __all__ = ["DiagFit", "NoiseBands", "band_cost", "fit_model", "likelihood_ratio", "noise_bands", "whitener"]
@@ -64,17 +65,6 @@ def band_cost(V: np.ndarray, rows: np.ndarray, nb: int):
     Rs = list(_cov_R(V, rows))
     Rs += [np.eye(V.shape[1])] * (nb - len(Rs))  # trailing bands without rows
     return float(V.shape[0] * _logdet(np.stack(Rs), rows)), Rs
-
-
-def whitener(Rs) -> list[np.ndarray]:
-    """Per band, ``L`` with ``v^H R^-1 v = ||L v||^2`` (L = C^H, C C^H = R^-1)."""
-    out = []
-    for R in Rs:
-        W = np.linalg.inv(R)
-        W = 0.5 * (W + W.conj().T)
-        C = np.linalg.cholesky(W)
-        out.append(C.conj().T)
-    return out
 
 
 @dataclass

@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from ..score import bh, holm  # the family-wise corrections live with the score tests
 from .data import AnalysisData
 
 __all__ = ["Cell", "GapMap", "default_bands", "gap_map", "cell_design", "holm", "bh"]
@@ -52,37 +53,6 @@ MAX_GAIN_SE_DB = 3.0
 COHERENT_ORDER = 2
 #: Transient terms per record and band (a constant).
 TRANSIENT_ORDER = 1
-
-
-def holm(p: np.ndarray) -> np.ndarray:
-    """Holm's step-down adjusted p-values (NaN stays NaN)."""
-    p = np.asarray(p, float)
-    out = np.full_like(p, np.nan)
-    ok = np.flatnonzero(np.isfinite(p))
-    if ok.size == 0:
-        return out
-    order = ok[np.argsort(p[ok])]
-    m = order.size
-    run = 0.0
-    for i, k in enumerate(order):
-        run = max(run, min(1.0, (m - i) * p[k]))
-        out[k] = run
-    return out
-
-
-def bh(p: np.ndarray) -> np.ndarray:
-    """Benjamini-Hochberg q-values (NaN stays NaN)."""
-    p = np.asarray(p, float)
-    out = np.full_like(p, np.nan)
-    ok = np.flatnonzero(np.isfinite(p))
-    if ok.size == 0:
-        return out
-    order = ok[np.argsort(p[ok])]
-    m = order.size
-    q = np.minimum(1.0, p[order] * m / np.arange(1, m + 1))
-    q = np.minimum.accumulate(q[::-1])[::-1]
-    out[order] = q
-    return out
 
 
 def default_bands(data: AnalysisData, n_target: int = 5, min_bins: int | None = None) -> np.ndarray:

@@ -10,6 +10,9 @@ lift_lag, downwash_lag,    the Wells-Keskar unsteady model with that one lag swi
 gust_lag@alpha_w,          (y_w, G, b1) or the elevator delay tau_de: fdml's simulator
 time_delay@de              (finite-state, exact first-order hold)
 time_delay@alpha|q|az      the sensor's signal delayed, y(t - tau) (cubic interpolation)
+downwash_lag@tail          the textbook downwash lag on the steady model: eps(t) = eps_ss
+                           alpha(t - tau_dw), a delay-differential equation marched here
+                           (first-order hold, dt/8 steps); the library's candidate is a lag
 actuator_lag@de            the recorded elevator filtered by 1/(1 + T s) (lsim, first-order
                            hold) drives the simulation; the record keeps the unfiltered one
 sensor_offset@az           a_z - x q_dot/g, q_dot from the model's state equations
@@ -56,7 +59,7 @@ WARMUP = 40.0
 
 
 #: Output-level effects with a time-domain form here (the others are model parameters).
-_TIME_DOMAIN = ("time_delay@alpha", "time_delay@q", "time_delay@az", "actuator_lag@de", "sensor_offset@az",
+_TIME_DOMAIN = ("downwash_lag@tail", "time_delay@alpha", "time_delay@q", "time_delay@az", "actuator_lag@de", "sensor_offset@az",
                 "sensor_offset@alpha", "structural_mode@q,az", "sensor_scale@alpha", "sensor_scale@q",
                 "sensor_scale@az")
 
@@ -84,6 +87,53 @@ def _delay(t, y, tau):
     out = f(np.clip(ts, t[0], t[-1]))
     out[ts < t[0]] = y[0]
     return out
+
+
+def _downwash_delay(model, t, inputs, tau: float, sub: int = 8) -> dict:
+    """alpha, q, a_z of the steady model whose downwash reaches the tail ``tau`` s late.
+
+    eps(t) = eps_ss alpha(t - tau) instead of eps_ss alpha (THEORY.md Eq. 9 with a transport delay,
+    the textbook origin of Cm_adot).  With d = alpha(t - tau) - alpha(t), the tail lift changes by
+    -a_t eps_ss d, so (Eqs. 3-7) alpha' += k_z (St/Sw) a_t eps_ss d, q' += k_m (l St/(c Sw)) a_t
+    eps_ss d and a_z += (U/g) k_z (St/Sw) a_t eps_ss d.  Marched on h = dt/sub with an exact
+    first-order-hold step for [input, alpha(t - tau)] (the delayed alpha linearly interpolated in
+    the stored history; zero before t = 0): second order in h.
+    """
+    if model.kind != "steady" or model.gust:
+        raise ParameterError("the downwash transport-delay truth is defined on the steady model without gust")
+    real = realize(model)
+    ac, p = model.aircraft, model.parameters.values
+    sr = ac.S_t / ac.S_w
+    dt = float(t[1] - t[0])
+    h = dt / sub
+    while h > tau > 0:
+        sub *= 2
+        h = dt / sub
+    b = p["CLa_t"] * p["deps_da"] * np.array([ac.k_z * sr, ac.k_m * p["l_t"] * sr / ac.c_w])
+    caz = (ac.U / G0) * ac.k_z * sr * p["CLa_t"] * p["deps_da"]
+    A = real.A.copy()
+    A[:, 0] -= b  # the -alpha(t) half of d
+    Bw = np.column_stack([real.B, b])  # inputs w = [u channels, alpha(t - tau)]
+    n, m = A.shape[0], Bw.shape[1]
+    from scipy.linalg import expm
+    big = np.zeros((n + 2 * m, n + 2 * m))
+    big[:n, :n], big[:n, n:n + m], big[n:n + m, n + m:] = A * h, Bw * h, np.eye(m)
+    E = expm(big)
+    Phi, G1, G2 = E[:n, :n], E[:n, n:n + m], E[:n, n + m:]
+    tf = t[0] + h * np.arange((t.size - 1) * sub + 1)
+    u = np.column_stack([np.interp(tf - d, t, inputs[nm], left=0.0) for nm, d in real.channels])
+    x = np.zeros((tf.size, n))
+    ad = np.zeros(tf.size)  # alpha(t - tau) on the fine grid
+    k_tau = tau / h
+    for k in range(tf.size - 1):
+        j = (k + 1) - k_tau  # alpha at t_{k+1} - tau, from the history (j <= k since tau >= h)
+        i0 = int(np.floor(j))
+        ad[k + 1] = 0.0 if j < 0 else x[i0, 0] + (j - i0) * (x[min(i0 + 1, k), 0] - x[i0, 0])
+        w0, w1 = np.append(u[k], ad[k]), np.append(u[k + 1], ad[k + 1])
+        x[k + 1] = Phi @ x[k] + G1 @ w0 + G2 @ (w1 - w0)
+    ys = real.C @ x.T + real.D @ u.T
+    ys[2] += caz * (ad - x[:, 0])
+    return {ch: ys[i, ::sub].copy() for i, ch in enumerate(("alpha", "q", "az"))}
 
 
 def _qdot(model, values, t, inputs) -> np.ndarray:
@@ -186,6 +236,8 @@ def simulate_truth(base, key: str | None, values: dict | None = None, *, maneuve
     if key is not None and key.startswith("time_delay@") and key != "time_delay@de":
         ch = key.split("@")[1]
         y[ch] = _delay(t, y[ch], values[f"tau_{ch}"])
+    elif key == "downwash_lag@tail":
+        y = _downwash_delay(model, t, sim_inputs, values["tau_dw"])
     elif key == "sensor_offset@az":
         y["az"] = y["az"] - values["x_az"] * _qdot(model, mvals or None, t, sim_inputs) / G0
     elif key == "sensor_offset@alpha":

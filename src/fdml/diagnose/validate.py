@@ -52,6 +52,9 @@ HOLDOUT_OF = {"3211": "doublet", "doublet": "3211", "multisine": "multisine"}
 TRUTHS = {
     "lift_lag@alpha": ({"y_w": 0.2}, {"y_w": 0.4}),
     "downwash_lag@q": ({"G": 0.15}, {"G": 0.5}),
+    # the textbook form: the downwash reaches the tail l_t/U late (0.086 s on the Navion), simulated as a
+    # transport delay (truth.py); "small" is half of it
+    "downwash_lag@tail": ({"tau_dw": 0.043}, {"tau_dw": 0.086}),
     "gust_lag@alpha_w": ({"b1": 3.0}, {"b1": 7.5}),
     "time_delay@de": ({"tau_de": 0.015}, {"tau_de": 0.04}),
     "time_delay@q": ({"tau_q": 0.015}, {"tau_q": 0.04}),

@@ -15,7 +15,7 @@ reported in ``meta["trim_values"]`` either way.
 :func:`read_fdml_csv`     fdml's own CSV (``t,de,alpha,q,az[,...]``) with a window
 :func:`load_record`       any of the above by format name or by inspection
 :func:`load_records`      several records, checked to share one sample rate
-:func:`data_dir`          the shared data folder (``$FDML_DATA`` or ``../shared/data``)
+:func:`data_dir`          the shared data folder (``$FDML_DATA``; fdml never searches for one)
 :func:`data_path`         a file in it, or an error naming the file and where it looked
 ========================  ==========================================================
 """
@@ -79,14 +79,9 @@ def detect_format(path, **kw) -> tuple[str, dict]:
     p = check_path(path)
     suffix = p.suffix.lower()
     if suffix == ".mat":
-        try:
-            from scipy.io import whosmat
+        from ._common import read_mat
 
-            info = whosmat(str(p))
-        except Exception as exc:
-            from ._common import wrap_read_error
-
-            raise wrap_read_error(p, "a MATLAB .mat file", exc) from None
+        info = read_mat(p, names_only=True)
         names = {n: shape for n, shape, _cls in info}
         if "fdata" in names:
             return "sidpac", {}

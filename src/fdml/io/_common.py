@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import faulthandler
 import math
+import os
+import pickle
 from dataclasses import replace
 from pathlib import Path
 
@@ -90,8 +93,69 @@ def finish(path: Path, t, signals: dict, meta: dict, *, name: str | None, t0, t1
     meta2 = {**rec.meta, **extra, "trim_values": tv, "trim_values_window": trim_window}
     rec = replace(rec, meta=meta2)
     if trim not in (None, "none"):
-        rec = rec.remove_trim(trim, window=trim_window)
+        try:
+            rec = rec.remove_trim(trim, window=trim_window)
+        except RecordError as exc:  # e.g. a record shorter than the trim window
+            raise RecordError(f"{where}: {exc}") from None
     return rec
+
+
+def read_mat(path: Path, *, names_only: bool = False):
+    """``scipy.io.loadmat`` (or ``whosmat`` with ``names_only``), isolated in a forked child.
+
+    scipy's MAT reader is partly C: some damaged files crash the interpreter
+    instead of raising (scipy 1.17: a corrupted data-element tag gives a
+    segmentation fault, found by tests/test_properties.py).  On POSIX the file
+    is parsed in a child process and its variables are passed back pickled,
+    so a crash becomes a :class:`RecordError` naming the file.  Where there
+    is no ``fork`` the file is read directly.
+
+    Raises
+    ------
+    RecordError
+        The file is not a readable MAT file, or parsing it crashed the reader.
+    """
+    from scipy.io import loadmat, whosmat
+
+    def parse():
+        try:
+            return "ok", (whosmat(str(path)) if names_only else loadmat(str(path)))
+        except Exception as exc:  # scipy raises many types on corrupt input
+            return "error", wrap_read_error(path, "a MATLAB .mat file", exc)
+
+    if not hasattr(os, "fork"):
+        kind, value = parse()
+    else:
+        kind, value = _in_child(parse, path)
+    if kind == "error":
+        raise value
+    return value
+
+
+def _in_child(func, path: Path):
+    """``func()`` run in a forked child; its (picklable) value, or a RecordError if the child died."""
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # child: never returns into the caller's code
+        code = 1
+        try:
+            faulthandler.disable()  # a crash here is expected and reported by the parent, without a dump
+            os.close(r)
+            with os.fdopen(w, "wb") as fh:
+                pickle.dump(func(), fh, protocol=pickle.HIGHEST_PROTOCOL)
+            code = 0
+        finally:
+            os._exit(code)
+    os.close(w)
+    with os.fdopen(r, "rb") as fh:
+        data = fh.read()
+    _, status = os.waitpid(pid, 0)
+    if not data or os.waitstatus_to_exitcode(status) != 0:
+        code = os.waitstatus_to_exitcode(status)
+        how = f"signal {-code}" if code < 0 else f"exit code {code}"
+        return "error", RecordError(f"{path}: cannot read it as a MATLAB .mat file (corrupt or truncated file?): "
+                                    f"the MAT reader crashed ({how})")
+    return pickle.loads(data)
 
 
 def wrap_read_error(path: Path, what: str, exc: BaseException) -> RecordError:

@@ -1,4 +1,4 @@
-"""Command-line options for reading records (shared by ``fdml fit`` and ``fdml check``).
+"""Command-line options for reading records (``fdml fit``, ``check``, ``diagnose``, ``batch``).
 
 Kept free of heavy imports: ``fdml --help`` builds every parser.
 """
@@ -15,7 +15,7 @@ _FORMATS = ("auto", "sidpac", "dlr-asc", "dlr-mat", "csv", "csv-map")
 def add_record_arguments(p: argparse.ArgumentParser) -> None:
     """--format, --t0, --t1, --columns, --units, --sign, --layout."""
     g = p.add_argument_group("reading records")
-    g.add_argument("--format", default="auto", choices=_FORMATS,
+    g.add_argument("--format", default=None, choices=_FORMATS,
                    help="record format (default auto: by extension and content)")
     g.add_argument("--t0", type=float, metavar="S", help="window start, s")
     g.add_argument("--t1", type=float, metavar="S", help="window end, s")
@@ -60,7 +60,7 @@ def record_options(args) -> dict:
     """Keyword arguments for :func:`fdml.io.load_record` from parsed arguments."""
     from ..errors import RecordError
 
-    opts: dict = {"format": getattr(args, "format", "auto"), "t0": getattr(args, "t0", None),
+    opts: dict = {"format": getattr(args, "format", None) or "auto", "t0": getattr(args, "t0", None),
                   "t1": getattr(args, "t1", None)}
     columns = parse_mapping(getattr(args, "columns", None), "columns")
     units = parse_mapping(getattr(args, "units", None), "units")

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import RecordError
-from ._common import check_path, check_trim, finish, wrap_read_error
+from ._common import check_path, check_trim, finish, read_mat, wrap_read_error
 from .units import QUANTITY, to_si, unit_factor
 
 __all__ = ["read_dlr_asc", "read_dlr_mat", "LAYOUTS"]
@@ -159,12 +159,7 @@ def read_dlr_mat(path, layout: str = "attas", t0: float | None = None, t1: float
     p = check_path(path)
     check_trim(trim)
     lay = _layout(layout)
-    try:
-        from scipy.io import loadmat
-
-        mat = loadmat(str(p))
-    except Exception as exc:
-        raise wrap_read_error(p, "a MATLAB .mat file", exc) from None
+    mat = read_mat(p)
     names = [k for k in mat if not k.startswith("__")]
     if variable is None:
         mats = [k for k in names if np.asarray(mat[k]).ndim == 2 and np.asarray(mat[k]).shape[0] > 1

@@ -1,8 +1,11 @@
 """Where the shared flight records live.
 
-The real flight records are not part of fdml (none carries an open licence);
-they sit in ``../shared/data`` beside the checkout, or wherever the
-environment variable ``FDML_DATA`` points.
+The real flight records are not part of fdml (none carries an open licence).
+The environment variable ``FDML_DATA`` names the folder that holds them (for
+example ``FDML_DATA=../shared/data``); otherwise pass a record's path
+explicitly.  fdml never searches the directory tree for a data folder: a
+package that finds data by where it happens to be installed or run from
+reads different files on different machines.
 """
 
 from __future__ import annotations
@@ -18,42 +21,22 @@ __all__ = ["data_dir", "data_path", "DATA_ENV"]
 DATA_ENV = "FDML_DATA"
 
 
-def _candidates() -> list[Path]:
-    out = []
-    for start in (Path.cwd(), Path(__file__).resolve().parent):
-        for d in (start, *start.parents):
-            c = d / "shared" / "data"
-            if c not in out:
-                out.append(c)
-    return out
-
-
 def data_dir() -> Path:
-    """The shared data folder.
-
-    ``$FDML_DATA`` when set (it must be a directory); otherwise the first
-    ``shared/data`` found walking up from the current directory, then from
-    the installed package.
+    """The shared data folder: ``$FDML_DATA``, which must be a directory.
 
     Raises
     ------
     RecordError
-        Saying where it looked.
+        ``FDML_DATA`` is unset, or not a directory; the message names it.
     """
     env = os.environ.get(DATA_ENV)
-    if env:
-        p = Path(env).expanduser()
-        if not p.is_dir():
-            raise RecordError(f"{DATA_ENV}={env} is not a directory")
-        return p
-    cands = _candidates()
-    for c in cands:
-        if c.is_dir():
-            return c
-    raise RecordError(
-        f"no shared data folder: {DATA_ENV} is not set and no shared/data exists above {Path.cwd()} "
-        f"or above the fdml package ({Path(__file__).resolve().parent}); set {DATA_ENV}=/path/to/shared/data"
-    )
+    if not env:
+        raise RecordError(f"{DATA_ENV} is not set: set {DATA_ENV}=/path/to/shared/data (the folder of the "
+                          "flight records), or pass a record's path explicitly")
+    p = Path(env).expanduser()
+    if not p.is_dir():
+        raise RecordError(f"{DATA_ENV}={env} is not a directory")
+    return p
 
 
 def data_path(relative: str) -> Path:
@@ -75,6 +58,5 @@ def data_path(relative: str) -> Path:
         raise RecordError(f"flight record {relative} not found: {exc}") from None
     p = root / relative
     if not p.is_file():
-        how = f"{DATA_ENV}={os.environ[DATA_ENV]}" if os.environ.get(DATA_ENV) else "found by walking up"
-        raise RecordError(f"flight record {relative} not found: looked for {p} (data folder {root}, {how})")
+        raise RecordError(f"flight record {relative} not found: looked for {p} ({DATA_ENV}={os.environ[DATA_ENV]})")
     return p

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import RecordError
-from ._common import check_path, check_trim, finish, wrap_read_error
+from ._common import check_path, check_trim, finish, read_mat
 from .units import to_si, unit_factor
 
 __all__ = ["read_sidpac", "SIDPAC_COLUMNS"]
@@ -97,12 +97,7 @@ def read_sidpac(path, t0: float | None = None, t1: float | None = None, *, trim:
     """
     p = check_path(path)
     check_trim(trim)
-    try:
-        from scipy.io import loadmat
-
-        mat = loadmat(str(p))
-    except Exception as exc:  # scipy raises many types on corrupt input
-        raise wrap_read_error(p, "a MATLAB .mat file", exc) from None
+    mat = read_mat(p)
     key = "fdatao" if original else "fdata"
     if key not in mat:
         names = sorted(k for k in mat if not k.startswith("__"))

@@ -8,6 +8,9 @@ lift_lag               alpha      Wells-Keskar wing lift lag y_w (Eq. 1/17) [0 o
                                   1 - y s/(s + 2 z U/c) on the derivatives/dimensional models
 downwash_lag           q          Wells-Keskar downwash lag amplitude G (Eq. 2/16), or an
                                   alpha-dot moment (Cm_adot, M_adot) [0]
+downwash_lag           tail       a share g_dw of the downwash reaches the tail tau_dw late
+                                  (nuisance; textbook: g_dw = 1, tau_dw = l_t/U), BS-8 applied
+                                  to the downwash [g_dw = 0]; steady/unsteady models
 gust_lag               alpha_w    Kussner lag of the measured gust: b1 (BS-12) or a lag
                                   T_gust [0]
 gust_lag               tail       delay of the gust at the tail, tau_tail (BS-8) [0]
@@ -31,6 +34,7 @@ parameter carries a plausible range used by the identifiability screen
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -217,6 +221,106 @@ DOWNWASH_LAG = Dispatch("downwash_lag", "q", {
                                                             start=0.05),), _adot_matrix,
                                 realize=_adot_realize),
 }, signature="tail downwash lags alpha: q (and alpha) in the short-period band, like an alpha-dot moment")
+
+
+# --- downwash lag in its textbook form: the downwash reaches the tail l_t/U late ----------------
+#
+# The classical origin of Cm_adot: eps(t) = eps_ss alpha(t - l_t/U).  Form chosen with THEORY.md:
+# * the alpha-dot term is only its first order in s; on the steady model that signature is the one the
+#   derivatives absorb (M_adot alpha_dot = M_adot (q + Z_a alpha + Z_de de): 99.97 % aliased on the
+#   Navion), so what tells a downwash lag from an elevator lag is the second-order part;
+# * a lag 1/(1 + s tau) (Eq. 16's G-term with its rate free) has the same first order but twice the
+#   delay's second-order term, (s tau)^2 against (s tau)^2/2: it gets exactly that part wrong;
+# * so the transport delay itself, as BS-8 delays the gust at the tail: a share g of the quasi-steady
+#   downwash arrives tau later, E -> eps_ss [(1 - g) + g exp(-s tau)] (g = 1, tau = l_t/U textbook).
+#   g is tested (null 0) with tau a nuisance on a grid, like a structural mode's frequency.
+# A delay inside the alpha loop has no finite-state form (a delay-differential equation): the time-domain
+# realisation uses an [8/8] Pade approximant of exp(-s tau) (error below 3e-14 for omega tau <= 2,
+# 2.5e-11 at omega tau = 3).  On the unsteady model the instantaneous part (1 - G) eps_ss alpha is delayed.
+
+#: Order of the Pade approximant of the downwash delay in the time-domain realisation.
+DW_PADE = 8
+
+
+def _dw_share(p) -> float:
+    """g eps_ss (1 - G): the delayed part of the downwash (section 4 finite-state form)."""
+    return p["g_dw"] * p["deps_da"] * (1.0 - p.get("G", 0.0))
+
+
+def _dw_delay_matrix(s, p, M, B, E, root):
+    """eps -> eps - g eps_ss (1 - G)(1 - exp(-s tau)) alpha: C_Lt per alpha gains N_t times that."""
+    ac = root.aircraft
+    _, n_t, _, _ = root._parts(s, p)
+    dCLt = p["CLa_t"] * n_t * _dw_share(p) * (1.0 - np.exp(-s * p["tau_dw"]))  # Eq. 16, C_Lt = N_t (1 - E)
+    sr = ac.S_t / ac.S_w
+    M = M.copy()
+    M[:, 0, 0] = M[:, 0, 0] + ac.k_z * sr * dCLt  # Eq. 13
+    M[:, 1, 0] = M[:, 1, 0] + ac.k_m * (p["l_t"] * sr / ac.c_w) * dCLt  # Eq. 14
+    return M, B, E
+
+
+def pade_delay(tau: float, n: int = DW_PADE):
+    """State space (A, B, C, D) of the [n/n] Pade approximant of exp(-s tau), tau > 0 in s.
+
+    Built in sigma = s tau (coefficients c_k = (2n-k)! n! / ((2n)! k! (n-k)!)) and rescaled, so
+    the realisation stays well conditioned for small tau.
+    """
+    from scipy import signal
+
+    k = np.arange(n + 1)
+    c = np.array([math.factorial(2 * n - j) * math.factorial(n)
+                  / (math.factorial(2 * n) * math.factorial(j) * math.factorial(n - j)) for j in k])
+    A, B, C, D = signal.tf2ss((c * (-1.0) ** k)[::-1], c[::-1])
+    return A / tau, B / tau, C, D
+
+
+def _dw_delay_system(p):
+    """Pade states x_p driven by alpha, alpha_d = C_p x_p + D_p alpha ~ alpha(t - tau), and
+    eps += g eps_ss (1 - G)(alpha_d - alpha).
+
+    The downwash perturbation enters the Wells-Keskar system exactly as the F-term's eps_F does
+    (columns bF, dF, rF of :class:`fdml.simulate._System`), so it is added along them.
+    """
+    def fn(sys):
+        from ..simulate import _pad_states
+
+        tau, k = p["tau_dw"], _dw_share(p)
+        if tau <= 0.0 or k == 0.0:
+            return sys
+        Ap, Bp, Cp, Dp = pade_delay(tau)
+        n, m = sys.A.shape[0], Ap.shape[0]
+        s2 = _pad_states(sys, m)
+        r = np.zeros(n + m)
+        r[0], r[n:] = k * (Dp[0, 0] - 1.0), k * Cp[0]  # d eps = k (alpha_d - alpha); x_0 = alpha
+        A = s2.A + np.outer(s2.bF, r)
+        A[n:, 0], A[n:, n:] = Bp[:, 0], Ap
+        C = s2.C + np.outer(sys.dF, r)
+        return replace(s2, A=A, C=C, rx=s2.rx + sys.rF * r)
+    return fn
+
+
+def _dw_delay_realize(opts, p, root):
+    return {**opts, "system": opts.get("system", ()) + (_dw_delay_system(p),)}
+
+
+def dw_delay_grid(lo: float, hi: float, n: int = 10) -> np.ndarray:
+    """Delays, s, log-spaced from 0.5/hi to 1/lo (``lo``, ``hi`` rad/s: the searched band).
+
+    A delay much shorter than the band's shortest period is an alpha-dot moment (aliased with the
+    derivatives); one longer than 1/lo is outside what the band resolves.
+    """
+    return np.geomspace(0.5 / max(hi, 1e-3), 1.0 / max(lo, 1e-3), n)
+
+
+_DW_PARAMS = (Param("g_dw", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 1.2), unit="-", start=0.05,
+                    description="share of the downwash that arrives late at the tail (1: all of it)"),
+              Param("tau_dw", 0.1, lower=1e-3, upper=1.0, plausible=(0.01, 0.5), unit="s", nuisance=True,
+                    description="downwash delay at the tail, about l_t/U"))
+DOWNWASH_DELAY = Dispatch("downwash_lag", "tail", {
+    kind: MatrixEffect("downwash_lag", "tail", _DW_PARAMS, _dw_delay_matrix, realize=_dw_delay_realize,
+                       nuisance_grid={"tau_dw": dw_delay_grid})
+    for kind in ("steady", "unsteady")
+}, signature="the downwash reaches the tail about l_t/U late: q (and alpha), like an alpha-dot moment")
 
 
 # --- gust lag ---------------------------------------------------------------------------------
@@ -462,7 +566,7 @@ class UnmeasuredGust(Effect):
 
 
 #: The built-in effects, in the order the library lists them.
-BUILTINS = (LIFT_LAG, DOWNWASH_LAG, GUST_LAG, GUST_TAIL, TIME_DELAY_DE, *(_make_output_delay(c) for c in CHANNELS),
+BUILTINS = (LIFT_LAG, DOWNWASH_LAG, DOWNWASH_DELAY, GUST_LAG, GUST_TAIL, TIME_DELAY_DE, *(_make_output_delay(c) for c in CHANNELS),
             ACTUATOR_LAG, SENSOR_OFFSET_AZ, SENSOR_OFFSET_ALPHA, STRUCTURAL_MODE,
             *(_make_scale(c) for c in CHANNELS), UnmeasuredGust())
 

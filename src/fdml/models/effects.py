@@ -676,6 +676,8 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
         return []
     rows = [CHANNELS.index(o) for o in outputs]
     free = [n for n in model.parameters.free_names if not n.startswith("bias_")]
+    if not free:  # every parameter fixed (a prediction): nothing to confound
+        return []
     _, dG, _, _ = model.sensitivity(omega, None, free, parts=("G",))
     J = dG[:, :, rows, :].reshape(len(free), -1)
     J = np.concatenate([J.real, J.imag], axis=1).T  # (data, parameters)

@@ -1,0 +1,263 @@
+"""One option spec for every command: shared argument groups.
+
+Every command takes its shared options from here, so an option has one
+spelling, one meaning and one help text everywhere (``tests/test_cli_options.py``
+checks that over every parser).  Rules:
+
+* defaults are ``None``: the library's default applies (or, where a command
+  needs one, the command resolves it and its ``--help`` says which);
+* an option that can be given several times accumulates (``action="extend"``
+  or ``"append"``): ``--fix A=1 --fix B=2`` fixes both;
+* old spellings stay as hidden aliases (``help=argparse.SUPPRESS``) that
+  write to the same ``dest``: ``--out`` (batch, demo, report), ``--base``
+  (diagnose), ``--omega`` (response), ``--processes`` (diagnose), ``--noise``
+  (diagnose: the noise model).
+
+``--noise`` means measurement noise added to simulated records everywhere it
+is shown (demo, simulate, montecarlo): a fraction of each output's RMS, or
+absolute standard deviations ``alpha=..,q=..,az=..``.  The likelihood's noise
+model of ``fdml diagnose`` is ``--noise-model``.
+
+The model rule, stated in ``--help`` of every command with ``--model``: without
+``--model``, the model is ``unsteady`` when ``--aircraft`` is given, else
+``dimensional`` with the airspeed from ``--airspeed`` or, for commands that
+read records, the record's mean airspeed.
+
+Kept free of heavy imports: ``fdml --help`` builds every parser.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+__all__ = [
+    "DEFAULT_BAND_TEXT",
+    "MODEL_CHOICES",
+    "MODEL_RULE",
+    "accumulating",
+    "add_band_option",
+    "add_fit_options",
+    "add_json_option",
+    "add_model_options",
+    "add_noise_option",
+    "add_output_option",
+    "add_progress_option",
+    "add_record_options",
+    "add_set_option",
+    "add_strict_option",
+    "add_workers_option",
+    "default_model",
+    "fit_kwargs",
+    "hidden_alias",
+    "progress_wanted",
+]
+
+
+def _model_choices() -> tuple[str, ...]:
+    from ..models import MODEL_KINDS
+
+    return tuple(MODEL_KINDS)
+
+
+def _band_default() -> str:
+    from ..spectra import DEFAULT_BAND
+
+    return ":".join(f"{x:g}" for x in DEFAULT_BAND)
+
+
+#: Model names, from :data:`fdml.models.MODEL_KINDS` (the one list).
+MODEL_CHOICES = _model_choices()
+#: The default band ``LO:HI:STEP`` (rad/s), from :data:`fdml.spectra.DEFAULT_BAND`.
+DEFAULT_BAND_TEXT = _band_default()
+#: The one rule for the model when --model is not given (quoted in --help).
+MODEL_RULE = "unsteady with --aircraft, else dimensional with --airspeed or the record's mean airspeed"
+#: The same rule for commands that read no record (simulate, response, montecarlo, batch).
+MODEL_RULE_NO_RECORD = "unsteady with --aircraft, else dimensional with --airspeed"
+
+
+def hidden_alias(p, flag: str, dest: str, **kw) -> None:
+    """An old spelling of an option: parses to ``dest``, not shown in --help."""
+    p.add_argument(flag, dest=dest, default=argparse.SUPPRESS, help=argparse.SUPPRESS, **kw)
+
+
+def accumulating(p, *flags, **kw) -> None:
+    """A repeatable list option: every occurrence adds its values (``action="extend"``, ``nargs="+"``)."""
+    p.add_argument(*flags, action="extend", nargs="+", default=None, **kw)
+
+
+# --- the model ---------------------------------------------------------------------------------
+def add_model_options(p, *, gust: str = "flag", reads_records: bool = True, what: str = "model",
+                      old: tuple = ()) -> None:
+    """--aircraft, --model, --gust, --airspeed, --effect.
+
+    ``gust``: ``"flag"`` (the model gets the gust input alpha_w), ``"std"``
+    (simulate: fly in turbulence, ``--gust [STD]``) or ``""`` (no option).
+    ``old``: hidden aliases of --model (diagnose: ``--base``).
+    """
+    from ._common import add_effect_argument
+
+    g = p.add_argument_group("model")
+    g.add_argument("--aircraft", metavar="NAME|FILE.json",
+                   help="preset (navion, sundowner, do128) or an aircraft JSON file")
+    rule = MODEL_RULE if reads_records else MODEL_RULE_NO_RECORD
+    g.add_argument("--model", choices=MODEL_CHOICES, default=None, help=f"{what} (default: {rule})")
+    for flag in old:
+        hidden_alias(g, flag, "model", choices=MODEL_CHOICES)
+    if gust == "flag":
+        g.add_argument("--gust", action="store_true", default=None,
+                       help="add the vertical gust input alpha_w (the records carry it)")
+    elif gust == "std":
+        g.add_argument("--gust", nargs="?", type=float, const=1.0, default=None, metavar="STD",
+                       help="fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, "
+                            "recording alpha_w")
+    g.add_argument("--airspeed", type=float, metavar="U",
+                   help="airspeed, m/s, of the dimensional model without --aircraft"
+                        + (" (default: the record's mean airspeed, when the file carries it)" if reads_records
+                           else ""))
+    add_effect_argument(g)
+
+
+def default_model(args) -> str:
+    """The model kind by the one rule: --model, else unsteady with --aircraft, else dimensional."""
+    if getattr(args, "model", None):
+        return args.model
+    return "unsteady" if getattr(args, "aircraft", None) is not None else "dimensional"
+
+
+def add_set_option(p, help: str = "parameter values") -> None:
+    """--set NAME=VALUE ..., repeatable."""
+    accumulating(p, "--set", metavar="NAME=VALUE", help=f"{help} (repeatable)")
+
+
+# --- the band ----------------------------------------------------------------------------------
+def add_band_option(p, *, step: bool = True, old: tuple = (), help: str | None = None) -> None:
+    """--band LO:HI:STEP (rad/s; ``step=False``: LO:HI, diagnose); ``old``: hidden aliases (response: ``--omega``).
+
+    The step is required where the band is the fit's frequency grid (an
+    ``LO:HI`` there is refused, naming the form): only the diagnosis, which
+    uses each record's own spacing, takes ``LO:HI`` and ignores a step.
+    """
+    if help is None:
+        help = f"frequency band, rad/s (default {DEFAULT_BAND_TEXT})"
+    p.add_argument("--band", metavar="LO:HI:STEP" if step else "LO:HI[:STEP]", default=None, help=help)
+    for flag in old:
+        hidden_alias(p, flag, "band")
+
+
+# --- outputs, parallelism, progress, json, strict ---------------------------------------------
+def add_output_option(p, *, kind: str, metavar: str, help: str, old: tuple = (), required: bool = False) -> None:
+    """-o/--output: where the output goes; ``kind`` ``"file"`` or ``"folder"`` is said in --help."""
+    p.add_argument("-o", "--output", metavar=metavar, default=None, required=required,
+                   help=f"output {kind}: {help}")
+    for flag in old:
+        hidden_alias(p, flag, "output", metavar=metavar)
+
+
+def add_workers_option(p, *, old: tuple = ()) -> None:
+    """--workers N (local worker processes); ``old``: hidden aliases (``--processes``)."""
+    from ._common import positive_int
+
+    p.add_argument("--workers", type=positive_int, metavar="N", default=None,
+                   help="local worker processes (default: all cores)")
+    for flag in old:
+        hidden_alias(p, flag, "workers", type=positive_int, metavar="N")
+
+
+def add_progress_option(p, *, default_on: bool) -> None:
+    """--progress/--no-progress; None means the command's default (said in --help)."""
+    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                   help="progress bar on stderr (needs tqdm: pip install 'fdml[progress]'; "
+                        f"default {'on, off with --json' if default_on else 'off'})")
+
+
+def progress_wanted(args, *, default_on: bool) -> bool:
+    """--progress resolved: the flag if given, else the command's default (never with --json when by default)."""
+    flag = getattr(args, "progress", None)
+    if flag is None:
+        return default_on and not getattr(args, "json", False)
+    return bool(flag)
+
+
+def add_json_option(p, help: str = "machine-readable output on stdout") -> None:
+    p.add_argument("--json", action="store_true", default=None, help=help)
+
+
+def add_strict_option(p, help: str) -> None:
+    p.add_argument("--strict", action="store_true", default=None, help=help)
+
+
+def add_noise_option(p, *, default: str | None = None) -> None:
+    """--noise: measurement noise added to simulated records (FRACTION of each output's RMS, or stds)."""
+    tail = f" (default {default})" if default else " (default: none)"
+    p.add_argument("--noise", metavar="FRACTION|alpha=..,q=..,az=..", default=None,
+                   help="measurement noise added to the simulated outputs: a fraction of each output's RMS, "
+                        f"or absolute stds{tail}")
+
+
+# --- fit options -------------------------------------------------------------------------------
+_FIT_CHOICES = {
+    "boundary": ("estimated", "measured", "none"),
+    "biases": ("auto", "yes", "no"),
+    "trim": ("first", "mean", "none"),
+    "method": ("lm", "gauss-newton"),
+    "stop": ("converge", "paper"),
+    "cov_type": ("white", "colored", "naive"),
+    "sensitivity": ("auto", "analytic", "fd", "central"),
+}
+
+
+def add_fit_options(p, *, fix_free: bool = True) -> None:
+    """--outputs, --fix, --free, --boundary, --biases, --trim, --method, --stop, --cov-type,
+    --state-biases, --input-bias, --sensitivity (defaults: fdml.fit's)."""
+    g = p.add_argument_group("fit options (defaults: fdml.fit's)")
+    g.add_argument("--outputs", metavar="NAME,...", default=None,
+                   help="outputs in the fit, comma-separated, each once (default alpha,q,az)")
+    if fix_free:
+        accumulating(g, "--fix", metavar="NAME=VALUE", help="fix parameters at values (repeatable)")
+        accumulating(g, "--free", metavar="NAME", help="free parameters (repeatable)")
+    g.add_argument("--boundary", choices=_FIT_CHOICES["boundary"], default=None,
+                   help="boundary terms x(0) - x(T)exp(-jwT) (default estimated)")
+    g.add_argument("--biases", choices=_FIT_CHOICES["biases"], default=None,
+                   help="estimate output biases (default auto: when trim is removed)")
+    g.add_argument("--trim", choices=_FIT_CHOICES["trim"], default=None,
+                   help="trim removal (default first: the first sample)")
+    g.add_argument("--method", choices=_FIT_CHOICES["method"], default=None,
+                   help="Levenberg-Marquardt (default lm) or the paper's alternation")
+    g.add_argument("--stop", choices=_FIT_CHOICES["stop"], default=None,
+                   help="run to convergence (default) or the paper's 1 %% rule")
+    g.add_argument("--cov-type", choices=_FIT_CHOICES["cov_type"], default=None,
+                   help="error bounds: white noise (default), colored (the noise level follows the residual "
+                        "spectrum; recommended on real records) or naive")
+    g.add_argument("--state-biases", action="store_true", default=None,
+                   help="estimate constant biases of the two state equations per record (a trim that is not "
+                        "an equilibrium)")
+    g.add_argument("--input-bias", action="store_true", default=None,
+                   help="estimate a constant elevator offset per record (an elevator trim error)")
+    g.add_argument("--sensitivity", choices=_FIT_CHOICES["sensitivity"], default=None,
+                   help="output sensitivities (default auto: analytic where closed forms exist, else Eq. 26)")
+
+
+def fit_kwargs(args) -> dict:
+    """Keyword arguments of :func:`fdml.fit` from the fit options given (None: the library's default)."""
+    out = {}
+    for name in ("outputs", "boundary", "trim", "method", "stop", "cov_type", "sensitivity",
+                 "state_biases", "input_bias"):
+        v = getattr(args, name, None)
+        if v is not None:
+            out[name] = v
+    b = getattr(args, "biases", None)
+    if b is not None:
+        out["biases"] = {"auto": "auto", "yes": True, "no": False}[b]
+    if out.get("outputs") is not None:
+        from ..estimate import parse_outputs
+
+        out["outputs"] = ",".join(parse_outputs(out["outputs"], what="--outputs"))
+    return out
+
+
+# --- reading records ---------------------------------------------------------------------------
+def add_record_options(p) -> None:
+    """--format, --t0, --t1, --columns, --units, --sign, --layout (see :func:`fdml.io.cli.record_options`)."""
+    from ..io.cli import add_record_arguments
+
+    add_record_arguments(p)

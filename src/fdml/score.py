@@ -1,0 +1,480 @@
+"""The score-test core shared by every fit's adequacy check and the diagnosis.
+
+One implementation of the statistics both run, importable without the
+diagnosis package (:mod:`fdml.adequacy` runs after every fit):
+
+* :func:`screen`, the score (Lagrange-multiplier) screen of a candidate
+  effect from the current fit only, with :class:`ScreenContext` (whitened
+  residual and base sensitivities) and :class:`ScreenResult`;
+* the null distributions of a likelihood-ratio statistic (:func:`p_value`:
+  chi2, chi-bar-square, Davies' bound; :func:`null_kind` picks one) and the
+  profile variation Davies' bound needs (:func:`grid_variation`);
+* the family-wise corrections :func:`holm` and :func:`bh`;
+* :func:`whitener` of band covariances.
+
+The screen
+----------
+At the current estimate theta_hat (null values eta_0 for the candidate), with
+the band-whitened, real-stacked residual r and sensitivities J_theta (all
+estimated quantities, nuisance terms included) and J_eta (the candidate's
+parameters, by central differences):
+
+    LM = 2 r' P r / K,   P = projection on (I - P_theta) J_eta
+
+is the likelihood-ratio statistic of the linearised refit (Rao 1948); it needs
+no refit.  From the same matrices:
+
+* aliasing per parameter ``a_j = 1 - [J_eta'(I - P_theta) J_eta]_jj / [J_eta' J_eta]_jj``:
+  the share of the effect's signature that the base parameters can mimic;
+* the Fisher information in LR units ``I = 2 J_eta'(I - P_theta) J_eta / K``
+  and the minimum detectable effect ``MDE_j = sqrt(lambda* [I^-1]_jj)``, the
+  size that would be found with 80 % power at the family level (lambda* the
+  non-centrality giving that power);
+* the linearised estimate ``eta_lin``, used as the refit's start value.
+
+For an effect whose parameter is not identified under the null (a structural
+mode's frequency), the statistic is profiled over a grid of that parameter
+(:meth:`ScreenContext.grid_jacobians` gives the candidate sensitivities at
+every grid value at once; the statistics of all grid values are one array
+operation).
+
+Aliasing and the MDE describe the design and the noise, not the current
+misfit, so they are computed with the gap map's noise floors (per channel and
+band, diagonal; model error that is smooth across a band does not enter
+them).  The residual covariance R_b of a biased base fit holds model error and
+strong cross-channel correlation, and whitening with it made a 1.5 m
+accelerometer offset look 99.8 % aliased; the LM statistic itself keeps the
+likelihood's own weighting (R_b), which is what the refit's LR uses.
+
+Null distributions
+------------------
+* interior null: chi2(q);
+* one parameter whose null is on a bound (a delay, a lag, a lift-lag
+  amplitude from 0): 0.5 chi2_0 + 0.5 chi2_1 (Chernoff 1954; Self and Liang
+  1987);
+* a parameter not identified under the null (structural-mode frequency):
+  Davies' (1987) upper bound for the supremum of a chi2(q) process,
+  ``P(chi2_q > u) + V u^((q-1)/2) e^(-u/2) 2^(-q/2) / Gamma(q/2)`` with V the
+  total variation of sqrt(LM) along the frequency grid, capped by Bonferroni
+  over the grid.
+
+The chi-square tail is evaluated with :mod:`scipy.special` exactly as
+:meth:`scipy.stats.chi2.logsf` does (the same branches, without its per-call
+argument handling, which cost more than the rest of an adequacy check).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import special
+
+from .estimate import prepare
+from .models.effects import Effect
+
+__all__ = ["ALIAS_LIMIT", "ScreenContext", "ScreenResult", "screen", "power_noncentrality", "p_value",
+           "davies_bound", "null_kind", "grid_variation", "holm", "bh", "whitener", "chi2_logsf", "chi2_sf",
+           "f_sf"]
+
+#: Aliasing above which a candidate is "not identifiable" (DIAGNOSIS.md 2.3).
+ALIAS_LIMIT = 0.99
+
+
+# --- distributions ----------------------------------------------------------------------------
+
+def chi2_sf(x: float, df: float) -> float:
+    """P(chi2_df > x) (``scipy.stats.chi2.sf``)."""
+    return 1.0 if x <= 0 else float(special.chdtrc(df, x))
+
+
+def chi2_logsf(x: float, df: float) -> float:
+    """log P(chi2_df > x), by the branches of ``scipy.stats.chi2.logsf``.
+
+    Above the median ``log(sf)``, below it ``log1p(-cdf)`` (accurate where the
+    tail probability is close to 1); -inf where the tail underflows.
+    """
+    if x <= 0:
+        return 0.0
+    if x > 2.0 * special.gammaincinv(0.5 * df, 0.5):  # the median of chi2_df
+        with np.errstate(divide="ignore"):
+            return float(np.log(special.chdtrc(df, x)))
+    return float(np.log1p(-special.chdtr(df, x)))
+
+
+def f_sf(x: float, dfn: float, dfd: float) -> float:
+    """P(F(dfn, dfd) > x) (``scipy.stats.f.sf``)."""
+    return 1.0 if x <= 0 else float(special.fdtrc(dfn, dfd, x))
+
+
+@functools.lru_cache(maxsize=256)  # a root search of ncx2.sf: the same (level, df) for every candidate
+def power_noncentrality(level: float, df: int = 1, power: float = 0.8) -> float:
+    """Non-centrality lambda* of a chi-square(df) test at ``level`` with the given power."""
+    from scipy import optimize, stats
+
+    crit = stats.chi2.isf(level, df)
+    f = lambda lam: stats.ncx2.sf(crit, df, lam) - power  # noqa: E731
+    return float(optimize.brentq(f, 1e-6, 1e4))
+
+
+def davies_bound(u: float, q: int, V: float) -> float:
+    """Davies (1987): P(sup of a chi2(q) process > u) <= P(chi2_q > u) + V u^((q-1)/2) e^(-u/2) 2^(-q/2)/Gamma(q/2)."""
+    if u <= 0:
+        return 1.0
+    log_term = (math.log(max(V, 1e-300)) + 0.5 * (q - 1) * math.log(u) - 0.5 * u - 0.5 * q * math.log(2.0)
+                - special.gammaln(0.5 * q))
+    return float(chi2_sf(u, q) + math.exp(log_term))
+
+
+def p_value(lr: float, q: int, null: str, *, V: float = 0.0, n_grid: int = 1) -> tuple[float, float]:
+    """(p, log p) of a likelihood-ratio statistic under the named null distribution (module doc)."""
+    lr = max(float(lr), 0.0)
+    if null == "chibar":
+        if lr <= 0:
+            return 1.0, 0.0
+        lp = math.log(0.5) + chi2_logsf(lr, 1)
+        return math.exp(lp), lp
+    if null == "davies":
+        lp_chi = chi2_logsf(lr, q)
+        bonf = math.log(max(n_grid, 1)) + lp_chi
+        dv = davies_bound(lr, q, V)
+        lp = min(bonf, math.log(dv) if dv > 0 else lp_chi + math.log(max(V, 1.0) + 1.0))
+        lp = min(lp, 0.0)
+        return math.exp(lp), lp
+    lp = chi2_logsf(lr, q)
+    return math.exp(lp), lp
+
+
+def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> tuple[str, int]:
+    """(null distribution name, q) of ``effect`` on ``model``: ``davies``, ``chibar`` or ``chi2``.
+
+    The bounds of a single parameter come from the augmented model (the
+    screen's, ``screen_res.model``, when given).
+    """
+    plist = [p for p in effect.param_list(model) if not p.nuisance]
+    q = len(plist)
+    if effect.nuisance_grid:
+        return "davies", q
+    if q == 1:
+        p = plist[0]
+        null = effect.nulls(model)[p.name]
+        aug_par = None
+        try:
+            aug = screen_res.model if screen_res is not None and screen_res.model is not None else \
+                effect.augment(model)
+            aug_par = aug.parameters[p.name]
+        except Exception:  # pragma: no cover - augment validated before
+            pass
+        lo = aug_par.lower if aug_par is not None else p.lower
+        hi = aug_par.upper if aug_par is not None else p.upper
+        if null <= lo or null >= hi:
+            return "chibar", 1
+    return "chi2", q
+
+
+def grid_variation(scr: ScreenResult | None) -> tuple[float, int]:
+    """(total variation of sqrt(LM) along the nuisance grid, grid size) for Davies' bound; (0, 1) without a grid."""
+    if scr is None or not scr.grid:
+        return 0.0, 1
+    (_, (grid, prof)), = scr.grid.items()
+    r = np.sqrt(np.maximum(prof, 0.0))
+    return float(np.sum(np.abs(np.diff(r)))), int(grid.size)
+
+
+# --- family-wise corrections ---------------------------------------------------------------------
+
+def holm(p: np.ndarray) -> np.ndarray:
+    """Holm's step-down adjusted p-values (NaN stays NaN)."""
+    p = np.asarray(p, float)
+    out = np.full_like(p, np.nan)
+    ok = np.flatnonzero(np.isfinite(p))
+    if ok.size == 0:
+        return out
+    order = ok[np.argsort(p[ok])]
+    m = order.size
+    run = 0.0
+    for i, k in enumerate(order):
+        run = max(run, min(1.0, (m - i) * p[k]))
+        out[k] = run
+    return out
+
+
+def bh(p: np.ndarray) -> np.ndarray:
+    """Benjamini-Hochberg q-values (NaN stays NaN)."""
+    p = np.asarray(p, float)
+    out = np.full_like(p, np.nan)
+    ok = np.flatnonzero(np.isfinite(p))
+    if ok.size == 0:
+        return out
+    order = ok[np.argsort(p[ok])]
+    m = order.size
+    q = np.minimum(1.0, p[order] * m / np.arange(1, m + 1))
+    q = np.minimum.accumulate(q[::-1])[::-1]
+    out[order] = q
+    return out
+
+
+def whitener(Rs) -> list[np.ndarray]:
+    """Per band, ``L`` with ``v^H R^-1 v = ||L v||^2`` (L = C^H, C C^H = R^-1)."""
+    out = []
+    for R in Rs:
+        W = np.linalg.inv(R)
+        W = 0.5 * (W + W.conj().T)
+        C = np.linalg.cholesky(W)
+        out.append(C.conj().T)
+    return out
+
+
+# --- the screen ----------------------------------------------------------------------------------
+
+@dataclass
+class ScreenResult:
+    """What the screen says about one candidate.
+
+    ``model`` is the augmented model at the null values (for the bounds of
+    its parameters); ``jacobian`` the (likelihood-whitened, floor-whitened)
+    candidate sensitivities the statistic used (at the best grid value of a
+    nuisance-grid effect).
+    """
+
+    key: str
+    lm: float
+    eta_lin: dict
+    aliasing: dict
+    mde: dict
+    identifiable: bool
+    reason: str | None = None
+    grid: dict | None = None  # {"omega_s": (grid, lm_profile)} for nuisance-grid effects
+    nuisance: dict = field(default_factory=dict)  # best grid values
+    model: object = field(default=None, repr=False, compare=False)
+    jacobian: tuple | None = field(default=None, repr=False, compare=False)
+
+
+class ScreenContext:
+    """Whitened residual and base sensitivities of the current fit (computed once per step).
+
+    Parameters
+    ----------
+    fit : object
+        The current fit: ``model``, ``theta``, ``params`` (by name), ``V``
+        (residuals, (N, n_out)), ``Rs`` (band covariances), ``prob``
+        (:class:`fdml.estimate.Problem`); e.g. a diagnosis
+        :class:`~fdml.diagnose.likelihood.DiagFit`.
+    rows : ndarray of int
+        Band of each residual row.
+    oversample : float
+        K: grid points per independent frequency (LM = 2 r'Pr / K).
+    spectra : sequence
+        The fit's spectra (:func:`fdml.estimate.prepare` input).
+    fit_options : dict
+        ``prepare`` options of the candidate models.
+    floor_weights : ndarray, shape (N, n_out), optional
+        Diagonal noise-floor whitening for aliasing and the MDE.
+    sensitivities : ndarray, shape (N, n_out, p), optional
+        ``fit.prob.sensitivities(fit.theta)`` when the caller has it.
+    """
+
+    def __init__(self, fit, rows: np.ndarray, oversample: float, spectra, fit_options: dict,
+                 floor_weights: np.ndarray | None = None, sensitivities: np.ndarray | None = None):
+        self.fit = fit
+        self.rows = rows
+        self.K = oversample
+        self.spectra = list(spectra)
+        self.options = fit_options
+        Ls = whitener(fit.Rs)
+        self.L = np.stack(Ls)[rows]  # (N, n, n)
+        A = fit.prob.sensitivities(fit.theta) if sensitivities is None else sensitivities
+        self.r = self._real(self._white(fit.V))
+        self.Q = self._basis(self._real_cols(self._white_cols(A)))
+        # noise-floor metric (diagonal) for aliasing and MDE
+        n = fit.V.shape[1]
+        self.fw = np.ones((fit.V.shape[0], n)) if floor_weights is None else np.asarray(floor_weights, float)
+        self.Qf = self._basis(self._real_cols(self._floor_cols(A)))
+        self._rp = None
+
+    @staticmethod
+    def _basis(J):
+        """Orthonormal basis of the columns of J (numerically dead directions dropped)."""
+        U, s, _ = np.linalg.svd(J, full_matrices=False)
+        keep = s > 1e-10 * (s[0] if s.size else 1.0)
+        return U[:, keep]
+
+    def _white(self, V):
+        return (self.L @ V[:, :, None])[:, :, 0]
+
+    def _white_cols(self, A):
+        return self.L @ A
+
+    def _floor_cols(self, A):
+        """A whitened by the diagonal noise floors (row n, output j divided by its floor)."""
+        return A * self.fw[:, :, None]
+
+    @staticmethod
+    def _real(v):
+        v = v.ravel()
+        return np.concatenate([v.real, v.imag])
+
+    @staticmethod
+    def _real_cols(A):
+        N, n, p = A.shape
+        M = A.reshape(N * n, p)
+        return np.vstack([M.real, M.imag])
+
+    def perp(self, X):
+        return X - self.Q @ (self.Q.T @ X)
+
+    def perp_floor(self, X):
+        return X - self.Qf @ (self.Qf.T @ X)
+
+    @property
+    def r_perp(self) -> np.ndarray:
+        """The whitened residual with the base sensitivities projected out (computed once)."""
+        if self._rp is None:
+            self._rp = self.perp(self.r)
+        return self._rp
+
+    def pair(self, A: np.ndarray) -> tuple:
+        """(likelihood-whitened, floor-whitened) real-stacked columns of dy/d eta, A of shape (N, n_out, q)."""
+        return self._real_cols(self._white_cols(A)), self._real_cols(self._floor_cols(A))
+
+    def candidate_jacobian(self, model, names, steps, one_sided):
+        """(likelihood-whitened, floor-whitened) real-stacked d(prediction)/d(eta) at the model's values."""
+        prob = prepare(self.spectra, model, sensitivity="central", **self.options)
+        theta = np.array([self.fit.params.get(n, model.parameters.values.get(n, 0.0)) for n in prob.names])
+        idx = {n: i for i, n in enumerate(prob.names)}
+        cols = []
+        for n, h, os_ in zip(names, steps, one_sided):
+            i = idx[n]
+            tp = theta.copy()
+            tp[i] += h
+            yp = _stack(prob, tp)
+            if os_:
+                y0 = _stack(prob, theta)
+                cols.append((yp - y0) / h)
+            else:
+                tm = theta.copy()
+                tm[i] -= h
+                cols.append((yp - _stack(prob, tm)) / (2 * h))
+        return self.pair(np.stack(cols, axis=-1))  # (N, n_out, q)
+
+    def grid_jacobians(self, model, names, steps, one_sided, gname: str, grid: np.ndarray) -> tuple:
+        """:meth:`candidate_jacobian` at every value of the nuisance parameter ``gname`` on ``grid``.
+
+        Returns (Je, Jf), each of shape (M, len(grid), q).  This one evaluates
+        the grid values one by one; a subclass may evaluate them at once.
+        """
+        pairs = [self.candidate_jacobian(model.with_values({gname: float(w)}), names, steps, one_sided)
+                 for w in grid]
+        return np.stack([p[0] for p in pairs], axis=1), np.stack([p[1] for p in pairs], axis=1)
+
+
+def _stack(prob, theta):
+    return np.concatenate([y[:, prob.out_idx] for y in prob.predict(theta)])
+
+
+def _lm(ctx: ScreenContext, Je: np.ndarray, Jf: np.ndarray):
+    """LM statistic and linearised estimate (likelihood metric); information and aliasing (floor metric).
+
+    ``Je`` and ``Jf`` of shape (M, g, q): g candidates (grid values) of q
+    parameters each, all projected at once.  Returns arrays over g: LM (g,),
+    eta (g, q), information (g, q, q), aliasing (g, q).
+    """
+    M, g, q = Je.shape
+    Jp = ctx.perp(Je.reshape(M, g * q))
+    b = (ctx.r_perp @ Jp).reshape(g, q)
+    Jp = Jp.reshape(M, g, q).transpose(1, 0, 2)  # (g, M, q)
+    G = Jp.transpose(0, 2, 1) @ Jp
+    try:
+        eta = np.linalg.solve(G, b[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        eta = np.stack([_solve_or_lstsq(G[k], b[k]) for k in range(g)])
+    lm = 2.0 * np.einsum("gi,gi->g", b, eta) / ctx.K
+    Jfp = ctx.perp_floor(Jf.reshape(M, g * q)).reshape(M, g, q).transpose(1, 0, 2)
+    Gf = Jfp.transpose(0, 2, 1) @ Jfp
+    full = np.einsum("mgi,mgi->gi", Jf, Jf)
+    alias = 1.0 - np.diagonal(Gf, axis1=1, axis2=2) / np.where(full > 0, full, np.inf)
+    info = 2.0 * Gf / ctx.K
+    return np.maximum(lm, 0.0), eta, info, np.clip(alias, 0.0, 1.0)
+
+
+def _solve_or_lstsq(G, b):
+    try:
+        return np.linalg.solve(G, b)
+    except np.linalg.LinAlgError:
+        return np.linalg.lstsq(G, b, rcond=1e-12)[0]
+
+
+def _steps(test, nulls, aug) -> tuple[list, list]:
+    """Finite-difference steps (typical sizes) and one-sidedness (null on the lower bound) per tested parameter."""
+    steps, one_sided = [], []
+    for p in test:
+        at_lo = nulls[p.name] <= p.lower or (aug.parameters[p.name].lower >= nulls[p.name])
+        steps.append(p.typical())
+        one_sided.append(bool(at_lo))
+    return steps, one_sided
+
+
+def screen(ctx: ScreenContext, effect: Effect, *, level: float, band: tuple) -> ScreenResult:
+    """Screen one candidate effect at the current fit."""
+    cur = ctx.fit.model
+    nulls = effect.nulls(cur)
+    aug = effect.augment(cur).with_values(nulls)
+    test = [p for p in effect.param_list(cur) if not p.nuisance]
+    names = [p.name for p in test]
+    steps, one_sided = _steps(test, nulls, aug)
+    grid_out, best_nuis = None, {}
+    grids = effect.nuisance_grid or {}
+    if grids:
+        (gname, gfun), = grids.items()
+        grid = np.asarray(gfun(max(band[0], band[1] / 5.0), band[1]))
+        Je, Jf = ctx.grid_jacobians(aug, names, steps, one_sided, gname, grid)
+        prof, etas, infos, aliases = _lm(ctx, Je, Jf)
+        k = 0
+        for j in range(1, grid.size):  # the first grid value with the largest LM
+            if prof[j] > prof[k]:
+                k = j
+        lm, eta, info, alias = float(prof[k]), etas[k], infos[k], aliases[k]
+        grid_out = {gname: (grid, prof)}
+        best_nuis = {gname: float(grid[k])}
+        jac = (Je[:, k, :], Jf[:, k, :])
+    else:
+        jac = ctx.candidate_jacobian(aug, names, steps, one_sided)
+        lms, etas, infos, aliases = _lm(ctx, jac[0][:, None, :], jac[1][:, None, :])
+        lm, eta, info, alias = float(lms[0]), etas[0], infos[0], aliases[0]
+    # one-sided nulls: a linearised step into the infeasible side means no evidence
+    for j, p in enumerate(test):
+        if one_sided[j] and eta[j] < 0 and len(test) == 1:
+            lm = 0.0
+    q = len(test)
+    n_family = max(int(getattr(ctx, "family_size", 1)), 1)
+    lam = power_noncentrality(level / n_family, q)
+    try:
+        Iinv = np.linalg.inv(info)
+        mde = {n: float(math.sqrt(max(lam * Iinv[j, j], 0.0))) for j, n in enumerate(names)}
+    except np.linalg.LinAlgError:
+        mde = {n: math.inf for n in names}
+    aliasing = {n: float(alias[j]) for j, n in enumerate(names)}
+    reason = _unidentifiable(aliasing, mde, test, nulls, bool(grids))
+    eta_lin = {n: float(nulls[n] + eta[j]) for j, n in enumerate(names)}
+    return ScreenResult(effect.key, float(lm), eta_lin, aliasing, mde, reason is None, reason, grid_out, best_nuis,
+                        model=aug, jacobian=jac)
+
+
+def _unidentifiable(aliasing: dict, mde: dict, test, nulls: dict, grid: bool) -> str | None:
+    """Why these data cannot test the candidate (aliased, or an MDE beyond the plausible range), else None."""
+    worst = max(aliasing.values()) if aliasing else 0.0
+    if worst > ALIAS_LIMIT:
+        n_ = max(aliasing, key=aliasing.get)
+        return (f"aliased: {100 * aliasing[n_]:.1f} % of the {n_} signature is absorbed by the base parameters "
+                "with these inputs")
+    if grid:
+        return None
+    for p in test:
+        if p.plausible is not None and math.isfinite(mde[p.name]):
+            span = max(abs(p.plausible[0] - nulls[p.name]), abs(p.plausible[1] - nulls[p.name]))
+            if mde[p.name] > span:
+                return (f"too little information: the smallest detectable {p.name} is {mde[p.name]:.3g} "
+                        f"{p.unit}, beyond its plausible range {p.plausible}")
+    return None
