@@ -74,7 +74,7 @@ def first_fit(n: int) -> None:
     """Best of ``n`` fresh interpreters: the first fit's wall time with and without the check (Twin Otter 017)."""
     import subprocess
 
-    print("| first fit in a fresh process (Twin Otter 017) | best of %d, s | imports fdml.diagnose |" % n)
+    print(f"| first fit in a fresh process (Twin Otter 017) | best of {n}, s | imports fdml.diagnose |")
     print("|---|---|---|")
     for adequacy in (True, False):
         runs = [subprocess.run([sys.executable, "-c", FIRST_FIT.replace("ADEQUACY", str(adequacy))],

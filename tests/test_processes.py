@@ -264,7 +264,9 @@ def test_a_callers_dask_client_stays_open_and_its_futures_are_cancelled(tmp_path
 
 
 # --- the run, the folder, the rerun ---------------------------------------------------------------
-def test_a_rerun_after_sigterm_resumes_and_leaves_no_partial_file(tmp_path, records, launched):
+@pytest.mark.parametrize("signame, status", [("SIGTERM", 128 + 15), ("SIGINT", 130)])
+def test_a_rerun_after_a_signal_resumes_and_leaves_no_partial_file(tmp_path, records, launched, signame, status):
+    signal_usable(signame)
     out = tmp_path / "out"
     items = windows(records, 60)
     args = ["batch", *items, *MODEL, "--out", str(out), "--workers", "2", "--no-progress", "--json"]
@@ -275,9 +277,9 @@ def test_a_rerun_after_sigterm_resumes_and_leaves_no_partial_file(tmp_path, reco
         time.sleep(0.02)
     kids = psutil.Process(proc.pid).children(recursive=True)
     launched.kids += kids
-    os.kill(proc.pid, signal.SIGTERM)
+    os.kill(proc.pid, getattr(signal, signame))
     assert_all_ended(proc, kids, ENDS_WITHIN)
-    assert proc.returncode == 128 + 15
+    assert proc.returncode == status, stderr_of(tmp_path, "first")
     finished = sorted(p.name for p in (out / "results").glob("*.json"))
     assert 3 <= len(finished) < len(items)
     for name in finished:  # every file under its real name is whole
@@ -421,3 +423,40 @@ def test_no_handlers_from_another_thread(tmp_path, records):
         summary = th.submit(run_batch, records[:2], SPEC, tmp_path / "out", engine="process",
                             workers=2).result(timeout=120)
     assert summary.n_failed == 0
+
+
+# --- records that change under a running batch ----------------------------------------------------
+#: A band fine enough that one fit of a 20 s record takes a few seconds (2,476 frequencies;
+#: measured 2-4 s): the later records are surely not read yet when the first result appears.
+MEDIUM_BAND = "0.1:10:0.004"
+
+
+def test_a_record_removed_or_truncated_during_the_run_gets_its_error_row(tmp_path, records, launched):
+    """Each record is read when its task starts: one removed or cut short meanwhile is an error row
+    naming the file (and the batch ends with exit code 1), the others fit as usual."""
+    folder = tmp_path / "records"
+    folder.mkdir()
+    paths = []
+    for i, src in enumerate(records):
+        p = folder / f"r{i}.csv"
+        p.write_bytes(src.read_bytes())  # copies: the module's records stay intact
+        paths.append(p)
+    out = tmp_path / "out"
+    proc = launched.fdml(["batch", *map(str, paths), *MODEL, "--band", MEDIUM_BAND, "--out", str(out),
+                          "--workers", "1", "--no-progress", "--json"], tmp_path)
+    deadline = time.monotonic() + 120
+    while not list((out / "results").glob("r0*.json")):
+        assert proc.poll() is None and time.monotonic() < deadline, stderr_of(tmp_path)
+        time.sleep(0.02)
+    paths[2].unlink()
+    data = paths[3].read_bytes()
+    paths[3].write_bytes(data[: len(data) // 2])  # cut inside a line, as an interrupted copy leaves it
+    assert proc.wait(timeout=180) == 1, stderr_of(tmp_path)
+    assert "Traceback" not in stderr_of(tmp_path)
+    with open(out / "table.csv", newline="") as fh:
+        rows = {r["key"]: r for r in csv.DictReader(fh)}
+    assert [rows[f"r{i}"]["status"] for i in range(4)] == ["ok", "ok", "error", "error"]
+    assert str(paths[2]) in rows["r2"]["error"] and "does not exist" in rows["r2"]["error"]
+    assert str(paths[3]) in rows["r3"]["error"] and "truncated" in rows["r3"]["error"]
+    assert (out / "results" / "r2.error.json").exists() and (out / "results" / "r3.error.json").exists()
+    assert not list(out.rglob("*.tmp"))

@@ -27,7 +27,7 @@ def context():
     assert prob.names == res.names
     theta = np.asarray(res.values, float)
     model = prob.model.with_values(prob.model_values(theta))
-    ctx, Kr = adequacy._context(prob, model, theta, prob.residuals(theta), res.R)
+    ctx, _ = adequacy._context(prob, model, theta, prob.residuals(theta), res.R)
     return ctx, model
 
 
@@ -51,7 +51,7 @@ def test_adequacy_sensitivities_equal_the_screens_own(context, key):
     i.e. a relative error eps |y| / (h |dy/d eta|) < 1e-10 for these steps (h |dy/d eta| / |y| > 1e-4).
     """
     ctx, model = context
-    eff, aug, names, steps, one_sided = _candidate(ctx, model, key)
+    _, aug, names, steps, one_sided = _candidate(ctx, model, key)
     fast = ctx.candidate_jacobian(aug, names, steps, one_sided)
     ref = score.ScreenContext.candidate_jacobian(ctx, aug, names, steps, one_sided)
     for a, b in zip(fast, ref):
@@ -60,7 +60,7 @@ def test_adequacy_sensitivities_equal_the_screens_own(context, key):
 
 def test_grid_of_a_structural_mode_at_once_equals_value_by_value(context):
     ctx, model = context
-    eff, aug, names, steps, one_sided = _candidate(ctx, model, "structural_mode@q,az")
+    _, aug, names, steps, one_sided = _candidate(ctx, model, "structural_mode@q,az")
     grid = np.geomspace(2.0, 10.0, 9)
     Je, Jf = ctx.grid_jacobians(aug, names, steps, one_sided, "omega_s", grid)
     for k, w in enumerate(grid):  # the screen's generic path, one grid value at a time

@@ -57,7 +57,16 @@ import numpy as np
 
 from .errors import FdmlError
 from .jsoncodec import Fields
-from .score import ScreenContext, chi2_sf, f_sf, grid_variation, holm, null_kind, p_value, screen
+from .score import (
+    ScreenContext,
+    chi2_sf,
+    f_sf,
+    grid_variation,
+    holm,
+    null_kind,
+    p_value,
+    screen,
+)
 
 __all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "advice", "check", "invocation"]
 
@@ -368,22 +377,24 @@ class _Context(ScreenContext):
             s = np.tile(1j * d.omega, g)
             base = tuple(np.tile(x, (g, 1, 1)) for x in r)
             at = {**vals, gname: np.repeat(grid, m)}
-
-            def out(p):
-                res = eff.output(s, p, *base, root)
-                if any(np.shape(x) != np.shape(b) for x, b in zip(res, base)):
-                    raise ValueError("the effect does not evaluate a grid at once")
-                return res
-
             cols = [[None] * 3 for _ in range(q)]
             for j, (n, h, os_) in enumerate(zip(names, steps, one_sided)):
-                up = out({**at, n: vals[n] + h})
-                down = out(at) if os_ else out({**at, n: vals[n] - h})
-                cols[j] = [None if a is b and c is b else (a - c).reshape((g, m) + b.shape[1:]) / (h if os_ else 2 * h)
+                up = _grid_call(eff, s, {**at, n: vals[n] + h}, base, root)
+                down = _grid_call(eff, s, at if os_ else {**at, n: vals[n] - h}, base, root)
+                step = h if os_ else 2 * h
+                cols[j] = [None if a is b and c is b else (a - c).reshape((g, m) + b.shape[1:]) / step
                            for a, c, b in zip(up, down, base)]
             changes.append([_stack_grid([c[i] for c in cols], r[i], g) for i in range(3)])
         Je, Jf = self.pair(self._measure(changes))
         return Je.reshape(-1, g, q), Jf.reshape(-1, g, q)
+
+
+def _grid_call(eff, s: np.ndarray, p: dict, base: tuple, root) -> tuple:
+    """The effect on the tiled base response, with the grid parameter an array along the rows."""
+    res = eff.output(s, p, *base, root)
+    if any(np.shape(x) != np.shape(b) for x, b in zip(res, base)):
+        raise ValueError("the effect does not evaluate a grid at once")
+    return res
 
 
 def _stack_changes(cols: list, like: np.ndarray, i: int) -> np.ndarray:

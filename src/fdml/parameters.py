@@ -103,8 +103,8 @@ class Parameters:
 
     def __post_init__(self) -> None:
         names = [p.name for p in self.items]
-        dup = {n for n in names if names.count(n) > 1}
-        if dup:
+        if len(set(names)) != len(names):
+            dup = {n for n in names if names.count(n) > 1}
             raise ParameterError(f"duplicate parameter names: {sorted(dup)}")
 
     def __repr__(self) -> str:
@@ -133,8 +133,9 @@ class Parameters:
 
     def check_names(self, names: Iterable[str]) -> None:
         """Raise :class:`ParameterError` naming any name not in this set."""
+        known = set(self.names)
         for n in names:
-            if n not in self:
+            if not isinstance(n, str) or n not in known:
                 raise ParameterError(self._unknown_message(n))
 
     @property

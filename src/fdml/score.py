@@ -72,12 +72,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import special
 
+from .errors import FdmlError
 from .estimate import prepare
 from .models.effects import Effect
 
-__all__ = ["ALIAS_LIMIT", "ScreenContext", "ScreenResult", "screen", "power_noncentrality", "p_value",
-           "davies_bound", "null_kind", "grid_variation", "holm", "bh", "whitener", "chi2_logsf", "chi2_sf",
-           "f_sf"]
+__all__ = [
+    "ALIAS_LIMIT", "ScreenContext", "ScreenResult", "bh", "chi2_logsf", "chi2_sf", "davies_bound", "f_sf",
+    "grid_variation", "holm", "null_kind", "p_value", "power_noncentrality", "screen", "whitener",
+]
 
 #: Aliasing above which a candidate is "not identifiable" (DIAGNOSIS.md 2.3).
 ALIAS_LIMIT = 0.99
@@ -115,7 +117,9 @@ def power_noncentrality(level: float, df: int = 1, power: float = 0.8) -> float:
     from scipy import optimize, stats
 
     crit = stats.chi2.isf(level, df)
-    f = lambda lam: stats.ncx2.sf(crit, df, lam) - power  # noqa: E731
+    def f(lam):
+        return stats.ncx2.sf(crit, df, lam) - power
+
     return float(optimize.brentq(f, 1e-6, 1e4))
 
 
@@ -160,13 +164,12 @@ def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> 
     if q == 1:
         p = plist[0]
         null = effect.nulls(model)[p.name]
-        aug_par = None
         try:
             aug = screen_res.model if screen_res is not None and screen_res.model is not None else \
                 effect.augment(model)
             aug_par = aug.parameters[p.name]
-        except Exception:  # pragma: no cover - augment validated before
-            pass
+        except FdmlError:  # pragma: no cover - augment validated before
+            aug_par = None
         lo = aug_par.lower if aug_par is not None else p.lower
         hi = aug_par.upper if aug_par is not None else p.upper
         if null <= lo or null >= hi:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 
 
 def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
@@ -15,9 +16,14 @@ def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
         if not sep or not name.strip():
             raise ParameterError(f"expected {what}, got {item!r}")
         try:
-            out[name.strip()] = float(value)
+            number = float(value)
         except ValueError:
             raise ParameterError(f"{item!r}: {value!r} is not a number") from None
+        if not math.isfinite(number):  # float() reads nan and inf: no parameter value is either
+            raise ParameterError(f"{item!r}: {value.strip()!r} is not a finite number")
+        if name.strip() in out and out[name.strip()] != number:
+            raise ParameterError(f"{item!r}: {name.strip()} is already given as {out[name.strip()]:g}")
+        out[name.strip()] = number
     return out
 
 

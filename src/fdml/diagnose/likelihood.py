@@ -32,7 +32,7 @@ from ..errors import FdmlError
 from ..estimate import NoiseModel, _cov_R, _logdet, prepare
 from ..estimate import fit as fdml_fit
 from ..models.base import Model
-from ..score import whitener  # noqa: F401  (re-exported: the diagnosis's name for it)
+from ..score import whitener  # re-exported: the diagnosis's name for it
 from .data import AnalysisData
 
 __all__ = ["DiagFit", "NoiseBands", "band_cost", "fit_model", "likelihood_ratio", "noise_bands", "whitener"]

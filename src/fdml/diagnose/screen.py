@@ -5,6 +5,12 @@ The screen, its context and result are shared with every fit's adequacy check
 re-exported here for the diagnosis's modules and existing imports.
 """
 
-from ..score import ALIAS_LIMIT, ScreenContext, ScreenResult, power_noncentrality, screen
+from ..score import (
+    ALIAS_LIMIT,
+    ScreenContext,
+    ScreenResult,
+    power_noncentrality,
+    screen,
+)
 
-__all__ = ["ScreenContext", "ScreenResult", "screen", "power_noncentrality", "ALIAS_LIMIT"]
+__all__ = ["ALIAS_LIMIT", "ScreenContext", "ScreenResult", "power_noncentrality", "screen"]

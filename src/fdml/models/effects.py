@@ -334,7 +334,8 @@ def _rebuild(model: Model, root: Model, effects: tuple) -> Model:
     items = []
     for p in new.parameters:
         q = old.get(p.name)
-        items.append(replace(p, value=q.value, free=q.free, lower=q.lower, upper=q.upper) if q is not None else p)
+        same = q is None or (q.value, q.free, q.lower, q.upper) == (p.value, p.free, p.lower, p.upper)
+        items.append(p if same else replace(p, value=q.value, free=q.free, lower=q.lower, upper=q.upper))
     return new.with_parameters(Parameters(tuple(items)))
 
 
