@@ -13,7 +13,6 @@ import pytest
 from scipy import signal
 
 import fdml.io.paths as _paths
-
 from fdml.constants import G0
 from fdml.record import Record
 
@@ -80,7 +79,7 @@ try:
 except ImportError:  # hypothesis is in the test extra
     pass
 else:
-    _hsettings.register_profile("ci", max_examples=60, deadline=timedelta(seconds=5), database=None,
+    _hsettings.register_profile("ci", max_examples=50, deadline=timedelta(seconds=5), database=None,
                                 print_blob=True)
     _hsettings.register_profile("long", max_examples=7000, deadline=timedelta(seconds=10), database=None,
                                 print_blob=True)

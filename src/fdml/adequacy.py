@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import itertools
 import math
 import shlex
 import time
@@ -65,7 +66,7 @@ from .score import (
     holm,
     null_kind,
     p_value,
-    screen,
+    screen_all,
 )
 
 __all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "advice", "check", "invocation"]
@@ -285,7 +286,7 @@ class _BaseFit:
 class _Context(ScreenContext):
     """The score screen's context on the fit's own problem, with the candidate sensitivities as array operations.
 
-    The screen's own :meth:`fdml.score.ScreenContext.candidate_jacobian`
+    The screen's own :meth:`fdml.score.ScreenContext.candidate_sensitivities`
     prepares a problem for every candidate model and predicts it twice per
     parameter.  Here the change of the prediction is measured directly:
     without output biases the measurement (Eqs. 18-19) is linear in the
@@ -303,27 +304,50 @@ class _Context(ScreenContext):
 
     _base_responses = None
 
-    def candidate_jacobian(self, model, names, steps, one_sided):
+    def candidate_sensitivities(self, model, names, steps, one_sided):
+        A, = self.candidate_sensitivities_many([(model, names, steps, one_sided)])
+        if isinstance(A, Exception):
+            raise A
+        return A
+
+    def candidate_sensitivities_many(self, cands) -> list:
+        """Every candidate's dy/d eta from one measurement of all their response changes."""
+        out, changes = [], []
+        for model, names, steps, one_sided in cands:
+            try:
+                changes.append(self._changes(model, names, steps, one_sided))
+                out.append(len(names))
+            except Exception as exc:  # noqa: BLE001 - a candidate that cannot be evaluated is reported
+                out.append(exc)
+        if not changes:
+            return out
+        base = self._base()
+        A = self._measure([[_stack_parts([e for c in changes for e in c[r][i]], base[r][i]) for i in range(3)]
+                           for r in range(len(base))])
+        cols = np.cumsum([0] + [q for q in out if not isinstance(q, Exception)])
+        blocks = iter(A[..., a:b] for a, b in itertools.pairwise(cols))
+        return [q if isinstance(q, Exception) else next(blocks) for q in out]
+
+    def _changes(self, model, names, steps, one_sided) -> list:
+        """Per record and part (G, H, P), the response change per tested parameter (None: unchanged)."""
         eff = _output_effect_on(model, self.fit.model)
         vals = model.parameters.values
         cols = [self._column(eff, model, {**vals, n: vals[n] + h}, vals if os_ else {**vals, n: vals[n] - h},
                              h if os_ else 2 * h) for n, h, os_ in zip(names, steps, one_sided)]
-        changes = [[_stack_changes([c[r][i] for c in cols], self._base()[r], i) for i in range(3)]
-                   for r in range(len(self.fit.prob.data))]
-        return self.pair(self._measure(changes))
+        return [[[c[r][i] for c in cols] for i in range(3)] for r in range(len(self.fit.prob.data))]
 
-    def grid_jacobians(self, model, names, steps, one_sided, gname, grid):
+    def grid_sensitivities(self, model, names, steps, one_sided, gname, grid):
         eff = _output_effect_on(model, self.fit.model)
         if eff is not None:
             try:
-                Je, Jf = self._grid_jacobians(eff, model, names, steps, one_sided, gname, grid)
+                A = self._grid_sensitivities(eff, model, names, steps, one_sided, gname, grid)
             except (TypeError, ValueError, IndexError, ArithmeticError):
-                Je = None  # the effect function takes scalar parameters only
-            if Je is not None and self._agrees(Je, model, names, steps, one_sided, gname, grid):
-                return Je, Jf
-        return super().grid_jacobians(model, names, steps, one_sided, gname, grid)
+                A = None  # the effect function takes scalar parameters only
+            if A is not None and self._agrees(A, model, names, steps, one_sided, gname, grid):
+                return A
+        return super().grid_sensitivities(model, names, steps, one_sided, gname, grid)
 
-    def _agrees(self, Je, model, names, steps, one_sided, gname, grid) -> bool:
+    def _agrees(self, A, model, names, steps, one_sided, gname, grid) -> bool:
         """The grid evaluation equals the value-by-value one at the grid's ends (a guard on the effect function).
 
         Checked once per effect object and process (:data:`_VECTORISES`): whether a function takes
@@ -334,8 +358,8 @@ class _Context(ScreenContext):
             return _VECTORISES[eff]
         ok = True
         for k in (0, grid.size - 1):
-            ref = self.candidate_jacobian(model.with_values({gname: float(grid[k])}), names, steps, one_sided)[0]
-            ok = ok and bool(np.allclose(Je[:, k, :], ref, rtol=1e-9,
+            ref = self.candidate_sensitivities(model.with_values({gname: float(grid[k])}), names, steps, one_sided)
+            ok = ok and bool(np.allclose(A[:, :, k, :], ref, rtol=1e-9,
                                          atol=1e-12 * max(np.max(np.abs(ref)), 1e-300)))
         _VECTORISES[eff] = ok
         return ok
@@ -366,8 +390,8 @@ class _Context(ScreenContext):
               for r, (d, ch) in enumerate(zip(prob.data, changes))]
         return np.moveaxis(np.concatenate(dy, axis=-2), 0, -1)
 
-    def _grid_jacobians(self, eff, model, names, steps, one_sided, gname, grid):
-        """(Je, Jf) of shape (M, g, q): every grid value in one call of the effect per step."""
+    def _grid_sensitivities(self, eff, model, names, steps, one_sided, gname, grid):
+        """dy/d eta of shape (N, n_out, g, q): every grid value in one call of the effect per step."""
         g, q = grid.size, len(names)
         vals = dict(model.parameters.values)
         root = _root(self.fit.model)
@@ -385,8 +409,8 @@ class _Context(ScreenContext):
                 cols[j] = [None if a is b and c is b else (a - c).reshape((g, m) + b.shape[1:]) / step
                            for a, c, b in zip(up, down, base)]
             changes.append([_stack_grid([c[i] for c in cols], r[i], g) for i in range(3)])
-        Je, Jf = self.pair(self._measure(changes))
-        return Je.reshape(-1, g, q), Jf.reshape(-1, g, q)
+        A = self._measure(changes)
+        return A.reshape(A.shape[:2] + (g, q))
 
 
 def _grid_call(eff, s: np.ndarray, p: dict, base: tuple, root) -> tuple:
@@ -397,14 +421,14 @@ def _grid_call(eff, s: np.ndarray, p: dict, base: tuple, root) -> tuple:
     return res
 
 
-def _stack_changes(cols: list, like: np.ndarray, i: int) -> np.ndarray:
-    """The q response changes of one part (G, H or P) stacked on a leading axis; unchanged ones are zero.
+def _stack_parts(cols: list, like: np.ndarray) -> np.ndarray:
+    """Response changes of one part (G, H or P) stacked on a leading axis; unchanged ones (None) are zero.
 
     A part no parameter changes is a zero of leading size 1 (it broadcasts in the measurement).
     """
     if all(c is None for c in cols):
-        return np.zeros((1,) + like[i].shape, complex)
-    return np.stack([np.zeros(like[i].shape, complex) if c is None else c for c in cols])
+        return np.zeros((1,) + like.shape, complex)
+    return np.stack([np.zeros(like.shape, complex) if c is None else c for c in cols])
 
 
 def _stack_grid(cols: list, like: np.ndarray, g: int) -> np.ndarray:
@@ -469,29 +493,34 @@ def _context(prob, model, theta, V, R, A=None):
     return ctx, K[rows]
 
 
-def _logdet_weighted(ctx, r: np.ndarray, Kr: np.ndarray) -> tuple[float, float]:
-    """(ln det of the K-weighted covariance of the whitened residual r, independent frequencies)."""
-    M = r.size // 2
-    c = (r[:M] + 1j * r[M:]).reshape(Kr.size, -1) * np.sqrt(Kr)[:, None]
+def _logdet_weighted(r: np.ndarray, Kr: np.ndarray) -> tuple[np.ndarray, float]:
+    """ln det of the K-weighted covariance of each whitened residual (columns of r), and the independent frequencies.
+
+    ``r`` of shape (2 N n_out, E): E real-stacked residuals; returns (E,) log-determinants.
+    """
+    M = r.shape[0] // 2
+    c = (r[:M] + 1j * r[M:]).T.reshape(r.shape[1], Kr.size, -1) * np.sqrt(Kr)[None, :, None]  # (E, N, n_out)
     w = 1.0 / Kr
-    S = (c.T * w) @ c.conj() / w.sum()
-    return float(np.linalg.slogdet(S)[1]), float(w.sum())
+    S = np.einsum("enj,n,enk->ejk", c, w, c.conj()) / w.sum()
+    return np.linalg.slogdet(S)[1], float(w.sum())
 
 
-def _one_step_lr(ctx, effect, scr, Kr) -> float:
-    """LR at the one-step estimate: base parameters re-projected, the effect at eta_lin (module doc).
+def _one_step_lrs(ctx, screens: list, Kr: np.ndarray) -> np.ndarray:
+    """LR at the one-step estimate of each (effect, screen): base parameters re-projected, the effect at
+    eta_lin (module doc), all at once.
 
-    The step is along the screen's own candidate sensitivities (``scr.jacobian``, at the best
+    Each step is along the screen's own candidate sensitivities (``scr.jacobian``, at the best
     grid value of a nuisance-grid effect).
     """
-    nulls = effect.nulls(ctx.fit.model)
-    Je = scr.jacobian[0]
-    eta = np.array([v - nulls[n] for n, v in scr.eta_lin.items()])
-    if getattr(ctx, "logdet0", None) is None:  # the base fit's: the same for every effect
-        ctx.logdet0 = _logdet_weighted(ctx, ctx.r, Kr)
-    l0, n_ind = ctx.logdet0
-    l1, _ = _logdet_weighted(ctx, ctx.r - ctx.perp(Je @ eta), Kr)
-    return max(2.0 * n_ind * (l0 - l1), 0.0)
+    if not screens:
+        return np.zeros(0)
+    steps = []
+    for eff, scr in screens:
+        nulls = eff.nulls(ctx.fit.model)
+        steps.append(scr.jacobian[0] @ np.array([v - nulls[n] for n, v in scr.eta_lin.items()]))
+    l0, n_ind = _logdet_weighted(ctx.r[:, None], Kr)
+    l1, _ = _logdet_weighted(ctx.r[:, None] - ctx.perp(np.stack(steps, axis=1)), Kr)
+    return np.maximum(2.0 * n_ind * (l0[0] - l1), 0.0)
 
 
 def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
@@ -509,17 +538,19 @@ def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
         (skipped.append((eff.key, why)) if why else usable.append(eff))
     ctx.family_size = max(len(usable), 1)
     band = (float(min(d.omega[0] for d in prob.data)), float(max(d.omega[-1] for d in prob.data)))
+    screened = []
+    for eff, scr in zip(usable, screen_all(ctx, usable, level=alpha, band=band)):
+        if isinstance(scr, Exception):  # an effect the check cannot evaluate is reported, never fatal
+            skipped.append((eff.key, f"cannot be evaluated: {scr}"))
+        elif not scr.identifiable:
+            skipped.append((eff.key, scr.reason))
+        else:
+            screened.append((eff, scr))
+    moved = [(eff, scr) for eff, scr in screened if scr.lm > 0]
+    lr1 = dict(zip((eff.key for eff, _ in moved), _one_step_lrs(ctx, moved, Kr)))
     tests = []
-    for eff in usable:
-        try:
-            scr = screen(ctx, eff, level=alpha, band=band)
-            if not scr.identifiable:
-                skipped.append((eff.key, scr.reason))
-                continue
-            lr = _one_step_lr(ctx, eff, scr, Kr) if scr.lm > 0 else 0.0
-        except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:
-            skipped.append((eff.key, f"cannot be evaluated: {exc}"))
-            continue
+    for eff, scr in screened:
+        lr = lr1.get(eff.key, 0.0)
         null, q = null_kind(eff, model, scr)
         Vg, ng = grid_variation(scr)
         p, _ = p_value(lr, q, null, V=Vg, n_grid=ng)
@@ -552,31 +583,30 @@ def _residual_checks(prob, V) -> tuple[tuple, tuple]:
         v = V[off: off + d.m]
         off += d.m
         idx = _independent(d)
-        u = d.u[idx]
+        u, vi = d.u[idx], v[idx]
         gain = d.noise_gain(include_trim=False)[idx]
+        bands = _bands(idx.size)
+        cells = [_coherence_cells(u[b], vi[b]) for b in bands]  # every output of a band at once
         for j, k in enumerate(prob.out_idx):
             ch = OUTPUTS[k]
-            vj = v[idx, j]
-            bands = _bands(idx.size)
-            for b in bands:
-                coh.append(_coherence_cell(u[b], vj[b], f"{d.name}/{ch} {d.omega[idx[b[0]]]:.3g}-"
-                                                        f"{d.omega[idx[b[-1]]]:.3g} rad/s"))
+            for b, (c, p) in zip(bands, cells):
+                coh.append((c[j], p[j], (f"{d.name}/{ch}", d.omega[idx[b[0]]], d.omega[idx[b[-1]]])))
             if len(bands) >= 2:
-                white.append(_bartlett_cell(np.abs(vj) ** 2 / gain, bands, f"{d.name}/{ch}"))
+                white.append(_bartlett_cell(np.abs(vi[:, j]) ** 2 / gain, bands, f"{d.name}/{ch}"))
     return _bonferroni(coh), _bonferroni(white)
 
 
-def _coherence_cell(u: np.ndarray, v: np.ndarray, where: str):
-    """Multiple coherence of v with the inputs u and its F-test p-value (module doc)."""
+def _coherence_cells(u: np.ndarray, v: np.ndarray) -> tuple:
+    """Multiple coherence of each column of v with the inputs u and its F-test p-value (module doc)."""
     n, q = u.shape
     if n <= q + 1:
-        return 0.0, 1.0, where
+        return np.zeros(v.shape[1]), np.ones(v.shape[1])
     coef, *_ = np.linalg.lstsq(u, v, rcond=None)
-    fitted = float(np.sum(np.abs(u @ coef) ** 2))
-    total = float(np.sum(np.abs(v) ** 2))
-    c = min(fitted / total, 1.0 - 1e-15) if total > 0 else 0.0
+    fitted = np.sum(np.abs(u @ coef) ** 2, axis=0)
+    total = np.sum(np.abs(v) ** 2, axis=0)
+    c = np.where(total > 0, np.minimum(fitted / np.where(total > 0, total, 1.0), 1.0 - 1e-15), 0.0)
     F = (n - q) / q * c / (1.0 - c)
-    return c, f_sf(F, 2 * q, 2 * (n - q)), where
+    return c, np.array([f_sf(x, 2 * q, 2 * (n - q)) for x in F])
 
 
 def _bartlett_cell(power: np.ndarray, bands: list, where: str):
@@ -591,10 +621,16 @@ def _bartlett_cell(power: np.ndarray, bands: list, where: str):
 
 
 def _bonferroni(cells: list) -> tuple:
+    """(statistic, Bonferroni p, cells, where) of the cell with the smallest p.
+
+    ``where`` of a cell: a label, or (label, lo, hi) of a band in rad/s (formatted for the worst only).
+    """
     if not cells:
         return 0.0, 1.0, 0, "not testable (too few independent frequencies)"
     stat, p, where = min(cells, key=lambda c: c[1])
-    return float(stat), min(1.0, p * len(cells)), len(cells), where
+    if not isinstance(where, str):
+        where = f"{where[0]} {where[1]:.3g}-{where[2]:.3g} rad/s"
+    return float(stat), min(1.0, float(p) * len(cells)), len(cells), where
 
 
 def check(prob, theta, V, R, *, alpha: float = ALPHA, library=None, sensitivities=None) -> Adequacy:

@@ -34,9 +34,9 @@ no refit.  From the same matrices:
 
 For an effect whose parameter is not identified under the null (a structural
 mode's frequency), the statistic is profiled over a grid of that parameter
-(:meth:`ScreenContext.grid_jacobians` gives the candidate sensitivities at
-every grid value at once; the statistics of all grid values are one array
-operation).
+(:meth:`ScreenContext.grid_sensitivities` gives the candidate sensitivities
+at a block of grid values at once; the statistics of a block are one array
+operation, and aliasing and the MDE are those of the best grid value).
 
 Aliasing and the MDE describe the design and the noise, not the current
 misfit, so they are computed with the gap map's noise floors (per channel and
@@ -78,7 +78,7 @@ from .models.effects import Effect
 
 __all__ = [
     "ALIAS_LIMIT", "ScreenContext", "ScreenResult", "bh", "chi2_logsf", "chi2_sf", "davies_bound", "f_sf",
-    "grid_variation", "holm", "null_kind", "p_value", "power_noncentrality", "screen", "whitener",
+    "grid_variation", "holm", "null_kind", "p_value", "power_noncentrality", "screen", "screen_all", "whitener",
 ]
 
 #: Aliasing above which a candidate is "not identifiable" (DIAGNOSIS.md 2.3).
@@ -338,12 +338,20 @@ class ScreenContext:
             self._rp = self.perp(self.r)
         return self._rp
 
-    def pair(self, A: np.ndarray) -> tuple:
-        """(likelihood-whitened, floor-whitened) real-stacked columns of dy/d eta, A of shape (N, n_out, q)."""
-        return self._real_cols(self._white_cols(A)), self._real_cols(self._floor_cols(A))
+    def white(self, A: np.ndarray) -> np.ndarray:
+        """Likelihood-whitened, real-stacked columns of dy/d eta, A of shape (N, n_out, q): (M, q)."""
+        return self._real_cols(self._white_cols(A))
 
-    def candidate_jacobian(self, model, names, steps, one_sided):
-        """(likelihood-whitened, floor-whitened) real-stacked d(prediction)/d(eta) at the model's values."""
+    def floor(self, A: np.ndarray) -> np.ndarray:
+        """Floor-whitened, real-stacked columns of dy/d eta (for aliasing and the MDE): (M, q)."""
+        return self._real_cols(self._floor_cols(A))
+
+    def pair(self, A: np.ndarray) -> tuple:
+        """(:meth:`white`, :meth:`floor`) of A."""
+        return self.white(A), self.floor(A)
+
+    def candidate_sensitivities(self, model, names, steps, one_sided) -> np.ndarray:
+        """d(prediction)/d(eta) at the model's values by central (or forward) differences, shape (N, n_out, q)."""
         prob = prepare(self.spectra, model, sensitivity="central", **self.options)
         theta = np.array([self.fit.params.get(n, model.parameters.values.get(n, 0.0)) for n in prob.names])
         idx = {n: i for i, n in enumerate(prob.names)}
@@ -360,29 +368,42 @@ class ScreenContext:
                 tm = theta.copy()
                 tm[i] -= h
                 cols.append((yp - _stack(prob, tm)) / (2 * h))
-        return self.pair(np.stack(cols, axis=-1))  # (N, n_out, q)
+        return np.stack(cols, axis=-1)
 
-    def grid_jacobians(self, model, names, steps, one_sided, gname: str, grid: np.ndarray) -> tuple:
-        """:meth:`candidate_jacobian` at every value of the nuisance parameter ``gname`` on ``grid``.
+    def candidate_jacobian(self, model, names, steps, one_sided) -> tuple:
+        """(likelihood-whitened, floor-whitened) real-stacked d(prediction)/d(eta) at the model's values."""
+        return self.pair(self.candidate_sensitivities(model, names, steps, one_sided))
 
-        Returns (Je, Jf), each of shape (M, len(grid), q).  This one evaluates
-        the grid values one by one; a subclass may evaluate them at once.
+    def candidate_sensitivities_many(self, cands) -> list:
+        """:meth:`candidate_sensitivities` of each ``(model, names, steps, one_sided)``; an exception in place
+        of a candidate that cannot be evaluated.  A subclass may take them together."""
+        out = []
+        for args in cands:
+            try:
+                out.append(self.candidate_sensitivities(*args))
+            except Exception as exc:  # noqa: BLE001 - a candidate that cannot be evaluated is reported
+                out.append(exc)
+        return out
+
+    def grid_sensitivities(self, model, names, steps, one_sided, gname: str, grid: np.ndarray) -> np.ndarray:
+        """:meth:`candidate_sensitivities` at every value of the nuisance parameter ``gname`` on ``grid``.
+
+        Returns shape (N, n_out, len(grid), q).  This one evaluates the grid
+        values one by one; a subclass may evaluate them at once.
         """
-        pairs = [self.candidate_jacobian(model.with_values({gname: float(w)}), names, steps, one_sided)
-                 for w in grid]
-        return np.stack([p[0] for p in pairs], axis=1), np.stack([p[1] for p in pairs], axis=1)
+        return np.stack([self.candidate_sensitivities(model.with_values({gname: float(w)}), names, steps, one_sided)
+                         for w in grid], axis=2)
 
 
 def _stack(prob, theta):
     return np.concatenate([y[:, prob.out_idx] for y in prob.predict(theta)])
 
 
-def _lm(ctx: ScreenContext, Je: np.ndarray, Jf: np.ndarray):
-    """LM statistic and linearised estimate (likelihood metric); information and aliasing (floor metric).
+def _score(ctx: ScreenContext, Je: np.ndarray) -> tuple:
+    """LM statistic and linearised estimate (likelihood metric) of g candidates at once.
 
-    ``Je`` and ``Jf`` of shape (M, g, q): g candidates (grid values) of q
-    parameters each, all projected at once.  Returns arrays over g: LM (g,),
-    eta (g, q), information (g, q, q), aliasing (g, q).
+    ``Je`` of shape (M, g, q): g candidates (grid values) of q parameters
+    each, projected at once.  Returns LM (g,) and eta (g, q).
     """
     M, g, q = Je.shape
     Jp = ctx.perp(Je.reshape(M, g * q))
@@ -394,12 +415,17 @@ def _lm(ctx: ScreenContext, Je: np.ndarray, Jf: np.ndarray):
     except np.linalg.LinAlgError:
         eta = np.stack([_solve_or_lstsq(G[k], b[k]) for k in range(g)])
     lm = 2.0 * np.einsum("gi,gi->g", b, eta) / ctx.K
+    return np.maximum(lm, 0.0), eta
+
+
+def _floor_stats(ctx: ScreenContext, Jf: np.ndarray) -> tuple:
+    """Information (g, q, q) and aliasing (g, q) in the floor metric of ``Jf`` (M, g, q)."""
+    M, g, q = Jf.shape
     Jfp = ctx.perp_floor(Jf.reshape(M, g * q)).reshape(M, g, q).transpose(1, 0, 2)
     Gf = Jfp.transpose(0, 2, 1) @ Jfp
     full = np.einsum("mgi,mgi->gi", Jf, Jf)
     alias = 1.0 - np.diagonal(Gf, axis1=1, axis2=2) / np.where(full > 0, full, np.inf)
-    info = 2.0 * Gf / ctx.K
-    return np.maximum(lm, 0.0), eta, info, np.clip(alias, 0.0, 1.0)
+    return 2.0 * Gf / ctx.K, np.clip(alias, 0.0, 1.0)
 
 
 def _solve_or_lstsq(G, b):
@@ -407,6 +433,19 @@ def _solve_or_lstsq(G, b):
         return np.linalg.solve(G, b)
     except np.linalg.LinAlgError:
         return np.linalg.lstsq(G, b, rcond=1e-12)[0]
+
+
+#: Candidate sensitivities per block of a nuisance grid, complex values (grid values x parameters x rows x
+#: outputs, about 100 KB).  Larger temporaries are mapped fresh by the allocator on every call and cost a
+#: page fault per 4 KB (725 faults, 1.5 ms per structural-mode screen of a 12 s record, measured); blocks
+#: of this size reuse the heap.
+BLOCK_VALUES = 6000
+
+
+def _blocks(n: int, per_value: int) -> list:
+    """Slices of ``range(n)`` with about :data:`BLOCK_VALUES` / ``per_value`` grid values each."""
+    k = max(1, BLOCK_VALUES // max(per_value, 1))
+    return [slice(i, min(i + k, n)) for i in range(0, n, k)]
 
 
 def _steps(test, nulls, aug) -> tuple[list, list]:
@@ -419,38 +458,122 @@ def _steps(test, nulls, aug) -> tuple[list, list]:
     return steps, one_sided
 
 
-def screen(ctx: ScreenContext, effect: Effect, *, level: float, band: tuple) -> ScreenResult:
-    """Screen one candidate effect at the current fit."""
+@dataclass(frozen=True)
+class _Candidate:
+    """A candidate set up for the screen: the augmented model at the null and the tested parameters."""
+
+    effect: Effect
+    aug: object
+    test: tuple
+    nulls: dict
+    steps: tuple
+    one_sided: tuple
+
+    @property
+    def names(self) -> list:
+        return [p.name for p in self.test]
+
+    @property
+    def args(self) -> tuple:
+        """(model, names, steps, one_sided) of :meth:`ScreenContext.candidate_sensitivities`."""
+        return self.aug, self.names, list(self.steps), list(self.one_sided)
+
+
+def _candidate(ctx: ScreenContext, effect: Effect) -> _Candidate:
     cur = ctx.fit.model
     nulls = effect.nulls(cur)
-    aug = effect.augment(cur).with_values(nulls)
-    test = [p for p in effect.param_list(cur) if not p.nuisance]
-    names = [p.name for p in test]
+    aug = effect.augment(cur)
+    vals = aug.parameters.values
+    if any(vals[k] != v for k, v in nulls.items()):  # augment leaves most effects at their nulls already
+        aug = aug.with_values(nulls)
+    test = tuple(p for p in effect.param_list(cur) if not p.nuisance)
     steps, one_sided = _steps(test, nulls, aug)
-    grid_out, best_nuis = None, {}
-    grids = effect.nuisance_grid or {}
-    if grids:
-        (gname, gfun), = grids.items()
-        grid = np.asarray(gfun(max(band[0], band[1] / 5.0), band[1]))
-        Je, Jf = ctx.grid_jacobians(aug, names, steps, one_sided, gname, grid)
-        prof, etas, infos, aliases = _lm(ctx, Je, Jf)
-        k = 0
-        for j in range(1, grid.size):  # the first grid value with the largest LM
-            if prof[j] > prof[k]:
-                k = j
-        lm, eta, info, alias = float(prof[k]), etas[k], infos[k], aliases[k]
-        grid_out = {gname: (grid, prof)}
-        best_nuis = {gname: float(grid[k])}
-        jac = (Je[:, k, :], Jf[:, k, :])
-    else:
-        jac = ctx.candidate_jacobian(aug, names, steps, one_sided)
-        lms, etas, infos, aliases = _lm(ctx, jac[0][:, None, :], jac[1][:, None, :])
-        lm, eta, info, alias = float(lms[0]), etas[0], infos[0], aliases[0]
+    return _Candidate(effect, aug, test, nulls, tuple(steps), tuple(one_sided))
+
+
+def screen(ctx: ScreenContext, effect: Effect, *, level: float, band: tuple) -> ScreenResult:
+    """Screen one candidate effect at the current fit (:func:`screen_all` of one)."""
+    res, = screen_all(ctx, [effect], level=level, band=band)
+    if isinstance(res, Exception):
+        raise res
+    return res
+
+
+def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> list:
+    """:func:`screen` of every effect, in order; an effect that cannot be evaluated has its exception instead.
+
+    The candidates without a nuisance grid are taken together: their
+    sensitivities from :meth:`ScreenContext.candidate_sensitivities_many`,
+    their statistics as one array operation per number of parameters.
+    """
+    out, cands = [None] * len(effects), {}
+    for i, eff in enumerate(effects):
+        try:
+            cands[i] = _candidate(ctx, eff)
+        except Exception as exc:  # noqa: BLE001 - a candidate that cannot be set up is reported, never fatal
+            out[i] = exc
+    plain = [i for i, c in cands.items() if not c.effect.nuisance_grid]
+    stats = {}
+    sens = ctx.candidate_sensitivities_many([cands[i].args for i in plain])
+    good = []
+    for i, A in zip(plain, sens):
+        if isinstance(A, Exception):
+            out[i] = A
+        else:
+            good.append((i, A))
+    for q in sorted({A.shape[-1] for _, A in good}):
+        group = [(i, A) for i, A in good if A.shape[-1] == q]
+        Je, Jf = ctx.pair(np.concatenate([A for _, A in group], axis=-1))
+        Je, Jf = Je.reshape(-1, len(group), q), Jf.reshape(-1, len(group), q)
+        lms, etas = _score(ctx, Je)
+        infos, aliases = _floor_stats(ctx, Jf)
+        for j, (i, _) in enumerate(group):
+            stats[i] = (lms[j], etas[j], infos[j], aliases[j], (Je[:, j, :], Jf[:, j, :]), None, {})
+    for i, c in cands.items():
+        if c.effect.nuisance_grid:
+            try:
+                stats[i] = _grid_stats(ctx, c, band)
+            except Exception as exc:  # noqa: BLE001 - as above
+                out[i] = exc
+    for i, st in stats.items():
+        try:
+            out[i] = _result(ctx, cands[i], st, level)
+        except Exception as exc:  # noqa: BLE001 - as above
+            out[i] = exc
+    return out
+
+
+def _grid_stats(ctx: ScreenContext, c: _Candidate, band: tuple) -> tuple:
+    """Statistics at the grid value of the nuisance parameter with the largest LM (blocks of the grid at once)."""
+    (gname, gfun), = c.effect.nuisance_grid.items()
+    grid = np.asarray(gfun(max(band[0], band[1] / 5.0), band[1]))
+    prof, best = [], None
+    model, names, steps, one_sided = c.args
+    for blk in _blocks(grid.size, len(names) * ctx.fit.V.size):
+        A = ctx.grid_sensitivities(model, names, steps, one_sided, gname, grid[blk])  # (N, n_out, g, q)
+        N, n, g, q = A.shape
+        Je = ctx.white(A.reshape(N, n, g * q)).reshape(-1, g, q)
+        lms, etas = _score(ctx, Je)
+        for j in range(g):  # the first grid value with the largest LM
+            if best is None or lms[j] > best[0]:
+                best = (lms[j], etas[j], blk.start + j, Je[:, j, :], A[:, :, j, :])
+        prof.append(lms)
+    lm, eta, k, Je, A = best
+    Jf = ctx.floor(A)  # the floor metric only matters at the chosen grid value
+    infos, aliases = _floor_stats(ctx, Jf[:, None, :])
+    return lm, eta, infos[0], aliases[0], (Je, Jf), {gname: (grid, np.concatenate(prof))}, {gname: float(grid[k])}
+
+
+def _result(ctx: ScreenContext, c: _Candidate, stats: tuple, level: float) -> ScreenResult:
+    """The screen's verdict on one candidate from its statistics (LM, eta, information, aliasing, ...)."""
+    lm, eta, info, alias, jac, grid_out, best_nuis = stats
+    lm = float(lm)
+    names = c.names
     # one-sided nulls: a linearised step into the infeasible side means no evidence
-    for j, p in enumerate(test):
-        if one_sided[j] and eta[j] < 0 and len(test) == 1:
+    for j in range(len(names)):
+        if c.one_sided[j] and eta[j] < 0 and len(names) == 1:
             lm = 0.0
-    q = len(test)
+    q = len(names)
     n_family = max(int(getattr(ctx, "family_size", 1)), 1)
     lam = power_noncentrality(level / n_family, q)
     try:
@@ -459,10 +582,10 @@ def screen(ctx: ScreenContext, effect: Effect, *, level: float, band: tuple) -> 
     except np.linalg.LinAlgError:
         mde = {n: math.inf for n in names}
     aliasing = {n: float(alias[j]) for j, n in enumerate(names)}
-    reason = _unidentifiable(aliasing, mde, test, nulls, bool(grids))
-    eta_lin = {n: float(nulls[n] + eta[j]) for j, n in enumerate(names)}
-    return ScreenResult(effect.key, float(lm), eta_lin, aliasing, mde, reason is None, reason, grid_out, best_nuis,
-                        model=aug, jacobian=jac)
+    reason = _unidentifiable(aliasing, mde, c.test, c.nulls, grid_out is not None)
+    eta_lin = {n: float(c.nulls[n] + eta[j]) for j, n in enumerate(names)}
+    return ScreenResult(c.effect.key, lm, eta_lin, aliasing, mde, reason is None, reason, grid_out, best_nuis,
+                        model=c.aug, jacobian=jac)
 
 
 def _unidentifiable(aliasing: dict, mde: dict, test, nulls: dict, grid: bool) -> str | None:

@@ -10,7 +10,7 @@ def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
     """Parse ``["Cm_de=-1.4", ...]`` into ``{"Cm_de": -1.4}``."""
     from ..errors import ParameterError
 
-    out = {}
+    out: dict[str, float] = {}
     for item in items or []:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():

@@ -10,8 +10,10 @@ module                 job
                        noise floor, gain/phase error with bounds, F tests, Holm/BH
 :mod:`.effects`        nested augmentations of any model; the open registry
 :mod:`.library`        the built-in effects (lift_lag ... unmeasured_gust)
-:mod:`.screen`         score (LM) screen, aliasing, minimum detectable effect
-:mod:`.attribute`      refits, chi2 / chi-bar-square / Davies nulls, Holm, BIC, ambiguity
+:mod:`.screen`         score (LM) screen, aliasing, minimum detectable effect (in
+                       :mod:`fdml.score`, shared with every fit's adequacy check)
+:mod:`.attribute`      refits, chi2 / chi-bar-square / Davies nulls (:mod:`fdml.score`), Holm,
+                       BIC, ambiguity
 :mod:`.disturbance`    unmeasured turbulence on the input-incoherent residual
 :mod:`.shrink`         shrink, footprint, compensation, parameter shifts, hold-out fits
 :mod:`.report`         labels, verdict, JSON; :mod:`.text` the paragraph; :mod:`.plots`

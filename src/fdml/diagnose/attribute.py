@@ -3,7 +3,7 @@
 One attribution step, from the current fit:
 
 1. screen every applicable candidate with the score test
-   (:mod:`fdml.diagnose.screen`); candidates the data cannot test (aliased,
+   (:mod:`fdml.score`); candidates the data cannot test (aliased,
    or a minimum detectable effect beyond the plausible range) are reported
    as *not identifiable* and spend no part of the family's alpha;
 2. refit the ``refit_top`` best by LM, and every candidate whose LM alone is

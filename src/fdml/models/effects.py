@@ -336,6 +336,8 @@ def _rebuild(model: Model, root: Model, effects: tuple) -> Model:
         q = old.get(p.name)
         same = q is None or (q.value, q.free, q.lower, q.upper) == (p.value, p.free, p.lower, p.upper)
         items.append(p if same else replace(p, value=q.value, free=q.free, lower=q.lower, upper=q.upper))
+    if all(a is b for a, b in zip(items, new.parameters.items)):  # nothing to carry over
+        return new
     return new.with_parameters(Parameters(tuple(items)))
 
 
