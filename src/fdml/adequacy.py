@@ -312,7 +312,8 @@ class _Context(ScreenContext):
 
     def candidate_sensitivities_many(self, cands) -> list:
         """Every candidate's dy/d eta from one measurement of all their response changes."""
-        out, changes = [], []
+        out: list[int | Exception] = []  # per candidate: its column count, or why it failed
+        changes = []
         for model, names, steps, one_sided in cands:
             try:
                 changes.append(self._changes(model, names, steps, one_sided))

@@ -45,7 +45,7 @@ import sys
 import time
 import warnings
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -240,10 +240,10 @@ def _expand(src) -> list[tuple[str, float | None, float | None, str | None]]:
             raise FdmlError(f"folder {p} holds no records ({', '.join(RECORD_SUFFIXES)})")
         return [(str(f.absolute()), None, None, None) for f in files]
     if not p.exists() and _GLOB_CHARS.search(str(src)):
-        files = sorted(f for f in glob.glob(str(src), recursive=True) if Path(f).is_file())
-        if not files:
+        matches = sorted(f for f in glob.glob(str(src), recursive=True) if Path(f).is_file())
+        if not matches:
             raise FdmlError(f"no records match {src}")
-        return [(str(Path(f).absolute()), None, None, None) for f in files]
+        return [(str(Path(f).absolute()), None, None, None) for f in matches]
     # a single file; a missing one becomes an error row, like any other bad record
     return [(str(p.absolute()), None, None, None)]
 
@@ -309,15 +309,13 @@ def load_source(path, t0: float | None = None, t1: float | None = None, *, name:
     try:
         from .io import load_record
     except ImportError:
-        load_record = None
-    if load_record is not None:
-        rec = load_record(path, t0=t0, t1=t1, **read)
-    else:
         from .record import read_csv
 
         rec = read_csv(path)
         if t0 is not None or t1 is not None:
             rec = rec.window(t0, t1)
+    else:
+        rec = load_record(path, t0=t0, t1=t1, **read)
     return replace(rec, name=name) if name else rec
 
 
@@ -713,7 +711,7 @@ def _stop_pool(ex) -> None:
 
 
 def execute(fn: Callable[[dict], dict], tasks: Iterable[dict], *, engine="process", workers: int | None = None,
-            on_error: Callable[[dict, BaseException | str], dict]) -> Iterator[dict]:
+            on_error: Callable[[dict, BaseException | str], dict]) -> Generator[dict, None, None]:
     """Run ``fn(task)`` for every task on ``engine``; yield the results as they finish.
 
     ``fn`` must be a module-level function returning a small dict.  A task

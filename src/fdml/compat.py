@@ -391,7 +391,7 @@ class _Problem:
             raise RecordError(f"record {record.name!r} is too short for a compatibility check with time shifts "
                               f"of up to {max_shift:g} s ({self.n} samples)")
         self.meas = {k: record[k] for k in outs}
-        self._cache = {}
+        self._cache: dict = {}
         self.V_meas = record["V"] if record.has("V") else np.full(self.n, U)
 
     def unpack(self, x):
@@ -597,15 +597,15 @@ def check_compatibility(record: Record, *, correct: bool = False, estimate=None,
         why[k] = "fixed by the caller"
     prob = _Problem(record, free, fixed_vals, max_shift, U)
     # start: nominal sensors, measured initial states
-    x0 = [PARAMETERS[k][0] for k in free]
-    x0.append(float(record["alpha"][0]))
+    x0_list = [PARAMETERS[k][0] for k in free]
+    x0_list.append(float(record["alpha"][0]))
     if prob.has_theta:
-        x0.append(float(record["theta"][0]))
+        x0_list.append(float(record["theta"][0]))
     if prob.V_state:
-        x0.append(float(record["V"][0]))
+        x0_list.append(float(record["V"][0]))
     if prob.has_h:
-        x0.append(float(record["h"][0]))
-    x0 = np.array(x0, dtype=float)
+        x0_list.append(float(record["h"][0]))
+    x0 = np.array(x0_list, dtype=float)
     lo = np.full(x0.size, -np.inf)
     hi = np.full(x0.size, np.inf)
     for i, k in enumerate(free):

@@ -45,9 +45,10 @@ def _finite(x) -> float | None:
 def record_airspeed(records) -> float | None:
     """The mean of the records' airspeeds (``meta["U"]``, m/s), or None when any record lacks one."""
     values = [_finite(r.meta.get("U")) for r in records]
-    if not values or any(v is None for v in values):
+    known = [v for v in values if v is not None]
+    if not values or len(known) < len(values):
         return None
-    return sum(values) / len(values)
+    return sum(known) / len(known)
 
 
 def record_conditions(records) -> dict:
@@ -55,8 +56,9 @@ def record_conditions(records) -> dict:
     out = {}
     for key in RECORD_CONDITIONS:
         values = [_finite(r.meta.get(key)) for r in records]
-        if values and all(v is not None for v in values):
-            out[key] = sum(values) / len(values)
+        known = [v for v in values if v is not None]
+        if values and len(known) == len(values):
+            out[key] = sum(known) / len(known)
     return out
 
 
@@ -73,8 +75,10 @@ def airspeed_findings(model, records, tolerance: float = AIRSPEED_TOLERANCE) -> 
         Relative difference allowed (default :data:`AIRSPEED_TOLERANCE`).
     """
     U = _finite(getattr(model, "U", None))
-    found = []
-    for r in records if U is not None else ():
+    found: list[Finding] = []
+    if U is None:
+        return found
+    for r in records:
         Ur = _finite(r.meta.get("U"))
         if Ur is None or abs(U / Ur - 1.0) <= tolerance:
             continue

@@ -322,7 +322,8 @@ def _nearest_scales(a: float, b: float, expected_az: float | None) -> tuple:
     With measured channels s_alpha alpha, s_q q, s_az a_z, Eq. 5 becomes
     ``j w (s_alpha alpha) = (s_alpha/s_q)(s_q q) + (s_alpha g/U / s_az)(s_az a_z)``.
     """
-    best, dist = (), math.inf
+    best: tuple = ()
+    dist = math.inf
     for sa, sq, sz in itertools.product(_ALPHA_SCALES, _Q_SCALES, _AZ_SCALES):
         ea = sa / sq
         if a * ea <= 0 or b * sz <= 0:

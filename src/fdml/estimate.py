@@ -144,10 +144,10 @@ class Problem:
             cols = [NUISANCE_NAMES.index(_NUISANCE_BASE[slots[i].kind][slots[i].index]) for i in own]
             self._nu.append((np.array(own, int), np.array(cols, int)))
         self._shift = [end_shift(d.omega, d.T) for d in data]  # exp(-j w T) of each record
-        self._eta0 = (None, [])  # (model, fixed nuisance values per record): see _nuisance
+        self._eta0: tuple[Model | None, list[np.ndarray]] = (None, [])  # (model, fixed nuisance values per record): see _nuisance
         self.N = sum(d.m for d in data)
         self.n_out = len(outputs)
-        self._steps = {}
+        self._steps: dict = {}
 
     # --- parameter vector ------------------------------------------------------------
     def initial(self) -> np.ndarray:
@@ -299,7 +299,7 @@ class Problem:
             h *= 0.5
             cur = column(h)
             denom = np.linalg.norm(cur)
-            change = np.linalg.norm(cur - prev) / denom if denom > 0 else 0.0
+            change = float(np.linalg.norm(cur - prev) / denom) if denom > 0 else 0.0
             if change < best_change:
                 best, best_change, best_h = cur, change, h
             if change <= tol or change > 4 * best_change:
@@ -453,7 +453,7 @@ def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary
     _check_model_effects(model, [OUTPUTS[i] for i in out_idx], fdata[0].omega)  # H1: effects vs outputs
     if sensitivity == "auto":
         # analytic where every free model parameter has a closed form, else Eq. 26
-        closed = getattr(model, "closed_form_parameters", frozenset())
+        closed: frozenset = getattr(model, "closed_form_parameters", frozenset())
         free_model = [n for n in model.parameters.free_names if not n.startswith("bias_")]
         sensitivity = "analytic" if all(n in closed for n in free_model) else "fd"
     prob = Problem(fdata, model, out_idx, boundary, sensitivity, bool(state_biases), bool(input_bias))
@@ -913,7 +913,7 @@ def _data_findings(prob: Problem, strict: bool) -> list:
         U = float(prob.model.U)
     except (AttributeError, NotImplementedError, TypeError, ValueError):
         U = None
-    found = []
+    found: list = []
     for d in prob.data:
         if d.record is not None:
             found.extend(check_data(d.record, airspeed=U, data=d).findings)

@@ -280,7 +280,9 @@ def to_control(result_or_model, *, form: str = "frd", omega=None, pade: int | No
         raise ParameterError(f"form must be 'frd' or 'statespace', got {form!r}")
     has = _has_delays(model)
     sys = to_statespace(result_or_model, pade=pade if has else None, name=name)
-    return ControlExport(sys, "statespace", "pade" if has else "none", int(pade) if has else None)
+    # with delays, to_statespace has refused pade=None
+    return ControlExport(sys, "statespace", "pade" if has else "none",
+                         int(pade) if has and pade is not None else None)
 
 
 def _has_delays(model) -> bool:

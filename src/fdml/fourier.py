@@ -37,6 +37,7 @@ in O(n log(n_omega)) operations.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numpy.polynomial import polynomial as _poly
@@ -169,7 +170,7 @@ def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False)
         ``hi < lo``, ``step <= 0``, or more than :data:`MAX_BAND_FREQUENCIES`
         grid points.
     """
-    values = {}
+    values: dict[str, Any] = {}  # float, or None for an absent step
     for name, value in {"lo": lo, "hi": hi, "step": step}.items():
         if name == "step" and value is None:
             values[name] = None

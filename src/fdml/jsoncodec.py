@@ -31,6 +31,7 @@ import os
 import stat
 from collections.abc import Mapping
 from pathlib import Path, PurePath
+from typing import Any, Literal, overload
 
 import numpy as np
 
@@ -426,7 +427,12 @@ class Fields:
 
         return self._get(key, default, conv)
 
-    def number(self, key: str, default=_MISSING, allow_none: bool = False) -> float | None:
+    @overload
+    def number(self, key: str, default: float = ..., allow_none: Literal[False] = False) -> float: ...
+    @overload
+    def number(self, key: str, default: float | None = ..., allow_none: bool = False) -> float | None: ...
+
+    def number(self, key: str, default: Any = _MISSING, allow_none: bool = False) -> float | None:
         def conv(v):
             if v is None and allow_none:
                 return None
@@ -442,7 +448,13 @@ class Fields:
 
         return self._get(key, default, conv)
 
-    def string(self, key: str, default=_MISSING, choices=None, allow_none: bool = False) -> str | None:
+    @overload
+    def string(self, key: str, default: str = ..., choices: Any = None, allow_none: Literal[False] = False) -> str: ...
+    @overload
+    def string(self, key: str, default: str | None = ..., choices: Any = None,
+               allow_none: bool = False) -> str | None: ...
+
+    def string(self, key: str, default: Any = _MISSING, choices: Any = None, allow_none: bool = False) -> str | None:
         def conv(v):
             if v is None and allow_none:
                 return None
@@ -502,7 +514,12 @@ class Fields:
 
         return self._get(key, default, conv)
 
-    def sub(self, key: str, default=_MISSING) -> "Fields | None":
+    @overload
+    def sub(self, key: str) -> Fields: ...
+    @overload
+    def sub(self, key: str, default: Any) -> Any: ...
+
+    def sub(self, key: str, default: Any = _MISSING) -> Any:
         """The nested object at ``key`` as :class:`Fields` (``default`` when absent)."""
         if key not in self.doc and default is not _MISSING:
             return default

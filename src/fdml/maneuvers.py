@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import inspect
 import math
+from collections.abc import Callable
 
 import numpy as np
 from scipy import linalg, optimize, signal
@@ -443,7 +444,7 @@ def make_input(kind: str, t, amplitude: float = DEFAULT_AMPLITUDE, **kw) -> np.n
     ndarray, shape (n,)
         de(t), rad.
     """
-    funcs = {"doublet": doublet, "3211": three_two_one_one, "multisine": multisine}
+    funcs: dict[str, Callable[..., np.ndarray]] = {"doublet": doublet, "3211": three_two_one_one, "multisine": multisine}
     try:
         fn = funcs[kind]
     except (KeyError, TypeError):

@@ -25,6 +25,7 @@ import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -408,7 +409,7 @@ def monte_carlo(model, truth_values: Mapping[str, float] | None = None, n: int =
         raise FdmlError("the fitted model has no free parameters")
     tvals = truth.parameters.values
     truth_arr = np.array([tvals.get(nm, math.nan) for nm in names], float)
-    sim = {"maneuver": maneuver, "duration": float(duration), "dt": float(dt)}
+    sim: dict[str, Any] = {"maneuver": maneuver, "duration": float(duration), "dt": float(dt)}
     if amplitude is not None:
         sim["amplitude"] = float(amplitude)
     # one clean simulation here: bad settings fail once, not n times

@@ -35,6 +35,7 @@ import tempfile
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Literal
 
 from .errors import OutputError
 
@@ -133,7 +134,7 @@ def _stat(path: Path, user: str, what: str) -> os.stat_result | None:
         raise OutputError(f"{what} {user}: cannot inspect it: {exc.strerror or exc}") from None
 
 
-def check_output(path, inputs: Iterable = (), *, what: str = "output file", folder: bool = False) -> Path:
+def check_output(path, inputs: Iterable | Inputs = (), *, what: str = "output file", folder: bool = False) -> Path:
     """Refuse an output path that would destroy what the user owns.
 
     Parameters
@@ -189,7 +190,7 @@ def check_output(path, inputs: Iterable = (), *, what: str = "output file", fold
     return target
 
 
-def check_output_dir(path, inputs: Iterable = (), *, what: str = "output folder") -> Path:
+def check_output_dir(path, inputs: Iterable | Inputs = (), *, what: str = "output folder") -> Path:
     """:func:`check_output` for a folder output (``folder=True``); returns ``Path(path)``."""
     return check_output(path, inputs, what=what, folder=True)
 
@@ -251,7 +252,7 @@ class StagedOutputs:
     ...     out.write_text(folder / "report.md", text)
     """
 
-    def __init__(self, inputs: Iterable = ()):
+    def __init__(self, inputs: Iterable | Inputs = ()):
         self.inputs = inputs if isinstance(inputs, Inputs) else Inputs(inputs)
         self._pending: list[_Pending] = []
 
@@ -284,7 +285,7 @@ class StagedOutputs:
             raise ValueError(f"mode must be 'w' or 'wb', got {mode!r}")
         pending, fd = self._stage(path, what)
         try:
-            kw = {} if "b" in mode else {"encoding": encoding, "newline": ""}
+            kw: dict[str, Any] = {} if "b" in mode else {"encoding": encoding, "newline": ""}
             try:
                 fh = os.fdopen(fd, mode, **kw)
             except BaseException:
@@ -324,7 +325,8 @@ class StagedOutputs:
         """Rename every staged file into place (in staging order)."""
         pending, self._pending = self._pending, []
         for i, p in enumerate(pending):
-            st, err = None, None
+            st: os.stat_result | None = None
+            err: OSError | OutputError | None = None
             try:
                 st = os.stat(p.final)
             except (FileNotFoundError, NotADirectoryError):
@@ -353,7 +355,7 @@ class StagedOutputs:
     def __enter__(self) -> "StagedOutputs":
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> bool:
+    def __exit__(self, exc_type, exc, tb) -> Literal[False]:
         if exc_type is None:
             self.commit()
         else:
@@ -363,7 +365,7 @@ class StagedOutputs:
 
 # --- one file at a time -------------------------------------------------------------------------
 @contextlib.contextmanager
-def atomic_open(path, mode: str = "w", *, inputs: Iterable = (), encoding: str = "utf-8",
+def atomic_open(path, mode: str = "w", *, inputs: Iterable | Inputs = (), encoding: str = "utf-8",
                 what: str = "output file") -> Iterator:
     """A file handle whose content appears at ``path`` only when the block succeeds.
 
@@ -385,20 +387,20 @@ def atomic_open(path, mode: str = "w", *, inputs: Iterable = (), encoding: str =
         yield fh
 
 
-def atomic_write_text(path, text: str, *, inputs: Iterable = (), encoding: str = "utf-8",
+def atomic_write_text(path, text: str, *, inputs: Iterable | Inputs = (), encoding: str = "utf-8",
                       what: str = "output file") -> Path:
     """Write ``text`` to ``path`` atomically (see :func:`atomic_open`); returns ``Path(path)``."""
     with StagedOutputs(inputs) as out:
         return out.write_text(path, text, encoding=encoding, what=what)
 
 
-def atomic_write_bytes(path, data: bytes, *, inputs: Iterable = (), what: str = "output file") -> Path:
+def atomic_write_bytes(path, data: bytes, *, inputs: Iterable | Inputs = (), what: str = "output file") -> Path:
     """Write ``data`` to ``path`` atomically (see :func:`atomic_open`); returns ``Path(path)``."""
     with StagedOutputs(inputs) as out:
         return out.write_bytes(path, data, what=what)
 
 
-def atomic_savefig(fig, path, *, inputs: Iterable = (), what: str = "figure", **savefig_kwargs) -> Path:
+def atomic_savefig(fig, path, *, inputs: Iterable | Inputs = (), what: str = "figure", **savefig_kwargs) -> Path:
     """``fig.savefig(path, **savefig_kwargs)`` atomically: a failure leaves no truncated figure.
 
     The format comes from ``path``'s suffix unless ``format=`` is given (the

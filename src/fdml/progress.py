@@ -201,8 +201,8 @@ class StopAfter:
         self.seconds = seconds
         self.step_below = step_below
         self._clock = clock
-        self._t0 = None
-        self.reason = None
+        self._t0: float | None = None
+        self.reason: str | None = None
 
     def __call__(self, info) -> bool:
         if info.iteration == 1 or self._t0 is None:

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,6 +21,10 @@ from .errors import FdmlError
 from .findings import KINDS as _FINDING_KINDS
 from .findings import Finding
 from .jsoncodec import Fields, dumps, read_json, to_jsonable, write_json
+
+if TYPE_CHECKING:
+    from .adequacy import Adequacy
+    from .models.base import Model
 
 __all__ = ["FitResult", "IterationInfo", "load_result", "RESULT_FORMAT"]
 
@@ -119,7 +124,7 @@ class FitResult:
         records carry); see :mod:`fdml.conditions`.
     """
 
-    model: object
+    model: Model
     names: tuple
     values: np.ndarray
     stderr: np.ndarray
@@ -149,7 +154,7 @@ class FitResult:
     time_records: tuple = field(default=(), repr=False)
     nuisance: dict = field(default_factory=dict)
     findings: tuple = ()
-    adequacy: object = None
+    adequacy: Adequacy | None = None
     provenance: dict = field(default_factory=dict)
 
     # --- construction -------------------------------------------------------------------

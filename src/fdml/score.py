@@ -74,6 +74,7 @@ from scipy import special
 
 from .errors import FdmlError
 from .estimate import prepare
+from .models.base import Model
 from .models.effects import Effect
 
 __all__ = [
@@ -251,7 +252,7 @@ class ScreenResult:
     reason: str | None = None
     grid: dict | None = None  # {"omega_s": (grid, lm_profile)} for nuisance-grid effects
     nuisance: dict = field(default_factory=dict)  # best grid values
-    model: object = field(default=None, repr=False, compare=False)
+    model: Model | None = field(default=None, repr=False, compare=False)
     jacobian: tuple | None = field(default=None, repr=False, compare=False)
 
 
@@ -279,6 +280,9 @@ class ScreenContext:
         ``fit.prob.sensitivities(fit.theta)`` when the caller has it.
     """
 
+    #: Size of the screened family (the MDE's power is at level / family_size); callers set it per step.
+    family_size: int = 1
+
     def __init__(self, fit, rows: np.ndarray, oversample: float, spectra, fit_options: dict,
                  floor_weights: np.ndarray | None = None, sensitivities: np.ndarray | None = None):
         self.fit = fit
@@ -295,7 +299,7 @@ class ScreenContext:
         n = fit.V.shape[1]
         self.fw = np.ones((fit.V.shape[0], n)) if floor_weights is None else np.asarray(floor_weights, float)
         self.Qf = self._basis(self._real_cols(self._floor_cols(A)))
-        self._rp = None
+        self._rp: np.ndarray | None = None
 
     @staticmethod
     def _basis(J):
@@ -377,7 +381,7 @@ class ScreenContext:
     def candidate_sensitivities_many(self, cands) -> list:
         """:meth:`candidate_sensitivities` of each ``(model, names, steps, one_sided)``; an exception in place
         of a candidate that cannot be evaluated.  A subclass may take them together."""
-        out = []
+        out: list[np.ndarray | Exception] = []
         for args in cands:
             try:
                 out.append(self.candidate_sensitivities(*args))
@@ -463,7 +467,7 @@ class _Candidate:
     """A candidate set up for the screen: the augmented model at the null and the tested parameters."""
 
     effect: Effect
-    aug: object
+    aug: Model
     test: tuple
     nulls: dict
     steps: tuple
@@ -506,14 +510,15 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
     sensitivities from :meth:`ScreenContext.candidate_sensitivities_many`,
     their statistics as one array operation per number of parameters.
     """
-    out, cands = [None] * len(effects), {}
+    out: list[ScreenResult | Exception | None] = [None] * len(effects)
+    cands: dict[int, _Candidate] = {}
     for i, eff in enumerate(effects):
         try:
             cands[i] = _candidate(ctx, eff)
         except Exception as exc:  # noqa: BLE001 - a candidate that cannot be set up is reported, never fatal
             out[i] = exc
     plain = [i for i, c in cands.items() if not c.effect.nuisance_grid]
-    stats = {}
+    stats: dict[int, tuple] = {}
     sens = ctx.candidate_sensitivities_many([cands[i].args for i in plain])
     good = []
     for i, A in zip(plain, sens):
@@ -545,9 +550,11 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
 
 def _grid_stats(ctx: ScreenContext, c: _Candidate, band: tuple) -> tuple:
     """Statistics at the grid value of the nuisance parameter with the largest LM (blocks of the grid at once)."""
+    assert c.effect.nuisance_grid is not None  # called for nuisance-grid effects only
     (gname, gfun), = c.effect.nuisance_grid.items()
     grid = np.asarray(gfun(max(band[0], band[1] / 5.0), band[1]))
-    prof, best = [], None
+    prof: list[np.ndarray] = []
+    best: tuple | None = None
     model, names, steps, one_sided = c.args
     for blk in _blocks(grid.size, len(names) * ctx.fit.V.size):
         A = ctx.grid_sensitivities(model, names, steps, one_sided, gname, grid[blk])  # (N, n_out, g, q)
@@ -558,6 +565,7 @@ def _grid_stats(ctx: ScreenContext, c: _Candidate, band: tuple) -> tuple:
             if best is None or lms[j] > best[0]:
                 best = (lms[j], etas[j], blk.start + j, Je[:, j, :], A[:, :, j, :])
         prof.append(lms)
+    assert best is not None  # the grid is not empty
     lm, eta, k, Je, A = best
     Jf = ctx.floor(A)  # the floor metric only matters at the chosen grid value
     infos, aliases = _floor_stats(ctx, Jf[:, None, :])
@@ -592,7 +600,7 @@ def _unidentifiable(aliasing: dict, mde: dict, test, nulls: dict, grid: bool) ->
     """Why these data cannot test the candidate (aliased, or an MDE beyond the plausible range), else None."""
     worst = max(aliasing.values()) if aliasing else 0.0
     if worst > ALIAS_LIMIT:
-        n_ = max(aliasing, key=aliasing.get)
+        n_ = max(aliasing, key=lambda n: aliasing[n])
         return (f"aliased: {100 * aliasing[n_]:.1f} % of the {n_} signature is absorbed by the base parameters "
                 "with these inputs")
     if grid:

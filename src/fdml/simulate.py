@@ -232,7 +232,7 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
         lam_G = 2.0 * p["H"] * U / c  # Eq. 16: 2 H U / c_w
         tail_delay = model.tail_gust_delay
     tail_tau = l / U  # BS-8: tau_t = l/U
-    opts = {}
+    opts: dict = {}
     for eff in matrix_effects:  # e.g. gust_lag@tail: {"tail_tau": tau_tail}
         opts = eff.realize(opts, p, model)
     if "tail_tau" in opts:
@@ -250,7 +250,8 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
     for name, amp in (("x_w", y_w), ("x_t", y_t), ("x_G", G)):
         if amp != 0.0:
             names.append(name)
-    gust_terms = []  # (feedthrough, [(amplitude, rate)]) of the gust lag K(s)
+    # (feedthrough, [(amplitude, rate)]) of the gust lag K(s); [] without gust input
+    gust_terms: tuple[float, list[tuple[float, float]]] | list = []
     if model.gust:
         if steady:
             gust_terms = (1.0, [])

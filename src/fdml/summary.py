@@ -163,7 +163,7 @@ class Summary(str):
     form; ``repr()`` shows the table rather than a quoted string.
     """
 
-    title: str
+    title: str  # type: ignore[assignment]  # the summary's title shadows str.title on purpose
     header: tuple
     tables: tuple
     notes: tuple
@@ -443,7 +443,7 @@ def fit_summary(res, digits: int = 6) -> Summary:
     -------
     Summary
     """
-    rows = []
+    rows: list[tuple] = []
     for n, v, s in zip(res.names, np.asarray(res.values, float), np.asarray(res.stderr, float)):
         rows.append((n, float(v), float(s), _rel(float(v), float(s)), _flags(res, n, float(s)),
                      parameter_unit(res, n)))

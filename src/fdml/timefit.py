@@ -166,6 +166,7 @@ def fit_time_domain(record: Record, model: Model, *, outputs: Sequence[str] | st
         sigma = new_sigma
         if change < 1e-3:
             break
+    assert res is not None  # at least one pass
     resid_w = ((zmeas - predict(x)) / sigma).ravel()
     # the Jacobian at the final weights (one finite-difference sweep)
     J = _jacobian(lambda xx: ((zmeas - predict(xx)) / sigma).ravel(), x, resid_w)

@@ -106,6 +106,7 @@ class GustEstimate:
     def record(self) -> Record:
         """The input record with ``alpha_w`` added (meta ``gust`` says how it was made)."""
         r = self._record
+        assert r is not None  # estimate_gust always keeps its record
         return replace(r, signals={**r.signals, "alpha_w": self.alpha_w},
                        meta={**r.meta, "gust": {"source": self.source, "channels": list(self.channels),
                                                 "cutoff_hz": self.cutoff_hz, "hdot_noise": self.hdot_noise}})

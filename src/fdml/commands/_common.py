@@ -72,7 +72,7 @@ def model_for_records(args, records, values: dict | None = None):
     from ._options import default_model
 
     kind = default_model(args)
-    opts = {"gust": bool(args.gust)}
+    opts: dict = {"gust": bool(args.gust)}
     if args.airspeed is not None:
         opts["airspeed"] = args.airspeed
     source = "--airspeed" if args.airspeed is not None else "aircraft"

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import argparse
+
 from . import _options as O
 from ._common import assignments, check_band_option, model_for_records
 
@@ -26,7 +28,7 @@ def register(sub) -> None:
     _SUBPARSERS = sub  # for the commands quoted by the adequacy warning (_commands)
 
 
-_SUBPARSERS = None
+_SUBPARSERS: argparse._SubParsersAction | None = None  # set by register()
 #: Options the quoted commands leave out: where results go and how they are shown.
 _NOT_QUOTED = ("output", "json", "progress", "func", "command", "verbose")
 
@@ -53,6 +55,7 @@ def _argv_of(parser, args, *, rename=None) -> list:
 
 def _commands(args) -> tuple[list, list | None]:
     """(this ``fdml fit`` command, the ``fdml diagnose`` command for the same records and model)."""
+    assert _SUBPARSERS is not None  # register() has run
     fit_argv = ["fdml", "fit", *_argv_of(_SUBPARSERS.choices["fit"], args)]
     diag = _SUBPARSERS.choices.get("diagnose")
     diag_argv = None if diag is None else ["fdml", "diagnose", *_argv_of(diag, args)]

@@ -136,7 +136,7 @@ def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options
 def _params(effect: Effect, model, fit: DiagFit) -> tuple[dict, bool]:
     out, ok = {}, True
     for p in effect.param_list(model):
-        v = fit.params.get(p.name, fit.model.parameters.values.get(p.name))
+        v = fit.params[p.name] if p.name in fit.params else fit.model.parameters.values[p.name]
         se = fit.stderr.get(p.name, math.nan) if p.name in fit.stderr else math.nan
         out[p.name] = (float(v), float(se))
         if p.plausible is not None and not p.nuisance:
@@ -184,13 +184,15 @@ def attribute_step(data, cur: DiagFit, effects, bands, rows, options: dict, *, a
         null, q = _null_kind(eff, cur.model, scr)
         tested.append(Candidate(eff, eff.key, screen=scr, lr=scr.lm, df=q, null=null, step=step))
     K = max(len(tested), 1)
-    order = sorted(tested, key=lambda c: -c.screen.lm)
+    order = sorted(tested, key=lambda c: -c.lr)  # c.lr is still the screen's LM statistic here
     for i, c in enumerate(order):
-        V, ng = _grid_variation(c.screen)
-        p_lm, _ = p_value(c.screen.lm, c.df, c.null, V=V, n_grid=ng)
+        screened = c.screen
+        assert screened is not None  # every tested candidate was screened
+        V, ng = _grid_variation(screened)
+        p_lm, _ = p_value(screened.lm, c.df, c.null, V=V, n_grid=ng)
         if i < refit_top or p_lm < alpha / K:
             try:
-                c.fit, grid_cost = _refit(data, cur, c.effect, c.screen, bands, options)
+                c.fit, grid_cost = _refit(data, cur, c.effect, screened, bands, options)
             except Exception as exc:  # pragma: no cover - reported, never fatal
                 c.reason = f"refit failed: {exc}"
                 continue
@@ -261,6 +263,6 @@ def choose(tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = Non
     for c in sig:
         if c is best or (2 * c.q_eff - c.lr) - aic_best <= AMBIGUITY_AIC:
             amb.append(c)
-        elif rows is not None and vuong_z(best.fit, c.fit, rows, dft) < VUONG_Z:
+        elif rows is not None and dft is not None and vuong_z(best.fit, c.fit, rows, dft) < VUONG_Z:
             amb.append(c)
     return best, amb

@@ -16,12 +16,13 @@ import numpy as np
 from ..errors import FdmlError, ParameterError
 from ..models.base import Model
 from ..models.effects import Effect, default_library, registered_effects
+from ..estimate import NoiseModel
 from ..record import Record
 from .attribute import Candidate, attribute_step, choose, p_value
-from .data import analysis_data
-from .disturbance import gust_test
-from .likelihood import fit_model, likelihood_ratio, noise_bands
-from .locate import default_bands, holm
+from .data import AnalysisData, analysis_data
+from .disturbance import GustTest, gust_test
+from .likelihood import DiagFit, fit_model, likelihood_ratio, noise_bands
+from .locate import GapMap, default_bands, holm
 from .report import SHRINK_CONFIRM, DiagnosisReport, label_for
 from .shrink import (
     compensation,
@@ -103,8 +104,8 @@ def _noise_effect(effects):
 class _Setup:
     """What every phase of a diagnosis needs: analysis data, noise model, gap-map bands, options."""
 
-    data: object  # AnalysisData
-    nb: object  # NoiseModel: the band-wise noise of every fit
+    data: AnalysisData
+    nb: NoiseModel  # the band-wise noise of every fit
     rows: np.ndarray  # noise band of each stacked analysis row
     edges: np.ndarray  # gap-map band edges, rad/s
     channels: tuple
@@ -138,10 +139,10 @@ class _Selection:
     skipped: dict  # key -> Candidate not testable (first step), and the turbulence test if it could not run
     family: int | None  # size of the first step's family (Holm), the turbulence test included
     step_fits: list  # the fit each step's candidates were added to
-    final: object  # DiagFit after the last accepted effect
-    gust: object  # GustTest or None
+    final: DiagFit  # after the last accepted effect
+    gust: GustTest | None
     gust_sig: bool
-    gust_effect: object
+    gust_effect: Effect | None
 
 
 @dataclass(frozen=True)
@@ -150,7 +151,7 @@ class _Shrink:
 
     in_sample: dict  # (key, step) -> (shrink, flagged cells)
     holdout: dict  # (key, step) -> (shrink, flagged cells) on the hold-out records
-    final_map: object  # final fit's map with the base floors
+    final_map: GapMap  # final fit's map with the base floors
     unexplained: list
     shrink_final: float | None
     n_flagged: int
@@ -285,7 +286,10 @@ def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int)
     fw = floor_weights(su.data, base_map, su.channels)
     gust_eff = _noise_effect(su.effects)
     cur = base_fit
-    accepted, ambiguity, all_tested, step_fits = [], [], [], []
+    accepted: list[Candidate] = []
+    ambiguity: list[list[Candidate]] = []
+    all_tested: list[Candidate] = []
+    step_fits: list[DiagFit] = []
     skipped_all: dict = {}
     K0 = None
     remaining = [e for e in su.effects if e.kind == "deterministic"]
@@ -509,6 +513,7 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink) -> list:
         # close): confirmed when no coherent gap is left unexplained, else partial
         glab = ("confirmed" if n_unexp_label == 0 else "partial") if sel.gust_sig else None
         ge = sel.gust_effect
+        assert ge is not None  # a turbulence test ran, so the library holds the effect
         ranking.append({
             "effect": "unmeasured_gust", "key": ge.key, "channel": ge.channel, "lr": gust.lr,
             "p_value": gust.p, "p_holm": min(1.0, gust.p * max(K0 or 1, 1)), "shrink": gust.share,

@@ -29,9 +29,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import FdmlError
-from ..estimate import NoiseModel, _cov_R, _logdet, prepare
+from ..estimate import NoiseModel, Problem, _cov_R, _logdet, prepare
 from ..estimate import fit as fdml_fit
 from ..models.base import Model
+from ..results import FitResult
 from ..score import whitener  # re-exported: the diagnosis's name for it
 from .data import AnalysisData
 
@@ -104,8 +105,8 @@ class DiagFit:
     Rs: list
     converged: bool
     message: str
-    prob: object = field(repr=False)
-    result: object = field(default=None, repr=False)
+    prob: Problem = field(repr=False)
+    result: FitResult | None = field(default=None, repr=False)
 
     @property
     def params(self) -> dict:

@@ -30,6 +30,10 @@ flagged cells are reported under ``unexplained`` all the same.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from ..results import FitResult
 
 __all__ = ["DiagnosisReport", "label_for", "SHRINK_CONFIRM", "JSON_KEYS"]
 
@@ -101,7 +105,7 @@ class DiagnosisReport:
     text: str = ""
     details: dict = field(default_factory=dict, repr=False)
     findings: tuple = ()
-    recommended: object = field(default=None, repr=False)
+    recommended: FitResult | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict:
         """JSON-ready dict: the issue's keys first, then the supporting detail."""

@@ -28,6 +28,7 @@ import os
 import time
 from collections import Counter, defaultdict
 from dataclasses import asdict, dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -130,7 +131,7 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
     from .truth import simulate_truth
 
     base = _base(sc)
-    kw = dict(noise=sc.noise, noise_kind=sc.noise_kind, gust_std=GUST_STD)
+    kw: dict[str, Any] = dict(noise=sc.noise, noise_kind=sc.noise_kind, gust_std=GUST_STD)
     t0 = time.perf_counter()
     rec = simulate_truth(base, sc.truth, sc.values, maneuver=sc.maneuver, seed=sc.seed, **kw)
     hold = simulate_truth(base, sc.truth, sc.values, maneuver=HOLDOUT_OF[sc.maneuver], seed=sc.seed + 7_919_000,
@@ -216,7 +217,9 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
     by = defaultdict(list)
     for r in rows:
         by[r["case"]].append(r)
-    eff, nulls, ool = {}, {}, {}
+    eff: dict[str, dict[str, Any]] = {}
+    nulls: dict[str, dict[str, Any]] = {}
+    ool: dict[str, dict[str, Any]] = {}
     verdicts = sorted({r["verdict"] for r in rows} | {"none"})
     confusion = {}
     for case, rs in by.items():

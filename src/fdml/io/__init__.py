@@ -23,6 +23,7 @@ reported in ``meta["trim_values"]`` either way.
 from __future__ import annotations
 
 import inspect
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -59,7 +60,7 @@ def read_fdml_csv(path, t0: float | None = None, t1: float | None = None, *, tri
                   check_units=check_units)
 
 
-_LOADERS = {
+_LOADERS: dict[str, Callable[..., Record]] = {
     "sidpac": read_sidpac,
     "dlr-asc": read_dlr_asc,
     "dlr-mat": read_dlr_mat,
@@ -130,7 +131,7 @@ def load_record(path, format: str = "auto", t0: float | None = None, t1: float |
     """
     if format not in FORMATS:
         raise RecordError(f"unknown record format {format!r}; use one of {', '.join(FORMATS)}")
-    implied = {}
+    implied: dict = {}
     if format == "auto":
         format, implied = detect_format(path, **kw)
     loader = _LOADERS[format]

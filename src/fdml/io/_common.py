@@ -6,6 +6,7 @@ import faulthandler
 import math
 import os
 import pickle
+from collections.abc import Mapping
 from dataclasses import replace
 from pathlib import Path
 
@@ -42,7 +43,7 @@ def check_trim(trim) -> None:
         raise RecordError(f"unknown trim mode {trim!r}; use None/'none' (keep trim), 'first' or 'mean'")
 
 
-def trim_values(t: np.ndarray, signals: dict, window: float = TRIM_WINDOW) -> dict:
+def trim_values(t: np.ndarray, signals: Mapping[str, np.ndarray], window: float = TRIM_WINDOW) -> dict:
     """Mean of every signal over the leading ``window`` seconds (SI)."""
     dt = (t[-1] - t[0]) / (t.size - 1)
     k = min(t.size, int(round(window / dt)) + 1)

@@ -177,7 +177,10 @@ class DimensionalModel(Model):
 
     @property
     def U(self) -> float:
-        return float(self.airspeed) if self.airspeed is not None else self.aircraft.U
+        if self.airspeed is not None:
+            return float(self.airspeed)
+        assert self.aircraft is not None  # __post_init__ requires the airspeed or an aircraft
+        return self.aircraft.U
 
     def _default_parameters(self) -> Parameters:
         if self.aircraft is not None:

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
@@ -112,7 +113,9 @@ def to_unsteady_equivalent(root: Model) -> Model:
     if root.kind != "steady":
         raise ParameterError(f"no unsteady equivalent of the {root.kind} model")
     from . import make_model
+    from .wells_keskar import SteadyModel
 
+    assert isinstance(root, SteadyModel)  # the "steady" kind (a root model)
     u = make_model("unsteady", root.aircraft, gust=root.gust, output_bias=root.output_bias,
                    tail_gust_delay=False)
     vals = {k: v for k, v in root.parameters.values.items() if k in u.parameters}
@@ -171,7 +174,7 @@ def _lift_lag_realize(d, p, root):
     return d
 
 
-_LIFT_Y = dict(lower=0.0, upper=1.0, plausible=(0.0, 0.6), unit="-", start=0.05,
+_LIFT_Y: dict[str, Any] = dict(lower=0.0, upper=1.0, plausible=(0.0, 0.6), unit="-", start=0.05,
                description="wing lift-lag amplitude (Eq. 1)")
 
 LIFT_LAG = Dispatch("lift_lag", "alpha", {
@@ -366,7 +369,7 @@ def _tail_applies(root):
     return None
 
 
-_B1 = dict(lower=0.0, upper=40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5,
+_B1: dict[str, Any] = dict(lower=0.0, upper=40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5,
            description="Kussner lag length (BS-12)")
 GUST_LAG = Dispatch("gust_lag", "alpha_w", {
     "unsteady": FreeParameterEffect("gust_lag", "alpha_w", Param("b1", None, **_B1), ("unsteady", "steady"),

@@ -44,6 +44,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
+from typing import cast
 
 import numpy as np
 
@@ -334,8 +335,10 @@ def _rebuild(model: Model, root: Model, effects: tuple) -> Model:
     items = []
     for p in new.parameters:
         q = old.get(p.name)
-        same = q is None or (q.value, q.free, q.lower, q.upper) == (p.value, p.free, p.lower, p.upper)
-        items.append(p if same else replace(p, value=q.value, free=q.free, lower=q.lower, upper=q.upper))
+        if q is None or (q.value, q.free, q.lower, q.upper) == (p.value, p.free, p.lower, p.upper):
+            items.append(p)
+        else:
+            items.append(replace(p, value=q.value, free=q.free, lower=q.lower, upper=q.upper))
     if all(a is b for a, b in zip(items, new.parameters.items)):  # nothing to carry over
         return new
     return new.with_parameters(Parameters(tuple(items)))
@@ -360,7 +363,7 @@ def with_gust(model: Model) -> Model:
     if model.gust:
         return model
     root, effs = root_model(model), applied_effects(model)
-    groot = replace(root, gust=True, parameters=None)
+    groot = replace(root, gust=True, parameters=cast(Parameters, None))  # None: the default set (Model.__post_init__)
     vals = root.parameters.values
     common = {k: v for k, v in vals.items() if k in groot.parameters}
     groot = groot.with_values(common)
@@ -778,9 +781,9 @@ def default_library(names: Sequence[str] | None = None) -> tuple:
     effs = registered_effects()
     if names is None:
         return effs
-    names = set(names)
-    out = tuple(e for e in effs if e.name in names or e.key in names)
-    unknown = names - {e.name for e in out} - {e.key for e in out}
+    wanted = set(names)
+    out = tuple(e for e in effs if e.name in wanted or e.key in wanted)
+    unknown = wanted - {e.name for e in out} - {e.key for e in out}
     if unknown:
         raise ParameterError(f"unknown effect(s) {sorted(unknown)}; known: "
                              f"{', '.join(sorted({e.name for e in effs}))}")

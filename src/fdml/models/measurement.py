@@ -111,7 +111,7 @@ class Nuisance(NamedTuple):
 
     def boundary(self, shift: np.ndarray) -> np.ndarray | None:
         """The boundary vector d(w) (:func:`boundary_vector`), or None without boundary terms."""
-        return None if self.x0 is None else boundary_vector(self.x0, self.xT, shift)
+        return None if self.x0 is None or self.xT is None else boundary_vector(self.x0, self.xT, shift)
 
 
 def end_shift(omega: np.ndarray, T: float) -> np.ndarray:
