@@ -49,8 +49,7 @@ def truth_model():
         return fdml.make_model("derivatives", "navion"), (0.1, 10.0, 0.1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = fdml.fit(rec, fdml.make_model("dimensional", airspeed=float(rec.meta["U"])), band=BAND,
-                       adequacy=False)
+        res = fdml.fit(rec, fdml.make_model("dimensional", airspeed=float(rec.meta["U"])), band=BAND, adequacy=False)
     return res.model, BAND
 
 
@@ -65,11 +64,23 @@ def null_record(model, seed: int):
     scale = float(rng.uniform(0.5, 2.0))
     noise = {k: v * scale for k, v in NOISE.items()}
     amp = float(rng.uniform(0.6, 1.5)) * math.radians(2.0)
-    sim = simulate_maneuver(model, man, duration=start + length + 0.5, dt=dt, amplitude=amp, noise=noise,
-                            seed=int(rng.integers(2**31)), **kw)
+    sim = simulate_maneuver(
+        model,
+        man,
+        duration=start + length + 0.5,
+        dt=dt,
+        amplitude=amp,
+        noise=noise,
+        seed=int(rng.integers(2**31)),
+        **kw,
+    )
     rec = sim.window(sim.t[0] + start, sim.t[0] + start + length)
-    trim = {"alpha": rng.uniform(0.0, 0.08), "q": rng.normal(0.0, 0.002), "az": rng.normal(-1.0, 0.02),
-            "de": rng.normal(-0.02, 0.01)}
+    trim = {
+        "alpha": rng.uniform(0.0, 0.08),
+        "q": rng.normal(0.0, 0.002),
+        "az": rng.normal(-1.0, 0.02),
+        "de": rng.normal(-0.02, 0.01),
+    }
     return rec.with_signals(**{k: rec[k] + v for k, v in trim.items() if rec.has(k)})
 
 
@@ -114,8 +125,9 @@ def run(n: int, processes: int = 1, seed0: int = 0):
     ratio = np.array([o[2] / o[1] for o in checked if o[1] > 0])
     print(f"model: {model.describe()}; band {band[0]:.3g}-{band[1]:.3g} rad/s step {band[2]:.3g}")
     print(f"{n} records ({n - m} fits not converged, not checked), {time.perf_counter() - t0:.0f} s")
-    print(f"false alarms: {k}/{m} = {k / max(m, 1):.4f}, 95 % CI [{lo:.4f}, {hi:.4f}] at the stated "
-          f"family level {ALPHA}")
+    print(
+        f"false alarms: {k}/{m} = {k / max(m, 1):.4f}, 95 % CI [{lo:.4f}, {hi:.4f}] at the stated family level {ALPHA}"
+    )
     print("flagged:", dict(which) if which else "nothing")
     print(f"adequacy / fit time: median {np.median(ratio):.2f}, 90 % {np.quantile(ratio, 0.9):.2f}")
     return k, m
@@ -127,5 +139,5 @@ if __name__ == "__main__":
     if "--processes" in argv:
         i = argv.index("--processes")
         procs = int(argv[i + 1])
-        del argv[i: i + 2]
+        del argv[i : i + 2]
     run(int(argv[0]) if argv else 500, procs)

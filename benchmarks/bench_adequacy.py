@@ -33,13 +33,15 @@ HZ = 2 * math.pi
 
 def cases():
     nav = fdml.make_model("derivatives", "navion")
-    rec = simulate_maneuver(nav, "3211", duration=12.0, dt=0.02, noise={"alpha": 1e-3, "q": 2e-3, "az": 5e-3},
-                            seed=1)
+    rec = simulate_maneuver(nav, "3211", duration=12.0, dt=0.02, noise={"alpha": 1e-3, "q": 2e-3, "az": 5e-3}, seed=1)
     out = {"12 s Navion 3-2-1-1, 0.1:10:0.1": (rec, nav, (0.1, 10.0, 0.1))}
     try:
         to = load_record(data_path("twin_otter/totter_lon_020213f1_017.mat"))
-        out["Twin Otter 017, 0.1-1.5 Hz"] = (to, fdml.make_model("dimensional", airspeed=float(to.meta["U"])),
-                                             (0.1 * HZ, 1.5 * HZ, 0.02 * HZ))
+        out["Twin Otter 017, 0.1-1.5 Hz"] = (
+            to,
+            fdml.make_model("dimensional", airspeed=float(to.meta["U"])),
+            (0.1 * HZ, 1.5 * HZ, 0.02 * HZ),
+        )
     except (fdml.FdmlError, OSError) as exc:
         print(f"Twin Otter skipped: {exc}")
     return out
@@ -77,22 +79,32 @@ def first_fit(n: int) -> None:
     print(f"| first fit in a fresh process (Twin Otter 017) | best of {n}, s | imports fdml.diagnose |")
     print("|---|---|---|")
     for adequacy in (True, False):
-        runs = [subprocess.run([sys.executable, "-c", FIRST_FIT.replace("ADEQUACY", str(adequacy))],
-                               capture_output=True, text=True, check=True).stdout.split() for _ in range(n)]
+        runs = [
+            subprocess.run(
+                [sys.executable, "-c", FIRST_FIT.replace("ADEQUACY", str(adequacy))],
+                capture_output=True,
+                text=True,
+                check=True,
+            ).stdout.split()
+            for _ in range(n)
+        ]
         best = min(float(r[0]) for r in runs)
         print(f"| adequacy={adequacy} | {best:.3f} | {runs[0][1]} |")
 
 
 def main(repeats: int = 7):
-    print("| case | fit, ms: best / median | adequacy, ms: best / median | ratio of bests | ratio of medians "
-          "| flagged |")
+    print(
+        "| case | fit, ms: best / median | adequacy, ms: best / median | ratio of bests | ratio of medians | flagged |"
+    )
     print("|---|---|---|---|---|---|")
     for name, (rec, model, band) in cases().items():
         tf, ta, a = measure(rec, model, band, repeats)
         flagged = ", ".join(e.key for e in a.flagged) or "nothing"
-        print(f"| {name} | {tf.min() * 1e3:.1f} / {np.median(tf) * 1e3:.1f} | {ta.min() * 1e3:.1f} / "
-              f"{np.median(ta) * 1e3:.1f} | {ta.min() / tf.min():.2f} | {np.median(ta) / np.median(tf):.2f} "
-              f"| {flagged} |")
+        print(
+            f"| {name} | {tf.min() * 1e3:.1f} / {np.median(tf) * 1e3:.1f} | {ta.min() * 1e3:.1f} / "
+            f"{np.median(ta) * 1e3:.1f} | {ta.min() / tf.min():.2f} | {np.median(ta) / np.median(tf):.2f} "
+            f"| {flagged} |"
+        )
 
 
 if __name__ == "__main__":
@@ -101,7 +113,7 @@ if __name__ == "__main__":
     if "--first-fit" in argv:
         i = argv.index("--first-fit")
         n_first = int(argv[i + 1])
-        del argv[i: i + 2]
+        del argv[i : i + 2]
     main(int(argv[0]) if argv else 7)
     if n_first:
         first_fit(n_first)

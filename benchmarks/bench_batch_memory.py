@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import subprocess
 import sys
 import tempfile
@@ -80,9 +79,18 @@ def child(folder: str, out: str, workers: int, trace: bool) -> None:
     wall = time.perf_counter() - t0
     heap_peak = tracemalloc.get_traced_memory()[1] if trace else 0
     tracemalloc.stop()
-    print(json.dumps({"n": s.n_total, "failed": s.n_failed, "wall": wall, "heap_peak": heap_peak,
-                      "rss_before_kb": base_rss,
-                      "parent_maxrss_kb": _peak_kb()}))
+    print(
+        json.dumps(
+            {
+                "n": s.n_total,
+                "failed": s.n_failed,
+                "wall": wall,
+                "heap_peak": heap_peak,
+                "rss_before_kb": base_rss,
+                "parent_maxrss_kb": _peak_kb(),
+            }
+        )
+    )
 
 
 def _rss_tree(pid: int) -> dict[int, int]:
@@ -171,11 +179,15 @@ def main() -> None:
             print(f"  {n} records done in {d['wall']:.1f} s", file=sys.stderr)
     mb = 1 / 2**20
     print(f"fdml batch peak memory, {args.workers} workers (steady Navion, 6 s records at 50 Hz)")
-    print(f"{'records':>8} {'wall s':>7} {'parent RSS MB':>14} {'parent heap MB':>15} {'worker RSS MB':>14} "
-          f"{'tree RSS MB':>12} {'results MB':>11}")
+    print(
+        f"{'records':>8} {'wall s':>7} {'parent RSS MB':>14} {'parent heap MB':>15} {'worker RSS MB':>14} "
+        f"{'tree RSS MB':>12} {'results MB':>11}"
+    )
     for d in rows:
-        print(f"{d['n']:>8} {d['wall']:>7.1f} {d['parent_maxrss_kb'] / 1024:>14.1f} {d['heap_peak'] * mb:>15.2f} "
-              f"{d['worker_peak'] * mb:>14.1f} {d['tree_peak'] * mb:>12.1f} {d['results_bytes'] * mb:>11.1f}")
+        print(
+            f"{d['n']:>8} {d['wall']:>7.1f} {d['parent_maxrss_kb'] / 1024:>14.1f} {d['heap_peak'] * mb:>15.2f} "
+            f"{d['worker_peak'] * mb:>14.1f} {d['tree_peak'] * mb:>12.1f} {d['results_bytes'] * mb:>11.1f}"
+        )
     first, last = rows[0], rows[-1]
     growth = {
         "parent RSS": last["parent_maxrss_kb"] / first["parent_maxrss_kb"] - 1,
@@ -184,9 +196,11 @@ def main() -> None:
     }
     per_record_heap = (last["heap_peak"] - first["heap_peak"]) / max(last["n"] - first["n"], 1)
     flat = all(abs(g) < 0.10 for g in growth.values())
-    print(f"from {first['n']} to {last['n']} records ({last['n'] / first['n']:.0f}x): "
-          + ", ".join(f"{k} {100 * g:+.1f} %" for k, g in growth.items())
-          + f"; parent heap {per_record_heap:.0f} bytes per record (its source entry and spool offset)")
+    print(
+        f"from {first['n']} to {last['n']} records ({last['n'] / first['n']:.0f}x): "
+        + ", ".join(f"{k} {100 * g:+.1f} %" for k, g in growth.items())
+        + f"; parent heap {per_record_heap:.0f} bytes per record (its source entry and spool offset)"
+    )
     print("peak memory is flat in the number of records" if flat else "peak memory GROWS with the number of records")
 
 

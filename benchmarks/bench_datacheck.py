@@ -49,8 +49,11 @@ def corrupted(rec: Record) -> dict:
         "q sign flipped": (mod(q=-s["q"]), "sign.q", -1.0),
         "alpha and q swapped": (mod(alpha=s["q"], q=s["alpha"]), "channels.swapped", None),
         "q and a_z swapped": (mod(q=s["az"], az=s["q"]), "channels.swapped", None),
-        "outputs white noise": (mod(**{k: rng.normal(size=rec.n) * s[k].std() for k in ("alpha", "q", "az")}),
-                                "response.alpha", None),
+        "outputs white noise": (
+            mod(**{k: rng.normal(size=rec.n) * s[k].std() for k in ("alpha", "q", "az")}),
+            "response.alpha",
+            None,
+        ),
     }
 
 
@@ -75,19 +78,27 @@ def main() -> None:
         est = "" if f is None or f.value is None or truth is None else f"{f.value:.5g}"
         err = "" if not est else f"{100 * (f.value / truth - 1):+.2f}"
         cm = fdml.fit(r, steady, check=False).params["Cm_de"]
-        print(f"{label:22s} {' '.join(dc.codes) or '-':40s} {est:>10s} "
-              f"{'' if truth is None else f'{truth:.5g}':>10s} {err:>8s} {cm:10.4f}")
+        print(
+            f"{label:22s} {' '.join(dc.codes) or '-':40s} {est:>10s} "
+            f"{'' if truth is None else f'{truth:.5g}':>10s} {err:>8s} {cm:10.4f}"
+        )
         assert (code is None and not dc.codes) or code in dc.codes
     print("\n2. cost per record (best of 20), against one steady fit of the same record")
     for dur, dt in ((12.0, 0.02), (120.0, 0.01)):
-        r = add_noise(simulate_maneuver(TRUTH, "3211", duration=dur, dt=dt, amplitude=math.radians(1.0)),
-                      0.02, np.random.default_rng(1), relative=True)
+        r = add_noise(
+            simulate_maneuver(TRUTH, "3211", duration=dur, dt=dt, amplitude=math.radians(1.0)),
+            0.02,
+            np.random.default_rng(1),
+            relative=True,
+        )
         t_check = best_of(lambda: check_data(r, airspeed=U), 20)
         t_fit = best_of(lambda: fdml.fit(r, steady, check=False), 5)
         t_fit_checked = best_of(lambda: fdml.fit(r, steady), 5)
-        print(f"  {dur:5.0f} s at {1 / dt:3.0f} Hz: check alone {1e3 * t_check:6.2f} ms = {t_check / t_fit:.3f} of a "
-              f"fit ({1e3 * t_fit:.0f} ms), {t_check / 5e-3:.2f} of the 5 ms target; inside the fit (spectra "
-              f"shared) the fit takes {t_fit_checked / t_fit:.3f} times as long")
+        print(
+            f"  {dur:5.0f} s at {1 / dt:3.0f} Hz: check alone {1e3 * t_check:6.2f} ms = {t_check / t_fit:.3f} of a "
+            f"fit ({1e3 * t_fit:.0f} ms), {t_check / 5e-3:.2f} of the 5 ms target; inside the fit (spectra "
+            f"shared) the fit takes {t_fit_checked / t_fit:.3f} times as long"
+        )
 
 
 if __name__ == "__main__":

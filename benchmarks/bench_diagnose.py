@@ -53,8 +53,10 @@ def main(argv=None) -> int:
         base, rec = record(key, vals)
         t_fit, c_fit, _ = best(lambda rec=rec, base=base: fdml.fit(rec, base, band=FIT_BAND), a.reps)
         t_diag, c_diag, rep = best(lambda rec=rec, base=base: diagnose(rec, base, band=BAND), a.reps)
-        print(f"{label:16s} {t_fit:6.3f} ({c_fit:5.3f}) {t_diag:6.3f} ({c_diag:5.3f}) {t_diag / t_fit:7.1f}  "
-              f"{rep.verdict}")
+        print(
+            f"{label:16s} {t_fit:6.3f} ({c_fit:5.3f}) {t_diag:6.3f} ({c_diag:5.3f}) {t_diag / t_fit:7.1f}  "
+            f"{rep.verdict}"
+        )
     if a.profile:
         import cProfile
         import pstats

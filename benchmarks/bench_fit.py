@@ -29,9 +29,9 @@ import numpy as np
 
 warnings.simplefilter("ignore")
 
-from fdml import fit, fourier, make_model  # noqa: E402
+from fdml import fit, make_model  # noqa: E402
 from fdml.estimate import _cov_R, _grad_hess, prepare  # noqa: E402
-from fdml.record import Record, add_noise  # noqa: E402
+from fdml.record import add_noise  # noqa: E402
 from fdml.simulate import simulate, simulate_maneuver  # noqa: E402
 from fdml.timefit import fit_time_domain  # noqa: E402
 
@@ -111,9 +111,12 @@ def section_gn_pass():
 
 def section_whole_fit():
     print("3. whole fit (transform included) vs time-domain output error on the same record")
-    cases = [("dimensional", 7.5, np.linspace(0.2 * np.pi, 3.0 * np.pi, 71), 5e-3),
-             ("derivatives", 10.0, None, None), ("steady", 10.0, None, None),
-             ("unsteady", 10.0, None, 20e-3)]
+    cases = [
+        ("dimensional", 7.5, np.linspace(0.2 * np.pi, 3.0 * np.pi, 71), 5e-3),
+        ("derivatives", 10.0, None, None),
+        ("steady", 10.0, None, None),
+        ("unsteady", 10.0, None, 20e-3),
+    ]
     truth = make_model("unsteady", "navion")
     for kind, duration, omega, target in cases:
         m = make_model(kind, "navion")
@@ -165,8 +168,20 @@ def section_process():
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "r.csv"
         record(m, 7.5).to_csv(path)
-        cmd = [sys.executable, "-m", "fdml", "fit", str(path), "--model", "dimensional",
-               "--airspeed", "53.6448", "--band", "0.6283:9.4248:0.12566", "--json"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "fdml",
+            "fit",
+            str(path),
+            "--model",
+            "dimensional",
+            "--airspeed",
+            "53.6448",
+            "--band",
+            "0.6283:9.4248:0.12566",
+            "--json",
+        ]
         t_np = best(lambda: subprocess.run([sys.executable, "-c", "import numpy"], check=True), 5)
         t_fit = best(lambda: subprocess.run(cmd, check=True, capture_output=True), 5)
     row("python -c 'import numpy' (reference)", t_np, unit="s")

@@ -16,8 +16,8 @@ import numpy as np
 
 from fdml.fourier import _end_weights, finite_fourier_transform
 
-CASES = [(375, 100), (3000, 100), (30000, 1000)]   # (samples, frequencies)
-DT = 0.02                                            # s (50 Hz)
+CASES = [(375, 100), (3000, 100), (30000, 1000)]  # (samples, frequencies)
+DT = 0.02  # s (50 Hz)
 
 
 def loop_reference(x, dt, omega):
@@ -47,21 +47,24 @@ def best_time(func, budget=1.0, max_runs=20):
 
 def main():
     rng = np.random.default_rng(0)
-    header = (f"{'n':>7} {'m':>6} | {'loop ms':>9} {'direct ms':>10} {'czt ms':>8} | "
-              f"{'loop/direct':>11} {'loop/czt':>9} | {'max rel diff':>12}")
+    header = (
+        f"{'n':>7} {'m':>6} | {'loop ms':>9} {'direct ms':>10} {'czt ms':>8} | "
+        f"{'loop/direct':>11} {'loop/czt':>9} | {'max rel diff':>12}"
+    )
     print(header)
     print("-" * len(header))
     for n, m in CASES:
         x = rng.standard_normal(n)
-        omega = np.linspace(0.1, 10.0, m)                # rad/s, evenly spaced
+        omega = np.linspace(0.1, 10.0, m)  # rad/s, evenly spaced
         t_loop, ref = best_time(lambda: loop_reference(x, DT, omega))
-        t_direct, x_direct = best_time(
-            lambda: finite_fourier_transform(x, DT, omega, method="direct"))
+        t_direct, x_direct = best_time(lambda: finite_fourier_transform(x, DT, omega, method="direct"))
         t_czt, x_czt = best_time(lambda: finite_fourier_transform(x, DT, omega, method="czt"))
         scale = np.max(np.abs(ref))
         diff = max(np.max(np.abs(x_direct - ref)), np.max(np.abs(x_czt - ref))) / scale
-        print(f"{n:7d} {m:6d} | {1e3 * t_loop:9.3f} {1e3 * t_direct:10.3f} {1e3 * t_czt:8.3f} | "
-              f"{t_loop / t_direct:11.1f} {t_loop / t_czt:9.1f} | {diff:12.1e}")
+        print(
+            f"{n:7d} {m:6d} | {1e3 * t_loop:9.3f} {1e3 * t_direct:10.3f} {1e3 * t_czt:8.3f} | "
+            f"{t_loop / t_direct:11.1f} {t_loop / t_czt:9.1f} | {diff:12.1e}"
+        )
 
 
 if __name__ == "__main__":

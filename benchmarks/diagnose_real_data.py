@@ -34,13 +34,19 @@ CASES = {
     "twin_018_holdout_017": lambda: (_twin("018"), _twin("017"), {"band": TWIN}),
     "twin_joint": lambda: ([_twin("017"), _twin("018")], None, {"band": TWIN}),
     # HFB-320: the 3-2-1-1 window (the phugoid follows), and the whole record above the phugoid
-    "hfb320_0_20s": lambda: (load_record(data_path("hfb320/hfb320_1_10.asc"), t0=0.0, t1=20.0), None,
-                             {"band": (0.3, 6.0)}),
+    "hfb320_0_20s": lambda: (
+        load_record(data_path("hfb320/hfb320_1_10.asc"), t0=0.0, t1=20.0),
+        None,
+        {"band": (0.3, 6.0)},
+    ),
     "hfb320_60s": lambda: (load_record(data_path("hfb320/hfb320_1_10.asc")), None, {"band": (0.6, 6.0)}),
     # ATTAS: all three outputs, and alpha, q only (as the book fits it)
     "attas": lambda: (load_record(data_path("attas/fAttasElv1.mat")), None, {"band": (0.3, 8.0)}),
-    "attas_alpha_q": lambda: (load_record(data_path("attas/fAttasElv1.mat")), None,
-                              {"band": (0.3, 8.0), "outputs": ["alpha", "q"]}),
+    "attas_alpha_q": lambda: (
+        load_record(data_path("attas/fAttasElv1.mat")),
+        None,
+        {"band": (0.3, 8.0), "outputs": ["alpha", "q"]},
+    ),
 }
 
 

@@ -25,10 +25,12 @@ from pathlib import Path
 def commit() -> str:
     here = Path(__file__).resolve().parent
     try:
-        rev = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True,
-                             check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=here,
-                               capture_output=True, text=True).stdout.strip()
+        rev = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True, check=True
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--untracked-files=no"], cwd=here, capture_output=True, text=True
+        ).stdout.strip()
         return rev + (" (working tree has uncommitted changes)" if dirty else "")
     except (OSError, subprocess.CalledProcessError):
         return "unknown"
@@ -47,18 +49,30 @@ def main() -> None:
 
     from fdml.montecarlo import monte_carlo
 
-    print(f"fdml Monte Carlo efficiency, commit {commit()}, {platform.python_version()}, "
-          f"{args.workers} workers on {os.cpu_count()} cores")
+    print(
+        f"fdml Monte Carlo efficiency, commit {commit()}, {platform.python_version()}, "
+        f"{args.workers} workers on {os.cpu_count()} cores"
+    )
     total = time.perf_counter()
     for kind in args.models:
-        res = monte_carlo({"kind": kind, "aircraft": "navion"}, n=args.n, maneuver="3211", duration=args.duration,
-                          dt=0.02, noise=args.noise, seed=args.seed, workers=args.workers)
+        res = monte_carlo(
+            {"kind": kind, "aircraft": "navion"},
+            n=args.n,
+            maneuver="3211",
+            duration=args.duration,
+            dt=0.02,
+            noise=args.noise,
+            seed=args.seed,
+            workers=args.workers,
+        )
         print()
         print(res.table())
         fit_s = res.fit_seconds[res.used]
-        print(f"fits: median {1e3 * float(sorted(fit_s)[len(fit_s) // 2]):.1f} ms in-process, "
-              f"{res.iterations[res.used].mean():.1f} iterations on average; "
-              f"wall {res.wall_time:.1f} s for {res.n} runs ({res.n / res.wall_time:.1f} fits/s)")
+        print(
+            f"fits: median {1e3 * float(sorted(fit_s)[len(fit_s) // 2]):.1f} ms in-process, "
+            f"{res.iterations[res.used].mean():.1f} iterations on average; "
+            f"wall {res.wall_time:.1f} s for {res.n} runs ({res.n / res.wall_time:.1f} fits/s)"
+        )
         if args.out:
             Path(args.out).mkdir(parents=True, exist_ok=True)
             res.to_json(Path(args.out) / f"montecarlo_{kind}.json")

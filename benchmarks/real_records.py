@@ -68,8 +68,10 @@ def compare_domains(name, recs, opts):
     fd = fit(recs if len(recs) > 1 else recs[0], m, **opts)
     t_fd = time.perf_counter() - t0
     fdc = fit(recs if len(recs) > 1 else recs[0], m, cov_type="colored", **opts)
-    print(f"\n### {name}: frequency domain ({fd.iterations} iterations, {t_fd * 1e3:.0f} ms, "
-          f"{'converged' if fd.converged else 'NOT converged'}; outputs {', '.join(fd.outputs)})")
+    print(
+        f"\n### {name}: frequency domain ({fd.iterations} iterations, {t_fd * 1e3:.0f} ms, "
+        f"{'converged' if fd.converged else 'NOT converged'}; outputs {', '.join(fd.outputs)})"
+    )
     if len(recs) == 1:
         t0 = time.perf_counter()
         td = fit_time_domain(recs[0], m, outputs=opts.get("outputs"))
@@ -92,12 +94,23 @@ def twin_otter_aircraft(rec):
     """Twin Otter geometry from the record (wing, mass, inertia, condition) plus an assumed tail."""
     meta = rec.meta
     return Aircraft(
-        name="twin_otter", S_w=meta["S_w"], c_w=meta["c_w"], mass=meta["mass"], Iy=meta["Iy"],
-        U=meta["U"], rho=meta["rho"],
-        S_t=9.3, c_t=1.5, l_t=7.0,  # DHC-6 horizontal tail about 100 ft^2, arm about 7 m [ASSUMED]
+        name="twin_otter",
+        S_w=meta["S_w"],
+        c_w=meta["c_w"],
+        mass=meta["mass"],
+        Iy=meta["Iy"],
+        U=meta["U"],
+        rho=meta["rho"],
+        S_t=9.3,
+        c_t=1.5,
+        l_t=7.0,  # DHC-6 horizontal tail about 100 ft^2, arm about 7 m [ASSUMED]
         constants={"F": 1.358, "G": 0.513, "H": 0.065, "y_w": 0.361, "z_w": 0.381},
-        sources={"S_t": "DHC-6 horizontal tail about 100 ft^2 [ASSUMED]", "l_t": "about 7 m [ASSUMED]",
-                 "F": "Sundowner, WK Table 2 [ASSUMED]", "y_w": "R. T. Jones AR 6 [MEM]"},
+        sources={
+            "S_t": "DHC-6 horizontal tail about 100 ft^2 [ASSUMED]",
+            "l_t": "about 7 m [ASSUMED]",
+            "F": "Sundowner, WK Table 2 [ASSUMED]",
+            "y_w": "R. T. Jones AR 6 [MEM]",
+        },
         assumed=frozenset({"S_t", "c_t", "l_t", "F", "G", "H", "y_w", "z_w"}),
         description="DHC-6 Twin Otter, NASA Glenn flight 020213f1 (record meta) with an assumed tail",
     )

@@ -98,8 +98,10 @@ def table(rows) -> str:
     out = ["| fit | " + " | ".join(DIM) + " | effects | det R | flagged after |", "|---" * (len(DIM) + 4) + "|"]
     for label, res in rows:
         flag = ", ".join(e.key for e in res.adequacy.flagged) if res.adequacy is not None else "(not run)"
-        out.append(f"| {label} | " + " | ".join(_cell(res, n) for n in DIM) + f" | {_eff_cell(res)} | "
-                   f"{res.cost:.3g} | {flag or 'nothing'} |")
+        out.append(
+            f"| {label} | " + " | ".join(_cell(res, n) for n in DIM) + f" | {_eff_cell(res)} | "
+            f"{res.cost:.3g} | {flag or 'nothing'} |"
+        )
     return "\n".join(out)
 
 
@@ -128,8 +130,10 @@ def twin_otter():
         p, flagged, accepted, dt = recommended(rr, opts)
         plain[name] = p
         rec_effects[name] = accepted or flagged
-        print(f"- {name}: plain fit flags {', '.join(flagged) or 'nothing'}; the diagnosis ({dt:.1f} s) accepts "
-              f"{', '.join(accepted) or 'nothing'}")
+        print(
+            f"- {name}: plain fit flags {', '.join(flagged) or 'nothing'}; the diagnosis ({dt:.1f} s) accepts "
+            f"{', '.join(accepted) or 'nothing'}"
+        )
     union = tuple(dict.fromkeys(k for v in rec_effects.values() for k in v))
     eff_sets = {"time_delay:alpha": ("time_delay:alpha",)}
     if union and set(union) != {"time_delay@alpha"}:
@@ -143,8 +147,9 @@ def twin_otter():
     for label in ("plain", *eff_sets):
         for cov, kw in (("white-noise", {}), ("coloured-residual", {"cov_type": "colored"})):
             if kw:
-                a, b = (fit_with(recs[n], () if label == "plain" else eff_sets[label], opts, **kw)
-                        for n in ("017", "018"))
+                a, b = (
+                    fit_with(recs[n], () if label == "plain" else eff_sets[label], opts, **kw) for n in ("017", "018")
+                )
             else:
                 a, b = fits[(label, "017")], fits[(label, "018")]
             c = consistency([a, b], names=DIM)
@@ -172,8 +177,10 @@ def attas():
     for outs in ("alpha,q", "alpha,q,az"):
         o = dict(opts, outputs=outs)
         p, flagged, accepted, dt = recommended([rec], o, outputs=outs.split(","))
-        print(f"- outputs {outs}: plain fit flags {', '.join(flagged) or 'nothing'}; the diagnosis ({dt:.1f} s) "
-              f"accepts {', '.join(accepted) or 'nothing'}")
+        print(
+            f"- outputs {outs}: plain fit flags {', '.join(flagged) or 'nothing'}; the diagnosis ({dt:.1f} s) "
+            f"accepts {', '.join(accepted) or 'nothing'}"
+        )
         rows.append((f"{outs} plain", p))
         sets = [accepted] if accepted else []
         if outs == "alpha,q,az":
@@ -192,8 +199,10 @@ def hfb():
     opts = {"band": (0.3, 6.0, 0.05)}
     print("\n## HFB-320, 0-20 s (the 3-2-1-1 window), dimensional model, 0.3-6 rad/s at 0.05 rad/s\n")
     p, flagged, accepted, dt = recommended([rec], opts)
-    print(f"- plain fit flags {', '.join(flagged) or 'nothing'}; the diagnosis ({dt:.1f} s) accepts "
-          f"{', '.join(accepted) or 'nothing'}")
+    print(
+        f"- plain fit flags {', '.join(flagged) or 'nothing'}; the diagnosis ({dt:.1f} s) accepts "
+        f"{', '.join(accepted) or 'nothing'}"
+    )
     rows = [("plain", p)]
     for effs in dict.fromkeys(tuple(s) for s in (accepted, flagged) if s):
         rows.append((" + ".join(effs), fit_with([rec], effs, opts)))

@@ -57,14 +57,16 @@ def main(argv=None) -> int:
         sys.stderr.write(f"\r{a.phase}: {done}/{total}  {time.time() - t0:.0f} s")
         sys.stderr.flush()
 
-    res = validate(n_effect=n_e, n_null=n_n, seed_base=seed_base, processes=a.processes, rows_path=rows_path,
-                   progress=progress)
+    res = validate(
+        n_effect=n_e, n_null=n_n, seed_base=seed_base, processes=a.processes, rows_path=rows_path, progress=progress
+    )
     sys.stderr.write("\n")
     if tune:
         th, rule = tune_threshold(res.rows, return_rule=True)
         s = score(res.rows, th)
-        (OUT / "tuning.json").write_text(json.dumps({"threshold": th, "rule": rule, "scores": s}, indent=1,
-                                                    default=str))
+        (OUT / "tuning.json").write_text(
+            json.dumps({"threshold": th, "rule": rule, "scores": s}, indent=1, default=str)
+        )
         print(f"chosen remaining-gap rule: {rule}")
         (OUT / "tuning_table.txt").write_text(format_scores(s) + "\n")
         print(f"chosen threshold: {th}")

@@ -79,10 +79,10 @@ try:
 except ImportError:  # hypothesis is in the test extra
     pass
 else:
-    _hsettings.register_profile("ci", max_examples=50, deadline=timedelta(seconds=5), database=None,
-                                print_blob=True)
-    _hsettings.register_profile("long", max_examples=7000, deadline=timedelta(seconds=10), database=None,
-                                print_blob=True)
+    _hsettings.register_profile("ci", max_examples=50, deadline=timedelta(seconds=5), database=None, print_blob=True)
+    _hsettings.register_profile(
+        "long", max_examples=7000, deadline=timedelta(seconds=10), database=None, print_blob=True
+    )
     _hsettings.load_profile("ci")
 
 

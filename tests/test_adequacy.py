@@ -37,8 +37,9 @@ def _delayed_record(seed=3):
     """A 12 s 3-2-1-1 from the time-domain simulator with alpha delayed by TAU, shifted sample by sample."""
     dt = 0.01
     k = round(TAU / dt)
-    sim = simulate_maneuver(NAVION, "3211", duration=12.0 + TAU, dt=dt, noise=NOISE, seed=seed,
-                            amplitude=math.radians(2.0))
+    sim = simulate_maneuver(
+        NAVION, "3211", duration=12.0 + TAU, dt=dt, noise=NOISE, seed=seed, amplitude=math.radians(2.0)
+    )
     n = sim.t.size - k
     sig = {name: sim[name][k:] for name in ("de", "q", "az")}
     sig["alpha"] = sim["alpha"][:n]  # alpha measured at t is the true alpha at t - TAU
@@ -127,8 +128,9 @@ def test_cli_json_and_the_quoted_command(tmp_path, capsys, delayed_fit):
     assert out["adequacy"]["flagged"][0]["key"] == "time_delay@alpha"
     assert out["adequacy"]["flagged"][0]["expected"]["tau_alpha"] > 0
     # the warning quotes the running command with --effect added, and the diagnosis of the same records
-    with invocation(["fdml", "fit", str(path), "--model", "derivatives"],
-                    ["fdml", "diagnose", str(path), "--base", "derivatives"]):
+    with invocation(
+        ["fdml", "fit", str(path), "--model", "derivatives"], ["fdml", "diagnose", str(path), "--base", "derivatives"]
+    ):
         msg = advice(delayed_fit[1].adequacy)
     assert f"fdml fit {path} --model derivatives --effect time_delay:alpha" in msg
     assert f"fdml diagnose {path} --base derivatives" in msg

@@ -64,15 +64,24 @@ def files(tmp_path_factory):
     us[:, 0] *= 1e6
     out["us"] = _write_csv(d / "us.csv", header, us)
     navion = get_aircraft("navion").to_dict()
-    for name, change in {"ac_bool": {"mass": True}, "ac_str": {"mass": "1247"}, "ac_neg": {"Iy": -4067.0},
-                         "ac_sources": {"sources": ["POH"]}, "ac_srcval": {"sources": {"mass": 1247}},
-                         "ac_assumed": {"assumed": "mass"}, "ac_U50": {"U": 1e50}, "ac_U154": {"U": 1e154},
-                         "ac_good": {}}.items():
+    for name, change in {
+        "ac_bool": {"mass": True},
+        "ac_str": {"mass": "1247"},
+        "ac_neg": {"Iy": -4067.0},
+        "ac_sources": {"sources": ["POH"]},
+        "ac_srcval": {"sources": {"mass": 1247}},
+        "ac_assumed": {"assumed": "mass"},
+        "ac_U50": {"U": 1e50},
+        "ac_U154": {"U": 1e154},
+        "ac_good": {},
+    }.items():
         (d / f"{name}.json").write_text(json.dumps({**navion, **change}))
         out[name] = d / f"{name}.json"
     (d / "ac_nan.json").write_text(json.dumps({**navion, "rho": float("nan")}))  # json writes NaN
     out["ac_nan"] = d / "ac_nan.json"
-    (d / "ac_latin1.json").write_bytes(json.dumps({**navion, "description": "Caf\u00e9"}, ensure_ascii=False).encode("latin-1"))
+    (d / "ac_latin1.json").write_bytes(
+        json.dumps({**navion, "description": "Caf\u00e9"}, ensure_ascii=False).encode("latin-1")
+    )
     out["ac_latin1"] = d / "ac_latin1.json"
     (d / "ac_invalid.json").write_text('{"name": "navion", "mass": ')
     out["ac_invalid"] = d / "ac_invalid.json"
@@ -91,23 +100,50 @@ CASES = [
     ("sign-not-unit", ["fit", "{a}", *MAPPED, "--sign", "az=-1.9", *STEADY], ["--sign az=-1.9", "+1 or -1", "--units"]),
     ("sign-not-number", ["fit", "{a}", *MAPPED, "--sign", "az=down", *STEADY], ["--sign az=down"]),
     ("fix-and-free", ["fit", "{a}", *STEADY, "--fix", "Cm_de=-1.4", "--free", "Cm_de"], ["Cm_de", "--fix", "--free"]),
-    ("fix-and-free-batch", ["batch", "{a}", *STEADY, "--fix", "Cm_de=-1.4", "--free", "Cm_de", "--out", "{dir}/b1",
-                            "--serial", "--no-progress"], ["Cm_de", "--fix", "--free"]),
+    (
+        "fix-and-free-batch",
+        [
+            "batch",
+            "{a}",
+            *STEADY,
+            "--fix",
+            "Cm_de=-1.4",
+            "--free",
+            "Cm_de",
+            "--out",
+            "{dir}/b1",
+            "--serial",
+            "--no-progress",
+        ],
+        ["Cm_de", "--fix", "--free"],
+    ),
     ("same-file-twice", ["fit", "{a}", "{a}", *STEADY], ["{a}", "same samples", "twice"]),
     ("copy-of-a-file", ["fit", "{a}", "{copy}", *STEADY], ["{a}", "{copy}", "same samples"]),
     ("aircraft-bool", ["response", "--aircraft", "{ac_bool}", "--model", "steady"], ["{ac_bool}", "mass", "True"]),
     ("aircraft-string", ["response", "--aircraft", "{ac_str}", "--model", "steady"], ["{ac_str}", "mass", "'1247'"]),
     ("aircraft-negative", ["response", "--aircraft", "{ac_neg}", "--model", "steady"], ["{ac_neg}", "Iy", "positive"]),
     ("aircraft-nan", ["response", "--aircraft", "{ac_nan}", "--model", "steady"], ["{ac_nan}", "NaN"]),
-    ("aircraft-sources-list", ["response", "--aircraft", "{ac_sources}", "--model", "steady"],
-     ["{ac_sources}", "sources"]),
-    ("aircraft-sources-number", ["response", "--aircraft", "{ac_srcval}", "--model", "steady"],
-     ["{ac_srcval}", "sources"]),
-    ("aircraft-assumed-str", ["response", "--aircraft", "{ac_assumed}", "--model", "steady"],
-     ["{ac_assumed}", "assumed"]),
+    (
+        "aircraft-sources-list",
+        ["response", "--aircraft", "{ac_sources}", "--model", "steady"],
+        ["{ac_sources}", "sources"],
+    ),
+    (
+        "aircraft-sources-number",
+        ["response", "--aircraft", "{ac_srcval}", "--model", "steady"],
+        ["{ac_srcval}", "sources"],
+    ),
+    (
+        "aircraft-assumed-str",
+        ["response", "--aircraft", "{ac_assumed}", "--model", "steady"],
+        ["{ac_assumed}", "assumed"],
+    ),
     ("aircraft-latin1", ["response", "--aircraft", "{ac_latin1}", "--model", "steady"], ["{ac_latin1}", "UTF-8"]),
-    ("aircraft-invalid-json", ["response", "--aircraft", "{ac_invalid}", "--model", "steady"],
-     ["{ac_invalid}", "not valid JSON"]),
+    (
+        "aircraft-invalid-json",
+        ["response", "--aircraft", "{ac_invalid}", "--model", "steady"],
+        ["{ac_invalid}", "not valid JSON"],
+    ),
     ("aircraft-folder", ["response", "--aircraft", "{ac_folder}", "--model", "steady"], ["{ac_folder}", "folder"]),
     ("aircraft-U-1e50", ["fit", "{a}", "--aircraft", "{ac_U50}", "--model", "steady"], ["{ac_U50}", "airspeed"]),
     ("aircraft-U-1e154", ["response", "--aircraft", "{ac_U154}", "--model", "steady"], ["{ac_U154}", "airspeed"]),
@@ -115,16 +151,28 @@ CASES = [
     ("airspeed-1e154", ["response", "--model", "dimensional", "--airspeed", "1e154"], ["airspeed"]),
     ("huge-band", ["fit", "{a}", *STEADY, "--band", "0.001:1e9:0.001"], ["--band", "frequencies"]),
     ("huge-band-check", ["check", "{a}", "--band", "0.001:1e9:0.001"], ["--band", "frequencies"]),
-    ("inverted-band-montecarlo", ["montecarlo", *STEADY, "-n", "4", "--workers", "1", "--no-progress",
-                                  "--band", "10:1:1"], ["--band", "below"]),
-    ("two-part-band-batch", ["batch", "{a}", *STEADY, "--band", "1:2", "--out", "{dir}/b2", "--serial",
-                             "--no-progress"], ["--band", "LO:HI:STEP"]),
+    (
+        "inverted-band-montecarlo",
+        ["montecarlo", *STEADY, "-n", "4", "--workers", "1", "--no-progress", "--band", "10:1:1"],
+        ["--band", "below"],
+    ),
+    (
+        "two-part-band-batch",
+        ["batch", "{a}", *STEADY, "--band", "1:2", "--out", "{dir}/b2", "--serial", "--no-progress"],
+        ["--band", "LO:HI:STEP"],
+    ),
     ("inverted-omega-response", ["response", *STEADY, "--omega", "10:1:1"], ["--omega"]),
     ("negative-seed", ["simulate", *STEADY, "--seed", "-1", "-o", "{dir}/s.csv"], ["--seed", "-1"]),
-    ("negative-workers-montecarlo", ["montecarlo", *STEADY, "-n", "4", "--workers", "-2", "--no-progress"],
-     ["--workers", "-2"]),
-    ("zero-workers-batch", ["batch", "{a}", *STEADY, "--workers", "0", "--out", "{dir}/b3", "--no-progress"],
-     ["--workers"]),
+    (
+        "negative-workers-montecarlo",
+        ["montecarlo", *STEADY, "-n", "4", "--workers", "-2", "--no-progress"],
+        ["--workers", "-2"],
+    ),
+    (
+        "zero-workers-batch",
+        ["batch", "{a}", *STEADY, "--workers", "0", "--out", "{dir}/b3", "--no-progress"],
+        ["--workers"],
+    ),
 ]
 
 
@@ -149,8 +197,11 @@ def test_bom_csv_is_read_like_the_plain_file(files):
     assert np.array_equal(bom.t, plain.t)
     for k in ("de", "alpha", "q", "az"):
         assert np.array_equal(bom[k], plain[k])
-    mapped = read_csv_mapped(files["bom"], {"t": "t", "de": "de", "alpha": "alpha", "q": "q", "az": "az"},
-                             {"de": "rad", "alpha": "rad", "q": "rad/s", "az": "g"})
+    mapped = read_csv_mapped(
+        files["bom"],
+        {"t": "t", "de": "de", "alpha": "alpha", "q": "q", "az": "az"},
+        {"de": "rad", "alpha": "rad", "q": "rad/s", "az": "g"},
+    )
     assert np.array_equal(mapped["alpha"], plain["alpha"])
 
 
@@ -168,8 +219,9 @@ def test_duplicate_column_is_an_error_at_load(files):
 def test_repeated_ignored_column_is_harmless(tmp_path):
     rec = _simulated()
     cols = [rec.t] + [rec[k] for k in ("de", "alpha", "q", "az")]
-    path = _write_csv(tmp_path / "notes.csv", ["t", "de", "alpha", "q", "az", "note", "note"],
-                      np.column_stack(cols + [rec.t, rec.t]))
+    path = _write_csv(
+        tmp_path / "notes.csv", ["t", "de", "alpha", "q", "az", "note", "note"], np.column_stack(cols + [rec.t, rec.t])
+    )
     assert np.array_equal(read_csv(path)["alpha"], rec["alpha"])
 
 
@@ -235,10 +287,22 @@ def test_two_different_records_still_fit_together():
     assert res.model.parameters["Cm_de"].free  # the fit ran on both: no duplicate refused
 
 
-@pytest.mark.parametrize("key, value", [("mass", True), ("mass", "1247"), ("S_w", None), ("rho", float("nan")),
-                                        ("c_w", -1.7), ("U", MAX_AIRSPEED * 1.01), ("Cm_de", False),
-                                        ("sources", {"mass": 3}), ("sources", "POH"), ("assumed", "mass"),
-                                        ("assumed", ["not_a_key"])])
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("mass", True),
+        ("mass", "1247"),
+        ("S_w", None),
+        ("rho", float("nan")),
+        ("c_w", -1.7),
+        ("U", MAX_AIRSPEED * 1.01),
+        ("Cm_de", False),
+        ("sources", {"mass": 3}),
+        ("sources", "POH"),
+        ("assumed", "mass"),
+        ("assumed", ["not_a_key"]),
+    ],
+)
 def test_aircraft_values_must_be_real_and_physical(key, value):
     d = {**get_aircraft("navion").to_dict(), key: value}
     with pytest.raises(AircraftError, match=f"my.json: .*{key}"):
@@ -284,8 +348,13 @@ def test_every_band_goes_through_one_check(band, files, tmp_path):
     with pytest.raises(BandError):
         check_quality(rec, band=band)
     with pytest.raises(BandError):
-        run_batch([files["a"]], ModelSpec(kind="steady", aircraft="navion"), tmp_path / "b", engine="serial",
-                  fit_kwargs={"band": band})
+        run_batch(
+            [files["a"]],
+            ModelSpec(kind="steady", aircraft="navion"),
+            tmp_path / "b",
+            engine="serial",
+            fit_kwargs={"band": band},
+        )
     assert not (tmp_path / "b" / "table.csv").exists()  # refused before any record was fitted
 
 

@@ -112,8 +112,9 @@ def test_resume_skips_finished_work_and_refits_when_inputs_change(tmp_path, reco
     run_batch(folder, {**SPEC, "fix": {"Cz_de": -0.51}}, out, engine="serial", fit_kwargs={"band": "0.2:6:0.1"})
     assert len(counter.calls) == 15
     # no resume: refitted although nothing changed
-    run_batch(folder, {**SPEC, "fix": {"Cz_de": -0.51}}, out, engine="serial", resume=False,
-              fit_kwargs={"band": "0.2:6:0.1"})
+    run_batch(
+        folder, {**SPEC, "fix": {"Cz_de": -0.51}}, out, engine="serial", resume=False, fit_kwargs={"band": "0.2:6:0.1"}
+    )
     assert len(counter.calls) == 20
 
 
@@ -191,8 +192,9 @@ def test_process_pool_and_serial_give_identical_numbers(tmp_path, records):
         assert ra["cost"] == rb["cost"] and ra["iterations"] == rb["iterations"]
     ta, tb = read_table(a.table_csv), read_table(b.table_csv)
     drop = ("source", "elapsed", "result_file")
-    assert [{k: v for k, v in r.items() if k not in drop} for r in ta] == \
-           [{k: v for k, v in r.items() if k not in drop} for r in tb]
+    assert [{k: v for k, v in r.items() if k not in drop} for r in ta] == [
+        {k: v for k, v in r.items() if k not in drop} for r in tb
+    ]
 
 
 def test_process_pool_beside_threads_and_in_unguarded_scripts(tmp_path, records):
@@ -217,14 +219,16 @@ def test_process_pool_beside_threads_and_in_unguarded_scripts(tmp_path, records)
     script.write_text(
         "from fdml.batch import run_batch\n"
         f"s = run_batch({[str(p) for p in records[:3]]!r}, {SPEC!r}, {str(tmp_path / 'script')!r}, workers=2)\n"
-        "print(s.n_fitted, s.n_failed)\n")
+        "print(s.n_fitted, s.n_failed)\n"
+    )
     proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0 and proc.stdout.split() == ["3", "0"], proc.stderr[-2000:]
 
 
 def test_manoeuvre_windows_within_records(tmp_path, records):
-    s = run_batch([(records[0], 0.5, 4.5), (records[0], 1.0, None), records[0]], SPEC, tmp_path / "out",
-                  engine="serial")
+    s = run_batch(
+        [(records[0], 0.5, 4.5), (records[0], 1.0, None), records[0]], SPEC, tmp_path / "out", engine="serial"
+    )
     assert [r["key"] for r in s.rows] == ["rec00@0.5-4.5", "rec00@1-", "rec00"]
     assert s.n_failed == 0
     res = fdml.load_result(tmp_path / "out" / s.rows[0]["result_file"])
@@ -294,8 +298,7 @@ def test_process_engine_survives_dead_workers(tmp_path):
     assert sorted(o["index"] for o in out) == list(range(8)) and all(o["ok"] for o in out)
     assert (tmp_path / "m").exists()
     # a task that always kills its worker is blamed alone; every other task still succeeds
-    out = list(execute(always_die, [{"index": i} for i in range(6)], engine="process", workers=2,
-                       on_error=on_error))
+    out = list(execute(always_die, [{"index": i} for i in range(6)], engine="process", workers=2, on_error=on_error))
     assert sorted(o["index"] for o in out) == list(range(6))
     assert [o["index"] for o in out if not o["ok"]] == [2]
     assert "WorkerDied" in next(o["error"] for o in out if not o["ok"])
@@ -306,14 +309,40 @@ def test_batch_command(tmp_path, records, capsys):
     out = tmp_path / "out"
     bad = tmp_path / "bad.csv"
     bad.write_text("t,de,alpha\n")
-    code = main(["batch", str(records[0].parent), str(bad), f"{records[0]}@0.5:4.5", "--aircraft", "navion",
-                 "--model", "steady", "--out", str(out), "--serial", "--json"])
+    code = main(
+        [
+            "batch",
+            str(records[0].parent),
+            str(bad),
+            f"{records[0]}@0.5:4.5",
+            "--aircraft",
+            "navion",
+            "--model",
+            "steady",
+            "--out",
+            str(out),
+            "--serial",
+            "--json",
+        ]
+    )
     d = json.loads(capsys.readouterr().out)
     assert code == 1 and d["records"] == 7 and d["failed"] == 1 and d["fitted"] == 6
     assert list(d["errors"]) == ["bad"]
     assert (out / "results" / "rec00@0.5-4.5.json").exists()
-    code = main(["batch", str(records[0].parent), "--aircraft", "navion", "--model", "steady", "--out", str(out),
-                 "--serial", "--json"])
+    code = main(
+        [
+            "batch",
+            str(records[0].parent),
+            "--aircraft",
+            "navion",
+            "--model",
+            "steady",
+            "--out",
+            str(out),
+            "--serial",
+            "--json",
+        ]
+    )
     d = json.loads(capsys.readouterr().out)
     assert code == 0 and d["reused"] == 5 and d["fitted"] == 0
     assert main(["batch", str(records[0]), "--model", "steady", "--out", str(out)]) == 2

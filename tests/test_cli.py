@@ -18,8 +18,10 @@ def run(capsys, *argv):
 
 
 def test_help_does_not_import_matplotlib():
-    code = ("import sys; from fdml.cli import build_parser; build_parser().format_help(); "
-            "print('matplotlib' in sys.modules)")
+    code = (
+        "import sys; from fdml.cli import build_parser; build_parser().format_help(); "
+        "print('matplotlib' in sys.modules)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
 
@@ -38,14 +40,31 @@ def test_aircraft_show(capsys):
 
 def test_simulate_then_fit_json(tmp_path, capsys):
     rec = tmp_path / "r.csv"
-    code, _, _ = run(capsys, "simulate", "--aircraft", "navion", "--model", "unsteady", "--maneuver", "3211",
-                     "--duration", "12", "--noise", "0.02", "--seed", "3", "-o", str(rec))
+    code, _, _ = run(
+        capsys,
+        "simulate",
+        "--aircraft",
+        "navion",
+        "--model",
+        "unsteady",
+        "--maneuver",
+        "3211",
+        "--duration",
+        "12",
+        "--noise",
+        "0.02",
+        "--seed",
+        "3",
+        "-o",
+        str(rec),
+    )
     assert code == 0
     r = read_csv(rec)
     assert set(r.signals) == {"de", "alpha", "q", "az"} and r.n == 601
     res_file = tmp_path / "res.json"
-    code, out, _ = run(capsys, "fit", str(rec), "--aircraft", "navion", "--model", "unsteady", "--json",
-                       "-o", str(res_file))
+    code, out, _ = run(
+        capsys, "fit", str(rec), "--aircraft", "navion", "--model", "unsteady", "--json", "-o", str(res_file)
+    )
     assert code == 0
     d = json.loads(out)
     for key in ("model", "params", "derived", "cost", "iterations", "converged", "band", "timing"):
@@ -59,18 +78,43 @@ def test_simulate_then_fit_json(tmp_path, capsys):
 
 def test_fit_fix_free_and_dimensional(tmp_path, capsys):
     rec = tmp_path / "r.csv"
-    run(capsys, "simulate", "--aircraft", "navion", "--model", "dimensional", "--noise", "0.02",
-        "--seed", "1", "-o", str(rec))
-    code, out, _ = run(capsys, "fit", str(rec), "--model", "dimensional", "--airspeed", "53.6448",
-                       "--fix", "Z_q=0", "--band", "0.2:8:0.2", "--json")
+    run(
+        capsys,
+        "simulate",
+        "--aircraft",
+        "navion",
+        "--model",
+        "dimensional",
+        "--noise",
+        "0.02",
+        "--seed",
+        "1",
+        "-o",
+        str(rec),
+    )
+    code, out, _ = run(
+        capsys,
+        "fit",
+        str(rec),
+        "--model",
+        "dimensional",
+        "--airspeed",
+        "53.6448",
+        "--fix",
+        "Z_q=0",
+        "--band",
+        "0.2:8:0.2",
+        "--json",
+    )
     d = json.loads(out)
     assert code == 0 and "Z_q" not in d["params"] and d["fixed"]["Z_q"] == 0.0
     assert d["band"] == [0.2, 8.0, 0.2] and d["n_freq"] == 40
 
 
 def test_response_json(capsys):
-    code, out, _ = run(capsys, "response", "--aircraft", "sundowner", "--model", "steady", "--gust",
-                       "--omega", "0.5:2:0.5", "--json")
+    code, out, _ = run(
+        capsys, "response", "--aircraft", "sundowner", "--model", "steady", "--gust", "--omega", "0.5:2:0.5", "--json"
+    )
     d = json.loads(out)
     assert code == 0 and d["shape"] == [3, 2, 4]
     G = np.array(d["real"]) + 1j * np.array(d["imag"])
@@ -88,19 +132,22 @@ def test_demo_writes_table_and_figure(tmp_path, capsys):
     assert (tmp_path / "demo" / "unsteady.json").exists()
 
 
-@pytest.mark.parametrize("argv, fragment", [
-    (["fit", "missing.csv", "--aircraft", "navion"], "does not exist"),
-    (["fit", "{rec}", "--aircraft", "navion", "--band", "0.1:300:0.1"], "Nyquist"),
-    (["fit", "{rec}", "--aircraft", "navion", "--fix", "Cm_alpha=1"], "unknown parameter 'Cm_alpha'"),
-    (["fit", "{rec}", "--aircraft", "navion", "--fix", "Cm_de"], "expected NAME=VALUE"),
-    (["fit", "{rec}", "--aircraft", "boeing"], "unknown aircraft"),
-    (["fit", "{rec}", "--model", "dimensional"], "needs --airspeed"),
-    (["fit", "{deg}", "--aircraft", "navion"], "looks like deg"),
-    (["fit", "{nan}", "--aircraft", "navion"], "NaN"),
-    (["fit", "{short}", "--aircraft", "navion"], "missing signal"),
-    (["aircraft", "show", "{badac}"], "missing key"),
-    (["fit"], "required"),
-])
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["fit", "missing.csv", "--aircraft", "navion"], "does not exist"),
+        (["fit", "{rec}", "--aircraft", "navion", "--band", "0.1:300:0.1"], "Nyquist"),
+        (["fit", "{rec}", "--aircraft", "navion", "--fix", "Cm_alpha=1"], "unknown parameter 'Cm_alpha'"),
+        (["fit", "{rec}", "--aircraft", "navion", "--fix", "Cm_de"], "expected NAME=VALUE"),
+        (["fit", "{rec}", "--aircraft", "boeing"], "unknown aircraft"),
+        (["fit", "{rec}", "--model", "dimensional"], "needs --airspeed"),
+        (["fit", "{deg}", "--aircraft", "navion"], "looks like deg"),
+        (["fit", "{nan}", "--aircraft", "navion"], "NaN"),
+        (["fit", "{short}", "--aircraft", "navion"], "missing signal"),
+        (["aircraft", "show", "{badac}"], "missing key"),
+        (["fit"], "required"),
+    ],
+)
 def test_bad_input_one_line_exit_2(tmp_path, capsys, argv, fragment):
     t = np.arange(0, 10.001, 0.02)
     x = 0.01 * np.sin(t)

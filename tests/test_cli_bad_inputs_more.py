@@ -46,8 +46,13 @@ def files(tmp_path_factory):
     out["result"].write_text(text)
     doc = json.loads(text)
     del doc["values"]
-    for name, content in {"no_params": json.dumps(doc), "truncated": text[: len(text) // 2], "array": "[1, 2]",
-                          "garbage": "not json at all", "empty": ""}.items():
+    for name, content in {
+        "no_params": json.dumps(doc),
+        "truncated": text[: len(text) // 2],
+        "array": "[1, 2]",
+        "garbage": "not json at all",
+        "empty": "",
+    }.items():
         (d / f"{name}.json").write_text(content)
         out[name] = d / f"{name}.json"
     (d / "latin1.json").write_bytes(text.replace('"fdml.FitResult"', '"fdml.FitResult\u00e9"').encode("latin-1"))
@@ -96,8 +101,7 @@ CASES = [
     ("check-window-inverted", ["check", "{a}", "--t0", "5", "--t1", "2"], ["{a}", "window"]),
     ("check-wrong-format", ["check", "{a}", "--format", "sidpac"], ["{a}"]),
     ("check-bad-columns", ["check", "{a}", "--columns", "t=time,de", "--units", "de=rad"], ["--columns"]),
-    ("check-bad-unit", ["check", "{a}", *MAPPED[:2], "--units", "de=furlong,alpha=rad,q=rad/s,az=g"],
-     ["furlong"]),
+    ("check-bad-unit", ["check", "{a}", *MAPPED[:2], "--units", "de=furlong,alpha=rad,q=rad/s,az=g"], ["furlong"]),
     # demo
     ("demo-negative-noise", ["demo", "--noise", "-0.1", "--no-figure"], ["noise"]),
     ("demo-noise-text", ["demo", "--noise", "lots", "--no-figure"], ["lots"]),
@@ -117,10 +121,8 @@ CASES = [
     # montecarlo
     ("montecarlo-n-zero", ["montecarlo", *STEADY, "-n", "0", "--no-progress"], ["n must be", "got 0"]),
     ("montecarlo-negative-noise", ["montecarlo", *STEADY, "-n", "2", "--noise", "-1", "--no-progress"], ["noise"]),
-    ("montecarlo-noise-text", ["montecarlo", *STEADY, "-n", "2", "--noise", "alpha=x", "--no-progress"],
-     ["alpha=x"]),
-    ("montecarlo-zero-duration", ["montecarlo", *STEADY, "-n", "2", "--duration", "0", "--no-progress"],
-     ["duration"]),
+    ("montecarlo-noise-text", ["montecarlo", *STEADY, "-n", "2", "--noise", "alpha=x", "--no-progress"], ["alpha=x"]),
+    ("montecarlo-zero-duration", ["montecarlo", *STEADY, "-n", "2", "--duration", "0", "--no-progress"], ["duration"]),
     ("montecarlo-zero-dt", ["montecarlo", *STEADY, "-n", "2", "--dt", "0", "--no-progress"], ["dt"]),
     ("montecarlo-unknown-fit-model", ["montecarlo", *STEADY, "-n", "2", "--fit-model", "quantum"], ["quantum"]),
     ("montecarlo-out-is-a-file", ["montecarlo", *STEADY, "-n", "2", "--no-progress", "-o", "{a}"], ["{a}"]),
@@ -137,15 +139,27 @@ CASES = [
     ("diagnose-flat-elevator", ["diagnose", "{flat}", *STEADY], ["'flat'", "no power in the band"]),
     # batch
     ("batch-no-records", ["batch", *STEADY, "--out", "{dir}/b_none", "--serial", "--no-progress"], ["required"]),
-    ("batch-duplicate-outputs", ["batch", "{a}", *STEADY, "--outputs", "alpha,alpha", "--out", "{dir}/b_dup",
-                                 "--serial", "--no-progress"], ["alpha"]),
-    ("batch-fix-not-number", ["batch", "{a}", *STEADY, "--fix", "Cm_de=abc", "--out", "{dir}/b_fix", "--serial",
-                              "--no-progress"], ["Cm_de=abc"]),
+    (
+        "batch-duplicate-outputs",
+        ["batch", "{a}", *STEADY, "--outputs", "alpha,alpha", "--out", "{dir}/b_dup", "--serial", "--no-progress"],
+        ["alpha"],
+    ),
+    (
+        "batch-fix-not-number",
+        ["batch", "{a}", *STEADY, "--fix", "Cm_de=abc", "--out", "{dir}/b_fix", "--serial", "--no-progress"],
+        ["Cm_de=abc"],
+    ),
     ("batch-out-is-a-file", ["batch", "{a}", *STEADY, "--out", "{a}", "--serial", "--no-progress"], ["{a}"]),
-    ("batch-band-at-zero", ["batch", "{a}", *STEADY, "--band", "0:10:0.1", "--out", "{dir}/b_band", "--serial",
-                            "--no-progress"], ["--band", "positive"]),
-    ("batch-unknown-trim", ["batch", "{a}", *STEADY, "--trim", "median", "--out", "{dir}/b_trim", "--serial",
-                            "--no-progress"], ["median"]),
+    (
+        "batch-band-at-zero",
+        ["batch", "{a}", *STEADY, "--band", "0:10:0.1", "--out", "{dir}/b_band", "--serial", "--no-progress"],
+        ["--band", "positive"],
+    ),
+    (
+        "batch-unknown-trim",
+        ["batch", "{a}", *STEADY, "--trim", "median", "--out", "{dir}/b_trim", "--serial", "--no-progress"],
+        ["median"],
+    ),
     # fit and simulate: the cases issue 9 lists
     ("fit-flat-elevator", ["fit", "{flat}", *STEADY], ["'flat'", "no power in the band 0.1-10 rad/s"]),
     ("fit-duplicate-outputs", ["fit", "{a}", *STEADY, "--outputs", "alpha,alpha"], ["alpha"]),
@@ -161,8 +175,7 @@ def _tree(*folders) -> set:
 
 
 @pytest.mark.parametrize("argv, expected", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
-def test_command_line_refuses_with_one_line_and_writes_nothing(files, tmp_path, monkeypatch, capsys, argv,
-                                                               expected):
+def test_command_line_refuses_with_one_line_and_writes_nothing(files, tmp_path, monkeypatch, capsys, argv, expected):
     monkeypatch.chdir(tmp_path)  # default outputs (fdml-demo, ...) would land here
     before = _tree(files["dir"], tmp_path)
     try:
@@ -183,5 +196,16 @@ def test_command_line_refuses_with_one_line_and_writes_nothing(files, tmp_path, 
 def test_the_table_is_large_and_covers_every_command():
     commands = {c[1][0] for c in CASES}
     assert len(CASES) >= 60
-    assert commands >= {"report", "aircraft", "effects", "check", "demo", "response", "montecarlo", "diagnose",
-                        "batch", "fit", "simulate"}
+    assert commands >= {
+        "report",
+        "aircraft",
+        "effects",
+        "check",
+        "demo",
+        "response",
+        "montecarlo",
+        "diagnose",
+        "batch",
+        "fit",
+        "simulate",
+    }

@@ -24,39 +24,94 @@ PRINTERS = {"check", "response", "aircraft", "effects"}
 #: What each shared flag means: its dest, and how it parses (action, nargs).  A flag not in this
 #: table is used by one command only; one that is must mean the same everywhere it is shown.
 MEANINGS = {
-    "--aircraft": ("aircraft", "store", None), "--model": ("model", "store", None),
-    "--airspeed": ("airspeed", "store", None), "--effect": ("effect", "extend", None),
-    "--band": ("band", "store", None), "--outputs": ("outputs", "store", None),
-    "--fix": ("fix", "extend", "+"), "--free": ("free", "extend", "+"), "--set": ("set", "extend", "+"),
+    "--aircraft": ("aircraft", "store", None),
+    "--model": ("model", "store", None),
+    "--airspeed": ("airspeed", "store", None),
+    "--effect": ("effect", "extend", None),
+    "--band": ("band", "store", None),
+    "--outputs": ("outputs", "store", None),
+    "--fix": ("fix", "extend", "+"),
+    "--free": ("free", "extend", "+"),
+    "--set": ("set", "extend", "+"),
     "--holdout": ("holdout", "extend", "+"),
-    "--boundary": ("boundary", "store", None), "--biases": ("biases", "store", None),
-    "--trim": ("trim", "store", None), "--method": ("method", "store", None), "--stop": ("stop", "store", None),
-    "--cov-type": ("cov_type", "store", None), "--sensitivity": ("sensitivity", "store", None),
-    "--state-biases": ("state_biases", "store_true", 0), "--input-bias": ("input_bias", "store_true", 0),
-    "--format": ("format", "store", None), "--t0": ("t0", "store", None), "--t1": ("t1", "store", None),
-    "--columns": ("columns", "store", None), "--units": ("units", "store", None),
-    "--sign": ("sign", "store", None), "--layout": ("layout", "store", None),
-    "--output": ("output", "store", None), "-o": ("output", "store", None),
-    "--workers": ("workers", "store", None), "--progress": ("progress", "boolean_optional", 0),
-    "--no-progress": ("progress", "boolean_optional", 0), "--json": ("json", "store_true", 0),
-    "--strict": ("strict", "store_true", 0), "--noise": ("noise", "store", None),
-    "--seed": ("seed", "store", None), "--scheduler": ("scheduler", "store", None),
-    "--maneuver": ("maneuver", "store", None), "--duration": ("duration", "store", None),
-    "--dt": ("dt", "store", None), "--gust": ("gust", "store_true", 0),
+    "--boundary": ("boundary", "store", None),
+    "--biases": ("biases", "store", None),
+    "--trim": ("trim", "store", None),
+    "--method": ("method", "store", None),
+    "--stop": ("stop", "store", None),
+    "--cov-type": ("cov_type", "store", None),
+    "--sensitivity": ("sensitivity", "store", None),
+    "--state-biases": ("state_biases", "store_true", 0),
+    "--input-bias": ("input_bias", "store_true", 0),
+    "--format": ("format", "store", None),
+    "--t0": ("t0", "store", None),
+    "--t1": ("t1", "store", None),
+    "--columns": ("columns", "store", None),
+    "--units": ("units", "store", None),
+    "--sign": ("sign", "store", None),
+    "--layout": ("layout", "store", None),
+    "--output": ("output", "store", None),
+    "-o": ("output", "store", None),
+    "--workers": ("workers", "store", None),
+    "--progress": ("progress", "boolean_optional", 0),
+    "--no-progress": ("progress", "boolean_optional", 0),
+    "--json": ("json", "store_true", 0),
+    "--strict": ("strict", "store_true", 0),
+    "--noise": ("noise", "store", None),
+    "--seed": ("seed", "store", None),
+    "--scheduler": ("scheduler", "store", None),
+    "--maneuver": ("maneuver", "store", None),
+    "--duration": ("duration", "store", None),
+    "--dt": ("dt", "store", None),
+    "--gust": ("gust", "store_true", 0),
 }
 #: Shown flags that parse differently on purpose: simulate's --gust takes an optional STD (m/s).
 DIFFERENT = {("simulate", "--gust"): ("gust", "store", "?")}
 #: Hidden aliases (old spellings), per command: flag -> dest of the shown option.
 HIDDEN = {
-    "batch": {"--out": "output"}, "demo": {"--out": "output"}, "report": {"--out": "output"},
+    "batch": {"--out": "output"},
+    "demo": {"--out": "output"},
+    "report": {"--out": "output"},
     "diagnose": {"--base": "model", "--processes": "workers", "--noise": "noise_model"},
     "response": {"--omega": "band"},
 }
 #: Options of the shared spec: their defaults are None, so the library's default applies.
-SHARED_DESTS = {"aircraft", "model", "gust", "airspeed", "effect", "band", "outputs", "fix", "free", "set",
-                "holdout", "boundary", "biases", "trim", "method", "stop", "cov_type", "sensitivity", "state_biases",
-                "input_bias", "format", "t0", "t1", "columns", "units", "sign", "layout", "output", "workers",
-                "progress", "json", "strict", "noise", "noise_model"}
+SHARED_DESTS = {
+    "aircraft",
+    "model",
+    "gust",
+    "airspeed",
+    "effect",
+    "band",
+    "outputs",
+    "fix",
+    "free",
+    "set",
+    "holdout",
+    "boundary",
+    "biases",
+    "trim",
+    "method",
+    "stop",
+    "cov_type",
+    "sensitivity",
+    "state_biases",
+    "input_bias",
+    "format",
+    "t0",
+    "t1",
+    "columns",
+    "units",
+    "sign",
+    "layout",
+    "output",
+    "workers",
+    "progress",
+    "json",
+    "strict",
+    "noise",
+    "noise_model",
+}
 
 
 def _subparsers():
@@ -66,10 +121,16 @@ def _subparsers():
 
 
 def _kind(action) -> str:
-    names = {argparse._StoreAction: "store", argparse._StoreTrueAction: "store_true",
-             argparse._ExtendAction: "extend", argparse._AppendAction: "append",
-             argparse.BooleanOptionalAction: "boolean_optional", argparse._StoreConstAction: "store_const",
-             argparse._StoreFalseAction: "store_false", argparse._HelpAction: "help"}
+    names = {
+        argparse._StoreAction: "store",
+        argparse._StoreTrueAction: "store_true",
+        argparse._ExtendAction: "extend",
+        argparse._AppendAction: "append",
+        argparse.BooleanOptionalAction: "boolean_optional",
+        argparse._StoreConstAction: "store_const",
+        argparse._StoreFalseAction: "store_false",
+        argparse._HelpAction: "help",
+    }
     return names.get(type(action), type(action).__name__)
 
 
@@ -103,8 +164,11 @@ def test_one_flag_one_meaning(name):
         for flag in a.option_strings:
             want = DIFFERENT.get((name, flag), MEANINGS.get(flag))
             if want is None:
-                assert all(flag not in {f for b in _shown(q) for f in b.option_strings}
-                           for other, q in PARSERS.items() if other != name), f"{flag} on {name}: add to MEANINGS"
+                assert all(
+                    flag not in {f for b in _shown(q) for f in b.option_strings}
+                    for other, q in PARSERS.items()
+                    if other != name
+                ), f"{flag} on {name}: add to MEANINGS"
                 continue
             assert (a.dest, _kind(a), nargs) == want, f"{name} {flag}"
 
@@ -165,20 +229,31 @@ def test_the_model_rule():
 
 
 # --- repeatable options accumulate, per command -------------------------------------------------
-@pytest.mark.parametrize("name, argv, dest, want", [
-    ("fit", ["r.csv", "--fix", "M_q=-3", "--fix", "Z_q=0"], "fix", ["M_q=-3", "Z_q=0"]),
-    ("fit", ["r.csv", "--free", "a", "b", "--free", "c"], "free", ["a", "b", "c"]),
-    ("fit", ["r.csv", "--effect", "time_delay:q", "--effect", "sensor_offset:az"], "effect",
-     ["time_delay:q", "sensor_offset:az"]),
-    ("batch", ["d", "--fix", "A=1", "--fix", "B=2"], "fix", ["A=1", "B=2"]),
-    ("batch", ["d", "--free", "A", "--free", "B"], "free", ["A", "B"]),
-    ("response", ["--set", "A=1", "--set", "B=2"], "set", ["A=1", "B=2"]),
-    ("simulate", ["-o", "x.csv", "--set", "A=1", "--set", "B=2"], "set", ["A=1", "B=2"]),
-    ("montecarlo", ["--set", "A=1", "--set", "B=2"], "set", ["A=1", "B=2"]),
-    ("diagnose", ["r.csv", "--holdout", "h1.csv", "--holdout", "h2.csv"], "holdout", ["h1.csv", "h2.csv"]),
-    ("diagnose", ["r.csv", "--effect", "time_delay:q", "--effect", "actuator_lag"], "effect",
-     ["time_delay:q", "actuator_lag"]),
-])
+@pytest.mark.parametrize(
+    "name, argv, dest, want",
+    [
+        ("fit", ["r.csv", "--fix", "M_q=-3", "--fix", "Z_q=0"], "fix", ["M_q=-3", "Z_q=0"]),
+        ("fit", ["r.csv", "--free", "a", "b", "--free", "c"], "free", ["a", "b", "c"]),
+        (
+            "fit",
+            ["r.csv", "--effect", "time_delay:q", "--effect", "sensor_offset:az"],
+            "effect",
+            ["time_delay:q", "sensor_offset:az"],
+        ),
+        ("batch", ["d", "--fix", "A=1", "--fix", "B=2"], "fix", ["A=1", "B=2"]),
+        ("batch", ["d", "--free", "A", "--free", "B"], "free", ["A", "B"]),
+        ("response", ["--set", "A=1", "--set", "B=2"], "set", ["A=1", "B=2"]),
+        ("simulate", ["-o", "x.csv", "--set", "A=1", "--set", "B=2"], "set", ["A=1", "B=2"]),
+        ("montecarlo", ["--set", "A=1", "--set", "B=2"], "set", ["A=1", "B=2"]),
+        ("diagnose", ["r.csv", "--holdout", "h1.csv", "--holdout", "h2.csv"], "holdout", ["h1.csv", "h2.csv"]),
+        (
+            "diagnose",
+            ["r.csv", "--effect", "time_delay:q", "--effect", "actuator_lag"],
+            "effect",
+            ["time_delay:q", "actuator_lag"],
+        ),
+    ],
+)
 def test_repeated_options_accumulate(name, argv, dest, want):
     assert getattr(PARSERS[name].parse_args(argv), dest) == want
 
@@ -203,8 +278,12 @@ def sim(tmp_path_factory):
     return plain, mapped
 
 
-MAP = ["--columns", "t=time,de=elev,alpha=aoa,q=pitch_rate,az=nz,V=tas",
-       "--units", "de=rad,alpha=rad,q=rad/s,az=g,V=m/s"]
+MAP = [
+    "--columns",
+    "t=time,de=elev,alpha=aoa,q=pitch_rate,az=nz,V=tas",
+    "--units",
+    "de=rad,alpha=rad,q=rad/s,az=g,V=m/s",
+]
 
 
 def _run(capsys, *argv):
@@ -214,8 +293,20 @@ def _run(capsys, *argv):
 
 
 def test_fit_fix_twice_fixes_both(sim, capsys):
-    code, out, err = _run(capsys, "fit", sim[0], "--model", "dimensional", "--airspeed", "53.6448",
-                          "--fix", "M_q=-3", "--fix", "Z_q=0", "--json")
+    code, out, err = _run(
+        capsys,
+        "fit",
+        sim[0],
+        "--model",
+        "dimensional",
+        "--airspeed",
+        "53.6448",
+        "--fix",
+        "M_q=-3",
+        "--fix",
+        "Z_q=0",
+        "--json",
+    )
     d = json.loads(out)
     assert code in (0, 1), err
     assert {"M_q": -3.0, "Z_q": 0.0}.items() <= d["fixed"].items() and not {"M_q", "Z_q"} & set(d["params"])
@@ -224,16 +315,36 @@ def test_fit_fix_twice_fixes_both(sim, capsys):
 def test_response_set_twice_sets_both(capsys):
     import fdml
 
-    code, out, _ = _run(capsys, "response", "--aircraft", "navion", "--model", "steady", "--set", "CLa_t=3",
-                        "--set", "Cm_de=-1", "--band", "1:2:1", "--json")
+    code, out, _ = _run(
+        capsys,
+        "response",
+        "--aircraft",
+        "navion",
+        "--model",
+        "steady",
+        "--set",
+        "CLa_t=3",
+        "--set",
+        "Cm_de=-1",
+        "--band",
+        "1:2:1",
+        "--json",
+    )
     G = np.array(json.loads(out)["real"]) + 1j * np.array(json.loads(out)["imag"])
-    ref = fdml.make_model("steady", "navion").with_values({"CLa_t": 3.0, "Cm_de": -1.0}).frequency_response([1., 2.])
+    ref = fdml.make_model("steady", "navion").with_values({"CLa_t": 3.0, "Cm_de": -1.0}).frequency_response([1.0, 2.0])
     assert code == 0 and np.allclose(G, ref, rtol=1e-12)
 
 
 # --- --outputs: each once -----------------------------------------------------------------------
-@pytest.mark.parametrize("text, fragment", [("alpha,alpha", "alpha given more than once"), ("", "empty"),
-                                            ("alpha,,q", "empty item"), ("alpha,beta", "unknown output")])
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ("alpha,alpha", "alpha given more than once"),
+        ("", "empty"),
+        ("alpha,,q", "empty item"),
+        ("alpha,beta", "unknown output"),
+    ],
+)
 def test_outputs_refuse_duplicates_and_empty(sim, capsys, text, fragment):
     from fdml.errors import FdmlError
     from fdml.estimate import parse_outputs
@@ -307,8 +418,21 @@ def test_dimensional_without_any_airspeed_is_refused(sim, capsys):
 # --- fit options exposed; batch reads what fit reads ------------------------------------------------------
 def test_fit_exposes_cov_type_and_nuisance_options(sim, tmp_path, capsys):
     res_file = tmp_path / "res.json"
-    code, out, err = _run(capsys, "fit", sim[0], "--airspeed", "53.6448", "--cov-type", "colored",
-                          "--state-biases", "--sensitivity", "fd", "--json", "-o", res_file)
+    code, out, err = _run(
+        capsys,
+        "fit",
+        sim[0],
+        "--airspeed",
+        "53.6448",
+        "--cov-type",
+        "colored",
+        "--state-biases",
+        "--sensitivity",
+        "fd",
+        "--json",
+        "-o",
+        res_file,
+    )
     d = json.loads(out)
     assert code in (0, 1), err
     assert d["cov_type"] == "colored"

@@ -21,8 +21,16 @@ from fdml.record import Record
 #: Noise levels of the Twin Otter at 50 Hz (third-difference estimates, see fdml.compat.noise_level).
 NOISE = {"q": 2e-4, "az": 1e-3, "ax": 5e-4, "alpha": 1e-4, "theta": 1e-4, "V": 0.02, "h": 0.15}
 #: Injected sensor errors (measured = K true(t - tau) + b).
-ERRORS = {"b_q": 0.002, "K_q": 1.05, "b_az": 0.02, "b_ax": 0.005, "K_alpha": 1.1, "b_alpha": 0.01,
-          "tau_alpha": 0.08, "tau_theta": 0.04}
+ERRORS = {
+    "b_q": 0.002,
+    "K_q": 1.05,
+    "b_az": 0.02,
+    "b_ax": 0.005,
+    "K_alpha": 1.1,
+    "b_alpha": 0.01,
+    "tau_alpha": 0.08,
+    "tau_theta": 0.04,
+}
 
 
 def _truth(T=8.0, dt=0.02, fine=5, U=60.0, alpha0=0.06, h0=1000.0):
@@ -49,8 +57,14 @@ def _truth(T=8.0, dt=0.02, fine=5, U=60.0, alpha0=0.06, h0=1000.0):
         a, th, V, _h = x
         ax = math.sin(th) + 0.01
         gam = th - a
-        return np.array([qi + G0 / V * (azi * math.cos(a) - ax * math.sin(a) + math.cos(gam)), qi,
-                         G0 * (ax * math.cos(a) + azi * math.sin(a) - math.sin(gam)), V * math.sin(gam)])
+        return np.array(
+            [
+                qi + G0 / V * (azi * math.cos(a) - ax * math.sin(a) + math.cos(gam)),
+                qi,
+                G0 * (ax * math.cos(a) + azi * math.sin(a) - math.sin(gam)),
+                V * math.sin(gam),
+            ]
+        )
 
     out[0] = x
     for k in range(n - 1):
@@ -61,8 +75,16 @@ def _truth(T=8.0, dt=0.02, fine=5, U=60.0, alpha0=0.06, h0=1000.0):
         k4 = f(x + dtf * k3, q[k + 1], az[k + 1])
         x = x + dtf / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
         out[k + 1] = x
-    return tf, {"de": de, "q": q, "az": az, "alpha": out[:, 0], "theta": out[:, 1], "V": out[:, 2],
-                "h": out[:, 3], "ax": np.sin(out[:, 1]) + 0.01}
+    return tf, {
+        "de": de,
+        "q": q,
+        "az": az,
+        "alpha": out[:, 0],
+        "theta": out[:, 1],
+        "V": out[:, 2],
+        "h": out[:, 3],
+        "ax": np.sin(out[:, 1]) + 0.01,
+    }
 
 
 _TRUTH = {}
@@ -82,14 +104,16 @@ def _measured(errors, seed, dt=0.02, fine=5, drop=()):
     def noise(k):
         return NOISE[k] * rng.standard_normal(t.size)
 
-    sig = {"de": at("de"),
-           "q": p["K_q"] * at("q") + p["b_q"] + noise("q"),
-           "az": p["K_az"] * at("az", p["tau_az"]) + p["b_az"] + noise("az"),
-           "ax": at("ax") + p["b_ax"] + noise("ax"),
-           "alpha": p["K_alpha"] * at("alpha", p["tau_alpha"]) + p["b_alpha"] + noise("alpha"),
-           "theta": at("theta", p["tau_theta"]) + noise("theta"),
-           "V": p["K_V"] * at("V") + noise("V"),
-           "h": at("h") + noise("h")}
+    sig = {
+        "de": at("de"),
+        "q": p["K_q"] * at("q") + p["b_q"] + noise("q"),
+        "az": p["K_az"] * at("az", p["tau_az"]) + p["b_az"] + noise("az"),
+        "ax": at("ax") + p["b_ax"] + noise("ax"),
+        "alpha": p["K_alpha"] * at("alpha", p["tau_alpha"]) + p["b_alpha"] + noise("alpha"),
+        "theta": at("theta", p["tau_theta"]) + noise("theta"),
+        "V": p["K_V"] * at("V") + noise("V"),
+        "h": at("h") + noise("h"),
+    }
     sig = {k: v for k, v in sig.items() if k not in drop}
     return Record(t, sig, name=f"kinematics-{seed}", meta={"U": 60.0}), {k: at(k) for k in ("alpha", "theta", "q")}
 
@@ -196,8 +220,15 @@ def test_standard_errors_match_the_scatter():
 
 
 # --- the real records ----------------------------------------------------------------------------
-@pytest.mark.parametrize("rel", ["twin_otter/totter_lon_020213f1_017.mat", "twin_otter/totter_lon_020213f1_018.mat",
-                                 "hfb320/hfb320_1_10.asc", "attas/fAttasElv1.mat"])
+@pytest.mark.parametrize(
+    "rel",
+    [
+        "twin_otter/totter_lon_020213f1_017.mat",
+        "twin_otter/totter_lon_020213f1_018.mat",
+        "hfb320/hfb320_1_10.asc",
+        "attas/fAttasElv1.mat",
+    ],
+)
 def test_real_records(rel):
     rec = load_record(data_path(rel))
     res = check_compatibility(rec)

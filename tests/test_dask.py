@@ -33,8 +33,15 @@ N_RECORDS = 12
 def cluster_client():
     from distributed import Client, LocalCluster
 
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, memory_limit="1GiB", silence_logs=logging.CRITICAL)
+    cluster = LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+        memory_limit="1GiB",
+        silence_logs=logging.CRITICAL,
+    )
     client = Client(cluster)
     try:
         yield cluster, client
@@ -64,8 +71,9 @@ def test_killing_a_worker_mid_batch_loses_and_duplicates_nothing(tmp_path, clust
 
     out = tmp_path / "out"
     t0 = time.perf_counter()
-    summary = run_batch(folder, {"kind": "steady", "aircraft": "navion"}, out, engine=client,
-                        progress=kill_on_first_result)
+    summary = run_batch(
+        folder, {"kind": "steady", "aircraft": "navion"}, out, engine=client, progress=kill_on_first_result
+    )
     wall = time.perf_counter() - t0
     # the kill happened in the middle: after one result, while the victim had work in progress
     assert killed["done"] == 1 and killed["busy"], killed

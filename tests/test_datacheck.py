@@ -109,18 +109,19 @@ def test_without_airspeed_a_sign_error_is_still_found(navion_3211):
 CLEAN = [
     # model, manoeuvre, dt, options
     ("unsteady", "3211", 0.02, {}),
-    ("unsteady", "doublet", 0.01, {"rise": 0.0}),         # stepped edges, interpolated between samples
+    ("unsteady", "doublet", 0.01, {"rise": 0.0}),  # stepped edges, interpolated between samples
     ("steady", "multisine", 0.05, {}),
     ("derivatives", "3211", 0.04, {"rise": 0.2}),
-    ("unsteady", "3211", 0.02, {"gust_std": 2.0}),         # strong unmeasured turbulence
-    ("unsteady", "3211", 0.02, {"window": 2.0}),           # record starts mid-manoeuvre, off trim
-    ("unsteady", "3211", 0.02, {"delay": 0.021}),          # the Twin Otter's alpha lag
-    ("dimensional", "doublet", 0.02, {"noise": 0.2}),      # noisy
+    ("unsteady", "3211", 0.02, {"gust_std": 2.0}),  # strong unmeasured turbulence
+    ("unsteady", "3211", 0.02, {"window": 2.0}),  # record starts mid-manoeuvre, off trim
+    ("unsteady", "3211", 0.02, {"delay": 0.021}),  # the Twin Otter's alpha lag
+    ("dimensional", "doublet", 0.02, {"noise": 0.2}),  # noisy
 ]
 
 
-@pytest.mark.parametrize("kind, manoeuvre, dt, opts", CLEAN,
-                         ids=[f"{c[0]}-{c[1]}-{c[2]}-{sorted(c[3])}" for c in CLEAN])
+@pytest.mark.parametrize(
+    "kind, manoeuvre, dt, opts", CLEAN, ids=[f"{c[0]}-{c[1]}-{c[2]}-{sorted(c[3])}" for c in CLEAN]
+)
 def test_clean_simulated_records_pass(kind, manoeuvre, dt, opts):
     from fdml.record import add_noise
     from fdml.simulate import simulate_maneuver
@@ -131,8 +132,9 @@ def test_clean_simulated_records_pass(kind, manoeuvre, dt, opts):
     delay = opts.pop("delay", None)
     noise = opts.pop("noise", 0.03)
     model = fdml.make_model(kind, "navion", gust=gust > 0)
-    rec = simulate_maneuver(model, manoeuvre, duration=14.0, dt=dt, amplitude=math.radians(1.5),
-                            gust_std=gust, seed=11, **opts)
+    rec = simulate_maneuver(
+        model, manoeuvre, duration=14.0, dt=dt, amplitude=math.radians(1.5), gust_std=gust, seed=11, **opts
+    )
     if gust:  # the gust is not measured
         rec = Record(rec.t, {k: v for k, v in rec.signals.items() if k != "alpha_w"}, name="gust")
     if delay:
@@ -146,8 +148,12 @@ def test_clean_simulated_records_pass(kind, manoeuvre, dt, opts):
     assert dc.findings == (), dc.summary()
 
 
-REAL = [("twin_otter/totter_lon_020213f1_017.mat", {}), ("twin_otter/totter_lon_020213f1_018.mat", {}),
-        ("hfb320/hfb320_1_10.asc", {}), ("attas/fAttasElv1.mat", {})]
+REAL = [
+    ("twin_otter/totter_lon_020213f1_017.mat", {}),
+    ("twin_otter/totter_lon_020213f1_018.mat", {}),
+    ("hfb320/hfb320_1_10.asc", {}),
+    ("attas/fAttasElv1.mat", {}),
+]
 
 
 @pytest.mark.parametrize("path, kw", REAL, ids=[p for p, _ in REAL])
@@ -189,8 +195,7 @@ def test_fit_keeps_findings_warns_and_strict_refuses(navion_3211):
 def test_cli_strict_exits_2_and_plain_run_prints_the_code(tmp_path, navion_3211, capsys, command):
     path = tmp_path / "az_ms2.csv"
     _corrupt(navion_3211, "az_ms2").to_csv(path)
-    extra = ["--aircraft", "navion", "--model", "dimensional"] if command == "fit" else ["--airspeed",
-                                                                                        str(NAVION.U)]
+    extra = ["--aircraft", "navion", "--model", "dimensional"] if command == "fit" else ["--airspeed", str(NAVION.U)]
     assert main([command, str(path), *extra, "--strict"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "units.az" in err[0]

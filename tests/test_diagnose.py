@@ -27,11 +27,15 @@ def run(key, values, *, maneuver="3211", noise=0.04, seed=1, holdout=True, base=
 
 # --- withheld effects are attributed (small-scale validation) -----------------------------------
 
-@pytest.mark.parametrize("key,values", [
-    ("time_delay@q", {"tau_q": 0.04}),
-    ("actuator_lag@de", {"T_act": 0.05}),
-    ("sensor_offset@az", {"x_az": 1.5}),
-])
+
+@pytest.mark.parametrize(
+    "key,values",
+    [
+        ("time_delay@q", {"tau_q": 0.04}),
+        ("actuator_lag@de", {"T_act": 0.05}),
+        ("sensor_offset@az", {"x_az": 1.5}),
+    ],
+)
 def test_clear_effect_is_attributed_and_confirmed(key, values):
     rep = run(key, values)
     assert rep.status == "ok"
@@ -40,7 +44,7 @@ def test_clear_effect_is_attributed_and_confirmed(key, values):
     assert sel["key"] == key
     assert sel["label"] == "confirmed"
     # the fitted size: within 4 standard errors of the truth (CRB with coloured-residual correction)
-    (name, truth), = values.items()
+    ((name, truth),) = values.items()
     p = sel["params"][name]
     assert abs(p["value"] - truth) < 4 * p["stderr"]
     assert sel["shrink"] > 0.8  # held-out shrink of the coherent gap
@@ -52,14 +56,14 @@ def test_no_effect_records_rarely_fire():
     # 0.012 under the nominal rate, so more than 2 means the tests are miscalibrated.
     fired = []
     for seed in range(10):
-        rep = run(None, {}, maneuver=("3211", "doublet")[seed % 2], seed=300 + seed, holdout=False,
-                  max_effects=1)
+        rep = run(None, {}, maneuver=("3211", "doublet")[seed % 2], seed=300 + seed, holdout=False, max_effects=1)
         if rep.verdict != "none":
             fired.append(rep.verdict)
     assert len(fired) <= 2, fired
 
 
 # --- DIAGNOSIS.md 2.6 rules ------------------------------------------------------------------------
+
 
 def test_rule3_aliased_candidate_is_not_identifiable_with_a_reason():
     # C_m_alpha_dot with elevator input only on the two-state derivatives model is exactly aliased
@@ -82,8 +86,7 @@ def test_rule4_small_delay_and_lag_are_an_ambiguity_set():
 
 def test_rule5_mode_frequency_is_refined_between_grid_points():
     truth = {"r_q": 0.03, "r_az": 0.03, "omega_s": 8.37, "zeta_s": 0.04}
-    rep = run("structural_mode@q,az", truth, maneuver="multisine", noise=0.03, seed=3, holdout=False,
-              max_effects=1)
+    rep = run("structural_mode@q,az", truth, maneuver="multisine", noise=0.03, seed=3, holdout=False, max_effects=1)
     sel = rep.selected[0]
     assert sel["key"] == "structural_mode@q,az"
     w = sel["params"]["omega_s"]["value"]
@@ -92,14 +95,30 @@ def test_rule5_mode_frequency_is_refined_between_grid_points():
 
 
 def test_rule6_shrink_is_judged_only_on_flagged_cells():
-    assert label_for(significant=True, accepted=True, ambiguous=False, plausible=True, shrink=None,
-                     n_flagged=0, n_unexplained=0) == "tentative"
-    assert label_for(significant=True, accepted=True, ambiguous=False, plausible=True, shrink=0.95,
-                     n_flagged=3, n_unexplained=0) == "confirmed"
-    assert label_for(significant=True, accepted=True, ambiguous=False, plausible=True, shrink=0.3,
-                     n_flagged=3, n_unexplained=0) == "partial"
-    assert label_for(significant=False, accepted=False, ambiguous=False, plausible=True, shrink=0.9,
-                     n_flagged=3, n_unexplained=0) is None
+    assert (
+        label_for(
+            significant=True, accepted=True, ambiguous=False, plausible=True, shrink=None, n_flagged=0, n_unexplained=0
+        )
+        == "tentative"
+    )
+    assert (
+        label_for(
+            significant=True, accepted=True, ambiguous=False, plausible=True, shrink=0.95, n_flagged=3, n_unexplained=0
+        )
+        == "confirmed"
+    )
+    assert (
+        label_for(
+            significant=True, accepted=True, ambiguous=False, plausible=True, shrink=0.3, n_flagged=3, n_unexplained=0
+        )
+        == "partial"
+    )
+    assert (
+        label_for(
+            significant=False, accepted=False, ambiguous=False, plausible=True, shrink=0.9, n_flagged=3, n_unexplained=0
+        )
+        is None
+    )
 
 
 def test_rule7_footprint_locates_the_effect_where_the_residual_map_may_not():
@@ -130,6 +149,7 @@ def test_rule2_turbulence_is_tested_after_the_deterministic_effects():
 
 
 # --- report and interfaces ------------------------------------------------------------------------------
+
 
 def test_report_json_has_the_issue_keys_and_types():
     import json
@@ -163,6 +183,7 @@ def test_figure_is_written(tmp_path):
 
 # --- bad input ----------------------------------------------------------------------------------------------
 
+
 def test_unconverged_base_fit_gives_no_verdict(monkeypatch):
     import fdml.diagnose.core as core
 
@@ -185,8 +206,7 @@ def test_band_without_excitation_is_said_plainly():
     # split so that the top cells see only noise
     base = steady()
     rec = simulate_truth(base, None, {}, maneuver="3211", noise=0.05, seed=9)
-    rep = diagnose(rec, base, band=(0.3, 60.0), bands=[0.3, 5.0, 30.0, 60.0], library=["sensor_scale"],
-                   max_effects=1)
+    rep = diagnose(rec, base, band=(0.3, 60.0), bands=[0.3, 5.0, 30.0, 60.0], library=["sensor_scale"], max_effects=1)
     thin = [c for c in rep.location if c["excitation"] != "ok"]
     assert thin and all(not c["significant"] and c["p_value"] is None for c in thin)
     assert any("insufficient excitation" in p for p in rep.problems)

@@ -31,13 +31,36 @@ def delay_csv(tmp_path_factory):
 def test_cli_json_schema_and_holdout(capsys, tmp_path, delay_csv):
     a, b = delay_csv
     out_file = tmp_path / "rep.json"
-    code, out, _ = run(capsys, "diagnose", str(a), "--aircraft", "navion", "--base", "steady", "--band", "0.3:12",
-                       "--holdout", str(b), "--max-effects", "1", "--json", "-o", str(out_file))
+    code, out, _ = run(
+        capsys,
+        "diagnose",
+        str(a),
+        "--aircraft",
+        "navion",
+        "--base",
+        "steady",
+        "--band",
+        "0.3:12",
+        "--holdout",
+        str(b),
+        "--max-effects",
+        "1",
+        "--json",
+        "-o",
+        str(out_file),
+    )
     assert code == 0
     d = json.loads(out)
     # the keys, exactly these names, first
-    assert list(d)[:7] == ["verdict", "ranking", "ambiguous", "not_identifiable", "location", "footprint",
-                           "unexplained"]
+    assert list(d)[:7] == [
+        "verdict",
+        "ranking",
+        "ambiguous",
+        "not_identifiable",
+        "location",
+        "footprint",
+        "unexplained",
+    ]
     assert d["verdict"] == "time_delay"
     top = d["ranking"][0]
     assert top["channel"] == "q" and top["label"] == "confirmed" and top["shrink_holdout"] is not None
@@ -48,8 +71,23 @@ def test_cli_json_schema_and_holdout(capsys, tmp_path, delay_csv):
 def test_cli_text_and_figure(capsys, tmp_path, delay_csv):
     a, _ = delay_csv
     fig = tmp_path / "d.png"
-    code, out, _ = run(capsys, "diagnose", str(a), "--aircraft", "navion", "--base", "steady", "--band", "0.3:12",
-                       "--library", "time_delay,actuator_lag", "--max-effects", "1", "--figure", str(fig))
+    code, out, _ = run(
+        capsys,
+        "diagnose",
+        str(a),
+        "--aircraft",
+        "navion",
+        "--base",
+        "steady",
+        "--band",
+        "0.3:12",
+        "--library",
+        "time_delay,actuator_lag",
+        "--max-effects",
+        "1",
+        "--figure",
+        str(fig),
+    )
     assert code == 0 and "time_delay@q" in out and "accepted" in out
     assert fig.stat().st_size > 10_000
 
@@ -69,8 +107,10 @@ def test_cli_bad_input_exits_2_with_one_line(capsys, delay_csv):
 def test_cli_validate_prints_the_table(capsys, monkeypatch):
     import fdml.diagnose.validate as V
 
-    rows = [run_scenario(Scenario("time_delay@q", {"tau_q": 0.04}, "large", "3211", 0.03, "white", 5, "time_delay@q")),
-            run_scenario(Scenario(None, {}, "-", "3211", 0.03, "white", 6, "none-white"))]
+    rows = [
+        run_scenario(Scenario("time_delay@q", {"tau_q": 0.04}, "large", "3211", 0.03, "white", 5, "time_delay@q")),
+        run_scenario(Scenario(None, {}, "-", "3211", 0.03, "white", 6, "none-white")),
+    ]
     monkeypatch.setattr(V, "validate", lambda **kw: V.ValidationResult(rows, V.score(rows), {"n": 2}))
     code, out, _ = run(capsys, "diagnose", "--validate", "--quick")
     assert code == 0 and "false alarms none-white" in out and "top-1" in out
@@ -78,19 +118,61 @@ def test_cli_validate_prints_the_table(capsys, monkeypatch):
 
 def test_scoring_counts_what_it_says():
     rows = [
-        {"case": "time_delay@q", "truth": "time_delay@q", "truth_name": "time_delay", "size": "large",
-         "verdict": "time_delay", "verdict_key": "time_delay@q", "ambiguous": "[]", "ambiguous_names": "[]",
-         "shrink": 0.9, "flagged_before_holdout": 2, "unexplained_holdout": 0, "plausible": True, "elapsed": 1.0},
-        {"case": "time_delay@q", "truth": "time_delay@q", "truth_name": "time_delay", "size": "small",
-         "verdict": "actuator_lag", "verdict_key": "actuator_lag@de", "ambiguous": '["time_delay@de"]',
-         "ambiguous_names": '["time_delay"]', "shrink": 0.9, "flagged_before_holdout": 2,
-         "unexplained_holdout": 0, "plausible": True, "elapsed": 1.0},
-        {"case": "none-white", "truth": None, "truth_name": "none", "size": "-", "verdict": "none",
-         "verdict_key": "none", "elapsed": 1.0},
-        {"case": "vane_filter", "truth": "vane_filter", "truth_name": "vane_filter", "size": "large",
-         "verdict": "time_delay", "verdict_key": "time_delay@alpha", "ambiguous": "[]", "ambiguous_names": "[]",
-         "shrink": 0.7, "flagged_before_holdout": 2, "unexplained_holdout": 2, "unexplained_in_sample": 1,
-         "plausible": True, "elapsed": 1.0},
+        {
+            "case": "time_delay@q",
+            "truth": "time_delay@q",
+            "truth_name": "time_delay",
+            "size": "large",
+            "verdict": "time_delay",
+            "verdict_key": "time_delay@q",
+            "ambiguous": "[]",
+            "ambiguous_names": "[]",
+            "shrink": 0.9,
+            "flagged_before_holdout": 2,
+            "unexplained_holdout": 0,
+            "plausible": True,
+            "elapsed": 1.0,
+        },
+        {
+            "case": "time_delay@q",
+            "truth": "time_delay@q",
+            "truth_name": "time_delay",
+            "size": "small",
+            "verdict": "actuator_lag",
+            "verdict_key": "actuator_lag@de",
+            "ambiguous": '["time_delay@de"]',
+            "ambiguous_names": '["time_delay"]',
+            "shrink": 0.9,
+            "flagged_before_holdout": 2,
+            "unexplained_holdout": 0,
+            "plausible": True,
+            "elapsed": 1.0,
+        },
+        {
+            "case": "none-white",
+            "truth": None,
+            "truth_name": "none",
+            "size": "-",
+            "verdict": "none",
+            "verdict_key": "none",
+            "elapsed": 1.0,
+        },
+        {
+            "case": "vane_filter",
+            "truth": "vane_filter",
+            "truth_name": "vane_filter",
+            "size": "large",
+            "verdict": "time_delay",
+            "verdict_key": "time_delay@alpha",
+            "ambiguous": "[]",
+            "ambiguous_names": "[]",
+            "shrink": 0.7,
+            "flagged_before_holdout": 2,
+            "unexplained_holdout": 2,
+            "unexplained_in_sample": 1,
+            "plausible": True,
+            "elapsed": 1.0,
+        },
     ]
     s = score(rows, 0.5)
     e = s["effects"]["time_delay@q"]

@@ -8,9 +8,9 @@ import pytest
 import fdml
 from fdml.constants import G0
 from fdml.diagnose import OutputEffect, Param, get_effect, register_effect, registered_effects, scale_rows
-from fdml.models.effects import unregister_effect, with_gust
-from fdml.models.effect_library import to_unsteady_equivalent
 from fdml.errors import ParameterError
+from fdml.models.effect_library import to_unsteady_equivalent
+from fdml.models.effects import unregister_effect, with_gust
 
 OMEGA = np.linspace(0.3, 12.0, 40)
 
@@ -75,8 +75,7 @@ def test_actuator_lag_and_mode_closed_forms():
     s = 1j * OMEGA
     assert np.allclose(aug.evaluate(OMEGA).G[:, :, 0], m.evaluate(OMEGA).G[:, :, 0] / (1 + s * T)[:, None])
     w, z, r = 9.0, 0.04, 0.03
-    mode = get_effect("structural_mode@q,az").augment(m).with_values(
-        {"omega_s": w, "zeta_s": z, "r_q": r, "r_az": 0.0})
+    mode = get_effect("structural_mode@q,az").augment(m).with_values({"omega_s": w, "zeta_s": z, "r_q": r, "r_az": 0.0})
     d = mode.evaluate([w]).G[0, 1, 0] - m.evaluate([w]).G[0, 1, 0]
     assert abs(abs(d) - r / (2 * z)) < 1e-9  # resonance peak r/(2 zeta)
 
@@ -92,8 +91,9 @@ def test_user_registers_an_effect_in_a_few_lines():
     def gyro_lag(s, p, G, H, P, root):
         return scale_rows(G, H, P, 1, 1.0 / (1.0 + s * p["T_gyro"]))
 
-    eff = register_effect(OutputEffect("gyro_lag", "q", (Param("T_gyro", 0.0, lower=0.0, plausible=(0, 0.1),
-                                                               unit="s"),), gyro_lag))
+    eff = register_effect(
+        OutputEffect("gyro_lag", "q", (Param("T_gyro", 0.0, lower=0.0, plausible=(0, 0.1), unit="s"),), gyro_lag)
+    )
     try:
         assert get_effect("gyro_lag@q") is eff
         m = fdml.make_model("steady", "navion")
@@ -122,13 +122,16 @@ def test_with_gust_keeps_the_fitted_values():
     assert np.allclose(g.evaluate(OMEGA).G[:, :, 0], m.evaluate(OMEGA).G[:, :, 0])
 
 
-@pytest.mark.parametrize("key,values", [
-    ("time_delay@q", {"tau_q": 0.03}),
-    ("actuator_lag@de", {"T_act": 0.05}),
-    ("sensor_offset@az", {"x_az": 1.5}),
-    ("structural_mode@q,az", {"r_q": 0.03, "r_az": 0.03, "omega_s": 9.0, "zeta_s": 0.04}),
-    ("lift_lag@alpha", {"y_w": 0.36}),
-])
+@pytest.mark.parametrize(
+    "key,values",
+    [
+        ("time_delay@q", {"tau_q": 0.03}),
+        ("actuator_lag@de", {"T_act": 0.05}),
+        ("sensor_offset@az", {"x_az": 1.5}),
+        ("structural_mode@q,az", {"r_q": 0.03, "r_az": 0.03, "omega_s": 9.0, "zeta_s": 0.04}),
+        ("lift_lag@alpha", {"y_w": 0.36}),
+    ],
+)
 def test_time_domain_truth_matches_the_augmented_model(key, values):
     # The validation truths are simulated in the time domain (fdml.simulate + the effect where it
     # acts); the frequency-domain augmentation must explain them.  Noise-free, the truth model's
@@ -156,7 +159,7 @@ def test_coloured_noise_has_the_stated_low_frequency_excess():
     from fdml.diagnose.truth import COLOURED_LF_RATIO, sensor_noise
 
     rng = np.random.default_rng(5)
-    n, dt = 2 ** 16, 0.02
+    n, dt = 2**16, 0.02
     x = sensor_noise(rng, n, dt, "coloured")
     P = np.abs(np.fft.rfft(x)) ** 2
     f = np.fft.rfftfreq(n, dt) * 2 * math.pi

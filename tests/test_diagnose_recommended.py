@@ -29,10 +29,26 @@ def diagnosed(tmp_path_factory):
     """``fdml diagnose --json --recommended-output FIT.json`` and ``fdml fit --json`` of one delayed record."""
     d = tmp_path_factory.mktemp("rec")
     rec, fit_file = d / "r1.csv", d / "fit.json"
-    simulate_truth(fdml.make_model("steady", "navion"), "time_delay@q", {"tau_q": TAU}, maneuver="3211",
-                   noise=0.04, seed=3).to_csv(rec)
-    code_d, out_d = cli("diagnose", rec, "--aircraft", "navion", "--base", "steady", "--band", "0.3:12", "--library",
-                        "time_delay,actuator_lag", "--max-effects", "1", "--json", "--recommended-output", fit_file)
+    simulate_truth(
+        fdml.make_model("steady", "navion"), "time_delay@q", {"tau_q": TAU}, maneuver="3211", noise=0.04, seed=3
+    ).to_csv(rec)
+    code_d, out_d = cli(
+        "diagnose",
+        rec,
+        "--aircraft",
+        "navion",
+        "--base",
+        "steady",
+        "--band",
+        "0.3:12",
+        "--library",
+        "time_delay,actuator_lag",
+        "--max-effects",
+        "1",
+        "--json",
+        "--recommended-output",
+        fit_file,
+    )
     code_f, out_f = cli("fit", rec, "--aircraft", "navion", "--model", "steady", "--band", "0.3:12:0.1", "--json")
     return ((code_d, json.loads(out_d)), (code_f, json.loads(out_f))), fit_file
 

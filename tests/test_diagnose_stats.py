@@ -105,8 +105,7 @@ def test_noise_floor_is_per_band_not_flat():
     base = fdml.make_model("steady", "navion")
     ratio = []
     for kind in ("white", "coloured"):
-        rec = simulate_truth(base, None, {}, maneuver="multisine", duration=40.0, noise=0.05, noise_kind=kind,
-                             seed=42)
+        rec = simulate_truth(base, None, {}, maneuver="multisine", duration=40.0, noise=0.05, noise_kind=kind, seed=42)
         data = analysis_data(rec, BAND)
         nb = noise_bands(data)
         assert nb.n >= 2
@@ -124,8 +123,7 @@ def test_turbulence_test_is_calibrated_on_coloured_sensor_noise():
     base = fdml.make_model("steady", "navion")
     hits = 0
     for seed in range(20):
-        rec = simulate_truth(base, None, {}, maneuver="doublet", noise=0.05, noise_kind="coloured",
-                             seed=20_000 + seed)
+        rec = simulate_truth(base, None, {}, maneuver="doublet", noise=0.05, noise_kind="coloured", seed=20_000 + seed)
         data = analysis_data(rec, BAND)
         f0 = fit_model(data, base, noise_bands(data))
         hits += gust_test(data, f0, default_bands(data)).p < 0.05

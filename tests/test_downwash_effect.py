@@ -59,7 +59,8 @@ def test_effect_response_is_the_delayed_downwash(navion):
         assert np.max(np.abs(G - ref)) < 1e-12 * np.max(np.abs(ref))  # same algebra, rounding only
     # the effect is sizeable (the check above could fail) and vanishes at its null g = 0
     assert np.max(np.abs(closed_form(navion, OMEGA, tau) - closed_form(navion, OMEGA, tau, 0.0))) > 0.1 * np.max(
-        np.abs(closed_form(navion, OMEGA, 0.0)))
+        np.abs(closed_form(navion, OMEGA, 0.0))
+    )
     m0 = navion.with_effects("downwash_lag:tail").with_values(g_dw=0.0, tau_dw=tau)
     np.testing.assert_array_equal(m0.frequency_response(OMEGA), navion.frequency_response(OMEGA))
 
@@ -130,8 +131,9 @@ def test_diagnosis_names_a_textbook_downwash_lag(navion, maneuver, seed):
     tau = navion.aircraft.l_t / navion.U
     kw = dict(noise=0.003, noise_kind="white")
     rec = simulate_truth(navion, "downwash_lag@tail", {"tau_dw": tau}, maneuver=maneuver, seed=seed, **kw)
-    hold = simulate_truth(navion, "downwash_lag@tail", {"tau_dw": tau}, maneuver=HOLDOUT_OF[maneuver],
-                          seed=seed + 7_919_000, **kw)
+    hold = simulate_truth(
+        navion, "downwash_lag@tail", {"tau_dw": tau}, maneuver=HOLDOUT_OF[maneuver], seed=seed + 7_919_000, **kw
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rep = diagnose(rec, navion, holdout=hold, band=BAND)

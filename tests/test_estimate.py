@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import noisy_record, three_two_one_one
 
 from fdml import fit, fourier, load_result
 from fdml.compare import compare_steady_unsteady
@@ -21,8 +22,6 @@ from fdml.estimate import _cov_R, _grad_hess, prepare
 from fdml.models import make_model
 from fdml.record import Record
 from fdml.spectra import FrequencyData
-
-from conftest import noisy_record, three_two_one_one
 
 DIM = ("Z_a", "Z_q", "Z_de", "M_a", "M_q", "M_de")
 
@@ -45,8 +44,22 @@ def synthetic_spectra(model, rng, noise=0.01, dt=0.01, duration=12.0, name="fd")
     scale = noise * np.sqrt(np.mean(np.abs(z) ** 2, axis=0))
     z = z + scale * (rng.normal(size=z.shape) + 1j * rng.normal(size=z.shape)) / np.sqrt(2)
     ones = fourier.finite_fourier_transform(np.ones_like(t), dt, om)
-    return FrequencyData(name, om, z, U[:, None], ("de",), np.zeros(2), np.zeros(2), t[-1], dt, t.size,
-                         ones, trim_mode="none", trim_samples=0, band=(0.1, 10.0, 0.1))
+    return FrequencyData(
+        name,
+        om,
+        z,
+        U[:, None],
+        ("de",),
+        np.zeros(2),
+        np.zeros(2),
+        t[-1],
+        dt,
+        t.size,
+        ones,
+        trim_mode="none",
+        trim_samples=0,
+        band=(0.1, 10.0, 0.1),
+    )
 
 
 def test_recovers_dimensional_parameters(dimensional_case):
@@ -219,8 +232,11 @@ def test_unidentifiable_parameter_is_named_not_nan(dimensional_case):
 def test_callback_stops_cleanly(dimensional_case):
     m, t, de, y = dimensional_case
     seen = []
-    res = fit(noisy_record(t, de, y, np.random.default_rng(2)), m.with_values(M_a=-20.0),
-              callback=lambda info: seen.append(info.iteration) or info.iteration >= 2)
+    res = fit(
+        noisy_record(t, de, y, np.random.default_rng(2)),
+        m.with_values(M_a=-20.0),
+        callback=lambda info: seen.append(info.iteration) or info.iteration >= 2,
+    )
     assert seen == [1, 2] and res.stopped and not res.converged and "callback" in res.message
 
 
@@ -368,8 +384,9 @@ def test_analytic_and_eq26_sensitivities_agree_to_six_figures(kind):
     from fdml.simulate import simulate_maneuver
 
     truth = make_model("unsteady", "navion")
-    rec = add_noise(simulate_maneuver(truth, "3211", duration=10.0, dt=0.02), 0.02,
-                    np.random.default_rng(5), relative=True)
+    rec = add_noise(
+        simulate_maneuver(truth, "3211", duration=10.0, dt=0.02), 0.02, np.random.default_rng(5), relative=True
+    )
     m = make_model(kind, "navion")
     a = fit(rec, m, sensitivity="analytic", tol=1e-6)
     f = fit(rec, m, sensitivity="fd", tol=1e-6)

@@ -83,8 +83,9 @@ def test_export_from_a_fit():
     np.testing.assert_array_equal(frd.omega, w)
     np.testing.assert_array_equal(_frdata(frd), res.model.frequency_response(w))
     ss = to_statespace(res)
-    np.testing.assert_allclose(_ss_response(ss, w), res.model.frequency_response(w), rtol=1e-12,
-                               atol=1e-12 * np.abs(_frdata(frd)).max())
+    np.testing.assert_allclose(
+        _ss_response(ss, w), res.model.frequency_response(w), rtol=1e-12, atol=1e-12 * np.abs(_frdata(frd)).max()
+    )
     # the estimate, not the start values
     assert not np.allclose(ss.A, to_statespace(truth.with_values(Cm_a=-0.5)).A)
 

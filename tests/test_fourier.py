@@ -5,10 +5,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
-from fdml import fourier
 import pytest
 
+from fdml import fourier
 from fdml.errors import BandError, FdmlError, RecordError
 from fdml.fourier import (
     _choose_method,
@@ -71,8 +70,14 @@ def test_omega_band_endpoint_rounding():
 
 @pytest.mark.parametrize(
     "args, word",
-    [((-0.1, 1.0, 0.1), "negative"), ((0.1, 1.0, 0.0), "positive"), ((0.1, 1.0, -1.0), "positive"),
-     ((2.0, 1.0, 0.1), "below"), ((0.1, np.nan, 0.1), "finite"), ((0.1, np.inf, 0.1), "finite")],
+    [
+        ((-0.1, 1.0, 0.1), "negative"),
+        ((0.1, 1.0, 0.0), "positive"),
+        ((0.1, 1.0, -1.0), "positive"),
+        ((2.0, 1.0, 0.1), "below"),
+        ((0.1, np.nan, 0.1), "finite"),
+        ((0.1, np.inf, 0.1), "finite"),
+    ],
 )
 def test_omega_band_errors(args, word):
     with pytest.raises(BandError, match=word):
@@ -81,17 +86,18 @@ def test_omega_band_errors(args, word):
 
 def test_is_evenly_spaced():
     assert is_evenly_spaced(np.linspace(-3, 7, 51))
-    assert is_evenly_spaced(np.linspace(7, -3, 51))          # descending is fine
+    assert is_evenly_spaced(np.linspace(7, -3, 51))  # descending is fine
     w = np.linspace(0, 1, 11)
     w[5] += 1e-6
     assert not is_evenly_spaced(w)
-    assert not is_evenly_spaced(np.zeros(5))                  # zero step
+    assert not is_evenly_spaced(np.zeros(5))  # zero step
     assert not is_evenly_spaced([0.0, 1.0, np.nan])
 
 
 # ----------------------------------------------------------------- closed forms
-@pytest.mark.parametrize("method, where", [("direct", "paper"), ("czt", "paper"),
-                                           ("direct", "unsorted"), ("auto", "unsorted")])
+@pytest.mark.parametrize(
+    "method, where", [("direct", "paper"), ("czt", "paper"), ("direct", "unsorted"), ("auto", "unsorted")]
+)
 def test_exponential_decay(method, where):
     a, T, dt = 1.5, 5.0, 0.01
     t, n = grid(T, dt)
@@ -110,7 +116,7 @@ def test_sinusoid_whole_periods(where):
     w0, periods, dt = 2.0, 3, 0.005
     T = periods * 2 * np.pi / w0
     n = int(round(T / dt))
-    dt = T / n                       # a whole number of periods exactly
+    dt = T / n  # a whole number of periods exactly
     t = np.arange(n + 1) * dt
     rng = np.random.default_rng(2)
     w = PAPER if where == "paper" else unsorted_omega(rng, 30.0)
@@ -200,7 +206,7 @@ def test_rectangle_sum_equals_fft_at_bins(method):
     n, dt = 96, 0.05
     x = rng.standard_normal(n) + 1j * rng.standard_normal(n)
     k = np.arange(n // 2 + 1)
-    w = 2 * np.pi * k / (n * dt)        # the last bin is exactly Nyquist
+    w = 2 * np.pi * k / (n * dt)  # the last bin is exactly Nyquist
     X = finite_fourier_transform(x, dt, w, method=method, end_correction="none")
     ref = dt * np.fft.fft(x)[k]
     # Same sum, different rounding: phase errors ~ n eps * |x| per term.
@@ -209,8 +215,9 @@ def test_rectangle_sum_equals_fft_at_bins(method):
 
 # ------------------------------------------------------------- czt vs direct
 @pytest.mark.parametrize("end_correction", END_CORRECTIONS)
-@pytest.mark.parametrize("w", [PAPER, PAPER[::-1], np.linspace(-150, 150, 31)],
-                         ids=["paper", "descending", "two-sided"])
+@pytest.mark.parametrize(
+    "w", [PAPER, PAPER[::-1], np.linspace(-150, 150, 31)], ids=["paper", "descending", "two-sided"]
+)
 def test_czt_agrees_with_direct(end_correction, w):
     rng = np.random.default_rng(4)
     n, dt = 2003, 0.02
@@ -225,10 +232,10 @@ def test_czt_agrees_with_direct(end_correction, w):
 
 def test_auto_method_choice():
     assert _choose_method(3000, PAPER, "auto") == "czt"
-    assert _choose_method(20, PAPER[:10], "auto") == "direct"          # too small to pay
+    assert _choose_method(20, PAPER[:10], "auto") == "direct"  # too small to pay
     uneven = np.r_[PAPER[:50], PAPER[50:] + 0.01]
     assert _choose_method(3000, uneven, "auto") == "direct"
-    assert _choose_method(3000, PAPER[:1], "czt") == "direct"          # one frequency
+    assert _choose_method(3000, PAPER[:1], "czt") == "direct"  # one frequency
     with pytest.raises(BandError, match="evenly spaced"):
         _choose_method(3000, uneven, "czt")
 
@@ -266,8 +273,9 @@ def test_adjoint_identity(method, end_correction, n):
     F = transform_weights(n, dt, w, end_correction=end_correction)
     Y = rng.standard_normal((w.size, 2))
     # czt rounds chirp phases of up to 2e3 rad (~2e-13), direct ones of max|theta| n.
-    assert np.max(np.abs(fourier_adjoint(Y, n, dt, w, method=method, end_correction=end_correction)
-                         - F.conj().T @ Y)) < 1e-12 * np.max(np.abs(F.conj().T @ Y))
+    assert np.max(
+        np.abs(fourier_adjoint(Y, n, dt, w, method=method, end_correction=end_correction) - F.conj().T @ Y)
+    ) < 1e-12 * np.max(np.abs(F.conj().T @ Y))
 
 
 def test_adjoint_long_record_without_matrix():
@@ -291,7 +299,7 @@ def test_end_weights_known_values():
     W, alpha = _end_weights(np.array([0.0, 1e-5]), "cubic")
     # Endpoint weights 1/3, 31/24, 5/6, 25/24 of the cubic rule, minus the 1 in W.
     expected = np.array([-2 / 3, 7 / 24, -1 / 6, 1 / 24])
-    assert W[0] == 1.0 and abs(W[1] - (1 - 11e-20 / 720)) < 2 * EPS   # W = 1 - 11 theta^4/720
+    assert W[0] == 1.0 and abs(W[1] - (1 - 11e-20 / 720)) < 2 * EPS  # W = 1 - 11 theta^4/720
     assert np.max(np.abs(alpha[0] - expected)) < 4 * EPS
     # a_k(theta) = a_k(0) + O(theta): nothing blows up as theta -> 0.
     assert np.max(np.abs(alpha[1] - expected)) < 1e-5

@@ -13,8 +13,17 @@ from scipy.io import loadmat, savemat
 
 from fdml.constants import DEG, FT, G0, SLUG
 from fdml.errors import RecordError
-from fdml.io import (data_dir, data_path, detect_format, load_record, load_records, read_csv_mapped,
-                     read_dlr_asc, read_dlr_mat, read_sidpac)
+from fdml.io import (
+    data_dir,
+    data_path,
+    detect_format,
+    load_record,
+    load_records,
+    read_csv_mapped,
+    read_dlr_asc,
+    read_dlr_mat,
+    read_sidpac,
+)
 from fdml.io.units import normalise_unit, to_si, unit_factor
 from fdml.record import Record
 
@@ -184,17 +193,26 @@ def _write_foreign_csv(path, t, de, alpha, q, az, V, sep=","):
 
 def _truth(n=200, dt=0.02):
     t = np.arange(n) * dt
-    return (t, 0.02 * np.sin(3 * t), 0.05 + 0.01 * np.sin(2 * t), 0.03 * np.cos(2 * t),
-            -1.0 + 0.1 * np.sin(2 * t), 60 + 0 * t)
+    return (
+        t,
+        0.02 * np.sin(3 * t),
+        0.05 + 0.01 * np.sin(2 * t),
+        0.03 * np.cos(2 * t),
+        -1.0 + 0.1 * np.sin(2 * t),
+        60 + 0 * t,
+    )
 
 
 def test_csv_mapped_round_trip(tmp_path):
     t, de, alpha, q, az, V = _truth()
     f = tmp_path / "foreign.csv"
     _write_foreign_csv(f, t, de, alpha, q, az, V)
-    rec = read_csv_mapped(f, columns={"t": "time", "de": "elev_deg", "alpha": "AOA", "q": "pitch_rate",
-                                      "az": "nz", "V": "KTAS"},
-                          units={"de": "deg", "q": "deg/sec", "az": "g", "V": "kts"}, sign={"az": -1})
+    rec = read_csv_mapped(
+        f,
+        columns={"t": "time", "de": "elev_deg", "alpha": "AOA", "q": "pitch_rate", "az": "nz", "V": "KTAS"},
+        units={"de": "deg", "q": "deg/sec", "az": "g", "V": "kts"},
+        sign={"az": -1},
+    )
     for got, want in ((rec["de"], de), (rec["alpha"], alpha), (rec["q"], q), (rec["az"], az), (rec["V"], V)):
         np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-15)
     assert rec.meta["U"] == pytest.approx(60.0)
@@ -207,8 +225,11 @@ def test_csv_mapped_semicolon_and_ms(tmp_path):
     f = tmp_path / "semi.csv"
     lines = ["ms;de;a;qq;acc"] + [f"{1000 * a};{b};{c};{d};{e * G0}" for a, b, c, d, e in zip(t, de, alpha, q, az)]
     f.write_text("\n".join(lines))
-    rec = read_csv_mapped(f, {"t": "ms", "de": "de", "alpha": "a", "q": "qq", "az": "acc"},
-                          units={"t": "ms", "de": "rad", "alpha": "rad", "q": "rad/s", "az": "m/s^2"})
+    rec = read_csv_mapped(
+        f,
+        {"t": "ms", "de": "de", "alpha": "a", "q": "qq", "az": "acc"},
+        units={"t": "ms", "de": "rad", "alpha": "rad", "q": "rad/s", "az": "m/s^2"},
+    )
     np.testing.assert_allclose(rec.t, t, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(rec["az"], az, rtol=1e-12)
 
@@ -326,7 +347,8 @@ def test_different_sample_rates_together(tmp_path):
     a = Record(t, {"de": de, "alpha": alpha, "q": q, "az": az}).to_csv(tmp_path / "fast.csv")
     t2 = np.arange(100) * 0.04
     b = Record(t2, {"de": 0.01 * np.sin(t2), "alpha": 0 * t2, "q": 0 * t2, "az": 0 * t2 - 1}).to_csv(
-        tmp_path / "slow.csv")
+        tmp_path / "slow.csv"
+    )
     with pytest.raises(RecordError, match="different sample rates.*fast.csv: 50 Hz.*slow.csv: 25 Hz"):
         load_records([a, b])
     assert len(load_records([a, a])) == 2
@@ -378,8 +400,7 @@ def test_fdml_fit_reads_a_sidpac_record(capsys):
     from fdml.cli import main
 
     path = data_path(TO17)
-    code = main(["fit", str(path), "--model", "dimensional", "--airspeed", "73.25", "--band", "0.63:9.4:0.1",
-                 "--json"])
+    code = main(["fit", str(path), "--model", "dimensional", "--airspeed", "73.25", "--band", "0.63:9.4:0.1", "--json"])
     d = json.loads(capsys.readouterr().out)
     assert code == 0 and d["converged"]
     # a statically stable aircraft with a conventional elevator (trailing edge down: nose down)
@@ -399,8 +420,20 @@ def test_fdml_fit_rejects_mixed_rates_and_bad_maps(tmp_path, capsys):
     t, de, alpha, q, az, V = _truth()
     f = tmp_path / "foreign.csv"
     _write_foreign_csv(f, t, de, alpha, q, az, V)
-    code = main(["fit", str(f), "--model", "dimensional", "--airspeed", "60", "--columns",
-                 "t=time,de=elev_deg,alpha=AOA,q=pitch_rate,az=n_z", "--units", "de=deg,q=deg/s,az=g"])
+    code = main(
+        [
+            "fit",
+            str(f),
+            "--model",
+            "dimensional",
+            "--airspeed",
+            "60",
+            "--columns",
+            "t=time,de=elev_deg,alpha=AOA,q=pitch_rate,az=n_z",
+            "--units",
+            "de=deg,q=deg/s,az=g",
+        ]
+    )
     err = capsys.readouterr().err
     assert code == 2 and "no column 'n_z' (mapped to az)" in err
     code = main(["fit", str(f), "--model", "dimensional", "--airspeed", "60", "--units", "de=deg"])

@@ -46,8 +46,9 @@ def _records(dt):
         de = three_two_one_one(t, 0.02, start=start, unit=unit)
         y = lsim_dimensional(m, t, de + 0.003)  # elevator offset the record does not show
         y = y + np.array([0.02, -0.001, 0.05])  # sensor offsets
-        rec = noisy_record(t[keep] - t[keep][0], de[keep] - 0.01, y[keep], np.random.default_rng(7 + i),
-                           fraction=0.02, name="ab"[i])
+        rec = noisy_record(
+            t[keep] - t[keep][0], de[keep] - 0.01, y[keep], np.random.default_rng(7 + i), fraction=0.02, name="ab"[i]
+        )
         out.append(rec)
     return m, out
 
@@ -69,6 +70,7 @@ def case(request):
 
 # --- the module on its own -------------------------------------------------------------------
 
+
 def test_predict_is_linear_in_the_nuisance_values_with_columns_as_coefficients():
     rng = np.random.default_rng(0)
     m = 40
@@ -83,12 +85,14 @@ def test_predict_is_linear_in_the_nuisance_values_with_columns_as_coefficients()
     full = predict(resp, u, ones, boundary_vector(eta[3:5], eta[5:7], shift), eta[:3], eta[7:9], eta[9])
     bare = predict(resp, u, ones)
     # y - G u = C eta exactly (every term linear): only rounding, a few eps of |y|
-    np.testing.assert_allclose(full - bare, nuisance_columns(resp, shift, ones) @ eta,
-                               rtol=0, atol=50 * EPS * np.abs(full).max())
+    np.testing.assert_allclose(
+        full - bare, nuisance_columns(resp, shift, ones) @ eta, rtol=0, atol=50 * EPS * np.abs(full).max()
+    )
     # the boundary vector, written out: d = x(0) - x(T) exp(-j w T) (THEORY.md section 7)
     d = boundary_vector(eta[3:5], eta[5:7], shift)
-    np.testing.assert_allclose(d[:, 1], eta[4] - eta[6] * (np.cos(omega * T) - 1j * np.sin(omega * T)),
-                               rtol=0, atol=10 * EPS)
+    np.testing.assert_allclose(
+        d[:, 1], eta[4] - eta[6] * (np.cos(omega * T) - 1j * np.sin(omega * T)), rtol=0, atol=10 * EPS
+    )
 
 
 def test_predict_of_derivatives_broadcasts_over_a_leading_axis():
@@ -103,6 +107,7 @@ def test_predict_of_derivatives_broadcasts_over_a_leading_axis():
 
 
 # --- every user agrees ----------------------------------------------------------------------
+
 
 def test_fitted_spectra_equal_problem_predict_at_the_estimate(case, tmp_path):
     res, prob = case
@@ -143,8 +148,7 @@ def test_nuisance_columns_equal_finite_differences_of_predict(case):
         dn[i] -= h
         fd = (prob._eval_stacked(up) - prob._eval_stacked(dn)) / (2 * h)
         # y is linear in a nuisance value: no truncation error, rounding eps |y| / h (|y| ~ h |column|)
-        np.testing.assert_allclose(A[:, :, i], fd, rtol=0, atol=1e-12 * np.abs(A[:, :, i]).max(),
-                                   err_msg=prob.names[i])
+        np.testing.assert_allclose(A[:, :, i], fd, rtol=0, atol=1e-12 * np.abs(A[:, :, i]).max(), err_msg=prob.names[i])
 
 
 def _time_domain_error(res):

@@ -24,10 +24,32 @@ from fdml.simulate import simulate
 OMEGA = np.linspace(0.2, 10.0, 50)
 
 #: A non-null value of every effect parameter (inside its plausible range).
-VALUES = {"y_w": 0.3, "y_lift": 0.3, "G": 0.3, "Cm_adot": -5.0, "M_adot": -0.5, "b1": 2.0, "T_gust": 0.1,
-          "tau_tail": 0.1, "g_dw": 1.0, "tau_dw": 0.09, "tau_de": 0.05, "tau_alpha": 0.05, "tau_q": 0.04, "tau_az": 0.03, "T_act": 0.05,
-          "x_az": 3.0, "x_alpha": 3.0, "r_q": 0.05, "r_az": 0.05, "omega_s": 8.0, "zeta_s": 0.1,
-          "k_alpha": 0.1, "k_q": -0.1, "k_az": 0.15}
+VALUES = {
+    "y_w": 0.3,
+    "y_lift": 0.3,
+    "G": 0.3,
+    "Cm_adot": -5.0,
+    "M_adot": -0.5,
+    "b1": 2.0,
+    "T_gust": 0.1,
+    "tau_tail": 0.1,
+    "g_dw": 1.0,
+    "tau_dw": 0.09,
+    "tau_de": 0.05,
+    "tau_alpha": 0.05,
+    "tau_q": 0.04,
+    "tau_az": 0.03,
+    "T_act": 0.05,
+    "x_az": 3.0,
+    "x_alpha": 3.0,
+    "r_q": 0.05,
+    "r_az": 0.05,
+    "omega_s": 8.0,
+    "zeta_s": 0.1,
+    "k_alpha": 0.1,
+    "k_q": -0.1,
+    "k_az": 0.15,
+}
 
 #: Base models (sundowner, the preset with every geometric constant), all finite-state (F = 0).
 BASES = {
@@ -64,18 +86,23 @@ CASES = _cases()
 
 def _with(key, base):
     m = _base(base).with_effects(key)
-    mine = {n: v for n, v in VALUES.items() if n in m.parameters and m.parameters[n].free
-            and n not in _base(base).parameters.free_names}
+    mine = {
+        n: v
+        for n, v in VALUES.items()
+        if n in m.parameters and m.parameters[n].free and n not in _base(base).parameters.free_names
+    }
     return m.with_values(mine), mine
 
 
 # --- build and describe ------------------------------------------------------------------------------
 
+
 def test_one_readable_call_and_description():
     m = make_model("dimensional", airspeed=73.3, effects=["time_delay:alpha", "sensor_offset:az"])
     assert isinstance(m, AugmentedModel)
-    assert m.describe() == ("dimensional model (elevator only) + alpha time delay (tau_alpha, s) "
-                            "+ az sensor offset (x_az, m)")
+    assert m.describe() == (
+        "dimensional model (elevator only) + alpha time delay (tau_alpha, s) + az sensor offset (x_az, m)"
+    )
     assert repr(m) == f"<fdml model: {m.describe()}>"
     assert [e.key for e in m.parts] == ["time_delay@alpha", "sensor_offset@az"]
     # free at the null: the model is the base model until fitted
@@ -106,6 +133,7 @@ def test_serialise_and_reload_every_effect(key, base):
 
 
 # --- realisation and time-domain simulation ------------------------------------------------------------
+
 
 def _transfer_error(model, driven, dt):
     """max over outputs of max_w |y~/u~ - G| / max_w |G| for a smooth doublet from rest (as test_simulate)."""
@@ -164,6 +192,7 @@ def test_simulate_needs_a_realisation_and_refuses_delay_before_mixing():
 
 # --- export --------------------------------------------------------------------------------------------
 
+
 def test_export_exact_frd_or_pade_statespace():
     control = pytest.importorskip("control")
     from fdml.export import to_control, to_statespace
@@ -186,6 +215,7 @@ def test_export_exact_frd_or_pade_statespace():
 
 # --- command line --------------------------------------------------------------------------------------
 
+
 def run(capsys, *argv):
     code = main(list(argv))
     out, err = capsys.readouterr()
@@ -196,9 +226,32 @@ def run(capsys, *argv):
 def record(tmp_path_factory):
     """A record of a dimensional model with a 30 ms alpha delay and a 2 m accelerometer offset."""
     path = tmp_path_factory.mktemp("rec") / "r.csv"
-    code = main(["simulate", "--model", "dimensional", "--airspeed", "73.3", "--effect", "time_delay:alpha",
-                 "--effect", "sensor_offset:az", "--set", "tau_alpha=0.03", "x_az=2", "--maneuver", "3211",
-                 "--duration", "20", "--noise", "alpha=1e-4,q=1e-4,az=1e-3", "--seed", "3", "-o", str(path)])
+    code = main(
+        [
+            "simulate",
+            "--model",
+            "dimensional",
+            "--airspeed",
+            "73.3",
+            "--effect",
+            "time_delay:alpha",
+            "--effect",
+            "sensor_offset:az",
+            "--set",
+            "tau_alpha=0.03",
+            "x_az=2",
+            "--maneuver",
+            "3211",
+            "--duration",
+            "20",
+            "--noise",
+            "alpha=1e-4,q=1e-4,az=1e-3",
+            "--seed",
+            "3",
+            "-o",
+            str(path),
+        ]
+    )
     assert code == 0
     return path
 
@@ -214,9 +267,24 @@ def test_cli_simulate_reaches_effect_parameters(record):
 
 def test_cli_fit_with_repeated_effect(record, capsys, tmp_path):
     out_json = tmp_path / "fit.json"
-    code, out, _ = run(capsys, "fit", str(record), "--model", "dimensional", "--airspeed", "73.3",
-                       "--effect", "time_delay:alpha", "--effect", "sensor_offset:az", "--band", "0.3:12:0.05",
-                       "-o", str(out_json), "--json")
+    code, out, _ = run(
+        capsys,
+        "fit",
+        str(record),
+        "--model",
+        "dimensional",
+        "--airspeed",
+        "73.3",
+        "--effect",
+        "time_delay:alpha",
+        "--effect",
+        "sensor_offset:az",
+        "--band",
+        "0.3:12:0.05",
+        "-o",
+        str(out_json),
+        "--json",
+    )
     assert code == 0
     res = json.loads(out)
     p = res["params"] if isinstance(res["params"], dict) else {q["name"]: q for q in res["params"]}
@@ -233,23 +301,69 @@ def test_cli_fit_with_repeated_effect(record, capsys, tmp_path):
 
 
 def test_cli_response_and_batch_and_montecarlo(record, capsys, tmp_path):
-    code, out, _ = run(capsys, "response", "--model", "dimensional", "--airspeed", "73.3", "--effect",
-                       "time_delay:alpha", "--set", "tau_alpha=0.1", "--omega", "1:2:1", "--json")
+    code, out, _ = run(
+        capsys,
+        "response",
+        "--model",
+        "dimensional",
+        "--airspeed",
+        "73.3",
+        "--effect",
+        "time_delay:alpha",
+        "--set",
+        "tau_alpha=0.1",
+        "--omega",
+        "1:2:1",
+        "--json",
+    )
     assert code == 0
     d = json.loads(out)
     G = np.array(d["real"]) + 1j * np.array(d["imag"])
     G0 = make_model("dimensional", airspeed=73.3).frequency_response([1.0, 2.0])
     np.testing.assert_allclose(G[0], G0[0] * np.exp(-1j * np.array([1.0, 2.0]) * 0.1), rtol=1e-12)
-    code, out, _ = run(capsys, "batch", str(record), "--model", "dimensional", "--airspeed", "73.3",
-                       "--effect", "time_delay:alpha", "--effect", "sensor_offset:az", "--serial",
-                       "--band", "0.3:12:0.05", "--out", str(tmp_path / "b"), "--json")
+    code, out, _ = run(
+        capsys,
+        "batch",
+        str(record),
+        "--model",
+        "dimensional",
+        "--airspeed",
+        "73.3",
+        "--effect",
+        "time_delay:alpha",
+        "--effect",
+        "sensor_offset:az",
+        "--serial",
+        "--band",
+        "0.3:12:0.05",
+        "--out",
+        str(tmp_path / "b"),
+        "--json",
+    )
     assert code == 0
     files = list((tmp_path / "b" / "results").glob("*.json"))
     saved = json.loads(files[0].read_text())
     assert saved["model"]["effects"] == ["time_delay@alpha", "sensor_offset@az"]
-    code, out, _ = run(capsys, "montecarlo", "--model", "dimensional", "--airspeed", "73.3", "--effect",
-                       "time_delay:alpha", "--set", "tau_alpha=0.03", "-n", "3", "--duration", "10",
-                       "--workers", "1", "--no-progress", "--json")
+    code, out, _ = run(
+        capsys,
+        "montecarlo",
+        "--model",
+        "dimensional",
+        "--airspeed",
+        "73.3",
+        "--effect",
+        "time_delay:alpha",
+        "--set",
+        "tau_alpha=0.03",
+        "-n",
+        "3",
+        "--duration",
+        "10",
+        "--workers",
+        "1",
+        "--no-progress",
+        "--json",
+    )
     assert code == 0
     mc = json.loads(out)
     assert mc["used"] == 3 and "tau_alpha" in json.dumps(mc["stats"])
@@ -269,20 +383,25 @@ def test_cli_effects_lists_the_library(capsys):
 
 # --- bad input -----------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("argv, match", [
-    (["--effect", "time_dilation:alpha"], "unknown effect.*known effects: .*time_delay"),
-    (["--effect", "time_delay"], "give time_delay:CHANNEL"),
-    (["--effect", "time_delay:beta"], "no channel 'beta'"),
-    (["--effect", "sensor_offset:az", "--outputs", "alpha,q"], "sensor_offset@az acts on az"),
-    (["--effect", "sensor_offset:alpha", "--outputs", "alpha,q"], "x_alpha is not identifiable"),
-    (["--effect", "unmeasured_gust"], "noise model"),
-    (["--effect", "gust_lag:alpha_w"], "alpha_w"),
-])
+
+@pytest.mark.parametrize(
+    "argv, match",
+    [
+        (["--effect", "time_dilation:alpha"], "unknown effect.*known effects: .*time_delay"),
+        (["--effect", "time_delay"], "give time_delay:CHANNEL"),
+        (["--effect", "time_delay:beta"], "no channel 'beta'"),
+        (["--effect", "sensor_offset:az", "--outputs", "alpha,q"], "sensor_offset@az acts on az"),
+        (["--effect", "sensor_offset:alpha", "--outputs", "alpha,q"], "x_alpha is not identifiable"),
+        (["--effect", "unmeasured_gust"], "noise model"),
+        (["--effect", "gust_lag:alpha_w"], "alpha_w"),
+    ],
+)
 def test_bad_effects_are_one_line_errors_exit_2(record, capsys, argv, match):
     import re
 
-    code, _, err = run(capsys, "fit", str(record), "--model", "dimensional", "--airspeed", "73.3",
-                         "--band", "0.3:12:0.05", *argv)
+    code, _, err = run(
+        capsys, "fit", str(record), "--model", "dimensional", "--airspeed", "73.3", "--band", "0.3:12:0.05", *argv
+    )
     assert code == 2
     assert re.search(match, err), err
     assert len(err.strip().splitlines()) == 1

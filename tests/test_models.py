@@ -134,8 +134,11 @@ def test_downwash_wrong_branch_would_be_caught():
     s = 5j
     T = (4.38 - ac.c_w) / ac.U
     good = aero.downwash(np.array([s]), 1.0, 1.358, 0.513, 0.065, 4.38, ac.U, ac.c_w)[0]
-    bracket_wrong = (1 - s * 0.513 / (s + 2 * 0.065 * ac.U / ac.c_w)
-                     - (s * ac.c_w * 1.358 / ac.U) * (-special.exp1(-s * T)) * np.exp(-s * T))
+    bracket_wrong = (
+        1
+        - s * 0.513 / (s + 2 * 0.065 * ac.U / ac.c_w)
+        - (s * ac.c_w * 1.358 / ac.U) * (-special.exp1(-s * T)) * np.exp(-s * T)
+    )
     assert abs(bracket_wrong - good) / abs(good) == pytest.approx(0.53, abs=0.01)
 
 

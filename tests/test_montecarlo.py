@@ -60,9 +60,18 @@ def test_statistics_on_known_numbers():
     est[0] = np.nan
     conv[1] = False
     est[1] = 1e6  # an unconverged outlier must not count
-    r = MonteCarloResult(names=("a", "b"), truth=truth, estimates=est, stderr=se, converged=conv,
-                         iterations=np.ones(n, int), fit_seconds=np.ones(n), errors={0: "X: failed"},
-                         settings={}, wall_time=1.0)
+    r = MonteCarloResult(
+        names=("a", "b"),
+        truth=truth,
+        estimates=est,
+        stderr=se,
+        converged=conv,
+        iterations=np.ones(n, int),
+        fit_seconds=np.ones(n),
+        errors={0: "X: failed"},
+        settings={},
+        wall_time=1.0,
+    )
     assert r.n_used == n - 2
     assert abs(r.bias[0] - 0.05) < 4 * 0.2 / math.sqrt(n) and abs(r.bias[1]) < 4 * 0.5 / math.sqrt(n)
     np.testing.assert_allclose(r.efficiency, [2.0, 1.0], rtol=0.05)
@@ -98,8 +107,14 @@ def test_table_json_plot_and_frame(study, tmp_path):
 
 def test_fitting_another_model_shows_its_bias():
     """Steady fitted to unsteady data: the Monte Carlo exposes a model-structure bias in CRB units."""
-    r = monte_carlo({"kind": "unsteady", "aircraft": "navion"}, n=6, duration=12.0, seed=3,
-                    fit_model={"kind": "steady", "aircraft": "navion"}, engine="serial")
+    r = monte_carlo(
+        {"kind": "unsteady", "aircraft": "navion"},
+        n=6,
+        duration=12.0,
+        seed=3,
+        fit_model={"kind": "steady", "aircraft": "navion"},
+        engine="serial",
+    )
     assert r.settings["truth_kind"] == "unsteady" and r.settings["fit_kind"] == "steady"
     assert r.n_used == 6
     assert np.max(np.abs(r.bias / r.mean_crb)) > 3
@@ -115,8 +130,24 @@ def test_bad_arguments():
 
 
 def test_montecarlo_command(tmp_path, capsys):
-    code = main(["montecarlo", "--aircraft", "navion", "--model", "steady", "-n", "6", "--duration", "8",
-                 "--workers", "1", "--json", "-o", str(tmp_path)])
+    code = main(
+        [
+            "montecarlo",
+            "--aircraft",
+            "navion",
+            "--model",
+            "steady",
+            "-n",
+            "6",
+            "--duration",
+            "8",
+            "--workers",
+            "1",
+            "--json",
+            "-o",
+            str(tmp_path),
+        ]
+    )
     d = json.loads(capsys.readouterr().out)
     assert code == 0 and d["n"] == 6 and d["used"] == 6
     assert [s["name"] for s in d["stats"]] == ["CLa_w", "CLa_t", "deps_da", "Cm_de", "Cz_de"]

@@ -18,8 +18,9 @@ BAND = (0.3, 12.0)
 def case():
     """A 20 s record with a 30 ms pitch-rate delay and coloured sensor noise, four noise bands."""
     base = fdml.make_model("steady", "navion")
-    rec = simulate_truth(base, "time_delay@q", {"tau_q": 0.03}, duration=20.0, noise=0.05, noise_kind="coloured",
-                         seed=4)
+    rec = simulate_truth(
+        base, "time_delay@q", {"tau_q": 0.03}, duration=20.0, noise=0.05, noise_kind="coloured", seed=4
+    )
     data = analysis_data([rec], BAND)
     nb = noise_bands(data, min_independent=8)
     assert nb.n == 4
@@ -64,8 +65,9 @@ def test_band_noise_fit_minimises_the_band_cost(case):
     white = fit(items, model, cov_type="colored", adequacy=False, check=False)
     t0 = np.array([white.params[n] for n in prob.names])
     se = res.stderr
-    opt = optimize.minimize(lambda x: _band_cost(prob, t0 + x * se, nb), np.zeros(t0.size), method="BFGS",
-                            options={"gtol": 1e-6})
+    opt = optimize.minimize(
+        lambda x: _band_cost(prob, t0 + x * se, nb), np.zeros(t0.size), method="BFGS", options={"gtol": 1e-6}
+    )
     t_ref = t0 + opt.x * se
     assert np.max(np.abs(t0 - t_ref) / se) > 0.05  # the noise model matters in this case
     assert np.max(np.abs(theta - t_ref) / se) < 0.02

@@ -27,8 +27,26 @@ FIT = ["--aircraft", "navion", "--model", "steady", "--band", "0.5:5:0.5"]
 def record_bytes(tmp_path_factory) -> bytes:
     """A short noisy Navion record made by ``fdml simulate`` (the CLI under test writes it)."""
     path = tmp_path_factory.mktemp("rec") / "rec.csv"
-    assert main(["simulate", "--aircraft", "navion", "--model", "steady", "--duration", "4",
-                 "--noise", "0.02", "--seed", "3", "-o", str(path)]) == 0  # a draw whose 4 s fit converges
+    assert (
+        main(
+            [
+                "simulate",
+                "--aircraft",
+                "navion",
+                "--model",
+                "steady",
+                "--duration",
+                "4",
+                "--noise",
+                "0.02",
+                "--seed",
+                "3",
+                "-o",
+                str(path),
+            ]
+        )
+        == 0
+    )  # a draw whose 4 s fit converges
     return path.read_bytes()
 
 
@@ -94,10 +112,15 @@ def _read_only_folder(d, inp):
     return ro / "out.file"
 
 
-CASES = {"same file": (_same, "input"), "symlink to the input": (_symlink, "input"),
-         "hard link to the input": (_hardlink, "input"), "FIFO": (_fifo, "FIFO"),
-         "character device": (_chardev, "character device"), "existing folder": (_folder, "folder"),
-         "read-only folder": (_read_only_folder, "not writable")}
+CASES = {
+    "same file": (_same, "input"),
+    "symlink to the input": (_symlink, "input"),
+    "hard link to the input": (_hardlink, "input"),
+    "FIFO": (_fifo, "FIFO"),
+    "character device": (_chardev, "character device"),
+    "existing folder": (_folder, "folder"),
+    "read-only folder": (_read_only_folder, "not writable"),
+}
 
 
 def _setup(command, tmp_path, record_bytes, aircraft_bytes):
@@ -155,16 +178,19 @@ def fitted(tmp_path, record_bytes, capsys):
     return rec, res
 
 
-@pytest.mark.parametrize("argv, victim, reason", [
-    (["report", "{res}", "-o", "{res}"], "res", "input"),
-    (["report", "{res}", "-o", "{rec}"], "rec", "not a folder"),
-    (["batch", "{dir}", *FIT, "--serial", "--no-progress", "--out", "{dir}"], "dir", "input"),
-    (["batch", "{rec}", *FIT, "--serial", "--no-progress", "--out", "{rec}"], "rec", "input"),
-    (["diagnose", "{rec}", "--aircraft", "navion", "--figure", "{rec}"], "rec", "input"),
-    (["diagnose", "{rec}", "--aircraft", "navion", "-o", "{res}", "--figure", "{rec}"], "rec", "input"),
-    (["montecarlo", "--aircraft", "navion", "--model", "steady", "-n", "2", "-o", "{rec}"], "rec", "not a folder"),
-    (["demo", "-o", "{rec}"], "rec", "not a folder"),
-])
+@pytest.mark.parametrize(
+    "argv, victim, reason",
+    [
+        (["report", "{res}", "-o", "{res}"], "res", "input"),
+        (["report", "{res}", "-o", "{rec}"], "rec", "not a folder"),
+        (["batch", "{dir}", *FIT, "--serial", "--no-progress", "--out", "{dir}"], "dir", "input"),
+        (["batch", "{rec}", *FIT, "--serial", "--no-progress", "--out", "{rec}"], "rec", "input"),
+        (["diagnose", "{rec}", "--aircraft", "navion", "--figure", "{rec}"], "rec", "input"),
+        (["diagnose", "{rec}", "--aircraft", "navion", "-o", "{res}", "--figure", "{rec}"], "rec", "input"),
+        (["montecarlo", "--aircraft", "navion", "--model", "steady", "-n", "2", "-o", "{rec}"], "rec", "not a folder"),
+        (["demo", "-o", "{rec}"], "rec", "not a folder"),
+    ],
+)
 def test_every_command_checks_before_working(argv, victim, reason, fitted, tmp_path, capsys):
     rec, res = fitted
     names = {"rec": str(rec), "res": str(res), "dir": str(tmp_path)}
@@ -384,8 +410,9 @@ def test_closed_pipe_ends_quietly(how, tmp_path, record_bytes):
     # block-buffered stdout as in a normal shell: with PYTHONUNBUFFERED a large write to a closed
     # pipe can end without an error, and the case would prove nothing
     env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"} | {"MPLBACKEND": "Agg"}
-    proc = subprocess.Popen([sys.executable, "-m", "fdml", *argv], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, env=env)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "fdml", *argv], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env
+    )
     if how == "closed after one line":
         assert proc.stdout.readline().strip() == b"{"
     proc.stdout.close()  # the reader goes away (`| head -1`)

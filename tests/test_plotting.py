@@ -55,6 +55,7 @@ def _band(coll, x):
 
 # --- spectra ----------------------------------------------------------------------------------
 
+
 def test_plot_spectra_figure_and_axes(res):
     fig, axes = plot_spectra(res)
     assert isinstance(fig, Figure) and axes.shape == (2, 3)
@@ -125,11 +126,11 @@ def test_plot_spectra_several_fits_and_db(res):
     fig, axes = plot_spectra([res, other], ["a", "b"], mag_unit="dB", crb=False)
     assert len(axes[0, 0].lines) == 3 and not axes[0, 0].collections
     assert "dB" in axes[0, 0].get_ylabel()
-    np.testing.assert_allclose(axes[0, 0].lines[0].get_ydata(),
-                               20 * np.log10(np.abs(res.spectra[0]["z"][:, 0])))
+    np.testing.assert_allclose(axes[0, 0].lines[0].get_ydata(), 20 * np.log10(np.abs(res.spectra[0]["z"][:, 0])))
 
 
 # --- time histories -------------------------------------------------------------------------
+
 
 def test_plot_time_histories(res):
     fig, axes = plot_time_histories(res)
@@ -139,7 +140,7 @@ def test_plot_time_histories(res):
     model_line, meas_line = axes[1].lines[:2]
     np.testing.assert_allclose(meas_line.get_ydata(), np.degrees(rec["alpha"]))
     err = model_line.get_ydata() - meas_line.get_ydata()
-    assert np.sqrt(np.mean(err ** 2)) < 0.05 * np.ptp(meas_line.get_ydata())  # the noise level, 2 %
+    assert np.sqrt(np.mean(err**2)) < 0.05 * np.ptp(meas_line.get_ydata())  # the noise level, 2 %
     fig0, axs = plt.subplots(2, 1)
     fig, axes = plot_time_histories(res, outputs=["q"], axes=axs, angle_unit="rad")
     assert fig is fig0 and axes[1] is axs[1]
@@ -148,11 +149,14 @@ def test_plot_time_histories(res):
     assert axes.shape == (3,)
 
 
-@pytest.mark.parametrize("kind, opts, trim, window", [
-    ("dimensional", {}, "first", None),                      # trim added back, x0 = 0
-    ("derivatives", {"adot": True}, "none", (1.5, 11.5)),   # starts mid-manoeuvre: x0 != 0, E != I
-    ("steady", {}, "mean", None),
-])
+@pytest.mark.parametrize(
+    "kind, opts, trim, window",
+    [
+        ("dimensional", {}, "first", None),  # trim added back, x0 = 0
+        ("derivatives", {"adot": True}, "none", (1.5, 11.5)),  # starts mid-manoeuvre: x0 != 0, E != I
+        ("steady", {}, "mean", None),
+    ],
+)
 def test_time_domain_overlay_is_fair(kind, opts, trim, window):
     """Noise-free record of the model itself: the overlay reproduces it (trim, biases, x(0))."""
     truth = fdml.make_model(kind, "navion", **opts)
@@ -181,6 +185,7 @@ def test_time_histories_need_time_records(res):
 
 # --- residual spectra ------------------------------------------------------------------------
 
+
 def test_plot_residual_spectra(res):
     fig, axes = plot_residual_spectra(res, freq_unit="Hz")
     assert isinstance(fig, Figure) and axes.shape == (3,)
@@ -199,6 +204,7 @@ def test_plot_residual_spectra(res):
 
 
 # --- correlation ---------------------------------------------------------------------------------
+
 
 def test_plot_correlation(res):
     fig, ax = plot_correlation(res)
@@ -224,8 +230,14 @@ def test_overlay_of_a_joint_fit_with_an_elevator_bias():
     for name, man in (("a", "3211"), ("b", "doublet")):
         r = simulate_maneuver(truth, man, duration=10.0, dt=0.02)
         sim = simulate(truth, r.t, {"de": r["de"] + 0.002})  # the true elevator is 0.002 rad off
-        recs.append(Record(r.t, {"de": r["de"] + 0.01, "alpha": sim["alpha"] + 0.05, "q": sim["q"],
-                                 "az": sim["az"] + 1.0}, name=name, check_units=False))
+        recs.append(
+            Record(
+                r.t,
+                {"de": r["de"] + 0.01, "alpha": sim["alpha"] + 0.05, "q": sim["q"], "az": sim["az"] + 1.0},
+                name=name,
+                check_units=False,
+            )
+        )
     fit = fdml.fit(recs, truth, band=(0.2, 8, 0.2), input_bias=True)
     assert "bias_de[b]" in fit.names
     for i, r in enumerate(recs):

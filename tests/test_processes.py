@@ -22,13 +22,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-psutil = pytest.importorskip("psutil")  # installed with distributed (the ``dask`` extra, part of ``test``)
-
 import fdml
 from fdml.batch import LOCK_NAME, _signals_end_the_run, run_batch
 from fdml.errors import FdmlError
 from fdml.record import add_noise
 from fdml.simulate import simulate_maneuver
+
+psutil = pytest.importorskip("psutil")  # installed with distributed (the ``dask`` extra, part of ``test``)
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals and flock")
 
@@ -72,8 +72,7 @@ class Launched:
 
     def start(self, args: list[str], cwd: Path, name: str = "run") -> subprocess.Popen:
         with open(cwd / f"{name}.stdout", "w") as out, open(cwd / f"{name}.stderr", "w") as err:
-            p = subprocess.Popen([sys.executable, *args], cwd=cwd, stdout=out, stderr=err,
-                                 start_new_session=True)
+            p = subprocess.Popen([sys.executable, *args], cwd=cwd, stdout=out, stderr=err, start_new_session=True)
         self.procs.append(p)
         return p
 
@@ -107,8 +106,9 @@ def alive(p) -> bool:
         return False
 
 
-def wait_for_workers(runs: Launched, proc: subprocess.Popen, n: int, *, match: str = "",
-                     settle: float = 0.5, timeout: float = 60.0) -> list:
+def wait_for_workers(
+    runs: Launched, proc: subprocess.Popen, n: int, *, match: str = "", settle: float = 0.5, timeout: float = 60.0
+) -> list:
     """The descendants of ``proc`` once ``n`` of them (whose command line has ``match``) exist."""
     parent = psutil.Process(proc.pid)
     deadline = time.monotonic() + timeout
@@ -156,8 +156,21 @@ def signal_usable(signame: str):
 def test_a_signal_ends_the_batch_and_its_workers(tmp_path, records, launched, signame, status):
     signal_usable(signame)
     out = tmp_path / "out"
-    proc = launched.fdml(["batch", *windows(records, 8), *MODEL, "--band", SLOW_BAND, "--out", str(out),
-                          "--workers", "2", "--no-progress"], tmp_path)
+    proc = launched.fdml(
+        [
+            "batch",
+            *windows(records, 8),
+            *MODEL,
+            "--band",
+            SLOW_BAND,
+            "--out",
+            str(out),
+            "--workers",
+            "2",
+            "--no-progress",
+        ],
+        tmp_path,
+    )
     kids = wait_for_workers(launched, proc, 2)
     os.kill(proc.pid, getattr(signal, signame))
     assert_all_ended(proc, kids, ENDS_WITHIN)
@@ -171,8 +184,10 @@ def test_a_signal_ends_the_batch_and_its_workers(tmp_path, records, launched, si
 @pytest.mark.parametrize("signame, status", [("SIGTERM", 128 + 15), ("SIGINT", 130)])
 def test_a_signal_ends_the_monte_carlo_study_and_its_workers(tmp_path, launched, signame, status):
     signal_usable(signame)
-    proc = launched.fdml(["montecarlo", *MODEL, "-n", "40", "--duration", "20", "--band", SLOW_BAND,
-                          "--workers", "2", "--no-progress"], tmp_path)
+    proc = launched.fdml(
+        ["montecarlo", *MODEL, "-n", "40", "--duration", "20", "--band", SLOW_BAND, "--workers", "2", "--no-progress"],
+        tmp_path,
+    )
     kids = wait_for_workers(launched, proc, 2)
     os.kill(proc.pid, getattr(signal, signame))
     assert_all_ended(proc, kids, ENDS_WITHIN)
@@ -182,8 +197,21 @@ def test_a_signal_ends_the_monte_carlo_study_and_its_workers(tmp_path, launched,
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="prctl(PR_SET_PDEATHSIG) is Linux only")
 def test_sigkill_of_the_parent_ends_the_workers(tmp_path, records, launched):
     """SIGKILL runs no handler: the workers notice on their own (the kernel signals them)."""
-    proc = launched.fdml(["batch", *windows(records, 8), *MODEL, "--band", SLOW_BAND, "--out",
-                          str(tmp_path / "out"), "--workers", "2", "--no-progress"], tmp_path)
+    proc = launched.fdml(
+        [
+            "batch",
+            *windows(records, 8),
+            *MODEL,
+            "--band",
+            SLOW_BAND,
+            "--out",
+            str(tmp_path / "out"),
+            "--workers",
+            "2",
+            "--no-progress",
+        ],
+        tmp_path,
+    )
     kids = wait_for_workers(launched, proc, 2)
     os.kill(proc.pid, signal.SIGKILL)
     assert_all_ended(proc, kids, ENDS_WITHIN)
@@ -194,7 +222,8 @@ def test_sigkill_of_the_parent_ends_the_workers(tmp_path, records, launched):
 def test_sigkill_ends_forkserver_workers_too(tmp_path, records, launched):
     """With another thread alive the pool forks from a forkserver, whose exit ends the workers."""
     script = tmp_path / "threaded.py"
-    script.write_text(textwrap.dedent(f"""
+    script.write_text(
+        textwrap.dedent(f"""
         import threading
         from fdml.batch import _pool_context, run_batch
 
@@ -203,7 +232,8 @@ def test_sigkill_ends_forkserver_workers_too(tmp_path, records, launched):
             assert _pool_context().get_start_method() == "forkserver"
             run_batch({[str(r) for r in records]!r}, {SPEC!r}, "out", workers=2,
                       fit_kwargs={{"band": {SLOW_BAND!r}}})
-    """))
+    """)
+    )
     proc = launched.start([str(script)], tmp_path)
     # the forkserver and the two workers it forked (they share its command line)
     kids = wait_for_workers(launched, proc, 3, match="forkserver")
@@ -213,9 +243,23 @@ def test_sigkill_ends_forkserver_workers_too(tmp_path, records, launched):
 
 def test_sigterm_closes_the_dask_cluster_the_batch_started(tmp_path, records, launched):
     pytest.importorskip("distributed")
-    proc = launched.fdml(["batch", *windows(records, 8), *MODEL, "--band", SLOW_BAND, "--out",
-                          str(tmp_path / "out"), "--workers", "2", "--no-progress", "--scheduler", "dask"],
-                         tmp_path)
+    proc = launched.fdml(
+        [
+            "batch",
+            *windows(records, 8),
+            *MODEL,
+            "--band",
+            SLOW_BAND,
+            "--out",
+            str(tmp_path / "out"),
+            "--workers",
+            "2",
+            "--no-progress",
+            "--scheduler",
+            "dask",
+        ],
+        tmp_path,
+    )
     kids = wait_for_workers(launched, proc, 2, match="spawn_main", settle=1.5)
     os.kill(proc.pid, signal.SIGTERM)
     assert_all_ended(proc, kids, DASK_ENDS_WITHIN)
@@ -231,7 +275,8 @@ def test_a_callers_dask_client_stays_open_and_its_futures_are_cancelled(tmp_path
     pytest.importorskip("distributed")
     items = [(str(r), 0.0, t1) for t1 in (12.0, 13.0) for r in records]  # 8 windows, 0.1 s fits
     script = tmp_path / "client.py"
-    script.write_text(textwrap.dedent(f"""
+    script.write_text(
+        textwrap.dedent(f"""
         import logging, time
         import distributed
         from fdml.batch import run_batch
@@ -253,7 +298,8 @@ def test_a_callers_dask_client_stays_open_and_its_futures_are_cancelled(tmp_path
                     time.sleep(1.0)  # a task that was not cancelled would write its file meanwhile
                     print(client.status, sum(map(len, client.processing().values())),
                           client.submit(sum, [1, 2]).result())
-    """))
+    """)
+    )
     proc = launched.start([str(script)], tmp_path)
     assert proc.wait(timeout=120) == 0, stderr_of(tmp_path)[-2000:]
     assert (tmp_path / "run.stdout").read_text().split() == ["running", "0", "3"]
@@ -306,7 +352,8 @@ def test_two_batches_into_one_folder_at_once_both_finish(tmp_path, records, laun
     """
     out = tmp_path / "out"
     script = tmp_path / "paused.py"
-    script.write_text(textwrap.dedent(f"""
+    script.write_text(
+        textwrap.dedent(f"""
         import os, sys, time
         from pathlib import Path
         import fdml.batch as b
@@ -327,14 +374,18 @@ def test_two_batches_into_one_folder_at_once_both_finish(tmp_path, records, laun
         b.atomic_write_text = paused
         s = b.run_batch({[str(r) for r in records[:2]]!r}, {SPEC!r}, {str(out)!r}, engine="serial")
         print(s.n_total, s.n_failed)
-    """))
+    """)
+    )
     a = launched.start([str(script)], tmp_path, "a")
     deadline = time.monotonic() + 60
     while not (tmp_path / "ready").exists():
         assert a.poll() is None and time.monotonic() < deadline, stderr_of(tmp_path, "a")
         time.sleep(0.02)
-    b = launched.fdml(["batch", *map(str, records), *MODEL, "--out", str(out), "--workers", "2",
-                       "--no-progress", "--json"], tmp_path, "b")
+    b = launched.fdml(
+        ["batch", *map(str, records), *MODEL, "--out", str(out), "--workers", "2", "--no-progress", "--json"],
+        tmp_path,
+        "b",
+    )
     deadline = time.monotonic() + 30
     while "in use by another fdml batch" not in stderr_of(tmp_path, "b") and b.poll() is None:
         assert time.monotonic() < deadline, "batch B neither waited nor finished"
@@ -396,6 +447,7 @@ def test_a_worker_reimporting_an_unguarded_script_refuses_rather_than_waits(tmp_
 # --- the signal handlers themselves -----------------------------------------------------------------
 def test_signal_handlers_are_put_back_and_left_alone_when_not_default():
     before = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+
     def mine(signum, frame):
         return None
 
@@ -420,8 +472,9 @@ def test_no_handlers_from_another_thread(tmp_path, records):
     from concurrent.futures import ThreadPoolExecutor
 
     with ThreadPoolExecutor(1) as th:
-        summary = th.submit(run_batch, records[:2], SPEC, tmp_path / "out", engine="process",
-                            workers=2).result(timeout=120)
+        summary = th.submit(run_batch, records[:2], SPEC, tmp_path / "out", engine="process", workers=2).result(
+            timeout=120
+        )
     assert summary.n_failed == 0
 
 
@@ -442,8 +495,22 @@ def test_a_record_removed_or_truncated_during_the_run_gets_its_error_row(tmp_pat
         p.write_bytes(src.read_bytes())  # copies: the module's records stay intact
         paths.append(p)
     out = tmp_path / "out"
-    proc = launched.fdml(["batch", *map(str, paths), *MODEL, "--band", MEDIUM_BAND, "--out", str(out),
-                          "--workers", "1", "--no-progress", "--json"], tmp_path)
+    proc = launched.fdml(
+        [
+            "batch",
+            *map(str, paths),
+            *MODEL,
+            "--band",
+            MEDIUM_BAND,
+            "--out",
+            str(out),
+            "--workers",
+            "1",
+            "--no-progress",
+            "--json",
+        ],
+        tmp_path,
+    )
     deadline = time.monotonic() + 120
     while not list((out / "results").glob("r0*.json")):
         assert proc.poll() is None and time.monotonic() < deadline, stderr_of(tmp_path)

@@ -48,8 +48,8 @@ from fdml.results import FitResult, load_result
 from fdml.spectra import parse_band
 
 hypothesis = pytest.importorskip("hypothesis")
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
 
 #: A reader taking longer than this on one example (all inputs here are a few kB) hangs.
 HANG_SECONDS = 20
@@ -91,11 +91,45 @@ def outcome(call, *names):
 #: NaN, inf, huge, tiny, subnormal, degree-sized and ordinary values.
 WILD = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
-    st.sampled_from([math.nan, math.inf, -math.inf, 0.0, -0.0, 1e308, -1e308, 1.7e308, 5e-324, 1e-300,
-                     57.29578, 180.0, -360.0, 1e6, 1e-12]),
+    st.sampled_from(
+        [
+            math.nan,
+            math.inf,
+            -math.inf,
+            0.0,
+            -0.0,
+            1e308,
+            -1e308,
+            1.7e308,
+            5e-324,
+            1e-300,
+            57.29578,
+            180.0,
+            -360.0,
+            1e6,
+            1e-12,
+        ]
+    ),
 )
-NON_UTF8 = st.sampled_from([b"\xff", b"\xfe\xff", b"\x80", b"\xc3\x28", b"\xed\xa0\x80", b"\x00", b"\xef\xbb\xbf",
-                            b"\r", b"\n\n", b",", b";", b"\t", b'"', b"#", b"%"])
+NON_UTF8 = st.sampled_from(
+    [
+        b"\xff",
+        b"\xfe\xff",
+        b"\x80",
+        b"\xc3\x28",
+        b"\xed\xa0\x80",
+        b"\x00",
+        b"\xef\xbb\xbf",
+        b"\r",
+        b"\n\n",
+        b",",
+        b";",
+        b"\t",
+        b'"',
+        b"#",
+        b"%",
+    ]
+)
 
 
 def mutated(valid: bytes):
@@ -110,7 +144,7 @@ def mutated(valid: bytes):
             i = draw(st.integers(0, len(b)))
             piece = draw(st.one_of(NON_UTF8, st.binary(min_size=1, max_size=4)))
             if draw(st.booleans()):
-                b[i:i + len(piece)] = piece
+                b[i : i + len(piece)] = piece
             else:
                 b[i:i] = piece
         return bytes(b)
@@ -139,8 +173,9 @@ def damaged(draw, data: np.ndarray, time_col: int | None = 0, cols: tuple = ()):
     """``data`` (rows = samples) with a few structured damages."""
     a = np.array(data, dtype=float)
     for _ in range(draw(st.integers(0, 3))):
-        kind = draw(st.sampled_from(["cell", "scale", "swap", "dup", "reverse", "ms", "rows", "shape",
-                                     "zero", "const"]))
+        kind = draw(
+            st.sampled_from(["cell", "scale", "swap", "dup", "reverse", "ms", "rows", "shape", "zero", "const"])
+        )
         nr, nc = a.shape
         col = draw(st.sampled_from(cols)) if cols and nc > max(cols) else draw(st.integers(0, max(nc - 1, 0)))
         if nr == 0 or nc == 0:
@@ -160,9 +195,9 @@ def damaged(draw, data: np.ndarray, time_col: int | None = 0, cols: tuple = ()):
             else:
                 a[:, time_col] *= 1e3
         elif kind == "rows":
-            a = a[:draw(st.integers(0, nr))]
+            a = a[: draw(st.integers(0, nr))]
         elif kind == "shape":
-            a = a[:, :draw(st.integers(0, nc))] if draw(st.booleans()) else np.hstack([a, a[:, :1]])
+            a = a[:, : draw(st.integers(0, nc))] if draw(st.booleans()) else np.hstack([a, a[:, :1]])
         elif kind == "zero":
             a[:, col] = 0.0
         else:
@@ -175,8 +210,21 @@ def number_text(x: float) -> str:
 
 
 # --- SIDPAC .mat -------------------------------------------------------------------------------
-SIDPAC_LABELS = {2: "airspeed", 4: "alpha", 6: "q ", 9: "theta", 11: "ax", 13: "az", 14: "elevator",
-                 27: "qbar", 29: "rho", 30: "altitude", 43: "qdot", 48: "mass", 50: "iyy"}
+SIDPAC_LABELS = {
+    2: "airspeed",
+    4: "alpha",
+    6: "q ",
+    9: "theta",
+    11: "ax",
+    13: "az",
+    14: "elevator",
+    27: "qbar",
+    29: "rho",
+    30: "altitude",
+    43: "qdot",
+    48: "mass",
+    50: "iyy",
+}
 
 
 def sidpac_matrix() -> np.ndarray:
@@ -225,9 +273,15 @@ def test_valid_files_are_read(scratch):
     (scratch / "a.mat").write_bytes(valid_dlr_mat(scratch))
     (scratch / "c.csv").write_bytes(valid_fdml_csv())
     (scratch / "m.csv").write_bytes(valid_mapped_csv())
-    recs = [read_sidpac(scratch / "s.mat"), read_dlr_asc(scratch / "h.asc", "hfb320"),
-            read_dlr_mat(scratch / "a.mat", "attas"), read_fdml_csv(scratch / "c.csv"),
-            read_csv_mapped(scratch / "m.csv", MAP), load_record(scratch / "s.mat"), load_record(scratch / "h.asc")]
+    recs = [
+        read_sidpac(scratch / "s.mat"),
+        read_dlr_asc(scratch / "h.asc", "hfb320"),
+        read_dlr_mat(scratch / "a.mat", "attas"),
+        read_fdml_csv(scratch / "c.csv"),
+        read_csv_mapped(scratch / "m.csv", MAP),
+        load_record(scratch / "s.mat"),
+        load_record(scratch / "h.asc"),
+    ]
     assert all(isinstance(r, Record) and r.n == N for r in recs)
     assert isinstance(load_aircraft(valid_aircraft_path(scratch)), Aircraft)
 
@@ -246,8 +300,7 @@ def test_sidpac_bytes(scratch, raw):
 def test_sidpac_structured(scratch, data):
     fd = data.draw(damaged(sidpac_matrix(), time_col=0, cols=(0, 1, 3, 5, 12, 13, 28, 47)))
     variables = sidpac_vars(fd, with_t=data.draw(st.booleans()))
-    odd = data.draw(st.sampled_from(["none", "transpose", "int", "complex", "text", "cell", "vector",
-                                     "labels", "t"]))
+    odd = data.draw(st.sampled_from(["none", "transpose", "int", "complex", "text", "cell", "vector", "labels", "t"]))
     if odd == "transpose":
         variables["fdata"] = fd.T
     elif odd == "int":
@@ -263,8 +316,9 @@ def test_sidpac_structured(scratch, data):
     elif odd == "labels":
         variables["varlab"] = data.draw(st.sampled_from([np.arange(5.0), "x", np.array([1, "a"], dtype=object)]))
     elif odd == "t":
-        variables["t"] = data.draw(st.sampled_from([np.full(fd.shape[0], np.nan), np.zeros(fd.shape[0]),
-                                                    np.arange(fd.shape[0])[::-1] * 1.0]))
+        variables["t"] = data.draw(
+            st.sampled_from([np.full(fd.shape[0], np.nan), np.zeros(fd.shape[0]), np.arange(fd.shape[0])[::-1] * 1.0])
+        )
     path = scratch / "fuzz.mat"
     path.write_bytes(mat_bytes(scratch, variables))
     original = data.draw(st.booleans())
@@ -390,9 +444,17 @@ def test_fdml_csv_bytes(scratch, data):
 @given(data=st.data())
 def test_fdml_csv_structured(scratch, data):
     d = data.draw(damaged(csv_matrix(), time_col=0, cols=(0, 1, 2, 3, 4)))
-    header = data.draw(st.sampled_from([["t", "de", "alpha", "q", "az"], ["t", "de", "alpha", "q", "az", "x"],
-                                        ["t", "de", "alpha", "q"], ["t", "de", "de", "q", "az"],
-                                        ["\ufefft", "de", "alpha", "q", "az"]]))
+    header = data.draw(
+        st.sampled_from(
+            [
+                ["t", "de", "alpha", "q", "az"],
+                ["t", "de", "alpha", "q", "az", "x"],
+                ["t", "de", "alpha", "q"],
+                ["t", "de", "de", "q", "az"],
+                ["\ufefft", "de", "alpha", "q", "az"],
+            ]
+        )
+    )
     text = ",".join(header) + "\n" + "".join(",".join(number_text(x) for x in r) + "\n" for r in d)
     path = scratch / "fuzz.csv"
     path.write_text(text)
@@ -419,8 +481,11 @@ def test_mapped_csv_structured(scratch, data):
     d = data.draw(damaged(mapped_matrix(), time_col=0, cols=(0, 1, 2, 3, 4)))
     header = list(MAPPED_HEADER)
     k = data.draw(st.integers(0, len(header) - 1))
-    header[k] = data.draw(st.sampled_from([header[k], "AOA (deg)", "time (ms)", "nz (m/s^2)", "q (furlong)",
-                                           "elev", "", header[k] + " (rad)"]))
+    header[k] = data.draw(
+        st.sampled_from(
+            [header[k], "AOA (deg)", "time (ms)", "nz (m/s^2)", "q (furlong)", "elev", "", header[k] + " (rad)"]
+        )
+    )
     sep = data.draw(st.sampled_from([",", ";", "\t"]))
     cells = [[number_text(x) for x in r] for r in d]
     if cells and cells[0] and data.draw(st.booleans()):
@@ -437,14 +502,22 @@ def test_mapped_csv_structured(scratch, data):
 # --- parsers -----------------------------------------------------------------------------------
 BAND_TEXT = st.one_of(
     st.text(max_size=30),
-    st.lists(st.one_of(WILD.map(number_text), st.text(max_size=5), st.integers().map(str)),
-             min_size=1, max_size=4).map(":".join),
+    st.lists(st.one_of(WILD.map(number_text), st.text(max_size=5), st.integers().map(str)), min_size=1, max_size=4).map(
+        ":".join
+    ),
 )
 
 
-@given(band=st.one_of(BAND_TEXT, st.none(), st.tuples(WILD, WILD, WILD), st.lists(WILD, max_size=4),
-                      st.tuples(st.text(max_size=4), WILD, st.booleans())),
-       positive=st.booleans())
+@given(
+    band=st.one_of(
+        BAND_TEXT,
+        st.none(),
+        st.tuples(WILD, WILD, WILD),
+        st.lists(WILD, max_size=4),
+        st.tuples(st.text(max_size=4), WILD, st.booleans()),
+    ),
+    positive=st.booleans(),
+)
 def test_parse_band(band, positive):
     out = outcome(lambda: parse_band(band, what="--band", positive=positive), "--band")
     if out is not None:
@@ -452,18 +525,23 @@ def test_parse_band(band, positive):
         assert all(math.isfinite(v) for v in out) and 0 <= lo <= hi and step > 0 and (lo > 0 or not positive)
 
 
-@given(lo=st.one_of(WILD, st.text(max_size=4), st.none(), st.booleans()),
-       hi=st.one_of(WILD, st.text(max_size=4), st.booleans()),
-       step=st.one_of(st.none(), WILD, st.integers(), st.text(max_size=4)))
+@given(
+    lo=st.one_of(WILD, st.text(max_size=4), st.none(), st.booleans()),
+    hi=st.one_of(WILD, st.text(max_size=4), st.booleans()),
+    step=st.one_of(st.none(), WILD, st.integers(), st.text(max_size=4)),
+)
 def test_check_band(lo, hi, step):
     out = outcome(lambda: check_band(lo, hi, step, what="omega"), "omega")
     if out is not None:
         assert out[3] >= 0 and out[0] <= out[1]
 
 
-ITEM = st.one_of(st.text(max_size=20),
-                 st.tuples(st.sampled_from(["Cm_de", "M_q", " Z_q ", "", "a=b"]), WILD.map(number_text))
-                 .map(lambda p: f"{p[0]}={p[1]}"))
+ITEM = st.one_of(
+    st.text(max_size=20),
+    st.tuples(st.sampled_from(["Cm_de", "M_q", " Z_q ", "", "a=b"]), WILD.map(number_text)).map(
+        lambda p: f"{p[0]}={p[1]}"
+    ),
+)
 
 
 @given(items=st.lists(ITEM, max_size=5))
@@ -520,8 +598,7 @@ def valid_result_text() -> str:
     from fdml.simulate import simulate_maneuver
 
     model = make_model("dimensional", "navion")
-    rec = simulate_maneuver(model, "3211", duration=4.0, dt=0.05, noise={"alpha": 1e-4, "q": 1e-4, "az": 1e-3},
-                            seed=1)
+    rec = simulate_maneuver(model, "3211", duration=4.0, dt=0.05, noise={"alpha": 1e-4, "q": 1e-4, "az": 1e-3}, seed=1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return fit(rec, model, band=(0.5, 8.0, 0.5)).to_json(indent=None)

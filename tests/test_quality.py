@@ -25,8 +25,7 @@ def _record(seed=0, duration=20.0, dt=0.02, noise=0.02):
     y = lsim_dimensional(m, t, de)
     rng = np.random.default_rng(seed)
     y = y + noise * y.std(axis=0) * rng.standard_normal(y.shape)
-    sig = {"de": de, "alpha": 0.05 + y[:, 0], "q": y[:, 1], "az": -1.0 + y[:, 2],
-           "V": 50.0 + 0.1 * np.sin(0.3 * t)}
+    sig = {"de": de, "alpha": 0.05 + y[:, 0], "q": y[:, 1], "az": -1.0 + y[:, 2], "V": 50.0 + 0.1 * np.sin(0.3 * t)}
     return Record(t, sig, name="synthetic")
 
 
@@ -92,8 +91,15 @@ def test_band_without_input_is_insufficient():
     t = np.arange(0, 30 + 1e-9, 0.02)
     de = 0.02 * np.exp(-0.5 * ((t - 15) / 3.0) ** 2)  # Gaussian pulse: spectrum exp(-w^2 9/2)
     rng = np.random.default_rng(4)
-    rec = Record(t, {"de": de, "alpha": 0.3 * de + 1e-4 * rng.standard_normal(t.size),
-                     "q": 1e-4 * rng.standard_normal(t.size), "az": -1 + 1e-3 * rng.standard_normal(t.size)})
+    rec = Record(
+        t,
+        {
+            "de": de,
+            "alpha": 0.3 * de + 1e-4 * rng.standard_normal(t.size),
+            "q": 1e-4 * rng.standard_normal(t.size),
+            "az": -1 + 1e-3 * rng.standard_normal(t.size),
+        },
+    )
     rep = check_quality(rec, (3.0, 10.0, 0.1))
     # at 3 rad/s the pulse is exp(-40.5) in energy below its peak: about -176 dB
     assert np.all(rep.input_db < -LOW_INPUT_DB)
@@ -110,7 +116,7 @@ def test_short_record_uses_daniell_and_long_record_welch():
     short = check_quality(_record(duration=6.0), (0.63, 9.4, 0.1))
     assert "too short" in short.coherence_method and "Daniell" in short.coherence_method
     # 5 averages: 1 - 0.05**(1/4)
-    assert short.coherence_threshold == pytest.approx(1 - 0.05 ** 0.25)
+    assert short.coherence_threshold == pytest.approx(1 - 0.05**0.25)
     assert any("too short" in f for f in short.findings)
     long = check_quality(_record(duration=60.0), (1.0, 10.0, 0.1))
     assert long.coherence_method.startswith("Welch")

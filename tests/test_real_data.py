@@ -10,7 +10,6 @@ are checked against each other.
 
 import math
 
-import numpy as np
 import pytest
 
 from fdml import fit, make_model
@@ -37,13 +36,16 @@ def dimensional(rec):
     return make_model("dimensional", airspeed=rec.meta["U"])
 
 
-@pytest.mark.parametrize("key, opts, limit", [
-    # combined-standard-error limits: "within about two CRBs" (issue 3), with the
-    # frequency domain's own (wider, nuisance-aware) errors dominating the combination
-    ("017", dict(band=TWIN_BAND), 2.0),
-    ("hfb", dict(band=(0.3, 6.0, 0.05)), 2.0),
-    ("attas", dict(band=(0.3, 8.0, 0.05), outputs="alpha,q"), 2.0),
-])
+@pytest.mark.parametrize(
+    "key, opts, limit",
+    [
+        # combined-standard-error limits: "within about two CRBs" (issue 3), with the
+        # frequency domain's own (wider, nuisance-aware) errors dominating the combination
+        ("017", dict(band=TWIN_BAND), 2.0),
+        ("hfb", dict(band=(0.3, 6.0, 0.05)), 2.0),
+        ("attas", dict(band=(0.3, 8.0, 0.05), outputs="alpha,q"), 2.0),
+    ],
+)
 def test_frequency_and_time_domain_estimates_agree(records, key, opts, limit):
     rec = records[key]
     fd = fit(rec, dimensional(rec), **opts)

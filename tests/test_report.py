@@ -45,6 +45,7 @@ def no_show(monkeypatch):
 
 # --- reports ------------------------------------------------------------------------------------
 
+
 def test_report_from_saved_json(res, tmp_path):
     path = tmp_path / "fit.json"
     res.to_json(path)
@@ -103,11 +104,16 @@ def test_cli_report(res, tmp_path, capsys):
 
 # --- progress callbacks ------------------------------------------------------------------------
 
+
 def test_history_and_print(rec):
     hist = HistoryRecorder()
     buf = io.StringIO()
-    res = fdml.fit(rec, fdml.make_model("derivatives", "navion"), band=(0.2, 8, 0.2),
-                   callback=chain(hist, PrintProgress(buf), None))
+    res = fdml.fit(
+        rec,
+        fdml.make_model("derivatives", "navion"),
+        band=(0.2, 8, 0.2),
+        callback=chain(hist, PrintProgress(buf), None),
+    )
     steps = len(res.cost_history) - 1  # one callback per step taken
     assert len(hist.history) == steps >= 2
     np.testing.assert_allclose(hist.costs, res.cost_history[1:])
@@ -144,8 +150,18 @@ def test_tqdm_progress(rec):
 def test_fit_progress_option(rec, tmp_path, capsys, monkeypatch):
     csv = tmp_path / "r.csv"
     rec.to_csv(csv)
-    args = ["fit", str(csv), "--aircraft", "navion", "--model", "derivatives", "--band", "0.2:8:0.2",
-            "--json", "--progress"]
+    args = [
+        "fit",
+        str(csv),
+        "--aircraft",
+        "navion",
+        "--model",
+        "derivatives",
+        "--band",
+        "0.2:8:0.2",
+        "--json",
+        "--progress",
+    ]
     code = main(args)
     out, err = capsys.readouterr()
     assert code == 0 and json.loads(out)["converged"]

@@ -170,10 +170,39 @@ def assert_same(a: FitResult, b: FitResult) -> None:
     assert to_jsonable(a.provenance) == b.provenance  # plain data (fdml.conditions)
     # nothing was forgotten: every field of the dataclass is covered above
     assert {f.name for f in dataclasses.fields(FitResult)} == {
-        "model", "names", "values", "stderr", "cov", "corr", "cov_naive", "R", "cost_history", "iterations",
-        "converged", "message", "derived", "fixed", "at_bound", "outputs", "band", "n_freq", "records",
-        "boundary", "cov_type", "method", "stop", "stopped", "warnings", "elapsed", "spectra", "time_records",
-        "nuisance", "findings", "adequacy", "provenance"}
+        "model",
+        "names",
+        "values",
+        "stderr",
+        "cov",
+        "corr",
+        "cov_naive",
+        "R",
+        "cost_history",
+        "iterations",
+        "converged",
+        "message",
+        "derived",
+        "fixed",
+        "at_bound",
+        "outputs",
+        "band",
+        "n_freq",
+        "records",
+        "boundary",
+        "cov_type",
+        "method",
+        "stop",
+        "stopped",
+        "warnings",
+        "elapsed",
+        "spectra",
+        "time_records",
+        "nuisance",
+        "findings",
+        "adequacy",
+        "provenance",
+    }
 
 
 FINDINGS = (
@@ -226,8 +255,9 @@ def test_batch_keeps_a_noise_free_record(clean, tmp_path):
     from fdml.batch import run_batch
 
     clean.to_csv(tmp_path / "clean.csv")
-    summary = run_batch([str(tmp_path / "clean.csv")], {"kind": "steady", "aircraft": "navion"}, tmp_path / "out",
-                        engine="serial")
+    summary = run_batch(
+        [str(tmp_path / "clean.csv")], {"kind": "steady", "aircraft": "navion"}, tmp_path / "out", engine="serial"
+    )
     (row,) = summary.rows
     assert row["status"] == "ok", row.get("error")
     res = load_result(tmp_path / "out" / row["result_file"])
@@ -240,14 +270,40 @@ def test_to_jsonable_types():
         def to_dict(self):
             return {"x": np.float32(1.5)}
 
-    d = to_jsonable({
-        "b": np.bool_(True), "i": np.int64(3), "f": np.float64(-0.0), "nan": np.nan, "inf": -np.inf,
-        "a": np.array([[1.0, np.inf]]), "c": np.array([1 + 2j]), "t": (1, 2), "p": Path("a/b"),
-        1: "int key", "o": WithDict(), "s": {3, 1, 2}, "u": np.uint8(7), "bs": np.array([True, False]),
-    })
-    assert d == {"b": True, "i": 3, "f": -0.0, "nan": "nan", "inf": "-inf", "a": [[1.0, "inf"]],
-                 "c": {"re": [1.0], "im": [2.0]}, "t": [1, 2], "p": str(Path("a/b")), "1": "int key",
-                 "o": {"x": 1.5}, "s": [1, 2, 3], "u": 7, "bs": [True, False]}
+    d = to_jsonable(
+        {
+            "b": np.bool_(True),
+            "i": np.int64(3),
+            "f": np.float64(-0.0),
+            "nan": np.nan,
+            "inf": -np.inf,
+            "a": np.array([[1.0, np.inf]]),
+            "c": np.array([1 + 2j]),
+            "t": (1, 2),
+            "p": Path("a/b"),
+            1: "int key",
+            "o": WithDict(),
+            "s": {3, 1, 2},
+            "u": np.uint8(7),
+            "bs": np.array([True, False]),
+        }
+    )
+    assert d == {
+        "b": True,
+        "i": 3,
+        "f": -0.0,
+        "nan": "nan",
+        "inf": "-inf",
+        "a": [[1.0, "inf"]],
+        "c": {"re": [1.0], "im": [2.0]},
+        "t": [1, 2],
+        "p": str(Path("a/b")),
+        "1": "int key",
+        "o": {"x": 1.5},
+        "s": [1, 2, 3],
+        "u": 7,
+        "bs": [True, False],
+    }
     assert type(d["b"]) is bool and type(d["i"]) is int and type(d["u"]) is int
     json.dumps(d, allow_nan=False)  # strictly valid JSON
     with pytest.raises(TypeError, match="object"):
@@ -319,14 +375,23 @@ EDITS = [
     (("model", "kind"), "jet", "key 'model' does not describe a model"),
     (("model", "parameters", 0, "value"), "x", "key 'model.parameters[0].value' must be a number"),
     (("model", "parameters", 0, "free"), "yes", "key 'model.parameters[0].free' must be true or false"),
-    (("spectra", 0, "z"), {"re": [[0.0]], "im": [[0.0]]},
-     "key 'spectra[0].z' must be an array of shape 100 x any, got shape 1 x 1"),
+    (
+        ("spectra", 0, "z"),
+        {"re": [[0.0]], "im": [[0.0]]},
+        "key 'spectra[0].z' must be an array of shape 100 x any, got shape 1 x 1",
+    ),
     (("spectra", 0, "n"), "501", "key 'spectra[0].n' must be an integer, got str"),
     (("spectra", 0), 7, "key 'spectra[0]' must be an object, got int"),
-    (("time_records", 0, "signals", "alpha"), [0.0, 1.0],
-     "key 'time_records[0].signals.alpha' must be a list of 501 numbers, got 2"),
-    (("findings",), [{"code": "x", "message": "m", "kind": "bogus"}],
-     "key 'findings[0].kind' must be one of 'data', 'estimation', got 'bogus'"),
+    (
+        ("time_records", 0, "signals", "alpha"),
+        [0.0, 1.0],
+        "key 'time_records[0].signals.alpha' must be a list of 501 numbers, got 2",
+    ),
+    (
+        ("findings",),
+        [{"code": "x", "message": "m", "kind": "bogus"}],
+        "key 'findings[0].kind' must be one of 'data', 'estimation', got 'bogus'",
+    ),
     (("findings",), [{"message": "m"}], "key 'findings[0].code' is missing"),
     (("nuisance",), [], "key 'nuisance' must be an object, got list"),
 ]
@@ -359,17 +424,22 @@ def test_hand_edited_result_is_refused(saved, tmp_path, capsys, keys, value, exp
     assert not (tmp_path / "rep").exists()  # refused before any output
 
 
-@pytest.mark.parametrize("content, expected", [
-    (None, "does not exist"),
-    ("folder", "is a folder"),
-    (b'{"format": "fdml.FitResult", "message": "d\xe9j\xe0 vu"}', "is not UTF-8 text (byte 0xe9 at offset 42"),
-    (b'{"format": "fdml.FitResult",\n "version": 1,,}', "is not valid JSON: Expecting property name enclosed in "
-                                                       "double quotes at line 2, column 15"),
-    (b"", "is empty"),
-    (b"[1, 2]", "expected a JSON object, got list"),
-    (b'"fdml"', "expected a JSON object, got str"),
-    (b"[" * 100_000, "nested too deeply"),
-])
+@pytest.mark.parametrize(
+    "content, expected",
+    [
+        (None, "does not exist"),
+        ("folder", "is a folder"),
+        (b'{"format": "fdml.FitResult", "message": "d\xe9j\xe0 vu"}', "is not UTF-8 text (byte 0xe9 at offset 42"),
+        (
+            b'{"format": "fdml.FitResult",\n "version": 1,,}',
+            "is not valid JSON: Expecting property name enclosed in double quotes at line 2, column 15",
+        ),
+        (b"", "is empty"),
+        (b"[1, 2]", "expected a JSON object, got list"),
+        (b'"fdml"', "expected a JSON object, got str"),
+        (b"[" * 100_000, "nested too deeply"),
+    ],
+)
 def test_unreadable_result_file(tmp_path, capsys, content, expected):
     path = tmp_path / "bad.json"
     if content == "folder":
@@ -393,9 +463,18 @@ def test_bom_is_accepted(fits, tmp_path):
 def test_monte_carlo_file_is_checked(tmp_path):
     from fdml.montecarlo import MonteCarloResult, load_monte_carlo
 
-    mc = MonteCarloResult(names=("a", "b"), truth=np.array([1.0, np.nan]), estimates=np.array([[1.0, 2.0], [np.nan, 3.0]]),
-                          stderr=np.ones((2, 2)), converged=np.array([True, False]), iterations=np.array([3, 200]),
-                          fit_seconds=np.array([0.1, 0.2]), errors={1: "failed"}, settings={"seed": 0}, wall_time=1.0)
+    mc = MonteCarloResult(
+        names=("a", "b"),
+        truth=np.array([1.0, np.nan]),
+        estimates=np.array([[1.0, 2.0], [np.nan, 3.0]]),
+        stderr=np.ones((2, 2)),
+        converged=np.array([True, False]),
+        iterations=np.array([3, 200]),
+        fit_seconds=np.array([0.1, 0.2]),
+        errors={1: "failed"},
+        settings={"seed": 0},
+        wall_time=1.0,
+    )
     path = tmp_path / "mc.json"
     mc.to_json(path)
     back = load_monte_carlo(path)
@@ -432,23 +511,42 @@ def perturbed(draw, base: FitResult):
         return a
 
     spectra = tuple({**s, "omega": arr(s["omega"]), "z": arr(s["z"]), "T": draw(_any_float)} for s in base.spectra)
-    time_records = tuple({**r, "t": arr(r["t"]), "signals": {k: arr(v) for k, v in r["signals"].items()}}
-                         for r in base.time_records)
+    time_records = tuple(
+        {**r, "t": arr(r["t"]), "signals": {k: arr(v) for k, v in r["signals"].items()}} for r in base.time_records
+    )
     derived = {k: (draw(_any_float), draw(_any_float)) for k in base.derived}
     return dataclasses.replace(
-        base, values=arr(base.values), stderr=arr(base.stderr), cov=arr(base.cov), corr=arr(base.corr),
-        cov_naive=arr(base.cov_naive), R=arr(base.R),
+        base,
+        values=arr(base.values),
+        stderr=arr(base.stderr),
+        cov=arr(base.cov),
+        corr=arr(base.corr),
+        cov_naive=arr(base.cov_naive),
+        R=arr(base.R),
         cost_history=tuple(draw(st.lists(_any_float, min_size=1, max_size=4))),
-        iterations=draw(st.integers(0, 2**62)), converged=draw(st.booleans()), stopped=draw(st.booleans()),
-        message=draw(st.text(max_size=20)), warnings=tuple(draw(st.lists(st.text(max_size=10), max_size=2))),
-        elapsed=draw(_any_float), derived=derived, fixed={k: draw(_any_float) for k in base.fixed},
+        iterations=draw(st.integers(0, 2**62)),
+        converged=draw(st.booleans()),
+        stopped=draw(st.booleans()),
+        message=draw(st.text(max_size=20)),
+        warnings=tuple(draw(st.lists(st.text(max_size=10), max_size=2))),
+        elapsed=draw(_any_float),
+        derived=derived,
+        fixed={k: draw(_any_float) for k in base.fixed},
         band=draw(st.one_of(st.none(), st.tuples(_any_float, _any_float, _any_float))),
-        n_freq=draw(st.integers(0, 10**6)), spectra=spectra, time_records=time_records,
-        findings=tuple(Finding(draw(st.text(min_size=1, max_size=8)), draw(st.text(max_size=8)),
-                               kind=draw(st.sampled_from(["data", "estimation"])),
-                               record=draw(st.one_of(st.none(), st.text(max_size=5))),
-                               value=draw(st.one_of(st.none(), _any_float)), expected=draw(st.one_of(st.none(), _any_float)))
-                       for _ in range(draw(st.integers(0, 2)))),
+        n_freq=draw(st.integers(0, 10**6)),
+        spectra=spectra,
+        time_records=time_records,
+        findings=tuple(
+            Finding(
+                draw(st.text(min_size=1, max_size=8)),
+                draw(st.text(max_size=8)),
+                kind=draw(st.sampled_from(["data", "estimation"])),
+                record=draw(st.one_of(st.none(), st.text(max_size=5))),
+                value=draw(st.one_of(st.none(), _any_float)),
+                expected=draw(st.one_of(st.none(), _any_float)),
+            )
+            for _ in range(draw(st.integers(0, 2)))
+        ),
     )
 
 

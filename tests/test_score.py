@@ -40,8 +40,10 @@ def _candidate(ctx, model, key):
     return eff, aug, [p.name for p in test], steps, one_sided
 
 
-@pytest.mark.parametrize("key", ["time_delay@alpha", "actuator_lag@de", "sensor_offset@az", "lift_lag@alpha",
-                                 "downwash_lag@q", "time_delay@de"])
+@pytest.mark.parametrize(
+    "key",
+    ["time_delay@alpha", "actuator_lag@de", "sensor_offset@az", "lift_lag@alpha", "downwash_lag@q", "time_delay@de"],
+)
 def test_adequacy_sensitivities_equal_the_screens_own(context, key):
     """Output-level (on the base response), matrix-level and free-parameter (evaluated) candidates.
 
@@ -63,21 +65,31 @@ def test_grid_of_a_structural_mode_at_once_equals_value_by_value(context):
     grid = np.geomspace(2.0, 10.0, 9)
     A = ctx.grid_sensitivities(aug, names, steps, one_sided, "omega_s", grid)
     for k, w in enumerate(grid):  # the screen's generic path, one grid value at a time
-        ref = score.ScreenContext.candidate_sensitivities(ctx, aug.with_values({"omega_s": float(w)}), names, steps,
-                                                          one_sided)
+        ref = score.ScreenContext.candidate_sensitivities(
+            ctx, aug.with_values({"omega_s": float(w)}), names, steps, one_sided
+        )
         assert np.linalg.norm(A[:, :, k] - ref) <= 1e-9 * np.linalg.norm(ref)
 
 
 def _notch(reduce):
     """A nuisance-grid effect on q whose function mishandles an array-valued frequency via ``reduce``."""
+
     def fn(s, p, G, H, P, root):
         w = reduce(p["omega_n"])
         G = G.copy()
         G[:, 1, 0] = G[:, 1, 0] + p["r_n"] * s * w / (s**2 + 0.1 * w * s + w**2)
         return G, H, P
-    return OutputEffect("notch_test", "q", (Param("r_n", 0.0, plausible=(-0.5, 0.5), start=0.01),
-                                            Param("omega_n", 5.0, lower=0.1, upper=100.0, nuisance=True)),
-                        fn, nuisance_grid={"omega_n": lambda lo, hi: np.geomspace(lo, hi, 12)})
+
+    return OutputEffect(
+        "notch_test",
+        "q",
+        (
+            Param("r_n", 0.0, plausible=(-0.5, 0.5), start=0.01),
+            Param("omega_n", 5.0, lower=0.1, upper=100.0, nuisance=True),
+        ),
+        fn,
+        nuisance_grid={"omega_n": lambda lo, hi: np.geomspace(lo, hi, 12)},
+    )
 
 
 @pytest.mark.parametrize("reduce", [float, np.max], ids=["raises", "silently-wrong"])
@@ -90,8 +102,9 @@ def test_a_grid_effect_that_takes_scalars_only_is_screened_value_by_value(contex
     grid = np.geomspace(2.0, 10.0, 12)
     A = ctx.grid_sensitivities(aug, ["r_n"], [0.01], [False], "omega_n", grid)
     for k, w in enumerate(grid):
-        ref = score.ScreenContext.candidate_sensitivities(ctx, aug.with_values({"omega_n": float(w)}), ["r_n"],
-                                                          [0.01], [False])
+        ref = score.ScreenContext.candidate_sensitivities(
+            ctx, aug.with_values({"omega_n": float(w)}), ["r_n"], [0.01], [False]
+        )
         assert np.linalg.norm(A[:, :, k] - ref) <= 1e-9 * np.linalg.norm(ref)
 
 
@@ -119,11 +132,14 @@ def test_the_diagnosis_uses_the_same_implementation():
 
 
 def test_a_fit_does_not_import_the_diagnosis():
-    code = ("import sys, warnings; warnings.simplefilter('ignore'); import fdml\n"
-            "from fdml.simulate import simulate_maneuver\n"
-            "m = fdml.make_model('derivatives', 'navion')\n"
-            "r = fdml.fit(simulate_maneuver(m, '3211', duration=12.0, noise={'alpha': 5e-4, 'q': 1e-3, 'az': 3e-3}, seed=1), m)\n"
-            "assert r.adequacy is not None\n"
-            "print(sorted(k for k in sys.modules if k.startswith('fdml.diagnose')))\n")
+    code = (
+        "import sys, warnings; warnings.simplefilter('ignore'); import fdml\n"
+        "from fdml.simulate import simulate_maneuver\n"
+        "m = fdml.make_model('derivatives', 'navion')\n"
+        "noise = {'alpha': 5e-4, 'q': 1e-3, 'az': 3e-3}\n"
+        "r = fdml.fit(simulate_maneuver(m, '3211', duration=12.0, noise=noise, seed=1), m)\n"
+        "assert r.adequacy is not None\n"
+        "print(sorted(k for k in sys.modules if k.startswith('fdml.diagnose')))\n"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"

@@ -38,20 +38,26 @@ CASES = {
     "derivatives-de": ("derivatives", {}, {}, "de"),
     "derivatives-gust": ("derivatives", {"gust": True}, {}, "alpha_w"),
     "derivatives-adot-de-delay": ("derivatives", {"gust": True, "adot": True}, {**ADOT, "tau_de": 0.033}, "de"),
-    "derivatives-adot-gust": ("derivatives", {"gust": True, "adot": True}, {**ADOT, "tau_alpha_w": 0.012},
-                              "alpha_w"),
+    "derivatives-adot-gust": ("derivatives", {"gust": True, "adot": True}, {**ADOT, "tau_alpha_w": 0.012}, "alpha_w"),
     "steady-de": ("steady", {}, {}, "de"),
     "steady-gust": ("steady", {"gust": True}, {}, "alpha_w"),
     "unsteady-F0-de": ("unsteady", {}, {"F": 0.0}, "de"),
     "unsteady-F0-gust": ("unsteady", {"gust": True}, {"F": 0.0}, "alpha_w"),
-    "unsteady-F0-gust-jones2d-ct": ("unsteady", {"gust": True, "gust_lag": "kussner_jones_2d",
-                                                 "tail_lag_chord": "c_t"}, {"F": 0.0}, "alpha_w"),
-    "unsteady-F0-gust-no-tail-delay": ("unsteady", {"gust": True, "tail_gust_delay": False}, {"F": 0.0},
-                                       "alpha_w"),
+    "unsteady-F0-gust-jones2d-ct": (
+        "unsteady",
+        {"gust": True, "gust_lag": "kussner_jones_2d", "tail_lag_chord": "c_t"},
+        {"F": 0.0},
+        "alpha_w",
+    ),
+    "unsteady-F0-gust-no-tail-delay": ("unsteady", {"gust": True, "tail_gust_delay": False}, {"F": 0.0}, "alpha_w"),
     "unsteady-F-de": ("unsteady", {}, {}, "de"),
     "unsteady-F-gust": ("unsteady", {"gust": True}, {}, "alpha_w"),
-    "unsteady-F-gust-jonesAR6-delay": ("unsteady", {"gust": True, "gust_lag": "kussner_jones_ar6"},
-                                       {"tau_alpha_w": 0.012}, "alpha_w"),
+    "unsteady-F-gust-jonesAR6-delay": (
+        "unsteady",
+        {"gust": True, "gust_lag": "kussner_jones_ar6"},
+        {"tau_alpha_w": 0.012},
+        "alpha_w",
+    ),
 }
 OMEGA = np.linspace(0.2, 10.0, 50)
 
@@ -90,6 +96,7 @@ def test_simulation_matches_frequency_response(case):
 
 
 # --- exactness for piecewise-linear inputs ----------------------------------------------------------
+
 
 def _piecewise_ode(E, A, B0, B1, t, u):
     """E x' = A x + B0 u + B1 u' for u linear between samples, by DOP853 one interval at a time."""
@@ -130,10 +137,14 @@ def test_exact_for_piecewise_linear_inputs(driven):
 
 def test_realisation_of_every_finite_state_model_is_exact():
     w = np.geomspace(1e-3, 30.0, 80)
-    for kind, opts, values in [("dimensional", {}, {}), ("derivatives", {"adot": True}, ADOT),
-                               ("steady", {}, {}), ("unsteady", {}, {"F": 0.0}),
-                               ("unsteady", {"gust_lag": "kussner_jones_ar6", "tail_lag_chord": "c_t"}, {"F": 0.0}),
-                               ("unsteady", {"tail_gust_delay": False}, {"F": 0.0, "b1": 0.0})]:
+    for kind, opts, values in [
+        ("dimensional", {}, {}),
+        ("derivatives", {"adot": True}, ADOT),
+        ("steady", {}, {}),
+        ("unsteady", {}, {"F": 0.0}),
+        ("unsteady", {"gust_lag": "kussner_jones_ar6", "tail_lag_chord": "c_t"}, {"F": 0.0}),
+        ("unsteady", {"tail_gust_delay": False}, {"F": 0.0, "b1": 0.0}),
+    ]:
         for ac in ("sundowner", "navion"):
             model = make_model(kind, ac, gust=True, **opts)
             G = model.frequency_response(w, values)
@@ -155,6 +166,7 @@ def test_weathercock_in_a_steady_gust():
 
 
 # --- biases, delays, noise, seeds --------------------------------------------------------------------
+
 
 def test_biases_are_added_to_the_outputs():
     model = make_model("unsteady", "sundowner")
@@ -246,6 +258,7 @@ def test_simulate_maneuver_gust_needs_a_gust_model():
 
 # --- validation ------------------------------------------------------------------------------------
 
+
 @pytest.fixture
 def gust_model():
     return make_model("unsteady", "sundowner", gust=True)
@@ -306,6 +319,7 @@ def test_errors_are_fdml_errors():
 
 
 # --- maneuvers ---------------------------------------------------------------------------------------
+
 
 def test_time_vector():
     t = time_vector(10.0, 0.02)
@@ -440,8 +454,26 @@ def test_cli_simulate_noise_is_the_library_noise(tmp_path):
     from fdml.record import read_csv
 
     out = tmp_path / "r.csv"
-    assert main(["simulate", "--aircraft", "navion", "--model", "dimensional", "--noise", "0.03", "--seed", "5",
-                 "--duration", "6", "-o", str(out)]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--aircraft",
+                "navion",
+                "--model",
+                "dimensional",
+                "--noise",
+                "0.03",
+                "--seed",
+                "5",
+                "--duration",
+                "6",
+                "-o",
+                str(out),
+            ]
+        )
+        == 0
+    )
     lib = simulate_maneuver(make_model("dimensional", "navion"), "3211", duration=6.0, noise=0.03, seed=5)
     cli = read_csv(out)
     for k in ("de", "alpha", "q", "az"):

@@ -57,14 +57,22 @@ def _check_rows(rows, expected, seen_min):
 
 # --- text ---------------------------------------------------------------------------------------
 
+
 def test_summary_is_the_text_table(res):
     s = res.summary()
     assert isinstance(s, Summary) and isinstance(s, str)
     assert str(s) == s.as_text() and repr(s) == s.as_text()
     assert str(res) == s
-    for key in ("model:", "records: nav_3211", "band: 0.2-8 rad/s", "boundary terms: estimated",
-                "biases: output biases alpha,q,az", "standard errors: white", "converged after",
-                "J = det R"):
+    for key in (
+        "model:",
+        "records: nav_3211",
+        "band: 0.2-8 rad/s",
+        "boundary terms: estimated",
+        "biases: output biases alpha,q,az",
+        "standard errors: white",
+        "converged after",
+        "J = det R",
+    ):
         assert key in s, key
     for n in res.names + tuple(res.derived):
         assert re.search(rf"^{re.escape(n)}\s", s, re.M), n
@@ -97,6 +105,7 @@ def test_flags_fixed_at_bound_not_identifiable(res):
 
 
 # --- Markdown, HTML, LaTeX ------------------------------------------------------------------
+
 
 def _md_rows(md):
     rows = {}
@@ -159,6 +168,7 @@ def test_latex_tabular(res):
 
 # --- DataFrame -------------------------------------------------------------------------------
 
+
 def test_to_frame_holds_the_raw_numbers(res):
     pytest.importorskip("pandas")  # the optional extra fdml[pandas]
     f = res.to_frame()
@@ -187,6 +197,7 @@ def test_unknown_table(res):
 
 
 # --- steady versus unsteady ------------------------------------------------------------------
+
 
 def test_comparison_table_formats(cmp):
     pytest.importorskip("pandas")  # the optional extra fdml[pandas]

@@ -33,6 +33,7 @@ LAM_G = 2 * H * U / CW  # G-lag rate, 4.61 1/s
 
 # --- (a) the downwash: Eq. 2 <-> Eq. 16 --------------------------------------------------
 
+
 def _quad(*args, **kw):
     """scipy quad, silencing QUADPACK's conservative round-off warnings (results are checked)."""
     with warnings.catch_warnings():
@@ -56,8 +57,11 @@ def _pv_laplace(s: complex) -> complex:
         ts = _quad(g, 2 * T, np.inf, weight="sin", wvar=w, epsabs=1e-11, limlst=200)
     else:
         b = 2 * T + 40.0 / sig
-        tc = _quad(g, 2 * T, b, weight="cos", wvar=w, limit=500, epsabs=1e-14, epsrel=1e-12) if w else _quad(
-            g, 2 * T, b, limit=500, epsabs=1e-14, epsrel=1e-12)
+        tc = (
+            _quad(g, 2 * T, b, weight="cos", wvar=w, limit=500, epsabs=1e-14, epsrel=1e-12)
+            if w
+            else _quad(g, 2 * T, b, limit=500, epsabs=1e-14, epsrel=1e-12)
+        )
         ts = _quad(g, 2 * T, b, weight="sin", wvar=w, limit=500, epsabs=1e-14, epsrel=1e-12) if w else 0.0
     return (pc + tc) - 1j * (ps + ts)
 
@@ -78,10 +82,12 @@ def test_a1_transform_of_indicial_downwash_is_eq16():
     for w in np.geomspace(0.05, 200.0, 25):
         s = 1j * w
         f_part = s * (F * CW / U) * _pv_laplace(s)  # s L{F c/(U (t - T))}
-        gc = _quad(lambda t: np.exp(-LAM_G * t), 0, 40 / LAM_G, weight="cos", wvar=w, limit=500,
-                   epsabs=1e-15, epsrel=1e-13)
-        gs = _quad(lambda t: np.exp(-LAM_G * t), 0, 40 / LAM_G, weight="sin", wvar=w, limit=500,
-                   epsabs=1e-15, epsrel=1e-13)
+        gc = _quad(
+            lambda t: np.exp(-LAM_G * t), 0, 40 / LAM_G, weight="cos", wvar=w, limit=500, epsabs=1e-15, epsrel=1e-13
+        )
+        gs = _quad(
+            lambda t: np.exp(-LAM_G * t), 0, 40 / LAM_G, weight="sin", wvar=w, limit=500, epsabs=1e-15, epsrel=1e-13
+        )
         g_part = s * G * (gc - 1j * gs)  # s L{G exp(-2HUt/c)}
         E_num = EPS * (1.0 + f_part - g_part)  # s L{1} = 1
         E = downwash(s, EPS, F, G, H, L, U, CW)
@@ -136,8 +142,13 @@ def _open_loop_eps(m):
     a, adot = _gaussian_alpha(t, t0, sg)
     # G part, x_G' = lam (alpha - x_G), in closed form for the Gaussian (erf)
     z = LAM_G * sg**2
-    xG = LAM_G * sg * np.sqrt(np.pi / 2) * np.exp(-LAM_G * (t - t0) + LAM_G**2 * sg**2 / 2) * (
-        special.erf((t - t0 - z) / (sg * np.sqrt(2))) + special.erf((t0 + z) / (sg * np.sqrt(2))))
+    xG = (
+        LAM_G
+        * sg
+        * np.sqrt(np.pi / 2)
+        * np.exp(-LAM_G * (t - t0) + LAM_G**2 * sg**2 / 2)
+        * (special.erf((t - t0 - z) / (sg * np.sqrt(2))) + special.erf((t0 + z) / (sg * np.sqrt(2))))
+    )
     eps_td = EPS * ((1 - G) * a + G * xG) + EPS * F * (CW / U) * pv_memory(adot, m)  # section 4
     # reference: eps = IFT{E(jw) alpha~(jw)} by an FFT of period N h = 1050 s (Poisson: the
     # trapezoid sum in w is exact up to aliasing of the t^-2 tail, < 1e-9 here)
@@ -161,6 +172,7 @@ def test_a3_open_loop_pv_duhamel_matches_inverse_transform():
 
 
 # --- (b) closed loop with lags, Kussner lag and tail delay, F = 0 --------------------------
+
 
 def _de_pulse(t):
     """Smooth elevator doublet (raised-cosine edges), rad, analytic in t."""
@@ -194,11 +206,19 @@ def _ode_reference(t_eval, de, ag):
         CLt = at * ((1 - p["y_t"]) * beta + p["y_t"] * xt) + at * yt
         Cz = -CLw - sr * CLt + p["Cz_de"] * de(t)[0]
         Cm = -(L * sr / CW) * CLt + p["Cm_de"] * de(t)[0]
-        return [q + kz * Cz, km * Cm, lw * (al - xw), lt * (beta - xt), LAM_G * (al - xg),
-                (ag(t)[0] - yw) / Ts, (ag(t - L / U)[0] - yt) / Ts]
+        return [
+            q + kz * Cz,
+            km * Cm,
+            lw * (al - xw),
+            lt * (beta - xt),
+            LAM_G * (al - xg),
+            (ag(t)[0] - yw) / Ts,
+            (ag(t - L / U)[0] - yt) / Ts,
+        ]
 
-    sol = integrate.solve_ivp(rhs, (0, t_eval[-1]), np.zeros(7), method="DOP853", t_eval=t_eval,
-                              rtol=1e-12, atol=1e-15, max_step=0.05)
+    sol = integrate.solve_ivp(
+        rhs, (0, t_eval[-1]), np.zeros(7), method="DOP853", t_eval=t_eval, rtol=1e-12, atol=1e-15, max_step=0.05
+    )
     al, q = sol.y[0], sol.y[1]
     alpha_dot = np.array([rhs(ti, si)[0] for ti, si in zip(sol.t, sol.y.T)])
     return np.array([al, q, (U / G0) * (alpha_dot - q)])  # Eq. 5
@@ -256,6 +276,7 @@ def test_b_low_frequency_limit_is_the_steady_model():
 
 
 # --- (c) the full model with the singular F term -------------------------------------------------
+
 
 def _full_model_errors(gust: bool, ms=(8, 16, 32, 64)):
     """Max normalised error of the F != 0 simulation vs the inverse transform of G u~."""

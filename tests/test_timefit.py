@@ -2,12 +2,11 @@
 
 import numpy as np
 import pytest
+from conftest import noisy_record
 
 from fdml import fit
 from fdml.errors import FdmlError, RecordError
 from fdml.timefit import fit_time_domain
-
-from conftest import noisy_record
 
 DIM = ("Z_a", "Z_q", "Z_de", "M_a", "M_q", "M_de")
 

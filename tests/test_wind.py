@@ -32,8 +32,16 @@ def _flight(u_w=0.0, dt=0.02, T=20.0):
     gamma_a = np.arctan2(wa, ua)
     alpha = theta - gamma_a
     truth = gamma_k - gamma_a  # alpha_w = alpha - alpha_k = alpha - (theta - gamma_k)
-    sig = {"de": 0.01 * np.sin(2 * t), "alpha": alpha, "q": np.gradient(theta, dt), "az": -1 + 0 * t,
-           "theta": theta, "V": V, "hdot": hdot, "h": h}
+    sig = {
+        "de": 0.01 * np.sin(2 * t),
+        "alpha": alpha,
+        "q": np.gradient(theta, dt),
+        "az": -1 + 0 * t,
+        "theta": theta,
+        "V": V,
+        "hdot": hdot,
+        "h": h,
+    }
     return Record(t, sig, name="gusty"), truth, w_w, gamma_k
 
 

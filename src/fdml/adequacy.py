@@ -192,22 +192,35 @@ class Adequacy:
 
     def brief(self) -> dict:
         """The short form of ``fdml fit --json``: flagged effects and residual checks."""
-        return {"adequate": self.adequate, "alpha": self.alpha,
-                "flagged": [_effect_dict(e) for e in self.flagged],
-                "whiteness": _check_dict(self.whiteness), "coherence": _check_dict(self.coherence)}
+        return {
+            "adequate": self.adequate,
+            "alpha": self.alpha,
+            "flagged": [_effect_dict(e) for e in self.flagged],
+            "whiteness": _check_dict(self.whiteness),
+            "coherence": _check_dict(self.coherence),
+        }
 
     def to_dict(self) -> dict:
-        return {"alpha": self.alpha, "effects": [_effect_dict(e) for e in self.effects],
-                "skipped": [{"key": k, "reason": r} for k, r in self.skipped], "whiteness": _check_dict(self.whiteness),
-                "coherence": _check_dict(self.coherence), "elapsed": self.elapsed}
+        return {
+            "alpha": self.alpha,
+            "effects": [_effect_dict(e) for e in self.effects],
+            "skipped": [{"key": k, "reason": r} for k, r in self.skipped],
+            "whiteness": _check_dict(self.whiteness),
+            "coherence": _check_dict(self.coherence),
+            "elapsed": self.elapsed,
+        }
 
     @classmethod
     def from_fields(cls, f: Fields) -> Adequacy:
         """Inverse of :meth:`to_dict`, every key checked (``f``: :class:`fdml.jsoncodec.Fields` of the object)."""
-        return cls(alpha=f.number("alpha"), effects=tuple(_effect_from(e) for e in f.items("effects")),
-                   skipped=tuple((x.string("key"), x.string("reason")) for x in f.items("skipped", default=[])),
-                   whiteness=_check_from(f.sub("whiteness")), coherence=_check_from(f.sub("coherence")),
-                   elapsed=f.number("elapsed", default=0.0))
+        return cls(
+            alpha=f.number("alpha"),
+            effects=tuple(_effect_from(e) for e in f.items("effects")),
+            skipped=tuple((x.string("key"), x.string("reason")) for x in f.items("skipped", default=[])),
+            whiteness=_check_from(f.sub("whiteness")),
+            coherence=_check_from(f.sub("coherence")),
+            elapsed=f.number("elapsed", default=0.0),
+        )
 
     def lines(self) -> list:
         """Text lines of the summary's adequacy section."""
@@ -219,8 +232,10 @@ class Adequacy:
         if self.adequate:
             top = self.effects[0] if self.effects else None
             more = f"; smallest Holm p {top.p_holm:.2g} ({top.key})" if top is not None else ""
-            out.append(f"nothing flagged at family level {self.alpha:g} ({len(self.effects)} effects, "
-                       f"coherence and whiteness of the residuals tested{more})")
+            out.append(
+                f"nothing flagged at family level {self.alpha:g} ({len(self.effects)} effects, "
+                f"coherence and whiteness of the residuals tested{more})"
+            )
         else:
             out.append(f"family level {self.alpha:g}, {len(self.effects) + 2} tests, Holm-corrected")
         return out
@@ -233,33 +248,62 @@ def _fmt(v: float, unit: str) -> str:
 
 
 def _effect_dict(e: EffectTest) -> dict:
-    return {"key": e.key, "effect": e.effect, "channel": e.channel, "statistic": e.statistic, "lm": e.lm,
-            "df": e.df, "null": e.null, "p_value": e.p_value, "p_holm": e.p_holm,
-            "expected": dict(e.expected), "units": dict(e.units)}
+    return {
+        "key": e.key,
+        "effect": e.effect,
+        "channel": e.channel,
+        "statistic": e.statistic,
+        "lm": e.lm,
+        "df": e.df,
+        "null": e.null,
+        "p_value": e.p_value,
+        "p_holm": e.p_holm,
+        "expected": dict(e.expected),
+        "units": dict(e.units),
+    }
 
 
 def _effect_from(f: Fields) -> EffectTest:
     exp = f.mapping("expected")
-    return EffectTest(key=f.string("key"), effect=f.string("effect"), channel=f.string("channel"),
-                      statistic=f.number("statistic"), lm=f.number("lm"), df=f.integer("df", minimum=0),
-                      null=f.string("null", choices=("chi2", "chibar", "davies")), p_value=f.number("p_value"),
-                      p_holm=f.number("p_holm"),
-                      expected={k: Fields(exp, f.source, f"{f.name('expected')}.").number(k) for k in exp},
-                      units={k: str(v) for k, v in f.mapping("units", default={}).items()})
+    return EffectTest(
+        key=f.string("key"),
+        effect=f.string("effect"),
+        channel=f.string("channel"),
+        statistic=f.number("statistic"),
+        lm=f.number("lm"),
+        df=f.integer("df", minimum=0),
+        null=f.string("null", choices=("chi2", "chibar", "davies")),
+        p_value=f.number("p_value"),
+        p_holm=f.number("p_holm"),
+        expected={k: Fields(exp, f.source, f"{f.name('expected')}.").number(k) for k in exp},
+        units={k: str(v) for k, v in f.mapping("units", default={}).items()},
+    )
 
 
 def _check_dict(c: ResidualCheck) -> dict:
-    return {"name": c.name, "statistic": c.statistic, "p_value": c.p_value, "p_holm": c.p_holm,
-            "cells": c.cells, "worst": c.worst}
+    return {
+        "name": c.name,
+        "statistic": c.statistic,
+        "p_value": c.p_value,
+        "p_holm": c.p_holm,
+        "cells": c.cells,
+        "worst": c.worst,
+    }
 
 
 def _check_from(f: Fields) -> ResidualCheck:
-    return ResidualCheck(name=f.string("name", choices=("whiteness", "coherence")), statistic=f.number("statistic"),
-                         p_value=f.number("p_value"), p_holm=f.number("p_holm"),
-                         cells=f.integer("cells", minimum=0), worst=f.string("worst"))
+    return ResidualCheck(
+        name=f.string("name", choices=("whiteness", "coherence")),
+        statistic=f.number("statistic"),
+        p_value=f.number("p_value"),
+        p_holm=f.number("p_holm"),
+        cells=f.integer("cells", minimum=0),
+        worst=f.string("worst"),
+    )
 
 
 # --- the check ------------------------------------------------------------------------------------
+
 
 def _oversampling(prob) -> np.ndarray:
     """K per record: grid points per independent frequency 2 pi/T (at least 1)."""
@@ -305,7 +349,7 @@ class _Context(ScreenContext):
     _base_responses = None
 
     def candidate_sensitivities(self, model, names, steps, one_sided):
-        A, = self.candidate_sensitivities_many([(model, names, steps, one_sided)])
+        (A,) = self.candidate_sensitivities_many([(model, names, steps, one_sided)])
         if isinstance(A, Exception):
             raise A
         return A
@@ -323,8 +367,12 @@ class _Context(ScreenContext):
         if not changes:
             return out
         base = self._base()
-        A = self._measure([[_stack_parts([e for c in changes for e in c[r][i]], base[r][i]) for i in range(3)]
-                           for r in range(len(base))])
+        A = self._measure(
+            [
+                [_stack_parts([e for c in changes for e in c[r][i]], base[r][i]) for i in range(3)]
+                for r in range(len(base))
+            ]
+        )
         cols = np.cumsum([0] + [q for q in out if not isinstance(q, Exception)])
         blocks = iter(A[..., a:b] for a, b in itertools.pairwise(cols))
         return [q if isinstance(q, Exception) else next(blocks) for q in out]
@@ -333,8 +381,12 @@ class _Context(ScreenContext):
         """Per record and part (G, H, P), the response change per tested parameter (None: unchanged)."""
         eff = _output_effect_on(model, self.fit.model)
         vals = model.parameters.values
-        cols = [self._column(eff, model, {**vals, n: vals[n] + h}, vals if os_ else {**vals, n: vals[n] - h},
-                             h if os_ else 2 * h) for n, h, os_ in zip(names, steps, one_sided)]
+        cols = [
+            self._column(
+                eff, model, {**vals, n: vals[n] + h}, vals if os_ else {**vals, n: vals[n] - h}, h if os_ else 2 * h
+            )
+            for n, h, os_ in zip(names, steps, one_sided)
+        ]
         return [[[c[r][i] for c in cols] for i in range(3)] for r in range(len(self.fit.prob.data))]
 
     def grid_sensitivities(self, model, names, steps, one_sided, gname, grid):
@@ -360,8 +412,7 @@ class _Context(ScreenContext):
         ok = True
         for k in (0, grid.size - 1):
             ref = self.candidate_sensitivities(model.with_values({gname: float(grid[k])}), names, steps, one_sided)
-            ok = ok and bool(np.allclose(A[:, :, k, :], ref, rtol=1e-9,
-                                         atol=1e-12 * max(np.max(np.abs(ref)), 1e-300)))
+            ok = ok and bool(np.allclose(A[:, :, k, :], ref, rtol=1e-9, atol=1e-12 * max(np.max(np.abs(ref)), 1e-300)))
         _VECTORISES[eff] = ok
         return ok
 
@@ -379,16 +430,20 @@ class _Context(ScreenContext):
 
     def _column(self, eff, model, up, down, step) -> list:
         """Per record, the central (or forward) difference of the responses, (dG, dH, dP); None: unchanged."""
-        return [tuple(None if a is b else (a - b) / step for a, b in zip(ru, rd))
-                for ru, rd in zip(self._response(eff, model, up), self._response(eff, model, down))]
+        return [
+            tuple(None if a is b else (a - b) / step for a, b in zip(ru, rd))
+            for ru, rd in zip(self._response(eff, model, up), self._response(eff, model, down))
+        ]
 
     def _measure(self, changes: list) -> np.ndarray:
         """dy/d eta, shape (N, n_out, q), from per-record response changes with a leading parameter axis."""
         from .models.base import ModelResponse
 
         prob = self.fit.prob
-        dy = [prob.linear_predict(self.fit.theta, r, ModelResponse(d.omega, *ch))[..., prob.out_idx]
-              for r, (d, ch) in enumerate(zip(prob.data, changes))]
+        dy = [
+            prob.linear_predict(self.fit.theta, r, ModelResponse(d.omega, *ch))[..., prob.out_idx]
+            for r, (d, ch) in enumerate(zip(prob.data, changes))
+        ]
         return np.moveaxis(np.concatenate(dy, axis=-2), 0, -1)
 
     def _grid_sensitivities(self, eff, model, names, steps, one_sided, gname, grid):
@@ -407,8 +462,10 @@ class _Context(ScreenContext):
                 up = _grid_call(eff, s, {**at, n: vals[n] + h}, base, root)
                 down = _grid_call(eff, s, at if os_ else {**at, n: vals[n] - h}, base, root)
                 step = h if os_ else 2 * h
-                cols[j] = [None if a is b and c is b else (a - c).reshape((g, m) + b.shape[1:]) / step
-                           for a, c, b in zip(up, down, base)]
+                cols[j] = [
+                    None if a is b and c is b else (a - c).reshape((g, m) + b.shape[1:]) / step
+                    for a, c, b in zip(up, down, base)
+                ]
             changes.append([_stack_grid([c[i] for c in cols], r[i], g) for i in range(3)])
         A = self._measure(changes)
         return A.reshape(A.shape[:2] + (g, q))
@@ -484,12 +541,16 @@ def _context(prob, model, theta, V, R, A=None):
     rows = np.concatenate([np.full(d.m, i) for i, d in enumerate(prob.data)])
     # the whitener of R K_i divides record i's rows by sqrt(K_i): the LM sum then counts independent frequencies
     theta = np.asarray(theta, float)
-    base = _BaseFit(model, tuple(prob.names), theta, V, [R * k for k in K], prob,
-                    dict(zip(prob.names, theta.tolist())))
+    base = _BaseFit(model, tuple(prob.names), theta, V, [R * k for k in K], prob, dict(zip(prob.names, theta.tolist())))
     floor = 1.0 / np.sqrt(np.maximum(np.real(np.diag(R)), 1e-300))
     fw = floor[None, :] / np.sqrt(K[rows])[:, None]  # diagonal white-noise floors for aliasing and the MDE
-    options = {"outputs": [OUTPUTS[k] for k in prob.out_idx], "boundary": prob.boundary, "biases": False,
-               "state_biases": bool(prob.state_biases), "input_bias": bool(prob.input_bias)}
+    options = {
+        "outputs": [OUTPUTS[k] for k in prob.out_idx],
+        "boundary": prob.boundary,
+        "biases": False,
+        "state_biases": bool(prob.state_biases),
+        "input_bias": bool(prob.input_bias),
+    }
     ctx = _Context(base, rows, 1, prob.data, options, fw, sensitivities=A)
     return ctx, K[rows]
 
@@ -532,7 +593,7 @@ def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
     inputs = tuple(prob.data[0].inputs)
     outputs = tuple(ctx.options["outputs"])
     usable, skipped = [], []
-    for eff in (library if library is not None else registered_effects()):
+    for eff in library if library is not None else registered_effects():
         if eff.kind != "deterministic":
             continue
         why = eff.applicable(model, inputs=inputs, outputs=outputs)
@@ -556,9 +617,20 @@ def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
         Vg, ng = grid_variation(scr)
         p, _ = p_value(lr, q, null, V=Vg, n_grid=ng)
         units = {p_.name: p_.unit for p_ in eff.param_list(model)}
-        tests.append({"key": eff.key, "effect": eff.name, "channel": eff.channel, "statistic": float(lr),
-                      "lm": float(scr.lm), "df": int(q), "null": null, "p_value": float(p),
-                      "expected": dict(scr.eta_lin), "units": {k: units.get(k, "") for k in scr.eta_lin}})
+        tests.append(
+            {
+                "key": eff.key,
+                "effect": eff.name,
+                "channel": eff.channel,
+                "statistic": float(lr),
+                "lm": float(scr.lm),
+                "df": int(q),
+                "null": null,
+                "p_value": float(p),
+                "expected": dict(scr.eta_lin),
+                "units": {k: units.get(k, "") for k in scr.eta_lin},
+            }
+        )
     return tests, skipped
 
 
@@ -581,7 +653,7 @@ def _residual_checks(prob, V) -> tuple[tuple, tuple]:
     coh, white = [], []
     off = 0
     for d in prob.data:
-        v = V[off: off + d.m]
+        v = V[off : off + d.m]
         off += d.m
         idx = _independent(d)
         u, vi = d.u[idx], v[idx]
@@ -665,15 +737,21 @@ def check(prob, theta, V, R, *, alpha: float = ALPHA, library=None, sensitivitie
     tests, skipped = _test_effects(prob, model, theta, V, R, alpha, library, sensitivities)
     coh, white = _residual_checks(prob, V)
     ph = holm(np.array([t["p_value"] for t in tests] + [coh[1], white[1]]))
-    effects = sorted((EffectTest(**t, p_holm=float(h)) for t, h in zip(tests, ph)),
-                     key=lambda e: (e.p_holm, e.p_value, -e.statistic))
-    return Adequacy(alpha=float(alpha), effects=tuple(effects), skipped=tuple(skipped),
-                    coherence=ResidualCheck("coherence", coh[0], coh[1], float(ph[-2]), coh[2], coh[3]),
-                    whiteness=ResidualCheck("whiteness", white[0], white[1], float(ph[-1]), white[2], white[3]),
-                    elapsed=time.perf_counter() - t0)
+    effects = sorted(
+        (EffectTest(**t, p_holm=float(h)) for t, h in zip(tests, ph)), key=lambda e: (e.p_holm, e.p_value, -e.statistic)
+    )
+    return Adequacy(
+        alpha=float(alpha),
+        effects=tuple(effects),
+        skipped=tuple(skipped),
+        coherence=ResidualCheck("coherence", coh[0], coh[1], float(ph[-2]), coh[2], coh[3]),
+        whiteness=ResidualCheck("whiteness", white[0], white[1], float(ph[-1]), white[2], white[3]),
+        elapsed=time.perf_counter() - t0,
+    )
 
 
 # --- the warning ----------------------------------------------------------------------------------
+
 
 def advice(adequacy: Adequacy) -> str | None:
     """The warning text for a flagged fit (None when nothing is flagged).
@@ -687,19 +765,28 @@ def advice(adequacy: Adequacy) -> str | None:
         return None
     cmd = _COMMAND.get()
     fit_argv, diag_argv = cmd if cmd is not None else (None, None)
-    diag = shlex.join(diag_argv) if diag_argv else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
+    diag = (
+        shlex.join(diag_argv) if diag_argv else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
+    )
     if adequacy.flagged:
         top = adequacy.flagged[0]
         others = [e.key for e in adequacy.flagged[1:]]
-        refit = (shlex.join([*fit_argv, "--effect", top.option]) if fit_argv else
-                 f"fdml fit RECORD ... --effect {top.option} (Python: model.with_effects({top.option!r}))")
+        refit = (
+            shlex.join([*fit_argv, "--effect", top.option])
+            if fit_argv
+            else f"fdml fit RECORD ... --effect {top.option} (Python: model.with_effects({top.option!r}))"
+        )
         also = f"; also flagged: {', '.join(others)}" if others else ""
-        return (f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}; "
-                f"or run the full diagnosis: {diag}")
+        return (
+            f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}; "
+            f"or run the full diagnosis: {diag}"
+        )
     c = adequacy.residual_flags[0]
-    return (f"the fit's residuals fail the {c.name} check (Holm p {c.p_holm:.2g}, worst {c.worst}) but no "
-            f"library effect explains them: the bounds assume white noise (try cov_type='colored'); "
-            f"run the full diagnosis: {diag}")
+    return (
+        f"the fit's residuals fail the {c.name} check (Holm p {c.p_holm:.2g}, worst {c.worst}) but no "
+        f"library effect explains them: the bounds assume white noise (try cov_type='colored'); "
+        f"run the full diagnosis: {diag}"
+    )
 
 
 def attach(prob, result, V, sensitivities=None):

@@ -160,6 +160,7 @@ def kussner(s, b, U: float, c: float, weights=None):
 
 # --- time domain ---------------------------------------------------------------
 
+
 def lift_indicial(t, y: float, z: float, U: float, c: float):
     """Normalised indicial lift of Eq. 1, ``1 - y exp(-2 z U t / c)`` for t >= 0."""
     t = np.asarray(t, dtype=float)
@@ -240,20 +241,29 @@ class IndicialFunction:
 #: Named R. T. Jones-type approximations (THEORY.md sections 2 and 8).
 INDICIAL_PRESETS = {
     "wagner_jones_2d": IndicialFunction(
-        "wagner_jones_2d", (0.165, 0.335), (0.0455, 0.3),
-        "R. T. Jones 2-D Wagner approximation (found in stored code, THEORY.md 8)"),
+        "wagner_jones_2d",
+        (0.165, 0.335),
+        (0.0455, 0.3),
+        "R. T. Jones 2-D Wagner approximation (found in stored code, THEORY.md 8)",
+    ),
     "kussner_jones_2d": IndicialFunction(
-        "kussner_jones_2d", (0.5, 0.5), (0.13, 1.0),
-        "Sears-Sparks/Jones 2-D Kussner approximation (AeroSandbox kussners_function, THEORY.md 8)"),
+        "kussner_jones_2d",
+        (0.5, 0.5),
+        (0.13, 1.0),
+        "Sears-Sparks/Jones 2-D Kussner approximation (AeroSandbox kussners_function, THEORY.md 8)",
+    ),
     "wagner_jones_ar6": IndicialFunction(
-        "wagner_jones_ar6", (0.361,), (0.381,),
-        "R. T. Jones, NACA Rep. 681, elliptic wing AR 6 [MEM] (THEORY.md 2)"),
+        "wagner_jones_ar6", (0.361,), (0.381,), "R. T. Jones, NACA Rep. 681, elliptic wing AR 6 [MEM] (THEORY.md 2)"
+    ),
     "wagner_jones_ar3": IndicialFunction(
-        "wagner_jones_ar3", (0.283,), (0.540,),
-        "R. T. Jones, NACA Rep. 681, elliptic wing AR 3 [MEM] (THEORY.md 2)"),
+        "wagner_jones_ar3", (0.283,), (0.540,), "R. T. Jones, NACA Rep. 681, elliptic wing AR 3 [MEM] (THEORY.md 2)"
+    ),
     "kussner_jones_ar6": IndicialFunction(
-        "kussner_jones_ar6", (0.448, 0.272, 0.193), (0.29, 0.725, 3.0),
-        "R. T. Jones finite-wing gust function AR 6 [MEM, unverified] (THEORY.md 8)"),
+        "kussner_jones_ar6",
+        (0.448, 0.272, 0.193),
+        (0.29, 0.725, 3.0),
+        "R. T. Jones finite-wing gust function AR 6 [MEM, unverified] (THEORY.md 8)",
+    ),
 }
 
 
@@ -262,6 +272,4 @@ def get_indicial(name: str) -> IndicialFunction:
     try:
         return INDICIAL_PRESETS[name]
     except KeyError:
-        raise ParameterError(
-            f"unknown indicial preset {name!r}; presets: {', '.join(INDICIAL_PRESETS)}"
-        ) from None
+        raise ParameterError(f"unknown indicial preset {name!r}; presets: {', '.join(INDICIAL_PRESETS)}") from None

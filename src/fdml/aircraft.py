@@ -33,8 +33,15 @@ __all__ = [
 REQUIRED_KEYS = ("name", "S_w", "c_w", "S_t", "c_t", "l_t", "mass", "Iy", "U", "rho")
 
 _UNITS = {
-    "S_w": "m^2", "c_w": "m", "S_t": "m^2", "c_t": "m", "l_t": "m",
-    "mass": "kg", "Iy": "kg m^2", "U": "m/s", "rho": "kg/m^3",
+    "S_w": "m^2",
+    "c_w": "m",
+    "S_t": "m^2",
+    "c_t": "m",
+    "l_t": "m",
+    "mass": "kg",
+    "Iy": "kg m^2",
+    "U": "m/s",
+    "rho": "kg/m^3",
 }
 
 #: Largest airspeed fdml accepts, m/s.  No aircraft has flown faster in the
@@ -48,17 +55,38 @@ MAX_AIRSPEED = 3000.0
 
 #: Optional model constants an aircraft may carry, by parameter name.
 CONSTANT_KEYS = (
-    "CLa_w", "CLa_t", "deps_da", "Cm_de", "Cz_de",
-    "y_w", "z_w", "y_t", "z_t", "F", "G", "H", "b1",
+    "CLa_w",
+    "CLa_t",
+    "deps_da",
+    "Cm_de",
+    "Cz_de",
+    "y_w",
+    "z_w",
+    "y_t",
+    "z_t",
+    "F",
+    "G",
+    "H",
+    "b1",
 )
 
 #: Start values used for constants an aircraft file does not give.  They are
 #: generic light-aircraft numbers, not data: a fit frees the first five, and
 #: the lag constants default to "no lag" so that nothing unsteady is assumed.
 GENERIC_CONSTANTS = {
-    "CLa_w": 4.5, "CLa_t": 3.5, "deps_da": 0.4, "Cm_de": -1.0, "Cz_de": -0.4,
-    "y_w": 0.0, "z_w": 0.381, "y_t": 0.0, "z_t": 0.381,
-    "F": 0.0, "G": 0.0, "H": 0.065, "b1": 7.5,
+    "CLa_w": 4.5,
+    "CLa_t": 3.5,
+    "deps_da": 0.4,
+    "Cm_de": -1.0,
+    "Cz_de": -0.4,
+    "y_w": 0.0,
+    "z_w": 0.381,
+    "y_t": 0.0,
+    "z_t": 0.381,
+    "F": 0.0,
+    "G": 0.0,
+    "H": 0.065,
+    "b1": 7.5,
 }
 
 
@@ -122,12 +150,17 @@ class Aircraft:
                 )
             object.__setattr__(self, key, v)
         if self.U > MAX_AIRSPEED:
-            raise AircraftError(f"aircraft {self.name!r}: airspeed U = {self.U:g} m/s is not physical "
-                                f"(limit {MAX_AIRSPEED:g} m/s); give U in m/s")
+            raise AircraftError(
+                f"aircraft {self.name!r}: airspeed U = {self.U:g} m/s is not physical "
+                f"(limit {MAX_AIRSPEED:g} m/s); give U in m/s"
+            )
         if not isinstance(self.sources, Mapping) or not all(
-                isinstance(k, str) and isinstance(v, str) for k, v in self.sources.items()):
-            raise AircraftError(f"aircraft {self.name!r}: sources must map keys to text, "
-                                f'e.g. {{"mass": "POH p. 6"}}, got {self.sources!r}')
+            isinstance(k, str) and isinstance(v, str) for k, v in self.sources.items()
+        ):
+            raise AircraftError(
+                f"aircraft {self.name!r}: sources must map keys to text, "
+                f'e.g. {{"mass": "POH p. 6"}}, got {self.sources!r}'
+            )
         if isinstance(self.assumed, str) or not all(isinstance(k, str) for k in self.assumed):
             raise AircraftError(f"aircraft {self.name!r}: assumed must be a list of key names, got {self.assumed!r}")
         if not isinstance(self.description, str):
@@ -135,8 +168,7 @@ class Aircraft:
         unknown = set(self.constants) - set(CONSTANT_KEYS)
         if unknown:
             raise AircraftError(
-                f"aircraft {self.name!r}: unknown constants {sorted(unknown)}; "
-                f"known: {', '.join(CONSTANT_KEYS)}"
+                f"aircraft {self.name!r}: unknown constants {sorted(unknown)}; known: {', '.join(CONSTANT_KEYS)}"
             )
         consts = dict(GENERIC_CONSTANTS)
         for k, v in self.constants.items():
@@ -196,10 +228,12 @@ class Aircraft:
         if extra:
             raise AircraftError(f"{origin}: unknown key(s) {', '.join(sorted(extra))}")
         assumed = d.get("assumed", ())
-        if isinstance(assumed, (str, Mapping)) or not isinstance(assumed, (list, tuple)) or any(
-                k not in REQUIRED_KEYS and k not in CONSTANT_KEYS for k in assumed):
-            raise AircraftError(f"{origin}: assumed must be a list of key names "
-                                f"(e.g. [\"S_t\", \"b1\"]), got {assumed!r}")
+        if (
+            isinstance(assumed, (str, Mapping))
+            or not isinstance(assumed, (list, tuple))
+            or any(k not in REQUIRED_KEYS and k not in CONSTANT_KEYS for k in assumed)
+        ):
+            raise AircraftError(f'{origin}: assumed must be a list of key names (e.g. ["S_t", "b1"]), got {assumed!r}')
         try:
             return cls(
                 name=str(d["name"]),
@@ -273,8 +307,10 @@ def load_aircraft(spec: str | Path | Aircraft) -> Aircraft:
     try:
         text = path.read_text(encoding="utf-8-sig")  # JSON is UTF-8 (RFC 8259); a BOM is tolerated
     except UnicodeDecodeError as exc:
-        raise AircraftError(f"aircraft file {spec_s} is not UTF-8 text (byte {exc.start}: "
-                            f"{exc.object[exc.start:exc.start + 1]!r}); save it as UTF-8") from None
+        raise AircraftError(
+            f"aircraft file {spec_s} is not UTF-8 text (byte {exc.start}: "
+            f"{exc.object[exc.start : exc.start + 1]!r}); save it as UTF-8"
+        ) from None
     except OSError as exc:
         raise AircraftError(f"cannot read aircraft file {spec_s}: {exc.strerror or exc}") from None
     try:

@@ -53,8 +53,7 @@ from .errors import FdmlError
 from .jsoncodec import dumps as _dumps
 from .outputs import atomic_open, atomic_write_text
 
-__all__ = ["run_batch", "BatchSummary", "ModelSpec", "collect_sources", "load_source", "BatchItem",
-           "TABLE_FORMAT"]
+__all__ = ["run_batch", "BatchSummary", "ModelSpec", "collect_sources", "load_source", "BatchItem", "TABLE_FORMAT"]
 
 logger = logging.getLogger(__name__)
 
@@ -113,8 +112,13 @@ class ModelSpec:
         from .models import model_to_dict
 
         d = model_to_dict(model)
-        return cls(kind=d["kind"], aircraft=d["aircraft"], options=d["options"], parameters=d["parameters"],
-                   effects=tuple(d.get("effects", ())))
+        return cls(
+            kind=d["kind"],
+            aircraft=d["aircraft"],
+            options=d["options"],
+            parameters=d["parameters"],
+            effects=tuple(d.get("effects", ())),
+        )
 
     @classmethod
     def coerce(cls, spec) -> "ModelSpec":
@@ -124,8 +128,10 @@ class ModelSpec:
         if isinstance(spec, Mapping):
             unknown = set(spec) - {"kind", "aircraft", "options", "values", "fix", "free", "parameters", "effects"}
             if unknown:
-                raise FdmlError(f"model spec: unknown key(s) {sorted(unknown)}; known: kind, aircraft, "
-                                "options, values, fix, free, parameters, effects")
+                raise FdmlError(
+                    f"model spec: unknown key(s) {sorted(unknown)}; known: kind, aircraft, "
+                    "options, values, fix, free, parameters, effects"
+                )
             if "kind" not in spec:
                 raise FdmlError("model spec: 'kind' is required (unsteady, steady, derivatives, dimensional)")
             return cls(**spec)
@@ -145,19 +151,34 @@ class ModelSpec:
         from .parameters import as_names, check_fix_free
 
         check_fix_free(self.fix, self.free)  # a str is one name; both fixed and freed is an error
-        fix = ({str(k): float(v) for k, v in self.fix.items()} if isinstance(self.fix, Mapping)
-               else as_names(self.fix, "fix"))
-        return ModelSpec(kind=str(self.kind), aircraft=ac, options=dict(self.options),
-                         values={str(k): float(v) for k, v in self.values.items()}, fix=fix,
-                         free=as_names(self.free, "free"),
-                         parameters=None if self.parameters is None else [dict(p) for p in self.parameters],
-                         effects=_effect_keys(self.effects))
+        fix = (
+            {str(k): float(v) for k, v in self.fix.items()}
+            if isinstance(self.fix, Mapping)
+            else as_names(self.fix, "fix")
+        )
+        return ModelSpec(
+            kind=str(self.kind),
+            aircraft=ac,
+            options=dict(self.options),
+            values={str(k): float(v) for k, v in self.values.items()},
+            fix=fix,
+            free=as_names(self.free, "free"),
+            parameters=None if self.parameters is None else [dict(p) for p in self.parameters],
+            effects=_effect_keys(self.effects),
+        )
 
     def to_dict(self) -> dict:
         """JSON-ready dict (call on a :meth:`normalized` spec)."""
-        return {"kind": self.kind, "aircraft": self.aircraft, "options": dict(self.options),
-                "values": dict(self.values), "fix": self.fix if isinstance(self.fix, Mapping) else list(self.fix),
-                "free": list(self.free), "parameters": self.parameters, "effects": list(self.effects)}
+        return {
+            "kind": self.kind,
+            "aircraft": self.aircraft,
+            "options": dict(self.options),
+            "values": dict(self.values),
+            "fix": self.fix if isinstance(self.fix, Mapping) else list(self.fix),
+            "free": list(self.free),
+            "parameters": self.parameters,
+            "effects": list(self.effects),
+        }
 
     def build(self):
         """The :class:`~fdml.models.Model` described."""
@@ -218,8 +239,12 @@ class BatchItem:
 
 
 def _is_window(x) -> bool:
-    return (isinstance(x, tuple) and len(x) in (3, 4) and isinstance(x[0], (str, os.PathLike))
-            and all(v is None or isinstance(v, (int, float)) for v in x[1:3]))
+    return (
+        isinstance(x, tuple)
+        and len(x) in (3, 4)
+        and isinstance(x[0], (str, os.PathLike))
+        and all(v is None or isinstance(v, (int, float)) for v in x[1:3])
+    )
 
 
 def _expand(src) -> list[tuple[str, float | None, float | None, str | None]]:
@@ -234,8 +259,9 @@ def _expand(src) -> list[tuple[str, float | None, float | None, str | None]]:
         raise FdmlError(f"batch source must be a path, a glob or (path, t0, t1), got {src!r}")
     p = Path(src)
     if p.is_dir():
-        files = sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in RECORD_SUFFIXES
-                       and not f.name.startswith("."))
+        files = sorted(
+            f for f in p.iterdir() if f.is_file() and f.suffix.lower() in RECORD_SUFFIXES and not f.name.startswith(".")
+        )
         if not files:
             raise FdmlError(f"folder {p} holds no records ({', '.join(RECORD_SUFFIXES)})")
         return [(str(f.absolute()), None, None, None) for f in files]
@@ -368,10 +394,26 @@ def _num(x: float):
 
 
 def _base_row(task: Mapping) -> dict:
-    return {"index": task["index"], "key": task["key"], "source": task["path"], "t0": task["t0"],
-            "t1": task["t1"], "status": "error", "reused": False, "converged": None, "iterations": None,
-            "cost": None, "elapsed": None, "n_freq": None, "error": "", "warnings": "", "findings": "",
-            "result_file": "", "params": {}, "stderr": {}}
+    return {
+        "index": task["index"],
+        "key": task["key"],
+        "source": task["path"],
+        "t0": task["t0"],
+        "t1": task["t1"],
+        "status": "error",
+        "reused": False,
+        "converged": None,
+        "iterations": None,
+        "cost": None,
+        "elapsed": None,
+        "n_freq": None,
+        "error": "",
+        "warnings": "",
+        "findings": "",
+        "result_file": "",
+        "params": {},
+        "stderr": {},
+    }
 
 
 def error_row(task: Mapping, exc: BaseException | str) -> dict:
@@ -419,8 +461,7 @@ def run_task(task: Mapping) -> dict:
     try:
         h = hashlib.sha256()
         h.update(_file_hash(task["path"]).encode())
-        key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_kwargs"],
-               "fdml": __version__}
+        key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_kwargs"], "fdml": __version__}
         if task.get("read"):  # absent when empty: the hash of a batch without reading options is unchanged
             key["read"] = task["read"]
         h.update(_canonical(key).encode())
@@ -428,15 +469,25 @@ def run_task(task: Mapping) -> dict:
     except OSError as exc:
         from .errors import RecordError
 
-        msg = (f"record file {task['path']} does not exist" if isinstance(exc, FileNotFoundError)
-               else f"cannot read record file {task['path']}: {exc.strerror or exc}")
+        msg = (
+            f"record file {task['path']} does not exist"
+            if isinstance(exc, FileNotFoundError)
+            else f"cannot read record file {task['path']}: {exc.strerror or exc}"
+        )
         return _write_error(task, row, RecordError(msg), err_path, res_path, None)
     if task["resume"]:
         old = _reusable(res_path, input_hash)
         if old is not None:
             _unlink(err_path)
-            return {**old, "index": task["index"], "key": task["key"], "source": task["path"],
-                    "t0": task["t0"], "t1": task["t1"], "reused": True}
+            return {
+                **old,
+                "index": task["index"],
+                "key": task["key"],
+                "source": task["path"],
+                "t0": task["t0"],
+                "t1": task["t1"],
+                "reused": True,
+            }
     try:
         from .estimate import fit
 
@@ -445,19 +496,32 @@ def run_task(task: Mapping) -> dict:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the result keeps its warnings
             res = fit(rec, model, **task["fit_kwargs"])
-        row.update(status="ok", converged=bool(res.converged), iterations=int(res.iterations),
-                   cost=_num(res.cost), elapsed=float(res.elapsed), n_freq=int(res.n_freq),
-                   warnings="; ".join(res.warnings),
-                   findings=" ".join(f.code for f in res.findings),
-                   result_file=str(Path("results") / res_path.name),
-                   params={n: float(v) for n, v in zip(res.names, res.values)},
-                   stderr={n: _num(s) for n, s in zip(res.names, res.stderr)})
+        row.update(
+            status="ok",
+            converged=bool(res.converged),
+            iterations=int(res.iterations),
+            cost=_num(res.cost),
+            elapsed=float(res.elapsed),
+            n_freq=int(res.n_freq),
+            warnings="; ".join(res.warnings),
+            findings=" ".join(f.code for f in res.findings),
+            result_file=str(Path("results") / res_path.name),
+            params={n: float(v) for n, v in zip(res.names, res.values)},
+            stderr={n: _num(s) for n, s in zip(res.names, res.stderr)},
+        )
         d = res.to_dict()
         del res, rec
         row["task_seconds"] = time.perf_counter() - t_start
-        d["batch"] = {"format": TABLE_FORMAT[0], "key": task["key"], "source": task["path"],
-                      "window": [task["t0"], task["t1"]], "input_hash": input_hash,
-                      "spec": task["spec"], "fit_kwargs": task["fit_kwargs"], "row": row}
+        d["batch"] = {
+            "format": TABLE_FORMAT[0],
+            "key": task["key"],
+            "source": task["path"],
+            "window": [task["t0"], task["t1"]],
+            "input_hash": input_hash,
+            "spec": task["spec"],
+            "fit_kwargs": task["fit_kwargs"],
+            "row": row,
+        }
         text = _dumps(d, compact=True)
         del d
         atomic_write_text(res_path, text)
@@ -468,13 +532,26 @@ def run_task(task: Mapping) -> dict:
 
 
 def _write_error(task, row, exc, err_path: Path, res_path: Path, input_hash, t_start=None) -> dict:
-    row.update(status="error", error=_one_line(exc), result_file=str(Path("results") / err_path.name),
-               converged=None, params={}, stderr={})
+    row.update(
+        status="error",
+        error=_one_line(exc),
+        result_file=str(Path("results") / err_path.name),
+        converged=None,
+        params={},
+        stderr={},
+    )
     if t_start is not None:
         row["task_seconds"] = time.perf_counter() - t_start
-    doc = {"format": ERROR_FORMAT[0], "version": ERROR_FORMAT[1], "key": task["key"],
-           "source": task["path"], "window": [task["t0"], task["t1"]], "input_hash": input_hash,
-           "error": row["error"], "row": row}
+    doc = {
+        "format": ERROR_FORMAT[0],
+        "version": ERROR_FORMAT[1],
+        "key": task["key"],
+        "source": task["path"],
+        "window": [task["t0"], task["t1"]],
+        "input_hash": input_hash,
+        "error": row["error"],
+        "row": row,
+    }
     try:
         _unlink(res_path)  # a stale result for other inputs must not stand beside the error
         atomic_write_text(err_path, _dumps(doc, indent=1))
@@ -507,12 +584,14 @@ def _resolve_engine(engine, workers):
         except ImportError:
             raise _dask_missing() from None
         if engine == "dask":
-            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                                   processes=True, dashboard_address=None)
+            cluster = LocalCluster(
+                n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=None
+            )
             return "dask", Client(cluster), True
         return "dask", Client(engine), True
-    raise FdmlError(f"engine must be 'process', 'serial', 'dask', a scheduler address or a "
-                    f"dask.distributed.Client, got {engine!r}")
+    raise FdmlError(
+        f"engine must be 'process', 'serial', 'dask', a scheduler address or a dask.distributed.Client, got {engine!r}"
+    )
 
 
 def _pool_context():
@@ -710,8 +789,14 @@ def _stop_pool(ex) -> None:
                 p.join(_STOP_GRACE)
 
 
-def execute(fn: Callable[[dict], dict], tasks: Iterable[dict], *, engine="process", workers: int | None = None,
-            on_error: Callable[[dict, BaseException | str], dict]) -> Generator[dict, None, None]:
+def execute(
+    fn: Callable[[dict], dict],
+    tasks: Iterable[dict],
+    *,
+    engine="process",
+    workers: int | None = None,
+    on_error: Callable[[dict, BaseException | str], dict],
+) -> Generator[dict, None, None]:
     """Run ``fn(task)`` for every task on ``engine``; yield the results as they finish.
 
     ``fn`` must be a module-level function returning a small dict.  A task
@@ -768,8 +853,12 @@ def _process_map(fn, tasks, workers: int, on_error) -> Iterator[dict]:
     exhausted = False
     while True:
         ctx = _pool_context()
-        ex = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_worker_init,
-                                 initargs=(os.getpid(), ctx.get_start_method()))
+        ex = ProcessPoolExecutor(
+            max_workers=workers,
+            mp_context=ctx,
+            initializer=_worker_init,
+            initargs=(os.getpid(), ctx.get_start_method()),
+        )
         inflight: dict = {}  # future -> (task, ran alone)
         broken = finished = False
         try:
@@ -805,11 +894,11 @@ def _process_map(fn, tasks, workers: int, on_error) -> Iterator[dict]:
                         if alone:
                             deaths[tid] = deaths.get(tid, 0) + 1
                         if deaths.get(tid, 0) >= _LONE_DEATHS:
-                            yield on_error(task, f"WorkerDied: the worker process died {deaths[tid]} times "
-                                                 "running this task alone")
+                            yield on_error(
+                                task, f"WorkerDied: the worker process died {deaths[tid]} times running this task alone"
+                            )
                         else:
-                            logger.warning("a worker process died; rerunning task %s on its own",
-                                           task.get("key", tid))
+                            logger.warning("a worker process died; rerunning task %s on its own", task.get("key", tid))
                             suspects.append(task)
                         continue
                     except Exception as exc:
@@ -938,10 +1027,19 @@ class BatchSummary:
 
     def to_dict(self) -> dict:
         """Short JSON form (``fdml batch --json``)."""
-        return {"out_dir": str(self.out_dir), "records": self.n_total, "fitted": self.n_fitted,
-                "reused": self.n_reused, "failed": self.n_failed, "wall_time": self.wall_time,
-                "engine": self.engine, "table_csv": str(self.table_csv), "table_json": str(self.table_json),
-                "errors": dict(self.errors), "findings": dict(self.findings)}
+        return {
+            "out_dir": str(self.out_dir),
+            "records": self.n_total,
+            "fitted": self.n_fitted,
+            "reused": self.n_reused,
+            "failed": self.n_failed,
+            "wall_time": self.wall_time,
+            "engine": self.engine,
+            "table_csv": str(self.table_csv),
+            "table_json": str(self.table_json),
+            "errors": dict(self.errors),
+            "findings": dict(self.findings),
+        }
 
     def to_frame(self):
         """The table as a pandas DataFrame (pandas is optional)."""
@@ -952,20 +1050,39 @@ class BatchSummary:
         return pd.read_csv(self.table_csv)
 
     def __str__(self) -> str:
-        lines = [f"{self.n_total} records: {self.n_fitted} fitted, {self.n_reused} reused, "
-                 f"{self.n_failed} failed in {self.wall_time:.1f} s ({self.engine})",
-                 f"table: {self.table_csv}"]
+        lines = [
+            f"{self.n_total} records: {self.n_fitted} fitted, {self.n_reused} reused, "
+            f"{self.n_failed} failed in {self.wall_time:.1f} s ({self.engine})",
+            f"table: {self.table_csv}",
+        ]
         for key, err in self.errors.items():
             lines.append(f"  {key}: {err}")
         if self.findings:
-            lines.append(f"data check: {len(self.findings)} record(s) with findings (column 'findings'; "
-                         "--strict makes them errors)")
+            lines.append(
+                f"data check: {len(self.findings)} record(s) with findings (column 'findings'; "
+                "--strict makes them errors)"
+            )
             lines.extend(f"  {key}: {codes}" for key, codes in self.findings.items())
         return "\n".join(lines)
 
 
-_FIXED_COLUMNS = ("key", "source", "t0", "t1", "status", "reused", "converged", "iterations", "cost",
-                  "elapsed", "n_freq", "error", "warnings", "findings", "result_file")
+_FIXED_COLUMNS = (
+    "key",
+    "source",
+    "t0",
+    "t1",
+    "status",
+    "reused",
+    "converged",
+    "iterations",
+    "cost",
+    "elapsed",
+    "n_freq",
+    "error",
+    "warnings",
+    "findings",
+    "result_file",
+)
 
 
 def _atomic_open(path: Path):
@@ -1110,8 +1227,10 @@ def _folder_lock(out: Path, spool: _RowSpool) -> Iterator[None]:
     if getattr(multiprocessing.current_process(), "_inheriting", False):
         # a worker re-running an unguarded main script (spawn, forkserver) would wait for
         # its own parent's lock forever; multiprocessing reads the same private flag
-        raise FdmlError("run_batch was called while a worker process imports the main script: put the "
-                        "call under `if __name__ == '__main__':`")
+        raise FdmlError(
+            "run_batch was called while a worker process imports the main script: put the "
+            "call under `if __name__ == '__main__':`"
+        )
     try:
         import fcntl
     except ImportError:
@@ -1139,8 +1258,12 @@ def _folder_lock(out: Path, spool: _RowSpool) -> Iterator[None]:
                 fcntl.flock(fd, fcntl.LOCK_EX)
             locked = True
         except OSError as exc:  # a file system without locks (some network or FUSE mounts)
-            logger.warning("cannot lock %s (%s): a concurrent batch into it is not detected and temporary "
-                           "files of earlier runs are kept", out, exc.strerror or exc)
+            logger.warning(
+                "cannot lock %s (%s): a concurrent batch into it is not detected and temporary "
+                "files of earlier runs are kept",
+                out,
+                exc.strerror or exc,
+            )
             locked = False
         if locked:
             os.ftruncate(fd, 0)
@@ -1152,9 +1275,18 @@ def _folder_lock(out: Path, spool: _RowSpool) -> Iterator[None]:
 
 
 # --- the batch ----------------------------------------------------------------------------------
-def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None, engine="process",
-              workers: int | None = None, resume: bool = True, progress=None,
-              read_kwargs: Mapping | None = None) -> BatchSummary:
+def run_batch(
+    sources,
+    model_spec,
+    out_dir,
+    *,
+    fit_kwargs: Mapping | None = None,
+    engine="process",
+    workers: int | None = None,
+    resume: bool = True,
+    progress=None,
+    read_kwargs: Mapping | None = None,
+) -> BatchSummary:
     """Fit one model to many records, each on its own; stream results to disk.
 
     Parameters
@@ -1213,9 +1345,21 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
     out = Path(out_dir).absolute()
     results = out / "results"
     results.mkdir(parents=True, exist_ok=True)
-    tasks = ({"index": i, "key": it.key, "path": it.path, "t0": it.t0, "t1": it.t1, "spec": spec_d,
-              "fit_kwargs": kw, "read": read, "out_dir": str(out), "resume": bool(resume)}
-             for i, it in enumerate(items))
+    tasks = (
+        {
+            "index": i,
+            "key": it.key,
+            "path": it.path,
+            "t0": it.t0,
+            "t1": it.t1,
+            "spec": spec_d,
+            "fit_kwargs": kw,
+            "read": read,
+            "out_dir": str(out),
+            "resume": bool(resume),
+        }
+        for i, it in enumerate(items)
+    )
     update, close = _progress_handler(progress, len(items), "fdml batch")
     kind = _resolve_kind_name(engine)
     spool = _RowSpool(out / f".rows-{os.getpid()}.jsonl.tmp", len(items))
@@ -1226,8 +1370,9 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
             run.callback(spool.close)
             run.enter_context(_signals_end_the_run())
             run.enter_context(_folder_lock(out, spool))
-            rows = run.enter_context(contextlib.closing(
-                execute(run_task, tasks, engine=engine, workers=workers, on_error=error_row)))
+            rows = run.enter_context(
+                contextlib.closing(execute(run_task, tasks, engine=engine, workers=workers, on_error=error_row))
+            )
             for row in rows:
                 done += spool.add(row)
                 update(row, done)
@@ -1239,10 +1384,19 @@ def run_batch(sources, model_spec, out_dir, *, fit_kwargs: Mapping | None = None
         findings = {r["key"]: r["findings"] for r in spool.rows(only_flagged=True)}
     finally:
         run.close()
-    return BatchSummary(out_dir=out, table_csv=csv_path, table_json=json_path, n_total=done,
-                        n_fitted=done - n_failed - n_reused, n_reused=n_reused, n_failed=n_failed,
-                        errors=errors, wall_time=time.perf_counter() - t_start, engine=kind,
-                        findings=findings)
+    return BatchSummary(
+        out_dir=out,
+        table_csv=csv_path,
+        table_json=json_path,
+        n_total=done,
+        n_fitted=done - n_failed - n_reused,
+        n_reused=n_reused,
+        n_failed=n_failed,
+        errors=errors,
+        wall_time=time.perf_counter() - t_start,
+        engine=kind,
+        findings=findings,
+    )
 
 
 def _resolve_kind_name(engine) -> str:

@@ -20,8 +20,19 @@ EXIT_FAILURE = 1
 EXIT_CLOSED_PIPE = 141
 
 #: Command modules under fdml.commands, in help order.
-COMMANDS = ("demo", "fit", "check", "simulate", "response", "report", "batch", "montecarlo", "diagnose", "aircraft",
-            "effects")
+COMMANDS = (
+    "demo",
+    "fit",
+    "check",
+    "simulate",
+    "response",
+    "report",
+    "batch",
+    "montecarlo",
+    "diagnose",
+    "aircraft",
+    "effects",
+)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -35,8 +46,11 @@ def build_parser() -> argparse.ArgumentParser:
     """The argument parser with every registered command."""
     from . import __version__
 
-    parser = _Parser(prog="fdml", description="Frequency-domain maximum-likelihood identification "
-                     "of aircraft short-period dynamics, with unsteady aerodynamics.")
+    parser = _Parser(
+        prog="fdml",
+        description="Frequency-domain maximum-likelihood identification "
+        "of aircraft short-period dynamics, with unsteady aerodynamics.",
+    )
     parser.add_argument("--version", action="version", version=f"fdml {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help="show warnings and log messages")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -99,8 +113,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return EXIT_BAD_INPUT
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="fdml: %(message)s")
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="fdml: %(message)s")
     if not args.verbose:
         warnings.simplefilter("ignore")
     from .errors import FdmlError

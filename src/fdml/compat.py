@@ -125,8 +125,14 @@ class ParameterEstimate:
         return abs(self.value - self.nominal) / self.stderr if self.stderr > 0 else math.inf
 
     def to_dict(self) -> dict:
-        return {"value": self.value, "stderr": self.stderr, "stderr_white": self.stderr_white, "unit": self.unit,
-                "description": self.description, "nominal": self.nominal}
+        return {
+            "value": self.value,
+            "stderr": self.stderr,
+            "stderr_white": self.stderr_white,
+            "unit": self.unit,
+            "description": self.description,
+            "nominal": self.nominal,
+        }
 
 
 @dataclass(frozen=True)
@@ -188,15 +194,19 @@ class CompatibilityResult:
 
     def summary(self) -> str:
         """Plain-text table of the estimates."""
-        lines = [f"Data compatibility: {self.name}",
-                 f"  outputs {', '.join(self.outputs)}; {self.n_used} samples each; "
-                 f"{'converged' if self.converged else 'NOT converged'} ({self.message})",
-                 "", f"  {'parameter':10s} {'estimate':>12s} {'std err':>10s} {'(white)':>10s}  "
-                     "unit     z    description"]
+        lines = [
+            f"Data compatibility: {self.name}",
+            f"  outputs {', '.join(self.outputs)}; {self.n_used} samples each; "
+            f"{'converged' if self.converged else 'NOT converged'} ({self.message})",
+            "",
+            f"  {'parameter':10s} {'estimate':>12s} {'std err':>10s} {'(white)':>10s}  unit     z    description",
+        ]
         for p in self.params.values():
             f, u = _display_factor(p.unit)
-            lines.append(f"  {p.name:10s} {p.value * f:12.5g} {p.stderr * f:10.3g} {p.stderr_white * f:10.3g}  "
-                         f"{u:6s} {p.z:5.1f}  {p.description}")
+            lines.append(
+                f"  {p.name:10s} {p.value * f:12.5g} {p.stderr * f:10.3g} {p.stderr_white * f:10.3g}  "
+                f"{u:6s} {p.z:5.1f}  {p.description}"
+            )
         if self.fixed:
             lines.append("")
             lines.append("  not estimated:")
@@ -204,14 +214,26 @@ class CompatibilityResult:
                 f, u = _display_factor(PARAMETERS[k][1])
                 lines.append(f"    {k:10s} = {v * f:g} {u}: {why}")
         lines.append("")
-        lines.append("  initial states: " + ", ".join(
-            f"{k} = {p.value * _display_factor(p.unit)[0]:.5g} {_display_factor(p.unit)[1]}"
-            for k, p in self.states.items()))
-        lines.append("  residual RMS: " + ", ".join(
-            f"{k} {v * _display_factor(_OUT_UNITS[k])[0]:.3g} {_display_factor(_OUT_UNITS[k])[1]}"
-            for k, v in self.residual_rms.items()))
-        big = [(self.names[i], self.names[j], self.corr[i, j]) for i in range(len(self.names))
-               for j in range(i + 1, len(self.names)) if abs(self.corr[i, j]) > 0.9]
+        lines.append(
+            "  initial states: "
+            + ", ".join(
+                f"{k} = {p.value * _display_factor(p.unit)[0]:.5g} {_display_factor(p.unit)[1]}"
+                for k, p in self.states.items()
+            )
+        )
+        lines.append(
+            "  residual RMS: "
+            + ", ".join(
+                f"{k} {v * _display_factor(_OUT_UNITS[k])[0]:.3g} {_display_factor(_OUT_UNITS[k])[1]}"
+                for k, v in self.residual_rms.items()
+            )
+        )
+        big = [
+            (self.names[i], self.names[j], self.corr[i, j])
+            for i in range(len(self.names))
+            for j in range(i + 1, len(self.names))
+            if abs(self.corr[i, j]) > 0.9
+        ]
         if big:
             lines.append("  correlations above 0.9: " + ", ".join(f"{a}/{b} {c:+.2f}" for a, b, c in big))
         lines.append("")
@@ -222,12 +244,18 @@ class CompatibilityResult:
     def to_dict(self) -> dict:
         """JSON-safe dictionary."""
         return {
-            "name": self.name, "params": {k: p.to_dict() for k, p in self.params.items()},
+            "name": self.name,
+            "params": {k: p.to_dict() for k, p in self.params.items()},
             "states": {k: p.to_dict() for k, p in self.states.items()},
             "fixed": {k: {"value": v, "reason": r} for k, (v, r) in self.fixed.items()},
-            "names": list(self.names), "corr": np.where(np.isfinite(self.corr), self.corr, 0.0).tolist(),
-            "outputs": list(self.outputs), "residual_rms": self.residual_rms, "sigma": self.sigma,
-            "n_used": self.n_used, "converged": self.converged, "message": self.message,
+            "names": list(self.names),
+            "corr": np.where(np.isfinite(self.corr), self.corr, 0.0).tolist(),
+            "outputs": list(self.outputs),
+            "residual_rms": self.residual_rms,
+            "sigma": self.sigma,
+            "n_used": self.n_used,
+            "converged": self.converged,
+            "message": self.message,
             "findings": list(self.findings),
         }
 
@@ -273,8 +301,9 @@ def apply_corrections(record: Record, values: dict) -> Record:
         new["theta"] = shifted(record["theta"], v["tau_theta"])
     if record.has("V"):
         new["V"] = record["V"] / v["K_V"]
-    return replace(record, signals={**record.signals, **new},
-                   meta={**record.meta, "compatibility": {k: v[k] for k in PARAMETERS}})
+    return replace(
+        record, signals={**record.signals, **new}, meta={**record.meta, "compatibility": {k: v[k] for k in PARAMETERS}}
+    )
 
 
 # --- the estimator -------------------------------------------------------------------------------
@@ -388,8 +417,10 @@ class _Problem:
         self.sel = slice(m, self.n - m)
         self.n_used = self.n - 2 * m
         if self.n_used < 10:
-            raise RecordError(f"record {record.name!r} is too short for a compatibility check with time shifts "
-                              f"of up to {max_shift:g} s ({self.n} samples)")
+            raise RecordError(
+                f"record {record.name!r} is too short for a compatibility check with time shifts "
+                f"of up to {max_shift:g} s ({self.n} samples)"
+            )
         self.meas = {k: record[k] for k in outs}
         self._cache: dict = {}
         self.V_meas = record["V"] if record.has("V") else np.full(self.n, U)
@@ -429,10 +460,17 @@ class _Problem:
         if not self.V_state:
             Vin = self._mid("V", tt) / p["K_V"]
         A, TH, VV, HH = _integrate(
-            float(p["alpha0"]), float(p["theta0"] if self.has_theta else p["alpha0"]),
-            float(p["V0"]) if self.V_state else float(Vin[0]), float(p.get("h0", 0.0)), dt, n,
-            q.tolist(), az.tolist(), ax.tolist() if ax is not None else None,
-            None if self.V_state else Vin.tolist())
+            float(p["alpha0"]),
+            float(p["theta0"] if self.has_theta else p["alpha0"]),
+            float(p["V0"]) if self.V_state else float(Vin[0]),
+            float(p.get("h0", 0.0)),
+            dt,
+            n,
+            q.tolist(),
+            az.tolist(),
+            ax.tolist() if ax is not None else None,
+            None if self.V_state else Vin.tolist(),
+        )
         out = {}
 
         def delay(x, tau):
@@ -484,7 +522,7 @@ class _Problem:
         mid = np.zeros((J.shape[1], J.shape[1]))
         AJ = [np.zeros((n, J.shape[1])) for _ in range(3)]
         for j, k in enumerate(self.outputs):
-            Jk = J[j * self.n_used:(j + 1) * self.n_used]
+            Jk = J[j * self.n_used : (j + 1) * self.n_used]
             for i in range(3):
                 AJ[i] += blocks[j][i][sel].T @ Jk / sigma[k]
             s_meas = noise_level(self.meas[k])
@@ -510,26 +548,38 @@ def _default_free(record: Record) -> tuple[list[str], dict]:
         free += ["b_q", "K_q", "tau_theta"]
     else:
         for k in ("b_q", "K_q", "tau_theta"):
-            why[k] = ("no theta: a q bias and an a_z bias drift alpha alike, and a q scale factor has no "
-                      "reference; the alpha drift is given to b_az")
+            why[k] = (
+                "no theta: a q bias and an a_z bias drift alpha alike, and a q scale factor has no "
+                "reference; the alpha drift is given to b_az"
+            )
     if record.has("h"):
         free.append("b_alpha")
     else:
-        why["b_alpha"] = ("no altitude: only h_dot = V sin(theta - alpha) sees the absolute flight-path angle; "
-                          "otherwise an alpha bias is a change of the initial alpha")
+        why["b_alpha"] = (
+            "no altitude: only h_dot = V sin(theta - alpha) sees the absolute flight-path angle; "
+            "otherwise an alpha bias is a change of the initial alpha"
+        )
     if record.has("ax") and record.has("V"):
         free.append("b_ax")
     else:
         why["b_ax"] = "no airspeed or no a_x: the airspeed equation is not integrated"
     for k in ("K_az", "tau_az"):
-        why[k] = ("not estimated by default: with a_z near -1 g a scale error looks like a bias "
-                  "(pass estimate= to add it)")
+        why[k] = (
+            "not estimated by default: with a_z near -1 g a scale error looks like a bias (pass estimate= to add it)"
+        )
     why["K_V"] = "not estimated by default (pass estimate= to add it)"
     return free, why
 
 
-def check_compatibility(record: Record, *, correct: bool = False, estimate=None, fix=None,
-                        max_shift: float = DEFAULT_MAX_SHIFT, U: float | None = None) -> CompatibilityResult:
+def check_compatibility(
+    record: Record,
+    *,
+    correct: bool = False,
+    estimate=None,
+    fix=None,
+    max_shift: float = DEFAULT_MAX_SHIFT,
+    U: float | None = None,
+) -> CompatibilityResult:
     """Estimate sensor biases, scale factors and time shifts from the kinematics.
 
     Parameters
@@ -568,12 +618,14 @@ def check_compatibility(record: Record, *, correct: bool = False, estimate=None,
         raise RecordError(
             f"record {record.name!r}: mean a_z is {az_mean:+.3g} g; in level flight fdml's a_z (body z, "
             "positive down, THEORY.md Eq. 5) is near -1 g: the sign looks flipped (a normal acceleration "
-            "a_n, positive up?). Load it with the sign reversed (--sign az=-1)")
+            "a_n, positive up?). Load it with the sign reversed (--sign az=-1)"
+        )
     if not -1.6 < az_mean < -0.4:
         raise RecordError(
             f"record {record.name!r}: mean a_z is {az_mean:.3g} g; the compatibility check needs the record "
             "with trim kept (a_z near -1 g in level flight, body z positive down). Load it without trim= "
-            "or add the trim back")
+            "or add the trim back"
+        )
     if U is None:
         U = record.meta.get("U")
     if not record.has("V") and (U is None or not U > 0):
@@ -622,7 +674,7 @@ def check_compatibility(record: Record, *, correct: bool = False, estimate=None,
         x, r, J, ok, message = _levenberg_marquardt(lambda z: prob.residuals(z, sigma), x, lo, hi, typ)
         new = {}
         for j, k in enumerate(prob.outputs):
-            e = r[j * prob.n_used:(j + 1) * prob.n_used] * sigma[k]
+            e = r[j * prob.n_used : (j + 1) * prob.n_used] * sigma[k]
             new[k] = max(float(np.sqrt(np.mean(e**2))), _sigma_floor(record[k]))
         change = max(abs(new[k] / sigma[k] - 1) for k in sigma)
         sigma = new
@@ -652,16 +704,27 @@ def check_compatibility(record: Record, *, correct: bool = False, estimate=None,
     states = {}
     for j, k in enumerate(prob.states):
         i = len(free) + j
-        states[k] = ParameterEstimate(k, float(x[i]), float(se[i]), float(se_w[i]), _STATE_UNITS[k],
-                                      "initial state", float(x0[i]))
+        states[k] = ParameterEstimate(
+            k, float(x[i]), float(se[i]), float(se_w[i]), _STATE_UNITS[k], "initial state", float(x0[i])
+        )
     y = prob.simulate(p)
     rms = {k: float(np.sqrt(np.mean((prob.meas[k][prob.sel] - y[k][prob.sel]) ** 2))) for k in prob.outputs}
     fixed = {k: (fixed_vals[k], why.get(k, "fixed")) for k in PARAMETERS if k not in free}
     findings = _findings(params, fixed, free, prob, x, se, hi, lo)
     out = CompatibilityResult(
-        name=record.name, params=params, states=states, fixed=fixed, corr=corr, names=tuple(prob.names),
-        outputs=prob.outputs, residual_rms=rms, sigma=dict(sigma), n_used=prob.n_used,
-        converged=converged, message=str(message), findings=tuple(findings),
+        name=record.name,
+        params=params,
+        states=states,
+        fixed=fixed,
+        corr=corr,
+        names=tuple(prob.names),
+        outputs=prob.outputs,
+        residual_rms=rms,
+        sigma=dict(sigma),
+        n_used=prob.n_used,
+        converged=converged,
+        message=str(message),
+        findings=tuple(findings),
     )
     if correct:
         out = replace(out, record=out.apply(record))
@@ -773,14 +836,18 @@ def _covariances(J: np.ndarray, r: np.ndarray, n_out: int, n_used: int):
     except np.linalg.LinAlgError:
         c = np.inf
     if not np.isfinite(c) or c > 1e14:
-        warnings.warn("compatibility check: the information matrix is (nearly) singular; some parameters are "
-                      "not determined by this record", IdentifiabilityWarning, stacklevel=3)
+        warnings.warn(
+            "compatibility check: the information matrix is (nearly) singular; some parameters are "
+            "not determined by this record",
+            IdentifiabilityWarning,
+            stacklevel=3,
+        )
     Minv = np.linalg.pinv(M)
     L = max(1, n_used // 4)
     mid = np.zeros_like(M)
     for k in range(n_out):
-        Jk = J[k * n_used:(k + 1) * n_used]
-        e = r[k * n_used:(k + 1) * n_used]
+        Jk = J[k * n_used : (k + 1) * n_used]
+        e = r[k * n_used : (k + 1) * n_used]
         var = float(np.mean(e**2))
         mid += Jk.T @ Jk * var
         for lag in range(1, L + 1):
@@ -799,8 +866,10 @@ def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
     sig = [p for p in params.values() if p.z > SIGNIFICANT]
     for p in sorted(sig, key=lambda p: -p.z):
         f, u = _display_factor(p.unit)
-        out.append(f"{p.description} {p.name} = {p.value * f:.4g} +- {p.stderr * f:.2g} {u}: "
-                   f"{p.z:.1f} standard errors from {p.nominal * f:g}, significant")
+        out.append(
+            f"{p.description} {p.name} = {p.value * f:.4g} +- {p.stderr * f:.2g} {u}: "
+            f"{p.z:.1f} standard errors from {p.nominal * f:g}, significant"
+        )
     quiet = [p.name for p in params.values() if p.z <= SIGNIFICANT]
     if quiet:
         out.append(f"consistent with nominal (within {SIGNIFICANT:g} standard errors): {', '.join(quiet)}")
@@ -812,8 +881,10 @@ def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
     if not any(p.z > SIGNIFICANT for p in params.values()):
         out.insert(0, "the record is kinematically consistent: no sensor error is significant")
     if "b_alpha" in params:
-        out.append("b_alpha rests on the altitude channel (h_dot = V sin(theta - alpha)): a static-pressure error of "
-                   "a barometric altitude, or a steady vertical wind, reads as an alpha bias")
+        out.append(
+            "b_alpha rests on the altitude channel (h_dot = V sin(theta - alpha)): a static-pressure error of "
+            "a barometric altitude, or a steady vertical wind, reads as an alpha bias"
+        )
     p = prob.unpack(x)
     y = prob.simulate(p)
     for k in prob.outputs:
@@ -821,7 +892,9 @@ def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
         floor = noise_level(prob.meas[k])
         if rms > RESIDUAL_FACTOR * floor:
             f, u = _display_factor(_OUT_UNITS[k])
-            out.append(f"the kinematics do not close for {k}: residual RMS {rms * f:.3g} {u} is "
-                       f"{rms / floor:.0f} times its noise level ({floor * f:.2g} {u}); wind, sensor dynamics or "
-                       "errors outside the sensor models remain")
+            out.append(
+                f"the kinematics do not close for {k}: residual RMS {rms * f:.3g} {u} is "
+                f"{rms / floor:.0f} times its noise level ({floor * f:.2g} {u}); wind, sensor dynamics or "
+                "errors outside the sensor models remain"
+            )
     return out

@@ -82,10 +82,16 @@ def airspeed_findings(model, records, tolerance: float = AIRSPEED_TOLERANCE) -> 
         Ur = _finite(r.meta.get("U"))
         if Ur is None or abs(U / Ur - 1.0) <= tolerance:
             continue
-        found.append(Finding(
-            "airspeed.mismatch",
-            f"the model's airspeed {U:.4g} m/s differs from the record's mean airspeed {Ur:.4g} m/s by "
-            f"{100 * (U / Ur - 1):+.1f} % (more than {100 * tolerance:g} %): the a_z gain U/g is wrong by that "
-            "fraction; fit without --aircraft (the record's airspeed) or give --airspeed",
-            kind="estimation", record=r.name, value=U, expected=Ur))
+        found.append(
+            Finding(
+                "airspeed.mismatch",
+                f"the model's airspeed {U:.4g} m/s differs from the record's mean airspeed {Ur:.4g} m/s by "
+                f"{100 * (U / Ur - 1):+.1f} % (more than {100 * tolerance:g} %): the a_z gain U/g is wrong by that "
+                "fraction; fit without --aircraft (the record's airspeed) or give --airspeed",
+                kind="estimation",
+                record=r.name,
+                value=U,
+                expected=Ur,
+            )
+        )
     return found

@@ -72,16 +72,20 @@ class ConsistencyResult:
         head += f"{'mean':>12s}{'chi2':>9s}{'p':>9s}{'scale':>8s}"
         lines = [f"consistency of {len(self.labels)} fits ({self.dof} degrees of freedom per parameter)", head]
         for j, n in enumerate(self.names):
-            cells = "".join(f"{self.estimates[i, j]:>{w - 12}.4g} +/- {self.stderr[i, j]:<7.2g}"
-                            for i in range(len(self.labels)))
-            lines.append(f"{n:12s}{cells}{self.mean[j]:>12.4g}{self.chi2[j]:>9.2f}"
-                         f"{self.p_value[j]:>9.3g}{self.scale[j]:>8.2f}")
+            cells = "".join(
+                f"{self.estimates[i, j]:>{w - 12}.4g} +/- {self.stderr[i, j]:<7.2g}" for i in range(len(self.labels))
+            )
+            lines.append(
+                f"{n:12s}{cells}{self.mean[j]:>12.4g}{self.chi2[j]:>9.2f}{self.p_value[j]:>9.3g}{self.scale[j]:>8.2f}"
+            )
         per = "agree" if self.agree() else "DISAGREE"
         jv = "agree" if self.joint_p > 0.05 else "DISAGREE"
         lines.append(f"per parameter (5 %, Bonferroni over {len(self.names)}): the fits {per} within their bounds")
-        lines.append(f"joint: chi2 = {self.joint_chi2:.2f} on {self.dof * len(self.names)} dof, p = {self.joint_p:.3g}: "
-                     f"the fits {jv} (5 %); the bounds would need to grow by "
-                     f"{np.sqrt(self.joint_chi2 / (self.dof * len(self.names))):.2f} to explain the spread")
+        lines.append(
+            f"joint: chi2 = {self.joint_chi2:.2f} on {self.dof * len(self.names)} dof, p = {self.joint_p:.3g}: "
+            f"the fits {jv} (5 %); the bounds would need to grow by "
+            f"{np.sqrt(self.joint_chi2 / (self.dof * len(self.names))):.2f} to explain the spread"
+        )
         return "\n".join(lines)
 
 
@@ -104,8 +108,11 @@ def consistency(results: Sequence, names: Sequence[str] | None = None) -> Consis
     if len(results) < 2:
         raise FdmlError("a consistency test needs at least two fits")
     if names is None:
-        common = [n for n in results[0].names if n in results[0].model.parameters
-                  and not n.startswith("bias_") and all(n in r.names for r in results)]
+        common = [
+            n
+            for n in results[0].names
+            if n in results[0].model.parameters and not n.startswith("bias_") and all(n in r.names for r in results)
+        ]
         names = common
     if not names:
         raise FdmlError("the fits share no estimated parameter to compare")
@@ -125,7 +132,15 @@ def consistency(results: Sequence, names: Sequence[str] | None = None) -> Consis
     joint = float(np.sum(chi2))
     labels = tuple(", ".join(r.records) for r in results)
     return ConsistencyResult(
-        names=tuple(names), labels=labels, estimates=est, stderr=se, mean=mean, chi2=chi2, dof=dof,
-        p_value=p, scale=np.sqrt(chi2 / dof), joint_chi2=joint,
+        names=tuple(names),
+        labels=labels,
+        estimates=est,
+        stderr=se,
+        mean=mean,
+        chi2=chi2,
+        dof=dof,
+        p_value=p,
+        scale=np.sqrt(chi2 / dof),
+        joint_chi2=joint,
         joint_p=float(stats.chi2.sf(joint, dof * len(names))),
     )

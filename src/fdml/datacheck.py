@@ -50,8 +50,7 @@ DEG = 180.0 / math.pi
 #: short-period test; 3 rad/s = 172 deg/s exceeds any longitudinal pitch rate of a
 #: transport or general-aviation aircraft; 6 g is beyond their structural limits.
 #: A degree-valued 1 deg elevator reads 1.0 "rad", a 2 deg/s pitch rate 2 "rad/s".
-RANGE_LIMITS = {"de": (0.6, "deg", DEG), "alpha": (0.6, "deg", DEG), "q": (3.0, "deg/s", DEG),
-                "az": (6.0, "m/s^2", G0)}
+RANGE_LIMITS = {"de": (0.6, "deg", DEG), "alpha": (0.6, "deg", DEG), "q": (3.0, "deg/s", DEG), "az": (6.0, "m/s^2", G0)}
 #: A slope of the kinematic identity is matched to a labelling hypothesis when it lies
 #: within this factor of the hypothesis's slope.  The errors it looks for are factors of
 #: 57.3, 9.81 or -1; an alpha vane's upwash factor (1.0-1.2), a time shift of a few tens of
@@ -153,28 +152,52 @@ class DataCheck:
     def to_dict(self) -> dict:
         """JSON-ready dict."""
         k = self.kinematics
-        kin = None if k is None else {
-            "order": list(k.order), "slope_q": k.slope_q, "slope_az": k.slope_az,
-            "expected_az": k.expected_az, "fit": k.fit, "fit_labelled": k.fit_labelled,
-            "scales": list(k.scales), "implied_airspeed": k.implied_airspeed}
-        return {"record": self.record, "findings": [f.to_dict() for f in self.findings], "kinematics": kin,
-                "coherent_fraction": dict(self.coherent_fraction), "threshold": self.threshold,
-                "elapsed": self.elapsed}
+        kin = (
+            None
+            if k is None
+            else {
+                "order": list(k.order),
+                "slope_q": k.slope_q,
+                "slope_az": k.slope_az,
+                "expected_az": k.expected_az,
+                "fit": k.fit,
+                "fit_labelled": k.fit_labelled,
+                "scales": list(k.scales),
+                "implied_airspeed": k.implied_airspeed,
+            }
+        )
+        return {
+            "record": self.record,
+            "findings": [f.to_dict() for f in self.findings],
+            "kinematics": kin,
+            "coherent_fraction": dict(self.coherent_fraction),
+            "threshold": self.threshold,
+            "elapsed": self.elapsed,
+        }
 
     def summary(self) -> str:
         """A few lines for the terminal."""
-        lines = [f"data check of {self.record}: " + ("no findings" if not self.findings else
-                                                     f"{len(self.findings)} finding(s)")]
+        lines = [
+            f"data check of {self.record}: "
+            + ("no findings" if not self.findings else f"{len(self.findings)} finding(s)")
+        ]
         k = self.kinematics
         if k is not None:
-            exp = (f" (implies U = {k.implied_airspeed:.4g} m/s; give the airspeed to check it)"
-                   if k.expected_az is None else f" (expected g/U = {k.expected_az:.4g})")
-            lines.append(f"  kinematics alpha_dot = a q + b a_z: a = {k.slope_q:.4g} (expected 1), "
-                         f"b = {k.slope_az:.4g} rad/s/g{exp}, {100 * k.fit:.1f} % explained")
+            exp = (
+                f" (implies U = {k.implied_airspeed:.4g} m/s; give the airspeed to check it)"
+                if k.expected_az is None
+                else f" (expected g/U = {k.expected_az:.4g})"
+            )
+            lines.append(
+                f"  kinematics alpha_dot = a q + b a_z: a = {k.slope_q:.4g} (expected 1), "
+                f"b = {k.slope_az:.4g} rad/s/g{exp}, {100 * k.fit:.1f} % explained"
+            )
         if self.coherent_fraction:
-            lines.append("  coherent with the elevator over " + ", ".join(
-                f"{o} {100 * v:.0f} %" for o, v in self.coherent_fraction.items())
-                + f" of the band (5 % threshold {self.threshold:.2f})")
+            lines.append(
+                "  coherent with the elevator over "
+                + ", ".join(f"{o} {100 * v:.0f} %" for o, v in self.coherent_fraction.items())
+                + f" of the band (5 % threshold {self.threshold:.2f})"
+            )
         lines.extend(f"  {f}" for f in self.findings)
         return "\n".join(lines)
 
@@ -213,8 +236,14 @@ def check_data(record: Record, *, band=None, airspeed: float | None = None, data
     frac, thr = _coherent_fraction(record, data)
     if kin is None or kin.fit < _VOUCH_FIT:
         findings.extend(_response_findings(frac, thr, record.name))
-    return DataCheck(record=record.name, findings=tuple(findings), kinematics=kin, coherent_fraction=frac,
-                     threshold=thr, elapsed=time.perf_counter() - t0)
+    return DataCheck(
+        record=record.name,
+        findings=tuple(findings),
+        kinematics=kin,
+        coherent_fraction=frac,
+        threshold=thr,
+        elapsed=time.perf_counter() - t0,
+    )
 
 
 # --- physical ranges -------------------------------------------------------------------------
@@ -231,7 +260,10 @@ def _range_findings(record: Record):
                 f"units.{names[sig]}",
                 f"{sig} {what}reaches {size:.3g} {_SI[sig]}, beyond the plausible {limit:g} {_SI[sig]} of a "
                 f"short-period manoeuvre: it looks like {unit} where {_SI[sig]} is due",
-                record=record.name, value=size, expected=limit)
+                record=record.name,
+                value=size,
+                expected=limit,
+            )
 
 
 _SI = {"de": "rad", "alpha": "rad", "q": "rad/s", "az": "g"}
@@ -288,9 +320,15 @@ def _kinematic_fit(data, U: float | None) -> KinematicFit:
     perm = _channel_order(fits, expected)
     a, b, r2 = fits[perm]
     labelled = fits[(0, 1, 2)]
-    return KinematicFit(order=tuple(_OUTPUTS[i] for i in perm), slope_q=float(a), slope_az=float(b),
-                        expected_az=expected, fit=float(r2), fit_labelled=float(labelled[2]),
-                        scales=_nearest_scales(a, b, expected))
+    return KinematicFit(
+        order=tuple(_OUTPUTS[i] for i in perm),
+        slope_q=float(a),
+        slope_az=float(b),
+        expected_az=expected,
+        fit=float(r2),
+        fit_labelled=float(labelled[2]),
+        scales=_nearest_scales(a, b, expected),
+    )
 
 
 def _channel_order(fits: dict, expected: float | None) -> tuple:
@@ -305,8 +343,11 @@ def _channel_order(fits: dict, expected: float | None) -> tuple:
     lab = (0, 1, 2)
     r_lab = fits[lab][2]
     lab_ok = bool(_nearest_scales(fits[lab][0], fits[lab][1], expected))
-    plausible = [p for p in fits if p != lab and fits[p][2] >= _SWAP_MIN_FIT
-                 and _nearest_scales(fits[p][0], fits[p][1], expected)]
+    plausible = [
+        p
+        for p in fits
+        if p != lab and fits[p][2] >= _SWAP_MIN_FIT and _nearest_scales(fits[p][0], fits[p][1], expected)
+    ]
     if not plausible:
         return lab
     best = max(plausible, key=lambda p: fits[p][2])
@@ -346,39 +387,75 @@ def _kinematic_findings(k: KinematicFit, name: str):
     if k.fit < _MIN_FIT and k.fit_labelled < _MIN_FIT:
         return  # no usable identity: the outputs do not respond (the response check says so)
     exp_b = "" if k.expected_az is None else f" and {k.expected_az:.4g} rad/s per g (g/U)"
-    slopes = (f"alpha_dot = {k.slope_q:.4g} q + {k.slope_az:.4g} a_z in the band (expected 1{exp_b}; "
-              f"{100 * k.fit:.0f} % of alpha_dot explained)")
+    slopes = (
+        f"alpha_dot = {k.slope_q:.4g} q + {k.slope_az:.4g} a_z in the band (expected 1{exp_b}; "
+        f"{100 * k.fit:.0f} % of alpha_dot explained)"
+    )
     if k.order != _OUTPUTS:
         labels = ", ".join(f"{lab} holds {true}" for lab, true in zip(k.order, _OUTPUTS) if lab != true)
-        yield Finding("channels.swapped",
-                      f"the outputs satisfy the kinematic identity (THEORY.md Eq. 5) only when relabelled: "
-                      f"{labels} (relabelled, {_pct(1 - k.fit)} of alpha_dot is left unexplained; as "
-                      f"labelled, {_pct(1 - k.fit_labelled)})", record=name, value=k.fit, expected=k.fit_labelled)
+        yield Finding(
+            "channels.swapped",
+            f"the outputs satisfy the kinematic identity (THEORY.md Eq. 5) only when relabelled: "
+            f"{labels} (relabelled, {_pct(1 - k.fit)} of alpha_dot is left unexplained; as "
+            f"labelled, {_pct(1 - k.fit_labelled)})",
+            record=name,
+            value=k.fit,
+            expected=k.fit_labelled,
+        )
     if not k.scales:
-        yield Finding("kinematics.inconsistent",
-                      f"alpha, q and a_z do not satisfy the kinematic identity (THEORY.md Eq. 5): {slopes}; "
-                      "no single unit or sign error explains it (check units, signs and the airspeed)",
-                      record=name, value=k.slope_q, expected=1.0)
+        yield Finding(
+            "kinematics.inconsistent",
+            f"alpha, q and a_z do not satisfy the kinematic identity (THEORY.md Eq. 5): {slopes}; "
+            "no single unit or sign error explains it (check units, signs and the airspeed)",
+            record=name,
+            value=k.slope_q,
+            expected=1.0,
+        )
         return
     sa, sq, sz = k.scales
     if sa != 1.0:
-        yield Finding("units.alpha", f"alpha looks like degrees: {slopes}; both slopes carry a factor "
-                      f"of about {abs(k.slope_q * sq):.3g} (57.3 for degrees)", record=name,
-                      value=abs(k.slope_q * sq), expected=DEG)
+        yield Finding(
+            "units.alpha",
+            f"alpha looks like degrees: {slopes}; both slopes carry a factor "
+            f"of about {abs(k.slope_q * sq):.3g} (57.3 for degrees)",
+            record=name,
+            value=abs(k.slope_q * sq),
+            expected=DEG,
+        )
     if abs(sq) != 1.0:
-        yield Finding("units.q", f"q looks like deg/s: {slopes}; the q slope is 1/{abs(sa / k.slope_q):.3g} "
-                      "(1/57.3 for deg/s)", record=name, value=abs(sa / k.slope_q), expected=DEG)
+        yield Finding(
+            "units.q",
+            f"q looks like deg/s: {slopes}; the q slope is 1/{abs(sa / k.slope_q):.3g} (1/57.3 for deg/s)",
+            record=name,
+            value=abs(sa / k.slope_q),
+            expected=DEG,
+        )
     if sq < 0:
-        yield Finding("sign.q", f"q has the wrong sign (nose up must be positive): {slopes}",
-                      record=name, value=k.slope_q, expected=1.0)
+        yield Finding(
+            "sign.q",
+            f"q has the wrong sign (nose up must be positive): {slopes}",
+            record=name,
+            value=k.slope_q,
+            expected=1.0,
+        )
     if abs(sz) != 1.0:
         f = abs(sa * k.expected_az / k.slope_az)
-        yield Finding("units.az", f"a_z looks like m/s^2 where g is due: {slopes}; the a_z slope is "
-                      f"g/U divided by {f:.3g} (9.81 for m/s^2)", record=name, value=f, expected=G0)
+        yield Finding(
+            "units.az",
+            f"a_z looks like m/s^2 where g is due: {slopes}; the a_z slope is g/U divided by {f:.3g} (9.81 for m/s^2)",
+            record=name,
+            value=f,
+            expected=G0,
+        )
     if sz < 0:
-        yield Finding("sign.az", f"a_z has the wrong sign (fdml's a_z is positive down, THEORY.md Eq. 5; "
-                      f"a record's a_n is positive up): {slopes}", record=name, value=k.slope_az,
-                      expected=k.expected_az)
+        yield Finding(
+            "sign.az",
+            f"a_z has the wrong sign (fdml's a_z is positive down, THEORY.md Eq. 5; "
+            f"a record's a_n is positive up): {slopes}",
+            record=name,
+            value=k.slope_az,
+            expected=k.expected_az,
+        )
 
 
 # --- response to the input -------------------------------------------------------------------
@@ -399,8 +476,12 @@ def _coherent_fraction(record: Record, data) -> tuple[dict, float]:
 def _response_findings(frac: dict, thr: float, name: str):
     for out, f in frac.items():
         if np.isfinite(f) and f < _MIN_COHERENT_FRACTION:
-            yield Finding(f"response.{out}",
-                          f"{out} does not respond to the elevator: its coherence with it exceeds the 5 % "
-                          f"significance threshold {thr:.2f} at only {100 * f:.0f} % of the band (a dead or "
-                          "disconnected sensor, a wrong column, or no excitation in this band)",
-                          record=name, value=f, expected=1.0)
+            yield Finding(
+                f"response.{out}",
+                f"{out} does not respond to the elevator: its coherence with it exceeds the 5 % "
+                f"significance threshold {thr:.2f} at only {100 * f:.0f} % of the band (a dead or "
+                "disconnected sensor, a wrong column, or no excitation in this band)",
+                record=name,
+                value=f,
+                expected=1.0,
+            )

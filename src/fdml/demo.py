@@ -23,8 +23,12 @@ __all__ = ["DemoResult", "run_demo", "WK_TABLE1"]
 
 #: WK Table 1 (THEORY.md 11.1): {derivative: (unsteady, steady)}.
 WK_TABLE1 = {
-    "Cz_a": (-4.99, -4.90), "Cz_q": (-4.82, -6.28), "Cz_de": (-0.51, -0.49),
-    "Cm_a": (-1.00, -0.83), "Cm_q": (-12.77, -14.68), "Cm_de": (-1.42, -1.36),
+    "Cz_a": (-4.99, -4.90),
+    "Cz_q": (-4.82, -6.28),
+    "Cz_de": (-0.51, -0.49),
+    "Cm_a": (-1.00, -0.83),
+    "Cm_q": (-12.77, -14.68),
+    "Cm_de": (-1.42, -1.36),
 }
 
 
@@ -50,8 +54,15 @@ class DemoResult:
     files: dict
 
 
-def run_demo(out_dir: str | Path = "fdml-demo", *, seed: int = 1, noise: float = 0.02,
-             duration: float = 12.0, dt: float = 0.02, figure: bool = True) -> DemoResult:
+def run_demo(
+    out_dir: str | Path = "fdml-demo",
+    *,
+    seed: int = 1,
+    noise: float = 0.02,
+    duration: float = 12.0,
+    dt: float = 0.02,
+    figure: bool = True,
+) -> DemoResult:
     """Run the demo and write its files into ``out_dir``.
 
     Parameters
@@ -74,8 +85,13 @@ def run_demo(out_dir: str | Path = "fdml-demo", *, seed: int = 1, noise: float =
     from .simulate import simulate_maneuver
 
     out = Path(out_dir)
-    names = {"record": "navion_3211.csv", "unsteady": "unsteady.json", "steady": "steady.json",
-             "summary": "summary.txt", "figure": "bode.png"}
+    names = {
+        "record": "navion_3211.csv",
+        "unsteady": "unsteady.json",
+        "steady": "steady.json",
+        "summary": "summary.txt",
+        "figure": "bode.png",
+    }
     check_output_dir(out, what="demo folder")  # every output checked before the work
     for key, name in names.items():
         check_output(out / name, what=f"demo {key} file")
@@ -89,8 +105,10 @@ def run_demo(out_dir: str | Path = "fdml-demo", *, seed: int = 1, noise: float =
     rec.to_csv(files["record"])
     cmp.unsteady.to_json(files["unsteady"])
     cmp.steady.to_json(files["steady"])
-    text = ("fdml demo: Navion 3-2-1-1 simulated with the unsteady model, "
-            f"{100 * noise:g} % noise (seed {seed}); steady = six-derivative model\n\n" + table + "\n")
+    text = (
+        "fdml demo: Navion 3-2-1-1 simulated with the unsteady model, "
+        f"{100 * noise:g} % noise (seed {seed}); steady = six-derivative model\n\n" + table + "\n"
+    )
     atomic_write_text(files["summary"], text)
     if figure:
         import matplotlib
@@ -100,8 +118,11 @@ def run_demo(out_dir: str | Path = "fdml-demo", *, seed: int = 1, noise: float =
 
         from .plotting import plot_spectra
 
-        fig, _ = plot_spectra([cmp.unsteady, cmp.steady], ["unsteady fit", "steady fit"],
-                              title="Navion 3-2-1-1: measured and fitted spectra")
+        fig, _ = plot_spectra(
+            [cmp.unsteady, cmp.steady],
+            ["unsteady fit", "steady fit"],
+            title="Navion 3-2-1-1: measured and fitted spectra",
+        )
         files["figure"] = out / names["figure"]
         try:
             atomic_savefig(fig, files["figure"], dpi=110)

@@ -72,8 +72,12 @@ _BOUNDARY_NAMES = BOUNDARY_NAMES  # x(0), x(T) of alpha and q (THEORY.md section
 #: State-equation biases: constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations.
 _STATE_BIAS_NAMES = STATE_BIAS_NAMES
 #: Base name of each nuisance slot kind, by the slot's index (fdml.models.measurement order).
-_NUISANCE_BASE = {"bias": OUTPUT_BIAS_NAMES, "boundary": BOUNDARY_NAMES, "sbias": STATE_BIAS_NAMES,
-                  "ibias": (INPUT_BIAS_NAME,)}
+_NUISANCE_BASE = {
+    "bias": OUTPUT_BIAS_NAMES,
+    "boundary": BOUNDARY_NAMES,
+    "sbias": STATE_BIAS_NAMES,
+    "ibias": (INPUT_BIAS_NAME,),
+}
 _BOUNDARY_COLS = [NUISANCE_NAMES.index(n) for n in BOUNDARY_NAMES]
 #: Relative change at which Eq. 26 sensitivities count as settled (THEORY.md 7).
 _SETTLE_TOL = 1e-4
@@ -106,8 +110,16 @@ class Problem:
     frequencies, outputs and (for nuisance terms) parameters at once.
     """
 
-    def __init__(self, data: list[FrequencyData], model: Model, outputs: tuple[int, ...],
-                 boundary: str, sensitivity: str, state_biases: bool = False, input_bias: bool = False):
+    def __init__(
+        self,
+        data: list[FrequencyData],
+        model: Model,
+        outputs: tuple[int, ...],
+        boundary: str,
+        sensitivity: str,
+        state_biases: bool = False,
+        input_bias: bool = False,
+    ):
         self.data = data
         self.model = model
         self.out_idx = np.array(outputs)
@@ -144,7 +156,10 @@ class Problem:
             cols = [NUISANCE_NAMES.index(_NUISANCE_BASE[slots[i].kind][slots[i].index]) for i in own]
             self._nu.append((np.array(own, int), np.array(cols, int)))
         self._shift = [end_shift(d.omega, d.T) for d in data]  # exp(-j w T) of each record
-        self._eta0: tuple[Model | None, list[np.ndarray]] = (None, [])  # (model, fixed nuisance values per record): see _nuisance
+        self._eta0: tuple[Model | None, list[np.ndarray]] = (
+            None,
+            [],
+        )  # (model, fixed nuisance values per record): see _nuisance
         self.N = sum(d.m for d in data)
         self.n_out = len(outputs)
         self._steps: dict = {}
@@ -193,8 +208,9 @@ class Problem:
         own, cols = self._nu[r]
         eta = self._eta0[1][r].copy()
         eta[cols] = theta[own]
-        return Nuisance.from_vector(eta, boundary=self.boundary != "none", state_biases=self.state_biases,
-                                    input_bias=self.input_bias)
+        return Nuisance.from_vector(
+            eta, boundary=self.boundary != "none", state_biases=self.state_biases, input_bias=self.input_bias
+        )
 
     # --- predictions ---------------------------------------------------------------------
     def _responses(self, vals: Mapping[str, float]):
@@ -207,8 +223,9 @@ class Problem:
         out = []
         for r, (d, resp) in enumerate(zip(self.data, responses)):
             nu = self._nuisance(theta, r)  # Eqs. 18-19 with section 7's boundary terms
-            out.append(_measure(resp, d.u, d.ones, nu.boundary(self._shift[r]), nu.biases, nu.state_biases,
-                                nu.input_bias))
+            out.append(
+                _measure(resp, d.u, d.ones, nu.boundary(self._shift[r]), nu.biases, nu.state_biases, nu.input_bias)
+            )
         return out
 
     def linear_predict(self, theta: np.ndarray, r: int, change) -> np.ndarray:
@@ -228,8 +245,9 @@ class Problem:
         ys = self.predict(theta, responses)
         return np.concatenate([(d.z - y)[:, self.out_idx] for d, y in zip(self.data, ys)])
 
-    def sensitivities(self, theta: np.ndarray, y0: list[np.ndarray] | None = None,
-                      tol: float = _SETTLE_TOL) -> np.ndarray:
+    def sensitivities(
+        self, theta: np.ndarray, y0: list[np.ndarray] | None = None, tol: float = _SETTLE_TOL
+    ) -> np.ndarray:
         """dy/dtheta, shape (N, n_out, p): Eq. 26 for model parameters, exact for nuisances."""
         p = len(self.slots)
         A = np.zeros((self.N, self.n_out, p), complex)
@@ -243,7 +261,7 @@ class Problem:
                 resp, dG, dH, dP = self.model.sensitivity(d.omega, vals, mnames, parts)
                 responses.append(resp)
                 dy = self.linear_predict(theta, r, ModelResponse(d.omega, dG, dH, dP))
-                A[offs[r]: offs[r + 1], :, self.model_slots] = np.moveaxis(dy[:, :, self.out_idx], 0, -1)
+                A[offs[r] : offs[r + 1], :, self.model_slots] = np.moveaxis(dy[:, :, self.out_idx], 0, -1)
         else:
             responses = self._responses(vals)
             if y0 is None:
@@ -256,7 +274,7 @@ class Problem:
             own, cols = self._nu[r]
             if own.size:  # exact: every nuisance value enters linearly
                 C = nuisance_columns(responses[r], self._shift[r], d.ones)[:, self.out_idx]
-                A[offs[r]: offs[r + 1], :, own] = C[:, :, cols]
+                A[offs[r] : offs[r + 1], :, own] = C[:, :, cols]
         return A
 
     def _eval_stacked(self, theta: np.ndarray) -> np.ndarray:
@@ -317,8 +335,7 @@ def _as_data(data, model: Model, omega, band, trim, trim_window, end_correction)
     out = []
     for item in items:
         if isinstance(item, Record):
-            item = spectra(item, omega, band=band, trim=trim, trim_window=trim_window,
-                           end_correction=end_correction)
+            item = spectra(item, omega, band=band, trim=trim, trim_window=trim_window, end_correction=end_correction)
         elif not isinstance(item, FrequencyData):
             raise RecordError(f"cannot fit a {type(item).__name__}: give an fdml Record or FrequencyData")
         if model.gust and "alpha_w" not in item.inputs:
@@ -349,8 +366,12 @@ def _sample_keys(d: FrequencyData) -> set:
     keys = {digest("spectra", d.omega, d.z, d.u)}
     rec = d.record
     if rec is not None:  # the samples and the interval; a shift of the time origin changes nothing
-        keys.add(digest(f"samples {rec.n} {rec.dt:.12g} " + ",".join(sorted(rec.signals)),
-                        *(rec.signals[k] for k in sorted(rec.signals))))
+        keys.add(
+            digest(
+                f"samples {rec.n} {rec.dt:.12g} " + ",".join(sorted(rec.signals)),
+                *(rec.signals[k] for k in sorted(rec.signals)),
+            )
+        )
     return keys
 
 
@@ -363,8 +384,10 @@ def _refuse_duplicates(items: list[FrequencyData]) -> None:
         j = next((seen[k] for k in keys if k in seen), None)
         if j is not None:
             first, second = (_label(x) for x in (items[j], d))
-            raise RecordError(f"records {j + 1} ({first}) and {i + 1} ({second}) have the same samples: the same "
-                              "record given twice would shrink the standard errors by sqrt(2); give it once")
+            raise RecordError(
+                f"records {j + 1} ({first}) and {i + 1} ({second}) have the same samples: the same "
+                "record given twice would shrink the standard errors by sqrt(2); give it once"
+            )
         seen.update(dict.fromkeys(keys, i))
 
 
@@ -375,11 +398,13 @@ def _label(d: FrequencyData) -> str:
 
 def _drop_gust(d: FrequencyData) -> FrequencyData:
     from dataclasses import replace
+
     return replace(d, u=d.u[:, :1], inputs=("de",))
 
 
 def _renamed(d: FrequencyData, name: str) -> FrequencyData:
     from dataclasses import replace
+
     return replace(d, name=name)
 
 
@@ -431,17 +456,32 @@ def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
     return tuple(items)
 
 
-def prepare(data, model: Model, *, omega=None, band=None, outputs=None, boundary="estimated",
-            biases="auto", state_biases=False, input_bias=False, free=None, fix=None, bounds=None,
-            sensitivity="auto", trim="first", trim_window=0.5, end_correction="cubic") -> Problem:
+def prepare(
+    data,
+    model: Model,
+    *,
+    omega=None,
+    band=None,
+    outputs=None,
+    boundary="estimated",
+    biases="auto",
+    state_biases=False,
+    input_bias=False,
+    free=None,
+    fix=None,
+    bounds=None,
+    sensitivity="auto",
+    trim="first",
+    trim_window=0.5,
+    end_correction="cubic",
+) -> Problem:
     """Set up a fit without running it (see :func:`fit` for the arguments)."""
     if not isinstance(model, Model):
         raise ParameterError(f"model must be an fdml Model, got {type(model).__name__}")
     if boundary not in ("estimated", "measured", "none"):
         raise FdmlError(f"boundary must be 'estimated', 'measured' or 'none', got {boundary!r}")
     if sensitivity not in ("auto", "analytic", "fd", "central"):
-        raise FdmlError("sensitivity must be 'auto', 'analytic', 'fd' (Eq. 26) or 'central', "
-                        f"got {sensitivity!r}")
+        raise FdmlError(f"sensitivity must be 'auto', 'analytic', 'fd' (Eq. 26) or 'central', got {sensitivity!r}")
     out_idx = tuple(OUTPUTS.index(o) for o in parse_outputs(outputs))
     fdata = _as_data(data, model, omega, band, trim, trim_window, end_correction)
     _refuse_unexcited(fdata)
@@ -502,7 +542,8 @@ def _check_model_effects(model: Model, outputs, omega) -> None:
         key, name, _ = bad[0]
         raise ParameterError(
             f"effect {key}: {name} is not identifiable with outputs {','.join(outputs)} (any value is matched "
-            f"by the other free parameters); add a channel that separates it (e.g. az) or fix {name}")
+            f"by the other free parameters); add a channel that separates it (e.g. az) or fix {name}"
+        )
 
 
 def _end_findings(prob: Problem) -> list:
@@ -514,12 +555,18 @@ def _end_findings(prob: Problem) -> list:
         for d in prob.data:
             far = [OUTPUTS[k] for k in (0, 1) if d.end_offset[k] > _END_OFFSET_WARN]
             if far:
-                out.append(Finding(
-                    "boundary.truncated",
-                    f"the record ends far from trim in {', '.join(far)} ({100 * max(d.end_offset[:2]):.0f} % of "
-                    "the peak) and boundary='none': the transform sees a truncated response; use "
-                    "boundary='estimated' or 'measured'", kind="estimation", record=d.name,
-                    value=float(max(d.end_offset[:2])), expected=_END_OFFSET_WARN))
+                out.append(
+                    Finding(
+                        "boundary.truncated",
+                        f"the record ends far from trim in {', '.join(far)} ({100 * max(d.end_offset[:2]):.0f} % of "
+                        "the peak) and boundary='none': the transform sees a truncated response; use "
+                        "boundary='estimated' or 'measured'",
+                        kind="estimation",
+                        record=d.name,
+                        value=float(max(d.end_offset[:2])),
+                        expected=_END_OFFSET_WARN,
+                    )
+                )
     return out
 
 
@@ -543,8 +590,9 @@ _R_FLOOR = 1e-12
 def _cov_R(V: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     """Eq. 24 over all rows, shape (n, n); with ``rows`` (band of each row), R_b per band, shape (nb, n, n)."""
     if rows is not None:
-        return np.stack([_cov_R(V[rows == b]) if np.any(rows == b) else np.eye(V.shape[1])
-                         for b in range(int(rows.max()) + 1)])
+        return np.stack(
+            [_cov_R(V[rows == b]) if np.any(rows == b) else np.eye(V.shape[1]) for b in range(int(rows.max()) + 1)]
+        )
     # Eq. 24: R_jk = (1/N) sum_i v_ij conj(v_ik) (THEORY.md 7, conjugation convention)
     R = V.T @ V.conj() / V.shape[0]
     floor = _R_FLOOR * float(np.max(np.real(np.diag(R))))
@@ -619,8 +667,11 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np
         return g, H1, H1
     H2 = np.zeros((p, p))
     # band-wise noise: the same term per band, weighted N_b / N (one band: white)
-    groups = [(slice(None), N, W)] if rows is None else [
-        (rows == b, int(np.sum(rows == b)), Wb) for b, Wb in enumerate(np.linalg.inv(R))]
+    groups = (
+        [(slice(None), N, W)]
+        if rows is None
+        else [(rows == b, int(np.sum(rows == b)), Wb) for b, Wb in enumerate(np.linalg.inv(R))]
+    )
     for sel, Nb, Wb in groups:
         if Nb == 0:
             continue
@@ -811,10 +862,24 @@ def fit(
     noise = NoiseModel() if noise is None else noise
     if not isinstance(noise, NoiseModel):
         raise FdmlError(f"noise must be an fdml.estimate.NoiseModel, got {type(noise).__name__}")
-    prob = prepare(data, model, omega=omega, band=band, outputs=outputs, boundary=boundary,
-                   biases=biases, state_biases=state_biases, input_bias=input_bias, free=free,
-                   fix=fix, bounds=bounds, sensitivity=sensitivity, trim=trim, trim_window=trim_window,
-                   end_correction=end_correction)
+    prob = prepare(
+        data,
+        model,
+        omega=omega,
+        band=band,
+        outputs=outputs,
+        boundary=boundary,
+        biases=biases,
+        state_biases=state_biases,
+        input_bias=input_bias,
+        free=free,
+        fix=fix,
+        bounds=bounds,
+        sensitivity=sensitivity,
+        trim=trim,
+        trim_window=trim_window,
+        end_correction=end_correction,
+    )
     found = (_data_findings(prob, strict) if check else []) + _end_findings(prob)
     emit(found, stacklevel=2)
     theta = prob.initial()
@@ -872,8 +937,9 @@ def fit(
         if accepted:
             theta, V, R, J = t_new, V_new, R_new, J_new
         history.append(math.exp(J))
-        info = IterationInfo(iteration=it, cost=math.exp(J), params=dict(zip(names, theta.tolist())),
-                             step_in_stderr=float(rel_step))
+        info = IterationInfo(
+            iteration=it, cost=math.exp(J), params=dict(zip(names, theta.tolist())), step_in_stderr=float(rel_step)
+        )
         if callback is not None and callback(info):
             stopped = True
             message = f"stopped by the callback after {it} iterations"
@@ -886,14 +952,29 @@ def fit(
         else:
             if not accepted:
                 converged = bool(rel_step < 10 * tol)  # a plain bool: numpy's is not JSON
-                message = ("converged: no further decrease of det R" if converged else
-                           "stalled: no step decreases det R")
+                message = "converged: no further decrease of det R" if converged else "stalled: no step decreases det R"
                 break
     if not converged and not stopped:
         warned.append(f"fit did not converge: {message}")  # kept in the result, as every warning
         warnings.warn(warned[-1], ConvergenceWarning, stacklevel=2)
-    res = _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned,
-                  time.perf_counter() - t_start, stopped, method, stop, A_final, rows)
+    res = _finish(
+        prob,
+        theta,
+        V,
+        R,
+        history,
+        it,
+        converged,
+        message,
+        cov_type,
+        warned,
+        time.perf_counter() - t_start,
+        stopped,
+        method,
+        stop,
+        A_final,
+        rows,
+    )
     res = replace(res, findings=tuple(found)) if found else res
     if adequacy and converged:
         from .adequacy import attach
@@ -993,7 +1074,7 @@ def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
     out = np.empty(V.shape)
     off = 0
     for d in prob.data:
-        v = V[off: off + d.m]
+        v = V[off : off + d.m]
         p2 = np.abs(v) ** 2
         half = 2 * 2 * math.pi / d.T
         step = np.median(np.diff(d.omega)) if d.m > 1 else half
@@ -1002,13 +1083,14 @@ def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
         num = np.apply_along_axis(lambda x: np.convolve(x, kernel, mode="same"), 0, p2)
         den = np.convolve(np.ones(d.m), kernel, mode="same")[:, None]
         sm = num / den
-        out[off: off + d.m] = np.sqrt(sm / np.mean(sm, axis=0, keepdims=True))
+        out[off : off + d.m] = np.sqrt(sm / np.mean(sm, axis=0, keepdims=True))
         off += d.m
     return out
 
 
-def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray | None = None,
-                 W: np.ndarray | None = None) -> np.ndarray:
+def _white_cov_g(
+    prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray | None = None, W: np.ndarray | None = None
+) -> np.ndarray:
     """Cov of g = Re sum A^H R^-1 v for white time-domain noise (exact, linear in the noise).
 
     The residual is linear in the sampled noise e_n (one vector per sample,
@@ -1036,7 +1118,7 @@ def _white_cov_g(prob: Problem, A: np.ndarray, R: np.ndarray, shape: np.ndarray 
     off = 0
     vals = prob.model.parameters.values
     for d in prob.data:
-        Cr = C[off: off + d.m]
+        Cr = C[off : off + d.m]
         off += d.m
         if not (prob.boundary == "measured" and bchan) and d.m <= _GRAM_MAX:
             # frequency-domain form, O(m^2): g = Re sum_i C_i v_i with E{v v^H} = Sigma (x) Psi,
@@ -1077,8 +1159,24 @@ def _naive_sigma(F: np.ndarray) -> np.ndarray:
             return np.sqrt(np.abs(np.diag(np.linalg.pinv(F))))
 
 
-def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned, elapsed, stopped,
-            method, stop, A=None, rows=None) -> FitResult:
+def _finish(
+    prob,
+    theta,
+    V,
+    R,
+    history,
+    it,
+    converged,
+    message,
+    cov_type,
+    warned,
+    elapsed,
+    stopped,
+    method,
+    stop,
+    A=None,
+    rows=None,
+) -> FitResult:
     names = prob.names
     if A is None:  # Eq. 26 columns for the bounds are the tight central differences
         A = prob.sensitivities(theta, tol=_SETTLE_TOL_FINAL)
@@ -1101,8 +1199,7 @@ def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned
         if cov_type in ("white", "colored"):
             shape = _residual_shape(prob, V) if cov_type == "colored" else None
             if rows is not None and shape is None:  # the noise model's own level per band and output
-                shape = np.sqrt(np.real(np.diagonal(R, axis1=1, axis2=2))[rows]
-                                / np.real(np.diag(_cov_R(V)))[None, :])
+                shape = np.sqrt(np.real(np.diagonal(R, axis1=1, axis2=2))[rows] / np.real(np.diag(_cov_R(V)))[None, :])
             Cg = _white_cov_g(prob, A[:, :, idx], R if rows is None else _cov_R(V), shape, W)
             # R is estimated from the same residuals, so the weights are random: with N_eff
             # independent frequencies and n_out outputs the variance grows by about
@@ -1125,10 +1222,24 @@ def _finish(prob, theta, V, R, history, it, converged, message, cov_type, warned
                 m = f"parameters {names[j]} and {names[i]} are correlated at {corr[i, j]:+.3f} (beyond 0.95)"
                 warnings.warn(m, IdentifiabilityWarning, stacklevel=3)
                 warned.append(m)
-    model = prob.model.with_values({n: theta[i] for i, n in enumerate(names)
-                                    if prob.slots[i].kind == "model"})
+    model = prob.model.with_values({n: theta[i] for i, n in enumerate(names) if prob.slots[i].kind == "model"})
     return FitResult.build(
-        prob=prob, model=model, theta=theta, cov=cov, cov_naive=cov_naive, stderr=stderr, corr=corr,
-        R=R if rows is None else _cov_R(V), history=history, iterations=it, converged=converged,
-        message=message, cov_type=cov_type, warnings=tuple(warned), elapsed=elapsed, stopped=stopped, method=method, stop=stop,
+        prob=prob,
+        model=model,
+        theta=theta,
+        cov=cov,
+        cov_naive=cov_naive,
+        stderr=stderr,
+        corr=corr,
+        R=R if rows is None else _cov_R(V),
+        history=history,
+        iterations=it,
+        converged=converged,
+        message=message,
+        cov_type=cov_type,
+        warnings=tuple(warned),
+        elapsed=elapsed,
+        stopped=stopped,
+        method=method,
+        stop=stop,
     )

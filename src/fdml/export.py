@@ -76,8 +76,9 @@ def to_frd(result_or_model, omega=None, *, name: str | None = None):
     if omega.size == 0 or not np.all(np.isfinite(omega)) or np.any(omega <= 0):
         raise ParameterError("omega must hold finite positive frequencies (rad/s)")
     G = model.frequency_response(omega)
-    return control.FrequencyResponseData(G, omega, inputs=list(model.inputs), outputs=list(_OUTPUTS),
-                                         name=name or f"fdml {model.kind}")
+    return control.FrequencyResponseData(
+        G, omega, inputs=list(model.inputs), outputs=list(_OUTPUTS), name=name or f"fdml {model.kind}"
+    )
 
 
 def descriptor_matrices(model, values=None):
@@ -109,17 +110,21 @@ def descriptor_matrices(model, values=None):
     E_m = M[1] - M[0]
     B0, B1 = B[0], B[1] - B[0]
     scale = max(np.abs(M).max(), np.abs(B).max(), 1.0)
-    if (np.abs(M[2] - (s[2] * E_m - A)).max() > 1e-12 * scale
-            or np.abs(B[2] - (B0 + s[2] * B1)).max() > 1e-12 * scale
-            or np.abs(np.asarray(E) - E_m).max() > 1e-12 * max(np.abs(E_m).max(), 1.0)):
+    if (
+        np.abs(M[2] - (s[2] * E_m - A)).max() > 1e-12 * scale
+        or np.abs(B[2] - (B0 + s[2] * B1)).max() > 1e-12 * scale
+        or np.abs(np.asarray(E) - E_m).max() > 1e-12 * max(np.abs(E_m).max(), 1.0)
+    ):
         raise ParameterError(f"the {model.kind} model's matrices are not affine in s: no state-space form")
     return np.real(E_m), np.real(A), np.real(B0), np.real(B1)
 
 
 def _not_rational(model) -> str:
-    return (f"the {model.kind} model has no finite-state form "
-            + ("(the downwash F term of THEORY.md Eq. 2 behaves like s ln s); " if model.kind == "unsteady" else "; ")
-            + "use fdml.export.to_frd(result, omega) for its frequency response")
+    return (
+        f"the {model.kind} model has no finite-state form "
+        + ("(the downwash F term of THEORY.md Eq. 2 behaves like s ln s); " if model.kind == "unsteady" else "; ")
+        + "use fdml.export.to_frd(result, omega) for its frequency response"
+    )
 
 
 def to_statespace(result_or_model, *, pade: int | None = None, name: str | None = None):
@@ -176,7 +181,8 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
     if np.any(real.Dd):
         raise ParameterError(
             "a_z = (U/g)(alpha_dot - q) of this model responds to the rate of alpha_w (Cz_adot != 0 with a "
-            "gust input): the system is improper and has no state-space form; use fdml.export.to_frd")
+            "gust input): the system is improper and has no state-space form; use fdml.export.to_frd"
+        )
     inputs = list(model.inputs)
     n = real.states
     C2 = real.C[:2, :2]
@@ -184,12 +190,15 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
     states = first + [f"x{i}" for i in range(2, n)]
     sysname = name or f"fdml {model.kind}"
     chans = [f"u{j}" for j in range(len(real.channels))]
-    plant = control.StateSpace(real.A, real.B, real.C, real.D, inputs=chans, outputs=list(_OUTPUTS),
-                               states=states, name=sysname)
+    plant = control.StateSpace(
+        real.A, real.B, real.C, real.D, inputs=chans, outputs=list(_OUTPUTS), states=states, name=sysname
+    )
     delays = [d for _, d in real.channels] + list(real.output_delays)
     if any(delays) and pade is None:
-        raise ParameterError("the model has pure delays (input or sensor), which are not rational: pass pade=N "
-                             "for a Pade approximation of order N, or use fdml.export.to_frd")
+        raise ParameterError(
+            "the model has pure delays (input or sensor), which are not rational: pass pade=N "
+            "for a Pade approximation of order N, or use fdml.export.to_frd"
+        )
     if pade is not None and (int(pade) != pade or pade < 1):
         raise ParameterError(f"pade must be a positive integer order, got {pade!r}")
     # inputs -> channels: each channel is its signal through its delay (identity when undelayed)
@@ -197,8 +206,9 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
     ind = _delay_block([d for _, d in real.channels], [f"{nm}_delay" for nm, _ in real.channels], pade)
     outd = _delay_block(list(real.output_delays), [f"{o}_delay" for o in _OUTPUTS], pade)
     A, B, C, D, names = _series(ind, (plant.A, plant.B, plant.C, plant.D, states), outd)
-    return control.StateSpace(A, B @ spread, C, D @ spread, inputs=inputs, outputs=list(_OUTPUTS),
-                              states=names, name=sysname)
+    return control.StateSpace(
+        A, B @ spread, C, D @ spread, inputs=inputs, outputs=list(_OUTPUTS), states=names, name=sysname
+    )
 
 
 def _delay_block(delays, labels, pade):
@@ -231,11 +241,11 @@ def _series(first, second, third):
     k1, k2, k3 = A1.shape[0], A2.shape[0], A3.shape[0]
     A = np.zeros((k1 + k2 + k3,) * 2)
     A[:k2, :k2] = A2
-    A[:k2, k2:k2 + k1] = B2 @ C1
-    A[k2:k2 + k1, k2:k2 + k1] = A1
-    A[k2 + k1:, :k2] = B3 @ C2
-    A[k2 + k1:, k2:k2 + k1] = B3 @ D2 @ C1
-    A[k2 + k1:, k2 + k1:] = A3
+    A[:k2, k2 : k2 + k1] = B2 @ C1
+    A[k2 : k2 + k1, k2 : k2 + k1] = A1
+    A[k2 + k1 :, :k2] = B3 @ C2
+    A[k2 + k1 :, k2 : k2 + k1] = B3 @ D2 @ C1
+    A[k2 + k1 :, k2 + k1 :] = A3
     B = np.vstack([B2 @ D1, B1, B3 @ D2 @ D1])
     C = np.hstack([D3 @ C2, D3 @ D2 @ C1, C3])
     D = D3 @ D2 @ D1
@@ -262,8 +272,9 @@ class ControlExport:
     pade_order: int | None = None
 
 
-def to_control(result_or_model, *, form: str = "frd", omega=None, pade: int | None = None,
-               name: str | None = None) -> ControlExport:
+def to_control(
+    result_or_model, *, form: str = "frd", omega=None, pade: int | None = None, name: str | None = None
+) -> ControlExport:
     """Export to python-control, saying how delays were treated (see :class:`ControlExport`).
 
     Parameters
@@ -281,8 +292,7 @@ def to_control(result_or_model, *, form: str = "frd", omega=None, pade: int | No
     has = _has_delays(model)
     sys = to_statespace(result_or_model, pade=pade if has else None, name=name)
     # with delays, to_statespace has refused pade=None
-    return ControlExport(sys, "statespace", "pade" if has else "none",
-                         int(pade) if has and pade is not None else None)
+    return ControlExport(sys, "statespace", "pade" if has else "none", int(pade) if has and pade is not None else None)
 
 
 def _has_delays(model) -> bool:

@@ -69,17 +69,30 @@ class Finding:
             x = float(x)
             return x if math.isfinite(x) else str(x)
 
-        return {"code": self.code, "message": self.message, "kind": self.kind, "record": self.record,
-                "value": num(self.value), "expected": num(self.expected)}
+        return {
+            "code": self.code,
+            "message": self.message,
+            "kind": self.kind,
+            "record": self.record,
+            "value": num(self.value),
+            "expected": num(self.expected),
+        }
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "Finding":
         """Inverse of :meth:`to_dict`."""
+
         def num(x):
             return None if x is None else float(x)
 
-        return cls(code=str(d["code"]), message=str(d["message"]), kind=str(d.get("kind", "data")),
-                   record=d.get("record"), value=num(d.get("value")), expected=num(d.get("expected")))
+        return cls(
+            code=str(d["code"]),
+            message=str(d["message"]),
+            kind=str(d.get("kind", "data")),
+            record=d.get("record"),
+            value=num(d.get("value")),
+            expected=num(d.get("expected")),
+        )
 
 
 def emit(findings: Iterable[Finding], stacklevel: int = 2) -> None:

@@ -44,8 +44,17 @@ from numpy.polynomial import polynomial as _poly
 
 from fdml.errors import BandError, FdmlError, RecordError
 
-__all__ = ["omega_band", "check_band", "MAX_BAND_FREQUENCIES", "finite_fourier_transform", "transform_weights", "fourier_adjoint",
-           "is_evenly_spaced", "gram", "leading_transform"]
+__all__ = [
+    "omega_band",
+    "check_band",
+    "MAX_BAND_FREQUENCIES",
+    "finite_fourier_transform",
+    "transform_weights",
+    "fourier_adjoint",
+    "is_evenly_spaced",
+    "gram",
+    "leading_transform",
+]
 
 _METHODS = ("auto", "czt", "direct")
 #: Number of endpoint-corrected samples at each end, per end correction.
@@ -192,11 +201,16 @@ def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False)
     if step <= 0:
         raise BandError(f"{what}: step = {step:g} rad/s must be positive")
     ratio = (hi - lo) / step  # may overflow to inf (1e300:1e308:1e-10): caught below
-    count = round(ratio) if ratio < MAX_BAND_FREQUENCIES and math.isclose(
-        ratio, round(ratio), rel_tol=1e-9, abs_tol=1e-9) else math.floor(min(ratio, 1e300))
+    count = (
+        round(ratio)
+        if ratio < MAX_BAND_FREQUENCIES and math.isclose(ratio, round(ratio), rel_tol=1e-9, abs_tol=1e-9)
+        else math.floor(min(ratio, 1e300))
+    )
     if count + 1 > MAX_BAND_FREQUENCIES:
-        raise BandError(f"{what}: {lo:g}:{hi:g}:{step:g} rad/s has {ratio + 1:.3g} frequencies, more than "
-                        f"the {MAX_BAND_FREQUENCIES:,} fdml accepts; use a larger step or a narrower band")
+        raise BandError(
+            f"{what}: {lo:g}:{hi:g}:{step:g} rad/s has {ratio + 1:.3g} frequencies, more than "
+            f"the {MAX_BAND_FREQUENCIES:,} fdml accepts; use a larger step or a narrower band"
+        )
     return lo, hi, step, count + 1
 
 
@@ -215,7 +229,7 @@ def _moments(theta):
         nterms += 1
     s = np.arange(nterms)[:, None]
     fact = np.cumprod(np.r_[1.0, np.arange(1.0, nterms)])[:, None]
-    coef = 1.0 / (fact * (np.arange(4)[None, :] + s + 1))          # (S, 4)
+    coef = 1.0 / (fact * (np.arange(4)[None, :] + s + 1))  # (S, 4)
     allsmall = bool(small.all())
     zs = (z if allsmall else z[small])[:, None]
     acc = np.zeros((zs.shape[0], 4), dtype=complex)
@@ -243,18 +257,20 @@ def _end_weights(theta, end_correction):
     if end_correction == "trapezoid":
         return np.ones(m), np.full((m, 1), -0.5, dtype=complex)
     mu = _moments(theta)
-    ml = mu @ _INTERIOR.T            # columns r = -1, 0, 1, 2
-    me = mu @ _FIRST.T               # columns k = 0, 1, 2, 3
+    ml = mu @ _INTERIOR.T  # columns r = -1, 0, 1, 2
+    me = mu @ _FIRST.T  # columns k = 0, 1, 2, 3
     shift = np.exp(1j * np.outer(theta, [-1.0, 0.0, 1.0, 2.0]))
-    weight = np.sum(shift * ml, axis=1).real        # the kernel is even: W is real
+    weight = np.sum(shift * ml, axis=1).real  # the kernel is even: W is real
     e1, e2 = shift[:, 2], shift[:, 3]
     # a_k = (true first-interval weight) - (what W * sum leaves on s < 1).
-    alpha = np.column_stack([
-        me[:, 0] - ml[:, 1] - e1 * ml[:, 2] - e2 * ml[:, 3],
-        me[:, 1] - ml[:, 2] - e1 * ml[:, 3],
-        me[:, 2] - ml[:, 3],
-        me[:, 3],
-    ])
+    alpha = np.column_stack(
+        [
+            me[:, 0] - ml[:, 1] - e1 * ml[:, 2] - e2 * ml[:, 3],
+            me[:, 1] - ml[:, 2] - e1 * ml[:, 3],
+            me[:, 2] - ml[:, 3],
+            me[:, 3],
+        ]
+    )
     return weight, alpha
 
 
@@ -277,8 +293,7 @@ def _check(dt, omega, end_correction, method, *, x=None, n=None):
     else:
         x = np.asarray(x)
         if x.ndim not in (1, 2) or not np.issubdtype(x.dtype, np.number):
-            raise RecordError(f"x must be a numeric array of shape (n,) or (n, k), not "
-                              f"{x.dtype} {x.shape}")
+            raise RecordError(f"x must be a numeric array of shape (n,) or (n, k), not {x.dtype} {x.shape}")
         bad = ~np.isfinite(x)
         if bad.any():
             first = np.argwhere(bad)[0]
@@ -290,20 +305,19 @@ def _check(dt, omega, end_correction, method, *, x=None, n=None):
         x = x if np.iscomplexobj(x) else x.astype(float)
     need = max(_N_END[end_correction], 1)
     if n < need:
-        raise RecordError(f"the record has {n} sample(s); end_correction={end_correction!r} "
-                          f"needs at least {need}")
+        raise RecordError(f"the record has {n} sample(s); end_correction={end_correction!r} needs at least {need}")
     omega = np.asarray(omega)
     if omega.ndim != 1 or omega.size == 0 or np.iscomplexobj(omega):
-        raise BandError(f"omega must be a non-empty, real 1-D array of rad/s, not {omega.dtype} "
-                        f"of shape {omega.shape}")
+        raise BandError(f"omega must be a non-empty, real 1-D array of rad/s, not {omega.dtype} of shape {omega.shape}")
     omega = omega.astype(float)
     if not np.all(np.isfinite(omega)):
         raise BandError(f"omega contains {int(np.sum(~np.isfinite(omega)))} NaN/inf value(s)")
     nyquist = math.pi / dt
     wmax = float(np.max(np.abs(omega)))
     if wmax > nyquist * (1 + 1e-12):
-        raise BandError(f"|omega| up to {wmax:g} rad/s is above the Nyquist frequency "
-                        f"pi/dt = {nyquist:g} rad/s (dt = {dt:g} s)")
+        raise BandError(
+            f"|omega| up to {wmax:g} rad/s is above the Nyquist frequency pi/dt = {nyquist:g} rad/s (dt = {dt:g} s)"
+        )
     return x, n, dt, omega
 
 
@@ -376,7 +390,7 @@ def _direct(v, theta, n, adjoint):
     Forward: sum_j v[j] exp(-1j theta_i j), v (n, k) -> (m, k).
     Adjoint: sum_i v[i] exp(+1j theta_i j), v (m, k) -> (n, k).
     """
-    chunk = max(1, _CHUNK_BYTES // (24 * theta.size))      # float phase + complex kernel
+    chunk = max(1, _CHUNK_BYTES // (24 * theta.size))  # float phase + complex kernel
     out = np.zeros((n if adjoint else theta.size, v.shape[1]), dtype=complex)
     for j0 in range(0, n, chunk):
         j1 = min(n, j0 + chunk)
@@ -427,7 +441,7 @@ def _chirpz(x, step, m):
     a = x * _expi(-0.5 * step * j * j)
     lags = np.r_[np.arange(m, dtype=float), np.zeros(L - n - m + 1), np.arange(-(n - 1), 0, dtype=float)]
     b = _expi(0.5 * step * lags * lags)
-    b[m: L - n + 1] = 0.0
+    b[m : L - n + 1] = 0.0
     c = np.fft.ifft(np.fft.fft(a, L, axis=-1) * np.fft.fft(b), axis=-1)[..., :m]
     k = np.arange(m, dtype=float)
     return c * _expi(-0.5 * step * k * k)
@@ -439,7 +453,7 @@ def _czt_forward(x, theta):
     step, size, nblock, offset = _czt_layout(theta, n)
     padded = np.zeros((nblock * size, k), dtype=complex)
     padded[:n] = x
-    blocks = padded.reshape(nblock, size, k).transpose(0, 2, 1)      # (b, k, j')
+    blocks = padded.reshape(nblock, size, k).transpose(0, 2, 1)  # (b, k, j')
     blocks = blocks * np.exp(-1j * theta[0] * np.arange(size))
     zoomed = _chirpz(blocks, step, theta.size)  # sum_j' e^{-1j step i j'}
     return np.einsum("bkm,bm->mk", zoomed, np.exp(-1j * offset))
@@ -449,7 +463,7 @@ def _czt_adjoint(z, theta, n):
     """Adjoint _direct on an even grid: blocked inverse-direction chirp-z."""
     k = z.shape[1]
     step, size, nblock, offset = _czt_layout(theta, n)
-    weighted = np.exp(1j * offset)[:, None, :] * z.T[None, :, :]         # (b, k, m)
+    weighted = np.exp(1j * offset)[:, None, :] * z.T[None, :, :]  # (b, k, m)
     part = _chirpz(weighted, -step, size) * np.exp(1j * theta[0] * np.arange(size))  # e^{+1j step i j'}
     return part.transpose(0, 2, 1).reshape(nblock * size, k)[:n]
 
@@ -633,8 +647,7 @@ def fourier_adjoint(y, n, dt, omega, *, method="auto", end_correction="cubic"):
     _, n, dt, omega = _check(dt, omega, end_correction, method, n=n)
     y = np.asarray(y)
     if y.ndim not in (1, 2) or y.shape[0] != omega.size or not np.all(np.isfinite(y)):
-        raise BandError(f"y must be finite, of shape ({omega.size},) or ({omega.size}, k); "
-                        f"got shape {y.shape}")
+        raise BandError(f"y must be finite, of shape ({omega.size},) or ({omega.size}, k); got shape {y.shape}")
     y2 = y.reshape(omega.size, -1).astype(complex)
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
     if _choose_method(n, omega, method) == "czt":

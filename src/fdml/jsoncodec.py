@@ -50,8 +50,15 @@ __all__ = [
 ]
 
 #: Strings that stand for non-finite floats (lower case; ``str(float)`` and JavaScript spellings).
-_NONFINITE = {"nan": math.nan, "inf": math.inf, "+inf": math.inf, "-inf": -math.inf,
-              "infinity": math.inf, "+infinity": math.inf, "-infinity": -math.inf}
+_NONFINITE = {
+    "nan": math.nan,
+    "inf": math.inf,
+    "+inf": math.inf,
+    "-inf": -math.inf,
+    "infinity": math.inf,
+    "+infinity": math.inf,
+    "-infinity": -math.inf,
+}
 
 
 # --- writing ------------------------------------------------------------------------------------
@@ -141,8 +148,15 @@ def to_jsonable(obj, *, default=str, nonfinite: str = "string"):
     return conv(obj)
 
 
-def dumps(obj, *, indent: int | None = 1, compact: bool = False, sort_keys: bool = False, default=str,
-          nonfinite: str = "string") -> str:
+def dumps(
+    obj,
+    *,
+    indent: int | None = 1,
+    compact: bool = False,
+    sort_keys: bool = False,
+    default=str,
+    nonfinite: str = "string",
+) -> str:
     """JSON text of ``obj`` (see :func:`to_jsonable` for the types and ``default``).
 
     ``compact=True`` writes one line without spaces (``indent`` ignored);
@@ -217,8 +231,10 @@ def read_json(path, *, what: str = "result file"):
     try:
         text = raw.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
-        raise FdmlError(f"{where} is not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start}; "
-                        f"saved as Latin-1 or another code page?)") from None
+        raise FdmlError(
+            f"{where} is not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start}; "
+            f"saved as Latin-1 or another code page?)"
+        ) from None
     if not text.strip():
         raise FdmlError(f"{where} is empty")
     try:
@@ -250,7 +266,9 @@ def float_value(x) -> float:
         try:
             return float(x)
         except OverflowError:
-            raise ValueError(f"must be a number within the float range, got an integer of {len(str(x))} digits") from None
+            raise ValueError(
+                f"must be a number within the float range, got an integer of {len(str(x))} digits"
+            ) from None
     if isinstance(x, str):
         v = _NONFINITE.get(x.strip().lower())
         if v is not None:
@@ -273,8 +291,11 @@ def _nested(v, depth=0, nulls=False):
     try:
         return float_value(v)
     except (TypeError, ValueError):
-        desc = f"the string {v[:40]!r}" if isinstance(v, str) else (
-            "an object" if isinstance(v, Mapping) else f"a value of type {_kind(v)}")
+        desc = (
+            f"the string {v[:40]!r}"
+            if isinstance(v, str)
+            else ("an object" if isinstance(v, Mapping) else f"a value of type {_kind(v)}")
+        )
         if isinstance(v, int) and not isinstance(v, bool):
             desc = f"an integer of {len(str(v))} digits (beyond the float range)"
         raise _BadElement(desc) from None
@@ -451,8 +472,9 @@ class Fields:
     @overload
     def string(self, key: str, default: str = ..., choices: Any = None, allow_none: Literal[False] = False) -> str: ...
     @overload
-    def string(self, key: str, default: str | None = ..., choices: Any = None,
-               allow_none: bool = False) -> str | None: ...
+    def string(
+        self, key: str, default: str | None = ..., choices: Any = None, allow_none: bool = False
+    ) -> str | None: ...
 
     def string(self, key: str, default: Any = _MISSING, choices: Any = None, allow_none: bool = False) -> str | None:
         def conv(v):
@@ -532,5 +554,7 @@ class Fields:
         v = self.raw(key)
         if not isinstance(v, list):
             raise self.error(key, f"must be a list, got {_kind(v)}")
-        return [None if (x is None and allow_none) else Fields(x, self.source, f"{self.name(key)}[{i}].")
-                for i, x in enumerate(v)]
+        return [
+            None if (x is None and allow_none) else Fields(x, self.source, f"{self.name(key)}[{i}].")
+            for i, x in enumerate(v)
+        ]

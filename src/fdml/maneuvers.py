@@ -47,6 +47,7 @@ _EDGE_RTOL = 1e-9
 
 # --- time ---------------------------------------------------------------------
 
+
 def time_vector(duration: float, dt: float) -> np.ndarray:
     """Uniform time vector from 0 s.
 
@@ -70,6 +71,7 @@ def time_vector(duration: float, dt: float) -> np.ndarray:
 
 
 # --- step sequences ------------------------------------------------------------
+
 
 def _smooth_step(t: np.ndarray, edge: float, rise: float) -> np.ndarray:
     """0 before ``edge``, 1 after, with a raised-cosine ramp of length ``rise`` centred on it.
@@ -99,8 +101,7 @@ def _pulse_train(t, amplitude: float, start: float, widths, signs, rise: float) 
         raise ParameterError(f"rise time must be >= 0 s, got {rise}")
     if rise > min(widths) * (1.0 + 1e-12):
         raise ParameterError(
-            f"rise time {rise} s exceeds the shortest pulse width {min(widths)} s; "
-            "the edge ramps would overlap"
+            f"rise time {rise} s exceeds the shortest pulse width {min(widths)} s; the edge ramps would overlap"
         )
     levels = np.concatenate([[0.0], np.asarray(signs, float), [0.0]])
     edges = start + np.concatenate([[0.0], np.cumsum(widths)])
@@ -110,8 +111,9 @@ def _pulse_train(t, amplitude: float, start: float, widths, signs, rise: float) 
     return amplitude * u
 
 
-def doublet(t, amplitude: float = DEFAULT_AMPLITUDE, start: float = 1.0, width: float = 0.5,
-            rise: float = 0.0) -> np.ndarray:
+def doublet(
+    t, amplitude: float = DEFAULT_AMPLITUDE, start: float = 1.0, width: float = 0.5, rise: float = 0.0
+) -> np.ndarray:
     """Elevator doublet: +amplitude for ``width`` s, then -amplitude for ``width`` s.
 
     Parameters
@@ -138,8 +140,9 @@ def doublet(t, amplitude: float = DEFAULT_AMPLITUDE, start: float = 1.0, width: 
     return _pulse_train(t, amplitude, start, [width, width], [1.0, -1.0], rise)
 
 
-def three_two_one_one(t, amplitude: float = DEFAULT_AMPLITUDE, start: float = 1.0, unit: float = 0.4,
-                      rise: float = 0.0) -> np.ndarray:
+def three_two_one_one(
+    t, amplitude: float = DEFAULT_AMPLITUDE, start: float = 1.0, unit: float = 0.4, rise: float = 0.0
+) -> np.ndarray:
     """Elevator 3-2-1-1: pulses of 3, 2, 1 and 1 units with signs +, -, +, -.
 
     Parameters
@@ -166,9 +169,17 @@ def three_two_one_one(t, amplitude: float = DEFAULT_AMPLITUDE, start: float = 1.
 
 # --- multisine -----------------------------------------------------------------
 
-def multisine(t, amplitude: float = DEFAULT_AMPLITUDE, omega_lo: float = 0.5, omega_hi: float = 10.0,
-              n_components: int | None = None, phases="schroeder", rng=None,
-              zero_start: bool = True) -> np.ndarray:
+
+def multisine(
+    t,
+    amplitude: float = DEFAULT_AMPLITUDE,
+    omega_lo: float = 0.5,
+    omega_hi: float = 10.0,
+    n_components: int | None = None,
+    phases="schroeder",
+    rng=None,
+    zero_start: bool = True,
+) -> np.ndarray:
     """Flat-spectrum multisine: harmonics of 2 pi / T inside a band, peak-scaled.
 
     ``u(t) = sum_k cos(omega_k t + phi_k)``, scaled so that ``max |u| = amplitude``
@@ -261,9 +272,7 @@ def multisine_frequencies(t, omega_lo: float, omega_hi: float, n_components: int
     d = 2.0 * np.pi / T
     k = np.arange(math.ceil(lo / d - 1e-9), math.floor(hi / d + 1e-9) + 1)
     if k.size == 0:
-        raise ParameterError(
-            f"no harmonic of 2 pi/T = {d:.4g} rad/s lies in [{lo}, {hi}] rad/s; lengthen the record"
-        )
+        raise ParameterError(f"no harmonic of 2 pi/T = {d:.4g} rad/s lies in [{lo}, {hi}] rad/s; lengthen the record")
     if n_components is not None:
         n = int(n_components)
         if n < 1 or n > k.size:
@@ -287,6 +296,7 @@ def _upward_zero(omega, phi, T: float) -> float:
 
 
 # --- Dryden turbulence -------------------------------------------------------------
+
 
 def dryden_psd(omega, sigma: float, U: float, L: float = DRYDEN_L):
     """One-sided Dryden vertical-gust spectrum of w_g, (m/s)^2 per rad/s.
@@ -327,8 +337,9 @@ def _dryden_state_space(sigma: float, U: float, L: float):
     return A, B, C
 
 
-def dryden_gust(t, sigma: float, U: float, L: float = DRYDEN_L, *, rng, stationary: bool = True,
-                method: str = "exact") -> np.ndarray:
+def dryden_gust(
+    t, sigma: float, U: float, L: float = DRYDEN_L, *, rng, stationary: bool = True, method: str = "exact"
+) -> np.ndarray:
     """Vertical Dryden turbulence as a gust angle ``alpha_w = w_g / U``, rad.
 
     The gust velocity is the output of the Dryden vertical shaping filter
@@ -444,7 +455,11 @@ def make_input(kind: str, t, amplitude: float = DEFAULT_AMPLITUDE, **kw) -> np.n
     ndarray, shape (n,)
         de(t), rad.
     """
-    funcs: dict[str, Callable[..., np.ndarray]] = {"doublet": doublet, "3211": three_two_one_one, "multisine": multisine}
+    funcs: dict[str, Callable[..., np.ndarray]] = {
+        "doublet": doublet,
+        "3211": three_two_one_one,
+        "multisine": multisine,
+    }
     try:
         fn = funcs[kind]
     except (KeyError, TypeError):
@@ -457,6 +472,7 @@ def make_input(kind: str, t, amplitude: float = DEFAULT_AMPLITUDE, **kw) -> np.n
 
 
 # --- checks --------------------------------------------------------------------------
+
 
 def _finite(x, label: str) -> float:
     try:

@@ -64,8 +64,16 @@ def run_trial(task: Mapping) -> dict:
     from .record import add_noise
 
     i = task["index"]
-    row = {"index": i, "ok": False, "converged": False, "iterations": 0, "elapsed": math.nan,
-           "values": None, "stderr": None, "error": ""}
+    row = {
+        "index": i,
+        "ok": False,
+        "converged": False,
+        "iterations": 0,
+        "elapsed": math.nan,
+        "values": None,
+        "stderr": None,
+        "error": "",
+    }
     try:
         rng = np.random.default_rng(np.random.SeedSequence(task["seed"], spawn_key=(i,)))
         noise = task["noise"]
@@ -77,17 +85,30 @@ def run_trial(task: Mapping) -> dict:
             # records simulated from the model: no adequacy check (fdml.adequacy) unless asked for
             res = fit(rec, model, **{"adequacy": False, **task["fit_kwargs"]})
         p, e = res.params, res.errors
-        row.update(ok=True, converged=bool(res.converged), iterations=int(res.iterations),
-                   elapsed=float(res.elapsed), values=[p[n] for n in task["names"]],
-                   stderr=[e[n] for n in task["names"]])
+        row.update(
+            ok=True,
+            converged=bool(res.converged),
+            iterations=int(res.iterations),
+            elapsed=float(res.elapsed),
+            values=[p[n] for n in task["names"]],
+            stderr=[e[n] for n in task["names"]],
+        )
     except Exception as exc:  # one failed run is counted, never fatal
         row["error"] = _one_line(exc)
     return row
 
 
 def _trial_error(task, exc) -> dict:
-    return {"index": task["index"], "ok": False, "converged": False, "iterations": 0, "elapsed": math.nan,
-            "values": None, "stderr": None, "error": exc if isinstance(exc, str) else _one_line(exc)}
+    return {
+        "index": task["index"],
+        "ok": False,
+        "converged": False,
+        "iterations": 0,
+        "elapsed": math.nan,
+        "values": None,
+        "stderr": None,
+        "error": exc if isinstance(exc, str) else _one_line(exc),
+    }
 
 
 @dataclass(frozen=True)
@@ -187,16 +208,20 @@ class MonteCarloResult:
     def table(self, digits: int = 4) -> str:
         """The statistics as a text table."""
         s = self.settings
-        head = (f"Monte Carlo: {s.get('truth_kind')} truth, {s.get('fit_kind')} fit, {s.get('maneuver')} "
-                f"{s.get('duration'):g} s at {s.get('dt'):g} s, noise {s.get('noise')}, seed {s.get('seed')}\n"
-                f"{self.n_used} of {self.n} runs used ({int(self.converged.sum())} converged, "
-                f"{len(self.errors)} failed), {self.wall_time:.1f} s wall")
+        head = (
+            f"Monte Carlo: {s.get('truth_kind')} truth, {s.get('fit_kind')} fit, {s.get('maneuver')} "
+            f"{s.get('duration'):g} s at {s.get('dt'):g} s, noise {s.get('noise')}, seed {s.get('seed')}\n"
+            f"{self.n_used} of {self.n} runs used ({int(self.converged.sum())} converged, "
+            f"{len(self.errors)} failed), {self.wall_time:.1f} s wall"
+        )
         cols = ("parameter", "truth", "mean", "bias", "scatter", "mean CRB", "scatter/CRB", "bias/se")
         rows = []
         for st in self.stats():
-            rows.append([st["name"]] + [f"{st[k]:.{digits}g}" for k in ("truth", "mean", "bias", "scatter",
-                                                                            "mean_crb")]
-                        + [f"{st['efficiency']:.3f}", f"{st['bias_z']:+.2f}"])
+            rows.append(
+                [st["name"]]
+                + [f"{st[k]:.{digits}g}" for k in ("truth", "mean", "bias", "scatter", "mean_crb")]
+                + [f"{st['efficiency']:.3f}", f"{st['bias_z']:+.2f}"]
+            )
         widths = [max(len(c), *(len(r[j]) for r in rows)) for j, c in enumerate(cols)]
         line = lambda cells: "  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(cells, widths)))  # noqa: E731
         return "\n".join([head, line(cols), line(["-" * w for w in widths])] + [line(r) for r in rows])
@@ -241,15 +266,23 @@ class MonteCarloResult:
         for j, name in enumerate(self.names):
             a = axes[j]
             x = est[:, j]
-            a.hist(x, bins=max(10, min(50, int(math.sqrt(x.size)))), density=True, alpha=0.5, color="C0",
-                   label="estimates")
+            a.hist(
+                x, bins=max(10, min(50, int(math.sqrt(x.size)))), density=True, alpha=0.5, color="C0", label="estimates"
+            )
             lo, hi = np.min(x), np.max(x)
             grid = np.linspace(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), 200)
-            for mu, sd, style, label in ((self.truth[j], self.mean_crb[j], "C3-", "truth, CRB"),
-                                         (self.mean[j], self.scatter[j], "k--", "mean, scatter")):
+            for mu, sd, style, label in (
+                (self.truth[j], self.mean_crb[j], "C3-", "truth, CRB"),
+                (self.mean[j], self.scatter[j], "k--", "mean, scatter"),
+            ):
                 if math.isfinite(mu) and math.isfinite(sd) and sd > 0:
-                    a.plot(grid, np.exp(-0.5 * ((grid - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi)), style,
-                           lw=1.2, label=label)
+                    a.plot(
+                        grid,
+                        np.exp(-0.5 * ((grid - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi)),
+                        style,
+                        lw=1.2,
+                        label=label,
+                    )
             if math.isfinite(self.truth[j]):
                 a.axvline(self.truth[j], color="C3", lw=0.8)
             unit = self.units.get(name, "")
@@ -267,13 +300,20 @@ class MonteCarloResult:
             return [[None if not math.isfinite(v) else v for v in r] for r in np.asarray(a, float).tolist()]
 
         return {
-            "format": MC_FORMAT[0], "version": MC_FORMAT[1], "names": list(self.names),
+            "format": MC_FORMAT[0],
+            "version": MC_FORMAT[1],
+            "names": list(self.names),
             "truth": [None if not math.isfinite(v) else v for v in self.truth.tolist()],
-            "estimates": arr(self.estimates), "stderr": arr(self.stderr),
-            "converged": self.converged.tolist(), "iterations": self.iterations.tolist(),
+            "estimates": arr(self.estimates),
+            "stderr": arr(self.stderr),
+            "converged": self.converged.tolist(),
+            "iterations": self.iterations.tolist(),
             "fit_seconds": [None if not math.isfinite(v) else v for v in self.fit_seconds.tolist()],
-            "errors": {str(k): v for k, v in self.errors.items()}, "settings": self.settings,
-            "wall_time": self.wall_time, "use_converged_only": self.use_converged_only, "units": self.units,
+            "errors": {str(k): v for k, v in self.errors.items()},
+            "settings": self.settings,
+            "wall_time": self.wall_time,
+            "use_converged_only": self.use_converged_only,
+            "units": self.units,
             "stats": self.stats(),
         }
 
@@ -295,13 +335,15 @@ class MonteCarloResult:
         f = Fields(d, source)
         fmt = f.raw("format", None)
         if fmt != MC_FORMAT[0]:
-            raise f.error("format", ("is missing" if fmt is None else f"is {str(fmt)[:40]!r}")
-                          + f": not an fdml Monte Carlo result ({MC_FORMAT[0]!r})")
+            raise f.error(
+                "format",
+                ("is missing" if fmt is None else f"is {str(fmt)[:40]!r}")
+                + f": not an fdml Monte Carlo result ({MC_FORMAT[0]!r})",
+            )
         f.version("version", MC_FORMAT[1])
         names = f.strings("names")
         p = len(names)
-        estimates = (np.empty((0, p)) if f.raw("estimates") == []
-                     else f.floats("estimates", (None, p), nulls=True))
+        estimates = np.empty((0, p)) if f.raw("estimates") == [] else f.floats("estimates", (None, p), nulls=True)
         n = estimates.shape[0]
         errors = {}
         for k, v in f.mapping("errors").items():
@@ -309,11 +351,18 @@ class MonteCarloResult:
                 raise f.error("errors", f"must map run numbers to messages, has the key {k[:40]!r}")
             errors[int(k)] = v
         return cls(
-            names=names, truth=f.floats("truth", (p,), nulls=True), estimates=estimates,
-            stderr=f.floats("stderr", (n, p), nulls=True), converged=f.flags("converged", n),
-            iterations=f.integers("iterations", n), fit_seconds=f.floats("fit_seconds", (n,), nulls=True),
-            errors=errors, settings=f.mapping("settings"), wall_time=f.number("wall_time"),
-            use_converged_only=f.boolean("use_converged_only", default=True), units=f.mapping("units", default={}),
+            names=names,
+            truth=f.floats("truth", (p,), nulls=True),
+            estimates=estimates,
+            stderr=f.floats("stderr", (n, p), nulls=True),
+            converged=f.flags("converged", n),
+            iterations=f.integers("iterations", n),
+            fit_seconds=f.floats("fit_seconds", (n,), nulls=True),
+            errors=errors,
+            settings=f.mapping("settings"),
+            wall_time=f.number("wall_time"),
+            use_converged_only=f.boolean("use_converged_only", default=True),
+            units=f.mapping("units", default={}),
         )
 
 
@@ -343,10 +392,23 @@ def _check_noise(noise):
     return out
 
 
-def monte_carlo(model, truth_values: Mapping[str, float] | None = None, n: int = 1000, *, maneuver: str = "3211",
-                duration: float = 10.0, dt: float = 0.02, amplitude: float | None = None, noise=0.03,
-                seed: int = 0, fit_model=None, fit_kwargs: Mapping | None = None, engine="process",
-                workers: int | None = None, progress=None) -> MonteCarloResult:
+def monte_carlo(
+    model,
+    truth_values: Mapping[str, float] | None = None,
+    n: int = 1000,
+    *,
+    maneuver: str = "3211",
+    duration: float = 10.0,
+    dt: float = 0.02,
+    amplitude: float | None = None,
+    noise=0.03,
+    seed: int = 0,
+    fit_model=None,
+    fit_kwargs: Mapping | None = None,
+    engine="process",
+    workers: int | None = None,
+    progress=None,
+) -> MonteCarloResult:
     """Fit N seeded noisy simulations of one manoeuvre; statistics per parameter.
 
     Parameters
@@ -416,8 +478,15 @@ def monte_carlo(model, truth_values: Mapping[str, float] | None = None, n: int =
     from .simulate import simulate_maneuver
 
     simulate_maneuver(truth, maneuver, **{k: v for k, v in sim.items() if k != "maneuver"})
-    base = {"truth": truth_spec.to_dict(), "fit_model": fit_spec.to_dict(), "sim": sim, "noise": noise,
-            "seed": int(seed), "fit_kwargs": kw, "names": names}
+    base = {
+        "truth": truth_spec.to_dict(),
+        "fit_model": fit_spec.to_dict(),
+        "sim": sim,
+        "noise": noise,
+        "seed": int(seed),
+        "fit_kwargs": kw,
+        "names": names,
+    }
     tasks = ({**base, "index": i} for i in range(n))
     p = len(names)
     est = np.full((n, p), math.nan)
@@ -448,11 +517,31 @@ def monte_carlo(model, truth_values: Mapping[str, float] | None = None, n: int =
         close()
     from .batch import _resolve_kind_name
 
-    settings = {"truth_kind": truth.kind, "fit_kind": fmodel.kind, "truth_model": truth_spec.to_dict(),
-                "fit_model": fit_spec.to_dict(), **sim, "noise": noise,
-                "noise_relative": not isinstance(noise, Mapping), "seed": int(seed), "n": int(n),
-                "fit_kwargs": kw, "engine": _resolve_kind_name(engine), "workers": workers}
+    settings = {
+        "truth_kind": truth.kind,
+        "fit_kind": fmodel.kind,
+        "truth_model": truth_spec.to_dict(),
+        "fit_model": fit_spec.to_dict(),
+        **sim,
+        "noise": noise,
+        "noise_relative": not isinstance(noise, Mapping),
+        "seed": int(seed),
+        "n": int(n),
+        "fit_kwargs": kw,
+        "engine": _resolve_kind_name(engine),
+        "workers": workers,
+    }
     units = {nm: fmodel.parameters[nm].unit for nm in names if nm in fmodel.parameters}
-    return MonteCarloResult(names=tuple(names), truth=truth_arr, estimates=est, stderr=se, converged=conv,
-                            iterations=iters, fit_seconds=secs, errors=errors, settings=settings,
-                            wall_time=time.perf_counter() - t_start, units=units)
+    return MonteCarloResult(
+        names=tuple(names),
+        truth=truth_arr,
+        estimates=est,
+        stderr=se,
+        converged=conv,
+        iterations=iters,
+        fit_seconds=secs,
+        errors=errors,
+        settings=settings,
+        wall_time=time.perf_counter() - t_start,
+        units=units,
+    )

@@ -39,8 +39,16 @@ from typing import Any, Literal
 
 from .errors import OutputError
 
-__all__ = ["check_output", "check_output_dir", "atomic_write_text", "atomic_write_bytes", "atomic_open",
-           "atomic_savefig", "StagedOutputs", "Inputs"]
+__all__ = [
+    "check_output",
+    "check_output_dir",
+    "atomic_write_text",
+    "atomic_write_bytes",
+    "atomic_open",
+    "atomic_savefig",
+    "StagedOutputs",
+    "Inputs",
+]
 
 #: Suffix of the temporary files (``fdml.batch`` removes ``.*.tmp`` left by a crash).
 TMP_SUFFIX = ".tmp"
@@ -169,8 +177,9 @@ def check_output(path, inputs: Iterable | Inputs = (), *, what: str = "output fi
     same = _same_as_input(p, inputs)
     if same is not None:
         which = "" if same == user else f" (the same file as {same})"
-        raise OutputError(f"{what} {user} is an input of this command{which}; fdml never writes over "
-                          "its inputs: give another name")
+        raise OutputError(
+            f"{what} {user} is an input of this command{which}; fdml never writes over its inputs: give another name"
+        )
     st = _stat(p, user, what)
     if folder:
         if st is not None and not stat.S_ISDIR(st.st_mode):
@@ -334,8 +343,7 @@ class StagedOutputs:
             except OSError as exc:
                 err = exc
             if st is not None and not stat.S_ISREG(st.st_mode):  # appeared while we wrote
-                err = OutputError(f"{p.what} {p.user} is {_kind(st.st_mode)}, not a regular file: "
-                                  "give a file name")
+                err = OutputError(f"{p.what} {p.user} is {_kind(st.st_mode)}, not a regular file: give a file name")
             if err is None:
                 try:
                     os.replace(p.tmp, p.final)
@@ -365,8 +373,9 @@ class StagedOutputs:
 
 # --- one file at a time -------------------------------------------------------------------------
 @contextlib.contextmanager
-def atomic_open(path, mode: str = "w", *, inputs: Iterable | Inputs = (), encoding: str = "utf-8",
-                what: str = "output file") -> Iterator:
+def atomic_open(
+    path, mode: str = "w", *, inputs: Iterable | Inputs = (), encoding: str = "utf-8", what: str = "output file"
+) -> Iterator:
     """A file handle whose content appears at ``path`` only when the block succeeds.
 
     Parameters
@@ -387,8 +396,9 @@ def atomic_open(path, mode: str = "w", *, inputs: Iterable | Inputs = (), encodi
         yield fh
 
 
-def atomic_write_text(path, text: str, *, inputs: Iterable | Inputs = (), encoding: str = "utf-8",
-                      what: str = "output file") -> Path:
+def atomic_write_text(
+    path, text: str, *, inputs: Iterable | Inputs = (), encoding: str = "utf-8", what: str = "output file"
+) -> Path:
     """Write ``text`` to ``path`` atomically (see :func:`atomic_open`); returns ``Path(path)``."""
     with StagedOutputs(inputs) as out:
         return out.write_text(path, text, encoding=encoding, what=what)

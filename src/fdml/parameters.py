@@ -53,13 +53,10 @@ class Parameter:
         if not math.isfinite(v):
             raise ParameterError(f"parameter {self.name!r} has a non-finite value {self.value!r}")
         if not self.lower <= self.upper:
-            raise ParameterError(
-                f"parameter {self.name!r}: lower bound {self.lower} exceeds upper bound {self.upper}"
-            )
+            raise ParameterError(f"parameter {self.name!r}: lower bound {self.lower} exceeds upper bound {self.upper}")
         if not self.lower <= v <= self.upper:
             raise ParameterError(
-                f"parameter {self.name!r}: value {v} lies outside its bounds "
-                f"[{self.lower}, {self.upper}]"
+                f"parameter {self.name!r}: value {v} lies outside its bounds [{self.lower}, {self.upper}]"
             )
         object.__setattr__(self, "value", v)
 
@@ -108,8 +105,9 @@ class Parameters:
             raise ParameterError(f"duplicate parameter names: {sorted(dup)}")
 
     def __repr__(self) -> str:
-        rows = [f"  {p.name:14s} {p.value:12.6g} {'free' if p.free else 'fixed':5s} {p.unit}".rstrip()
-                for p in self.items]
+        rows = [
+            f"  {p.name:14s} {p.value:12.6g} {'free' if p.free else 'fixed':5s} {p.unit}".rstrip() for p in self.items
+        ]
         return "Parameters(\n" + "\n".join(rows) + "\n)"
 
     # --- mapping-like access -------------------------------------------------
@@ -161,9 +159,7 @@ class Parameters:
     # --- functional updates --------------------------------------------------
     def _update(self, changes: Mapping[str, dict]) -> "Parameters":
         self.check_names(changes)
-        return Parameters(
-            tuple(replace(p, **changes[p.name]) if p.name in changes else p for p in self.items)
-        )
+        return Parameters(tuple(replace(p, **changes[p.name]) if p.name in changes else p for p in self.items))
 
     def with_values(self, values: Mapping[str, float] | None = None, **kw: float) -> "Parameters":
         """Return a copy with new values (free/fixed status unchanged)."""
@@ -246,5 +242,7 @@ def check_fix_free(fix, free) -> None:
     """
     both = [n for n in as_names(fix, "fix") if n in set(as_names(free, "free"))]
     if both:
-        raise ParameterError(f"parameter(s) {', '.join(both)} named in both fix and free (--fix and --free): "
-                             "a parameter is either fixed or free; drop it from one of them")
+        raise ParameterError(
+            f"parameter(s) {', '.join(both)} named in both fix and free (--fix and --free): "
+            "a parameter is either fixed or free; drop it from one of them"
+        )

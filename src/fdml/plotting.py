@@ -95,6 +95,7 @@ def _record_suffix(result, record: int) -> str:
 
 # --- the Cramer-Rao band of the fitted spectra ---------------------------------------------------
 
+
 def _perturbed(result, i: int, value: float):
     vals = np.array(result.values, float)
     vals[i] = value
@@ -154,17 +155,30 @@ def spectra_uncertainty(result, record: int = 0, *, rel_step: float = 1e-6):
         up, dn = min(v + h, hi), max(v - h, lo)
         if up == dn:
             continue
-        A[:, :, i] = (_perturbed(result, i, up).fitted_spectra(record)
-                      - _perturbed(result, i, dn).fitted_spectra(record)) / (up - dn)
+        A[:, :, i] = (
+            _perturbed(result, i, up).fitted_spectra(record) - _perturbed(result, i, dn).fitted_spectra(record)
+        ) / (up - dn)
     var = np.einsum("mkp,pq,mkq->mk", A, cov, A.conj()).real
     return y0, np.sqrt(np.maximum(var, 0.0))
 
 
 # --- spectra -------------------------------------------------------------------------------------
 
-def plot_spectra(results, labels: Sequence[str] | None = None, *, record: int = 0,
-                 outputs: Sequence[str] | None = None, freq_unit: str = "rad/s", mag_unit: str = "abs",
-                 crb: bool = True, sigma: float = 2.0, axes=None, ax=None, title: str | None = None):
+
+def plot_spectra(
+    results,
+    labels: Sequence[str] | None = None,
+    *,
+    record: int = 0,
+    outputs: Sequence[str] | None = None,
+    freq_unit: str = "rad/s",
+    mag_unit: str = "abs",
+    crb: bool = True,
+    sigma: float = 2.0,
+    axes=None,
+    ax=None,
+    title: str | None = None,
+):
     """Measured against fitted output spectra, magnitude and phase (the layout of WK Figs. 3-5).
 
     Magnitudes are those of the output spectra (finite Fourier transforms of
@@ -236,8 +250,15 @@ def plot_spectra(results, labels: Sequence[str] | None = None, *, record: int = 
             if sd_all is not None:
                 a, sd = np.abs(y), sigma * sd_all[:, k]
                 lo = np.maximum(a - sd, 1e-3 * a)
-                ax_m.fill_between(f, mag(lo), mag(a + sd), color=line.get_color(), alpha=0.25, lw=0,
-                                  label=f"{lab} {sigma:g}-sigma band")
+                ax_m.fill_between(
+                    f,
+                    mag(lo),
+                    mag(a + sd),
+                    color=line.get_color(),
+                    alpha=0.25,
+                    lw=0,
+                    label=f"{lab} {sigma:g}-sigma band",
+                )
                 dph = np.degrees(np.minimum(sd / np.maximum(a, 1e-300), np.pi))
                 ax_p.fill_between(f, ph - dph, ph + dph, color=line.get_color(), alpha=0.25, lw=0)
         # scale the magnitude axis to the data and fits, not to the band: where the band is
@@ -264,6 +285,7 @@ def plot_spectra(results, labels: Sequence[str] | None = None, *, record: int = 
 
 
 # --- time histories ------------------------------------------------------------------------------
+
 
 def simulate_fit(result, record: int = 0, *, trim_window: float = 0.5):
     """The model's time histories at the estimate for one record of a fit.
@@ -346,9 +368,16 @@ def simulate_fit(result, record: int = 0, *, trim_window: float = 0.5):
     signals = {"de": raw["de"], "alpha": y[:, 0], "q": y[:, 1], "az": y[:, 2]}
     if raw.has("alpha_w"):
         signals["alpha_w"] = raw["alpha_w"]
-    meta = {"trim": trim, "biases": dict(zip(_OUTPUTS, b.tolist())), "x0": x0.tolist(),
-            "state_biases": sb.tolist(), "elevator_bias": ib, "initial_state": state,
-            "model": model.kind, "source": raw.name}
+    meta = {
+        "trim": trim,
+        "biases": dict(zip(_OUTPUTS, b.tolist())),
+        "x0": x0.tolist(),
+        "state_biases": sb.tolist(),
+        "elevator_bias": ib,
+        "initial_state": state,
+        "model": model.kind,
+        "source": raw.name,
+    }
     return Record(raw.t, signals, name=f"{raw.name} (model)", meta=meta, check_units=False)
 
 
@@ -378,9 +407,18 @@ def _free_response(real, tau: np.ndarray, x0: np.ndarray, sb: np.ndarray, k: flo
     return y
 
 
-def plot_time_histories(result, record: int = 0, *, outputs: Sequence[str] | None = None,
-                        inputs: bool = True, angle_unit: str = "deg", trim_window: float = 0.5,
-                        axes=None, ax=None, title: str | None = None):
+def plot_time_histories(
+    result,
+    record: int = 0,
+    *,
+    outputs: Sequence[str] | None = None,
+    inputs: bool = True,
+    angle_unit: str = "deg",
+    trim_window: float = 0.5,
+    axes=None,
+    ax=None,
+    title: str | None = None,
+):
     """Measured time histories against the model simulated in the time domain from the estimate.
 
     The cross-check of a frequency-domain fit: the model response comes from
@@ -453,8 +491,17 @@ def plot_time_histories(result, record: int = 0, *, outputs: Sequence[str] | Non
 
 # --- residual spectra ----------------------------------------------------------------------------
 
-def plot_residual_spectra(result, record: int = 0, *, outputs: Sequence[str] | None = None,
-                          freq_unit: str = "rad/s", axes=None, ax=None, title: str | None = None):
+
+def plot_residual_spectra(
+    result,
+    record: int = 0,
+    *,
+    outputs: Sequence[str] | None = None,
+    freq_unit: str = "rad/s",
+    axes=None,
+    ax=None,
+    title: str | None = None,
+):
     """|measured - fitted| spectra per output, with the noise floor implied by R.
 
     For complex Gaussian residuals with covariance R (Eq. 24), ``E|v_k|^2 =
@@ -510,9 +557,18 @@ def plot_residual_spectra(result, record: int = 0, *, outputs: Sequence[str] | N
 
 # --- correlation ---------------------------------------------------------------------------------
 
-def plot_correlation(result, *, names: Sequence[str] | None = None, nuisance: bool = True,
-                     annotate: bool = True, cmap: str = "RdBu_r", colorbar: bool = True, ax=None,
-                     title: str | None = None):
+
+def plot_correlation(
+    result,
+    *,
+    names: Sequence[str] | None = None,
+    nuisance: bool = True,
+    annotate: bool = True,
+    cmap: str = "RdBu_r",
+    colorbar: bool = True,
+    ax=None,
+    title: str | None = None,
+):
     """The correlation matrix of the estimates as an annotated heat map.
 
     Parameters
@@ -564,8 +620,15 @@ def plot_correlation(result, *, names: Sequence[str] | None = None, nuisance: bo
             for j in range(n):
                 c = C[i, j]
                 txt = "" if not np.isfinite(c) else f"{c + 0.0:.2f}".replace("-0.00", "0.00")
-                a.text(j, i, txt, ha="center", va="center", fontsize=fs,
-                       color="white" if np.isfinite(c) and abs(c) > 0.6 else "black")
+                a.text(
+                    j,
+                    i,
+                    txt,
+                    ha="center",
+                    va="center",
+                    fontsize=fs,
+                    color="white" if np.isfinite(c) and abs(c) > 0.6 else "black",
+                )
     if colorbar:
         fig.colorbar(im, ax=a, fraction=0.046, pad=0.04, label="correlation")
     a.set_title(title or "correlation of the estimates")

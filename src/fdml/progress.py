@@ -71,15 +71,31 @@ class TqdmProgress:
     ...     res = fdml.fit(rec, model, callback=bar)
     """
 
-    def __init__(self, total: int | None = None, *, desc: str = "fdml fit", file=None, leave: bool = True,
-                 reset_each_fit: bool = False, disable: bool = False):
+    def __init__(
+        self,
+        total: int | None = None,
+        *,
+        desc: str = "fdml fit",
+        file=None,
+        leave: bool = True,
+        reset_each_fit: bool = False,
+        disable: bool = False,
+    ):
         try:
             from tqdm.auto import tqdm
         except ImportError:
-            raise ImportError("TqdmProgress needs tqdm; install the optional extra: pip install 'fdml[progress]'") from None
+            raise ImportError(
+                "TqdmProgress needs tqdm; install the optional extra: pip install 'fdml[progress]'"
+            ) from None
         self.reset_each_fit = reset_each_fit
-        self.bar = tqdm(total=total, desc=desc, file=file if file is not None else sys.stderr, leave=leave,
-                        unit="it", disable=disable)
+        self.bar = tqdm(
+            total=total,
+            desc=desc,
+            file=file if file is not None else sys.stderr,
+            leave=leave,
+            unit="it",
+            disable=disable,
+        )
 
     def __call__(self, info) -> None:
         if self.reset_each_fit and info.iteration == 1 and self.bar.n:
@@ -119,8 +135,10 @@ class PrintProgress:
     def __call__(self, info) -> None:
         if info.iteration % self.every == 0:
             out = self.file if self.file is not None else sys.stderr
-            out.write(f"iteration {info.iteration:3d}  J = det R = {info.cost:.6g}  "
-                      f"largest step {info.step_in_stderr:.3g} standard errors\n")
+            out.write(
+                f"iteration {info.iteration:3d}  J = det R = {info.cost:.6g}  "
+                f"largest step {info.step_in_stderr:.3g} standard errors\n"
+            )
         return None
 
 
@@ -189,8 +207,14 @@ class StopAfter:
         Why the last fit was stopped (None if it was not).
     """
 
-    def __init__(self, iterations: int | None = None, *, seconds: float | None = None,
-                 step_below: float | None = None, clock: Callable[[], float] = time.monotonic):
+    def __init__(
+        self,
+        iterations: int | None = None,
+        *,
+        seconds: float | None = None,
+        step_below: float | None = None,
+        clock: Callable[[], float] = time.monotonic,
+    ):
         if iterations is None and seconds is None and step_below is None:
             raise ValueError("StopAfter needs iterations, seconds or step_below")
         if iterations is not None and (int(iterations) != iterations or iterations < 1):

@@ -103,10 +103,19 @@ class ChannelQuality:
     flags: tuple = ()
 
     def to_dict(self) -> dict:
-        return {"name": self.name, "unit": self.unit, "resolution": self.resolution, "n_levels": self.n_levels,
-                "change_rate": self.change_rate, "repeat_fraction": self.repeat_fraction,
-                "holds": [list(h) for h in self.holds], "flat_max": self.flat_max, "flat_min": self.flat_min,
-                "clipped": list(self.clipped), "flags": list(self.flags)}
+        return {
+            "name": self.name,
+            "unit": self.unit,
+            "resolution": self.resolution,
+            "n_levels": self.n_levels,
+            "change_rate": self.change_rate,
+            "repeat_fraction": self.repeat_fraction,
+            "holds": [list(h) for h in self.holds],
+            "flat_max": self.flat_max,
+            "flat_min": self.flat_min,
+            "clipped": list(self.clipped),
+            "flags": list(self.flags),
+        }
 
 
 @dataclass(frozen=True)
@@ -188,16 +197,21 @@ class QualityReport:
     def summary(self) -> str:
         """Plain-text report."""
         lo, hi, step = self.band
-        out = [f"Data quality: {self.name}",
-               f"  {self.n} samples, dt {self.dt:.6g} s ({1 / self.dt:.4g} Hz), {self.duration:.4g} s, "
-               f"jitter {self.jitter:.2g} of dt",
-               f"  band {lo:g}-{hi:g} rad/s ({lo / (2 * math.pi):.3g}-{hi / (2 * math.pi):.3g} Hz), "
-               f"{self.independent_frequencies:.1f} independent frequencies (spacing 2 pi/T = "
-               f"{2 * math.pi / self.duration:.3g} rad/s)",
-               "", "  channel   resolution     levels  changes/s  repeats  holds  flat max/min (s)"]
+        out = [
+            f"Data quality: {self.name}",
+            f"  {self.n} samples, dt {self.dt:.6g} s ({1 / self.dt:.4g} Hz), {self.duration:.4g} s, "
+            f"jitter {self.jitter:.2g} of dt",
+            f"  band {lo:g}-{hi:g} rad/s ({lo / (2 * math.pi):.3g}-{hi / (2 * math.pi):.3g} Hz), "
+            f"{self.independent_frequencies:.1f} independent frequencies (spacing 2 pi/T = "
+            f"{2 * math.pi / self.duration:.3g} rad/s)",
+            "",
+            "  channel   resolution     levels  changes/s  repeats  holds  flat max/min (s)",
+        ]
         for c in self.channels:
-            out.append(f"  {c.name:8s} {c.resolution:11.4g} {c.unit:7s}{c.n_levels:5d} {c.change_rate:9.3g}"
-                       f" {100 * c.repeat_fraction:7.1f}% {len(c.holds):5d}  {c.flat_max:.3g}/{c.flat_min:.3g}")
+            out.append(
+                f"  {c.name:8s} {c.resolution:11.4g} {c.unit:7s}{c.n_levels:5d} {c.change_rate:9.3g}"
+                f" {100 * c.repeat_fraction:7.1f}% {len(c.holds):5d}  {c.flat_max:.3g}/{c.flat_min:.3g}"
+            )
         out.append("")
         out.append(f"  input energy inside the band: {100 * self.input_energy_fraction:.1f} %")
         if self.low_input:
@@ -207,8 +221,10 @@ class QualityReport:
         for k, g in self.coherence.items():
             if g.size:
                 good = float(np.mean(g >= max(GOOD_COHERENCE, self.coherence_threshold)))
-                out.append(f"    de -> {k:6s}: median {np.median(g):.2f}, min {np.min(g):.2f}, "
-                           f">= {GOOD_COHERENCE:g} at {100 * good:.0f} % of {g.size} estimates")
+                out.append(
+                    f"    de -> {k:6s}: median {np.median(g):.2f}, min {np.min(g):.2f}, "
+                    f">= {GOOD_COHERENCE:g} at {100 * good:.0f} % of {g.size} estimates"
+                )
         out.append("")
         out.append("Findings:")
         out.extend(f"  - {f}" for f in self.findings)
@@ -217,16 +233,27 @@ class QualityReport:
     def to_dict(self) -> dict:
         """JSON-safe dictionary of everything in the report."""
         return {
-            "name": self.name, "n": self.n, "dt": self.dt, "duration": self.duration, "jitter": self.jitter,
-            "channels": [c.to_dict() for c in self.channels], "band": list(self.band),
-            "omega": self.omega.tolist(), "input_db": _finite_list(self.input_db),
-            "input_energy_fraction": self.input_energy_fraction, "low_input": [list(x) for x in self.low_input],
+            "name": self.name,
+            "n": self.n,
+            "dt": self.dt,
+            "duration": self.duration,
+            "jitter": self.jitter,
+            "channels": [c.to_dict() for c in self.channels],
+            "band": list(self.band),
+            "omega": self.omega.tolist(),
+            "input_db": _finite_list(self.input_db),
+            "input_energy_fraction": self.input_energy_fraction,
+            "low_input": [list(x) for x in self.low_input],
             "coherence": {k: v.tolist() for k, v in self.coherence.items()},
-            "coherence_omega": self.coherence_omega.tolist(), "coherence_method": self.coherence_method,
+            "coherence_omega": self.coherence_omega.tolist(),
+            "coherence_method": self.coherence_method,
             "coherence_threshold": self.coherence_threshold,
             "independent_frequencies": self.independent_frequencies,
-            "useful_frequencies": self.useful_frequencies, "required_frequencies": self.required_frequencies,
-            "n_params": self.n_params, "sufficient": self.sufficient, "findings": list(self.findings),
+            "useful_frequencies": self.useful_frequencies,
+            "required_frequencies": self.required_frequencies,
+            "n_params": self.n_params,
+            "sufficient": self.sufficient,
+            "findings": list(self.findings),
         }
 
 
@@ -234,8 +261,9 @@ def _finite_list(a):
     return [float(x) if math.isfinite(x) else str(x) for x in np.asarray(a, float)]
 
 
-def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS,
-                  outputs=("alpha", "q", "az")) -> QualityReport:
+def check_quality(
+    record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS, outputs=("alpha", "q", "az")
+) -> QualityReport:
     """Check a record's sampling, channels and excitation before a fit.
 
     Parameters
@@ -276,8 +304,10 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
     band = parse_band(band)
     lo, hi, step = band
     if hi > record.nyquist:
-        raise BandError(f"band reaches {hi:g} rad/s, above the Nyquist frequency {record.nyquist:.4g} rad/s "
-                        f"of record {record.name!r}")
+        raise BandError(
+            f"band reaches {hi:g} rad/s, above the Nyquist frequency {record.nyquist:.4g} rad/s "
+            f"of record {record.name!r}"
+        )
     omega = fourier.omega_band(lo, hi, step)
     n, dt, T = record.n, record.dt, record.duration
     d = np.diff(record.t)
@@ -293,24 +323,32 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
         c = _channel(name, record[name], dt, is_input=(name == "de"))
         chans.append(c)
         if c.change_rate < 2 * f_hi_hz and c.n_levels > 1:
-            msg = (f"{name} changes value only {c.change_rate:.3g} times per second ({c.n_levels} levels, step "
-                   f"{c.resolution:.3g} {c.unit}): it cannot follow motion above about {c.change_rate / 2:.3g} Hz, "
-                   f"and the band reaches {f_hi_hz:.3g} Hz")
+            msg = (
+                f"{name} changes value only {c.change_rate:.3g} times per second ({c.n_levels} levels, step "
+                f"{c.resolution:.3g} {c.unit}): it cannot follow motion above about {c.change_rate / 2:.3g} Hz, "
+                f"and the band reaches {f_hi_hz:.3g} Hz"
+            )
             (findings if name in ("de", *outputs) else findings_low).append(msg)
         if c.repeat_fraction > 0.5 and name != "de":
-            msg = (f"{name} repeats its previous value in {100 * c.repeat_fraction:.0f} % of the samples "
-                   f"({c.n_levels} levels, step {c.resolution:.3g} {c.unit}): a slow update or a coarse resolution")
+            msg = (
+                f"{name} repeats its previous value in {100 * c.repeat_fraction:.0f} % of the samples "
+                f"({c.n_levels} levels, step {c.resolution:.3g} {c.unit}): a slow update or a coarse resolution"
+            )
             (findings if name in outputs else findings_low).append(msg)
         if (c.holds or c.clipped) and name != "de":
             n_defects += 1
         if c.holds and name != "de":
             tot = sum(h[1] for h in c.holds)
-            findings.append(f"{name} holds its value {len(c.holds)} time(s) while the signal moves "
-                            f"(dropouts; {tot:.3g} s in all, longest {max(h[1] for h in c.holds):.3g} s at "
-                            f"t = {max(c.holds, key=lambda h: h[1])[0]:.4g} s)")
+            findings.append(
+                f"{name} holds its value {len(c.holds)} time(s) while the signal moves "
+                f"(dropouts; {tot:.3g} s in all, longest {max(h[1] for h in c.holds):.3g} s at "
+                f"t = {max(c.holds, key=lambda h: h[1])[0]:.4g} s)"
+            )
         if c.clipped and name != "de":
-            findings.append(f"{name} is flat at its {' and '.join(c.clipped)} value while heading further: "
-                            "possible sensor saturation")
+            findings.append(
+                f"{name} is flat at its {' and '.join(c.clipped)} value while heading further: "
+                "possible sensor saturation"
+            )
     if jitter > 1e-6:
         findings_low.append(f"sample intervals vary by up to {100 * jitter:.2g} % of dt")
 
@@ -349,25 +387,33 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
     if peak == 0:
         head.append("the elevator does not move: the record carries no input; no parameter can be identified")
     elif sufficient:
-        head.append(f"excitation sufficient: about {useful:.1f} independent frequencies in the band carry input "
-                    f"within {LOW_INPUT_DB:g} dB of its peak with coherent outputs; {n_params} parameters with "
-                    f"{n_out} outputs need at least {required}")
+        head.append(
+            f"excitation sufficient: about {useful:.1f} independent frequencies in the band carry input "
+            f"within {LOW_INPUT_DB:g} dB of its peak with coherent outputs; {n_params} parameters with "
+            f"{n_out} outputs need at least {required}"
+        )
     else:
-        head.append(f"excitation INSUFFICIENT: only about {useful:.1f} independent frequencies in the band carry "
-                    f"input within {LOW_INPUT_DB:g} dB of its peak with coherent outputs; {n_params} parameters "
-                    f"with {n_out} outputs need at least {required}: widen the band, lengthen the record or "
-                    "fly a richer input")
+        head.append(
+            f"excitation INSUFFICIENT: only about {useful:.1f} independent frequencies in the band carry "
+            f"input within {LOW_INPUT_DB:g} dB of its peak with coherent outputs; {n_params} parameters "
+            f"with {n_out} outputs need at least {required}: widen the band, lengthen the record or "
+            "fly a richer input"
+        )
     head.append(f"{100 * frac:.0f} % of the elevator's energy lies inside the band {lo:g}-{hi:g} rad/s")
     if low_input:
         spans = _spans(low_input)
-        head.append(f"the input is more than {LOW_INPUT_DB:g} dB below its peak at {spans} rad/s: "
-                    "those frequencies carry almost no information")
+        head.append(
+            f"the input is more than {LOW_INPUT_DB:g} dB below its peak at {spans} rad/s: "
+            "those frequencies carry almost no information"
+        )
     for k, g in coh.items():
         if g.size:
             good_frac = float(np.mean(g >= max(GOOD_COHERENCE, thr)))
             if good_frac < 0.5:
-                head.append(f"coherence de -> {k} is below {GOOD_COHERENCE:g} at {100 * (1 - good_frac):.0f} % "
-                            f"of the band (median {np.median(g):.2f}): noise or nonlinearity dominate there")
+                head.append(
+                    f"coherence de -> {k} is below {GOOD_COHERENCE:g} at {100 * (1 - good_frac):.0f} % "
+                    f"of the band (median {np.median(g):.2f}): noise or nonlinearity dominate there"
+                )
     if "too short" in method:
         head.append(method)
     if n_defects == 0:
@@ -375,11 +421,27 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
     findings = head + findings + findings_low + [f"sampling {1 / dt:.4g} Hz, jitter {jitter:.2g} of dt"]
 
     return QualityReport(
-        name=record.name, n=n, dt=dt, duration=T, jitter=jitter, channels=tuple(chans), band=(lo, hi, step),
-        omega=omega, input_db=input_db, input_energy_fraction=frac, low_input=tuple(low_input),
-        coherence=coh, coherence_omega=coh_w, coherence_method=method, coherence_threshold=thr,
-        independent_frequencies=independent, useful_frequencies=useful, required_frequencies=required,
-        n_params=int(n_params), sufficient=bool(sufficient), findings=tuple(findings),
+        name=record.name,
+        n=n,
+        dt=dt,
+        duration=T,
+        jitter=jitter,
+        channels=tuple(chans),
+        band=(lo, hi, step),
+        omega=omega,
+        input_db=input_db,
+        input_energy_fraction=frac,
+        low_input=tuple(low_input),
+        coherence=coh,
+        coherence_omega=coh_w,
+        coherence_method=method,
+        coherence_threshold=thr,
+        independent_frequencies=independent,
+        useful_frequencies=useful,
+        required_frequencies=required,
+        n_params=int(n_params),
+        sufficient=bool(sufficient),
+        findings=tuple(findings),
     )
 
 
@@ -463,18 +525,29 @@ def _channel(name: str, x: np.ndarray, dt: float, is_input: bool) -> ChannelQual
     if holds:
         flags.append("held values" + (" (held input levels)" if is_input else " (dropouts)"))
     if clipped:
-        flags.append("flat top at " + "/".join(clipped) + (" (step input, by design)" if is_input else
-                                                             " (saturation?)"))
-    return ChannelQuality(name=name, unit=unit, resolution=res, n_levels=n_levels, change_rate=change_rate,
-                          repeat_fraction=repeat, holds=tuple(holds), flat_max=flat_max, flat_min=flat_min,
-                          clipped=clipped, flags=tuple(flags))
+        flags.append(
+            "flat top at " + "/".join(clipped) + (" (step input, by design)" if is_input else " (saturation?)")
+        )
+    return ChannelQuality(
+        name=name,
+        unit=unit,
+        resolution=res,
+        n_levels=n_levels,
+        change_rate=change_rate,
+        repeat_fraction=repeat,
+        holds=tuple(holds),
+        flat_max=flat_max,
+        flat_min=flat_min,
+        clipped=clipped,
+        flags=tuple(flags),
+    )
 
 
 def _flat(x, lens, starts, level, res, dust, dt):
     """Longest run at ``level`` (s) and whether it looks clipped."""
     best, where = 0, None
     for s, L in zip(starts, lens):
-        if np.any(np.abs(x[s:s + L] - level) <= dust) and L > best:
+        if np.any(np.abs(x[s : s + L] - level) <= dust) and L > best:
             best, where = L, s
     if where is None:
         return 0.0, False
@@ -556,9 +629,11 @@ def _coherence(record: Record, outputs, lo: float, hi: float):
                 coh[k] = np.nan_to_num(g[i, sel])
             w_out = w[sel]
             thr = 1 - COHERENCE_ALPHA ** (1 / max(n_seg - 1, 1))
-            method = (f"Welch (scipy.signal.coherence), {nper}-sample Hann segments ({nper * dt:.3g} s), 50 % "
-                      f"overlap, {n_seg} segments: resolution {w1:.3g} rad/s; 5 % significance threshold "
-                      f"{thr:.2f}")
+            method = (
+                f"Welch (scipy.signal.coherence), {nper}-sample Hann segments ({nper * dt:.3g} s), 50 % "
+                f"overlap, {n_seg} segments: resolution {w1:.3g} rad/s; 5 % significance threshold "
+                f"{thr:.2f}"
+            )
             if covered < 1.0:
                 method += f"; band frequencies below {w1:.3g} rad/s are not resolved by these segments"
             return coh, w_out, method, thr
@@ -572,7 +647,7 @@ def _coherence(record: Record, outputs, lo: float, hi: float):
     ker = np.ones(m)
 
     def smooth(S):
-        ext = np.concatenate([np.conj(S[1:h + 1][::-1]), S, np.conj(S[-h - 1:-1][::-1])])
+        ext = np.concatenate([np.conj(S[1 : h + 1][::-1]), S, np.conj(S[-h - 1 : -1][::-1])])
         return np.convolve(ext, ker, mode="valid")
 
     Sxx = smooth(np.abs(X) ** 2)
@@ -588,9 +663,15 @@ def _coherence(record: Record, outputs, lo: float, hi: float):
         coh[k] = np.nan_to_num(g[sel])
     thr = 1 - COHERENCE_ALPHA ** (1 / (m - 1))
     dw = 2 * math.pi / (n * dt)
-    reason = (f"Welch segments short enough for {WELCH_SEGMENTS} averages ({nper * dt:.3g} s) resolve only "
-              f"{2 * math.pi / (nper * dt):.3g} rad/s" if nper >= 16 else "too few samples for Welch segments")
-    method = (f"record too short for Welch coherence over this band ({record.duration:.3g} s; {reason}): "
-              f"coherence from the whole-record FFT smoothed over {m} adjacent bins (Daniell), resolution "
-              f"{m * dw:.3g} rad/s, {m} averages, 5 % significance threshold {thr:.2f}")
+    reason = (
+        f"Welch segments short enough for {WELCH_SEGMENTS} averages ({nper * dt:.3g} s) resolve only "
+        f"{2 * math.pi / (nper * dt):.3g} rad/s"
+        if nper >= 16
+        else "too few samples for Welch segments"
+    )
+    method = (
+        f"record too short for Welch coherence over this band ({record.duration:.3g} s; {reason}): "
+        f"coherence from the whole-record FFT smoothed over {m} adjacent bins (Daniell), resolution "
+        f"{m * dw:.3g} rad/s, {m} averages, 5 % significance threshold {thr:.2f}"
+    )
     return coh, w[sel], method, thr

@@ -29,8 +29,17 @@ __all__ = ["Record", "read_csv", "add_noise", "SIGNALS", "REQUIRED_SIGNALS", "at
 #: altitude, dynamic pressure, inertial vertical speed ``hdot`` positive up) serve
 #: data-compatibility checks and gust estimation.
 SIGNALS = {
-    "de": "rad", "alpha": "rad", "q": "rad/s", "az": "g", "alpha_w": "rad",
-    "theta": "rad", "V": "m/s", "qdot": "rad/s^2", "ax": "g", "h": "m", "qbar": "Pa",
+    "de": "rad",
+    "alpha": "rad",
+    "q": "rad/s",
+    "az": "g",
+    "alpha_w": "rad",
+    "theta": "rad",
+    "V": "m/s",
+    "qdot": "rad/s^2",
+    "ax": "g",
+    "h": "m",
+    "qbar": "Pa",
     "hdot": "m/s",
 }
 #: Signals every record must have.
@@ -100,8 +109,7 @@ class Record:
         if np.any(dt <= 0):
             i = int(np.argmax(dt <= 0))
             raise RecordError(
-                f"{where}: time is not strictly increasing at sample {i + 1} "
-                f"(t = {t[i]:.6g} then {t[i + 1]:.6g} s)"
+                f"{where}: time is not strictly increasing at sample {i + 1} (t = {t[i]:.6g} then {t[i + 1]:.6g} s)"
             )
         mean_dt = (t[-1] - t[0]) / (t.size - 1)
         jitter = np.max(np.abs(dt - mean_dt)) / mean_dt
@@ -146,8 +154,10 @@ class Record:
         object.__setattr__(self, "meta", dict(self.meta))
 
     def __repr__(self) -> str:
-        return (f"<Record {self.name!r}: {self.n} samples at {self.dt:g} s ({self.duration:g} s), "
-                f"signals {', '.join(self.signals)}>")
+        return (
+            f"<Record {self.name!r}: {self.n} samples at {self.dt:g} s ({self.duration:g} s), "
+            f"signals {', '.join(self.signals)}>"
+        )
 
     # --- accessors ---------------------------------------------------------------
     def __getitem__(self, name: str) -> np.ndarray:
@@ -193,8 +203,12 @@ class Record:
                 f"[{self.t[0]:g}, {self.t[-1]:g}] s"
             )
         keep = (self.t >= lo - 1e-9 * self.dt) & (self.t <= hi + 1e-9 * self.dt)
-        return replace(self, t=self.t[keep], signals={k: v[keep] for k, v in self.signals.items()},
-                       meta={**self.meta, "window": [lo, hi]})
+        return replace(
+            self,
+            t=self.t[keep],
+            signals={k: v[keep] for k, v in self.signals.items()},
+            meta={**self.meta, "window": [lo, hi]},
+        )
 
     def remove_trim(self, mode: str = "first", window: float = 0.5) -> "Record":
         """Subtract the trim value from every signal.
@@ -310,12 +324,16 @@ def _time_unit_problem(dt: float, duration: float) -> str | None:
         return None
     fits = [(unit, f) for unit, f in _TIME_UNITS if 1.0 / hi_hz <= dt * f <= 1.0 / lo_hz]
     if not fits:
-        return (f"sample interval {dt:g} s ({1 / dt:.3g} Hz) is slower than any flight record "
-                f"({lo_hz:g}-{hi_hz:g} Hz); give time in seconds")
+        return (
+            f"sample interval {dt:g} s ({1 / dt:.3g} Hz) is slower than any flight record "
+            f"({lo_hz:g}-{hi_hz:g} Hz); give time in seconds"
+        )
     unit, f = fits[0]
     also = f" (or {fits[1][0]})" if len(fits) > 1 else ""
-    return (f"time looks like {unit}{also}: sample interval {dt:g} and record length {duration:g} are "
-            f"{dt * f:g} s ({1 / (dt * f):.4g} Hz) and {duration * f:g} s in {unit}; give time in seconds")
+    return (
+        f"time looks like {unit}{also}: sample interval {dt:g} and record length {duration:g} are "
+        f"{dt * f:g} s ({1 / (dt * f):.4g} Hz) and {duration * f:g} s in {unit}; give time in seconds"
+    )
 
 
 def _check_finite(a: np.ndarray, label: str, where: str) -> None:
@@ -323,9 +341,7 @@ def _check_finite(a: np.ndarray, label: str, where: str) -> None:
     if np.any(bad):
         i = int(np.argmax(bad))
         kind = "NaN" if np.isnan(a[i]) else "inf"
-        raise RecordError(
-            f"{where}: {label} has {int(bad.sum())} non-finite value(s) (first: {kind} at sample {i})"
-        )
+        raise RecordError(f"{where}: {label} has {int(bad.sum())} non-finite value(s) (first: {kind} at sample {i})")
 
 
 def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = True) -> Record:
@@ -353,8 +369,9 @@ def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = T
         raise RecordError(f"record file {path}: no 't' column in the header {header}; expected t,de,alpha,q,az")
     for h in ("t", *SIGNALS):  # columns fdml ignores may repeat; one it reads must be unambiguous
         if header.count(h) > 1:
-            raise RecordError(f"record file {path}: column {h!r} appears {header.count(h)} times in the header; "
-                              "keep one")
+            raise RecordError(
+                f"record file {path}: column {h!r} appears {header.count(h)} times in the header; keep one"
+            )
     cols = {}
     for i, r in enumerate(rows[1:], start=2):
         if len(r) != len(header):
@@ -372,7 +389,6 @@ def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = T
         cols[h] = data[:, i]
     signals = {k: cols[k] for k in SIGNALS if k in cols}
     try:
-        return Record(cols["t"], signals, name=name or path.stem, meta={"source": str(path)},
-                      check_units=check_units)
+        return Record(cols["t"], signals, name=name or path.stem, meta={"source": str(path)}, check_units=check_units)
     except RecordError as exc:
         raise RecordError(f"record file {path}: {exc}") from None

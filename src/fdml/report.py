@@ -44,8 +44,9 @@ def _figure(figsize):
     return Figure(figsize=figsize)
 
 
-def write_report(result_or_path, out_dir=None, *, freq_unit: str = "rad/s", dpi: int = 110,
-                 trim_window: float = 0.5) -> dict:
+def write_report(
+    result_or_path, out_dir=None, *, freq_unit: str = "rad/s", dpi: int = 110, trim_window: float = 0.5
+) -> dict:
     """Write a fit's figures and a Markdown report into a folder.
 
     Parameters
@@ -97,35 +98,58 @@ def write_report(result_or_path, out_dir=None, *, freq_unit: str = "rad/s", dpi:
             n_out = len(res.outputs)
             fig = _figure((4.2 * n_out, 6))
             axes = fig.subplots(2, n_out, sharex=True, squeeze=False)
-            plot_spectra(res, record=i, freq_unit=freq_unit, axes=axes,
-                         title=f"{rname}: measured and fitted spectra ({res.kind}), 2-sigma band")
+            plot_spectra(
+                res,
+                record=i,
+                freq_unit=freq_unit,
+                axes=axes,
+                title=f"{rname}: measured and fitted spectra ({res.kind}), 2-sigma band",
+            )
             fig.tight_layout()
             save("spectra" + sfx, fig, "spectra" + sfx)
-            figures.append((rname, "Measured against fitted spectra with the 2-sigma Cramer-Rao band",
-                            f"spectra{sfx}.png"))
+            figures.append(
+                (rname, "Measured against fitted spectra with the 2-sigma Cramer-Rao band", f"spectra{sfx}.png")
+            )
             if i < len(res.time_records) and res.time_records[i] is not None:
                 try:
                     fig = _figure((8, 2.0 * 4 + 0.6))
                     axes = fig.subplots(4, 1, sharex=True, squeeze=False)
-                    plot_time_histories(res, record=i, axes=axes, trim_window=trim_window,
-                                        title=f"{rname}: measured and simulated from the estimate")
+                    plot_time_histories(
+                        res,
+                        record=i,
+                        axes=axes,
+                        trim_window=trim_window,
+                        title=f"{rname}: measured and simulated from the estimate",
+                    )
                     fig.tight_layout()
                     save("time_histories" + sfx, fig, "time_histories" + sfx)
-                    figures.append((rname, "Time histories: measured against the model simulated in the "
-                                    "time domain from the estimate", f"time_histories{sfx}.png"))
+                    figures.append(
+                        (
+                            rname,
+                            "Time histories: measured against the model simulated in the time domain from the estimate",
+                            f"time_histories{sfx}.png",
+                        )
+                    )
                 except FdmlError as exc:  # the report goes on without this figure
                     notes.append(f"record {rname}: time histories not drawn ({exc})")
             else:
-                notes.append(f"record {rname}: time histories not drawn (the fit was given spectra, "
-                             "not time-domain records)")
+                notes.append(
+                    f"record {rname}: time histories not drawn (the fit was given spectra, not time-domain records)"
+                )
             fig = _figure((4.2 * n_out, 3.4))
             axes = fig.subplots(1, n_out, squeeze=False)
-            plot_residual_spectra(res, record=i, freq_unit=freq_unit, axes=axes,
-                                  title=f"{rname}: residual spectra and the noise floor implied by R")
+            plot_residual_spectra(
+                res,
+                record=i,
+                freq_unit=freq_unit,
+                axes=axes,
+                title=f"{rname}: residual spectra and the noise floor implied by R",
+            )
             fig.tight_layout()
             save("residual_spectra" + sfx, fig, "residual_spectra" + sfx)
-            figures.append((rname, "Residual spectra |z - y| with sqrt(R_kk) and its 95 % level",
-                            f"residual_spectra{sfx}.png"))
+            figures.append(
+                (rname, "Residual spectra |z - y| with sqrt(R_kk) and its 95 % level", f"residual_spectra{sfx}.png")
+            )
         n = len(res.names)
         size = max(3.5, 0.45 * n + 1.8)
         fig = _figure((size + 1.0, size))
@@ -158,9 +182,8 @@ def _markdown(res, source, figures, notes) -> str:
         lines.append(f"fdml {__version__}.")
     lines += ["", "## Summary", "", s.as_markdown().replace("### ", "#### ", 1), ""]
     lines += ["## Convergence", ""]
-    verdict = ("stopped by the callback" if res.stopped else "converged" if res.converged else "NOT converged")
-    lines.append(f"{verdict} after {res.iterations} iterations ({res.method}, stop rule {res.stop!r}): "
-                 f"{res.message}.")
+    verdict = "stopped by the callback" if res.stopped else "converged" if res.converged else "NOT converged"
+    lines.append(f"{verdict} after {res.iterations} iterations ({res.method}, stop rule {res.stop!r}): {res.message}.")
     lines += ["", "| iteration | J = det R | relative change |", "|---:|---:|---:|"]
     prev = None
     for k, J in enumerate(res.cost_history):

@@ -159,13 +159,35 @@ class FitResult:
 
     # --- construction -------------------------------------------------------------------
     @classmethod
-    def build(cls, *, prob, model, theta, cov, cov_naive, stderr, corr, R, history, iterations,
-              converged, message, cov_type, warnings, elapsed, stopped, method, stop) -> "FitResult":
+    def build(
+        cls,
+        *,
+        prob,
+        model,
+        theta,
+        cov,
+        cov_naive,
+        stderr,
+        corr,
+        R,
+        history,
+        iterations,
+        converged,
+        message,
+        cov_type,
+        warnings,
+        elapsed,
+        stopped,
+        method,
+        stop,
+    ) -> "FitResult":
         names = prob.names
         lo, hi = prob.bounds()
-        at_bound = tuple(n for i, n in enumerate(names)
-                         if (math.isfinite(lo[i]) and theta[i] <= lo[i]) or
-                         (math.isfinite(hi[i]) and theta[i] >= hi[i]))
+        at_bound = tuple(
+            n
+            for i, n in enumerate(names)
+            if (math.isfinite(lo[i]) and theta[i] <= lo[i]) or (math.isfinite(hi[i]) and theta[i] >= hi[i])
+        )
         mnames = [prob.slots[i].name for i in prob.model_slots]
         derived = {}
         dvals = model.derived()
@@ -189,23 +211,41 @@ class FitResult:
             band = tuple(prob.data[0].band)
         spectra = tuple(
             {
-                "name": d.name, "omega": d.omega, "z": d.z, "u": d.u, "inputs": list(d.inputs),
-                "x0": d.x0, "xT": d.xT, "T": d.T, "dt": d.dt, "n": d.n, "ones": d.ones,
+                "name": d.name,
+                "omega": d.omega,
+                "z": d.z,
+                "u": d.u,
+                "inputs": list(d.inputs),
+                "x0": d.x0,
+                "xT": d.xT,
+                "T": d.T,
+                "dt": d.dt,
+                "n": d.n,
+                "ones": d.ones,
             }
             for d in prob.data
         )
         time_records = tuple(
-            None if d.record is None else
-            {"name": d.name, "t": d.record.t, "signals": dict(d.record.signals),
-             "meta": dict(d.record.meta), "trim_mode": d.trim_mode}
+            None
+            if d.record is None
+            else {
+                "name": d.name,
+                "t": d.record.t,
+                "signals": dict(d.record.signals),
+                "meta": dict(d.record.meta),
+                "trim_mode": d.trim_mode,
+            }
             for d in prob.data
         )
         if all(r is None for r in time_records):
             time_records = ()
         nuisance = {
             "boundary": prob.boundary,
-            "output_biases": [["alpha", "q", "az"][k] for k in prob.out_idx
-                              if prob.model.parameters[f"bias_{['alpha', 'q', 'az'][k]}"].free],
+            "output_biases": [
+                ["alpha", "q", "az"][k]
+                for k in prob.out_idx
+                if prob.model.parameters[f"bias_{['alpha', 'q', 'az'][k]}"].free
+            ],
             "state_biases": bool(getattr(prob, "state_biases", False)),
             "input_bias": bool(getattr(prob, "input_bias", False)),
             "trim": [d.trim_mode for d in prob.data],
@@ -213,13 +253,33 @@ class FitResult:
         return cls(
             nuisance=nuisance,
             time_records=time_records,
-            model=model, names=tuple(names), values=np.asarray(theta, float), stderr=np.asarray(stderr),
-            cov=cov, corr=corr, cov_naive=cov_naive, R=R, cost_history=tuple(history),
-            iterations=iterations, converged=converged, message=message, derived=derived, fixed=fixed,
-            at_bound=at_bound, outputs=tuple(["alpha", "q", "az"][k] for k in prob.out_idx),
-            band=band, n_freq=prob.N, records=tuple(d.name for d in prob.data),
-            boundary=prob.boundary, cov_type=cov_type, method=method, stop=stop, stopped=stopped,
-            warnings=tuple(warnings), elapsed=elapsed, spectra=spectra,
+            model=model,
+            names=tuple(names),
+            values=np.asarray(theta, float),
+            stderr=np.asarray(stderr),
+            cov=cov,
+            corr=corr,
+            cov_naive=cov_naive,
+            R=R,
+            cost_history=tuple(history),
+            iterations=iterations,
+            converged=converged,
+            message=message,
+            derived=derived,
+            fixed=fixed,
+            at_bound=at_bound,
+            outputs=tuple(["alpha", "q", "az"][k] for k in prob.out_idx),
+            band=band,
+            n_freq=prob.N,
+            records=tuple(d.name for d in prob.data),
+            boundary=prob.boundary,
+            cov_type=cov_type,
+            method=method,
+            stop=stop,
+            stopped=stopped,
+            warnings=tuple(warnings),
+            elapsed=elapsed,
+            spectra=spectra,
         )
 
     # --- accessors ----------------------------------------------------------------------
@@ -284,8 +344,10 @@ class FitResult:
 
     def __repr__(self) -> str:
         state = "converged" if self.converged else "not converged"
-        return (f"<FitResult {self.kind}: {len(self.names)} estimates, {state} in {self.iterations} "
-                f"iterations, J = {self.cost:.4g}, records {', '.join(self.records)}>")
+        return (
+            f"<FitResult {self.kind}: {len(self.names)} estimates, {state} in {self.iterations} "
+            f"iterations, J = {self.cost:.4g}, records {', '.join(self.records)}>"
+        )
 
     # --- JSON ---------------------------------------------------------------------------------
     def brief(self) -> dict:
@@ -298,14 +360,16 @@ class FitResult:
         checks, :meth:`fdml.adequacy.Adequacy.brief`), provenance.  Infinite standard errors are
         written as the string "inf".
         """
+
         def num(x):
             return x if math.isfinite(x) else str(x)
 
         return {
             "model": self.kind,
             "effects": self.effects_brief(),
-            "params": {n: {"value": float(v), "stderr": num(float(s))}
-                       for n, v, s in zip(self.names, self.values, self.stderr)},
+            "params": {
+                n: {"value": float(v), "stderr": num(float(s))} for n, v, s in zip(self.names, self.values, self.stderr)
+            },
             "derived": {k: {"value": v, "stderr": num(s)} for k, (v, s) in self.derived.items()},
             "fixed": self.fixed,
             "cost": self.cost,
@@ -339,8 +403,11 @@ class FitResult:
             pars = {}
             for p in eff.param_list(root_model(self.model)):
                 s = se.get(p.name)
-                pars[p.name] = {"value": float(vals[p.name]), "unit": p.unit,
-                                "stderr": None if s is None else (s if math.isfinite(s) else str(s))}
+                pars[p.name] = {
+                    "value": float(vals[p.name]),
+                    "unit": p.unit,
+                    "stderr": None if s is None else (s if math.isfinite(s) else str(s)),
+                }
             out.append({"key": eff.key, "parameters": pars})
         return out
 
@@ -358,54 +425,70 @@ class FitResult:
         def c(a):
             return np.asarray(a, complex)
 
-        return to_jsonable({
-            "format": RESULT_FORMAT[0],
-            "version": RESULT_FORMAT[1],
-            "model": model_to_dict(self.model),
-            "names": list(self.names),
-            "values": f(self.values),
-            "stderr": f(self.stderr),
-            "cov": f(self.cov),
-            "corr": f(self.corr),
-            "cov_naive": f(self.cov_naive),
-            "R": c(self.R),
-            "cost_history": [float(x) for x in self.cost_history],
-            "iterations": int(self.iterations),
-            "converged": bool(self.converged),
-            "message": self.message,
-            "derived": {k: [float(v), float(s)] for k, (v, s) in self.derived.items()},
-            "fixed": {k: float(v) for k, v in self.fixed.items()},
-            "at_bound": list(self.at_bound),
-            "outputs": list(self.outputs),
-            "band": None if self.band is None else [float(x) for x in self.band],
-            "n_freq": int(self.n_freq),
-            "records": list(self.records),
-            "boundary": self.boundary,
-            "cov_type": self.cov_type,
-            "method": self.method,
-            "stop": self.stop,
-            "stopped": bool(self.stopped),
-            "warnings": list(self.warnings),
-            "elapsed": float(self.elapsed),
-            "spectra": [
-                {
-                    "name": s["name"], "omega": f(s["omega"]), "z": c(s["z"]), "u": c(s["u"]),
-                    "inputs": list(s["inputs"]), "x0": f(s["x0"]), "xT": f(s["xT"]), "T": float(s["T"]),
-                    "dt": float(s["dt"]), "n": int(s["n"]), "ones": c(s["ones"]),
-                }
-                for s in self.spectra
-            ],
-            "nuisance": self.nuisance,
-            "findings": [x.to_dict() for x in self.findings],
-            "adequacy": None if self.adequacy is None else self.adequacy.to_dict(),
-            "provenance": self.provenance,
-            "time_records": [
-                None if r is None else
-                {"name": r["name"], "t": f(r["t"]), "signals": {k: f(v) for k, v in r["signals"].items()},
-                 "meta": r["meta"], "trim_mode": r["trim_mode"]}
-                for r in self.time_records
-            ],
-        })
+        return to_jsonable(
+            {
+                "format": RESULT_FORMAT[0],
+                "version": RESULT_FORMAT[1],
+                "model": model_to_dict(self.model),
+                "names": list(self.names),
+                "values": f(self.values),
+                "stderr": f(self.stderr),
+                "cov": f(self.cov),
+                "corr": f(self.corr),
+                "cov_naive": f(self.cov_naive),
+                "R": c(self.R),
+                "cost_history": [float(x) for x in self.cost_history],
+                "iterations": int(self.iterations),
+                "converged": bool(self.converged),
+                "message": self.message,
+                "derived": {k: [float(v), float(s)] for k, (v, s) in self.derived.items()},
+                "fixed": {k: float(v) for k, v in self.fixed.items()},
+                "at_bound": list(self.at_bound),
+                "outputs": list(self.outputs),
+                "band": None if self.band is None else [float(x) for x in self.band],
+                "n_freq": int(self.n_freq),
+                "records": list(self.records),
+                "boundary": self.boundary,
+                "cov_type": self.cov_type,
+                "method": self.method,
+                "stop": self.stop,
+                "stopped": bool(self.stopped),
+                "warnings": list(self.warnings),
+                "elapsed": float(self.elapsed),
+                "spectra": [
+                    {
+                        "name": s["name"],
+                        "omega": f(s["omega"]),
+                        "z": c(s["z"]),
+                        "u": c(s["u"]),
+                        "inputs": list(s["inputs"]),
+                        "x0": f(s["x0"]),
+                        "xT": f(s["xT"]),
+                        "T": float(s["T"]),
+                        "dt": float(s["dt"]),
+                        "n": int(s["n"]),
+                        "ones": c(s["ones"]),
+                    }
+                    for s in self.spectra
+                ],
+                "nuisance": self.nuisance,
+                "findings": [x.to_dict() for x in self.findings],
+                "adequacy": None if self.adequacy is None else self.adequacy.to_dict(),
+                "provenance": self.provenance,
+                "time_records": [
+                    None
+                    if r is None
+                    else {
+                        "name": r["name"],
+                        "t": f(r["t"]),
+                        "signals": {k: f(v) for k, v in r["signals"].items()},
+                        "meta": r["meta"],
+                        "trim_mode": r["trim_mode"],
+                    }
+                    for r in self.time_records
+                ],
+            }
+        )
 
     def to_json(self, path: str | Path | None = None, indent: int = 1, *, inputs=()):
         """JSON text, or, given ``path``, write it atomically there and return the path.
@@ -470,8 +553,10 @@ class FitResult:
             findings=tuple(_finding_from_fields(x) for x in f.items("findings", default=[])),
             adequacy=_adequacy_from_fields(f),
             provenance=f.mapping("provenance", default={}),
-            time_records=tuple(None if r is None else _time_record_from_fields(r)
-                               for r in f.items("time_records", default=[], allow_none=True)),
+            time_records=tuple(
+                None if r is None else _time_record_from_fields(r)
+                for r in f.items("time_records", default=[], allow_none=True)
+            ),
         )
 
     def record(self, index: int = 0):
@@ -481,8 +566,13 @@ class FitResult:
         if not self.time_records or self.time_records[index] is None:
             raise FdmlError(f"this result holds no time-domain records for record {index} (the fit was given spectra)")
         r = self.time_records[index]
-        return Record(np.asarray(r["t"], float), {k: np.asarray(v, float) for k, v in r["signals"].items()},
-                      name=r["name"], meta=r["meta"], check_units=False)
+        return Record(
+            np.asarray(r["t"], float),
+            {k: np.asarray(v, float) for k, v in r["signals"].items()},
+            name=r["name"],
+            meta=r["meta"],
+            check_units=False,
+        )
 
     def nuisance_values(self, record: int = 0):
         """Nuisance values of record ``record`` as arrays (:class:`fdml.models.measurement.Nuisance`).
@@ -495,8 +585,9 @@ class FitResult:
 
         s = self.spectra[record]
         suffix = f"[{s['name']}]" if len(self.spectra) > 1 else ""
-        return Nuisance.from_values(self.params, suffix, biases=self.model.biases(), x0=s["x0"], xT=s["xT"],
-                                    boundary=self.boundary != "none")
+        return Nuisance.from_values(
+            self.params, suffix, biases=self.model.biases(), x0=s["x0"], xT=s["xT"], boundary=self.boundary != "none"
+        )
 
     def fitted_spectra(self, record: int = 0) -> np.ndarray:
         """Model output spectra at the estimate for record ``record``, shape (m, 3).
@@ -511,8 +602,9 @@ class FitResult:
         resp = self.model.evaluate(s["omega"])
         nu = self.nuisance_values(record)
         u = s["u"][:, : resp.G.shape[2]]
-        return predict(resp, u, s["ones"], nu.boundary(end_shift(s["omega"], s["T"])), nu.biases,
-                       nu.state_biases, nu.input_bias)
+        return predict(
+            resp, u, s["ones"], nu.boundary(end_shift(s["omega"], s["T"])), nu.biases, nu.state_biases, nu.input_bias
+        )
 
 
 def _number_in(f: Fields, key: str, name: str, v) -> float:
@@ -538,15 +630,22 @@ def _model_from_fields(f: Fields):
     aircraft = None if m.raw("aircraft", None) is None else m.mapping("aircraft")
     params = []
     for p in m.items("parameters"):
-        params.append({"name": p.string("name"), "value": p.number("value"),
-                       "free": p.boolean("free", default=True),
-                       "lower": p.number("lower", default=None, allow_none=True),
-                       "upper": p.number("upper", default=None, allow_none=True),
-                       "unit": p.string("unit", default=""), "description": p.string("description", default="")})
+        params.append(
+            {
+                "name": p.string("name"),
+                "value": p.number("value"),
+                "free": p.boolean("free", default=True),
+                "lower": p.number("lower", default=None, allow_none=True),
+                "upper": p.number("upper", default=None, allow_none=True),
+                "unit": p.string("unit", default=""),
+                "description": p.string("description", default=""),
+            }
+        )
     effects = list(m.strings("effects", default=()))  # effect keys (H1, issue 8)
     try:
-        return model_from_dict({"kind": kind, "options": options, "aircraft": aircraft, "parameters": params,
-                                "effects": effects})
+        return model_from_dict(
+            {"kind": kind, "options": options, "aircraft": aircraft, "parameters": params, "effects": effects}
+        )
     except FdmlError as exc:
         raise f.error("model", f"does not describe a model: {exc}") from None
     except (TypeError, ValueError, LookupError, AttributeError, ArithmeticError) as exc:
@@ -557,27 +656,41 @@ def _spectrum_from_fields(s: Fields) -> dict:
     omega = s.floats("omega", (None,))
     m = omega.size
     return {
-        "name": s.string("name"), "omega": omega, "z": s.complexes("z", (m, None)),
-        "u": s.complexes("u", (m, None)), "inputs": list(s.strings("inputs")),
-        "x0": s.floats("x0", (2,)), "xT": s.floats("xT", (2,)), "T": s.number("T"), "dt": s.number("dt"),
-        "n": s.integer("n", minimum=0), "ones": s.complexes("ones", (m,)),
+        "name": s.string("name"),
+        "omega": omega,
+        "z": s.complexes("z", (m, None)),
+        "u": s.complexes("u", (m, None)),
+        "inputs": list(s.strings("inputs")),
+        "x0": s.floats("x0", (2,)),
+        "xT": s.floats("xT", (2,)),
+        "T": s.number("T"),
+        "dt": s.number("dt"),
+        "n": s.integer("n", minimum=0),
+        "ones": s.complexes("ones", (m,)),
     }
 
 
 def _time_record_from_fields(r: Fields) -> dict:
     t = r.floats("t", (None,))
     sig = r.sub("signals")
-    return {"name": r.string("name"), "t": t,
-            "signals": {k: sig.floats(k, (t.size,)) for k in sig.doc},
-            "meta": r.mapping("meta"), "trim_mode": r.string("trim_mode")}
+    return {
+        "name": r.string("name"),
+        "t": t,
+        "signals": {k: sig.floats(k, (t.size,)) for k in sig.doc},
+        "meta": r.mapping("meta"),
+        "trim_mode": r.string("trim_mode"),
+    }
 
 
 def _finding_from_fields(x: Fields) -> Finding:
-    return Finding(code=x.string("code"), message=x.string("message"),
-                   kind=x.string("kind", default="data", choices=_FINDING_KINDS),
-                   record=x.string("record", default=None, allow_none=True),
-                   value=x.number("value", default=None, allow_none=True),
-                   expected=x.number("expected", default=None, allow_none=True))
+    return Finding(
+        code=x.string("code"),
+        message=x.string("message"),
+        kind=x.string("kind", default="data", choices=_FINDING_KINDS),
+        record=x.string("record", default=None, allow_none=True),
+        value=x.number("value", default=None, allow_none=True),
+        expected=x.number("expected", default=None, allow_none=True),
+    )
 
 
 def _adequacy_from_fields(f: Fields):

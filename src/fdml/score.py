@@ -78,8 +78,22 @@ from .models.base import Model
 from .models.effects import Effect
 
 __all__ = [
-    "ALIAS_LIMIT", "ScreenContext", "ScreenResult", "bh", "chi2_logsf", "chi2_sf", "davies_bound", "f_sf",
-    "grid_variation", "holm", "null_kind", "p_value", "power_noncentrality", "screen", "screen_all", "whitener",
+    "ALIAS_LIMIT",
+    "ScreenContext",
+    "ScreenResult",
+    "bh",
+    "chi2_logsf",
+    "chi2_sf",
+    "davies_bound",
+    "f_sf",
+    "grid_variation",
+    "holm",
+    "null_kind",
+    "p_value",
+    "power_noncentrality",
+    "screen",
+    "screen_all",
+    "whitener",
 ]
 
 #: Aliasing above which a candidate is "not identifiable" (DIAGNOSIS.md 2.3).
@@ -87,6 +101,7 @@ ALIAS_LIMIT = 0.99
 
 
 # --- distributions ----------------------------------------------------------------------------
+
 
 def chi2_sf(x: float, df: float) -> float:
     """P(chi2_df > x) (``scipy.stats.chi2.sf``)."""
@@ -118,6 +133,7 @@ def power_noncentrality(level: float, df: int = 1, power: float = 0.8) -> float:
     from scipy import optimize, stats
 
     crit = stats.chi2.isf(level, df)
+
     def f(lam):
         return stats.ncx2.sf(crit, df, lam) - power
 
@@ -128,8 +144,13 @@ def davies_bound(u: float, q: int, V: float) -> float:
     """Davies (1987): P(sup of a chi2(q) process > u) <= P(chi2_q > u) + V u^((q-1)/2) e^(-u/2) 2^(-q/2)/Gamma(q/2)."""
     if u <= 0:
         return 1.0
-    log_term = (math.log(max(V, 1e-300)) + 0.5 * (q - 1) * math.log(u) - 0.5 * u - 0.5 * q * math.log(2.0)
-                - special.gammaln(0.5 * q))
+    log_term = (
+        math.log(max(V, 1e-300))
+        + 0.5 * (q - 1) * math.log(u)
+        - 0.5 * u
+        - 0.5 * q * math.log(2.0)
+        - special.gammaln(0.5 * q)
+    )
     return float(chi2_sf(u, q) + math.exp(log_term))
 
 
@@ -166,8 +187,7 @@ def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> 
         p = plist[0]
         null = effect.nulls(model)[p.name]
         try:
-            aug = screen_res.model if screen_res is not None and screen_res.model is not None else \
-                effect.augment(model)
+            aug = screen_res.model if screen_res is not None and screen_res.model is not None else effect.augment(model)
             aug_par = aug.parameters[p.name]
         except FdmlError:  # pragma: no cover - augment validated before
             aug_par = None
@@ -182,12 +202,13 @@ def grid_variation(scr: ScreenResult | None) -> tuple[float, int]:
     """(total variation of sqrt(LM) along the nuisance grid, grid size) for Davies' bound; (0, 1) without a grid."""
     if scr is None or not scr.grid:
         return 0.0, 1
-    (_, (grid, prof)), = scr.grid.items()
+    ((_, (grid, prof)),) = scr.grid.items()
     r = np.sqrt(np.maximum(prof, 0.0))
     return float(np.sum(np.abs(np.diff(r)))), int(grid.size)
 
 
 # --- family-wise corrections ---------------------------------------------------------------------
+
 
 def holm(p: np.ndarray) -> np.ndarray:
     """Holm's step-down adjusted p-values (NaN stays NaN)."""
@@ -232,6 +253,7 @@ def whitener(Rs) -> list[np.ndarray]:
 
 
 # --- the screen ----------------------------------------------------------------------------------
+
 
 @dataclass
 class ScreenResult:
@@ -283,8 +305,16 @@ class ScreenContext:
     #: Size of the screened family (the MDE's power is at level / family_size); callers set it per step.
     family_size: int = 1
 
-    def __init__(self, fit, rows: np.ndarray, oversample: float, spectra, fit_options: dict,
-                 floor_weights: np.ndarray | None = None, sensitivities: np.ndarray | None = None):
+    def __init__(
+        self,
+        fit,
+        rows: np.ndarray,
+        oversample: float,
+        spectra,
+        fit_options: dict,
+        floor_weights: np.ndarray | None = None,
+        sensitivities: np.ndarray | None = None,
+    ):
         self.fit = fit
         self.rows = rows
         self.K = oversample
@@ -395,8 +425,10 @@ class ScreenContext:
         Returns shape (N, n_out, len(grid), q).  This one evaluates the grid
         values one by one; a subclass may evaluate them at once.
         """
-        return np.stack([self.candidate_sensitivities(model.with_values({gname: float(w)}), names, steps, one_sided)
-                         for w in grid], axis=2)
+        return np.stack(
+            [self.candidate_sensitivities(model.with_values({gname: float(w)}), names, steps, one_sided) for w in grid],
+            axis=2,
+        )
 
 
 def _stack(prob, theta):
@@ -497,7 +529,7 @@ def _candidate(ctx: ScreenContext, effect: Effect) -> _Candidate:
 
 def screen(ctx: ScreenContext, effect: Effect, *, level: float, band: tuple) -> ScreenResult:
     """Screen one candidate effect at the current fit (:func:`screen_all` of one)."""
-    res, = screen_all(ctx, [effect], level=level, band=band)
+    (res,) = screen_all(ctx, [effect], level=level, band=band)
     if isinstance(res, Exception):
         raise res
     return res
@@ -551,7 +583,7 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
 def _grid_stats(ctx: ScreenContext, c: _Candidate, band: tuple) -> tuple:
     """Statistics at the grid value of the nuisance parameter with the largest LM (blocks of the grid at once)."""
     assert c.effect.nuisance_grid is not None  # called for nuisance-grid effects only
-    (gname, gfun), = c.effect.nuisance_grid.items()
+    ((gname, gfun),) = c.effect.nuisance_grid.items()
     grid = np.asarray(gfun(max(band[0], band[1] / 5.0), band[1]))
     prof: list[np.ndarray] = []
     best: tuple | None = None
@@ -592,8 +624,9 @@ def _result(ctx: ScreenContext, c: _Candidate, stats: tuple, level: float) -> Sc
     aliasing = {n: float(alias[j]) for j, n in enumerate(names)}
     reason = _unidentifiable(aliasing, mde, c.test, c.nulls, grid_out is not None)
     eta_lin = {n: float(c.nulls[n] + eta[j]) for j, n in enumerate(names)}
-    return ScreenResult(c.effect.key, lm, eta_lin, aliasing, mde, reason is None, reason, grid_out, best_nuis,
-                        model=c.aug, jacobian=jac)
+    return ScreenResult(
+        c.effect.key, lm, eta_lin, aliasing, mde, reason is None, reason, grid_out, best_nuis, model=c.aug, jacobian=jac
+    )
 
 
 def _unidentifiable(aliasing: dict, mde: dict, test, nulls: dict, grid: bool) -> str | None:
@@ -601,14 +634,18 @@ def _unidentifiable(aliasing: dict, mde: dict, test, nulls: dict, grid: bool) ->
     worst = max(aliasing.values()) if aliasing else 0.0
     if worst > ALIAS_LIMIT:
         n_ = max(aliasing, key=lambda n: aliasing[n])
-        return (f"aliased: {100 * aliasing[n_]:.1f} % of the {n_} signature is absorbed by the base parameters "
-                "with these inputs")
+        return (
+            f"aliased: {100 * aliasing[n_]:.1f} % of the {n_} signature is absorbed by the base parameters "
+            "with these inputs"
+        )
     if grid:
         return None
     for p in test:
         if p.plausible is not None and math.isfinite(mde[p.name]):
             span = max(abs(p.plausible[0] - nulls[p.name]), abs(p.plausible[1] - nulls[p.name]))
             if mde[p.name] > span:
-                return (f"too little information: the smallest detectable {p.name} is {mde[p.name]:.3g} "
-                        f"{p.unit}, beyond its plausible range {p.plausible}")
+                return (
+                    f"too little information: the smallest detectable {p.name} is {mde[p.name]:.3g} "
+                    f"{p.unit}, beyond its plausible range {p.plausible}"
+                )
     return None

@@ -71,6 +71,7 @@ _OUTPUTS = ("alpha", "q", "az")
 
 # --- the linear system ---------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class _System:
     """``x' = A x + B u + bF eps_F``, ``y = C x + D u + Dd u' + dF eps_F`` (y = alpha, q, a_z).
@@ -312,9 +313,19 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
             )
         kappa = eps_ss * F * c / U  # section 4: eps_F = eps_ss F (c_w/U) PV int alpha_dot/(t - tau - T)
     sys = _System(
-        A=rows[:, :ns], B=rows[:, ns:ns + nu], C=out[:, :ns], D=out[:, ns:ns + nu], Dd=np.zeros((3, nu)),
-        channels=tuple(channels), bF=rows[:, -1], dF=out[:, -1],
-        rx=dyn["alpha"][:ns], ru=dyn["alpha"][ns:ns + nu], rF=float(dyn["alpha"][-1]), T=T, kappa=kappa,
+        A=rows[:, :ns],
+        B=rows[:, ns : ns + nu],
+        C=out[:, :ns],
+        D=out[:, ns : ns + nu],
+        Dd=np.zeros((3, nu)),
+        channels=tuple(channels),
+        bF=rows[:, -1],
+        dF=out[:, -1],
+        rx=dyn["alpha"][:ns],
+        ru=dyn["alpha"][ns : ns + nu],
+        rF=float(dyn["alpha"][-1]),
+        T=T,
+        kappa=kappa,
     )
     for fn in post:
         sys = fn(sys)
@@ -344,20 +355,28 @@ def _system(model, p) -> _System:
 
 # --- state-space algebra of the output-level effects (THEORY.md Eq. 5 for a_z) -------------------
 
+
 def _pad_states(sys: _System, k: int) -> _System:
     """``sys`` with ``k`` more states, all zero (appended after the existing ones)."""
     n, nu = sys.B.shape
     A = np.zeros((n + k, n + k))
     A[:n, :n] = sys.A
     z = np.zeros(k)
-    return replace(sys, A=A, B=np.vstack([sys.B, np.zeros((k, nu))]), C=np.hstack([sys.C, np.zeros((3, k))]),
-                   bF=np.concatenate([sys.bF, z]), rx=np.concatenate([sys.rx, z]))
+    return replace(
+        sys,
+        A=A,
+        B=np.vstack([sys.B, np.zeros((k, nu))]),
+        C=np.hstack([sys.C, np.zeros((3, k))]),
+        bF=np.concatenate([sys.bF, z]),
+        rx=np.concatenate([sys.rx, z]),
+    )
 
 
 def _same_delay(sys: _System, rows, what: str) -> None:
     if len({sys.out_delay[r] for r in rows}) > 1:
-        raise ParameterError(f"{what}: the channels it combines carry different output delays; "
-                             "list the time_delay effect after it")
+        raise ParameterError(
+            f"{what}: the channels it combines carry different output delays; list the time_delay effect after it"
+        )
 
 
 def delay_output(sys: _System, row: int, tau: float) -> _System:
@@ -437,16 +456,23 @@ def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -
     B = np.hstack([s2.B, np.zeros((n + 2, 1))])
     A, C = s2.A, s2.C
     A[n, n + 1] = 1.0
-    A[n + 1, n] = -omega ** 2
+    A[n + 1, n] = -(omega**2)
     A[n + 1, n + 1] = -2.0 * zeta * omega
-    B[n + 1, nu] = omega ** 2
+    B[n + 1, nu] = omega**2
     C[1, n + 1] += r_q / omega
     C[2, n] -= r_az
     C[2, n + 1] -= 2.0 * zeta * r_az / omega
     D = np.hstack([sys.D, np.zeros((3, 1))])
     D[2, nu] = r_az
-    return replace(s2, B=B, C=C, D=D, Dd=np.hstack([sys.Dd, np.zeros((3, 1))]),
-                   ru=np.concatenate([sys.ru, [0.0]]), channels=sys.channels + (("de", 0.0),))
+    return replace(
+        s2,
+        B=B,
+        C=C,
+        D=D,
+        Dd=np.hstack([sys.Dd, np.zeros((3, 1))]),
+        ru=np.concatenate([sys.ru, [0.0]]),
+        channels=sys.channels + (("de", 0.0),),
+    )
 
 
 @dataclass(frozen=True)
@@ -522,6 +548,7 @@ def realize(model, values=None) -> Realization:
 
 # --- integrators ----------------------------------------------------------------------
 
+
 def _foh_march(sys: _System, dt: float, u: np.ndarray) -> np.ndarray:
     """States at the samples for inputs linear between samples (exact; x(0) = 0).
 
@@ -532,10 +559,10 @@ def _foh_march(sys: _System, dt: float, u: np.ndarray) -> np.ndarray:
     n = u.shape[0]
     M = np.zeros((ns + 2 * nu, ns + 2 * nu))
     M[:ns, :ns] = sys.A * dt
-    M[:ns, ns:ns + nu] = sys.B * dt
-    M[ns:ns + nu, ns + nu:] = np.eye(nu)
+    M[:ns, ns : ns + nu] = sys.B * dt
+    M[ns : ns + nu, ns + nu :] = np.eye(nu)
     Ex = linalg.expm(M)
-    Phi, G1, G2 = Ex[:ns, :ns], Ex[:ns, ns:ns + nu], Ex[:ns, ns + nu:]
+    Phi, G1, G2 = Ex[:ns, :ns], Ex[:ns, ns : ns + nu], Ex[:ns, ns + nu :]
     drive = u[:-1] @ (G1 - G2).T + u[1:] @ G2.T
     x = np.zeros((n, ns))
     for k in range(n - 1):  # linear recursion; the work per step is a small matrix product
@@ -581,7 +608,7 @@ def _pv_tables(m: int, n: int):
     if n > m + 1:
         harm = np.concatenate([[0.0], np.cumsum(1.0 / np.arange(1, n))])  # H_0 .. H_{n-1}
         d = np.arange(1, n - m)  # n - m for n = m+1 .. n-1
-        c[m + 1:] = np.log(d / m) + 0.5 / m - harm[d - 1] + harm[m - 1] - 0.5 / d
+        c[m + 1 :] = np.log(d / m) + 0.5 / m - harm[d - 1] + harm[m - 1] - 0.5 / d
     return k, c
 
 
@@ -630,7 +657,7 @@ def pv_memory(rate, m: int) -> np.ndarray:
     # the smooth part's value at sigma = T: -h r'(t_n - T), weight 1 (n > m) or 1/2 (n = m)
     if n > m + 1:
         idx = np.arange(1, n - m)  # n - m for n = m+1 .. n-1
-        out[m + 1:] -= 0.5 * (r[idx + 1] - r[idx - 1])
+        out[m + 1 :] -= 0.5 * (r[idx + 1] - r[idx - 1])
     if n > m:
         out[m] -= 0.5 * (r[1] - r[0])
     return out
@@ -692,7 +719,7 @@ def _memory_march(sys: _System, h: float, m: int, u: np.ndarray, uint: np.ndarra
     b0 = 0  # first index of the current (incomplete) block of r
     xn = x[0]
     for n in range(1, K):
-        Hn = acc[n] + float(np.dot(kr[K - 1 - n + b0:K - 1], r[b0:n]))  # i = b0 .. n-1 (k_{n-i} r_i)
+        Hn = acc[n] + float(np.dot(kr[K - 1 - n + b0 : K - 1], r[b0:n]))  # i = b0 .. n-1 (k_{n-i} r_i)
         if n > m:
             Hn += c[n] * r[n - m] - 0.5 * (r[n - m + 1] - r[n - m - 1])
         elif n == m:
@@ -702,8 +729,8 @@ def _memory_march(sys: _System, h: float, m: int, u: np.ndarray, uint: np.ndarra
         H[n] = Hn
         r[n] = rr @ xn + ru_e[n] + rH * Hn
         if n + 1 - b0 == block and n + 1 < K:  # block [b0, n] complete: add it to every later step
-            seg = signal.fftconvolve(r[b0:n + 1], k[:K - b0])
-            acc[n + 1:] += seg[n + 1 - b0:K - b0]
+            seg = signal.fftconvolve(r[b0 : n + 1], k[: K - b0])
+            acc[n + 1 :] += seg[n + 1 - b0 : K - b0]
             b0 = n + 1
     eps = x @ ex + u @ eu + eH * H
     xdot = x @ Ae.T + uB + np.outer(H, bH)
@@ -711,6 +738,7 @@ def _memory_march(sys: _System, h: float, m: int, u: np.ndarray, uint: np.ndarra
 
 
 # --- validation --------------------------------------------------------------------
+
 
 def _check_time(t) -> tuple[np.ndarray, float]:
     t = np.asarray(t, dtype=float)
@@ -746,8 +774,9 @@ def _check_inputs(model, t: np.ndarray, inputs) -> dict[str, np.ndarray]:
     unknown = [k for k in inputs if k not in needed]
     if unknown:
         hint = " (the model has no gust input; build it with gust=True)" if "alpha_w" in unknown else ""
-        raise RecordError(f"simulate: unexpected input(s) {', '.join(map(str, unknown))}{hint}; "
-                          f"this model takes {', '.join(needed)}")
+        raise RecordError(
+            f"simulate: unexpected input(s) {', '.join(map(str, unknown))}{hint}; this model takes {', '.join(needed)}"
+        )
     out = {}
     for k in needed:
         a = np.asarray(inputs[k], dtype=float)
@@ -766,8 +795,10 @@ def _noise_fraction(noise) -> float | None:
     if noise is None or isinstance(noise, Mapping):
         return None
     if isinstance(noise, bool) or not isinstance(noise, (int, float, np.integer, np.floating)):
-        raise ParameterError(f"noise must be a fraction of each output's RMS (a number such as 0.02) or a "
-                             f"mapping {{'alpha': rad, 'q': rad/s, 'az': g}} of standard deviations, got {noise!r}")
+        raise ParameterError(
+            f"noise must be a fraction of each output's RMS (a number such as 0.02) or a "
+            f"mapping {{'alpha': rad, 'q': rad/s, 'az': g}} of standard deviations, got {noise!r}"
+        )
     if not (math.isfinite(noise) and noise >= 0):
         raise ParameterError(f"noise fraction must be finite and >= 0, got {noise!r}")
     return float(noise)
@@ -797,8 +828,10 @@ def _check_noise(noise, rng):
 
 # --- public API ---------------------------------------------------------------------------
 
-def simulate(model, t, inputs, values=None, *, noise=None, rng=None, substeps=None, pole_steps=None,
-             name: str = "simulated") -> Record:
+
+def simulate(
+    model, t, inputs, values=None, *, noise=None, rng=None, substeps=None, pole_steps=None, name: str = "simulated"
+) -> Record:
     """Simulate a model's response to elevator (and gust) inputs from rest.
 
     Parameters
@@ -939,14 +972,24 @@ def _simulate_memory(sys: _System, tau, dt, sig, substeps, pole_steps):
     eps_s = interpolate.CubicSpline(tk, eps)(tau)
     u_s = np.column_stack([_delayed(tau, sig[nm], d, tau) for nm, d in sys.channels])
     y = xs @ sys.C.T + u_s @ sys.D.T + np.outer(eps_s, sys.dF)
-    integration = {"method": "trapezoid + PV memory by singularity subtraction", "h": h, "pole_steps": m,
-                   "T": sys.T}
+    integration = {"method": "trapezoid + PV memory by singularity subtraction", "h": h, "pole_steps": m, "T": sys.T}
     return y, integration
 
 
-def simulate_maneuver(model, maneuver: str = "3211", *, duration: float = 10.0, dt: float = 0.02,
-                      amplitude: float = DEFAULT_AMPLITUDE, gust_std: float = 0.0,
-                      gust_length: float = DRYDEN_L, noise=None, seed=None, values=None, **input_kw) -> Record:
+def simulate_maneuver(
+    model,
+    maneuver: str = "3211",
+    *,
+    duration: float = 10.0,
+    dt: float = 0.02,
+    amplitude: float = DEFAULT_AMPLITUDE,
+    gust_std: float = 0.0,
+    gust_length: float = DRYDEN_L,
+    noise=None,
+    seed=None,
+    values=None,
+    **input_kw,
+) -> Record:
     """Simulate a standard manoeuvre, optionally in Dryden turbulence, with noise.
 
     Parameters
@@ -993,14 +1036,16 @@ def simulate_maneuver(model, maneuver: str = "3211", *, duration: float = 10.0, 
     if gust_std < 0 or not math.isfinite(gust_std):
         raise ParameterError(f"gust_std must be >= 0 m/s, got {gust_std}")
     if model.gust:
-        inputs["alpha_w"] = (dryden_gust(t, gust_std, model.U, gust_length, rng=rng) if gust_std > 0
-                             else np.zeros_like(t))
+        inputs["alpha_w"] = (
+            dryden_gust(t, gust_std, model.U, gust_length, rng=rng) if gust_std > 0 else np.zeros_like(t)
+        )
     elif gust_std > 0:
         raise ParameterError("gust_std > 0 needs a model with a gust input (make_model(..., gust=True))")
     fraction = _noise_fraction(noise)
     absolute = None if fraction is not None else noise
-    rec = simulate(model, t, inputs, values, noise=absolute, rng=rng if absolute else None,
-                   name=f"{maneuver} simulation")
+    rec = simulate(
+        model, t, inputs, values, noise=absolute, rng=rng if absolute else None, name=f"{maneuver} simulation"
+    )
     meta = {**rec.meta, "maneuver": maneuver, "seed": seed, "gust_std": gust_std}
     if fraction is not None:
         rec = add_noise(rec, fraction, rng, relative=True)

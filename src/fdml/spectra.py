@@ -174,8 +174,10 @@ class FrequencyData:
             ends = np.abs(W[:, None] * np.exp(-1j * np.outer(theta, k)) + a) ** 2
             row = self.dt**2 * (W**2 * (self.n - 2 * K) + 2 * ends.sum(axis=1))
         else:
-            row = np.sum(np.abs(fourier.transform_weights(self.n, self.dt, self.omega,
-                                                          end_correction=self.end_correction)) ** 2, axis=1)
+            row = np.sum(
+                np.abs(fourier.transform_weights(self.n, self.dt, self.omega, end_correction=self.end_correction)) ** 2,
+                axis=1,
+            )
         ell = self.trim_vector()
         if ell is None or not include_trim:
             return row
@@ -216,8 +218,9 @@ class FrequencyData:
             Row n holds how a unit noise sample at time n enters ``sum_i y_i v_i``.
         """
         # F^T y = conj(F^H conj(y))
-        out = np.conj(fourier.fourier_adjoint(np.conj(y), self.n, self.dt, self.omega,
-                                              end_correction=self.end_correction))
+        out = np.conj(
+            fourier.fourier_adjoint(np.conj(y), self.n, self.dt, self.omega, end_correction=self.end_correction)
+        )
         ell = self.trim_vector()
         if ell is not None:
             out = out - ell[:, None] * out.sum(axis=0, keepdims=True)  # P^T = I - l 1^T

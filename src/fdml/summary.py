@@ -32,12 +32,30 @@ __all__ = ["Summary", "Table", "Column", "fit_summary", "comparison_summary", "p
 
 #: Units of the nuisance terms and derived quantities that are not model parameters.
 _EXTRA_UNITS = {
-    "bias_alpha": "rad", "bias_q": "rad/s", "bias_az": "g", "bias_de": "rad",
-    "bias_alpha_dot": "rad/s", "bias_q_dot": "rad/s^2",
-    "x0_alpha": "rad", "x0_q": "rad/s", "xT_alpha": "rad", "xT_q": "rad/s",
-    "Z_a": "1/s", "Z_q": "-", "Z_de": "1/s", "M_a": "1/s^2", "M_q": "1/s", "M_de": "1/s^2",
-    "Cz_a": "1/rad", "Cz_q": "1/rad", "Cz_de": "1/rad", "Cm_a": "1/rad", "Cm_q": "1/rad", "Cm_de": "1/rad",
-    "Cz_adot_G": "1/rad", "Cm_adot_G": "1/rad",
+    "bias_alpha": "rad",
+    "bias_q": "rad/s",
+    "bias_az": "g",
+    "bias_de": "rad",
+    "bias_alpha_dot": "rad/s",
+    "bias_q_dot": "rad/s^2",
+    "x0_alpha": "rad",
+    "x0_q": "rad/s",
+    "xT_alpha": "rad",
+    "xT_q": "rad/s",
+    "Z_a": "1/s",
+    "Z_q": "-",
+    "Z_de": "1/s",
+    "M_a": "1/s^2",
+    "M_q": "1/s",
+    "M_de": "1/s^2",
+    "Cz_a": "1/rad",
+    "Cz_q": "1/rad",
+    "Cz_de": "1/rad",
+    "Cm_a": "1/rad",
+    "Cm_q": "1/rad",
+    "Cm_de": "1/rad",
+    "Cz_adot_G": "1/rad",
+    "Cm_adot_G": "1/rad",
 }
 
 _COV_TYPES = {
@@ -62,6 +80,7 @@ def parameter_unit(result, name: str) -> str:
 
 
 # --- the Summary object ------------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class Column:
@@ -169,8 +188,7 @@ class Summary(str):
     notes: tuple
     digits: int
 
-    def __new__(cls, title: str, header: Sequence = (), tables: Sequence = (), notes: Sequence = (),
-                digits: int = 6):
+    def __new__(cls, title: str, header: Sequence = (), tables: Sequence = (), notes: Sequence = (), digits: int = 6):
         header = tuple((str(k), str(v)) for k, v in header)
         tables = tuple(tables)
         notes = tuple((str(t), tuple(str(x) for x in items)) for t, items in notes if items)
@@ -253,8 +271,15 @@ class Summary(str):
             out.append(r"\end{tabular}")
         for t in self.tables:
             spec = "".join("l" if c.kind == "text" else "r" for c in t.columns)
-            out += ["", r"\medskip", r"\textit{" + x(t.title) + r"}\\[2pt]", r"\begin{tabular}{" + spec + "}",
-                    r"\hline", " & ".join(x(c.label) for c in t.columns) + r" \\", r"\hline"]
+            out += [
+                "",
+                r"\medskip",
+                r"\textit{" + x(t.title) + r"}\\[2pt]",
+                r"\begin{tabular}{" + spec + "}",
+                r"\hline",
+                " & ".join(x(c.label) for c in t.columns) + r" \\",
+                r"\hline",
+            ]
             for row in t.rows:
                 out.append(" & ".join(x(_fmt(v, c.kind, self.digits)) for v, c in zip(row, t.columns)) + r" \\")
             out += [r"\hline", r"\end{tabular}"]
@@ -288,12 +313,12 @@ class Summary(str):
         try:
             import pandas as pd
         except ImportError:  # pragma: no cover - exercised with pandas hidden
-            raise ImportError("Summary.to_frame needs pandas; install the optional extra: "
-                              "pip install 'fdml[pandas]'") from None
+            raise ImportError(
+                "Summary.to_frame needs pandas; install the optional extra: pip install 'fdml[pandas]'"
+            ) from None
         t = self.tables[0] if table is None else self.table(table)
         cols = [c.key for c in t.columns]
-        data = [[(np.nan if v is None and c.kind != "text" else v) for v, c in zip(row, t.columns)]
-                for row in t.rows]
+        data = [[(np.nan if v is None and c.kind != "text" else v) for v, c in zip(row, t.columns)] for row in t.rows]
         frame = pd.DataFrame(data, columns=cols)
         frame = frame.set_index(cols[0])
         for c in t.columns[1:]:
@@ -337,6 +362,7 @@ def _render_text(title, header, tables, notes, digits) -> str:
 
 # --- fits --------------------------------------------------------------------------------------
 
+
 def _biases_used(res) -> list[str]:
     """Which bias terms a fit estimated, from its names (and its ``nuisance`` record)."""
     bases = [n.split("[")[0] for n in res.names]
@@ -363,8 +389,10 @@ def _header(res) -> list[tuple[str, str]]:
     h.append(("outputs", ", ".join(res.outputs)))
     if res.band is not None:
         lo, hi, step = res.band
-        band = (f"{lo:g}-{hi:g} rad/s, step {step:g} ({lo / (2 * math.pi):.3g}-{hi / (2 * math.pi):.3g} Hz); "
-                f"{res.n_freq} frequencies")
+        band = (
+            f"{lo:g}-{hi:g} rad/s, step {step:g} ({lo / (2 * math.pi):.3g}-{hi / (2 * math.pi):.3g} Hz); "
+            f"{res.n_freq} frequencies"
+        )
     elif res.spectra:
         w = np.concatenate([np.asarray(s["omega"], float) for s in res.spectra])
         band = f"{w.min():.4g}-{w.max():.4g} rad/s (given frequencies); {res.n_freq} frequencies"
@@ -373,7 +401,9 @@ def _header(res) -> list[tuple[str, str]]:
     h.append(("band", band))
     h.append(("boundary terms", res.boundary))
     h.append(("biases", "; ".join(_biases_used(res)) or "no biases"))
-    trims = (getattr(res, "nuisance", None) or {}).get("trim") or [r["trim_mode"] for r in res.time_records if r is not None]
+    trims = (getattr(res, "nuisance", None) or {}).get("trim") or [
+        r["trim_mode"] for r in res.time_records if r is not None
+    ]
     if trims:
         h.append(("trim", ",".join(dict.fromkeys(str(t) for t in trims))))
     h.append(("standard errors", f"{res.cov_type}: {_COV_TYPES.get(res.cov_type, res.cov_type)}"))
@@ -387,7 +417,7 @@ def _header(res) -> list[tuple[str, str]]:
     msg = res.message
     for prefix in ("converged: ", "converged, "):
         if msg.startswith(prefix):
-            msg = msg[len(prefix):]
+            msg = msg[len(prefix) :]
     h.append(("convergence", f"{verdict}: {msg}"))
     h.append(("cost J = det R", f"{res.cost:.6g} (start {res.cost_history[0]:.6g})"))
     h.append(("elapsed", f"{res.elapsed:.3g} s"))
@@ -412,15 +442,22 @@ def _rel(value: float, stderr: float) -> float:
 
 
 _PARAM_COLUMNS = (
-    Column("parameter", "parameter"), Column("value", "value", "num"), Column("stderr", "std err", "err"),
-    Column("rel_err_pct", "rel err %", "pct"), Column("flags", "flags"), Column("unit", "unit"),
+    Column("parameter", "parameter"),
+    Column("value", "value", "num"),
+    Column("stderr", "std err", "err"),
+    Column("rel_err_pct", "rel err %", "pct"),
+    Column("flags", "flags"),
+    Column("unit", "unit"),
 )
 
 
 def _shown_fixed(res) -> dict:
     """Fixed parameters worth listing (zero biases and zero delays are absent terms, not choices)."""
-    return {k: v for k, v in res.fixed.items()
-            if not (k.startswith("bias_") and v == 0.0) and not (k.startswith("tau_") and v == 0.0)}
+    return {
+        k: v
+        for k, v in res.fixed.items()
+        if not (k.startswith("bias_") and v == 0.0) and not (k.startswith("tau_") and v == 0.0)
+    }
 
 
 def fit_summary(res, digits: int = 6) -> Summary:
@@ -445,15 +482,22 @@ def fit_summary(res, digits: int = 6) -> Summary:
     """
     rows: list[tuple] = []
     for n, v, s in zip(res.names, np.asarray(res.values, float), np.asarray(res.stderr, float)):
-        rows.append((n, float(v), float(s), _rel(float(v), float(s)), _flags(res, n, float(s)),
-                     parameter_unit(res, n)))
+        rows.append((n, float(v), float(s), _rel(float(v), float(s)), _flags(res, n, float(s)), parameter_unit(res, n)))
     for k, v in _shown_fixed(res).items():
         rows.append((k, float(v), None, None, "fixed", parameter_unit(res, k)))
     tables = [Table("parameters", "Estimates", _PARAM_COLUMNS, tuple(rows))]
     if res.derived:
-        drows = tuple((k, float(v), float(s), _rel(float(v), float(s)),
-                       "not identifiable" if not math.isfinite(s) else "", parameter_unit(res, k))
-                      for k, (v, s) in res.derived.items())
+        drows = tuple(
+            (
+                k,
+                float(v),
+                float(s),
+                _rel(float(v), float(s)),
+                "not identifiable" if not math.isfinite(s) else "",
+                parameter_unit(res, k),
+            )
+            for k, (v, s) in res.derived.items()
+        )
         dcols = (Column("quantity", "derived"),) + _PARAM_COLUMNS[1:]
         tables.append(Table("derived", "Derived set (delta method)", dcols, drows))
     corr = np.asarray(res.corr, float)
@@ -465,8 +509,11 @@ def fit_summary(res, digits: int = 6) -> Summary:
                 pairs.append((res.names[j], res.names[i], float(r)))
     if pairs:
         pairs.sort(key=lambda p: -abs(p[2]))
-        ccols = (Column("parameter_1", "parameter"), Column("parameter_2", "with"),
-                 Column("correlation", "correlation", "z"))
+        ccols = (
+            Column("parameter_1", "parameter"),
+            Column("parameter_2", "with"),
+            Column("correlation", "correlation", "z"),
+        )
         tables.append(Table("correlations", f"Correlations |r| >= {CORRELATION_LISTED:g}", ccols, tuple(pairs)))
     notes = [("data check", [str(f) for f in getattr(res, "findings", ())]), ("warnings", list(res.warnings))]
     if getattr(res, "adequacy", None) is not None:  # fdml.adequacy: score tests and residual checks
@@ -476,6 +523,7 @@ def fit_summary(res, digits: int = 6) -> Summary:
 
 
 # --- steady versus unsteady ------------------------------------------------------------------
+
 
 def comparison_summary(cmp, reference: Mapping | None = None, digits: int = 4) -> Summary:
     """The :class:`Summary` of a :class:`~fdml.compare.Comparison` (WK Tables 1 and 3 layout).
@@ -497,13 +545,16 @@ def comparison_summary(cmp, reference: Mapping | None = None, digits: int = 4) -
     """
     from .compare import ALTERNATE_NAMES
 
-    cols = [Column("derivative", "derivative"),
-            Column("unsteady", "unsteady", "num"), Column("unsteady_stderr", "+/-", "err"),
-            Column("steady", "steady", "num"), Column("steady_stderr", "+/-", "err"),
-            Column("shift_sigma", "shift/sigma", "z")]
+    cols = [
+        Column("derivative", "derivative"),
+        Column("unsteady", "unsteady", "num"),
+        Column("unsteady_stderr", "+/-", "err"),
+        Column("steady", "steady", "num"),
+        Column("steady_stderr", "+/-", "err"),
+        Column("shift_sigma", "shift/sigma", "z"),
+    ]
     if reference:
-        cols += [Column("reference_unsteady", "paper unst.", "num"),
-                 Column("reference_steady", "paper steady", "num")]
+        cols += [Column("reference_unsteady", "paper unst.", "num"), Column("reference_steady", "paper steady", "num")]
     rows = []
     for n in ALTERNATE_NAMES:
         u, su = cmp.unsteady_set.get(n, (math.nan, math.nan))
@@ -522,10 +573,14 @@ def comparison_summary(cmp, reference: Mapping | None = None, digits: int = 4) -
         ("cost det R", f"unsteady {cmp.unsteady.cost:.4g}, steady {cmp.steady.cost:.4g}"),
         ("standard errors", f"{cmp.unsteady.cov_type}; q-derivatives per q c/(2U)"),
     ]
-    notes = [("unsteady fit warnings", list(cmp.unsteady.warnings)),
-             ("steady fit warnings", list(cmp.steady.warnings))]
-    return Summary("steady versus unsteady derivatives", header,
-                   [Table("derivatives", "Derivatives (1/rad)", tuple(cols), tuple(rows))], notes, digits=digits)
+    notes = [("unsteady fit warnings", list(cmp.unsteady.warnings)), ("steady fit warnings", list(cmp.steady.warnings))]
+    return Summary(
+        "steady versus unsteady derivatives",
+        header,
+        [Table("derivatives", "Derivatives (1/rad)", tuple(cols), tuple(rows))],
+        notes,
+        digits=digits,
+    )
 
 
 __all__ += ["CORRELATION_LISTED"]

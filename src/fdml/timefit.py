@@ -73,16 +73,27 @@ class TimeFitResult:
 
     def summary(self) -> str:
         """Text table of the estimates."""
-        lines = [f"time-domain output-error fit: {self.model.describe()}; outputs {', '.join(self.outputs)}",
-                 f"{'converged' if self.converged else 'NOT converged'} ({self.message}); {self.nfev} simulations",
-                 f"{'parameter':<16s}{'value':>14s}{'std err':>12s}"]
+        lines = [
+            f"time-domain output-error fit: {self.model.describe()}; outputs {', '.join(self.outputs)}",
+            f"{'converged' if self.converged else 'NOT converged'} ({self.message}); {self.nfev} simulations",
+            f"{'parameter':<16s}{'value':>14s}{'std err':>12s}",
+        ]
         lines += [f"{n:<16s}{v:>14.6g}{s:>12.4g}" for n, v, s in zip(self.names, self.values, self.stderr)]
         return "\n".join(lines)
 
 
-def fit_time_domain(record: Record, model: Model, *, outputs: Sequence[str] | str | None = None,
-                    trim: str = "first", biases: bool = True, free: Sequence[str] | None = None,
-                    fix=None, passes: int = 4, max_nfev: int = 400) -> TimeFitResult:
+def fit_time_domain(
+    record: Record,
+    model: Model,
+    *,
+    outputs: Sequence[str] | str | None = None,
+    trim: str = "first",
+    biases: bool = True,
+    free: Sequence[str] | None = None,
+    fix=None,
+    passes: int = 4,
+    max_nfev: int = 400,
+) -> TimeFitResult:
     """Fit ``model`` to ``record`` by time-domain output error.
 
     Parameters
@@ -151,14 +162,20 @@ def fit_time_domain(record: Record, model: Model, *, outputs: Sequence[str] | st
         vals = dict(base, **dict(zip(names, x[: len(names)])))
         sim = simulate(model, t_sim, inputs, vals)
         y = np.column_stack([sim[o] for o in outputs])
-        return y + (x[len(names):] if nb else 0.0)
+        return y + (x[len(names) :] if nb else 0.0)
 
     sigma = np.std(zmeas, axis=0) + 1e-300
     x = np.clip(x0, lo, hi)
     res = None
     for _ in range(passes):
-        res = optimize.least_squares(lambda xx: ((zmeas - predict(xx)) / sigma).ravel(), x,
-                                     bounds=(lo, hi), x_scale="jac", max_nfev=max_nfev, method="trf")
+        res = optimize.least_squares(
+            lambda xx: ((zmeas - predict(xx)) / sigma).ravel(),
+            x,
+            bounds=(lo, hi),
+            x_scale="jac",
+            max_nfev=max_nfev,
+            method="trf",
+        )
         x = res.x
         resid = zmeas - predict(x)
         new_sigma = np.sqrt(np.mean(resid**2, axis=0)) + 1e-300
@@ -175,9 +192,18 @@ def fit_time_domain(record: Record, model: Model, *, outputs: Sequence[str] | st
     se = np.sqrt(np.abs(np.diag(cov)))
     allnames = tuple(names) + tuple(f"bias_{o}" for o in outputs[:nb])
     est_model = model.with_values(dict(zip(names, x[: len(names)])))
-    return TimeFitResult(names=allnames, values=x, stderr=se, sigma=sigma, outputs=outputs, nfev=nfev,
-                         converged=bool(res.success), message=str(res.message),
-                         elapsed=time.perf_counter() - t_start, model=est_model)
+    return TimeFitResult(
+        names=allnames,
+        values=x,
+        stderr=se,
+        sigma=sigma,
+        outputs=outputs,
+        nfev=nfev,
+        converged=bool(res.success),
+        message=str(res.message),
+        elapsed=time.perf_counter() - t_start,
+        model=est_model,
+    )
 
 
 def _jacobian(fun, x, f0):

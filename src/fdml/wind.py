@@ -107,28 +107,49 @@ class GustEstimate:
         """The input record with ``alpha_w`` added (meta ``gust`` says how it was made)."""
         r = self._record
         assert r is not None  # estimate_gust always keeps its record
-        return replace(r, signals={**r.signals, "alpha_w": self.alpha_w},
-                       meta={**r.meta, "gust": {"source": self.source, "channels": list(self.channels),
-                                                "cutoff_hz": self.cutoff_hz, "hdot_noise": self.hdot_noise}})
+        return replace(
+            r,
+            signals={**r.signals, "alpha_w": self.alpha_w},
+            meta={
+                **r.meta,
+                "gust": {
+                    "source": self.source,
+                    "channels": list(self.channels),
+                    "cutoff_hz": self.cutoff_hz,
+                    "hdot_noise": self.hdot_noise,
+                },
+            },
+        )
 
     def summary(self) -> str:
-        lines = [f"Vertical gust angle from {self.source} ({', '.join(self.channels)})",
-                 f"  alpha_w: mean {math.degrees(np.mean(self.alpha_w)):.3g} deg, RMS about the mean "
-                 f"{math.degrees(np.std(self.alpha_w)):.3g} deg; vertical wind RMS {np.std(self.w_wind):.3g} m/s",
-                 f"  vertical-speed noise about {self.hdot_noise:.3g} m/s"
-                 + (f"; differentiator -3 dB at {self.cutoff_hz:.3g} Hz" if self.cutoff_hz else "")]
+        lines = [
+            f"Vertical gust angle from {self.source} ({', '.join(self.channels)})",
+            f"  alpha_w: mean {math.degrees(np.mean(self.alpha_w)):.3g} deg, RMS about the mean "
+            f"{math.degrees(np.std(self.alpha_w)):.3g} deg; vertical wind RMS {np.std(self.w_wind):.3g} m/s",
+            f"  vertical-speed noise about {self.hdot_noise:.3g} m/s"
+            + (f"; differentiator -3 dB at {self.cutoff_hz:.3g} Hz" if self.cutoff_hz else ""),
+        ]
         lines += [f"  - {n}" for n in self.notes]
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        return {"t": self.t.tolist(), "alpha_w": self.alpha_w.tolist(), "w_wind": self.w_wind.tolist(),
-                "gamma_k": self.gamma_k.tolist(), "gamma_a": self.gamma_a.tolist(), "source": self.source,
-                "channels": list(self.channels), "cutoff_hz": self.cutoff_hz, "hdot_noise": self.hdot_noise,
-                "notes": list(self.notes)}
+        return {
+            "t": self.t.tolist(),
+            "alpha_w": self.alpha_w.tolist(),
+            "w_wind": self.w_wind.tolist(),
+            "gamma_k": self.gamma_k.tolist(),
+            "gamma_a": self.gamma_a.tolist(),
+            "source": self.source,
+            "channels": list(self.channels),
+            "cutoff_hz": self.cutoff_hz,
+            "hdot_noise": self.hdot_noise,
+            "notes": list(self.notes),
+        }
 
 
-def gust_angle(record: Record, *, source: str = "auto", smooth: float = DEFAULT_SMOOTH,
-               horizontal_wind: float = 0.0) -> GustEstimate:
+def gust_angle(
+    record: Record, *, source: str = "auto", smooth: float = DEFAULT_SMOOTH, horizontal_wind: float = 0.0
+) -> GustEstimate:
     """Derive the vertical wind and the gust angle alpha_w from inertial and air data.
 
     Parameters
@@ -169,7 +190,8 @@ def gust_angle(record: Record, *, source: str = "auto", smooth: float = DEFAULT_
         raise RecordError(
             f"record {record.name!r} lacks {', '.join(need)} for the gust angle: it needs air-data alpha and "
             "true airspeed V, pitch attitude theta, and an inertial vertical speed hdot (or an altitude h to "
-            f"differentiate); it has {', '.join(record.signals)}")
+            f"differentiate); it has {', '.join(record.signals)}"
+        )
     alpha, V, theta = record["alpha"], record["V"], record["theta"]
     if np.any(V <= 0):
         raise RecordError(f"record {record.name!r}: airspeed V must be positive")
@@ -192,24 +214,41 @@ def gust_angle(record: Record, *, source: str = "auto", smooth: float = DEFAULT_
         # white noise on h through the differentiator: root sum of squared weights
         noise = _noise(h) * float(np.sqrt(np.sum(savgol_coeffs(n_win, dt) ** 2)))
         channels = ("alpha", "V", "theta", "h")
-        notes.append(f"vertical speed differentiated from the altitude over {n_win * dt:.3g} s windows: alpha_w "
-                     f"is valid only below about {cutoff:.2g} Hz, and a barometric altitude is not inertial "
-                     "(static-pressure lag and position error enter alpha_w)")
+        notes.append(
+            f"vertical speed differentiated from the altitude over {n_win * dt:.3g} s windows: alpha_w "
+            f"is valid only below about {cutoff:.2g} Hz, and a barometric altitude is not inertial "
+            "(static-pressure lag and position error enter alpha_w)"
+        )
     gamma_a = theta - alpha
     w_wind = hdot - V * np.sin(gamma_a)
     gamma_k = np.arctan2(hdot, V * np.cos(gamma_a) + horizontal_wind)
     alpha_w = gamma_k - gamma_a
     floor = noise / float(np.mean(V))
-    notes.append(f"noise floor of alpha_w about {math.degrees(floor):.2g} deg (vertical-speed noise "
-                 f"{noise:.2g} m/s over V = {np.mean(V):.4g} m/s)")
-    notes.append("any error of alpha (bias, scale, lag, upwash) appears one-for-one in alpha_w: correct alpha "
-                 "first (fdml.compat)")
+    notes.append(
+        f"noise floor of alpha_w about {math.degrees(floor):.2g} deg (vertical-speed noise "
+        f"{noise:.2g} m/s over V = {np.mean(V):.4g} m/s)"
+    )
+    notes.append(
+        "any error of alpha (bias, scale, lag, upwash) appears one-for-one in alpha_w: correct alpha "
+        "first (fdml.compat)"
+    )
     if horizontal_wind == 0.0:
-        notes.append("along-track horizontal wind taken as 0 (no ground speed in the record): error of order "
-                     "gamma u_w / V")
-    return GustEstimate(t=record.t.copy(), alpha_w=alpha_w, w_wind=w_wind, gamma_k=gamma_k, gamma_a=gamma_a,
-                        source=source, channels=channels, cutoff_hz=cutoff, hdot_noise=float(noise),
-                        notes=tuple(notes), _record=record)
+        notes.append(
+            "along-track horizontal wind taken as 0 (no ground speed in the record): error of order gamma u_w / V"
+        )
+    return GustEstimate(
+        t=record.t.copy(),
+        alpha_w=alpha_w,
+        w_wind=w_wind,
+        gamma_k=gamma_k,
+        gamma_a=gamma_a,
+        source=source,
+        channels=channels,
+        cutoff_hz=cutoff,
+        hdot_noise=float(noise),
+        notes=tuple(notes),
+        _record=record,
+    )
 
 
 def savgol_coeffs(n_win: int, dt: float) -> np.ndarray:

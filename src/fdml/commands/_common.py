@@ -29,9 +29,15 @@ def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
 
 def add_effect_argument(p: argparse.ArgumentParser) -> None:
     """--effect NAME[:CHANNEL], repeatable (each occurrence adds effects; a comma list is several)."""
-    p.add_argument("--effect", action="extend", type=_effect_list, default=None, metavar="NAME[:CHANNEL]",
-                   help="make an effect part of the model, free at its null (repeatable; "
-                        "'fdml effects' lists them), e.g. --effect time_delay:alpha --effect sensor_offset:az")
+    p.add_argument(
+        "--effect",
+        action="extend",
+        type=_effect_list,
+        default=None,
+        metavar="NAME[:CHANNEL]",
+        help="make an effect part of the model, free at its null (repeatable; "
+        "'fdml effects' lists them), e.g. --effect time_delay:alpha --effect sensor_offset:az",
+    )
 
 
 def _effect_list(text: str) -> list[str]:
@@ -44,8 +50,13 @@ def _effect_list(text: str) -> list[str]:
     for piece in (x.strip() for x in text.split(",")):
         if not piece:
             continue
-        if out and ("@" in out[-1] or ":" in out[-1]) and ":" not in piece and "@" not in piece \
-                and piece in ("alpha", "q", "az", "a_z", "de", "alpha_w", "tail"):
+        if (
+            out
+            and ("@" in out[-1] or ":" in out[-1])
+            and ":" not in piece
+            and "@" not in piece
+            and piece in ("alpha", "q", "az", "a_z", "de", "alpha_w", "tail")
+        ):
             out[-1] = f"{out[-1]},{piece}"
         else:
             out.append(piece)
@@ -79,15 +90,18 @@ def model_for_records(args, records, values: dict | None = None):
     if kind == "dimensional" and args.aircraft is None and args.airspeed is None:
         U = record_airspeed(records)
         if U is None:
-            raise ParameterError("the dimensional model needs --airspeed U (m/s) or --aircraft"
-                                 + (", or a record that carries its airspeed" if records else ""))
+            raise ParameterError(
+                "the dimensional model needs --airspeed U (m/s) or --aircraft"
+                + (", or a record that carries its airspeed" if records else "")
+            )
         opts["airspeed"], source = U, "record"
     elif kind != "dimensional":
         if args.aircraft is None:
             raise ParameterError(f"the {kind} model needs --aircraft NAME or FILE.json")
         if args.airspeed is not None:
-            raise ParameterError(f"--airspeed applies to the dimensional model; the {kind} model takes "
-                                 "the airspeed of --aircraft")
+            raise ParameterError(
+                f"--airspeed applies to the dimensional model; the {kind} model takes the airspeed of --aircraft"
+            )
         opts.pop("airspeed", None)
     model = make_model(kind, args.aircraft, **opts)
     effects = list(getattr(args, "effect", None) or ())
@@ -96,8 +110,10 @@ def model_for_records(args, records, values: dict | None = None):
     if values:
         model.parameters.check_names(values)
         model = model.with_values(values)
-    provenance = {"model": {"kind": kind, "source": "--model" if getattr(args, "model", None) else "model rule"},
-                  "airspeed": {"value": float(model.U), "unit": "m/s", "source": source}}
+    provenance = {
+        "model": {"kind": kind, "source": "--model" if getattr(args, "model", None) else "model rule"},
+        "airspeed": {"value": float(model.U), "unit": "m/s", "source": source},
+    }
     cond = record_conditions(records)
     if cond:
         provenance["record_conditions"] = cond
@@ -123,8 +139,9 @@ def model_spec_from_args(args, **fields):
     options = {"gust": bool(args.gust)}
     if args.airspeed is not None:
         options["airspeed"] = args.airspeed
-    spec = ModelSpec(kind=kind, aircraft=args.aircraft, options=options,
-                     effects=tuple(getattr(args, "effect", None) or ()), **fields)
+    spec = ModelSpec(
+        kind=kind, aircraft=args.aircraft, options=options, effects=tuple(getattr(args, "effect", None) or ()), **fields
+    )
     spec.build()  # an unknown effect, parameter or option: one line now, not once per record
     return spec
 

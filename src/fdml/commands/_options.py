@@ -86,8 +86,9 @@ def accumulating(p, *flags, **kw) -> None:
 
 
 # --- the model ---------------------------------------------------------------------------------
-def add_model_options(p, *, gust: str = "flag", reads_records: bool = True, what: str = "model",
-                      old: tuple = ()) -> None:
+def add_model_options(
+    p, *, gust: str = "flag", reads_records: bool = True, what: str = "model", old: tuple = ()
+) -> None:
     """--aircraft, --model, --gust, --airspeed, --effect.
 
     ``gust``: ``"flag"`` (the model gets the gust input alpha_w), ``"std"``
@@ -97,23 +98,37 @@ def add_model_options(p, *, gust: str = "flag", reads_records: bool = True, what
     from ._common import add_effect_argument
 
     g = p.add_argument_group("model")
-    g.add_argument("--aircraft", metavar="NAME|FILE.json",
-                   help="preset (navion, sundowner, do128) or an aircraft JSON file")
+    g.add_argument(
+        "--aircraft", metavar="NAME|FILE.json", help="preset (navion, sundowner, do128) or an aircraft JSON file"
+    )
     rule = MODEL_RULE if reads_records else MODEL_RULE_NO_RECORD
     g.add_argument("--model", choices=MODEL_CHOICES, default=None, help=f"{what} (default: {rule})")
     for flag in old:
         hidden_alias(g, flag, "model", choices=MODEL_CHOICES)
     if gust == "flag":
-        g.add_argument("--gust", action="store_true", default=None,
-                       help="add the vertical gust input alpha_w (the records carry it)")
+        g.add_argument(
+            "--gust",
+            action="store_true",
+            default=None,
+            help="add the vertical gust input alpha_w (the records carry it)",
+        )
     elif gust == "std":
-        g.add_argument("--gust", nargs="?", type=float, const=1.0, default=None, metavar="STD",
-                       help="fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, "
-                            "recording alpha_w")
-    g.add_argument("--airspeed", type=float, metavar="U",
-                   help="airspeed, m/s, of the dimensional model without --aircraft"
-                        + (" (default: the record's mean airspeed, when the file carries it)" if reads_records
-                           else ""))
+        g.add_argument(
+            "--gust",
+            nargs="?",
+            type=float,
+            const=1.0,
+            default=None,
+            metavar="STD",
+            help="fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, recording alpha_w",
+        )
+    g.add_argument(
+        "--airspeed",
+        type=float,
+        metavar="U",
+        help="airspeed, m/s, of the dimensional model without --aircraft"
+        + (" (default: the record's mean airspeed, when the file carries it)" if reads_records else ""),
+    )
     add_effect_argument(g)
 
 
@@ -147,8 +162,7 @@ def add_band_option(p, *, step: bool = True, old: tuple = (), help: str | None =
 # --- outputs, parallelism, progress, json, strict ---------------------------------------------
 def add_output_option(p, *, kind: str, metavar: str, help: str, old: tuple = (), required: bool = False) -> None:
     """-o/--output: where the output goes; ``kind`` ``"file"`` or ``"folder"`` is said in --help."""
-    p.add_argument("-o", "--output", metavar=metavar, default=None, required=required,
-                   help=f"output {kind}: {help}")
+    p.add_argument("-o", "--output", metavar=metavar, default=None, required=required, help=f"output {kind}: {help}")
     for flag in old:
         hidden_alias(p, flag, "output", metavar=metavar)
 
@@ -157,17 +171,22 @@ def add_workers_option(p, *, old: tuple = ()) -> None:
     """--workers N (local worker processes); ``old``: hidden aliases (``--processes``)."""
     from ._common import positive_int
 
-    p.add_argument("--workers", type=positive_int, metavar="N", default=None,
-                   help="local worker processes (default: all cores)")
+    p.add_argument(
+        "--workers", type=positive_int, metavar="N", default=None, help="local worker processes (default: all cores)"
+    )
     for flag in old:
         hidden_alias(p, flag, "workers", type=positive_int, metavar="N")
 
 
 def add_progress_option(p, *, default_on: bool) -> None:
     """--progress/--no-progress; None means the command's default (said in --help)."""
-    p.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                   help="progress bar on stderr (needs tqdm: pip install 'fdml[progress]'; "
-                        f"default {'on, off with --json' if default_on else 'off'})")
+    p.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="progress bar on stderr (needs tqdm: pip install 'fdml[progress]'; "
+        f"default {'on, off with --json' if default_on else 'off'})",
+    )
 
 
 def progress_wanted(args, *, default_on: bool) -> bool:
@@ -189,9 +208,13 @@ def add_strict_option(p, help: str) -> None:
 def add_noise_option(p, *, default: str | None = None) -> None:
     """--noise: measurement noise added to simulated records (FRACTION of each output's RMS, or stds)."""
     tail = f" (default {default})" if default else " (default: none)"
-    p.add_argument("--noise", metavar="FRACTION|alpha=..,q=..,az=..", default=None,
-                   help="measurement noise added to the simulated outputs: a fraction of each output's RMS, "
-                        f"or absolute stds{tail}")
+    p.add_argument(
+        "--noise",
+        metavar="FRACTION|alpha=..,q=..,az=..",
+        default=None,
+        help="measurement noise added to the simulated outputs: a fraction of each output's RMS, "
+        f"or absolute stds{tail}",
+    )
 
 
 # --- fit options -------------------------------------------------------------------------------
@@ -210,38 +233,83 @@ def add_fit_options(p, *, fix_free: bool = True) -> None:
     """--outputs, --fix, --free, --boundary, --biases, --trim, --method, --stop, --cov-type,
     --state-biases, --input-bias, --sensitivity (defaults: fdml.fit's)."""
     g = p.add_argument_group("fit options (defaults: fdml.fit's)")
-    g.add_argument("--outputs", metavar="NAME,...", default=None,
-                   help="outputs in the fit, comma-separated, each once (default alpha,q,az)")
+    g.add_argument(
+        "--outputs",
+        metavar="NAME,...",
+        default=None,
+        help="outputs in the fit, comma-separated, each once (default alpha,q,az)",
+    )
     if fix_free:
         accumulating(g, "--fix", metavar="NAME=VALUE", help="fix parameters at values (repeatable)")
         accumulating(g, "--free", metavar="NAME", help="free parameters (repeatable)")
-    g.add_argument("--boundary", choices=_FIT_CHOICES["boundary"], default=None,
-                   help="boundary terms x(0) - x(T)exp(-jwT) (default estimated)")
-    g.add_argument("--biases", choices=_FIT_CHOICES["biases"], default=None,
-                   help="estimate output biases (default auto: when trim is removed)")
-    g.add_argument("--trim", choices=_FIT_CHOICES["trim"], default=None,
-                   help="trim removal (default first: the first sample)")
-    g.add_argument("--method", choices=_FIT_CHOICES["method"], default=None,
-                   help="Levenberg-Marquardt (default lm) or the paper's alternation")
-    g.add_argument("--stop", choices=_FIT_CHOICES["stop"], default=None,
-                   help="run to convergence (default) or the paper's 1 %% rule")
-    g.add_argument("--cov-type", choices=_FIT_CHOICES["cov_type"], default=None,
-                   help="error bounds: white noise (default), colored (the noise level follows the residual "
-                        "spectrum; recommended on real records) or naive")
-    g.add_argument("--state-biases", action="store_true", default=None,
-                   help="estimate constant biases of the two state equations per record (a trim that is not "
-                        "an equilibrium)")
-    g.add_argument("--input-bias", action="store_true", default=None,
-                   help="estimate a constant elevator offset per record (an elevator trim error)")
-    g.add_argument("--sensitivity", choices=_FIT_CHOICES["sensitivity"], default=None,
-                   help="output sensitivities (default auto: analytic where closed forms exist, else Eq. 26)")
+    g.add_argument(
+        "--boundary",
+        choices=_FIT_CHOICES["boundary"],
+        default=None,
+        help="boundary terms x(0) - x(T)exp(-jwT) (default estimated)",
+    )
+    g.add_argument(
+        "--biases",
+        choices=_FIT_CHOICES["biases"],
+        default=None,
+        help="estimate output biases (default auto: when trim is removed)",
+    )
+    g.add_argument(
+        "--trim", choices=_FIT_CHOICES["trim"], default=None, help="trim removal (default first: the first sample)"
+    )
+    g.add_argument(
+        "--method",
+        choices=_FIT_CHOICES["method"],
+        default=None,
+        help="Levenberg-Marquardt (default lm) or the paper's alternation",
+    )
+    g.add_argument(
+        "--stop",
+        choices=_FIT_CHOICES["stop"],
+        default=None,
+        help="run to convergence (default) or the paper's 1 %% rule",
+    )
+    g.add_argument(
+        "--cov-type",
+        choices=_FIT_CHOICES["cov_type"],
+        default=None,
+        help="error bounds: white noise (default), colored (the noise level follows the residual "
+        "spectrum; recommended on real records) or naive",
+    )
+    g.add_argument(
+        "--state-biases",
+        action="store_true",
+        default=None,
+        help="estimate constant biases of the two state equations per record (a trim that is not an equilibrium)",
+    )
+    g.add_argument(
+        "--input-bias",
+        action="store_true",
+        default=None,
+        help="estimate a constant elevator offset per record (an elevator trim error)",
+    )
+    g.add_argument(
+        "--sensitivity",
+        choices=_FIT_CHOICES["sensitivity"],
+        default=None,
+        help="output sensitivities (default auto: analytic where closed forms exist, else Eq. 26)",
+    )
 
 
 def fit_kwargs(args) -> dict:
     """Keyword arguments of :func:`fdml.fit` from the fit options given (None: the library's default)."""
     out = {}
-    for name in ("outputs", "boundary", "trim", "method", "stop", "cov_type", "sensitivity",
-                 "state_biases", "input_bias"):
+    for name in (
+        "outputs",
+        "boundary",
+        "trim",
+        "method",
+        "stop",
+        "cov_type",
+        "sensitivity",
+        "state_biases",
+        "input_bias",
+    ):
         v = getattr(args, name, None)
         if v is not None:
             out[name] = v

@@ -7,26 +7,47 @@ from ._common import assignments, check_band_option, model_spec_from_args
 
 
 def register(sub) -> None:
-    p = sub.add_parser("batch", help="fit a model to every record of folders, globs or files (resumable)",
-                       description="Fit one model to many records, one result file each.  Model rule: "
-                                   + O.MODEL_RULE_NO_RECORD + " (one airspeed for all records).")
-    p.add_argument("sources", nargs="+", metavar="SOURCE",
-                   help="a folder, a glob, a record file, or FILE@T0:T1 for a manoeuvre window (s)")
+    p = sub.add_parser(
+        "batch",
+        help="fit a model to every record of folders, globs or files (resumable)",
+        description="Fit one model to many records, one result file each.  Model rule: "
+        + O.MODEL_RULE_NO_RECORD
+        + " (one airspeed for all records).",
+    )
+    p.add_argument(
+        "sources",
+        nargs="+",
+        metavar="SOURCE",
+        help="a folder, a glob, a record file, or FILE@T0:T1 for a manoeuvre window (s)",
+    )
     O.add_model_options(p, reads_records=False)
     O.add_record_options(p)
     O.add_band_option(p)
     O.add_fit_options(p)
-    O.add_output_option(p, kind="folder", metavar="DIR", old=("--out",),
-                        help="results/KEY.json and table.csv, table.json (default ./fdml-batch)")
+    O.add_output_option(
+        p,
+        kind="folder",
+        metavar="DIR",
+        old=("--out",),
+        help="results/KEY.json and table.csv, table.json (default ./fdml-batch)",
+    )
     O.add_workers_option(p)
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="run on a Dask cluster (tcp://HOST:PORT; needs the 'dask' extra)")
+    p.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run on a Dask cluster (tcp://HOST:PORT; needs the 'dask' extra)"
+    )
     p.add_argument("--serial", action="store_true", help="fit in this process, one record after another")
-    p.add_argument("--no-resume", dest="resume", action="store_false",
-                   help="refit everything (default: reuse results whose inputs are unchanged)")
+    p.add_argument(
+        "--no-resume",
+        dest="resume",
+        action="store_false",
+        help="refit everything (default: reuse results whose inputs are unchanged)",
+    )
     O.add_progress_option(p, default_on=True)
-    O.add_strict_option(p, "a record whose data check finds anything (units, signs, channels, response) "
-                           "fails with that finding as its error")
+    O.add_strict_option(
+        p,
+        "a record whose data check finds anything (units, signs, channels, response) "
+        "fails with that finding as its error",
+    )
     O.add_json_option(p, "machine-readable summary")
     p.set_defaults(func=run)
 
@@ -131,8 +152,17 @@ def run(args) -> int:
     out = args.output or DEFAULT_OUTPUT
     sources = [_windowed(parse_source(s), args) for s in args.sources]
     check_batch_outputs(sources, out, args.aircraft)
-    summary = run_batch(sources, spec, out, fit_kwargs=fit_kwargs, read_kwargs=_read_kwargs(args),
-                        engine=engine, workers=args.workers, resume=args.resume, progress=progress)
+    summary = run_batch(
+        sources,
+        spec,
+        out,
+        fit_kwargs=fit_kwargs,
+        read_kwargs=_read_kwargs(args),
+        engine=engine,
+        workers=args.workers,
+        resume=args.resume,
+        progress=progress,
+    )
     if args.json:
         from ..cli import print_json
 

@@ -6,17 +6,32 @@ from . import _options as O
 
 
 def register(sub) -> None:
-    p = sub.add_parser("check", help="data quality of a record (sampling, dropouts, saturation, excitation, "
-                                     "coherence); --compat adds the kinematic compatibility check")
+    p = sub.add_parser(
+        "check",
+        help="data quality of a record (sampling, dropouts, saturation, excitation, "
+        "coherence); --compat adds the kinematic compatibility check",
+    )
     p.add_argument("record", metavar="RECORD", help="record file (SIDPAC .mat, DLR .asc/.mat, CSV)")
     O.add_record_options(p)
     O.add_band_option(p)
-    p.add_argument("--n-params", type=int, default=13, metavar="N",
-                   help="quantities the fit will estimate (default 13: dimensional model, biases, boundary)")
-    p.add_argument("--compat", action="store_true",
-                   help="also estimate sensor biases, scale factors and time shifts from the kinematics")
-    p.add_argument("--airspeed", type=float, metavar="U",
-                   help="true airspeed, m/s, for the a_z slope of the data check (default: the record's)")
+    p.add_argument(
+        "--n-params",
+        type=int,
+        default=13,
+        metavar="N",
+        help="quantities the fit will estimate (default 13: dimensional model, biases, boundary)",
+    )
+    p.add_argument(
+        "--compat",
+        action="store_true",
+        help="also estimate sensor biases, scale factors and time shifts from the kinematics",
+    )
+    p.add_argument(
+        "--airspeed",
+        type=float,
+        metavar="U",
+        help="true airspeed, m/s, for the a_z slope of the data check (default: the record's)",
+    )
     O.add_strict_option(p, "exit with code 2 when the data check finds anything (units, signs, channels, response)")
     O.add_json_option(p)
     p.set_defaults(func=run)

@@ -10,10 +10,12 @@ DEFAULT_OUTPUT = "fdml-demo"
 
 
 def register(sub) -> None:
-    p = sub.add_parser("demo", help="simulate a Navion 3-2-1-1, fit steady and unsteady, "
-                       "print the table and write a Bode figure")
-    O.add_output_option(p, kind="folder", metavar="DIR", old=("--out",),
-                        help=f"the table, fits and figure (default ./{DEFAULT_OUTPUT})")
+    p = sub.add_parser(
+        "demo", help="simulate a Navion 3-2-1-1, fit steady and unsteady, print the table and write a Bode figure"
+    )
+    O.add_output_option(
+        p, kind="folder", metavar="DIR", old=("--out",), help=f"the table, fits and figure (default ./{DEFAULT_OUTPUT})"
+    )
     p.add_argument("--seed", type=seed_int, default=1, help="noise seed (default 1)")
     O.add_noise_option(p, default=f"{_default_noise():g}")
     p.add_argument("--no-figure", action="store_true", help="skip the figure (no matplotlib)")
@@ -38,16 +40,24 @@ def run(args) -> int:
 
     noise, relative = _noise(args.noise)
     if noise is not None and not relative:
-        raise FdmlError("fdml demo --noise takes a fraction of each output's RMS (e.g. 0.02); "
-                        "absolute stds go to fdml simulate --noise")
+        raise FdmlError(
+            "fdml demo --noise takes a fraction of each output's RMS (e.g. 0.02); "
+            "absolute stds go to fdml simulate --noise"
+        )
     noise = _default_noise() if noise is None else noise
     res = run_demo(args.output or DEFAULT_OUTPUT, seed=args.seed, noise=noise, figure=not args.no_figure)
     if args.json:
-        print_json({"comparison": {k: v for k, v in res.comparison.to_dict().items() if k != "fits"},
-                    "files": {k: str(v) for k, v in res.files.items()}})
+        print_json(
+            {
+                "comparison": {k: v for k, v in res.comparison.to_dict().items() if k != "fits"},
+                "files": {k: str(v) for k, v in res.files.items()},
+            }
+        )
         return 0
-    print("fdml demo: Navion 3-2-1-1 simulated with the unsteady model "
-          f"({100 * noise:g} % noise, seed {args.seed}); steady = six-derivative model\n")
+    print(
+        "fdml demo: Navion 3-2-1-1 simulated with the unsteady model "
+        f"({100 * noise:g} % noise, seed {args.seed}); steady = six-derivative model\n"
+    )
     print(res.table)
     print()
     for k, v in res.files.items():

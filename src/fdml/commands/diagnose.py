@@ -10,46 +10,72 @@ from . import _options as O
 
 
 def register(sub) -> None:
-    p = sub.add_parser("diagnose", help="diagnose the model-to-data gap: locate it, attribute it to an "
-                                        "unmodelled effect, measure how far it shrinks",
-                       description="Diagnose the model-to-data gap of a base model.  Model rule: "
-                                   + O.MODEL_RULE + ".")
+    p = sub.add_parser(
+        "diagnose",
+        help="diagnose the model-to-data gap: locate it, attribute it to an "
+        "unmodelled effect, measure how far it shrinks",
+        description="Diagnose the model-to-data gap of a base model.  Model rule: " + O.MODEL_RULE + ".",
+    )
     p.add_argument("records", nargs="*", metavar="RECORD", help="record file(s), fitted jointly")
     O.add_model_options(p, what="base model the effects are added to", old=("--base",))
     O.add_record_options(p)
     lo_hi = _default_lo_hi()
-    O.add_band_option(p, step=False, help=f"analysis band, rad/s (default {lo_hi}; a :STEP is ignored: the "
-                                          "diagnosis uses each record's spacing 2 pi/(K T))")
+    O.add_band_option(
+        p,
+        step=False,
+        help=f"analysis band, rad/s (default {lo_hi}; a :STEP is ignored: the "
+        "diagnosis uses each record's spacing 2 pi/(K T))",
+    )
     p.add_argument("--bands", metavar="E0,E1,...", help="edges of the gap map's bands, rad/s")
-    O.accumulating(p, "--holdout", metavar="RECORD",
-                   help="record(s) of the same flight condition kept out of the fit, to judge the shrink "
-                        "(repeatable)")
-    p.add_argument("--outputs", metavar="NAME,...", default=None,
-                   help="outputs in the fit, comma-separated, each once (default alpha,q,az)")
+    O.accumulating(
+        p,
+        "--holdout",
+        metavar="RECORD",
+        help="record(s) of the same flight condition kept out of the fit, to judge the shrink (repeatable)",
+    )
+    p.add_argument(
+        "--outputs",
+        metavar="NAME,...",
+        default=None,
+        help="outputs in the fit, comma-separated, each once (default alpha,q,az)",
+    )
     p.add_argument("--library", metavar="NAME,...", help="candidate effects (default: all registered)")
     p.add_argument("--alpha", type=float, default=0.05, help="family-wise level (default 0.05)")
     p.add_argument("--max-effects", type=int, default=2, help="greedy forward selection limit (default 2)")
-    p.add_argument("--noise-model", choices=("band", "white"), default=None,
-                   help="noise model of the likelihood (default band)")
+    p.add_argument(
+        "--noise-model", choices=("band", "white"), default=None, help="noise model of the likelihood (default band)"
+    )
     O.hidden_alias(p, "--noise", "noise_model", choices=("band", "white"))
-    O.add_strict_option(p, "exit with code 2 before fitting when the data check finds anything "
-                           "(units, signs, swapped channels, no response)")
+    O.add_strict_option(
+        p,
+        "exit with code 2 before fitting when the data check finds anything "
+        "(units, signs, swapped channels, no response)",
+    )
     O.add_json_option(p)
-    O.add_output_option(p, kind="file", metavar="REPORT.json",
-                        help="the full report (or validation) as JSON; its 'recommended' is the fit of the base "
-                             "model plus the accepted effects, as fdml fit --json prints it")
-    p.add_argument("--recommended-output", metavar="FIT.json",
-                   help="write the recommended fit (the base model plus the accepted effects, fitted by fdml fit on "
-                        "the analysis grid) as a fit result file, which fdml report reads")
+    O.add_output_option(
+        p,
+        kind="file",
+        metavar="REPORT.json",
+        help="the full report (or validation) as JSON; its 'recommended' is the fit of the base "
+        "model plus the accepted effects, as fdml fit --json prints it",
+    )
+    p.add_argument(
+        "--recommended-output",
+        metavar="FIT.json",
+        help="write the recommended fit (the base model plus the accepted effects, fitted by fdml fit on "
+        "the analysis grid) as a fit result file, which fdml report reads",
+    )
     p.add_argument("--figure", metavar="FIG.png", help="write the figure (gap map before/after, Bode overlays)")
     v = p.add_argument_group("validation harness")
-    v.add_argument("--validate", action="store_true",
-                   help="run the withheld-effect validation instead of diagnosing records")
+    v.add_argument(
+        "--validate", action="store_true", help="run the withheld-effect validation instead of diagnosing records"
+    )
     v.add_argument("--quick", action="store_true", help="validation with 1 seed per cell and 6 per null case")
     v.add_argument("--n-effect", type=int, default=4, help="seeds per truth/size/manoeuvre/noise cell (default 4)")
     v.add_argument("--n-null", type=int, default=34, help="seeds per null/manoeuvre/noise cell (default 34)")
-    v.add_argument("--seed-base", type=int, default=None,
-                   help="first seed (default: the report range; 0 is the tuning range)")
+    v.add_argument(
+        "--seed-base", type=int, default=None, help="first seed (default: the report range; 0 is the tuning range)"
+    )
     O.add_workers_option(v, old=("--processes",))
     O.add_progress_option(v, default_on=True)
     p.set_defaults(func=run)
@@ -79,8 +105,13 @@ def _validate(args) -> int:
             if done == total:
                 sys.stderr.write("\n")
 
-    res = validate(n_effect=n_e, n_null=n_n, seed_base=REPORT_SEED_BASE if args.seed_base is None else args.seed_base,
-                   processes=args.workers, progress=progress)
+    res = validate(
+        n_effect=n_e,
+        n_null=n_n,
+        seed_base=REPORT_SEED_BASE if args.seed_base is None else args.seed_base,
+        processes=args.workers,
+        progress=progress,
+    )
     if args.output:
         res.to_json(args.output)
     if args.json:
@@ -130,9 +161,20 @@ def run(args) -> int:
             raise ParameterError(f"--bands must be numbers separated by commas, got {args.bands!r}") from None
     library = [x.strip() for x in args.library.split(",")] if args.library else None
     outputs = list(parse_outputs(args.outputs, what="--outputs"))
-    rep = diagnose(records, model, holdout=holdout, band=args.band, bands=bands, library=library, alpha=args.alpha,
-                   max_effects=args.max_effects, outputs=outputs, trim="first",
-                   strict=bool(args.strict), **({} if args.noise_model is None else {"noise": args.noise_model}))
+    rep = diagnose(
+        records,
+        model,
+        holdout=holdout,
+        band=args.band,
+        bands=bands,
+        library=library,
+        alpha=args.alpha,
+        max_effects=args.max_effects,
+        outputs=outputs,
+        trim="first",
+        strict=bool(args.strict),
+        **({} if args.noise_model is None else {"noise": args.noise_model}),
+    )
     if args.output:
         rep.to_json(args.output)
     if args.recommended_output and rep.recommended is not None:
@@ -151,7 +193,8 @@ def run(args) -> int:
         sys.stderr.write(f"fdml: error: no verdict: {'; '.join(rep.problems)}\n")
         return 2
     if args.recommended_output and rep.recommended is None:
-        sys.stderr.write(f"fdml: error: the recommended model could not be fitted; {args.recommended_output} "
-                         "was not written\n")
+        sys.stderr.write(
+            f"fdml: error: the recommended model could not be fitted; {args.recommended_output} was not written\n"
+        )
         return 2
     return 0

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 
 def register(sub) -> None:
-    p = sub.add_parser("effects", help="list the effects a model can include: channels, parameters, units, "
-                       "null values and plausible ranges")
+    p = sub.add_parser(
+        "effects",
+        help="list the effects a model can include: channels, parameters, units, null values and plausible ranges",
+    )
     from . import _options as O
 
     O.add_json_option(p)
@@ -23,8 +25,10 @@ def _null(par: dict) -> str:
 
 def text(cat: list[dict]) -> str:
     """The catalogue as a text table: one block per effect, one line per parameter and base model."""
-    lines = ["effects (use --effect NAME:CHANNEL); per base model:",
-             f"    {'base models':40s} {'parameter':10s} {'unit':14s} {'null':10s} plausible range"]
+    lines = [
+        "effects (use --effect NAME:CHANNEL); per base model:",
+        f"    {'base models':40s} {'parameter':10s} {'unit':14s} {'null':10s} plausible range",
+    ]
     for e in cat:
         lines.append("")
         kind = "" if e["kind"] == "deterministic" else f"  [{e['kind']}: tested by fdml diagnose only]"
@@ -35,8 +39,9 @@ def text(cat: list[dict]) -> str:
             seen.setdefault(key, ([], pars))[0].append(model)
         for models, pars in seen.values():
             for p in pars:
-                lines.append(f"    {','.join(models):40s} {p['name']:10s} {p['unit'] or '-':14s} "
-                             f"{_null(p):10s} {_range(p)}")
+                lines.append(
+                    f"    {','.join(models):40s} {p['name']:10s} {p['unit'] or '-':14s} {_null(p):10s} {_range(p)}"
+                )
     return "\n".join(lines)
 
 

@@ -9,18 +9,27 @@ from ._common import assignments, check_band_option, model_for_records
 
 
 def register(sub) -> None:
-    p = sub.add_parser("fit", help="fit a model to one or more records (CSV: t,de,alpha,q,az[,alpha_w])",
-                       description="Fit a model to one or more records.  "
-                                   "Model rule, when --model is not given: " + O.MODEL_RULE + ".")
-    p.add_argument("records", nargs="+", metavar="RECORD",
-                   help="record file(s): CSV, SIDPAC .mat, DLR .asc/.mat; several are fitted jointly")
+    p = sub.add_parser(
+        "fit",
+        help="fit a model to one or more records (CSV: t,de,alpha,q,az[,alpha_w])",
+        description="Fit a model to one or more records.  Model rule, when --model is not given: " + O.MODEL_RULE + ".",
+    )
+    p.add_argument(
+        "records",
+        nargs="+",
+        metavar="RECORD",
+        help="record file(s): CSV, SIDPAC .mat, DLR .asc/.mat; several are fitted jointly",
+    )
     O.add_model_options(p)
     O.add_record_options(p)
     O.add_band_option(p)
     O.add_fit_options(p)
     O.add_output_option(p, kind="file", metavar="RESULT.json", help="save the full result as JSON")
-    O.add_strict_option(p, "exit with code 2 before fitting when the data check finds anything "
-                           "(units, signs, swapped channels, no response); estimation warnings stay warnings")
+    O.add_strict_option(
+        p,
+        "exit with code 2 before fitting when the data check finds anything "
+        "(units, signs, swapped channels, no response); estimation warnings stay warnings",
+    )
     O.add_json_option(p)
     O.add_progress_option(p, default_on=False)
     p.set_defaults(func=run)
@@ -71,8 +80,9 @@ def _progress_callback(enabled: bool):
     from ..progress import TqdmProgress, tqdm_available
 
     if not tqdm_available():
-        sys.stderr.write("fdml: note: --progress needs tqdm (pip install 'fdml[progress]'); "
-                         "fitting without a progress bar\n")
+        sys.stderr.write(
+            "fdml: note: --progress needs tqdm (pip install 'fdml[progress]'); fitting without a progress bar\n"
+        )
         return None
     return TqdmProgress(desc="fdml fit", leave=False)
 
@@ -105,8 +115,15 @@ def run(args) -> int:
 
     try:
         with invocation(*_commands(args)):  # the adequacy warning quotes this command with --effect added
-            res = fit(data if len(data) > 1 else data[0], model, fix=fixed, free=args.free or [],
-                      callback=bar, strict=bool(args.strict), **kwargs)
+            res = fit(
+                data if len(data) > 1 else data[0],
+                model,
+                fix=fixed,
+                free=args.free or [],
+                callback=bar,
+                strict=bool(args.strict),
+                **kwargs,
+            )
     finally:
         if bar is not None:
             bar.close()

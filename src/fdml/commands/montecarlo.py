@@ -10,16 +10,23 @@ DEFAULT_NOISE = "0.03"
 
 
 def register(sub) -> None:
-    p = sub.add_parser("montecarlo", help="Monte Carlo study: fit N seeded noisy simulations, "
-                       "bias, scatter and efficiency (scatter/CRB) per parameter",
-                       description="Monte Carlo study.  --model is the truth model (simulated, and fitted unless "
-                                   "--fit-model names another); "
-                                   "model rule, when --model is not given: " + O.MODEL_RULE_NO_RECORD + ".")
+    p = sub.add_parser(
+        "montecarlo",
+        help="Monte Carlo study: fit N seeded noisy simulations, "
+        "bias, scatter and efficiency (scatter/CRB) per parameter",
+        description="Monte Carlo study.  --model is the truth model (simulated, and fitted unless "
+        "--fit-model names another); "
+        "model rule, when --model is not given: " + O.MODEL_RULE_NO_RECORD + ".",
+    )
     O.add_model_options(p, reads_records=False, what="truth model, simulated and fitted")
     O.add_set_option(p, "truth parameter values")
     p.add_argument("-n", type=int, default=1000, metavar="N", help="number of runs (default 1000)")
-    p.add_argument("--fit-model", choices=O.MODEL_CHOICES, default=None,
-                   help="a different model to fit to the truth model's records (default: the truth model)")
+    p.add_argument(
+        "--fit-model",
+        choices=O.MODEL_CHOICES,
+        default=None,
+        help="a different model to fit to the truth model's records (default: the truth model)",
+    )
     p.add_argument("--maneuver", default="3211", choices=("3211", "doublet", "multisine"))
     p.add_argument("--duration", type=float, default=10.0, help="record length, s (default 10)")
     p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
@@ -29,8 +36,9 @@ def register(sub) -> None:
     O.add_workers_option(p)
     p.add_argument("--scheduler", metavar="ADDRESS", help="run on a Dask cluster (needs the 'dask' extra)")
     O.add_progress_option(p, default_on=True)
-    O.add_output_option(p, kind="folder", metavar="DIR",
-                        help="DIR/montecarlo.json, DIR/montecarlo.txt and DIR/montecarlo.png")
+    O.add_output_option(
+        p, kind="folder", metavar="DIR", help="DIR/montecarlo.json, DIR/montecarlo.txt and DIR/montecarlo.png"
+    )
     O.add_json_option(p)
     p.set_defaults(func=run)
 
@@ -46,8 +54,7 @@ def run(args) -> int:
     truth = model_spec_from_args(args, values=assignments(args.set))
     fit_model = None
     if args.fit_model and args.fit_model != truth.kind:
-        fit_model = ModelSpec(kind=args.fit_model, aircraft=args.aircraft, options=truth.options,
-                              effects=truth.effects)
+        fit_model = ModelSpec(kind=args.fit_model, aircraft=args.aircraft, options=truth.options, effects=truth.effects)
     noise, relative = _noise(args.noise or DEFAULT_NOISE)
     band = args.band
     check_band_option(band)  # up front: a bad band would fail all N runs one by one
@@ -58,9 +65,20 @@ def run(args) -> int:
         for name in ("montecarlo.json", "montecarlo.txt", "montecarlo.png"):
             check_output(Path(args.output) / name, [args.aircraft])
     progress = True if (O.progress_wanted(args, default_on=True) and importlib.util.find_spec("tqdm")) else None
-    res = monte_carlo(truth, n=args.n, maneuver=args.maneuver, duration=args.duration, dt=args.dt, noise=noise,
-                      seed=args.seed, fit_model=fit_model, fit_kwargs={} if band is None else {"band": band},
-                      engine=args.scheduler or "process", workers=args.workers, progress=progress)
+    res = monte_carlo(
+        truth,
+        n=args.n,
+        maneuver=args.maneuver,
+        duration=args.duration,
+        dt=args.dt,
+        noise=noise,
+        seed=args.seed,
+        fit_model=fit_model,
+        fit_kwargs={} if band is None else {"band": band},
+        engine=args.scheduler or "process",
+        workers=args.workers,
+        progress=progress,
+    )
     files = {}
     if args.output:
         from ..outputs import atomic_savefig, atomic_write_text
@@ -84,8 +102,17 @@ def run(args) -> int:
     if args.json:
         from ..cli import print_json
 
-        print_json({"n": res.n, "used": res.n_used, "failed": len(res.errors), "wall_time": res.wall_time,
-                    "settings": res.settings, "stats": res.stats(), "files": files})
+        print_json(
+            {
+                "n": res.n,
+                "used": res.n_used,
+                "failed": len(res.errors),
+                "wall_time": res.wall_time,
+                "settings": res.settings,
+                "stats": res.stats(),
+                "files": files,
+            }
+        )
     else:
         print(res.table())
         for f in files.values():

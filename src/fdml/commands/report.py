@@ -8,8 +8,13 @@ def register(sub) -> None:
     p.add_argument("result", metavar="RESULT.json", help="result file written by fdml fit -o")
     from . import _options as O
 
-    O.add_output_option(p, kind="folder", metavar="DIR", old=("--out",),
-                        help="figures and report.md (default RESULT-report beside the file)")
+    O.add_output_option(
+        p,
+        kind="folder",
+        metavar="DIR",
+        old=("--out",),
+        help="figures and report.md (default RESULT-report beside the file)",
+    )
     p.add_argument("--hz", action="store_true", help="frequency axes in Hz (default rad/s)")
     O.add_json_option(p)
     p.set_defaults(func=run)

@@ -7,13 +7,15 @@ from ._common import assignments, make_model_from_args
 
 
 def register(sub) -> None:
-    p = sub.add_parser("response", help="frequency response G(jw) of a model",
-                       description="Frequency response of a model.  "
-                                   "Model rule, when --model is not given: " + O.MODEL_RULE_NO_RECORD + ".")
+    p = sub.add_parser(
+        "response",
+        help="frequency response G(jw) of a model",
+        description="Frequency response of a model.  "
+        "Model rule, when --model is not given: " + O.MODEL_RULE_NO_RECORD + ".",
+    )
     O.add_model_options(p, reads_records=False)
     O.add_set_option(p)
-    O.add_band_option(p, old=("--omega",),
-                      help=f"frequencies, rad/s (default {O.DEFAULT_BAND_TEXT}; LO may be 0)")
+    O.add_band_option(p, old=("--omega",), help=f"frequencies, rad/s (default {O.DEFAULT_BAND_TEXT}; LO may be 0)")
     O.add_json_option(p)
     p.set_defaults(func=run)
 
@@ -30,15 +32,26 @@ def run(args) -> int:
     if args.json:
         from ..cli import print_json
 
-        print_json({"model": model.kind, "outputs": list(model.outputs), "inputs": list(model.inputs),
-                    "omega": omega.tolist(), "shape": list(G.shape),
-                    "real": G.real.tolist(), "imag": G.imag.tolist()})
+        print_json(
+            {
+                "model": model.kind,
+                "outputs": list(model.outputs),
+                "inputs": list(model.inputs),
+                "omega": omega.tolist(),
+                "shape": list(G.shape),
+                "real": G.real.tolist(),
+                "imag": G.imag.tolist(),
+            }
+        )
         return 0
     print(f"{model.describe()}: |G| and phase (deg)")
     head = "omega".rjust(8) + "".join(f"{o + '/' + i:>24s}" for o in model.outputs for i in model.inputs)
     print(head)
     for k, w in enumerate(omega):
-        row = "".join(f"{abs(G[a, b, k]):12.5g}{np.degrees(np.angle(G[a, b, k])):12.2f}"
-                      for a in range(G.shape[0]) for b in range(G.shape[1]))
+        row = "".join(
+            f"{abs(G[a, b, k]):12.5g}{np.degrees(np.angle(G[a, b, k])):12.2f}"
+            for a in range(G.shape[0])
+            for b in range(G.shape[1])
+        )
         print(f"{w:8.3f}{row}")
     return 0

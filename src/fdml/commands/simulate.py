@@ -21,9 +21,11 @@ def _noise(text: str | None):
 
 
 def register(sub) -> None:
-    p = sub.add_parser("simulate", help="simulate a manoeuvre with a model and write a CSV record",
-                       description="Simulate a manoeuvre.  "
-                                   "Model rule, when --model is not given: " + O.MODEL_RULE_NO_RECORD + ".")
+    p = sub.add_parser(
+        "simulate",
+        help="simulate a manoeuvre with a model and write a CSV record",
+        description="Simulate a manoeuvre.  Model rule, when --model is not given: " + O.MODEL_RULE_NO_RECORD + ".",
+    )
     O.add_model_options(p, gust="std", reads_records=False)
     O.add_set_option(p)
     p.add_argument("--maneuver", default="3211", choices=("3211", "doublet", "multisine"))
@@ -45,14 +47,23 @@ def run(args) -> int:
     model = make_model_from_args(args, assignments(args.set))
     kw = {} if args.amplitude is None else {"amplitude": args.amplitude}
     noise, _relative = _noise(args.noise)  # a number is a fraction of RMS in simulate_maneuver too
-    rec = simulate_maneuver(model, args.maneuver, duration=args.duration, dt=args.dt,
-                            gust_std=args.gust or 0.0, seed=args.seed, noise=noise, **kw)
+    rec = simulate_maneuver(
+        model,
+        args.maneuver,
+        duration=args.duration,
+        dt=args.dt,
+        gust_std=args.gust or 0.0,
+        seed=args.seed,
+        noise=noise,
+        **kw,
+    )
     rec.to_csv(args.output)
     if args.json:
         from ..cli import print_json
 
-        print_json({"output": args.output, "samples": rec.n, "dt": rec.dt, "model": model.kind,
-                    "signals": list(rec.signals)})
+        print_json(
+            {"output": args.output, "samples": rec.n, "dt": rec.dt, "model": model.kind, "signals": list(rec.signals)}
+        )
     else:
         print(f"wrote {args.output}: {rec.n} samples at {rec.dt:g} s, signals {', '.join(rec.signals)}")
     return 0

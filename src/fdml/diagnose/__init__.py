@@ -32,7 +32,6 @@ Example::
     rep.to_json("diagnosis.json"); rep.plot("diagnosis.png")
 """
 
-from .core import diagnose
 from ..models.effects import (
     AugmentedModel,
     Effect,
@@ -47,6 +46,7 @@ from ..models.effects import (
     scale_rows,
     unregister_effect,
 )
+from .core import diagnose
 from .report import JSON_KEYS, DiagnosisReport
 
 

@@ -116,7 +116,7 @@ def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options
         nuis = [p.name for p in effect.param_list(cur.model) if p.nuisance]
         m2 = best.model.free(nuis)
         params = m2.parameters
-        for (gname, (grid, _prof)) in (scr.grid or {}).items():
+        for gname, (grid, _prof) in (scr.grid or {}).items():
             # refine within the searched range: a nuisance parameter that wanders off the grid
             # turns the effect into a catch-all (a "mode" at the short period with zeta 0.5)
             params = params.bound(gname, float(grid[0]), float(grid[-1]))
@@ -146,9 +146,20 @@ def _params(effect: Effect, model, fit: DiagFit) -> tuple[dict, bool]:
     return out, ok
 
 
-def attribute_step(data, cur: DiagFit, effects, bands, rows, options: dict, *, alpha: float = 0.05,
-                   refit_top: int = 4, step: int = 0, n_obs: int = 1,
-                   floor_weights: np.ndarray | None = None) -> tuple[list, list]:
+def attribute_step(
+    data,
+    cur: DiagFit,
+    effects,
+    bands,
+    rows,
+    options: dict,
+    *,
+    alpha: float = 0.05,
+    refit_top: int = 4,
+    step: int = 0,
+    n_obs: int = 1,
+    floor_weights: np.ndarray | None = None,
+) -> tuple[list, list]:
     """One attribution step from ``cur``.
 
     Returns
@@ -175,8 +186,7 @@ def attribute_step(data, cur: DiagFit, effects, bands, rows, options: dict, *, a
         try:
             scr = screen(ctx, eff, level=level, band=data.band)
         except Exception as exc:  # a candidate that cannot be evaluated here is skipped, with the reason
-            skipped.append(Candidate(eff, eff.key, identifiable=False, reason=f"cannot be evaluated: {exc}",
-                                     step=step))
+            skipped.append(Candidate(eff, eff.key, identifiable=False, reason=f"cannot be evaluated: {exc}", step=step))
             continue
         if not scr.identifiable:
             skipped.append(Candidate(eff, eff.key, screen=scr, identifiable=False, reason=scr.reason, step=step))
@@ -210,7 +220,7 @@ def attribute_step(data, cur: DiagFit, effects, bands, rows, options: dict, *, a
     for c, a in zip(tested, ph):
         c.p_holm = float(a)
     logn = math.log(max(n_obs, 2))
-    tested.sort(key=lambda c: (c.q_eff * logn - c.lr))
+    tested.sort(key=lambda c: c.q_eff * logn - c.lr)
     return tested, skipped
 
 
@@ -250,8 +260,9 @@ def vuong_z(fa: DiagFit, fb: DiagFit, rows: np.ndarray, dft: np.ndarray) -> floa
     return float(np.sum(d) / s)
 
 
-def choose(tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = None,
-           dft: np.ndarray | None = None) -> tuple:
+def choose(
+    tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = None, dft: np.ndarray | None = None
+) -> tuple:
     """(best, ambiguity set) among the significant refitted candidates, or (None, [])."""
     sig = [c for c in tested if c.refitted and c.significant(alpha)]
     if not sig:

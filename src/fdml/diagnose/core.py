@@ -14,9 +14,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from ..errors import FdmlError, ParameterError
+from ..estimate import NoiseModel
 from ..models.base import Model
 from ..models.effects import Effect, default_library, registered_effects
-from ..estimate import NoiseModel
 from ..record import Record
 from .attribute import Candidate, attribute_step, choose, p_value
 from .data import AnalysisData, analysis_data
@@ -73,7 +73,7 @@ def _data_findings(records, model, band, strict: bool) -> list:
         U = None
     lohi = None
     if band is not None:  # the diagnosis takes LO:HI; the check needs a grid: 100 steps over it
-        lo, hi = (band.split(":")[:2] if isinstance(band, str) else band[:2])
+        lo, hi = band.split(":")[:2] if isinstance(band, str) else band[:2]
         lohi = (float(lo), float(hi), (float(hi) - float(lo)) / 100)
     found = [f for r in records for f in check_data(r, band=lohi, airspeed=U).findings]
     raise_if_strict(found, strict)
@@ -125,8 +125,15 @@ class _Setup:
         """The gap map of an in-sample fit: with ``before``, that map's noise floors held; the regressors
         (forced responses) are the base fit's, shared by every map (same regressors before and after),
         unless ``own`` (the fit's own regressors, for the remaining gap)."""
-        return fit_map(self.data, fit, self.edges, alpha=self.alpha, channels=self.channels, before=before,
-                       designs=None if own else self.designs)
+        return fit_map(
+            self.data,
+            fit,
+            self.edges,
+            alpha=self.alpha,
+            channels=self.channels,
+            before=before,
+            designs=None if own else self.designs,
+        )
 
 
 @dataclass(frozen=True)
@@ -158,10 +165,27 @@ class _Shrink:
     hold: dict | None  # the report's hold-out section
 
 
-def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, library=None, alpha: float = 0.05,
-             max_effects: int = 2, oversample: int = 2, noise: str = "band", refit_top: int = 4, outputs=None,
-             boundary: str = "estimated", biases="auto", trim: str = "first",
-             shrink_threshold: float = SHRINK_CONFIRM, check: bool = True, strict: bool = False) -> DiagnosisReport:
+def diagnose(
+    records=None,
+    base=None,
+    *,
+    holdout=None,
+    band=None,
+    bands=None,
+    library=None,
+    alpha: float = 0.05,
+    max_effects: int = 2,
+    oversample: int = 2,
+    noise: str = "band",
+    refit_top: int = 4,
+    outputs=None,
+    boundary: str = "estimated",
+    biases="auto",
+    trim: str = "first",
+    shrink_threshold: float = SHRINK_CONFIRM,
+    check: bool = True,
+    strict: bool = False,
+) -> DiagnosisReport:
     """Diagnose the gap between a base model and flight records.
 
     Parameters
@@ -221,31 +245,74 @@ def diagnose(records=None, base=None, *, holdout=None, band=None, bands=None, li
         raise ParameterError(f"alpha must lie in (0, 1), got {alpha}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, (int, np.integer)) or max_effects < 0:
         raise ParameterError(f"max_effects must be an integer >= 0, got {max_effects!r}")
-    su = _setup(records, model, band=band, bands=bands, library=library, alpha=alpha, max_effects=max_effects,
-                oversample=oversample, noise=noise, refit_top=refit_top, outputs=outputs, boundary=boundary,
-                biases=biases, trim=trim, shrink_threshold=shrink_threshold)
+    su = _setup(
+        records,
+        model,
+        band=band,
+        bands=bands,
+        library=library,
+        alpha=alpha,
+        max_effects=max_effects,
+        oversample=oversample,
+        noise=noise,
+        refit_top=refit_top,
+        outputs=outputs,
+        boundary=boundary,
+        biases=biases,
+        trim=trim,
+        shrink_threshold=shrink_threshold,
+    )
     try:
         base_fit = fit_model(su.data, model, su.nb, **su.options)
     except FdmlError as exc:
         return _empty("base_fit_failed", [f"the base model could not be fitted: {exc}"], su.settings, found)
     if not base_fit.converged:
-        return _empty("base_not_converged",
-                      [(f"the base fit did not converge ({base_fit.message}); no effect can be attributed "
-                        "against an unconverged base")], su.settings, found)
+        return _empty(
+            "base_not_converged",
+            [
+                (
+                    f"the base fit did not converge ({base_fit.message}); no effect can be attributed "
+                    "against an unconverged base"
+                )
+            ],
+            su.settings,
+            found,
+        )
     base_map, problems = _locate(su, base_fit)
     if not any(c.excitation == "ok" for c in base_map.cells):
-        return _empty("insufficient_excitation",
-                      problems + ["no band has enough excitation to say anything about the model; no verdict"],
-                      su.settings, found, location=base_map.to_list())
+        return _empty(
+            "insufficient_excitation",
+            problems + ["no band has enough excitation to say anything about the model; no verdict"],
+            su.settings,
+            found,
+            location=base_map.to_list(),
+        )
     sel = _select(su, base_fit, base_map, max_effects=max_effects, refit_top=refit_top)
     shr = _shrink_holdout(su, base_fit, base_map, sel, holdout)
-    rec = recommended_fit(su.data, base_fit.model, [a.effect for a in sel.accepted], start=sel.final.model,
-                          **su.options)
+    rec = recommended_fit(
+        su.data, base_fit.model, [a.effect for a in sel.accepted], start=sel.final.model, **su.options
+    )
     return _assemble(su, base_fit, base_map, sel, shr, problems, found, rec, t0)
 
 
-def _setup(records, model, *, band, bands, library, alpha, max_effects, oversample, noise, refit_top, outputs,
-           boundary, biases, trim, shrink_threshold) -> _Setup:
+def _setup(
+    records,
+    model,
+    *,
+    band,
+    bands,
+    library,
+    alpha,
+    max_effects,
+    oversample,
+    noise,
+    refit_top,
+    outputs,
+    boundary,
+    biases,
+    trim,
+    shrink_threshold,
+) -> _Setup:
     """Analysis data, noise bands, gap-map edges and the settings (bad options raise here)."""
     effects = _library(library)
     data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust)
@@ -255,17 +322,42 @@ def _setup(records, model, *, band, bands, library, alpha, max_effects, oversamp
     edges = np.asarray(bands, float) if bands is not None else default_bands(data)
     if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
         raise ParameterError("bands must be increasing edges in rad/s, at least two")
-    settings = {"alpha": alpha, "band": list(data.band), "bands": edges.tolist(), "oversample": oversample,
-                "noise": noise, "noise_bands": list(nb.edges), "refit_top": refit_top, "max_effects": max_effects,
-                "records": data.names(), "independent_frequencies": data.n_dft, "base_model": model.describe(),
-                "shrink_threshold": shrink_threshold, "outputs": list(channels)}
-    return _Setup(data=data, nb=nb, rows=nb.assign(data.stacked_omega()), edges=edges, channels=channels,
-                  options={"outputs": outputs, "boundary": boundary, "biases": biases}, effects=tuple(effects),
-                  alpha=alpha, n_obs=2 * data.n_dft * len(channels), settings=settings, model=model,
-                  oversample=oversample, noise=noise, trim=trim, shrink_threshold=shrink_threshold)
+    settings = {
+        "alpha": alpha,
+        "band": list(data.band),
+        "bands": edges.tolist(),
+        "oversample": oversample,
+        "noise": noise,
+        "noise_bands": list(nb.edges),
+        "refit_top": refit_top,
+        "max_effects": max_effects,
+        "records": data.names(),
+        "independent_frequencies": data.n_dft,
+        "base_model": model.describe(),
+        "shrink_threshold": shrink_threshold,
+        "outputs": list(channels),
+    }
+    return _Setup(
+        data=data,
+        nb=nb,
+        rows=nb.assign(data.stacked_omega()),
+        edges=edges,
+        channels=channels,
+        options={"outputs": outputs, "boundary": boundary, "biases": biases},
+        effects=tuple(effects),
+        alpha=alpha,
+        n_obs=2 * data.n_dft * len(channels),
+        settings=settings,
+        model=model,
+        oversample=oversample,
+        noise=noise,
+        trim=trim,
+        shrink_threshold=shrink_threshold,
+    )
 
 
 # --- phase 1: locate ---------------------------------------------------------------------------------------------
+
 
 def _locate(su: _Setup, base_fit):
     """The base fit's gap map, and the cells too thinly excited to test (as problems)."""
@@ -281,6 +373,7 @@ def _locate(su: _Setup, base_fit):
 
 # --- phase 2: attribution by greedy forward selection, then turbulence -------------------------------------------
 
+
 def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int) -> _Selection:
     """Greedy forward selection of deterministic effects, then the unmeasured-turbulence test."""
     fw = floor_weights(su.data, base_map, su.channels)
@@ -295,8 +388,19 @@ def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int)
     remaining = [e for e in su.effects if e.kind == "deterministic"]
     for step in range(max(int(max_effects), 0)):
         step_fits.append(cur)
-        tested, skipped = attribute_step(su.data, cur, remaining, su.nb, su.rows, su.options, alpha=su.alpha,
-                                         refit_top=refit_top, step=step, n_obs=su.n_obs, floor_weights=fw)
+        tested, skipped = attribute_step(
+            su.data,
+            cur,
+            remaining,
+            su.nb,
+            su.rows,
+            su.options,
+            alpha=su.alpha,
+            refit_top=refit_top,
+            step=step,
+            n_obs=su.n_obs,
+            floor_weights=fw,
+        )
         if step == 0:
             K0 = len(tested) + (1 if gust_eff is not None else 0)
             # Holm over the whole first-step family, the turbulence test included
@@ -316,16 +420,25 @@ def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int)
         cur = best.fit
         remaining = [e for e in remaining if e.key != best.key]
     gust, gust_sig = _turbulence(su, cur, gust_eff, K0, skipped_all)
-    return _Selection(accepted=accepted, ambiguity=ambiguity, tested=all_tested, skipped=skipped_all, family=K0,
-                      step_fits=step_fits, final=cur, gust=gust, gust_sig=gust_sig, gust_effect=gust_eff)
+    return _Selection(
+        accepted=accepted,
+        ambiguity=ambiguity,
+        tested=all_tested,
+        skipped=skipped_all,
+        family=K0,
+        step_fits=step_fits,
+        final=cur,
+        gust=gust,
+        gust_sig=gust_sig,
+        gust_effect=gust_eff,
+    )
 
 
 def _backward_check(su: _Setup, base_fit, accepted: list, best) -> None:
     """Is the effect accepted last still needed next to the new one?  Drops it from ``accepted`` if not."""
     prev = accepted[-1]
     try:
-        only_new = fit_model(su.data, best.effect.augment(base_fit.model), su.nb, start=best.fit.params,
-                             **su.options)
+        only_new = fit_model(su.data, best.effect.augment(base_fit.model), su.nb, start=best.fit.params, **su.options)
         lr_prev = likelihood_ratio(only_new.cost, best.fit.cost, su.data.oversample)
         p_prev, _ = p_value(lr_prev, prev.df, prev.null)
     except FdmlError:  # pragma: no cover
@@ -346,17 +459,20 @@ def _turbulence(su: _Setup, cur, gust_eff, K0, skipped_all: dict):
         try:
             gust = gust_test(su.data, cur, su.edges)
         except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:
-            skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False,
-                                                  reason=f"cannot be evaluated: {exc}")
+            skipped_all[gust_eff.key] = Candidate(
+                gust_eff, gust_eff.key, identifiable=False, reason=f"cannot be evaluated: {exc}"
+            )
     else:
-        skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False,
-                                              reason=why or "needs at least two output channels")
+        skipped_all[gust_eff.key] = Candidate(
+            gust_eff, gust_eff.key, identifiable=False, reason=why or "needs at least two output channels"
+        )
     if gust is None:
         return None, False
     return gust, min(1.0, gust.p * max(K0 or 1, 1)) < su.alpha
 
 
 # --- phase 3: shrink, in-sample and on the hold-out records ------------------------------------------------------
+
 
 def _shrink_holdout(su: _Setup, base_fit, base_map, sel: _Selection, holdout) -> _Shrink:
     """Shrink of every refitted candidate and of the final fit (flagged cells only, rule 6).
@@ -378,8 +494,15 @@ def _shrink_holdout(su: _Setup, base_fit, base_map, sel: _Selection, holdout) ->
     if holdout is not None:
         h_shr, hold = _holdout(su, base_fit, sel, refitted, holdout)
         unexplained += hold["unexplained"]
-    return _Shrink(in_sample=in_shr, holdout=h_shr, final_map=final_map_same, unexplained=unexplained,
-                   shrink_final=shrink_final, n_flagged=n_flag, hold=hold)
+    return _Shrink(
+        in_sample=in_shr,
+        holdout=h_shr,
+        final_map=final_map_same,
+        unexplained=unexplained,
+        shrink_final=shrink_final,
+        n_flagged=n_flag,
+        hold=hold,
+    )
 
 
 def _holdout(su: _Setup, base_fit, sel: _Selection, refitted: list, holdout):
@@ -398,19 +521,35 @@ def _holdout(su: _Setup, base_fit, sel: _Selection, refitted: list, holdout):
         h_step[k] = hmap(sel.step_fits[k].model, h_before)
     h_shr = {(c.key, c.step): shrink(h_step[c.step], hmap(c.fit.model, h_before)) for c in refitted}
     h_final = frozen_fit(hdata, sel.final.model, hnb, su.options)
-    h_final_same = fit_map(hdata, h_final, su.edges, alpha=su.alpha, channels=su.channels, before=h_before,
-                           designs=designs)
+    h_final_same = fit_map(
+        hdata, h_final, su.edges, alpha=su.alpha, channels=su.channels, before=h_before, designs=designs
+    )
     h_final_own = fit_map(hdata, h_final, su.edges, alpha=su.alpha, channels=su.channels)
     h_unexp = [dict(c.to_dict(), where="holdout") for c in h_final_own.cells if c.significant]
     hs_final, hn_flag = shrink(h_before, h_final_same)
-    return h_shr, {"records": hdata.names(), "location": h_before.to_list(), "location_after": h_final_same.to_list(),
-                   "shrink": hs_final, "flagged_before": hn_flag, "unexplained": h_unexp}
+    return h_shr, {
+        "records": hdata.names(),
+        "location": h_before.to_list(),
+        "location_after": h_final_same.to_list(),
+        "shrink": hs_final,
+        "flagged_before": hn_flag,
+        "unexplained": h_unexp,
+    }
 
 
 # --- the recommended model -------------------------------------------------------------------------------------
 
-def recommended_fit(data, base_model: Model, effects, *, start: Model | None = None, outputs=None,
-                    boundary: str = "estimated", biases="auto"):
+
+def recommended_fit(
+    data,
+    base_model: Model,
+    effects,
+    *,
+    start: Model | None = None,
+    outputs=None,
+    boundary: str = "estimated",
+    biases="auto",
+):
     """:func:`fdml.fit` of ``base_model`` plus ``effects`` on the diagnosis's analysis grid.
 
     The model is built as a user would build it (``base_model.with_effects(*effects)``), so its result
@@ -453,15 +592,19 @@ def recommended_fit(data, base_model: Model, effects, *, start: Model | None = N
 
 # --- phase 4: the report -----------------------------------------------------------------------------------------
 
-def _assemble(su: _Setup, base_fit, base_map, sel: _Selection, shr: _Shrink, problems: list, found: list,
-              recommended, t0: float) -> DiagnosisReport:
+
+def _assemble(
+    su: _Setup, base_fit, base_map, sel: _Selection, shr: _Shrink, problems: list, found: list, recommended, t0: float
+) -> DiagnosisReport:
     """Labels, verdict, footprints and compensation of the accepted effects: the frozen report."""
     from .text import paragraph
 
     ranking = _ranking(su, sel, shr)
     verdict = sel.accepted[0].name if sel.accepted else ("unmeasured_gust" if sel.gust_sig else "none")
-    not_ident = [{"effect": s.effect.name, "channel": s.effect.channel, "key": s.key, "reason": s.reason}
-                 for s in sel.skipped.values()]
+    not_ident = [
+        {"effect": s.effect.name, "channel": s.effect.channel, "key": s.key, "reason": s.reason}
+        for s in sel.skipped.values()
+    ]
     fp, comp, selected = [], [], []
     for a in sel.accepted:
         nulls = a.effect.nulls(base_fit.model if a.step == 0 else a.fit.model)
@@ -475,18 +618,47 @@ def _assemble(su: _Setup, base_fit, base_map, sel: _Selection, shr: _Shrink, pro
     ambiguous = [c.key for c in amb_first if sel.accepted and c.key != sel.accepted[0].key]
     gust = sel.gust
     report = DiagnosisReport(
-        verdict=verdict, status="ok", problems=problems, ranking=ranking, ambiguous=ambiguous,
-        not_identifiable=not_ident, location=base_map.to_list(), footprint=fp, unexplained=shr.unexplained,
-        selected=selected, location_after=shr.final_map.to_list(), compensation=comp, parameter_shifts=shifts,
+        verdict=verdict,
+        status="ok",
+        problems=problems,
+        ranking=ranking,
+        ambiguous=ambiguous,
+        not_identifiable=not_ident,
+        location=base_map.to_list(),
+        footprint=fp,
+        unexplained=shr.unexplained,
+        selected=selected,
+        location_after=shr.final_map.to_list(),
+        compensation=comp,
+        parameter_shifts=shifts,
         holdout=shr.hold,
-        noise={"model": su.noise, "bands": list(su.nb.edges), "floor_method": base_map.method,
-               "gust_test": None if gust is None else {"lr": gust.lr, "p": gust.p, "sigma_w": gust.sigma_w,
-                                                       "share": gust.share, "samples": gust.n_samples}},
-        settings={**su.settings, "elapsed_s": time.perf_counter() - t0, "shrink_in_sample": shr.shrink_final,
-                  "flagged_before": shr.n_flagged, "family_size": sel.family},
-        details={"data": su.data, "base_fit": base_fit, "final_fit": sel.final, "base_map": base_map,
-                 "final_map": shr.final_map, "edges": su.edges, "accepted": sel.accepted, "channels": su.channels},
-        findings=tuple(found), recommended=recommended,
+        noise={
+            "model": su.noise,
+            "bands": list(su.nb.edges),
+            "floor_method": base_map.method,
+            "gust_test": None
+            if gust is None
+            else {"lr": gust.lr, "p": gust.p, "sigma_w": gust.sigma_w, "share": gust.share, "samples": gust.n_samples},
+        },
+        settings={
+            **su.settings,
+            "elapsed_s": time.perf_counter() - t0,
+            "shrink_in_sample": shr.shrink_final,
+            "flagged_before": shr.n_flagged,
+            "family_size": sel.family,
+        },
+        details={
+            "data": su.data,
+            "base_fit": base_fit,
+            "final_fit": sel.final,
+            "base_map": base_map,
+            "final_map": shr.final_map,
+            "edges": su.edges,
+            "accepted": sel.accepted,
+            "channels": su.channels,
+        },
+        findings=tuple(found),
+        recommended=recommended,
     )
     return replace(report, text=paragraph(report))
 
@@ -504,8 +676,16 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink) -> list:
         shr_, nflag = h if (shr.hold and h is not None) else (in_sample, nfl)
         amb = any(len(s) > 1 for a, s in zip(sel.accepted, sel.ambiguity) if a.key == c.key and a.step == c.step)
         acc = (c.key, c.step) in acc_keys
-        lab = label_for(significant=sig, accepted=acc, ambiguous=amb, plausible=c.plausible, shrink=shr_,
-                        n_flagged=nflag, n_unexplained=n_unexp_label, threshold=su.shrink_threshold)
+        lab = label_for(
+            significant=sig,
+            accepted=acc,
+            ambiguous=amb,
+            plausible=c.plausible,
+            shrink=shr_,
+            n_flagged=nflag,
+            n_unexplained=n_unexp_label,
+            threshold=su.shrink_threshold,
+        )
         ranking.append(_rank_entry(c, lab, shr_, in_sample, h[0] if h else None, acc, su.n_obs, sig))
     gust, K0 = sel.gust, sel.family
     if gust is not None:
@@ -514,13 +694,28 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink) -> list:
         glab = ("confirmed" if n_unexp_label == 0 else "partial") if sel.gust_sig else None
         ge = sel.gust_effect
         assert ge is not None  # a turbulence test ran, so the library holds the effect
-        ranking.append({
-            "effect": "unmeasured_gust", "key": ge.key, "channel": ge.channel, "lr": gust.lr,
-            "p_value": gust.p, "p_holm": min(1.0, gust.p * max(K0 or 1, 1)), "shrink": gust.share,
-            "label": glab, "params": {"sigma_w": {"value": gust.sigma_w, "stderr": gust.sigma_w_se, "unit": "m/s"}},
-            "df": 1, "null": "chibar", "accepted": sel.gust_sig, "step": len(sel.accepted), "refitted": True,
-            "shrink_in_sample": gust.share, "shrink_holdout": None, "significant": sel.gust_sig,
-            "note": "noise kind: shrink is the share of the input-incoherent residual power it explains"})
+        ranking.append(
+            {
+                "effect": "unmeasured_gust",
+                "key": ge.key,
+                "channel": ge.channel,
+                "lr": gust.lr,
+                "p_value": gust.p,
+                "p_holm": min(1.0, gust.p * max(K0 or 1, 1)),
+                "shrink": gust.share,
+                "label": glab,
+                "params": {"sigma_w": {"value": gust.sigma_w, "stderr": gust.sigma_w_se, "unit": "m/s"}},
+                "df": 1,
+                "null": "chibar",
+                "accepted": sel.gust_sig,
+                "step": len(sel.accepted),
+                "refitted": True,
+                "shrink_in_sample": gust.share,
+                "shrink_holdout": None,
+                "significant": sel.gust_sig,
+                "note": "noise kind: shrink is the share of the input-incoherent residual power it explains",
+            }
+        )
     return ranking
 
 
@@ -548,20 +743,45 @@ def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_
         pass
     logn = math.log(max(n_obs, 2))
     return {
-        "effect": c.name, "key": c.key, "channel": c.channel, "lr": c.lr, "p_value": c.p, "p_holm": c.p_holm,
-        "log10_p": c.logp / math.log(10), "shrink": shr, "shrink_in_sample": in_sample, "shrink_holdout": holdout,
+        "effect": c.name,
+        "key": c.key,
+        "channel": c.channel,
+        "lr": c.lr,
+        "p_value": c.p,
+        "p_holm": c.p_holm,
+        "log10_p": c.logp / math.log(10),
+        "shrink": shr,
+        "shrink_in_sample": in_sample,
+        "shrink_holdout": holdout,
         "label": label,
         "params": {k: {"value": v, "stderr": se, "unit": units.get(k, "")} for k, (v, se) in c.params.items()},
-        "df": c.df, "null": c.null, "delta_aic": 2 * c.q_eff - c.lr, "delta_bic": c.q_eff * logn - c.lr,
-        "lm": c.screen.lm if c.screen is not None else None, "refitted": c.refitted, "plausible": c.plausible,
+        "df": c.df,
+        "null": c.null,
+        "delta_aic": 2 * c.q_eff - c.lr,
+        "delta_bic": c.q_eff * logn - c.lr,
+        "lm": c.screen.lm if c.screen is not None else None,
+        "refitted": c.refitted,
+        "plausible": c.plausible,
         "significant": bool(sig),
-        "accepted": accepted, "step": c.step,
+        "accepted": accepted,
+        "step": c.step,
         "aliasing": c.screen.aliasing if c.screen is not None else None,
         "mde": c.screen.mde if c.screen is not None else None,
     }
 
 
 def _empty(status: str, problems: list, settings: dict, found: list, location: list | None = None) -> DiagnosisReport:
-    return DiagnosisReport(verdict="none", status=status, problems=problems, ranking=[], ambiguous=[],
-                           not_identifiable=[], location=location or [], footprint=[], unexplained=[],
-                           settings=settings, text="No verdict: " + "; ".join(problems), findings=tuple(found))
+    return DiagnosisReport(
+        verdict="none",
+        status=status,
+        problems=problems,
+        ranking=[],
+        ambiguous=[],
+        not_identifiable=[],
+        location=location or [],
+        footprint=[],
+        unexplained=[],
+        settings=settings,
+        text="No verdict: " + "; ".join(problems),
+        findings=tuple(found),
+    )

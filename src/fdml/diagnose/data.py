@@ -122,8 +122,9 @@ def _grid(T: float, lo: float, hi: float, K: int) -> tuple[np.ndarray, np.ndarra
     return k * step, (k % K) == 0
 
 
-def analysis_data(records, band=None, *, oversample: int = 2, trim: str = "first",
-                  gust: bool | None = None) -> AnalysisData:
+def analysis_data(
+    records, band=None, *, oversample: int = 2, trim: str = "first", gust: bool | None = None
+) -> AnalysisData:
     """Transform records onto the analysis grid.
 
     Parameters
@@ -160,10 +161,12 @@ def analysis_data(records, band=None, *, oversample: int = 2, trim: str = "first
             raise BandError(
                 f"record {r.name!r} ({r.duration:.3g} s) has fewer than two independent frequencies "
                 f"(spacing 2 pi/T = {2 * math.pi / r.duration:.3g} rad/s) in the band {lo:g}-{hi:g} rad/s: "
-                "too short for a diagnosis in this band")
+                "too short for a diagnosis in this band"
+            )
         d = spectra(r, omega, trim=trim)
         if names.count(r.name) > 1:
             from dataclasses import replace
+
             d = replace(d, name=f"{r.name}#{i}")
         out.append(d)
         masks.append(dft)
@@ -174,7 +177,7 @@ def analysis_data(records, band=None, *, oversample: int = 2, trim: str = "first
         raise RecordError("the model has a gust input but not every record has an alpha_w column")
     if not gust:
         from dataclasses import replace
+
         out = [replace(d, u=d.u[:, :1], inputs=("de",)) if d.u.shape[1] > 1 else d for d in out]
     inputs = ("de", "alpha_w") if gust else ("de",)
     return AnalysisData(tuple(out), tuple(masks), K, (lo, hi), inputs)
-

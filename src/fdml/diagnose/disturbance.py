@@ -16,7 +16,8 @@ non-excited lines, after the deterministic effects) is:
    and removes smooth model error; it plays the role of the non-excited lines
    of a periodic multisine;
 2. test ``S_b = diag(d_b) + sigma_w^2 M_b`` (H1) against ``diag(d_b)`` (H0) with
-   Rao's score statistic (closed form at the null, no optimisation), with ``M_b = (1/m_b) sum_i w_i (pi T/U^2) Phi(w_i) g_i g_i^H``,
+   Rao's score statistic (closed form at the null, no optimisation), with
+   ``M_b = (1/m_b) sum_i w_i (pi T/U^2) Phi(w_i) g_i g_i^H``,
    Phi the one-sided Dryden spectrum of w_g for unit sigma (so that
    ``E|alpha_g~(w)|^2 = pi T Phi(w) / U^2`` for the finite transform over T)
    and w_i the complement's leverage of point i;
@@ -44,8 +45,8 @@ import numpy as np
 from scipy import optimize, stats
 
 from ..maneuvers import DRYDEN_L, dryden_psd
-from .data import AnalysisData
 from ..models.effects import with_gust
+from .data import AnalysisData
 from .locate import _legendre
 
 __all__ = ["GustTest", "gust_test"]
@@ -92,7 +93,7 @@ def _samples(data: AnalysisData, e: np.ndarray, out_idx, edges):
         if m < 2:
             continue
         Uq, s, _ = np.linalg.svd(X, full_matrices=True)
-        Q = Uq[:, rows.size - m:]  # orthonormal complement of range(X)
+        Q = Uq[:, rows.size - m :]  # orthonormal complement of range(X)
         xs = Q.conj().T @ e[rows][:, out_idx]  # (m, n_out)
         lev = np.sum(np.abs(Q) ** 2, axis=1)  # (rows,), sums to m
         out.append((xs, rows, lev))
@@ -118,7 +119,7 @@ def _local_scale(data: AnalysisData, e: np.ndarray, half: int = 3) -> np.ndarray
         sc = np.sqrt(num / den)
         # every grid point takes the scale of its nearest DFT point
         pos = np.clip(np.searchsorted(d.omega[m], d.omega), 0, idx.size - 1)
-        out[off: off + d.m] = sc[pos]
+        out[off : off + d.m] = sc[pos]
         off += d.m
     return np.where(out > 0, out, 1.0)
 
@@ -181,8 +182,9 @@ def _size(E, G, phi, bidx):
     best = None
     for frac in (0.05, 0.5):
         z0 = np.concatenate([d0 + math.log(1 - frac), [frac]])
-        r = optimize.minimize(lambda z: nll(np.concatenate([z[:-1], [z[-1] * scale]])), z0, method="L-BFGS-B",
-                              bounds=bounds)
+        r = optimize.minimize(
+            lambda z: nll(np.concatenate([z[:-1], [z[-1] * scale]])), z0, method="L-BFGS-B", bounds=bounds
+        )
         if best is None or r.fun < best.fun:
             best = r
     z1 = np.concatenate([best.x[:-1], [best.x[-1] * scale]])
@@ -217,8 +219,7 @@ def gust_test(data: AnalysisData, fit, edges: np.ndarray, *, length: float = DRY
     phi = math.pi * Tr * dryden_psd(om, 1.0, U, length) / U**2  # E|alpha_g~|^2 per unit sigma_w^2
     # the test: channels scaled by their own local residual RMS (H0 exact, nearly homoscedastic bands)
     w = _local_scale(data, e)
-    norm = _band_stats(data, e / w, g[:, out_idx] / w[:, out_idx],
-                       out_idx, edges, phi)
+    norm = _band_stats(data, e / w, g[:, out_idx] / w[:, out_idx], out_idx, edges, phi)
     if norm is None:
         return None
     lr = _score_test(*norm)  # asymptotically 0.5 chi2_0 + 0.5 chi2_1 under H0, like the LR
@@ -229,5 +230,11 @@ def gust_test(data: AnalysisData, fit, edges: np.ndarray, *, length: float = DRY
     bidx = np.clip(np.searchsorted(edges, om, side="right") - 1, 0, edges.size - 2)[dft]
     s2, se, share = _size(e[dft][:, out_idx], g[dft][:, out_idx], phi[dft], bidx)
     ms = norm[2]
-    return GustTest(lr=float(lr), p=float(p), sigma_w=float(math.sqrt(max(s2, 0.0))), sigma_w_se=float(se),
-                    share=min(max(share, 0.0), 1.0), n_samples=int(sum(ms)))
+    return GustTest(
+        lr=float(lr),
+        p=float(p),
+        sigma_w=float(math.sqrt(max(s2, 0.0))),
+        sigma_w_se=float(se),
+        share=min(max(share, 0.0), 1.0),
+        n_samples=int(sum(ms)),
+    )

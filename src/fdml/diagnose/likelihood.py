@@ -42,8 +42,7 @@ __all__ = ["DiagFit", "NoiseBands", "band_cost", "fit_model", "likelihood_ratio"
 NoiseBands = NoiseModel
 
 
-def noise_bands(data: AnalysisData, *, mode: str = "band", min_independent: int = 20,
-                max_bands: int = 4) -> NoiseModel:
+def noise_bands(data: AnalysisData, *, mode: str = "band", min_independent: int = 20, max_bands: int = 4) -> NoiseModel:
     """Equal-count noise bands over the stacked analysis frequencies.
 
     ``mode="white"`` gives one band (fdml's own white-noise likelihood).
@@ -121,8 +120,16 @@ class DiagFit:
         return np.concatenate([d.z - y for d, y in zip(self.prob.data, ys)])
 
 
-def fit_model(data: AnalysisData, model: Model, bands: NoiseModel, *, outputs=None, boundary: str = "estimated",
-              biases="auto", start: dict | None = None) -> DiagFit:
+def fit_model(
+    data: AnalysisData,
+    model: Model,
+    bands: NoiseModel,
+    *,
+    outputs=None,
+    boundary: str = "estimated",
+    biases="auto",
+    start: dict | None = None,
+) -> DiagFit:
     """Fit ``model`` to ``data`` by :func:`fdml.fit` under the band-wise noise model ``bands``.
 
     ``start`` overrides start values by name (model parameters only).  Estimates, standard errors
@@ -141,15 +148,36 @@ def fit_model(data: AnalysisData, model: Model, bands: NoiseModel, *, outputs=No
         # the diagnosis checks its records once (core._data_findings); no adequacy check inside its own fits
         # "analytic": closed forms where the model has them, else central differences of the model
         # response (2 evaluations a parameter; Eq. 26's settled forward differences take 4 and more)
-        res = fdml_fit(items, model, outputs=outputs, boundary=boundary, biases=biases, cov_type="colored",
-                       noise=bands, sensitivity="analytic", check=False, adequacy=False)
+        res = fdml_fit(
+            items,
+            model,
+            outputs=outputs,
+            boundary=boundary,
+            biases=biases,
+            cov_type="colored",
+            noise=bands,
+            sensitivity="analytic",
+            check=False,
+            adequacy=False,
+        )
         prob = prepare(items, res.model, outputs=outputs, boundary=boundary, biases=biases)
     theta = np.array([res.params[n] for n in prob.names], float)
     V = prob.residuals(theta)
     C, Rs = band_cost(V, bands.assign(data.stacked_omega()), bands.n)
     stderr = dict(zip(res.names, np.asarray(res.stderr, float).tolist()))
-    return DiagFit(model=res.model, names=tuple(prob.names), theta=theta, stderr=stderr, V=V, cost=C, Rs=Rs,
-                   converged=bool(res.converged), message=res.message, prob=prob, result=res)
+    return DiagFit(
+        model=res.model,
+        names=tuple(prob.names),
+        theta=theta,
+        stderr=stderr,
+        V=V,
+        cost=C,
+        Rs=Rs,
+        converged=bool(res.converged),
+        message=res.message,
+        prob=prob,
+        result=res,
+    )
 
 
 def likelihood_ratio(c0: float, c1: float, oversample: int) -> float:

@@ -67,8 +67,13 @@ def default_bands(data: AnalysisData, n_target: int = 5, min_bins: int | None = 
     k = COHERENT_ORDER * len(data.inputs) + TRANSIENT_ORDER * data.n_records
     need = min_bins if min_bins is not None else max(10, 3 * k)
     edges = list(np.geomspace(lo, hi, n_target + 1))
-    counts = lambda e: [int(np.sum((om >= a) & (om < b))) if i < len(e) - 2 else  # noqa: E731
-                        int(np.sum((om >= a) & (om <= b))) for i, (a, b) in enumerate(zip(e[:-1], e[1:]))]
+
+    def counts(e):  # frequencies per band, the last band closed at its upper edge
+        return [
+            int(np.sum((om >= a) & (om < b))) if i < len(e) - 2 else int(np.sum((om >= a) & (om <= b)))
+            for i, (a, b) in enumerate(zip(e[:-1], e[1:]))
+        ]
+
     while len(edges) > 2:
         c = counts(edges)
         i = int(np.argmin(c))
@@ -118,6 +123,7 @@ class Cell:
                 return None
             x = float(x)
             return x if math.isfinite(x) else None
+
         return {
             "channel": self.channel,
             "band": [round(self.band[0], 6), round(self.band[1], 6)],
@@ -131,7 +137,8 @@ class Cell:
             "p_holm": num(self.p_holm),
             "q_bh": num(self.q_bh),
             "coherent_fraction": num(self.coherent / (self.coherent + self.incoherent))
-            if (self.coherent + self.incoherent) > 0 else None,
+            if (self.coherent + self.incoherent) > 0
+            else None,
             "noise_floor": num(self.floor),
             "floor_dof": int(2 * self.dof),
             "excitation": self.excitation,
@@ -148,8 +155,10 @@ class GapMap:
     edges: np.ndarray
     channels: tuple
     alpha: float
-    method: str = ("noise floor per cell: residual energy not coherent with the inputs (band regression on "
-                   "independent DFT points; model-free for errors smooth across the band)")
+    method: str = (
+        "noise floor per cell: residual energy not coherent with the inputs (band regression on "
+        "independent DFT points; model-free for errors smooth across the band)"
+    )
 
     def cell(self, channel: str, b: int) -> Cell:
         return self.cells[self.channels.index(channel) * (self.edges.size - 1) + b]
@@ -231,8 +240,26 @@ def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, 
     X = np.hstack([design.XT, design.XC])
     rss1, coef, _ = _lstsq_rss(X, ee)
     coherent = max(rss0 - rss1, 0.0)
-    empty = Cell(channel, band, n, total / max(n, 1), coherent, rss1, math.nan, dof, kC, math.nan, None,
-                 math.nan, None, None, None, None, None, excitation="too few frequencies")
+    empty = Cell(
+        channel,
+        band,
+        n,
+        total / max(n, 1),
+        coherent,
+        rss1,
+        math.nan,
+        dof,
+        kC,
+        math.nan,
+        None,
+        math.nan,
+        None,
+        None,
+        None,
+        None,
+        None,
+        excitation="too few frequencies",
+    )
     if dof < 2 or kC == 0:
         return empty
     s2 = rss1 / dof if floor is None else floor
@@ -255,8 +282,7 @@ def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, 
         ph = math.degrees(math.atan2(z.imag, z.real))
         se_db = 20 / math.log(10) * se
         se_deg = math.degrees(se)
-        out[name] = (gdb, (gdb - 1.96 * se_db, gdb + 1.96 * se_db), ph, (ph - 1.96 * se_deg, ph + 1.96 * se_deg),
-                     se_db)
+        out[name] = (gdb, (gdb - 1.96 * se_db, gdb + 1.96 * se_db), ph, (ph - 1.96 * se_deg, ph + 1.96 * se_deg), se_db)
     prim = out.get("de") or next(iter(out.values()))
     excitation = "ok" if prim[4] <= MAX_GAIN_SE_DB else "insufficient excitation"
     extra = {}
@@ -264,8 +290,27 @@ def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, 
         if name != "de":
             extra[f"gain_db_{name}"] = v[0]
             extra[f"phase_deg_{name}"] = v[2]
-    cell = Cell(channel, band, n, total / n, coherent, rss1, s2, dof, kC, F, p if excitation == "ok" else None,
-                excess, prim[0], prim[1], prim[2], prim[3], prim[4], excitation=excitation, extra=extra)
+    cell = Cell(
+        channel,
+        band,
+        n,
+        total / n,
+        coherent,
+        rss1,
+        s2,
+        dof,
+        kC,
+        F,
+        p if excitation == "ok" else None,
+        excess,
+        prim[0],
+        prim[1],
+        prim[2],
+        prim[3],
+        prim[4],
+        excitation=excitation,
+        extra=extra,
+    )
     return cell
 
 
@@ -278,9 +323,17 @@ def forced_response(data: AnalysisData, model, values=None) -> np.ndarray:
     return np.concatenate(out)
 
 
-def gap_map(data: AnalysisData, residual: np.ndarray, forced: np.ndarray, edges: np.ndarray, *,
-            channels=("alpha", "q", "az"), alpha: float = 0.05, floors: dict | None = None,
-            designs: dict | None = None) -> GapMap:
+def gap_map(
+    data: AnalysisData,
+    residual: np.ndarray,
+    forced: np.ndarray,
+    edges: np.ndarray,
+    *,
+    channels=("alpha", "q", "az"),
+    alpha: float = 0.05,
+    floors: dict | None = None,
+    designs: dict | None = None,
+) -> GapMap:
     """The gap map of one fit.
 
     Parameters

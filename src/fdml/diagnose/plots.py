@@ -33,8 +33,15 @@ def _draw_map(ax, cells, channels, edges, title, vmax):
             txt = "-" if c.get("excess") is None else f"{c['excess']:.0f}"
             if c.get("gain_db") is not None and c.get("phase_deg") is not None:
                 txt += f"\n{c['gain_db']:+.1f} dB\n{c['phase_deg']:+.1f}°"
-            ax.text(b, r, txt + (" *" if sig[r, b] else ""), ha="center", va="center", fontsize=7,
-                    color="white" if V[r, b] > 0.6 * vmax else "black")
+            ax.text(
+                b,
+                r,
+                txt + (" *" if sig[r, b] else ""),
+                ha="center",
+                va="center",
+                fontsize=7,
+                color="white" if V[r, b] > 0.6 * vmax else "black",
+            )
     ax.set_xticks(range(nb))
     ax.set_xticklabels([f"{edges[i]:.2g}-{edges[i + 1]:.2g}" for i in range(nb)], fontsize=7)
     ax.set_yticks(range(len(channels)))

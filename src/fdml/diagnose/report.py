@@ -49,8 +49,17 @@ UNEXPLAINED_RULE = "in-sample"
 JSON_KEYS = ("verdict", "ranking", "ambiguous", "not_identifiable", "location", "footprint", "unexplained")
 
 
-def label_for(*, significant: bool, accepted: bool, ambiguous: bool, plausible: bool, shrink: float | None,
-              n_flagged: int, n_unexplained: int, threshold: float = SHRINK_CONFIRM) -> str | None:
+def label_for(
+    *,
+    significant: bool,
+    accepted: bool,
+    ambiguous: bool,
+    plausible: bool,
+    shrink: float | None,
+    n_flagged: int,
+    n_unexplained: int,
+    threshold: float = SHRINK_CONFIRM,
+) -> str | None:
     """The confidence label of one candidate (see module doc)."""
     if not significant:
         return None
@@ -153,19 +162,28 @@ class DiagnosisReport:
                     continue  # later steps: only what was significant there
                 ph = r.get("p_holm")
                 sh = r.get("shrink")
-                lines.append(f"{r.get('step', 0) + 1:4d} {r['key']:26s} {r['lr']:9.2f} "
-                             f"{(f'{ph:.2g}' if ph is not None else '-'):>10s} "
-                             f"{(f'{sh:.2f}' if sh is not None else '-'):>7s}  {r['label'] or '-'}"
-                             + ("  <- accepted" if r.get("accepted") else ""))
+                lines.append(
+                    f"{r.get('step', 0) + 1:4d} {r['key']:26s} {r['lr']:9.2f} "
+                    f"{(f'{ph:.2g}' if ph is not None else '-'):>10s} "
+                    f"{(f'{sh:.2f}' if sh is not None else '-'):>7s}  {r['label'] or '-'}"
+                    + ("  <- accepted" if r.get("accepted") else "")
+                )
         if self.recommended is not None:
             r = self.recommended
             state = "converged" if r.converged else "NOT converged"
-            lines += ["", (f"recommended model: {r.model.describe()} ({state}, {len(r.names)} estimates); "
-                           "fdml diagnose --recommended-output FIT.json saves it")]
+            lines += [
+                "",
+                (
+                    f"recommended model: {r.model.describe()} ({state}, {len(r.names)} estimates); "
+                    "fdml diagnose --recommended-output FIT.json saves it"
+                ),
+            ]
         if self.not_identifiable:
             lines.append("")
-            lines.append("not testable here: " + "; ".join(f"{n['effect']}@{n['channel']} ({n['reason']})"
-                                                         for n in self.not_identifiable))
+            lines.append(
+                "not testable here: "
+                + "; ".join(f"{n['effect']}@{n['channel']} ({n['reason']})" for n in self.not_identifiable)
+            )
         return "\n".join(lines)
 
     def __str__(self) -> str:

@@ -23,16 +23,17 @@ import warnings
 import numpy as np
 
 from ..estimate import fit as fdml_fit
-from .data import AnalysisData
 from ..models.effects import CHANNELS
+from .data import AnalysisData
 from .likelihood import DiagFit, NoiseBands, band_cost
 from .locate import GapMap, forced_response, gap_map
 
 __all__ = ["fit_map", "shrink", "footprint", "compensation", "parameter_shifts", "frozen_fit"]
 
 
-def fit_map(data: AnalysisData, fit, edges, *, alpha: float, channels, before: GapMap | None = None,
-            designs: dict | None = None) -> GapMap:
+def fit_map(
+    data: AnalysisData, fit, edges, *, alpha: float, channels, before: GapMap | None = None, designs: dict | None = None
+) -> GapMap:
     """Gap map of a fit; with ``before``, the noise floors of that map are held (for shrink)."""
     e = fit.full_residual()
     forced = forced_response(data, fit.model)
@@ -127,8 +128,13 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
             continue
         se = base.stderr.get(n, math.nan)
         shift = (fp[n] - bp[n]) / se if (se and math.isfinite(se) and se > 0) else math.nan
-        out[n] = {"base": bp[n], "base_stderr": se, "augmented": fp[n],
-                  "augmented_stderr": fit.stderr.get(n, math.nan), "shift_in_stderr": shift}
+        out[n] = {
+            "base": bp[n],
+            "base_stderr": se,
+            "augmented": fp[n],
+            "augmented_stderr": fit.stderr.get(n, math.nan),
+            "shift_in_stderr": shift,
+        }
     # the derived set (alternate set / dimensional derivatives, THEORY.md 6), delta-method errors
     try:
         bd = base.model.derived()
@@ -142,8 +148,14 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
             continue
         se = bse.get(k, (None, math.nan))[1]
         shift = (ad[k] - bd[k]) / se if (se and math.isfinite(se) and se > 0) else math.nan
-        out[k] = {"base": bd[k], "base_stderr": se, "augmented": ad[k],
-                  "augmented_stderr": fse.get(k, (None, math.nan))[1], "shift_in_stderr": shift, "derived": True}
+        out[k] = {
+            "base": bd[k],
+            "base_stderr": se,
+            "augmented": ad[k],
+            "augmented_stderr": fse.get(k, (None, math.nan))[1],
+            "shift_in_stderr": shift,
+            "derived": True,
+        }
     return out
 
 
@@ -161,5 +173,16 @@ def frozen_fit(data: AnalysisData, model, bands: NoiseBands, options: dict) -> D
     theta = np.array([res.params[n] for n in prob.names], float)
     V = prob.residuals(theta)
     C, Rs = band_cost(V, bands.assign(data.stacked_omega()), bands.n)
-    return DiagFit(model=res.model, names=tuple(prob.names), theta=theta, stderr={}, V=V, cost=C, Rs=Rs,
-                   converged=bool(res.converged), message=res.message, prob=prob, result=res)
+    return DiagFit(
+        model=res.model,
+        names=tuple(prob.names),
+        theta=theta,
+        stderr={},
+        V=V,
+        cost=C,
+        Rs=Rs,
+        converged=bool(res.converged),
+        message=res.message,
+        prob=prob,
+        result=res,
+    )

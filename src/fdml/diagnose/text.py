@@ -44,59 +44,86 @@ def _p(p) -> str:
 def paragraph(rep) -> str:
     """A short paragraph: where the model misses, what explains it, how much, and what is left."""
     st = rep.settings
-    out = [f"Base: {st.get('base_model')}, {len(st.get('records', []))} record(s), "
-           f"{st['band'][0]:.3g}-{st['band'][1]:.3g} rad/s, {st.get('independent_frequencies')} independent "
-           "frequencies."]
+    out = [
+        f"Base: {st.get('base_model')}, {len(st.get('records', []))} record(s), "
+        f"{st['band'][0]:.3g}-{st['band'][1]:.3g} rad/s, {st.get('independent_frequencies')} independent "
+        "frequencies."
+    ]
     flagged = [c for c in rep.location if c.get("significant")]
     if flagged:
         flagged.sort(key=lambda c: -(c.get("excess") or 0))
-        out.append("The model misses the measured " + "; ".join(_cell_phrase(c) for c in flagged[:3])
-                   + (f"; {len(flagged) - 3} more cell(s)" if len(flagged) > 3 else "") + ".")
+        out.append(
+            "The model misses the measured "
+            + "; ".join(_cell_phrase(c) for c in flagged[:3])
+            + (f"; {len(flagged) - 3} more cell(s)" if len(flagged) > 3 else "")
+            + "."
+        )
     else:
-        out.append("The gap map flags no channel-band cell: in every band the base model's error is within "
-                   "what the noise floor allows (small effects can still be found by the targeted tests).")
+        out.append(
+            "The gap map flags no channel-band cell: in every band the base model's error is within "
+            "what the noise floor allows (small effects can still be found by the targeted tests)."
+        )
     sel = rep.selected
     if sel:
         for i, s in enumerate(sel):
             params = ", ".join(_fmt_param(k, v) for k, v in s["params"].items())
             sh = s.get("shrink")
             hs = s.get("shrink_holdout")
-            shtxt = (f"explains {100 * sh:.0f} % of the coherent gap in the flagged cells"
-                     if sh is not None else "is significant although no cell was flagged")
+            shtxt = (
+                f"explains {100 * sh:.0f} % of the coherent gap in the flagged cells"
+                if sh is not None
+                else "is significant although no cell was flagged"
+            )
             if hs is not None and s.get("shrink_in_sample") is not None:
                 shtxt += f" (held out; in-sample {100 * s['shrink_in_sample']:.0f} %)"
             lead = "Cause" if i == 0 else "A further effect"
-            out.append(f"{lead}: {s['effect']} on {s['channel']} ({params}) {shtxt}; LR = {s['lr']:.1f}, "
-                       f"p = {_p(s.get('p_holm'))} after Holm; label {s['label']}.")
+            out.append(
+                f"{lead}: {s['effect']} on {s['channel']} ({params}) {shtxt}; LR = {s['lr']:.1f}, "
+                f"p = {_p(s.get('p_holm'))} after Holm; label {s['label']}."
+            )
             if i == 0:
                 fp = [f for f in rep.footprint if f.get("effect") == s["key"] and f.get("share")]
                 if fp:
                     top = max(fp, key=lambda f: f["share"])
-                    out.append(f"It acts mostly on {top['channel']} at {_band(top)} ({100 * top['share']:.0f} % "
-                               "of its footprint).")
+                    out.append(
+                        f"It acts mostly on {top['channel']} at {_band(top)} ({100 * top['share']:.0f} % "
+                        "of its footprint)."
+                    )
                 if not s.get("plausible", True):
-                    out.append("Its fitted size lies outside the plausible range: it may be absorbing "
-                               "something else.")
+                    out.append("Its fitted size lies outside the plausible range: it may be absorbing something else.")
         shifts = sel[0].get("parameter_shifts") or {}
-        big = sorted(((k, v) for k, v in shifts.items() if v.get("shift_in_stderr") is not None
-                      and math.isfinite(v["shift_in_stderr"])), key=lambda kv: -abs(kv[1]["shift_in_stderr"]))
+        big = sorted(
+            (
+                (k, v)
+                for k, v in shifts.items()
+                if v.get("shift_in_stderr") is not None and math.isfinite(v["shift_in_stderr"])
+            ),
+            key=lambda kv: -abs(kv[1]["shift_in_stderr"]),
+        )
         big = [kv for kv in big if abs(kv[1]["shift_in_stderr"]) >= 2][:3]
         if big:
-            out.append("Without it the base estimates were biased: " + ", ".join(
-                f"{k} {v['base']:.4g} -> {v['augmented']:.4g} ({v['shift_in_stderr']:+.1f} s.e.)" for k, v in big)
-                + ".")
+            out.append(
+                "Without it the base estimates were biased: "
+                + ", ".join(
+                    f"{k} {v['base']:.4g} -> {v['augmented']:.4g} ({v['shift_in_stderr']:+.1f} s.e.)" for k, v in big
+                )
+                + "."
+            )
         g = next((r for r in rep.ranking if r["effect"] == "unmeasured_gust" and r.get("significant")), None)
         if g:
-            out.append(f"Unmeasured turbulence is also present (sigma_w = {g['params']['sigma_w']['value']:.2g} m/s, "
-                       f"p = {_p(g['p_holm'])}).")
+            out.append(
+                f"Unmeasured turbulence is also present (sigma_w = {g['params']['sigma_w']['value']:.2g} m/s, "
+                f"p = {_p(g['p_holm'])})."
+            )
     elif rep.verdict == "unmeasured_gust":
         g = next(r for r in rep.ranking if r["effect"] == "unmeasured_gust")
-        out.append(f"Cause: unmeasured turbulence (sigma_w = {g['params']['sigma_w']['value']:.2g} m/s) explains "
-                   f"{100 * g['shrink']:.0f} % of the input-incoherent residual power; LR = {g['lr']:.1f}, "
-                   f"p = {_p(g['p_holm'])}.")
+        out.append(
+            f"Cause: unmeasured turbulence (sigma_w = {g['params']['sigma_w']['value']:.2g} m/s) explains "
+            f"{100 * g['shrink']:.0f} % of the input-incoherent residual power; LR = {g['lr']:.1f}, "
+            f"p = {_p(g['p_holm'])}."
+        )
     else:
-        out.append("No candidate effect is significant at the family level "
-                   f"{st.get('alpha')}: verdict none.")
+        out.append(f"No candidate effect is significant at the family level {st.get('alpha')}: verdict none.")
     if rep.ambiguous:
         out.append("Equally consistent with these data: " + ", ".join(rep.ambiguous) + ".")
     uin = [u for u in rep.unexplained if u.get("where") == "in-sample"]

@@ -40,9 +40,9 @@ from scipy import interpolate, signal
 from ..constants import G0
 from ..errors import ParameterError
 from ..maneuvers import dryden_gust, make_input, time_vector
+from ..models.effects import get_effect, root_model
 from ..record import Record
 from ..simulate import realize, simulate
-from ..models.effects import get_effect, root_model
 
 __all__ = ["simulate_truth", "truth_model", "sensor_noise", "OUT_OF_LIBRARY"]
 
@@ -59,9 +59,19 @@ WARMUP = 40.0
 
 
 #: Output-level effects with a time-domain form here (the others are model parameters).
-_TIME_DOMAIN = ("downwash_lag@tail", "time_delay@alpha", "time_delay@q", "time_delay@az", "actuator_lag@de", "sensor_offset@az",
-                "sensor_offset@alpha", "structural_mode@q,az", "sensor_scale@alpha", "sensor_scale@q",
-                "sensor_scale@az")
+_TIME_DOMAIN = (
+    "downwash_lag@tail",
+    "time_delay@alpha",
+    "time_delay@q",
+    "time_delay@az",
+    "actuator_lag@de",
+    "sensor_offset@az",
+    "sensor_offset@alpha",
+    "structural_mode@q,az",
+    "sensor_scale@alpha",
+    "sensor_scale@q",
+    "sensor_scale@az",
+)
 
 
 def truth_model(base, key: str, values: dict):
@@ -116,10 +126,11 @@ def _downwash_delay(model, t, inputs, tau: float, sub: int = 8) -> dict:
     Bw = np.column_stack([real.B, b])  # inputs w = [u channels, alpha(t - tau)]
     n, m = A.shape[0], Bw.shape[1]
     from scipy.linalg import expm
+
     big = np.zeros((n + 2 * m, n + 2 * m))
-    big[:n, :n], big[:n, n:n + m], big[n:n + m, n + m:] = A * h, Bw * h, np.eye(m)
+    big[:n, :n], big[:n, n : n + m], big[n : n + m, n + m :] = A * h, Bw * h, np.eye(m)
     E = expm(big)
-    Phi, G1, G2 = E[:n, :n], E[:n, n:n + m], E[:n, n + m:]
+    Phi, G1, G2 = E[:n, :n], E[:n, n : n + m], E[:n, n + m :]
     tf = t[0] + h * np.arange((t.size - 1) * sub + 1)
     u = np.column_stack([np.interp(tf - d, t, inputs[nm], left=0.0) for nm, d in real.channels])
     x = np.zeros((tf.size, n))
@@ -165,10 +176,21 @@ def sensor_noise(rng: np.random.Generator, n: int, dt: float, kind: str = "white
     return w + c * x
 
 
-def simulate_truth(base, key: str | None, values: dict | None = None, *, maneuver: str = "3211",
-                   duration: float = 20.0, dt: float = 0.02, noise: float = 0.05, noise_kind: str = "white",
-                   seed: int = 0, gust_std: float = 0.0, amplitude: float | None = None,
-                   name: str | None = None) -> Record:
+def simulate_truth(
+    base,
+    key: str | None,
+    values: dict | None = None,
+    *,
+    maneuver: str = "3211",
+    duration: float = 20.0,
+    dt: float = 0.02,
+    noise: float = 0.05,
+    noise_kind: str = "white",
+    seed: int = 0,
+    gust_std: float = 0.0,
+    amplitude: float | None = None,
+    name: str | None = None,
+) -> Record:
     """A noisy record of ``base`` plus the effect ``key`` (None: no effect) at ``values``.
 
     Parameters
@@ -224,6 +246,7 @@ def simulate_truth(base, key: str | None, values: dict | None = None, *, maneuve
     model = base
     if gust_key:
         from ..models.effects import with_gust
+
         model = with_gust(base)
     elif key is not None and key not in OUT_OF_LIBRARY:
         model = truth_model(base, key, values)
@@ -262,8 +285,15 @@ def simulate_truth(base, key: str | None, values: dict | None = None, *, maneuve
     if base.gust:
         signals["alpha_w"] = inputs["alpha_w"][keep]
     t = tr
-    meta = {"truth": key, "values": values, "maneuver": maneuver, "noise": noise, "noise_kind": noise_kind,
-            "seed": seed, "U": U}
+    meta = {
+        "truth": key,
+        "values": values,
+        "maneuver": maneuver,
+        "noise": noise,
+        "noise_kind": noise_kind,
+        "seed": seed,
+        "U": U,
+    }
     if "alpha_w" in inputs:
         meta["gust_rms_in_record"] = float(np.std(inputs["alpha_w"][keep]) * U)  # realised sigma_w, m/s
     return Record(t, signals, name=name or f"{key or 'none'}-{maneuver}-{seed}", meta=meta, check_units=False)

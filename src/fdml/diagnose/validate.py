@@ -35,8 +35,19 @@ import numpy as np
 from ..jsoncodec import dumps
 from .report import SHRINK_CONFIRM, UNEXPLAINED_RULE, label_for
 
-__all__ = ["Scenario", "scenarios", "run_scenario", "validate", "ValidationResult", "score", "tune_threshold",
-           "wilson", "REPORT_SEED_BASE", "TRUTHS", "NULLS"]
+__all__ = [
+    "Scenario",
+    "scenarios",
+    "run_scenario",
+    "validate",
+    "ValidationResult",
+    "score",
+    "tune_threshold",
+    "wilson",
+    "REPORT_SEED_BASE",
+    "TRUTHS",
+    "NULLS",
+]
 
 #: First seed of the report range (the tuning range starts at 0 and stays far below).
 REPORT_SEED_BASE = 1_000_000
@@ -62,8 +73,10 @@ TRUTHS = {
     "actuator_lag@de": ({"T_act": 0.02}, {"T_act": 0.05}),
     "sensor_offset@az": ({"x_az": 0.5}, {"x_az": 1.5}),
     "sensor_offset@alpha": ({"x_alpha": 1.0}, {"x_alpha": 3.0}),
-    "structural_mode@q,az": ({"r_q": 0.01, "r_az": 0.01, "omega_s": 9.0, "zeta_s": 0.04},
-                             {"r_q": 0.03, "r_az": 0.03, "omega_s": 9.0, "zeta_s": 0.04}),
+    "structural_mode@q,az": (
+        {"r_q": 0.01, "r_az": 0.01, "omega_s": 9.0, "zeta_s": 0.04},
+        {"r_q": 0.03, "r_az": 0.03, "omega_s": 9.0, "zeta_s": 0.04},
+    ),
     "sensor_scale@alpha": ({"k_alpha": 0.04}, {"k_alpha": 0.1}),
     "unmeasured_gust": ({"sigma_w": 0.25}, {"sigma_w": 0.5}),
     "vane_filter": ({"omega_f": 10.0, "zeta_f": 0.3}, {"omega_f": 7.0, "zeta_f": 0.3}),
@@ -94,13 +107,14 @@ class Scenario:
         return self.truth.split("@")[0]
 
 
-def scenarios(*, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SEED_BASE,
-              truths=None, nulls=None) -> list:
+def scenarios(
+    *, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SEED_BASE, truths=None, nulls=None
+) -> list:
     """The scenario list: every truth x size x manoeuvre x noise level x ``n_effect`` seeds, and
     every null x manoeuvre x noise level x ``n_null`` seeds."""
     out = []
     seed = seed_base
-    for key in (TRUTHS if truths is None else truths):
+    for key in TRUTHS if truths is None else truths:
         small, large = TRUTHS[key]
         for size, vals in (("small", small), ("large", large)):
             for man in MANEUVERS:
@@ -108,7 +122,7 @@ def scenarios(*, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SE
                     for _ in range(n_effect):
                         out.append(Scenario(key, dict(vals), size, man, nz, "white", seed, key))
                         seed += 1
-    for name in (NULLS if nulls is None else nulls):
+    for name in NULLS if nulls is None else nulls:
         for man in MANEUVERS:
             for nz in NOISES:
                 for _ in range(n_null):
@@ -134,10 +148,12 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
     kw: dict[str, Any] = dict(noise=sc.noise, noise_kind=sc.noise_kind, gust_std=GUST_STD)
     t0 = time.perf_counter()
     rec = simulate_truth(base, sc.truth, sc.values, maneuver=sc.maneuver, seed=sc.seed, **kw)
-    hold = simulate_truth(base, sc.truth, sc.values, maneuver=HOLDOUT_OF[sc.maneuver], seed=sc.seed + 7_919_000,
-                          **kw)
-    row = {**{k: v for k, v in asdict(sc).items() if k != "values"}, "values": dumps(sc.values, indent=None),
-           "truth_name": sc.truth_name}
+    hold = simulate_truth(base, sc.truth, sc.values, maneuver=HOLDOUT_OF[sc.maneuver], seed=sc.seed + 7_919_000, **kw)
+    row = {
+        **{k: v for k, v in asdict(sc).items() if k != "values"},
+        "values": dumps(sc.values, indent=None),
+        "truth_name": sc.truth_name,
+    }
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -149,8 +165,9 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
     g = next((r for r in rep.ranking if r["effect"] == "unmeasured_gust"), None)
     if sel is None and rep.verdict == "unmeasured_gust":
         sel = g
-    truth_rows = [r for r in rep.ranking if sc.truth and (r["key"] == sc.truth or r["effect"] == sc.truth)
-                  and r["step"] == 0]
+    truth_rows = [
+        r for r in rep.ranking if sc.truth and (r["key"] == sc.truth or r["effect"] == sc.truth) and r["step"] == 0
+    ]
     tr = truth_rows[0] if truth_rows else None
     hold_info = rep.holdout or {}
     row.update(
@@ -208,8 +225,16 @@ def relabel(row: dict, threshold: float, unexplained: str = UNEXPLAINED_RULE) ->
     amb = len(json.loads(row.get("ambiguous") or "[]")) > 0
     n_flag = row.get("flagged_before_holdout")
     shr = row.get("shrink")
-    return label_for(significant=True, accepted=True, ambiguous=amb, plausible=bool(row.get("plausible", True)),
-                     shrink=shr, n_flagged=n_flag or 0, n_unexplained=n_unexp, threshold=threshold)
+    return label_for(
+        significant=True,
+        accepted=True,
+        ambiguous=amb,
+        plausible=bool(row.get("plausible", True)),
+        shrink=shr,
+        n_flagged=n_flag or 0,
+        n_unexplained=n_unexp,
+        threshold=threshold,
+    )
 
 
 def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
@@ -230,49 +255,82 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
         errors = sum(1 for r in rs if r["verdict"] == "error")
         if case in NULLS:
             k = sum(1 for r in rs if r["verdict"] not in ("none",))
-            nulls[case] = {"n": n, "false_alarms": k, "rate": k / n, "wilson95": wilson(k, n),
-                           "fired": dict(Counter(r["verdict_key"] for r in rs if r["verdict"] != "none")),
-                           "errors": errors}
+            nulls[case] = {
+                "n": n,
+                "false_alarms": k,
+                "rate": k / n,
+                "wilson95": wilson(k, n),
+                "fired": dict(Counter(r["verdict_key"] for r in rs if r["verdict"] != "none")),
+                "errors": errors,
+            }
             continue
         name = rs[0]["truth_name"]
         det = [r for r in rs if r["verdict"] not in ("none", "error")]
         top1 = [r for r in rs if r["verdict"] == name]
         inset = [r for r in rs if r["verdict"] == name or name in json.loads(r.get("ambiguous_names") or "[]")]
-        chan = [r for r in rs if r["verdict_key"] == rs[0]["truth"] or (name == "unmeasured_gust"
-                                                                         and r["verdict"] == name)]
+        chan = [
+            r for r in rs if r["verdict_key"] == rs[0]["truth"] or (name == "unmeasured_gust" and r["verdict"] == name)
+        ]
         shr = [r["shrink"] for r in top1 if r.get("shrink") is not None]
         lab_top = Counter(lab for r, lab in zip(rs, labels) if r["verdict"] == name)
-        entry = {"n": n, "detected": len(det) / n, "top1": len(top1) / n, "top1_wilson95": wilson(len(top1), n),
-                 "in_set": len(inset) / n, "channel": len(chan) / n,
-                 "median_shrink": float(np.median(shr)) if shr else None,
-                 "confirmed_when_top1": lab_top.get("confirmed", 0) / max(len(top1), 1),
-                 "labels_when_top1": dict(lab_top), "errors": errors}
+        entry = {
+            "n": n,
+            "detected": len(det) / n,
+            "top1": len(top1) / n,
+            "top1_wilson95": wilson(len(top1), n),
+            "in_set": len(inset) / n,
+            "channel": len(chan) / n,
+            "median_shrink": float(np.median(shr)) if shr else None,
+            "confirmed_when_top1": lab_top.get("confirmed", 0) / max(len(top1), 1),
+            "labels_when_top1": dict(lab_top),
+            "errors": errors,
+        }
         by_size = {}
         for size in ("small", "large"):
             rr = [r for r in rs if r["size"] == size]
             if rr:
                 t1 = sum(1 for r in rr if r["verdict"] == name)
-                by_size[size] = {"n": len(rr), "top1": t1 / len(rr),
-                                 "detected": sum(1 for r in rr if r["verdict"] not in ("none", "error")) / len(rr)}
+                by_size[size] = {
+                    "n": len(rr),
+                    "top1": t1 / len(rr),
+                    "detected": sum(1 for r in rr if r["verdict"] not in ("none", "error")) / len(rr),
+                }
         entry["by_size"] = by_size
         if case in OUT_OF_LIBRARY:
-            wrong_conf = sum(1 for r, lab in zip(rs, labels) if r["verdict"] not in ("none", "error")
-                             and lab == "confirmed")
+            wrong_conf = sum(
+                1 for r, lab in zip(rs, labels) if r["verdict"] not in ("none", "error") and lab == "confirmed"
+            )
             partial = sum(1 for r, lab in zip(rs, labels) if r["verdict"] in ("none",) or lab in ("partial",))
-            ool[case] = {"n": n, "confidently_wrong": wrong_conf / n, "partial_or_none": partial / n,
-                         "not_confirmed": 1 - wrong_conf / n, "labels": dict(Counter(str(x) for x in labels)),
-                         "verdicts": dict(Counter(r["verdict_key"] for r in rs))}
+            ool[case] = {
+                "n": n,
+                "confidently_wrong": wrong_conf / n,
+                "partial_or_none": partial / n,
+                "not_confirmed": 1 - wrong_conf / n,
+                "labels": dict(Counter(str(x) for x in labels)),
+                "verdicts": dict(Counter(r["verdict_key"] for r in rs)),
+            }
             continue
         eff[case] = entry
     lib = [c for c in eff]
-    overall_top1 = (sum(eff[c]["top1"] * eff[c]["n"] for c in lib) / max(sum(eff[c]["n"] for c in lib), 1))
-    return {"threshold": threshold, "effects": eff, "nulls": nulls, "out_of_library": ool,
-            "confusion": confusion, "top1_overall": overall_top1,
-            "median_time_s": float(np.median([r["elapsed"] for r in rows if "elapsed" in r])) if rows else None}
+    overall_top1 = sum(eff[c]["top1"] * eff[c]["n"] for c in lib) / max(sum(eff[c]["n"] for c in lib), 1)
+    return {
+        "threshold": threshold,
+        "effects": eff,
+        "nulls": nulls,
+        "out_of_library": ool,
+        "confusion": confusion,
+        "top1_overall": overall_top1,
+        "median_time_s": float(np.median([r["elapsed"] for r in rows if "elapsed" in r])) if rows else None,
+    }
 
 
-def tune_threshold(rows: list, grid=(0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9), cost: float = 2.0,
-                   rules=("holdout", "in-sample"), return_rule: bool = False):
+def tune_threshold(
+    rows: list,
+    grid=(0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9),
+    cost: float = 2.0,
+    rules=("holdout", "in-sample"),
+    return_rule: bool = False,
+):
     """Label rule chosen on tuning runs: the shrink threshold for "confirmed" and which remaining cells count.
 
     Maximises ``P(confirmed and right) - cost * P(confirmed and wrong)`` over every run: "right" is a
@@ -327,25 +385,33 @@ class ValidationResult:
 def format_scores(s: dict) -> str:
     """The validation table as text."""
     out = [f"label threshold (shrink for 'confirmed'): {s['threshold']:.2f}", ""]
-    out.append(f"{'truth':22s} {'n':>4s} {'detect':>7s} {'top-1':>6s} {'[Wilson 95%]':>15s} {'in-set':>7s} "
-               f"{'chan':>5s} {'shrink':>7s} {'conf|top1':>9s} {'top1 small/large':>17s}")
+    out.append(
+        f"{'truth':22s} {'n':>4s} {'detect':>7s} {'top-1':>6s} {'[Wilson 95%]':>15s} {'in-set':>7s} "
+        f"{'chan':>5s} {'shrink':>7s} {'conf|top1':>9s} {'top1 small/large':>17s}"
+    )
     for k, v in sorted(s["effects"].items()):
         w = v["top1_wilson95"]
         bs = v.get("by_size", {})
         sl = f"{bs.get('small', {}).get('top1', float('nan')):.2f}/{bs.get('large', {}).get('top1', float('nan')):.2f}"
         ms = v["median_shrink"]
-        out.append(f"{k:22s} {v['n']:4d} {v['detected']:7.2f} {v['top1']:6.2f} [{w[0]:.2f}, {w[1]:.2f}]   "
-                   f"{v['in_set']:7.2f} {v['channel']:5.2f} {(f'{ms:.2f}' if ms is not None else '-'):>7s} "
-                   f"{v['confirmed_when_top1']:9.2f} {sl:>17s}")
+        out.append(
+            f"{k:22s} {v['n']:4d} {v['detected']:7.2f} {v['top1']:6.2f} [{w[0]:.2f}, {w[1]:.2f}]   "
+            f"{v['in_set']:7.2f} {v['channel']:5.2f} {(f'{ms:.2f}' if ms is not None else '-'):>7s} "
+            f"{v['confirmed_when_top1']:9.2f} {sl:>17s}"
+        )
     out.append(f"top-1 over library effects: {s['top1_overall']:.3f}")
     out.append("")
     for k, v in s["nulls"].items():
         w = v["wilson95"]
-        out.append(f"false alarms {k:14s} {v['false_alarms']}/{v['n']} = {v['rate']:.3f} [{w[0]:.3f}, {w[1]:.3f}]"
-                   f"  fired: {v['fired']}")
+        out.append(
+            f"false alarms {k:14s} {v['false_alarms']}/{v['n']} = {v['rate']:.3f} [{w[0]:.3f}, {w[1]:.3f}]"
+            f"  fired: {v['fired']}"
+        )
     for k, v in s["out_of_library"].items():
-        out.append(f"out of library {k}: n={v['n']}, confidently wrong {v['confidently_wrong']:.2f}, partial or no "
-                   f"verdict {v['partial_or_none']:.2f}, labels {v['labels']}, verdicts {v['verdicts']}")
+        out.append(
+            f"out of library {k}: n={v['n']}, confidently wrong {v['confidently_wrong']:.2f}, partial or no "
+            f"verdict {v['partial_or_none']:.2f}, labels {v['labels']}, verdicts {v['verdicts']}"
+        )
     out.append("")
     cols = sorted({c for row in s["confusion"].values() for c in row})
     out.append("confusion (rows truth case, columns verdict):")
@@ -357,9 +423,19 @@ def format_scores(s: dict) -> str:
     return "\n".join(out)
 
 
-def validate(*, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SEED_BASE, processes: int | None = None,
-             truths=None, nulls=None, threshold: float | None = None, rows_path=None, progress=None,
-             diagnose_options: dict | None = None) -> ValidationResult:
+def validate(
+    *,
+    n_effect: int = 4,
+    n_null: int = 34,
+    seed_base: int = REPORT_SEED_BASE,
+    processes: int | None = None,
+    truths=None,
+    nulls=None,
+    threshold: float | None = None,
+    rows_path=None,
+    progress=None,
+    diagnose_options: dict | None = None,
+) -> ValidationResult:
     """Run the validation harness.
 
     Parameters
@@ -410,6 +486,14 @@ def validate(*, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SEE
         if fh:
             fh.close()
     th = SHRINK_CONFIRM if threshold is None else threshold
-    settings = {"n_effect": n_effect, "n_null": n_null, "seed_base": seed_base, "band": BAND,
-                "maneuvers": MANEUVERS, "noise_levels": NOISES, "gust_std": GUST_STD, "base_model": "steady navion"}
+    settings = {
+        "n_effect": n_effect,
+        "n_null": n_null,
+        "seed_base": seed_base,
+        "band": BAND,
+        "maneuvers": MANEUVERS,
+        "noise_levels": NOISES,
+        "gust_std": GUST_STD,
+        "base_model": "steady navion",
+    }
     return ValidationResult(rows, score(rows, th), settings)

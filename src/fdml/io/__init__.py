@@ -38,9 +38,22 @@ from .sidpac import read_sidpac
 from .units import UNITS, to_si
 
 __all__ = [
-    "read_sidpac", "read_dlr_asc", "read_dlr_mat", "read_csv_mapped", "read_fdml_csv",
-    "load_record", "load_records", "detect_format", "check_same_rate", "data_dir", "data_path", "DATA_ENV",
-    "FORMATS", "LAYOUTS", "UNITS", "to_si",
+    "read_sidpac",
+    "read_dlr_asc",
+    "read_dlr_mat",
+    "read_csv_mapped",
+    "read_fdml_csv",
+    "load_record",
+    "load_records",
+    "detect_format",
+    "check_same_rate",
+    "data_dir",
+    "data_path",
+    "DATA_ENV",
+    "FORMATS",
+    "LAYOUTS",
+    "UNITS",
+    "to_si",
 ]
 
 #: Format names accepted by :func:`load_record`.
@@ -49,15 +62,21 @@ FORMATS = ("auto", "sidpac", "dlr-asc", "dlr-mat", "csv", "csv-map")
 _RATE_TOL = 1e-6
 
 
-def read_fdml_csv(path, t0: float | None = None, t1: float | None = None, *, trim: str | None = None,
-                  name: str | None = None, check_units: bool = True) -> Record:
+def read_fdml_csv(
+    path,
+    t0: float | None = None,
+    t1: float | None = None,
+    *,
+    trim: str | None = None,
+    name: str | None = None,
+    check_units: bool = True,
+) -> Record:
     """fdml's own CSV (:func:`fdml.record.read_csv`) with a window and trim options."""
     p = check_path(path)
     check_trim(trim)
     rec = read_csv(p, name=name, check_units=check_units)
     meta = {**rec.meta, "format": "csv"}
-    return finish(p, rec.t, dict(rec.signals), meta, name=rec.name, t0=t0, t1=t1, trim=trim,
-                  check_units=check_units)
+    return finish(p, rec.t, dict(rec.signals), meta, name=rec.name, t0=t0, t1=t1, trim=trim, check_units=check_units)
 
 
 _LOADERS: dict[str, Callable[..., Record]] = {
@@ -93,8 +112,10 @@ def detect_format(path, **kw) -> tuple[str, dict]:
                 if len(shape) == 2 and shape[1] == spec["n_columns"] and shape[0] > 1:
                     return "dlr-mat", {"layout": lay}
         listing = ", ".join(f"{n} {shape}" for n, shape in names.items()) or "none"
-        raise RecordError(f"{p}: a .mat file without SIDPAC's fdata or a known DLR layout "
-                          f"(variables: {listing}); pass format= and layout=")
+        raise RecordError(
+            f"{p}: a .mat file without SIDPAC's fdata or a known DLR layout "
+            f"(variables: {listing}); pass format= and layout="
+        )
     if suffix in (".asc", ".dat", ".txt"):
         if "layout" in kw:
             return "dlr-asc", {}
@@ -106,8 +127,10 @@ def detect_format(path, **kw) -> tuple[str, dict]:
         raise RecordError(f"{p}: {n_cols} columns match no known DLR layout ({known}); pass layout=")
     if suffix == ".csv":
         return ("csv-map" if kw.get("columns") else "csv"), {}
-    raise RecordError(f"{p}: cannot tell the record format from the suffix {suffix or '(none)'}; pass format= "
-                      f"({', '.join(FORMATS[1:])})")
+    raise RecordError(
+        f"{p}: cannot tell the record format from the suffix {suffix or '(none)'}; pass format= "
+        f"({', '.join(FORMATS[1:])})"
+    )
 
 
 def load_record(path, format: str = "auto", t0: float | None = None, t1: float | None = None, **kw) -> Record:
@@ -138,13 +161,14 @@ def load_record(path, format: str = "auto", t0: float | None = None, t1: float |
     params = inspect.signature(loader).parameters
     unknown = [k for k in kw if k not in params]
     if unknown:
-        raise RecordError(f"{path}: option(s) {', '.join(unknown)} do not apply to format {format!r} "
-                          f"(it takes: {', '.join(k for k in params if k not in ('path', 't0', 't1'))})")
+        raise RecordError(
+            f"{path}: option(s) {', '.join(unknown)} do not apply to format {format!r} "
+            f"(it takes: {', '.join(k for k in params if k not in ('path', 't0', 't1'))})"
+        )
     return loader(path, t0=t0, t1=t1, **{**implied, **kw})
 
 
-def load_records(paths, format: str = "auto", t0: float | None = None, t1: float | None = None,
-                 **kw) -> list[Record]:
+def load_records(paths, format: str = "auto", t0: float | None = None, t1: float | None = None, **kw) -> list[Record]:
     """Read several records that are to be used together (e.g. a joint fit).
 
     Raises
@@ -169,8 +193,9 @@ def check_same_rate(records, paths=None) -> None:
     if np.max(np.abs(dts - dts[0])) > _RATE_TOL * dts[0]:
         names = [str(p) for p in paths] if paths is not None else [r.meta.get("source", r.name) for r in records]
         listing = "; ".join(f"{n}: {1 / d:.6g} Hz (dt {d:.6g} s)" for n, d in zip(names, dts))
-        raise RecordError(f"records at different sample rates cannot be used together: {listing}; "
-                          "resample them to one rate first")
+        raise RecordError(
+            f"records at different sample rates cannot be used together: {listing}; resample them to one rate first"
+        )
 
 
 def _first_numeric_width(p: Path) -> int:

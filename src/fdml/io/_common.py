@@ -50,8 +50,19 @@ def trim_values(t: np.ndarray, signals: Mapping[str, np.ndarray], window: float 
     return {name: float(np.mean(v[:k])) for name, v in signals.items()}
 
 
-def finish(path: Path, t, signals: dict, meta: dict, *, name: str | None, t0, t1, trim,
-           trim_window: float = TRIM_WINDOW, check_units: bool = True) -> Record:
+def finish(
+    path: Path,
+    t,
+    signals: dict,
+    meta: dict,
+    *,
+    name: str | None,
+    t0,
+    t1,
+    trim,
+    trim_window: float = TRIM_WINDOW,
+    check_units: bool = True,
+) -> Record:
     """Build the Record, cut the window, record trim values, optionally remove trim.
 
     Flight-condition entries that depend on the window (``U``, mean ``rho``)
@@ -78,13 +89,15 @@ def finish(path: Path, t, signals: dict, meta: dict, *, name: str | None, t0, t1
         if not a < b:
             raise RecordError(f"{where}: window start {a:g} s is not before its end {b:g} s")
         if a < rec.t[0] - tol or b > rec.t[-1] + tol:
-            raise RecordError(f"{where}: window [{a:g}, {b:g}] s lies outside the record "
-                              f"[{rec.t[0]:g}, {rec.t[-1]:g}] s")
+            raise RecordError(
+                f"{where}: window [{a:g}, {b:g}] s lies outside the record [{rec.t[0]:g}, {rec.t[-1]:g}] s"
+            )
         lo, hi = max(a - tol, rec.t[0]), min(b + tol, rec.t[-1])
         keep = (rec.t >= lo) & (rec.t <= hi)
         if int(keep.sum()) < 4:
-            raise RecordError(f"{where}: window [{a:g}, {b:g}] s holds only {int(keep.sum())} samples; "
-                              "at least 4 are needed")
+            raise RecordError(
+                f"{where}: window [{a:g}, {b:g}] s holds only {int(keep.sum())} samples; at least 4 are needed"
+            )
         rec = rec.window(rec.t[keep][0], rec.t[keep][-1])
         rec = replace(rec, meta={**rec.meta, "window": [a, b]})
     extra = {}
@@ -154,8 +167,9 @@ def _in_child(func, path: Path):
     if not data or os.waitstatus_to_exitcode(status) != 0:
         code = os.waitstatus_to_exitcode(status)
         how = f"signal {-code}" if code < 0 else f"exit code {code}"
-        return "error", RecordError(f"{path}: cannot read it as a MATLAB .mat file (corrupt or truncated file?): "
-                                    f"the MAT reader crashed ({how})")
+        return "error", RecordError(
+            f"{path}: cannot read it as a MATLAB .mat file (corrupt or truncated file?): the MAT reader crashed ({how})"
+        )
     return pickle.loads(data)
 
 

@@ -15,14 +15,19 @@ _FORMATS = ("auto", "sidpac", "dlr-asc", "dlr-mat", "csv", "csv-map")
 def add_record_arguments(p: argparse.ArgumentParser) -> None:
     """--format, --t0, --t1, --columns, --units, --sign, --layout."""
     g = p.add_argument_group("reading records")
-    g.add_argument("--format", default=None, choices=_FORMATS,
-                   help="record format (default auto: by extension and content)")
+    g.add_argument(
+        "--format", default=None, choices=_FORMATS, help="record format (default auto: by extension and content)"
+    )
     g.add_argument("--t0", type=float, metavar="S", help="window start, s")
     g.add_argument("--t1", type=float, metavar="S", help="window end, s")
-    g.add_argument("--columns", metavar="SIG=COL,...",
-                   help="CSV column map, e.g. t=time,de=elev,alpha=AOA,q=q,az=nz (implies --format csv-map)")
-    g.add_argument("--units", metavar="SIG=UNIT,...",
-                   help="units of the mapped columns, e.g. de=deg,alpha=deg,q=deg/s,az=g")
+    g.add_argument(
+        "--columns",
+        metavar="SIG=COL,...",
+        help="CSV column map, e.g. t=time,de=elev,alpha=AOA,q=q,az=nz (implies --format csv-map)",
+    )
+    g.add_argument(
+        "--units", metavar="SIG=UNIT,...", help="units of the mapped columns, e.g. de=deg,alpha=deg,q=deg/s,az=g"
+    )
     g.add_argument("--sign", metavar="SIG=+-1,...", help="sign flips of mapped columns, e.g. az=-1 for n_z up")
     g.add_argument("--layout", choices=("hfb320", "attas"), help="DLR column layout (default: by column count)")
 
@@ -51,8 +56,9 @@ def _sign(signal: str, text: str) -> int:
     except ValueError:
         value = None
     if value not in (1.0, -1.0):
-        raise RecordError(f"--sign {signal}={text}: a sign must be +1 or -1; "
-                          "scale factors go in --units (e.g. az=m/s^2)")
+        raise RecordError(
+            f"--sign {signal}={text}: a sign must be +1 or -1; scale factors go in --units (e.g. az=m/s^2)"
+        )
     return int(value)
 
 
@@ -60,8 +66,11 @@ def record_options(args) -> dict:
     """Keyword arguments for :func:`fdml.io.load_record` from parsed arguments."""
     from ..errors import RecordError
 
-    opts: dict = {"format": getattr(args, "format", None) or "auto", "t0": getattr(args, "t0", None),
-                  "t1": getattr(args, "t1", None)}
+    opts: dict = {
+        "format": getattr(args, "format", None) or "auto",
+        "t0": getattr(args, "t0", None),
+        "t1": getattr(args, "t1", None),
+    }
     columns = parse_mapping(getattr(args, "columns", None), "columns")
     units = parse_mapping(getattr(args, "units", None), "units")
     sign_txt = parse_mapping(getattr(args, "sign", None), "sign")

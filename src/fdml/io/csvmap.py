@@ -27,10 +27,20 @@ def split_header_unit(cell: str) -> tuple[str, str | None]:
     return cell.strip(), None
 
 
-def read_csv_mapped(path, columns: Mapping[str, str], units: Mapping[str, str] | None = None,
-                    sign: Mapping[str, float] | None = None, t0: float | None = None, t1: float | None = None, *,
-                    delimiter: str | None = None, trim: str | None = None, name: str | None = None,
-                    meta: Mapping | None = None, check_units: bool = True):
+def read_csv_mapped(
+    path,
+    columns: Mapping[str, str],
+    units: Mapping[str, str] | None = None,
+    sign: Mapping[str, float] | None = None,
+    t0: float | None = None,
+    t1: float | None = None,
+    *,
+    delimiter: str | None = None,
+    trim: str | None = None,
+    name: str | None = None,
+    meta: Mapping | None = None,
+    check_units: bool = True,
+):
     """Read a CSV record with a user-given column map, units and signs.
 
     Parameters
@@ -89,16 +99,19 @@ def read_csv_mapped(path, columns: Mapping[str, str], units: Mapping[str, str] |
     p = check_path(path)
     check_trim(trim)
     if not isinstance(columns, Mapping) or not columns:
-        raise RecordError(f"{p}: columns must map fdml signals to CSV column names, e.g. "
-                          "{'t': 'time', 'de': 'elev', 'alpha': 'AOA', 'q': 'q', 'az': 'nz'}")
+        raise RecordError(
+            f"{p}: columns must map fdml signals to CSV column names, e.g. "
+            "{'t': 'time', 'de': 'elev', 'alpha': 'AOA', 'q': 'q', 'az': 'nz'}"
+        )
     units = dict(units or {})
     sign = dict(sign or {})
     known = ("t", *SIGNALS)
     for label, mp in (("columns", columns), ("units", units), ("sign", sign)):
         bad = [k for k in mp if k not in known]
         if bad:
-            raise RecordError(f"{p}: {label} names unknown fdml signal(s) {', '.join(map(repr, bad))}; "
-                              f"known: {', '.join(known)}")
+            raise RecordError(
+                f"{p}: {label} names unknown fdml signal(s) {', '.join(map(repr, bad))}; known: {', '.join(known)}"
+            )
     missing_req = [k for k in ("t", "de", "alpha", "q", "az") if k not in columns]
     if missing_req:
         raise RecordError(f"{p}: the column map lacks {', '.join(missing_req)} (t, de, alpha, q and az are required)")
@@ -116,8 +129,9 @@ def read_csv_mapped(path, columns: Mapping[str, str], units: Mapping[str, str] |
         text = p.read_text(encoding="utf-8-sig")  # UTF-8; a leading BOM (spreadsheet export) is dropped
     except (OSError, UnicodeDecodeError) as exc:
         raise wrap_read_error(p, "a CSV text file", exc) from None
-    lines = [(i, ln) for i, ln in enumerate(text.splitlines(), start=1)
-             if ln.strip() and not ln.lstrip().startswith("#")]
+    lines = [
+        (i, ln) for i, ln in enumerate(text.splitlines(), start=1) if ln.strip() and not ln.lstrip().startswith("#")
+    ]
     if not lines:
         raise RecordError(f"{p}: no header row and no data")
     split = _splitter(p, [ln for _, ln in lines[:20]], delimiter)
@@ -140,8 +154,10 @@ def read_csv_mapped(path, columns: Mapping[str, str], units: Mapping[str, str] |
     for r, (lineno, ln) in enumerate(lines[1:]):
         cells = split(ln)
         if len(cells) != len(header):
-            raise RecordError(f"{p}: line {lineno} has {len(cells)} fields but the header has {len(header)} "
-                              "(truncated or corrupt file?)")
+            raise RecordError(
+                f"{p}: line {lineno} has {len(cells)} fields but the header has {len(header)} "
+                "(truncated or corrupt file?)"
+            )
         for c, cell in enumerate(cells):
             s = cell.strip()
             if c not in col_index.values():
@@ -161,12 +177,15 @@ def read_csv_mapped(path, columns: Mapping[str, str], units: Mapping[str, str] |
     for sig, i in col_index.items():
         hu, uu = header_units[sig], units.get(sig)
         if hu is not None and uu is not None and normalise_unit(hu) != normalise_unit(uu):
-            raise RecordError(f"{p}: mixed units for {sig}: the header of column {header[i]!r} says {hu!r} "
-                              f"but units= says {uu!r}")
+            raise RecordError(
+                f"{p}: mixed units for {sig}: the header of column {header[i]!r} says {hu!r} but units= says {uu!r}"
+            )
         unit = uu or hu or ("s" if sig == "t" else None)
         if unit is None:
-            raise RecordError(f"{p}: no unit for {sig} (column {header[i]!r}); pass units={{{sig!r}: ...}} "
-                              "or write it in the header, e.g. 'AOA (deg)'")
+            raise RecordError(
+                f"{p}: no unit for {sig} (column {header[i]!r}); pass units={{{sig!r}: ...}} "
+                "or write it in the header, e.g. 'AOA (deg)'"
+            )
         f = unit_factor(unit, QUANTITY[sig], what=f"{p}: {sig} (column {header[i]!r})")
         s = float(sign.get(sig, 1))
         x = data[:, i] * f * s
@@ -176,8 +195,13 @@ def read_csv_mapped(path, columns: Mapping[str, str], units: Mapping[str, str] |
             t = x
         else:
             signals[sig] = x
-    m = {"source": str(p), "format": "csv-map", "channels": chans, "conversion": conv,
-         "sign": {k: int(sign.get(k, 1)) for k in signals}}
+    m = {
+        "source": str(p),
+        "format": "csv-map",
+        "channels": chans,
+        "conversion": conv,
+        "sign": {k: int(sign.get(k, 1)) for k in signals},
+    }
     user_meta = dict(meta or {})
     if "V" in signals and "U" not in user_meta:
         m["_per_sample"] = {"U": signals["V"]}

@@ -23,28 +23,52 @@ LAYOUTS = {
     "hfb320": {
         "n_columns": 20,
         "signals": {
-            "t": (1, "s"), "de": (2, "rad"), "qbar": (3, "Pa"), "V": (5, "m/s"), "alpha": (6, "rad"),
-            "theta": (7, "rad"), "q": (8, "rad/s"), "qdot": (9, "rad/s^2"), "ax": (10, "m/s^2"),
+            "t": (1, "s"),
+            "de": (2, "rad"),
+            "qbar": (3, "Pa"),
+            "V": (5, "m/s"),
+            "alpha": (6, "rad"),
+            "theta": (7, "rad"),
+            "q": (8, "rad/s"),
+            "qdot": (9, "rad/s^2"),
+            "ax": (10, "m/s^2"),
             "az": (11, "m/s^2"),
         },
         "condition": {},
         # constants used with this record in Jategaonkar's book (data README)
         "constants": {
-            "mass": 7472.0, "S_w": 4.028e-3 * 7472.0, "Sc_over_Iy": 8.0027e-4, "rho": 0.792,
-            "V0": 104.67, "thrust_inclination": 0.0524,
+            "mass": 7472.0,
+            "S_w": 4.028e-3 * 7472.0,
+            "Sc_over_Iy": 8.0027e-4,
+            "rho": 0.792,
+            "V0": 104.67,
+            "thrust_inclination": 0.0524,
         },
-        "constants_units": {"mass": "kg", "S_w": "m^2", "Sc_over_Iy": "m/kg", "rho": "kg/m^3",
-                            "V0": "m/s", "thrust_inclination": "rad"},
+        "constants_units": {
+            "mass": "kg",
+            "S_w": "m^2",
+            "Sc_over_Iy": "m/kg",
+            "rho": "kg/m^3",
+            "V0": "m/s",
+            "thrust_inclination": "rad",
+        },
         "constants_source": "data README: Jategaonkar, Flight Vehicle System Identification (2nd ed.), HFB-320 "
-                            "model constants (S = S/m * m = 4.028e-3 * 7472 m^2); c_w and Iy are not given "
-                            "separately, only S c / Iy",
+        "model constants (S = S/m * m = 4.028e-3 * 7472 m^2); c_w and Iy are not given "
+        "separately, only S c / Iy",
         "aircraft": "HFB-320 Hansa Jet",
     },
     "attas": {
         "n_columns": 45,
         "signals": {
-            "t": (1, "s"), "ax": (2, "m/s^2"), "az": (4, "m/s^2"), "q": (8, "deg/s"), "theta": (11, "deg"),
-            "alpha": (13, "deg"), "V": (15, "m/s"), "h": (16, "ft"), "qdot": (18, "deg/s^2"),
+            "t": (1, "s"),
+            "ax": (2, "m/s^2"),
+            "az": (4, "m/s^2"),
+            "q": (8, "deg/s"),
+            "theta": (11, "deg"),
+            "alpha": (13, "deg"),
+            "V": (15, "m/s"),
+            "h": (16, "ft"),
+            "qdot": (18, "deg/s^2"),
             "de": (22, "deg"),
         },
         "condition": {"rho": (34, "kg/m^3", "density")},
@@ -53,7 +77,7 @@ LAYOUTS = {
         "constants": {"mass": 17631.0, "Iy": 2.52687e5, "S_w": 64.0, "c_w": 3.159, "b": 21.5},
         "constants_units": {"mass": "kg", "Iy": "kg m^2", "S_w": "m^2", "c_w": "m", "b": "m"},
         "constants_source": "Jategaonkar, Flight Vehicle System Identification (2nd ed.), umr_reg_attas.m "
-                            "(mass, iY, sRef, lRef, 2 bRef); not in the data README",
+        "(mass, iY, sRef, lRef, 2 bRef); not in the data README",
         "aircraft": "DLR ATTAS (VFW-614)",
     },
 }
@@ -67,8 +91,16 @@ def _layout(layout: str) -> dict:
     return LAYOUTS[key]
 
 
-def read_dlr_asc(path, layout: str = "hfb320", t0: float | None = None, t1: float | None = None, *,
-                 trim: str | None = None, name: str | None = None, check_units: bool = True):
+def read_dlr_asc(
+    path,
+    layout: str = "hfb320",
+    t0: float | None = None,
+    t1: float | None = None,
+    *,
+    trim: str | None = None,
+    name: str | None = None,
+    check_units: bool = True,
+):
     """Read a whitespace-separated DLR/Jategaonkar .asc record.
 
     Parameters
@@ -117,9 +149,17 @@ def read_dlr_asc(path, layout: str = "hfb320", t0: float | None = None, t1: floa
     return _build(p, data, lay, "dlr-asc", t0, t1, trim, name, check_units)
 
 
-def read_dlr_mat(path, layout: str = "attas", t0: float | None = None, t1: float | None = None, *,
-                 variable: str | None = None, trim: str | None = None, name: str | None = None,
-                 check_units: bool = True):
+def read_dlr_mat(
+    path,
+    layout: str = "attas",
+    t0: float | None = None,
+    t1: float | None = None,
+    *,
+    variable: str | None = None,
+    trim: str | None = None,
+    name: str | None = None,
+    check_units: bool = True,
+):
     """Read a DLR/Jategaonkar .mat record (one matrix, one channel per column).
 
     Parameters
@@ -162,11 +202,17 @@ def read_dlr_mat(path, layout: str = "attas", t0: float | None = None, t1: float
     mat = read_mat(p)
     names = [k for k in mat if not k.startswith("__")]
     if variable is None:
-        mats = [k for k in names if np.asarray(mat[k]).ndim == 2 and np.asarray(mat[k]).shape[0] > 1
-                and np.issubdtype(np.asarray(mat[k]).dtype, np.number)]
+        mats = [
+            k
+            for k in names
+            if np.asarray(mat[k]).ndim == 2
+            and np.asarray(mat[k]).shape[0] > 1
+            and np.issubdtype(np.asarray(mat[k]).dtype, np.number)
+        ]
         if len(mats) != 1:
-            raise RecordError(f"{p}: expected one record matrix, found {len(mats)} ({', '.join(mats) or 'none'}); "
-                              "pass variable=NAME")
+            raise RecordError(
+                f"{p}: expected one record matrix, found {len(mats)} ({', '.join(mats) or 'none'}); pass variable=NAME"
+            )
         variable = mats[0]
     if variable not in mat:
         raise RecordError(f"{p}: no variable {variable!r} (variables: {', '.join(names) or 'none'})")
@@ -174,10 +220,11 @@ def read_dlr_mat(path, layout: str = "attas", t0: float | None = None, t1: float
     if data.ndim != 2 or not np.issubdtype(data.dtype, np.number):
         raise RecordError(f"{p}: {variable} is not a numeric matrix (shape {data.shape})")
     if data.shape[1] != lay["n_columns"]:
-        raise RecordError(f"{p}: {variable} has {data.shape[1]} columns; the {layout} layout has "
-                          f"{lay['n_columns']} (truncated file or another layout?)")
-    return _build(p, np.asarray(data, dtype=float), lay, "dlr-mat", t0, t1, trim, name, check_units,
-                  variable=variable)
+        raise RecordError(
+            f"{p}: {variable} has {data.shape[1]} columns; the {layout} layout has "
+            f"{lay['n_columns']} (truncated file or another layout?)"
+        )
+    return _build(p, np.asarray(data, dtype=float), lay, "dlr-mat", t0, t1, trim, name, check_units, variable=variable)
 
 
 def _read_ascii(p, n_columns: int) -> np.ndarray:
@@ -199,8 +246,9 @@ def _read_ascii(p, n_columns: int) -> np.ndarray:
             raise RecordError(f"{p}: line {i} is not numeric ({s[:40]!r}...); corrupt file?") from None
         started = True
         if len(vals) != n_columns:
-            raise RecordError(f"{p}: line {i} has {len(vals)} values, the layout has {n_columns} columns "
-                              "(truncated or corrupt file?)")
+            raise RecordError(
+                f"{p}: line {i} has {len(vals)} values, the layout has {n_columns} columns (truncated or corrupt file?)"
+            )
         rows.append(vals)
     if len(rows) < 4:
         raise RecordError(f"{p}: only {len(rows)} data line(s); not a record (empty or truncated file?)")
@@ -223,8 +271,14 @@ def _build(p, data, lay, fmt, t0, t1, trim, name, check_units, variable=None):
         signals[sig] = to_si(x, unit, sig, what=f"{p} column {col}")
         channels[sig] = f"column {col} ({unit})"
         conv[sig] = {"unit": unit, "factor": unit_factor(unit, QUANTITY[sig])}
-    meta = {"source": str(p), "format": fmt, "aircraft": lay["aircraft"], "channels": channels,
-            "conversion": conv, "sign": {k: 1 for k in signals}}
+    meta = {
+        "source": str(p),
+        "format": fmt,
+        "aircraft": lay["aircraft"],
+        "channels": channels,
+        "conversion": conv,
+        "sign": {k: 1 for k in signals},
+    }
     if variable is not None:
         meta["variable"] = variable
     per = {}

@@ -31,8 +31,10 @@ def data_dir() -> Path:
     """
     env = os.environ.get(DATA_ENV)
     if not env:
-        raise RecordError(f"{DATA_ENV} is not set: set {DATA_ENV}=/path/to/shared/data (the folder of the "
-                          "flight records), or pass a record's path explicitly")
+        raise RecordError(
+            f"{DATA_ENV} is not set: set {DATA_ENV}=/path/to/shared/data (the folder of the "
+            "flight records), or pass a record's path explicitly"
+        )
     p = Path(env).expanduser()
     if not p.is_dir():
         raise RecordError(f"{DATA_ENV}={env} is not a directory")

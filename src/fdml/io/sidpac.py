@@ -37,8 +37,16 @@ _CONDITION_COLUMNS = {
 _REQUIRED = ("de", "alpha", "q", "az")
 
 
-def read_sidpac(path, t0: float | None = None, t1: float | None = None, *, trim: str | None = None,
-                original: bool = False, name: str | None = None, check_units: bool = True):
+def read_sidpac(
+    path,
+    t0: float | None = None,
+    t1: float | None = None,
+    *,
+    trim: str | None = None,
+    original: bool = False,
+    name: str | None = None,
+    check_units: bool = True,
+):
     """Read a SIDPAC ``fdata`` .mat file into an fdml :class:`~fdml.record.Record`.
 
     Parameters
@@ -107,8 +115,10 @@ def read_sidpac(path, t0: float | None = None, t1: float | None = None, *, trim:
         raise RecordError(f"{p}: {key} is not a numeric matrix (shape {fd.shape}, type {fd.dtype})")
     need = max(c for c, *_ in [*SIDPAC_COLUMNS.values(), *_CONDITION_COLUMNS.values()])
     if fd.shape[1] < need:
-        raise RecordError(f"{p}: {key} has {fd.shape[1]} columns; SIDPAC's layout needs at least {need} "
-                          "(truncated file or another layout?)")
+        raise RecordError(
+            f"{p}: {key} has {fd.shape[1]} columns; SIDPAC's layout needs at least {need} "
+            "(truncated file or another layout?)"
+        )
     if fd.shape[0] < 4:
         raise RecordError(f"{p}: {key} has only {fd.shape[0]} rows")
     labels = _labels(mat)
@@ -133,8 +143,13 @@ def read_sidpac(path, t0: float | None = None, t1: float | None = None, *, trim:
         channels[sig] = f"{key} column {col} ({labels.get(col, '').strip() or unit})"
         conv[sig] = {"unit": unit, "factor": unit_factor(unit, _quantity(sig))}
     meta = {
-        "source": str(p), "format": "sidpac", "matrix": key, "time": t_src,
-        "channels": channels, "conversion": conv, "sign": {k: 1 for k in signals},
+        "source": str(p),
+        "format": "sidpac",
+        "matrix": key,
+        "time": t_src,
+        "channels": channels,
+        "conversion": conv,
+        "sign": {k: 1 for k in signals},
         "time_of_day_start": float(fd[0, 0]),
     }
     if absent:
@@ -147,8 +162,11 @@ def read_sidpac(path, t0: float | None = None, t1: float | None = None, *, trim:
         if np.all(np.isfinite(x)) and np.any(x != 0.0):
             per[k] = x * unit_factor(unit, quantity)
     meta["_per_sample"] = per
-    for k, var, unit, quantity in (("S_w", "sarea", "ft^2", "area"), ("c_w", "cbar", "ft", "length"),
-                                   ("b", "bspan", "ft", "length")):
+    for k, var, unit, quantity in (
+        ("S_w", "sarea", "ft^2", "area"),
+        ("c_w", "cbar", "ft", "length"),
+        ("b", "bspan", "ft", "length"),
+    ):
         if var in mat and np.size(mat[var]) == 1:
             meta[k] = float(np.asarray(mat[var], dtype=float).ravel()[0]) * unit_factor(unit, quantity)
     meta["units"] = {"U": "m/s", "rho": "kg/m^3", "mass": "kg", "Iy": "kg m^2", "S_w": "m^2", "c_w": "m", "b": "m"}

@@ -56,18 +56,52 @@ UNITS = {
 }
 
 _ALIASES = {
-    "sec": "s", "second": "s", "seconds": "s", "msec": "ms",
-    "degree": "deg", "degrees": "deg", "radian": "rad", "radians": "rad",
-    "deg/sec": "deg/s", "rad/sec": "rad/s", "dps": "deg/s", "rps": "rad/s",
-    "deg/s/s": "deg/s^2", "rad/s/s": "rad/s^2",
-    "gs": "g", "g0": "g", "gee": "g",
-    "m/s/s": "m/s^2", "ft/s/s": "ft/s^2", "mps2": "m/s^2", "fps2": "ft/s^2",
-    "mps": "m/s", "fps": "ft/s", "ft/sec": "ft/s", "kts": "kt", "knot": "kt", "knots": "kt", "kn": "kt",
-    "kmh": "km/h", "kph": "km/h", "fpm": "ft/min",
-    "feet": "ft", "foot": "ft", "meter": "m", "meters": "m", "metre": "m", "metres": "m",
-    "psf": "lbf/ft^2", "lb/ft^2": "lbf/ft^2", "n/m^2": "pa",
-    "slugs": "slug", "lbm": "lb",
-    "kgm^2": "kg m^2", "kg*m^2": "kg m^2", "slug-ft^2": "slug ft^2", "slugft^2": "slug ft^2",
+    "sec": "s",
+    "second": "s",
+    "seconds": "s",
+    "msec": "ms",
+    "degree": "deg",
+    "degrees": "deg",
+    "radian": "rad",
+    "radians": "rad",
+    "deg/sec": "deg/s",
+    "rad/sec": "rad/s",
+    "dps": "deg/s",
+    "rps": "rad/s",
+    "deg/s/s": "deg/s^2",
+    "rad/s/s": "rad/s^2",
+    "gs": "g",
+    "g0": "g",
+    "gee": "g",
+    "m/s/s": "m/s^2",
+    "ft/s/s": "ft/s^2",
+    "mps2": "m/s^2",
+    "fps2": "ft/s^2",
+    "mps": "m/s",
+    "fps": "ft/s",
+    "ft/sec": "ft/s",
+    "kts": "kt",
+    "knot": "kt",
+    "knots": "kt",
+    "kn": "kt",
+    "kmh": "km/h",
+    "kph": "km/h",
+    "fpm": "ft/min",
+    "feet": "ft",
+    "foot": "ft",
+    "meter": "m",
+    "meters": "m",
+    "metre": "m",
+    "metres": "m",
+    "psf": "lbf/ft^2",
+    "lb/ft^2": "lbf/ft^2",
+    "n/m^2": "pa",
+    "slugs": "slug",
+    "lbm": "lb",
+    "kgm^2": "kg m^2",
+    "kg*m^2": "kg m^2",
+    "slug-ft^2": "slug ft^2",
+    "slugft^2": "slug ft^2",
     "slug*ft^2": "slug ft^2",
 }
 
@@ -102,8 +136,10 @@ def unit_factor(unit: str, quantity: str, *, what: str = "") -> float:
                 f"{label}unit {unit!r} measures {other}, but this channel is {_article(quantity)} {quantity} "
                 f"(units: {', '.join(_display(k) for k in table)})"
             )
-    raise RecordError(f"{label}unknown unit {unit!r} for {_article(quantity)} {quantity}; "
-                      f"known: {', '.join(_display(k) for k in table)}")
+    raise RecordError(
+        f"{label}unknown unit {unit!r} for {_article(quantity)} {quantity}; "
+        f"known: {', '.join(_display(k) for k in table)}"
+    )
 
 
 def to_si(values, unit: str, signal: str, *, what: str = "") -> np.ndarray:

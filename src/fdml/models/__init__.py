@@ -89,8 +89,10 @@ def model_to_dict(model: Model) -> dict:
 
     base = model.root if isinstance(model, AugmentedModel) else model
     if isinstance(model, AugmentedModel) and not model.requested:
-        raise ParameterError(f"{model.describe()}: built by the diagnosis, not with_effects; "
-                             "rebuild it with model.with_effects(...) to save it")
+        raise ParameterError(
+            f"{model.describe()}: built by the diagnosis, not with_effects; "
+            "rebuild it with model.with_effects(...) to save it"
+        )
     opts = {}
     for f in dataclasses.fields(base):
         if f.name in ("aircraft", "parameters"):

@@ -131,7 +131,8 @@ class Model:
     outputs: ClassVar[tuple[str, ...]] = OUTPUTS
     #: Parameters whose matrix derivatives are coded in closed form.
     closed_form_parameters: ClassVar[frozenset] = frozenset(
-        {"tau_de", "tau_alpha_w", "bias_alpha", "bias_q", "bias_az"})
+        {"tau_de", "tau_alpha_w", "bias_alpha", "bias_q", "bias_az"}
+    )
 
     gust: bool = False
     output_bias: bool = False
@@ -179,11 +180,19 @@ class Model:
     def _common_parameters(self) -> list[Parameter]:
         out = [Parameter("tau_de", 0.0, free=False, lower=0.0, unit="s", description="elevator time delay")]
         if self.gust:
-            out.append(Parameter("tau_alpha_w", 0.0, free=False, lower=0.0, unit="s",
-                                 description="gust-angle time delay"))
+            out.append(
+                Parameter("tau_alpha_w", 0.0, free=False, lower=0.0, unit="s", description="gust-angle time delay")
+            )
         for name in OUTPUTS:
-            out.append(Parameter(f"bias_{name}", 0.0, free=self.output_bias, unit=OUTPUT_UNITS[name],
-                                 description=f"output bias on {name}"))
+            out.append(
+                Parameter(
+                    f"bias_{name}",
+                    0.0,
+                    free=self.output_bias,
+                    unit=OUTPUT_UNITS[name],
+                    description=f"output bias on {name}",
+                )
+            )
         return out
 
     def values(self, values: Mapping[str, float] | Parameters | None = None) -> dict[str, float]:
@@ -196,8 +205,7 @@ class Model:
         unknown = [k for k in values if k not in p]
         if unknown:
             raise ParameterError(
-                f"unknown parameter {unknown[0]!r} for the {self.kind} model; "
-                f"known: {', '.join(self.parameters.names)}"
+                f"unknown parameter {unknown[0]!r} for the {self.kind} model; known: {', '.join(self.parameters.names)}"
             )
         p.update({k: float(v) for k, v in values.items()})
         return p
@@ -213,8 +221,13 @@ class Model:
         G, H, P = solve_short_period(s, M, B, E, self.U)
         return ModelResponse(omega, G, H, P)
 
-    def sensitivity(self, omega, values: Mapping[str, float] | None = None, names: Sequence[str] = (),
-                    parts: Sequence[str] = ("G", "H", "P")):
+    def sensitivity(
+        self,
+        omega,
+        values: Mapping[str, float] | None = None,
+        names: Sequence[str] = (),
+        parts: Sequence[str] = ("G", "H", "P"),
+    ):
         """Response and its derivatives with respect to ``names``.
 
         Returns ``(resp, dG, dH, dP)`` with ``resp`` the :class:`ModelResponse`
@@ -320,7 +333,8 @@ class Model:
             k = int(np.argmax(~np.all(np.isfinite(G), axis=(0, 1))))
             raise ParameterError(
                 f"{self.describe()}: the frequency response is not finite at {np.ravel(omega)[k]:g} rad/s "
-                f"(overflow: check the airspeed U = {self.U:g} m/s and the parameter values)")
+                f"(overflow: check the airspeed U = {self.U:g} m/s and the parameter values)"
+            )
         return G
 
     def biases(self, values: Mapping[str, float] | None = None) -> np.ndarray:
@@ -373,8 +387,9 @@ class Model:
         """
         from .effects import with_effects
 
-        flat = [e for item in effects for e in ([item] if isinstance(item, str) or not hasattr(item, "__iter__")
-                                                 else item)]
+        flat = [
+            e for item in effects for e in ([item] if isinstance(item, str) or not hasattr(item, "__iter__") else item)
+        ]
         return with_effects(self, flat)
 
     @property

@@ -34,8 +34,12 @@ def to_dimensional(d: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
     """Dimensional derivatives from non-dimensional ones (per q c/(2U))."""
     kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
     return {
-        "Z_a": kz * d["Cz_a"], "Z_q": kz * d["Cz_q"] * cu, "Z_de": kz * d["Cz_de"],
-        "M_a": km * d["Cm_a"], "M_q": km * d["Cm_q"] * cu, "M_de": km * d["Cm_de"],
+        "Z_a": kz * d["Cz_a"],
+        "Z_q": kz * d["Cz_q"] * cu,
+        "Z_de": kz * d["Cz_de"],
+        "M_a": km * d["Cm_a"],
+        "M_q": km * d["Cm_q"] * cu,
+        "M_de": km * d["Cm_de"],
     }
 
 
@@ -62,7 +66,15 @@ class DerivativesModel(Model):
 
     kind = "derivatives"
     closed_form_parameters = Model.closed_form_parameters | {
-        "Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q", "Cm_de", "Cz_adot", "Cm_adot"}
+        "Cz_a",
+        "Cz_q",
+        "Cz_de",
+        "Cm_a",
+        "Cm_q",
+        "Cm_de",
+        "Cz_adot",
+        "Cm_adot",
+    }
     aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
     adot: bool = False
 
@@ -171,8 +183,10 @@ class DimensionalModel(Model):
         if self.aircraft is None and self.airspeed is None:
             raise ParameterError("the dimensional model needs the airspeed U (m/s) or an aircraft")
         if self.airspeed is not None and not (np.isfinite(self.airspeed) and 0 < self.airspeed <= MAX_AIRSPEED):
-            raise ParameterError(f"airspeed must be positive and at most {MAX_AIRSPEED:g} m/s "
-                                 f"(fdml.aircraft.MAX_AIRSPEED), got {self.airspeed!r}")
+            raise ParameterError(
+                f"airspeed must be positive and at most {MAX_AIRSPEED:g} m/s "
+                f"(fdml.aircraft.MAX_AIRSPEED), got {self.airspeed!r}"
+            )
         super().__post_init__()
 
     @property
@@ -207,8 +221,14 @@ class DimensionalModel(Model):
     def _matrix_derivatives(self, s, p, names):
         """Closed forms: M = sI - A and B hold the derivatives themselves."""
         n, n_in = s.size, (2 if self.gust else 1)
-        table = {"Z_a": ((0, 0), (0, 1)), "Z_q": ((0, 1), None), "Z_de": (None, (0, 0)),
-                 "M_a": ((1, 0), (1, 1)), "M_q": ((1, 1), None), "M_de": (None, (1, 0))}
+        table = {
+            "Z_a": ((0, 0), (0, 1)),
+            "Z_q": ((0, 1), None),
+            "Z_de": (None, (0, 0)),
+            "M_a": ((1, 0), (1, 1)),
+            "M_q": ((1, 1), None),
+            "M_de": (None, (1, 0)),
+        }
         out = super()._matrix_derivatives(s, p, [nm for nm in names if nm not in table])
         for nm in names:
             if nm not in table:
@@ -234,6 +254,10 @@ class DimensionalModel(Model):
         ac = self.aircraft
         kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
         return {
-            "Cz_a": p["Z_a"] / kz, "Cz_q": p["Z_q"] / (kz * cu), "Cz_de": p["Z_de"] / kz,
-            "Cm_a": p["M_a"] / km, "Cm_q": p["M_q"] / (km * cu), "Cm_de": p["M_de"] / km,
+            "Cz_a": p["Z_a"] / kz,
+            "Cz_q": p["Z_q"] / (kz * cu),
+            "Cz_de": p["Z_de"] / kz,
+            "Cm_a": p["M_a"] / km,
+            "Cm_q": p["M_q"] / (km * cu),
+            "Cm_de": p["M_de"] / km,
         }

@@ -101,6 +101,7 @@ class Dispatch(Effect):
 
 # --- base-model helpers ----------------------------------------------------------------------
 
+
 def to_unsteady_equivalent(root: Model) -> Model:
     """The steady Wells-Keskar model rewritten as the unsteady one with every lag off.
 
@@ -116,8 +117,7 @@ def to_unsteady_equivalent(root: Model) -> Model:
     from .wells_keskar import SteadyModel
 
     assert isinstance(root, SteadyModel)  # the "steady" kind (a root model)
-    u = make_model("unsteady", root.aircraft, gust=root.gust, output_bias=root.output_bias,
-                   tail_gust_delay=False)
+    u = make_model("unsteady", root.aircraft, gust=root.gust, output_bias=root.output_bias, tail_gust_delay=False)
     vals = {k: v for k, v in root.parameters.values.items() if k in u.parameters}
     vals.update({"y_w": 0.0, "y_t": 0.0, "F": 0.0, "G": 0.0})
     if root.gust:
@@ -142,6 +142,7 @@ def _needs_gust(root: Model) -> str | None:
 
 
 # --- lift lag --------------------------------------------------------------------------------
+
 
 def _lift_lag_constants(p, root):
     """(Z_alpha, lag rate 2 z U / c) of the lift lag on a conventional base model."""
@@ -174,22 +175,43 @@ def _lift_lag_realize(d, p, root):
     return d
 
 
-_LIFT_Y: dict[str, Any] = dict(lower=0.0, upper=1.0, plausible=(0.0, 0.6), unit="-", start=0.05,
-               description="wing lift-lag amplitude (Eq. 1)")
+_LIFT_Y: dict[str, Any] = dict(
+    lower=0.0, upper=1.0, plausible=(0.0, 0.6), unit="-", start=0.05, description="wing lift-lag amplitude (Eq. 1)"
+)
 
-LIFT_LAG = Dispatch("lift_lag", "alpha", {
-    "unsteady": FreeParameterEffect("lift_lag", "alpha", Param("y_w", None, **_LIFT_Y),
-                                    ("unsteady", "steady"), convert=to_unsteady_equivalent),
-    "steady": FreeParameterEffect("lift_lag", "alpha", Param("y_w", None, **_LIFT_Y),
-                                  ("unsteady", "steady"), convert=to_unsteady_equivalent),
-    "derivatives": MatrixEffect("lift_lag", "alpha", (Param("y_lift", 0.0, **_LIFT_Y),), _lift_lag_matrix,
-                                applies=_needs_chord, realize=_lift_lag_realize),
-    "dimensional": MatrixEffect("lift_lag", "alpha", (Param("y_lift", 0.0, **_LIFT_Y),), _lift_lag_matrix,
-                                applies=_needs_chord, realize=_lift_lag_realize),
-}, signature="lift builds up with a lag: alpha and a_z, magnitude dip and phase lag in the short-period band")
+LIFT_LAG = Dispatch(
+    "lift_lag",
+    "alpha",
+    {
+        "unsteady": FreeParameterEffect(
+            "lift_lag", "alpha", Param("y_w", None, **_LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
+        ),
+        "steady": FreeParameterEffect(
+            "lift_lag", "alpha", Param("y_w", None, **_LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
+        ),
+        "derivatives": MatrixEffect(
+            "lift_lag",
+            "alpha",
+            (Param("y_lift", 0.0, **_LIFT_Y),),
+            _lift_lag_matrix,
+            applies=_needs_chord,
+            realize=_lift_lag_realize,
+        ),
+        "dimensional": MatrixEffect(
+            "lift_lag",
+            "alpha",
+            (Param("y_lift", 0.0, **_LIFT_Y),),
+            _lift_lag_matrix,
+            applies=_needs_chord,
+            realize=_lift_lag_realize,
+        ),
+    },
+    signature="lift builds up with a lag: alpha and a_z, magnitude dip and phase lag in the short-period band",
+)
 
 
 # --- downwash lag --------------------------------------------------------------------------
+
 
 def _adot_matrix(s, p, M, B, E, root):
     M = M.copy()
@@ -209,21 +231,60 @@ def _adot_realize(d, p, root):
     return type(d)(E, d.A, d.B0, B1, d.channels)
 
 
-DOWNWASH_LAG = Dispatch("downwash_lag", "q", {
-    "unsteady": FreeParameterEffect("downwash_lag", "q", Param("G", None, lower=0.0, upper=1.0,
-                                    plausible=(0.0, 1.0), unit="-", start=0.05,
-                                    description="downwash lag amplitude (Eq. 2)"),
-                                    ("unsteady", "steady"), convert=to_unsteady_equivalent, bounds=(0.0, 1.0)),
-    "steady": FreeParameterEffect("downwash_lag", "q", Param("G", None, lower=0.0, upper=1.0,
-                                  plausible=(0.0, 1.0), unit="-", start=0.05,
-                                  description="downwash lag amplitude (Eq. 2)"),
-                                  ("unsteady", "steady"), convert=to_unsteady_equivalent, bounds=(0.0, 1.0)),
-    "derivatives": FreeParameterEffect("downwash_lag", "q", Param("Cm_adot", None, plausible=(-20.0, 5.0),
-                                       unit="1/rad", start=0.5), ("derivatives",)),
-    "dimensional": MatrixEffect("downwash_lag", "q", (Param("M_adot", 0.0, plausible=(-5.0, 1.0), unit="1/s",
-                                                            start=0.05),), _adot_matrix,
-                                realize=_adot_realize),
-}, signature="tail downwash lags alpha: q (and alpha) in the short-period band, like an alpha-dot moment")
+DOWNWASH_LAG = Dispatch(
+    "downwash_lag",
+    "q",
+    {
+        "unsteady": FreeParameterEffect(
+            "downwash_lag",
+            "q",
+            Param(
+                "G",
+                None,
+                lower=0.0,
+                upper=1.0,
+                plausible=(0.0, 1.0),
+                unit="-",
+                start=0.05,
+                description="downwash lag amplitude (Eq. 2)",
+            ),
+            ("unsteady", "steady"),
+            convert=to_unsteady_equivalent,
+            bounds=(0.0, 1.0),
+        ),
+        "steady": FreeParameterEffect(
+            "downwash_lag",
+            "q",
+            Param(
+                "G",
+                None,
+                lower=0.0,
+                upper=1.0,
+                plausible=(0.0, 1.0),
+                unit="-",
+                start=0.05,
+                description="downwash lag amplitude (Eq. 2)",
+            ),
+            ("unsteady", "steady"),
+            convert=to_unsteady_equivalent,
+            bounds=(0.0, 1.0),
+        ),
+        "derivatives": FreeParameterEffect(
+            "downwash_lag",
+            "q",
+            Param("Cm_adot", None, plausible=(-20.0, 5.0), unit="1/rad", start=0.5),
+            ("derivatives",),
+        ),
+        "dimensional": MatrixEffect(
+            "downwash_lag",
+            "q",
+            (Param("M_adot", 0.0, plausible=(-5.0, 1.0), unit="1/s", start=0.05),),
+            _adot_matrix,
+            realize=_adot_realize,
+        ),
+    },
+    signature="tail downwash lags alpha: q (and alpha) in the short-period band, like an alpha-dot moment",
+)
 
 
 # --- downwash lag in its textbook form: the downwash reaches the tail l_t/U late ----------------
@@ -271,8 +332,14 @@ def pade_delay(tau: float, n: int = DW_PADE):
     from scipy import signal
 
     k = np.arange(n + 1)
-    c = np.array([math.factorial(2 * n - j) * math.factorial(n)
-                  / (math.factorial(2 * n) * math.factorial(j) * math.factorial(n - j)) for j in k])
+    c = np.array(
+        [
+            math.factorial(2 * n - j)
+            * math.factorial(n)
+            / (math.factorial(2 * n) * math.factorial(j) * math.factorial(n - j))
+            for j in k
+        ]
+    )
     A, B, C, D = signal.tf2ss((c * (-1.0) ** k)[::-1], c[::-1])
     return A / tau, B / tau, C, D
 
@@ -284,6 +351,7 @@ def _dw_delay_system(p):
     The downwash perturbation enters the Wells-Keskar system exactly as the F-term's eps_F does
     (columns bF, dF, rF of :class:`fdml.simulate._System`), so it is added along them.
     """
+
     def fn(sys):
         from ..simulate import _pad_states
 
@@ -299,6 +367,7 @@ def _dw_delay_system(p):
         A[n:, 0], A[n:, n:] = Bp[:, 0], Ap
         C = s2.C + np.outer(sys.dF, r)
         return replace(s2, A=A, C=C, rx=s2.rx + sys.rF * r)
+
     return fn
 
 
@@ -315,18 +384,48 @@ def dw_delay_grid(lo: float, hi: float, n: int = 10) -> np.ndarray:
     return np.geomspace(0.5 / max(hi, 1e-3), 1.0 / max(lo, 1e-3), n)
 
 
-_DW_PARAMS = (Param("g_dw", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 1.2), unit="-", start=0.05,
-                    description="share of the downwash that arrives late at the tail (1: all of it)"),
-              Param("tau_dw", 0.1, lower=1e-3, upper=1.0, plausible=(0.01, 0.5), unit="s", nuisance=True,
-                    description="downwash delay at the tail, about l_t/U"))
-DOWNWASH_DELAY = Dispatch("downwash_lag", "tail", {
-    kind: MatrixEffect("downwash_lag", "tail", _DW_PARAMS, _dw_delay_matrix, realize=_dw_delay_realize,
-                       nuisance_grid={"tau_dw": dw_delay_grid})
-    for kind in ("steady", "unsteady")
-}, signature="the downwash reaches the tail about l_t/U late: q (and alpha), like an alpha-dot moment")
+_DW_PARAMS = (
+    Param(
+        "g_dw",
+        0.0,
+        lower=0.0,
+        upper=2.0,
+        plausible=(0.0, 1.2),
+        unit="-",
+        start=0.05,
+        description="share of the downwash that arrives late at the tail (1: all of it)",
+    ),
+    Param(
+        "tau_dw",
+        0.1,
+        lower=1e-3,
+        upper=1.0,
+        plausible=(0.01, 0.5),
+        unit="s",
+        nuisance=True,
+        description="downwash delay at the tail, about l_t/U",
+    ),
+)
+DOWNWASH_DELAY = Dispatch(
+    "downwash_lag",
+    "tail",
+    {
+        kind: MatrixEffect(
+            "downwash_lag",
+            "tail",
+            _DW_PARAMS,
+            _dw_delay_matrix,
+            realize=_dw_delay_realize,
+            nuisance_grid={"tau_dw": dw_delay_grid},
+        )
+        for kind in ("steady", "unsteady")
+    },
+    signature="the downwash reaches the tail about l_t/U late: q (and alpha), like an alpha-dot moment",
+)
 
 
 # --- gust lag ---------------------------------------------------------------------------------
+
 
 def _gust_lag_output(s, p, G, H, P, root):
     G = G.copy()
@@ -339,6 +438,7 @@ def _filter_realize(signal_name: str, name: str):
         from ..simulate import filter_input
 
         return filter_input(sys, signal_name, p[name])
+
     return fn
 
 
@@ -369,45 +469,116 @@ def _tail_applies(root):
     return None
 
 
-_B1: dict[str, Any] = dict(lower=0.0, upper=40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5,
-           description="Kussner lag length (BS-12)")
-GUST_LAG = Dispatch("gust_lag", "alpha_w", {
-    "unsteady": FreeParameterEffect("gust_lag", "alpha_w", Param("b1", None, **_B1), ("unsteady", "steady"),
-                                    convert=to_unsteady_equivalent, needs=("alpha_w",)),
-    "steady": FreeParameterEffect("gust_lag", "alpha_w", Param("b1", None, **_B1), ("unsteady", "steady"),
-                                  convert=to_unsteady_equivalent, needs=("alpha_w",)),
-    "derivatives": OutputEffect("gust_lag", "alpha_w", (Param("T_gust", 0.0, lower=0.0, upper=2.0,
-                                plausible=(0.0, 0.5), unit="s", start=0.01),), _gust_lag_output,
-                                needs=("alpha_w",), applies=_needs_gust,
-                                realize=_filter_realize("alpha_w", "T_gust")),
-    "dimensional": OutputEffect("gust_lag", "alpha_w", (Param("T_gust", 0.0, lower=0.0, upper=2.0,
-                                plausible=(0.0, 0.5), unit="s", start=0.01),), _gust_lag_output,
-                                needs=("alpha_w",), applies=_needs_gust,
-                                realize=_filter_realize("alpha_w", "T_gust")),
-}, needs=("alpha_w",), signature="gust lift builds up with a lag: alpha and a_z, coherent with alpha_w")
+_B1: dict[str, Any] = dict(
+    lower=0.0, upper=40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5, description="Kussner lag length (BS-12)"
+)
+GUST_LAG = Dispatch(
+    "gust_lag",
+    "alpha_w",
+    {
+        "unsteady": FreeParameterEffect(
+            "gust_lag",
+            "alpha_w",
+            Param("b1", None, **_B1),
+            ("unsteady", "steady"),
+            convert=to_unsteady_equivalent,
+            needs=("alpha_w",),
+        ),
+        "steady": FreeParameterEffect(
+            "gust_lag",
+            "alpha_w",
+            Param("b1", None, **_B1),
+            ("unsteady", "steady"),
+            convert=to_unsteady_equivalent,
+            needs=("alpha_w",),
+        ),
+        "derivatives": OutputEffect(
+            "gust_lag",
+            "alpha_w",
+            (Param("T_gust", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 0.5), unit="s", start=0.01),),
+            _gust_lag_output,
+            needs=("alpha_w",),
+            applies=_needs_gust,
+            realize=_filter_realize("alpha_w", "T_gust"),
+        ),
+        "dimensional": OutputEffect(
+            "gust_lag",
+            "alpha_w",
+            (Param("T_gust", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 0.5), unit="s", start=0.01),),
+            _gust_lag_output,
+            needs=("alpha_w",),
+            applies=_needs_gust,
+            realize=_filter_realize("alpha_w", "T_gust"),
+        ),
+    },
+    needs=("alpha_w",),
+    signature="gust lift builds up with a lag: alpha and a_z, coherent with alpha_w",
+)
 
-_TAIL = (Param("tau_tail", 0.0, lower=0.0, upper=1.0, plausible=(0.0, 0.3), unit="s", start=0.01,
-               description="gust delay at the tail (BS-8)"),)
-GUST_TAIL = Dispatch("gust_lag", "tail", {
-    "unsteady": MatrixEffect("gust_lag", "tail", _TAIL, _tail_delay_matrix, needs=("alpha_w",),
-                             applies=_tail_applies, realize=_tail_realize),
-    "steady": MatrixEffect("gust_lag", "tail", _TAIL, _tail_delay_matrix, needs=("alpha_w",),
-                           applies=_tail_applies, realize=_tail_realize),
-}, needs=("alpha_w",), signature="the gust reaches the tail l_t/U later: q, coherent with alpha_w")
+_TAIL = (
+    Param(
+        "tau_tail",
+        0.0,
+        lower=0.0,
+        upper=1.0,
+        plausible=(0.0, 0.3),
+        unit="s",
+        start=0.01,
+        description="gust delay at the tail (BS-8)",
+    ),
+)
+GUST_TAIL = Dispatch(
+    "gust_lag",
+    "tail",
+    {
+        "unsteady": MatrixEffect(
+            "gust_lag",
+            "tail",
+            _TAIL,
+            _tail_delay_matrix,
+            needs=("alpha_w",),
+            applies=_tail_applies,
+            realize=_tail_realize,
+        ),
+        "steady": MatrixEffect(
+            "gust_lag",
+            "tail",
+            _TAIL,
+            _tail_delay_matrix,
+            needs=("alpha_w",),
+            applies=_tail_applies,
+            realize=_tail_realize,
+        ),
+    },
+    needs=("alpha_w",),
+    signature="the gust reaches the tail l_t/U later: q, coherent with alpha_w",
+)
 
 
 # --- time delay ------------------------------------------------------------------------------
 
 TIME_DELAY_DE = FreeParameterEffect(
-    "time_delay", "de", Param("tau_de", None, lower=0.0, upper=0.5, plausible=(0.0, 0.15), unit="s",
-                              start=0.002, description="elevator time delay"),
+    "time_delay",
+    "de",
+    Param(
+        "tau_de",
+        None,
+        lower=0.0,
+        upper=0.5,
+        plausible=(0.0, 0.15),
+        unit="s",
+        start=0.002,
+        description="elevator time delay",
+    ),
     ("unsteady", "steady", "derivatives", "dimensional"),
-    signature="phase lag -omega tau on every output, growing with frequency")
+    signature="phase lag -omega tau on every output, growing with frequency",
+)
 
 
 def _output_delay(row: int, name: str):
     def fn(s, p, G, H, P, root):
         return scale_rows(G, H, P, row, np.exp(-s * p[name]))
+
     return fn
 
 
@@ -416,19 +587,36 @@ def _delay_realize(row: int, name: str):
         from ..simulate import delay_output
 
         return delay_output(sys, row, p[name])
+
     return fn
 
 
 def _make_output_delay(ch: str) -> OutputEffect:
     row = CHANNELS.index(ch)
     name = f"tau_{ch}"
-    return OutputEffect("time_delay", ch, (Param(name, 0.0, lower=-0.5, upper=0.5, plausible=(-0.15, 0.15),
-                                                 unit="s", start=0.002, description=f"delay of the {ch} sensor"),),
-                        _output_delay(row, name), signature=f"phase lag on {ch} only, growing with frequency",
-                        realize=_delay_realize(row, name))
+    return OutputEffect(
+        "time_delay",
+        ch,
+        (
+            Param(
+                name,
+                0.0,
+                lower=-0.5,
+                upper=0.5,
+                plausible=(-0.15, 0.15),
+                unit="s",
+                start=0.002,
+                description=f"delay of the {ch} sensor",
+            ),
+        ),
+        _output_delay(row, name),
+        signature=f"phase lag on {ch} only, growing with frequency",
+        realize=_delay_realize(row, name),
+    )
 
 
 # --- actuator lag ----------------------------------------------------------------------------
+
 
 def _actuator(s, p, G, H, P, root):
     G = G.copy()
@@ -437,13 +625,28 @@ def _actuator(s, p, G, H, P, root):
 
 
 ACTUATOR_LAG = OutputEffect(
-    "actuator_lag", "de", (Param("T_act", 0.0, lower=0.0, upper=1.0, plausible=(0.0, 0.15), unit="s",
-                                 start=0.002, description="first-order lag, recorded to effective elevator"),),
-    _actuator, signature="phase lag and roll-off above 1/T on every output",
-    realize=_filter_realize("de", "T_act"))
+    "actuator_lag",
+    "de",
+    (
+        Param(
+            "T_act",
+            0.0,
+            lower=0.0,
+            upper=1.0,
+            plausible=(0.0, 0.15),
+            unit="s",
+            start=0.002,
+            description="first-order lag, recorded to effective elevator",
+        ),
+    ),
+    _actuator,
+    signature="phase lag and roll-off above 1/T on every output",
+    realize=_filter_realize("de", "T_act"),
+)
 
 
 # --- sensor position ---------------------------------------------------------------------------
+
 
 def _accel_offset(s, p, G, H, P, root):
     k = -p["x_az"] / G0  # a_z at x ahead of the c.g. = a_z - x q_dot / g
@@ -477,17 +680,47 @@ def _vane_offset_realize(sys, p, root):
 
 
 SENSOR_OFFSET_AZ = OutputEffect(
-    "sensor_offset", "az", (Param("x_az", 0.0, lower=-30.0, upper=30.0, plausible=(-10.0, 10.0), unit="m",
-                                  start=0.05, description="accelerometer ahead of the c.g."),),
-    _accel_offset, signature="a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
-    realize=_accel_offset_realize)
+    "sensor_offset",
+    "az",
+    (
+        Param(
+            "x_az",
+            0.0,
+            lower=-30.0,
+            upper=30.0,
+            plausible=(-10.0, 10.0),
+            unit="m",
+            start=0.05,
+            description="accelerometer ahead of the c.g.",
+        ),
+    ),
+    _accel_offset,
+    signature="a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
+    realize=_accel_offset_realize,
+)
 SENSOR_OFFSET_ALPHA = OutputEffect(
-    "sensor_offset", "alpha", (Param("x_alpha", 0.0, lower=-30.0, upper=30.0, plausible=(-10.0, 10.0),
-                                     unit="m", start=0.05, description="alpha vane ahead of the c.g."),),
-    _vane_offset, signature="alpha picks up -x q/U: phase change on alpha", realize=_vane_offset_realize)
+    "sensor_offset",
+    "alpha",
+    (
+        Param(
+            "x_alpha",
+            0.0,
+            lower=-30.0,
+            upper=30.0,
+            plausible=(-10.0, 10.0),
+            unit="m",
+            start=0.05,
+            description="alpha vane ahead of the c.g.",
+        ),
+    ),
+    _vane_offset,
+    signature="alpha picks up -x q/U: phase change on alpha",
+    realize=_vane_offset_realize,
+)
 
 
 # --- structural mode -------------------------------------------------------------------------
+
 
 def _mode(s, p, G, H, P, root):
     w, z = p["omega_s"], p["zeta_s"]
@@ -512,23 +745,51 @@ def mode_grid(lo: float, hi: float, zeta: float = MODE_ZETA) -> np.ndarray:
 
 
 STRUCTURAL_MODE = OutputEffect(
-    "structural_mode", "q,az",
-    (Param("r_q", 0.0, plausible=(-0.5, 0.5), unit="rad/s per rad", start=0.01,
-           description="mode residue on q (peak r/(2 zeta))"),
-     Param("r_az", 0.0, plausible=(-0.5, 0.5), unit="g per rad", start=0.01,
-           description="mode residue on a_z (peak r/(2 zeta))"),
-     Param("omega_s", 10.0, lower=0.1, upper=1e3, unit="rad/s", nuisance=True, description="mode frequency"),
-     Param("zeta_s", MODE_ZETA, lower=0.005, upper=0.5, plausible=(0.01, 0.15), unit="-", nuisance=True,
-           description="mode damping (refined within its plausible range: lightly damped)")),
-    _mode, nuisance_grid={"omega_s": mode_grid},
-    signature="a narrow resonance on q and a_z, coherent with the elevator", realize=_mode_realize)
+    "structural_mode",
+    "q,az",
+    (
+        Param(
+            "r_q",
+            0.0,
+            plausible=(-0.5, 0.5),
+            unit="rad/s per rad",
+            start=0.01,
+            description="mode residue on q (peak r/(2 zeta))",
+        ),
+        Param(
+            "r_az",
+            0.0,
+            plausible=(-0.5, 0.5),
+            unit="g per rad",
+            start=0.01,
+            description="mode residue on a_z (peak r/(2 zeta))",
+        ),
+        Param("omega_s", 10.0, lower=0.1, upper=1e3, unit="rad/s", nuisance=True, description="mode frequency"),
+        Param(
+            "zeta_s",
+            MODE_ZETA,
+            lower=0.005,
+            upper=0.5,
+            plausible=(0.01, 0.15),
+            unit="-",
+            nuisance=True,
+            description="mode damping (refined within its plausible range: lightly damped)",
+        ),
+    ),
+    _mode,
+    nuisance_grid={"omega_s": mode_grid},
+    signature="a narrow resonance on q and a_z, coherent with the elevator",
+    realize=_mode_realize,
+)
 
 
 # --- sensor scale ----------------------------------------------------------------------------
 
+
 def _scale(row: int, name: str):
     def fn(s, p, G, H, P, root):
         return scale_rows(G, H, P, row, 1.0 + p[name])
+
     return fn
 
 
@@ -537,18 +798,35 @@ def _scale_realize(row: int, name: str):
         from ..simulate import scale_output
 
         return scale_output(sys, row, 1.0 + p[name])
+
     return fn
 
 
 def _make_scale(ch: str) -> OutputEffect:
     name = f"k_{ch}"
-    return OutputEffect("sensor_scale", ch, (Param(name, 0.0, lower=-0.9, upper=2.0, plausible=(-0.2, 0.2),
-                                                   unit="-", start=0.005, description=f"gain error of {ch}"),),
-                        _scale(CHANNELS.index(ch), name), signature=f"{ch} too large or small at every frequency",
-                        realize=_scale_realize(CHANNELS.index(ch), name))
+    return OutputEffect(
+        "sensor_scale",
+        ch,
+        (
+            Param(
+                name,
+                0.0,
+                lower=-0.9,
+                upper=2.0,
+                plausible=(-0.2, 0.2),
+                unit="-",
+                start=0.005,
+                description=f"gain error of {ch}",
+            ),
+        ),
+        _scale(CHANNELS.index(ch), name),
+        signature=f"{ch} too large or small at every frequency",
+        realize=_scale_realize(CHANNELS.index(ch), name),
+    )
 
 
 # --- unmeasured gust (noise kind) ---------------------------------------------------------------
+
 
 class UnmeasuredGust(Effect):
     """Turbulence that was not measured: extra residual covariance along the gust column.
@@ -560,8 +838,17 @@ class UnmeasuredGust(Effect):
     name = "unmeasured_gust"
     channel = "alpha,q,az"
     kind = "noise"
-    params = (Param("sigma_w", 0.0, lower=0.0, upper=50.0, plausible=(0.0, 5.0), unit="m/s",
-                    description="RMS vertical gust velocity (Dryden)"),)
+    params = (
+        Param(
+            "sigma_w",
+            0.0,
+            lower=0.0,
+            upper=50.0,
+            plausible=(0.0, 5.0),
+            unit="m/s",
+            description="RMS vertical gust velocity (Dryden)",
+        ),
+    )
     signature = "residuals incoherent with the inputs but correlated across channels like the gust column"
 
     def augment(self, model):  # the test does not refit the model
@@ -569,9 +856,21 @@ class UnmeasuredGust(Effect):
 
 
 #: The built-in effects, in the order the library lists them.
-BUILTINS = (LIFT_LAG, DOWNWASH_LAG, DOWNWASH_DELAY, GUST_LAG, GUST_TAIL, TIME_DELAY_DE, *(_make_output_delay(c) for c in CHANNELS),
-            ACTUATOR_LAG, SENSOR_OFFSET_AZ, SENSOR_OFFSET_ALPHA, STRUCTURAL_MODE,
-            *(_make_scale(c) for c in CHANNELS), UnmeasuredGust())
+BUILTINS = (
+    LIFT_LAG,
+    DOWNWASH_LAG,
+    DOWNWASH_DELAY,
+    GUST_LAG,
+    GUST_TAIL,
+    TIME_DELAY_DE,
+    *(_make_output_delay(c) for c in CHANNELS),
+    ACTUATOR_LAG,
+    SENSOR_OFFSET_AZ,
+    SENSOR_OFFSET_ALPHA,
+    STRUCTURAL_MODE,
+    *(_make_scale(c) for c in CHANNELS),
+    UnmeasuredGust(),
+)
 
 for _eff in BUILTINS:
     register_effect(_eff, replace_existing=True)

@@ -170,8 +170,9 @@ class Effect:
         """Unique id of this variant: ``name@channel``."""
         return f"{self.name}@{self.channel}" if self.channel else self.name
 
-    def applicable(self, model: Model, inputs: Sequence[str] = ("de",),
-                   outputs: Sequence[str] = CHANNELS) -> str | None:
+    def applicable(
+        self, model: Model, inputs: Sequence[str] = ("de",), outputs: Sequence[str] = CHANNELS
+    ) -> str | None:
         """None if the effect can be tested on ``model`` with these channels, else the reason."""
         for need in self.needs:
             if need not in inputs and need not in outputs:
@@ -215,8 +216,10 @@ class Effect:
         (:class:`fdml.simulate.Descriptor`) or, on a Wells-Keskar base, on the
         options of its realisation.  An effect without one cannot be simulated.
         """
-        raise ParameterError(f"effect {self.key} has no time-domain realisation: it can be fitted, "
-                             "not simulated or exported as a state space")
+        raise ParameterError(
+            f"effect {self.key} has no time-domain realisation: it can be fitted, "
+            "not simulated or exported as a state space"
+        )
 
     def describe(self) -> str:
         return self.signature or self.key
@@ -229,6 +232,7 @@ class Effect:
 
 
 # --- the augmented model ---------------------------------------------------------------
+
 
 @dataclass(frozen=True, kw_only=True)
 class AugmentedModel(Model):
@@ -255,9 +259,17 @@ class AugmentedModel(Model):
             items = list(self.root.parameters.items)
             for eff in self.effects:
                 for par in eff.param_list(self.root):
-                    items.append(Parameter(par.name, 0.0 if par.null is None else par.null, free=False,
-                                           lower=par.lower, upper=par.upper, unit=par.unit,
-                                           description=par.description or eff.key))
+                    items.append(
+                        Parameter(
+                            par.name,
+                            0.0 if par.null is None else par.null,
+                            free=False,
+                            lower=par.lower,
+                            upper=par.upper,
+                            unit=par.unit,
+                            description=par.description or eff.key,
+                        )
+                    )
             object.__setattr__(self, "parameters", Parameters(tuple(items)))
 
     @property
@@ -376,6 +388,7 @@ def with_gust(model: Model) -> Model:
 
 # --- effect kinds ----------------------------------------------------------------------
 
+
 class OutputEffect(Effect):
     """An effect on the model's frequency response (G, H, P), for any fdml model.
 
@@ -397,10 +410,20 @@ class OutputEffect(Effect):
         on this base model (e.g. no chord for a lift lag), or None.
     """
 
-    def __init__(self, name: str, channel: str, params: Sequence[Param],
-                 fn: Callable, *, needs: Sequence[str] = (), signature: str = "",
-                 nuisance_grid: dict | None = None, applies: Callable | None = None,
-                 simulate: Callable | None = None, realize: Callable | None = None):
+    def __init__(
+        self,
+        name: str,
+        channel: str,
+        params: Sequence[Param],
+        fn: Callable,
+        *,
+        needs: Sequence[str] = (),
+        signature: str = "",
+        nuisance_grid: dict | None = None,
+        applies: Callable | None = None,
+        simulate: Callable | None = None,
+        realize: Callable | None = None,
+    ):
         self._realize = realize
         self.name = name
         self.channel = channel
@@ -471,9 +494,19 @@ class FreeParameterEffect(Effect):
         to the unsteady model with every lag off); must be the same model.
     """
 
-    def __init__(self, name: str, channel: str, param: Param, models: Sequence[str], *,
-                 convert: Callable | None = None, needs: Sequence[str] = (), signature: str = "",
-                 simulate: Callable | None = None, bounds: tuple | None = None):
+    def __init__(
+        self,
+        name: str,
+        channel: str,
+        param: Param,
+        models: Sequence[str],
+        *,
+        convert: Callable | None = None,
+        needs: Sequence[str] = (),
+        signature: str = "",
+        simulate: Callable | None = None,
+        bounds: tuple | None = None,
+    ):
         self.name = name
         self.channel = channel
         self.params = (param,)
@@ -581,14 +614,16 @@ def resolve_effect(spec, model: Model | None = None) -> Effect:
         for e in variants:
             if e.channel == channel or set(e.channel.split(",")) == set(channel.split(",")):
                 return e
-        raise ParameterError(f"effect {name} has no channel {channel!r}; its channels: "
-                             f"{', '.join(e.channel for e in variants)}")
+        raise ParameterError(
+            f"effect {name} has no channel {channel!r}; its channels: {', '.join(e.channel for e in variants)}"
+        )
     if len(variants) > 1 and model is not None:
         usable = [e for e in variants if e.applicable(model, model.inputs, CHANNELS) is None]
         variants = usable if len(usable) == 1 else variants
     if len(variants) > 1:
-        raise ParameterError(f"effect {name} acts on one of {', '.join(e.channel for e in variants)}: "
-                             f"give {name}:CHANNEL")
+        raise ParameterError(
+            f"effect {name} acts on one of {', '.join(e.channel for e in variants)}: give {name}:CHANNEL"
+        )
     return variants[0]
 
 
@@ -610,8 +645,9 @@ def with_effects(model: Model, effects) -> Model:
     for spec in specs:
         eff = resolve_effect(spec, model)
         if eff.kind != "deterministic":
-            raise ParameterError(f"effect {eff.key} is a noise model tested by fdml diagnose, "
-                                 "not a part of the model's response")
+            raise ParameterError(
+                f"effect {eff.key} is a noise model tested by fdml diagnose, not a part of the model's response"
+            )
         if any(e.key == eff.key for e in parts):
             raise ParameterError(f"effect {eff.key} is already in the model")
         why = eff.applicable(model, model.inputs, CHANNELS)
@@ -622,8 +658,9 @@ def with_effects(model: Model, effects) -> Model:
         parts.append(impl)
     if not parts:
         return model
-    return AugmentedModel(root=root_model(model), effects=applied_effects(model), requested=tuple(parts),
-                          parameters=model.parameters)
+    return AugmentedModel(
+        root=root_model(model), effects=applied_effects(model), requested=tuple(parts), parameters=model.parameters
+    )
 
 
 def assemble(root: Model, keys: Sequence[str]) -> Model:
@@ -660,8 +697,10 @@ def check_effects(model: Model, outputs: Sequence[str], inputs: Sequence[str] | 
     for eff in getattr(model, "requested", ()):
         why = Effect.applicable(eff, model, inputs, outputs)  # channels and needs only
         if why is not None:
-            raise ParameterError(f"effect {eff.key} {why} (outputs: {','.join(outputs)}); "
-                                 "add the channel to the outputs or drop the effect")
+            raise ParameterError(
+                f"effect {eff.key} {why} (outputs: {','.join(outputs)}); "
+                "add the channel to the outputs or drop the effect"
+            )
 
 
 def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], tol: float = 1e-5) -> list:
@@ -709,16 +748,38 @@ def catalogue() -> list[dict]:
     out = []
     for eff in registered_effects():
         impls = getattr(eff, "impls", None)
-        per = impls if impls is not None else {k: eff for k in MODEL_KINDS
-                                               if not hasattr(eff, "models") or k in eff.models}
+        per = (
+            impls
+            if impls is not None
+            else {k: eff for k in MODEL_KINDS if not hasattr(eff, "models") or k in eff.models}
+        )
         params = {}
         for kind, imp in per.items():
-            params[kind] = [{"name": p.name, "unit": p.unit, "null": p.null, "lower": p.lower, "upper": p.upper,
-                             "plausible": list(p.plausible) if p.plausible else None,
-                             "nuisance": p.nuisance, "description": p.description} for p in imp.params]
-        out.append({"key": eff.key, "name": eff.name, "channel": eff.channel, "kind": eff.kind,
-                    "needs": list(eff.needs), "signature": eff.signature, "models": list(per),
-                    "parameters": params})
+            params[kind] = [
+                {
+                    "name": p.name,
+                    "unit": p.unit,
+                    "null": p.null,
+                    "lower": p.lower,
+                    "upper": p.upper,
+                    "plausible": list(p.plausible) if p.plausible else None,
+                    "nuisance": p.nuisance,
+                    "description": p.description,
+                }
+                for p in imp.params
+            ]
+        out.append(
+            {
+                "key": eff.key,
+                "name": eff.name,
+                "channel": eff.channel,
+                "kind": eff.kind,
+                "needs": list(eff.needs),
+                "signature": eff.signature,
+                "models": list(per),
+                "parameters": params,
+            }
+        )
     return out
 
 
@@ -785,11 +846,9 @@ def default_library(names: Sequence[str] | None = None) -> tuple:
     out = tuple(e for e in effs if e.name in wanted or e.key in wanted)
     unknown = wanted - {e.name for e in out} - {e.key for e in out}
     if unknown:
-        raise ParameterError(f"unknown effect(s) {sorted(unknown)}; known: "
-                             f"{', '.join(sorted({e.name for e in effs}))}")
+        raise ParameterError(f"unknown effect(s) {sorted(unknown)}; known: {', '.join(sorted({e.name for e in effs}))}")
     return out
 
 
 def _ensure_builtins() -> None:
     from . import effect_library  # noqa: F401  (registers the built-in effects on import)
-

@@ -79,17 +79,19 @@ class Nuisance(NamedTuple):
     input_bias: float | None = None
 
     @classmethod
-    def from_vector(cls, eta: np.ndarray, *, boundary: bool, state_biases: bool,
-                    input_bias: bool) -> Nuisance:
+    def from_vector(cls, eta: np.ndarray, *, boundary: bool, state_biases: bool, input_bias: bool) -> Nuisance:
         """From the ten values ``eta`` in :data:`NUISANCE_NAMES` order; flags say which terms are on."""
         eta = np.asarray(eta, float)
-        return cls(biases=eta[0:3], x0=eta[3:5] if boundary else None, xT=eta[5:7] if boundary else None,
-                   state_biases=eta[7:9] if state_biases else None,
-                   input_bias=float(eta[9]) if input_bias else None)
+        return cls(
+            biases=eta[0:3],
+            x0=eta[3:5] if boundary else None,
+            xT=eta[5:7] if boundary else None,
+            state_biases=eta[7:9] if state_biases else None,
+            input_bias=float(eta[9]) if input_bias else None,
+        )
 
     @classmethod
-    def from_values(cls, values: Mapping[str, float], suffix: str, *, biases, x0, xT,
-                    boundary: bool) -> Nuisance:
+    def from_values(cls, values: Mapping[str, float], suffix: str, *, biases, x0, xT, boundary: bool) -> Nuisance:
         """From estimates by name (``bias_alpha[suffix]``, ``x0_q[suffix]``, ...).
 
         ``biases``, ``x0``, ``xT`` are the values of the terms that were not
@@ -98,16 +100,19 @@ class Nuisance(NamedTuple):
         present.  The one place where the names of a result's per-record
         nuisance estimates are read.
         """
+
         def get(names, default):
             return np.array([values.get(n + suffix, v) for n, v in zip(names, default)], float)
 
         sb_on = any(n + suffix in values for n in STATE_BIAS_NAMES)
         ib = values.get(INPUT_BIAS_NAME + suffix)
-        return cls(biases=get(OUTPUT_BIAS_NAMES, biases),
-                   x0=get(BOUNDARY_NAMES[:2], x0) if boundary else None,
-                   xT=get(BOUNDARY_NAMES[2:], xT) if boundary else None,
-                   state_biases=get(STATE_BIAS_NAMES, (0.0, 0.0)) if sb_on else None,
-                   input_bias=None if ib is None else float(ib))
+        return cls(
+            biases=get(OUTPUT_BIAS_NAMES, biases),
+            x0=get(BOUNDARY_NAMES[:2], x0) if boundary else None,
+            xT=get(BOUNDARY_NAMES[2:], xT) if boundary else None,
+            state_biases=get(STATE_BIAS_NAMES, (0.0, 0.0)) if sb_on else None,
+            input_bias=None if ib is None else float(ib),
+        )
 
     def boundary(self, shift: np.ndarray) -> np.ndarray | None:
         """The boundary vector d(w) (:func:`boundary_vector`), or None without boundary terms."""
@@ -136,9 +141,15 @@ def boundary_vector(x0: np.ndarray, xT: np.ndarray, shift: np.ndarray) -> np.nda
     return x0[None, :] - xT[None, :] * shift[:, None]
 
 
-def predict(response, u: np.ndarray, ones: np.ndarray, boundary: np.ndarray | None = None,
-            biases: np.ndarray | None = None, state_biases: np.ndarray | None = None,
-            input_bias: float | None = None) -> np.ndarray:
+def predict(
+    response,
+    u: np.ndarray,
+    ones: np.ndarray,
+    boundary: np.ndarray | None = None,
+    biases: np.ndarray | None = None,
+    state_biases: np.ndarray | None = None,
+    input_bias: float | None = None,
+) -> np.ndarray:
     """Model output spectra ``y = G u + H d + b 1 + P f 1 + G_de b_de 1`` (Eqs. 18-19, section 7).
 
     Parameters

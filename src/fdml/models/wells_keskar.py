@@ -71,8 +71,9 @@ class _WKBase(Model):
         return [Parameter(n, c[n], free=True, unit=u, description=d) for n, u, d in _THETA]
 
     def _tail_length_parameter(self) -> Parameter:
-        return Parameter("l_t", self.aircraft.l_t, free=False, lower=0.0, unit="m",
-                         description="tail length, c.g. to tail a.c.")
+        return Parameter(
+            "l_t", self.aircraft.l_t, free=False, lower=0.0, unit="m", description="tail length, c.g. to tail a.c."
+        )
 
     def _force_moment(self, s, p, N_w, N_t, E, Kg):
         """Assemble M, B of Eqs. 13-14 from the lift and downwash transfer functions.
@@ -195,9 +196,13 @@ class UnsteadyModel(_WKBase):
     def _default_parameters(self) -> Parameters:
         c = self.aircraft.constants
         fixed = [
-            Parameter("y_w", c["y_w"], free=False, lower=0.0, upper=1.0, unit="-", description="wing lift-lag amplitude"),
+            Parameter(
+                "y_w", c["y_w"], free=False, lower=0.0, upper=1.0, unit="-", description="wing lift-lag amplitude"
+            ),
             Parameter("z_w", c["z_w"], free=False, lower=0.0, unit="-", description="wing lift-lag rate per semichord"),
-            Parameter("y_t", c["y_t"], free=False, lower=0.0, upper=1.0, unit="-", description="tail lift-lag amplitude"),
+            Parameter(
+                "y_t", c["y_t"], free=False, lower=0.0, upper=1.0, unit="-", description="tail lift-lag amplitude"
+            ),
             Parameter("z_t", c["z_t"], free=False, lower=0.0, unit="-", description="tail lift-lag rate per semichord"),
             Parameter("F", c["F"], free=False, unit="-", description="downwash starting-vortex strength (Eq. 2)"),
             Parameter("G", c["G"], free=False, unit="-", description="downwash lag amplitude (Eq. 2)"),
@@ -205,8 +210,16 @@ class UnsteadyModel(_WKBase):
             self._tail_length_parameter(),
         ]
         if self.gust and self.gust_lag == "bs12":
-            fixed.append(Parameter("b1", c["b1"], free=False, lower=0.0, unit="semichords",
-                                   description="Kussner lag length, T* = c b1/(2U) (BS-12)"))
+            fixed.append(
+                Parameter(
+                    "b1",
+                    c["b1"],
+                    free=False,
+                    lower=0.0,
+                    unit="semichords",
+                    description="Kussner lag length, T* = c b1/(2U) (BS-12)",
+                )
+            )
         return Parameters(tuple(self._theta_parameters() + fixed))
 
     def _gust_lag(self, s, p) -> np.ndarray:
