@@ -231,44 +231,32 @@ def _adot_realize(d, p, root):
     return type(d)(E, d.A, d.B0, B1, d.channels)
 
 
+# On both Wells-Keskar models the downwash lag frees G (the steady model is rewritten as the
+# unsteady one with every lag off, THEORY.md section 6): one effect serves both.
+_WK_DOWNWASH_G = FreeParameterEffect(
+    "downwash_lag",
+    "q",
+    Param(
+        "G",
+        None,
+        lower=0.0,
+        upper=1.0,
+        plausible=(0.0, 1.0),
+        unit="-",
+        start=0.05,
+        description="downwash lag amplitude (Eq. 2)",
+    ),
+    ("unsteady", "steady"),
+    convert=to_unsteady_equivalent,
+    bounds=(0.0, 1.0),
+)
+
 DOWNWASH_LAG = Dispatch(
     "downwash_lag",
     "q",
     {
-        "unsteady": FreeParameterEffect(
-            "downwash_lag",
-            "q",
-            Param(
-                "G",
-                None,
-                lower=0.0,
-                upper=1.0,
-                plausible=(0.0, 1.0),
-                unit="-",
-                start=0.05,
-                description="downwash lag amplitude (Eq. 2)",
-            ),
-            ("unsteady", "steady"),
-            convert=to_unsteady_equivalent,
-            bounds=(0.0, 1.0),
-        ),
-        "steady": FreeParameterEffect(
-            "downwash_lag",
-            "q",
-            Param(
-                "G",
-                None,
-                lower=0.0,
-                upper=1.0,
-                plausible=(0.0, 1.0),
-                unit="-",
-                start=0.05,
-                description="downwash lag amplitude (Eq. 2)",
-            ),
-            ("unsteady", "steady"),
-            convert=to_unsteady_equivalent,
-            bounds=(0.0, 1.0),
-        ),
+        "unsteady": _WK_DOWNWASH_G,
+        "steady": _WK_DOWNWASH_G,
         "derivatives": FreeParameterEffect(
             "downwash_lag",
             "q",
