@@ -98,3 +98,14 @@ def _data_dir_or_skip():
 
 
 _paths.data_dir = _data_dir_or_skip  # data_path looks data_dir up here at call time
+
+
+def assert_refused_in_one_line(code, err: str, expected=()) -> None:
+    """A command-line refusal: exit code 2, one ``fdml: error:`` line holding every ``expected`` text."""
+    lines = err.splitlines()
+    assert code == 2, err
+    assert len(lines) == 1, err
+    assert lines[0].startswith("fdml: error: ")
+    assert "internal error" not in err and "Traceback" not in err
+    for text in expected:
+        assert text in lines[0], (text, lines[0])

@@ -15,6 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import assert_refused_in_one_line
 
 from fdml.aircraft import MAX_AIRSPEED, Aircraft, get_aircraft
 from fdml.cli import main
@@ -182,14 +183,7 @@ def test_command_line_refuses_with_one_line(files, capsys, argv, expected):
         code = main([a.format(**files) for a in argv])
     except SystemExit as exc:  # argparse usage errors (--seed -1, --workers -2) exit through SystemExit(2)
         code = exc.code
-    err = capsys.readouterr().err
-    lines = err.splitlines()
-    assert code == 2, err
-    assert len(lines) == 1, err
-    assert lines[0].startswith("fdml: error: ")
-    assert "internal error" not in err and "Traceback" not in err
-    for text in expected:
-        assert text.format(**files) in lines[0], (text, lines[0])
+    assert_refused_in_one_line(code, capsys.readouterr().err, [t.format(**files) for t in expected])
 
 
 def test_bom_csv_is_read_like_the_plain_file(files):

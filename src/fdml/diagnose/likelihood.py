@@ -160,11 +160,19 @@ def fit_model(
             check=False,
             adequacy=False,
         )
-        prob = prepare(items, res.model, outputs=outputs, boundary=boundary, biases=biases)
+    stderr = dict(zip(res.names, np.asarray(res.stderr, float).tolist()))
+    return diag_fit(res, data, bands, stderr, outputs=outputs, boundary=boundary, biases=biases)
+
+
+def diag_fit(res, data: AnalysisData, bands: NoiseBands, stderr: dict, **options) -> DiagFit:
+    """A :class:`DiagFit` of the fit ``res``: its problem rebuilt with ``options``, band-wise cost."""
+    items = list(data.spectra)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        prob = prepare(items, res.model, **options)
     theta = np.array([res.params[n] for n in prob.names], float)
     V = prob.residuals(theta)
     C, Rs = band_cost(V, bands.assign(data.stacked_omega()), bands.n)
-    stderr = dict(zip(res.names, np.asarray(res.stderr, float).tolist()))
     return DiagFit(
         model=res.model,
         names=tuple(prob.names),

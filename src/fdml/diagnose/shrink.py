@@ -25,7 +25,7 @@ import numpy as np
 from ..estimate import fit as fdml_fit
 from ..models.effects import CHANNELS
 from .data import AnalysisData
-from .likelihood import DiagFit, NoiseBands, band_cost
+from .likelihood import DiagFit, NoiseBands, diag_fit
 from .locate import GapMap, forced_response, gap_map
 
 __all__ = ["fit_map", "shrink", "footprint", "compensation", "parameter_shifts", "frozen_fit"]
@@ -161,28 +161,9 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
 
 def frozen_fit(data: AnalysisData, model, bands: NoiseBands, options: dict) -> DiagFit:
     """The model with every model parameter frozen; only each record's nuisance terms are fitted (hold-out)."""
-    from ..estimate import prepare
-
     frozen = model.with_parameters(model.parameters.only_free([]))
-    items = list(data.spectra)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         # the records were checked once (core._data_findings); a frozen model needs no adequacy check
-        res = fdml_fit(items, frozen, cov_type="naive", check=False, adequacy=False, **options)
-        prob = prepare(items, res.model, **options)
-    theta = np.array([res.params[n] for n in prob.names], float)
-    V = prob.residuals(theta)
-    C, Rs = band_cost(V, bands.assign(data.stacked_omega()), bands.n)
-    return DiagFit(
-        model=res.model,
-        names=tuple(prob.names),
-        theta=theta,
-        stderr={},
-        V=V,
-        cost=C,
-        Rs=Rs,
-        converged=bool(res.converged),
-        message=res.message,
-        prob=prob,
-        result=res,
-    )
+        res = fdml_fit(list(data.spectra), frozen, cov_type="naive", check=False, adequacy=False, **options)
+    return diag_fit(res, data, bands, {}, **options)
