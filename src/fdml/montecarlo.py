@@ -64,16 +64,7 @@ def run_trial(task: Mapping) -> dict:
     from .record import add_noise
 
     i = task["index"]
-    row = {
-        "index": i,
-        "ok": False,
-        "converged": False,
-        "iterations": 0,
-        "elapsed": math.nan,
-        "values": None,
-        "stderr": None,
-        "error": "",
-    }
+    row = _trial_error(task, "")  # the row of a trial that has not succeeded (yet)
     try:
         rng = np.random.default_rng(np.random.SeedSequence(task["seed"], spawn_key=(i,)))
         noise = task["noise"]
