@@ -1,0 +1,104 @@
+"""Warnings kept with the result they belong to.
+
+Every fdml computation that returns a result (a fit, a batch row, a Monte
+Carlo trial, a diagnosis) records the warnings raised while it ran, with
+their category, in the result itself, so that none is lost when the
+computation runs in a worker process or under a caller's warning filter.
+:func:`recording` is the one way to do that: it catches every warning raised
+inside it, keeps it as a :class:`RecordedWarning`, and (by default) raises it
+again on leaving, so that the caller's own filters still decide what is shown.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Iterable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+__all__ = ["RecordedWarning", "recording", "as_recorded"]
+
+
+@dataclass(frozen=True)
+class RecordedWarning:
+    """One warning, as kept in a result.
+
+    Attributes
+    ----------
+    category : str
+        The warning class's name, e.g. ``"DataWarning"``.
+    message : str
+        The warning's text.
+    """
+
+    category: str
+    message: str
+
+    def __str__(self) -> str:
+        return f"{self.category}: {self.message}"
+
+    def to_dict(self) -> dict[str, str]:
+        """``{"category": ..., "message": ...}`` for JSON."""
+        return {"category": self.category, "message": self.message}
+
+    @classmethod
+    def from_value(cls, value) -> RecordedWarning:
+        """A recorded warning from its dict, its ``"Category: message"`` string or itself."""
+        if isinstance(value, RecordedWarning):
+            return value
+        if isinstance(value, dict):
+            return cls(str(value.get("category", "UserWarning")), str(value.get("message", "")))
+        text = str(value)
+        head, sep, tail = text.partition(": ")
+        if sep and head.isidentifier() and head.endswith("Warning"):
+            return cls(head, tail)
+        return cls("UserWarning", text)
+
+
+def as_recorded(values: Iterable) -> tuple[RecordedWarning, ...]:
+    """Recorded warnings from dicts, strings or recorded warnings, first occurrence of each kept."""
+    out: dict[RecordedWarning, None] = {}
+    for v in values:
+        out.setdefault(RecordedWarning.from_value(v), None)
+    return tuple(out)
+
+
+@contextmanager
+def recording(reemit: bool = True) -> Iterator[list[RecordedWarning]]:
+    """Record every warning raised inside the block.
+
+    Parameters
+    ----------
+    reemit : bool
+        Raise each recorded warning again on leaving the block (through
+        :func:`warnings.warn_explicit`, with its original category and place),
+        so that the caller's filters decide whether it is shown. ``False``
+        where the result that keeps them is all the caller will see.
+
+    Yields
+    ------
+    list of RecordedWarning
+        Filled when the block ends, first occurrence of each warning only.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> with recording(reemit=False) as log:
+    ...     warnings.warn("ends far from trim", UserWarning)
+    >>> [str(w) for w in log]
+    ['UserWarning: ends far from trim']
+    """
+    log: list[RecordedWarning] = []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield log
+        finally:
+            seen = list(caught)
+    log.extend(as_recorded(RecordedWarning(w.category.__name__, str(w.message)) for w in seen))
+    if reemit:
+        firsts: dict[tuple[str, str], warnings.WarningMessage] = {}
+        for w in seen:
+            firsts.setdefault((w.category.__name__, str(w.message)), w)
+        for w in firsts.values():
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
