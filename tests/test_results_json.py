@@ -165,9 +165,11 @@ def assert_same(a: FitResult, b: FitResult) -> None:
         assert ra["signals"].keys() == rb["signals"].keys()
         for k in ra["signals"]:
             _same_array(ra["signals"][k], rb["signals"][k], f"time_records signal {k}")
-        assert to_jsonable(ra["meta"]) == rb["meta"]
+        assert to_jsonable(ra["meta"]) == to_jsonable(rb["meta"])  # frozen: lists kept as tuples
     assert a.adequacy == b.adequacy  # fdml.adequacy: floats and strings only, so exact
-    assert to_jsonable(a.provenance) == b.provenance  # plain data (fdml.conditions)
+    assert to_jsonable(a.provenance) == to_jsonable(b.provenance)  # plain data (fdml.conditions), frozen
+    assert a.slots == b.slots  # issue 10: typed roles and records of the estimates
+    assert a.options == b.options  # issue 10: every option of the fit
     # nothing was forgotten: every field of the dataclass is covered above
     assert {f.name for f in dataclasses.fields(FitResult)} == {
         "model",
@@ -202,6 +204,8 @@ def assert_same(a: FitResult, b: FitResult) -> None:
         "findings",
         "adequacy",
         "provenance",
+        "slots",
+        "options",
     }
 
 

@@ -794,8 +794,8 @@ def attach(prob, result, V, sensitivities=None):
 
     Called by :func:`fdml.estimate.fit` after a converged fit (``sensitivities``: the fit's
     ``prob.sensitivities`` at the estimate, when it has them).  The warning
-    (:class:`~fdml.errors.AdequacyWarning`) is also kept in ``result.warnings``,
-    as every warning of a fit.  A check that cannot run says so in a warning;
+    (:class:`~fdml.errors.AdequacyWarning`) is kept in ``result.warnings`` by
+    :func:`fdml.estimate.fit`, which records every warning of a fit.  A check that cannot run says so in a warning;
     it never fails the fit.
     """
     import warnings
@@ -807,10 +807,10 @@ def attach(prob, result, V, sensitivities=None):
         found = check(prob, result.values, V, result.R, sensitivities=sensitivities)
     except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:
         msg = f"the adequacy check could not run: {exc}"
-        warnings.warn(msg, AdequacyWarning, stacklevel=3)
-        return replace(result, warnings=(*result.warnings, msg))
+        warnings.warn(msg, AdequacyWarning, stacklevel=4)
+        return result
     msg = advice(found)
     if msg is None:
         return replace(result, adequacy=found)
-    warnings.warn(msg, AdequacyWarning, stacklevel=3)
-    return replace(result, adequacy=found, warnings=(*result.warnings, msg))
+    warnings.warn(msg, AdequacyWarning, stacklevel=4)
+    return replace(result, adequacy=found)

@@ -503,7 +503,7 @@ def run_task(task: Mapping) -> dict:
             cost=_num(res.cost),
             elapsed=float(res.elapsed),
             n_freq=int(res.n_freq),
-            warnings="; ".join(res.warnings),
+            warnings="; ".join(map(str, res.warnings)),
             findings=" ".join(f.code for f in res.findings),
             result_file=str(Path("results") / res_path.name),
             params={n: float(v) for n, v in zip(res.names, res.values)},

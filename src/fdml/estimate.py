@@ -61,22 +61,20 @@ from .models.measurement import (
     nuisance_columns,
 )
 from .models.measurement import predict as _measure
-from .parameters import as_names, check_fix_free
+from .parameters import Role, as_names, check_fix_free
 from .record import Record
 from .results import FitResult, IterationInfo
 from .spectra import FrequencyData, spectra
+from .warning_log import recording
 
 __all__ = ["NoiseModel", "Problem", "fit", "parse_outputs", "prepare"]
 
-_BOUNDARY_NAMES = BOUNDARY_NAMES  # x(0), x(T) of alpha and q (THEORY.md section 7)
-#: State-equation biases: constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations.
-_STATE_BIAS_NAMES = STATE_BIAS_NAMES
-#: Base name of each nuisance slot kind, by the slot's index (fdml.models.measurement order).
+#: Base names of each nuisance role, by the slot's index (fdml.models.measurement order).
 _NUISANCE_BASE = {
-    "bias": OUTPUT_BIAS_NAMES,
-    "boundary": BOUNDARY_NAMES,
-    "sbias": STATE_BIAS_NAMES,
-    "ibias": (INPUT_BIAS_NAME,),
+    Role.OUTPUT_BIAS: OUTPUT_BIAS_NAMES,
+    Role.BOUNDARY: BOUNDARY_NAMES,  # x(0), x(T) of alpha and q (THEORY.md section 7)
+    Role.STATE_BIAS: STATE_BIAS_NAMES,  # constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations
+    Role.INPUT_BIAS: (INPUT_BIAS_NAME,),
 }
 _BOUNDARY_COLS = [NUISANCE_NAMES.index(n) for n in BOUNDARY_NAMES]
 #: Relative change at which Eq. 26 sensitivities count as settled (THEORY.md 7).
@@ -94,12 +92,20 @@ _END_OFFSET_WARN = 0.1
 
 @dataclass(frozen=True)
 class _Slot:
-    """Where one estimated quantity lives: a model parameter or a nuisance term."""
+    """Where one estimated quantity lives: a model parameter or a nuisance term of one record.
+
+    ``name`` is the estimate's name (``bias_q[rec]`` for a record's term in a
+    fit of several records), ``base`` the parameter's own (``bias_q``),
+    ``role`` what it is, ``record`` the record's index (-1 for the shared model
+    parameters) and ``index`` its place among the base names of its role
+    (:data:`_NUISANCE_BASE`; -1 for model parameters).
+    """
 
     name: str
-    kind: str  # "model" | "bias" | "boundary"
-    record: int  # -1 for shared model parameters
-    index: int  # output index for bias, boundary index (0..3) for boundary
+    base: str
+    role: Role
+    record: int = -1
+    index: int = -1
 
 
 class Problem:
@@ -127,33 +133,27 @@ class Problem:
         self.sensitivity = sensitivity
         multi = len(data) > 1
         slots: list[_Slot] = []
-        for name in model.parameters.free_names:
-            if not name.startswith("bias_"):
-                slots.append(_Slot(name, "model", -1, -1))
+        for name in model.parameters.free_model_names:
+            slots.append(_Slot(name, name, model.parameters[name].role))
         for r, d in enumerate(data):
             suffix = f"[{d.name}]" if multi else ""
-            for k in outputs:
-                bname = OUTPUT_BIAS_NAMES[k]
-                if model.parameters[bname].free:
-                    slots.append(_Slot(bname + suffix, "bias", r, k))
-            if boundary == "estimated":
-                for j, bn in enumerate(_BOUNDARY_NAMES):
-                    slots.append(_Slot(bn + suffix, "boundary", r, j))
-            if state_biases:
-                for j, bn in enumerate(_STATE_BIAS_NAMES):
-                    slots.append(_Slot(bn + suffix, "sbias", r, j))
-            if input_bias:
-                slots.append(_Slot(INPUT_BIAS_NAME + suffix, "ibias", r, 0))
+            places = [(Role.OUTPUT_BIAS, k) for k in outputs if model.parameters[OUTPUT_BIAS_NAMES[k]].free]
+            places += [(Role.BOUNDARY, j) for j in range(len(BOUNDARY_NAMES)) if boundary == "estimated"]
+            places += [(Role.STATE_BIAS, j) for j in range(len(STATE_BIAS_NAMES)) if state_biases]
+            places += [(Role.INPUT_BIAS, 0)] if input_bias else []
+            for role, j in places:
+                base = _NUISANCE_BASE[role][j]
+                slots.append(_Slot(base + suffix, base, role, r, j))
         self.state_biases = state_biases
         self.input_bias = input_bias
         self.slots = slots
         self.names = tuple(s.name for s in slots)
-        self.model_slots = [i for i, s in enumerate(slots) if s.kind == "model"]
+        self.model_slots = [i for i, s in enumerate(slots) if not s.role.nuisance]
         # per record: the nuisance slots and their places in the measurement model's nuisance vector
         self._nu = []
         for r in range(len(data)):
             own = [i for i, s in enumerate(slots) if s.record == r]
-            cols = [NUISANCE_NAMES.index(_NUISANCE_BASE[slots[i].kind][slots[i].index]) for i in own]
+            cols = [NUISANCE_NAMES.index(slots[i].base) for i in own]
             self._nu.append((np.array(own, int), np.array(cols, int)))
         self._shift = [end_shift(d.omega, d.T) for d in data]  # exp(-j w T) of each record
         self._eta0: tuple[Model | None, list[np.ndarray]] = (
@@ -170,11 +170,9 @@ class Problem:
         p = self.model.parameters.values
         out = []
         for s in self.slots:
-            if s.kind == "model":
-                out.append(p[s.name])
-            elif s.kind == "bias":
-                out.append(p[f"bias_{OUTPUTS[s.index]}"])
-            elif s.kind in ("sbias", "ibias"):
+            if not s.role.nuisance or s.role is Role.OUTPUT_BIAS:
+                out.append(p[s.base])
+            elif s.role in (Role.STATE_BIAS, Role.INPUT_BIAS):
                 out.append(0.0)
             else:
                 d = self.data[s.record]
@@ -185,7 +183,7 @@ class Problem:
         """Lower and upper bounds per slot."""
         lo, hi = [], []
         for s in self.slots:
-            if s.kind == "model":
+            if not s.role.nuisance:
                 par = self.model.parameters[s.name]
                 lo.append(par.lower)
                 hi.append(par.upper)
@@ -494,8 +492,7 @@ def prepare(
     if sensitivity == "auto":
         # analytic where every free model parameter has a closed form, else Eq. 26
         closed: frozenset = getattr(model, "closed_form_parameters", frozenset())
-        free_model = [n for n in model.parameters.free_names if not n.startswith("bias_")]
-        sensitivity = "analytic" if all(n in closed for n in free_model) else "fd"
+        sensitivity = "analytic" if all(n in closed for n in model.parameters.free_model_names) else "fd"
     prob = Problem(fdata, model, out_idx, boundary, sensitivity, bool(state_biases), bool(input_bias))
     p = len(prob.slots)
     if p == 0:
@@ -851,8 +848,9 @@ def fit(
     Returns
     -------
     FitResult
+        With every warning raised during the fit in ``warnings`` (each also
+        raised as usual) and every option above in ``options``.
     """
-    t_start = time.perf_counter()
     if method not in ("lm", "gauss-newton"):
         raise FdmlError(f"method must be 'lm' or 'gauss-newton', got {method!r}")
     if stop not in ("converge", "paper"):
@@ -862,10 +860,7 @@ def fit(
     noise = NoiseModel() if noise is None else noise
     if not isinstance(noise, NoiseModel):
         raise FdmlError(f"noise must be an fdml.estimate.NoiseModel, got {type(noise).__name__}")
-    prob = prepare(
-        data,
-        model,
-        omega=omega,
+    options = dict(
         band=band,
         outputs=outputs,
         boundary=boundary,
@@ -875,13 +870,77 @@ def fit(
         free=free,
         fix=fix,
         bounds=bounds,
+        method=method,
+        stop=stop,
+        tol=tol,
+        max_iter=max_iter,
         sensitivity=sensitivity,
+        cov_type=cov_type,
+        noise=noise,
         trim=trim,
         trim_window=trim_window,
         end_correction=end_correction,
+        check=check,
+        strict=strict,
+        adequacy=adequacy,
     )
-    found = (_data_findings(prob, strict) if check else []) + _end_findings(prob)
-    emit(found, stacklevel=2)
+    with recording() as log:  # fdml.warning_log: every warning of the fit is kept in its result
+        res, prob = _fit(data, model, omega, callback, **options)
+    return replace(res, warnings=tuple(log), options=_stored_options(options, prob))
+
+
+def _stored_options(options: dict, prob: Problem) -> dict:
+    """The options of a fit as plain data for :attr:`FitResult.options` (``auto`` choices as resolved)."""
+    out = dict(options)
+    out["noise"] = list(options["noise"].edges)
+    out["sensitivity"] = prob.sensitivity
+    out["biases"] = any(s.role is Role.OUTPUT_BIAS for s in prob.slots)
+    out["outputs"] = [OUTPUTS[k] for k in prob.out_idx]
+    fix = options["fix"]
+    out["fix"] = {k: float(v) for k, v in fix.items()} if isinstance(fix, Mapping) else as_names(fix, "fix")
+    out["free"] = as_names(options["free"], "free")
+    out["bounds"] = {k: [_finite_or_none(x) for x in pair] for k, pair in (options["bounds"] or {}).items()}
+    band = options["band"]
+    out["band"] = band if band is None or isinstance(band, str) else [float(x) for x in band]
+    return out
+
+
+#: The options of :func:`fit` that :func:`prepare` takes.
+_PREPARE_OPTIONS = (
+    "band",
+    "outputs",
+    "boundary",
+    "biases",
+    "state_biases",
+    "input_bias",
+    "free",
+    "fix",
+    "bounds",
+    "sensitivity",
+    "trim",
+    "trim_window",
+    "end_correction",
+)
+
+
+def _finite_or_none(x) -> float | None:
+    """A bound as stored: a finite number, or None for an open side."""
+    return None if x is None or not math.isfinite(float(x)) else float(x)
+
+
+def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Problem]:
+    """:func:`fit` after its arguments are checked: the result (without its warnings and options) and the problem."""
+    t_start = time.perf_counter()
+    method, stop, tol, cov_type = options["method"], options["stop"], options["tol"], options["cov_type"]
+    prob = prepare(
+        data,
+        model,
+        omega=omega,
+        **{k: options[k] for k in _PREPARE_OPTIONS},
+    )
+    max_iter, noise = options["max_iter"], options["noise"]
+    found = (_data_findings(prob, options["strict"]) if options["check"] else []) + _end_findings(prob)
+    emit(found, stacklevel=3)
     theta = prob.initial()
     lo, hi = prob.bounds()
     theta = _project(theta, lo, hi)
@@ -896,7 +955,6 @@ def fit(
     A_final = None
     message = "maximum number of iterations reached"
     it = 0
-    warned: list[str] = []
     rel_prev = math.inf
     for it in range(1, max_iter + 1):
         # Eq. 26 columns settled to 1e-4 while far from the optimum; near it, tight central
@@ -955,8 +1013,7 @@ def fit(
                 message = "converged: no further decrease of det R" if converged else "stalled: no step decreases det R"
                 break
     if not converged and not stopped:
-        warned.append(f"fit did not converge: {message}")  # kept in the result, as every warning
-        warnings.warn(warned[-1], ConvergenceWarning, stacklevel=2)
+        warnings.warn(f"fit did not converge: {message}", ConvergenceWarning, stacklevel=3)
     res = _finish(
         prob,
         theta,
@@ -967,7 +1024,6 @@ def fit(
         converged,
         message,
         cov_type,
-        warned,
         time.perf_counter() - t_start,
         stopped,
         method,
@@ -976,14 +1032,14 @@ def fit(
         rows,
     )
     res = replace(res, findings=tuple(found)) if found else res
-    if adequacy and converged:
+    if options["adequacy"] and converged:
         from .adequacy import attach
 
         # fdml.adequacy: checks the fit, warns when it flags anything; analytic sensitivities at the
         # estimate do not depend on the settling tolerance, so the last ones serve the check too
         A_est = A_final if prob.sensitivity == "analytic" else None
         res = attach(prob, res, V, A_est)
-    return res
+    return res, prob
 
 
 def _data_findings(prob: Problem, strict: bool) -> list:
@@ -1169,7 +1225,6 @@ def _finish(
     converged,
     message,
     cov_type,
-    warned,
     elapsed,
     stopped,
     method,
@@ -1185,10 +1240,8 @@ def _finish(
     p_ = A.shape[2]
     M = np.real(A.reshape(-1, p_).conj().T @ (W @ A).reshape(-1, p_))  # Re sum A^H R^-1 A
     msgs, dead = _identifiability(2 * M / N, names)
-    for m in msgs:
-        if m not in warned:
-            warnings.warn(m, IdentifiabilityWarning, stacklevel=3)
-            warned.append(m)
+    for m in dict.fromkeys(msgs):
+        warnings.warn(m, IdentifiabilityWarning, stacklevel=4)
     live = np.array([n not in dead for n in names])
     cov_naive = np.full((len(names), len(names)), np.nan)
     cov = np.full_like(cov_naive, np.nan)
@@ -1220,9 +1273,8 @@ def _finish(
         for j in range(i):
             if np.isfinite(corr[i, j]) and abs(corr[i, j]) > 0.95:
                 m = f"parameters {names[j]} and {names[i]} are correlated at {corr[i, j]:+.3f} (beyond 0.95)"
-                warnings.warn(m, IdentifiabilityWarning, stacklevel=3)
-                warned.append(m)
-    model = prob.model.with_values({n: theta[i] for i, n in enumerate(names) if prob.slots[i].kind == "model"})
+                warnings.warn(m, IdentifiabilityWarning, stacklevel=4)
+    model = prob.model.with_values({n: theta[i] for i, n in enumerate(names) if not prob.slots[i].role.nuisance})
     return FitResult.build(
         prob=prob,
         model=model,
@@ -1237,7 +1289,6 @@ def _finish(
         converged=converged,
         message=message,
         cov_type=cov_type,
-        warnings=tuple(warned),
         elapsed=elapsed,
         stopped=stopped,
         method=method,

@@ -10,12 +10,70 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
+from enum import Enum
 
 import numpy as np
 
 from .errors import ParameterError
 
-__all__ = ["Parameter", "Parameters", "as_names", "check_fix_free"]
+__all__ = ["NUISANCE_ROLES", "Parameter", "Parameters", "Role", "Slot", "as_names", "check_fix_free"]
+
+
+class Role(str, Enum):
+    """What an estimated or fixed quantity is, typed rather than read from its name.
+
+    ``AERO``: a derivative or coefficient of the model's equations of motion;
+    ``DELAY``: a pure input time delay (``tau_de``), s; ``EFFECT``: a parameter
+    an effect adds (:mod:`fdml.models.effects`); ``OUTPUT_BIAS``: a constant on
+    a measured output (``bias_q``); ``STATE_BIAS``: a constant in a state
+    equation (``bias_q_dot``); ``INPUT_BIAS``: an elevator offset
+    (``bias_de``); ``BOUNDARY``: a boundary value x(0) or x(T) of the finite
+    transform (``x0_alpha``, THEORY.md section 7).  The value is the JSON form.
+    """
+
+    AERO = "aero"
+    DELAY = "delay"
+    EFFECT = "effect"
+    OUTPUT_BIAS = "output_bias"
+    STATE_BIAS = "state_bias"
+    INPUT_BIAS = "input_bias"
+    BOUNDARY = "boundary"
+
+    @property
+    def nuisance(self) -> bool:
+        """True for the measurement's nuisance terms (biases, boundary values), False for the model's own."""
+        return self in NUISANCE_ROLES
+
+
+#: Roles of the nuisance terms: not part of the model's dynamics, not reported as its parameters.
+NUISANCE_ROLES = frozenset({Role.OUTPUT_BIAS, Role.STATE_BIAS, Role.INPUT_BIAS, Role.BOUNDARY})
+
+
+@dataclass(frozen=True)
+class Slot:
+    """One estimated quantity of a fit, typed: what it is and which record it belongs to.
+
+    Attributes
+    ----------
+    name : str
+        The estimate's name in the result (``"bias_q[rec]"`` for a record's
+        nuisance term in a fit of several records, else the base name).
+    base : str
+        The quantity's own name (``"bias_q"``, ``"Cm_a"``).
+    role : Role
+    record : str or None
+        The record a nuisance term belongs to; None for the model's
+        parameters, which every record shares.
+    """
+
+    name: str
+    base: str
+    role: Role
+    record: str | None = None
+
+    def to_dict(self) -> dict:
+        """``{"base", "role", "record"}`` for JSON (the name is the result's)."""
+        return {"base": self.base, "role": self.role.value, "record": self.record}
 
 
 @dataclass(frozen=True)
@@ -36,6 +94,8 @@ class Parameter:
         Unit string for reports (``"1/rad"``, ``"s"``, ``"-"``).
     description : str, optional
         One line for summaries.
+    role : Role, optional
+        What the parameter is (default :attr:`Role.AERO`).
     """
 
     name: str
@@ -45,6 +105,7 @@ class Parameter:
     upper: float = math.inf
     unit: str = ""
     description: str = ""
+    role: Role = Role.AERO
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -59,6 +120,7 @@ class Parameter:
                 f"parameter {self.name!r}: value {v} lies outside its bounds [{self.lower}, {self.upper}]"
             )
         object.__setattr__(self, "value", v)
+        object.__setattr__(self, "role", _role(self.role, self.name))
 
     def to_dict(self) -> dict:
         """Return a JSON-ready dict (infinite bounds as None)."""
@@ -70,6 +132,7 @@ class Parameter:
             "upper": None if math.isinf(self.upper) else self.upper,
             "unit": self.unit,
             "description": self.description,
+            "role": self.role.value,
         }
 
     @classmethod
@@ -85,7 +148,18 @@ class Parameter:
             upper=math.inf if hi is None else float(hi),
             unit=d.get("unit", ""),
             description=d.get("description", ""),
+            role=_role(d.get("role", Role.AERO.value), d["name"]),
         )
+
+
+def _role(value, name: str) -> Role:
+    """``value`` as a :class:`Role` (its JSON string accepted); an unknown one is a one-line error."""
+    try:
+        return Role(value)
+    except ValueError:
+        raise ParameterError(
+            f"parameter {name!r}: unknown role {value!r}; one of {', '.join(r.value for r in Role)}"
+        ) from None
 
 
 @dataclass(frozen=True)
@@ -145,6 +219,11 @@ class Parameters:
     def free_names(self) -> tuple[str, ...]:
         """Names of the free parameters, in order."""
         return tuple(p.name for p in self.items if p.free)
+
+    @property
+    def free_model_names(self) -> tuple[str, ...]:
+        """Names of the free parameters that belong to the model itself (no nuisance :class:`Role`), in order."""
+        return tuple(p.name for p in self.items if p.free and not p.role.nuisance)
 
     @property
     def values(self) -> dict[str, float]:

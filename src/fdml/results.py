@@ -11,8 +11,10 @@ versioned JSON without loss (:meth:`FitResult.to_json`, :func:`load_result`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
 from pathlib import Path
+from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -21,6 +23,9 @@ from .errors import FdmlError
 from .findings import KINDS as _FINDING_KINDS
 from .findings import Finding
 from .jsoncodec import Fields, dumps, read_json, to_jsonable, write_json
+from .models.measurement import BOUNDARY_NAMES, INPUT_BIAS_NAME, NUISANCE_NAMES, STATE_BIAS_NAMES, Nuisance
+from .parameters import Role, Slot
+from .warning_log import RecordedWarning, as_recorded
 
 if TYPE_CHECKING:
     from .adequacy import Adequacy
@@ -49,8 +54,50 @@ class IterationInfo:
 
     iteration: int
     cost: float
-    params: dict
+    params: Mapping[str, float]
     step_in_stderr: float
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "params", frozen(self.params))
+
+    def __reduce__(self):
+        return (_rebuild, (type(self), _thawed_fields(self)))
+
+
+def frozen(value):
+    """``value`` made immutable all the way down: read-only arrays, mapping proxies, tuples for lists.
+
+    An array that is already read-only is kept (no copy); a writable one is
+    copied first, so the caller's array stays writable.
+    """
+    if isinstance(value, np.ndarray):
+        if value.flags.writeable:
+            value = value.copy()
+            value.setflags(write=False)
+        return value
+    if isinstance(value, Mapping):
+        return MappingProxyType({k: frozen(v) for k, v in value.items()})
+    if isinstance(value, (list, tuple)) and not hasattr(value, "_fields"):
+        return tuple(frozen(v) for v in value)
+    return value
+
+
+def _thawed(value):
+    """Mapping proxies back to dicts (they cannot be pickled); the rest as is."""
+    if isinstance(value, MappingProxyType):
+        return {k: _thawed(v) for k, v in value.items()}
+    if isinstance(value, tuple) and not hasattr(value, "_fields"):
+        return tuple(_thawed(v) for v in value)
+    return value
+
+
+def _thawed_fields(obj) -> dict:
+    return {f.name: _thawed(getattr(obj, f.name)) for f in fields(obj)}
+
+
+def _rebuild(cls, kwargs: dict):
+    """Unpickle a frozen result: construct it again (which freezes it again)."""
+    return cls(**kwargs)
 
 
 @dataclass(frozen=True)
@@ -95,8 +142,9 @@ class FitResult:
     records : tuple of str
     boundary, cov_type, method, stop : str
         Options used.
-    warnings : tuple of str
-        Warnings raised during the fit.
+    warnings : tuple of RecordedWarning
+        Every warning raised during the fit, with its category
+        (:mod:`fdml.warning_log`), in the order first raised.
     elapsed : float
         Wall-clock time of the fit, s.
     spectra : tuple of dict
@@ -113,6 +161,18 @@ class FitResult:
     findings : tuple of Finding
         What the data check (:func:`fdml.datacheck.check_data`) found in the
         records, each with a stable code; see :mod:`fdml.findings`.
+    slots : tuple of Slot
+        What each estimate is (:class:`~fdml.parameters.Role`) and, for a
+        nuisance term, which record it belongs to; in the order of ``names``.
+    options : mapping
+        Every option the fit was run with (``trim``, ``trim_window``,
+        ``end_correction``, ``sensitivity`` as resolved, ``tol``,
+        ``max_iter``, ``bounds``, ``noise`` band edges, ``band``, ``free``,
+        ``fix``, ...), so that :func:`fdml.plotting.simulate_fit` and
+        :func:`fdml.report.write_report` need nothing supplied again.
+
+    Every array is read-only and every mapping immutable: a result is a
+    record of a fit, and ``res.values[0] = 99`` raises.
     adequacy : fdml.adequacy.Adequacy or None
         The fit's adequacy check (score tests of the effect library,
         residual coherence and whiteness; :mod:`fdml.adequacy`), None when
@@ -156,6 +216,19 @@ class FitResult:
     findings: tuple = ()
     adequacy: Adequacy | None = None
     provenance: dict = field(default_factory=dict)
+    slots: tuple = ()
+    options: Mapping = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            if f.name not in ("model", "adequacy", "findings", "warnings", "slots"):
+                object.__setattr__(self, f.name, frozen(getattr(self, f.name)))
+        object.__setattr__(self, "warnings", as_recorded(self.warnings))
+        if not self.slots or len(self.slots) != len(self.names):
+            object.__setattr__(self, "slots", _legacy_slots(self.names, self.model, self.records))
+
+    def __reduce__(self):
+        return (_rebuild, (type(self), _thawed_fields(self)))
 
     # --- construction -------------------------------------------------------------------
     @classmethod
@@ -175,7 +248,6 @@ class FitResult:
         converged,
         message,
         cov_type,
-        warnings,
         elapsed,
         stopped,
         method,
@@ -187,6 +259,9 @@ class FitResult:
             n
             for i, n in enumerate(names)
             if (math.isfinite(lo[i]) and theta[i] <= lo[i]) or (math.isfinite(hi[i]) and theta[i] >= hi[i])
+        )
+        slots = tuple(
+            Slot(s.name, s.base, s.role, None if s.record < 0 else prob.data[s.record].name) for s in prob.slots
         )
         mnames = [prob.slots[i].name for i in prob.model_slots]
         derived = {}
@@ -241,17 +316,14 @@ class FitResult:
             time_records = ()
         nuisance = {
             "boundary": prob.boundary,
-            "output_biases": [
-                ["alpha", "q", "az"][k]
-                for k in prob.out_idx
-                if prob.model.parameters[f"bias_{['alpha', 'q', 'az'][k]}"].free
-            ],
+            "output_biases": list(dict.fromkeys(s.base[len("bias_") :] for s in slots if s.role is Role.OUTPUT_BIAS)),
             "state_biases": bool(getattr(prob, "state_biases", False)),
             "input_bias": bool(getattr(prob, "input_bias", False)),
             "trim": [d.trim_mode for d in prob.data],
         }
         return cls(
             nuisance=nuisance,
+            slots=slots,
             time_records=time_records,
             model=model,
             names=tuple(names),
@@ -277,7 +349,6 @@ class FitResult:
             method=method,
             stop=stop,
             stopped=stopped,
-            warnings=tuple(warnings),
             elapsed=elapsed,
             spectra=spectra,
         )
@@ -302,6 +373,46 @@ class FitResult:
     def kind(self) -> str:
         """Model kind."""
         return self.model.kind
+
+    def slot(self, name: str) -> Slot | None:
+        """What the estimate ``name`` is (its :class:`~fdml.parameters.Slot`); None if not estimated."""
+        return self.slots[self.names.index(name)] if name in self.names else None
+
+    @property
+    def model_names(self) -> tuple[str, ...]:
+        """The estimated parameters of the model itself, without the nuisance terms, in order."""
+        return tuple(s.name for s in self.slots if not s.role.nuisance)
+
+    def conf_int(self, alpha: float = 0.05) -> np.ndarray:
+        """Two-sided ``1 - alpha`` confidence intervals of the estimates, shape (n, 2): lower, upper.
+
+        ``value -+ z stderr`` with z the standard normal quantile at
+        ``1 - alpha/2`` (1.96 for 95 %): the estimates are asymptotically
+        normal with the Cramer-Rao covariance (``cov_type``).  Rows follow
+        :attr:`names`; an unidentifiable parameter has (-inf, inf).
+        """
+        from scipy.stats import norm
+
+        if not 0.0 < float(alpha) < 1.0:
+            raise FdmlError(f"alpha must lie strictly between 0 and 1, got {alpha!r}")
+        z = float(norm.ppf(1.0 - float(alpha) / 2.0))
+        half = z * np.asarray(self.stderr, float)
+        out = np.column_stack([self.values - half, self.values + half])
+        out.setflags(write=False)
+        return out
+
+    @property
+    def resid(self) -> np.ndarray:
+        """Residual spectra z - y at the estimate, records stacked, shape (n_freq, fitted outputs); read-only.
+
+        The ``v`` of Eq. 19 whose covariance is ``R`` (Eq. 24): the measured
+        spectra minus :meth:`fitted_spectra`, for the fitted outputs.
+        """
+        idx = [("alpha", "q", "az").index(o) for o in self.outputs]
+        parts = [(s["z"] - self.fitted_spectra(r))[:, idx] for r, s in enumerate(self.spectra)]
+        out = np.concatenate(parts) if parts else np.zeros((0, len(idx)), complex)
+        out.setflags(write=False)
+        return out
 
     def __getitem__(self, name: str) -> float:
         if name in self.names:
@@ -331,13 +442,6 @@ class FitResult:
 
     def _repr_html_(self) -> str:
         return self.summary().as_html()
-
-    def _unit(self, name: str) -> str:
-        base = name.split("[")[0]
-        if base in self.model.parameters:
-            u = self.model.parameters[base].unit
-            return f"  [{u}]" if u else ""
-        return ""
 
     def __str__(self) -> str:
         return str(self.summary())
@@ -411,11 +515,15 @@ class FitResult:
             out.append({"key": eff.key, "parameters": pars})
         return out
 
-    def to_dict(self) -> dict:
+    def to_dict(self, include_data: bool = True) -> dict:
         """JSON-ready dict (format ``fdml.FitResult`` version 1), through :func:`fdml.jsoncodec.to_jsonable`.
 
         Float arrays are nested lists, complex arrays ``{"re": ..., "im": ...}``,
         non-finite numbers the strings ``"nan"``, ``"inf"``, ``"-inf"``.
+        ``include_data=False`` leaves out the time-domain records (most of
+        a result's size; :meth:`record` and :func:`fdml.plotting.simulate_fit`
+        need them); the spectra stay, so :attr:`resid` and the plots of the
+        fit still work.
         """
         from .models import model_to_dict
 
@@ -453,8 +561,10 @@ class FitResult:
                 "method": self.method,
                 "stop": self.stop,
                 "stopped": bool(self.stopped),
-                "warnings": list(self.warnings),
+                "warnings": [w.to_dict() for w in self.warnings],
                 "elapsed": float(self.elapsed),
+                "slots": [x.to_dict() for x in self.slots],
+                "options": self.options,
                 "spectra": [
                     {
                         "name": s["name"],
@@ -485,20 +595,22 @@ class FitResult:
                         "meta": r["meta"],
                         "trim_mode": r["trim_mode"],
                     }
-                    for r in self.time_records
+                    for r in (self.time_records if include_data else ())
                 ],
             }
         )
 
-    def to_json(self, path: str | Path | None = None, indent: int = 1, *, inputs=()):
+    def to_json(self, path: str | Path | None = None, indent: int = 1, *, inputs=(), include_data: bool = True):
         """JSON text, or, given ``path``, write it atomically there and return the path.
 
         ``inputs`` (paths) are files the result must not replace (see
-        :func:`fdml.outputs.atomic_write_text`).
+        :func:`fdml.outputs.atomic_write_text`); ``include_data=False``
+        leaves the time-domain records out (:meth:`to_dict`).
         """
+        doc = self.to_dict(include_data=include_data)
         if path is None:
-            return dumps(self.to_dict(), indent=indent)
-        return write_json(path, self.to_dict(), inputs=inputs, indent=indent)
+            return dumps(doc, indent=indent)
+        return write_json(path, doc, inputs=inputs, indent=indent)
 
     @classmethod
     def from_dict(cls, d: dict, *, source: str = "fdml result") -> "FitResult":
@@ -546,8 +658,10 @@ class FitResult:
             method=f.string("method", default="lm"),
             stop=f.string("stop", default="converge"),
             stopped=f.boolean("stopped", default=False),
-            warnings=f.strings("warnings", default=()),
+            warnings=_warnings_from_fields(f),
             elapsed=f.number("elapsed", default=0.0),
+            slots=_slots_from_fields(f, names),
+            options=f.mapping("options", default={}),
             spectra=spectra,
             nuisance=f.mapping("nuisance", default={}),
             findings=tuple(_finding_from_fields(x) for x in f.items("findings", default=[])),
@@ -581,12 +695,17 @@ class FitResult:
         (fixed) output biases and the measured boundary values; no boundary
         terms for ``boundary="none"``.
         """
-        from .models.measurement import Nuisance
-
         s = self.spectra[record]
-        suffix = f"[{s['name']}]" if len(self.spectra) > 1 else ""
-        return Nuisance.from_values(
-            self.params, suffix, biases=self.model.biases(), x0=s["x0"], xT=s["xT"], boundary=self.boundary != "none"
+        eta = np.concatenate([self.model.biases(), s["x0"], s["xT"], np.zeros(3)])  # NUISANCE_NAMES order
+        own = [(x, float(v)) for x, v in zip(self.slots, self.values) if x.role.nuisance and x.record == s["name"]]
+        for x, v in own:
+            eta[NUISANCE_NAMES.index(x.base)] = v
+        roles = {x.role for x, _ in own}
+        return Nuisance.from_vector(
+            eta,
+            boundary=self.boundary != "none",
+            state_biases=Role.STATE_BIAS in roles,
+            input_bias=Role.INPUT_BIAS in roles,
         )
 
     def fitted_spectra(self, record: int = 0) -> np.ndarray:
@@ -605,6 +724,61 @@ class FitResult:
         return predict(
             resp, u, s["ones"], nu.boundary(end_shift(s["omega"], s["T"])), nu.biases, nu.state_biases, nu.input_bias
         )
+
+
+#: Roles of the per-record nuisance terms that are not model parameters, by base name.
+_NUISANCE_ROLE = {
+    **dict.fromkeys(BOUNDARY_NAMES, Role.BOUNDARY),
+    **dict.fromkeys(STATE_BIAS_NAMES, Role.STATE_BIAS),
+    INPUT_BIAS_NAME: Role.INPUT_BIAS,
+}
+
+
+def _legacy_slots(names, model, records) -> tuple[Slot, ...]:
+    """The slots of a result saved before they were (a name ``base[record]`` read once, here)."""
+    out = []
+    for n in names:
+        base, _, rec = n.partition("[")
+        if base in model.parameters:
+            role = model.parameters[base].role
+        else:
+            role = _NUISANCE_ROLE.get(base, Role.AERO)
+        record = rec[:-1] if rec else (records[0] if role.nuisance and records else None)
+        out.append(Slot(n, base, role, record))
+    return tuple(out)
+
+
+def _slots_from_fields(f: Fields, names) -> tuple:
+    """The saved slots (absent in files from before they existed: empty, rebuilt from the names)."""
+    if f.raw("slots", None) is None:
+        return ()
+    items = f.items("slots")
+    if len(items) != len(names):
+        raise f.error("slots", f"has {len(items)} entries for {len(names)} names")
+    roles = tuple(r.value for r in Role)
+    return tuple(
+        Slot(
+            n,
+            x.string("base"),
+            Role(x.string("role", choices=roles)),
+            x.string("record", default=None, allow_none=True),
+        )
+        for n, x in zip(names, items)
+    )
+
+
+def _warnings_from_fields(f: Fields) -> tuple:
+    """Recorded warnings: ``{category, message}`` objects, or the strings of files from before."""
+    out = []
+    for i, w in enumerate(f.raw("warnings", None) or ()):
+        if isinstance(w, str):
+            out.append(RecordedWarning.from_value(w))
+            continue
+        x = Fields(w, f.source, f"{f.name('warnings')}[{i}].") if isinstance(w, dict) else None
+        if x is None:
+            raise f.error("warnings", f"entry {i} is neither a string nor a {{category, message}} object")
+        out.append(RecordedWarning(x.string("category"), x.string("message")))
+    return tuple(out)
 
 
 def _number_in(f: Fields, key: str, name: str, v) -> float:

@@ -124,7 +124,7 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
     bp, fp = base.params, fit.params
     slots = base.prob.slots
     for i, n in enumerate(base.names):
-        if slots[i].kind != "model" or n not in fp:
+        if slots[i].role.nuisance or n not in fp:
             continue
         se = base.stderr.get(n, math.nan)
         shift = (fp[n] - bp[n]) / se if (se and math.isfinite(se) and se > 0) else math.nan

@@ -117,7 +117,10 @@ def model_from_dict(d: dict) -> Model:
 
     ac = None if d.get("aircraft") is None else Aircraft.from_dict(d["aircraft"], origin="saved model")
     model = assemble(make_model(d["kind"], ac, **d.get("options", {})), d.get("effects") or ())
-    return model.with_parameters(Parameters.from_list(d["parameters"]))
+    roles = {p.name: p.role.value for p in model.parameters}  # the model knows its parameters' roles
+    return model.with_parameters(
+        Parameters.from_list({**p, "role": roles.get(p["name"]) or p.get("role", "aero")} for p in d["parameters"])
+    )
 
 
 __all__ += ["model_to_dict", "model_from_dict"]

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..constants import G0
 from ..errors import ParameterError
-from ..parameters import Parameter, Parameters
+from ..parameters import Parameter, Parameters, Role
 
 __all__ = ["Model", "ModelResponse", "OUTPUTS", "solve_short_period"]
 
@@ -107,6 +107,11 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
     return G, H, P
 
 
+#: Roles whose derivatives are not derivatives of the model matrices (M, B, E): input delays
+#: (exact, through exp(-s tau)) and the measurement's nuisance terms.
+_NOT_IN_MATRICES = frozenset({Role.DELAY}) | frozenset(r for r in Role if r.nuisance)
+
+
 @dataclass(frozen=True, kw_only=True)
 class Model:
     """Base class of fdml's short-period models.
@@ -178,11 +183,11 @@ class Model:
         return ("de", "alpha_w") if self.gust else ("de",)
 
     def _common_parameters(self) -> list[Parameter]:
-        out = [Parameter("tau_de", 0.0, free=False, lower=0.0, unit="s", description="elevator time delay")]
-        if self.gust:
-            out.append(
-                Parameter("tau_alpha_w", 0.0, free=False, lower=0.0, unit="s", description="gust-angle time delay")
-            )
+        what = {"tau_de": "elevator time delay", "tau_alpha_w": "gust-angle time delay"}
+        out = [
+            Parameter(n, 0.0, free=False, lower=0.0, unit="s", description=what[n], role=Role.DELAY)
+            for n in self._delay_names()
+        ]
         for name in OUTPUTS:
             out.append(
                 Parameter(
@@ -191,9 +196,14 @@ class Model:
                     free=self.output_bias,
                     unit=OUTPUT_UNITS[name],
                     description=f"output bias on {name}",
+                    role=Role.OUTPUT_BIAS,
                 )
             )
         return out
+
+    def _delay_names(self) -> tuple[str, ...]:
+        """The input delays of B, one per input (``tau_de``, ``tau_alpha_w``)."""
+        return ("tau_de", "tau_alpha_w") if self.gust else ("tau_de",)
 
     def values(self, values: Mapping[str, float] | Parameters | None = None) -> dict[str, float]:
         """All parameter values, with ``values`` (by name) overriding the defaults."""
@@ -216,7 +226,7 @@ class Model:
         p = self.values(values)
         s = 1j * omega
         M, B, E = self._matrices(s, p)
-        delays = [p["tau_de"]] + ([p["tau_alpha_w"]] if self.gust else [])
+        delays = [p[nm] for nm in self._delay_names()]
         B = B * np.exp(-np.outer(s, delays))[:, None, :]  # pure input delays
         G, H, P = solve_short_period(s, M, B, E, self.U)
         return ModelResponse(omega, G, H, P)
@@ -251,7 +261,7 @@ class Model:
             return self._fd_sensitivity(omega, p, names)
         s = 1j * omega
         M, B, E = self._matrices(s, p)
-        delays = [p["tau_de"]] + ([p["tau_alpha_w"]] if self.gust else [])
+        delays = [p[nm] for nm in self._delay_names()]
         Dl = np.exp(-np.outer(s, delays))[:, None, :]
         Bd = B * Dl
         G, H, P = solve_short_period(s, M, B * Dl, E, self.U)
@@ -263,12 +273,14 @@ class Model:
         dM = np.zeros((k, n, 2, 2), complex)
         dBd = np.zeros((k, n, 2, n_in), complex)
         dE = np.zeros((k, 1, 2, 2))
-        mats = self._matrix_derivatives(s, p, [nm for nm in names if not nm.startswith(("tau_", "bias_"))])
-        for i, nm in enumerate(names):
-            if nm.startswith("tau_"):
-                j = 0 if nm == "tau_de" else 1
+        roles = [self.parameters[nm].role for nm in names]
+        delay_names = self._delay_names()
+        mats = self._matrix_derivatives(s, p, [nm for nm, r in zip(names, roles) if r not in _NOT_IN_MATRICES])
+        for i, (nm, role) in enumerate(zip(names, roles)):
+            if role is Role.DELAY and nm in delay_names:  # an input delay of B
+                j = delay_names.index(nm)
                 dBd[i, :, :, j] = -s[:, None] * Bd[:, :, j]  # d/dtau exp(-s tau) = -s exp(-s tau)
-            elif not nm.startswith("bias_"):  # output biases enter the measurement, not G
+            elif role not in _NOT_IN_MATRICES:  # output biases enter the measurement, not G
                 dMi, dBi, dEi = mats[nm]
                 dM[i] = dMi
                 dBd[i] = dBi * Dl

@@ -49,7 +49,7 @@ from typing import cast
 import numpy as np
 
 from ..errors import FdmlError, ParameterError
-from ..parameters import Parameter, Parameters
+from ..parameters import Parameter, Parameters, Role
 from .base import Model, ModelResponse
 
 __all__ = [
@@ -268,6 +268,7 @@ class AugmentedModel(Model):
                             upper=par.upper,
                             unit=par.unit,
                             description=par.description or eff.key,
+                            role=Role.EFFECT,
                         )
                     )
             object.__setattr__(self, "parameters", Parameters(tuple(items)))
@@ -720,7 +721,7 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
     if not isinstance(model, AugmentedModel) or not model.requested:
         return []
     rows = [CHANNELS.index(o) for o in outputs]
-    free = [n for n in model.parameters.free_names if not n.startswith("bias_")]
+    free = list(model.parameters.free_model_names)
     if not free:  # every parameter fixed (a prediction): nothing to confound
         return []
     _, dG, _, _ = model.sensitivity(omega, None, free, parts=("G",))
