@@ -17,6 +17,7 @@ from fdml.errors import AdequacyWarning, FdmlError
 from fdml.io import data_path, load_record
 from fdml.results import FitResult
 from fdml.simulate import simulate_maneuver
+from fdml.warning_log import RecordedWarning
 
 HZ = 2 * math.pi
 TO_BAND = (0.1 * HZ, 1.5 * HZ, 0.02 * HZ)  # the Twin Otter band, 0.1-1.5 Hz at 0.02 Hz
@@ -78,7 +79,7 @@ def test_withheld_alpha_delay_is_flagged_with_a_plausible_value(delayed_fit):
     # 10 rad/s) and the base parameters absorb part of it; 30-50 ms is +-25 % of the 40 ms simulated
     assert 0.030 < tau < 0.050
     assert any("time_delay@alpha" in m and "--effect time_delay:alpha" in m for m in msgs)
-    assert res.warnings[-1] == msgs[-1]  # kept in the result, as every warning of a fit
+    assert res.warnings[-1] == RecordedWarning("AdequacyWarning", msgs[-1])  # kept in the result, as every warning
 
 
 def test_refit_with_the_flagged_effect_is_adequate(delayed_fit):

@@ -14,7 +14,7 @@ import pytest
 from conftest import lsim_dimensional, noisy_record, three_two_one_one
 
 from fdml import fit
-from fdml.estimate import _R_FLOOR, prepare
+from fdml.estimate import SETTINGS, prepare
 from fdml.fourier import finite_fourier_transform
 from fdml.models import ModelResponse, make_model
 from fdml.models.measurement import (
@@ -129,7 +129,7 @@ def test_reported_residual_covariance_is_that_of_the_fitted_spectra(case):
     np.testing.assert_allclose(prob.residuals(res.values), V, rtol=0, atol=8 * EPS * np.abs(V).max())
     R = V.T @ V.conj() / V.shape[0]  # Eq. 24
     scale = np.real(np.diag(R)).max()
-    R = R + _R_FLOOR * scale * np.eye(len(out))  # the fit's documented floor on the diagonal
+    R = R + SETTINGS.r_floor * scale * np.eye(len(out))  # the fit's documented floor on the diagonal
     # one sum over ~200 rows: rounding well below 1e-13 of the largest variance
     np.testing.assert_allclose(res.R, R, rtol=0, atol=1e-13 * scale)
     assert res.cost == pytest.approx(np.linalg.det(R).real, rel=1e-9)  # J = det R (Eq. 25)
@@ -139,7 +139,7 @@ def test_nuisance_columns_equal_finite_differences_of_predict(case):
     res, prob = case
     th = res.values
     A = prob.sensitivities(th)
-    nuis = [i for i, s in enumerate(prob.slots) if s.kind != "model"]
+    nuis = [i for i, s in enumerate(prob.slots) if s.role.nuisance]
     assert len(nuis) == len(prob.slots) - 6
     for i in nuis:
         h = max(abs(th[i]), 1.0)

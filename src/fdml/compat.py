@@ -661,9 +661,9 @@ def check_compatibility(
     lo = np.full(x0.size, -np.inf)
     hi = np.full(x0.size, np.inf)
     for i, k in enumerate(free):
-        if k.startswith("tau_"):
+        if PARAMETERS[k][1] == "s":  # a time shift (tau_*)
             lo[i], hi[i] = -max_shift, max_shift
-        elif k.startswith("K_"):
+        elif PARAMETERS[k][1] == "-":  # a scale factor (K_*)
             lo[i], hi[i] = 0.2, 5.0
     typ = np.array([_TYPICAL[PARAMETERS[k][1]] for k in free] + [_TYPICAL[_STATE_UNITS[k]] for k in prob.states])
     sigma = {k: max(noise_level(record[k]), _sigma_floor(record[k])) for k in prob.outputs}

@@ -108,11 +108,7 @@ def consistency(results: Sequence, names: Sequence[str] | None = None) -> Consis
     if len(results) < 2:
         raise FdmlError("a consistency test needs at least two fits")
     if names is None:
-        common = [
-            n
-            for n in results[0].names
-            if n in results[0].model.parameters and not n.startswith("bias_") and all(n in r.names for r in results)
-        ]
+        common = [n for n in results[0].model_names if all(n in r.names for r in results)]
         names = common
     if not names:
         raise FdmlError("the fits share no estimated parameter to compare")

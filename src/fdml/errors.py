@@ -54,7 +54,11 @@ class DataWarning(FdmlWarning):
 
 
 class BoundsWarning(FdmlWarning):
-    """Frequency-grid correlation or other effects make bounds less reliable."""
+    """An estimate ended on a bound set on its parameter (``fit(..., bounds=...)``, or a model's own).
+
+    The likelihood's optimum may lie beyond the bound, and the estimate's
+    standard error, which assumes an interior optimum, does not hold.
+    """
 
 
 class AdequacyWarning(FdmlWarning):

@@ -42,6 +42,7 @@ import numpy as np
 
 from .errors import (
     BandError,
+    BoundsWarning,
     ConvergenceWarning,
     FdmlError,
     IdentifiabilityWarning,
@@ -67,7 +68,7 @@ from .results import FitResult, IterationInfo
 from .spectra import FrequencyData, spectra
 from .warning_log import recording
 
-__all__ = ["NoiseModel", "Problem", "fit", "parse_outputs", "prepare"]
+__all__ = ["SETTINGS", "EstimatorSettings", "NoiseModel", "Problem", "fit", "parse_outputs", "prepare"]
 
 #: Base names of each nuisance role, by the slot's index (fdml.models.measurement order).
 _NUISANCE_BASE = {
@@ -77,17 +78,96 @@ _NUISANCE_BASE = {
     Role.INPUT_BIAS: (INPUT_BIAS_NAME,),
 }
 _BOUNDARY_COLS = [NUISANCE_NAMES.index(n) for n in BOUNDARY_NAMES]
-#: Relative change at which Eq. 26 sensitivities count as settled (THEORY.md 7).
-_SETTLE_TOL = 1e-4
-#: The same for the sensitivities behind the final covariance, taken as central
-#: differences (error O(h^2)) halved until they settle to ~1e-10, so that bounds
-#: agree with the analytic sensitivities to six significant figures.
-_SETTLE_TOL_FINAL = 1e-10
-#: Largest frequency count for the O(m^2) Gram-matrix covariance; above it the
-#: O(n log m) adjoint transform is cheaper in time and memory (m^2 complex entries).
-_GRAM_MAX = 1500
-#: End offset (fraction of the peak) above which a record "ends far from trim".
-_END_OFFSET_WARN = 0.1
+
+
+@dataclass(frozen=True)
+class EstimatorSettings:
+    """The estimator's thresholds and iteration caps, named and documented in one place.
+
+    :data:`SETTINGS` is the instance every fit uses; each number below is
+    the one the estimator's code reads, none is written twice.
+
+    Attributes
+    ----------
+    settle_tol : float
+        Relative change at which the Eq. 26 sensitivities count as settled
+        while iterating (THEORY.md section 7).
+    settle_tol_final : float
+        The same for the sensitivities behind the final covariance, taken as
+        central differences (error O(h^2)) halved until they settle, so that
+        the bounds agree with the analytic sensitivities to six significant
+        figures.
+    fd_start : float
+        First forward-difference step, as a fraction of ``max(|theta|, 1e-3)``
+        (THEORY.md section 7: 5 %).
+    central_step : float
+        Step of ``sensitivity="central"``, same scale.
+    fd_max_halvings : int
+        Most halvings of a difference step while it settles.
+    tight_below : float
+        Largest step (in standard errors) below which finite-difference fits
+        switch to the tight final sensitivities.
+    gn_max_halvings : int
+        Most step halvings of a Gauss-Newton step (``method="gauss-newton"``)
+        while the cost rises.
+    shift_tries : int
+        Most shifted-Newton trials (growing shift) per Levenberg-Marquardt step.
+    shift_limit : float
+        Shifted Newton only while the most negative curvature of the scaled
+        concentrated Hessian is within this fraction of the largest one.
+    fallback_halvings : int
+        Most halvings of the Gauss-Newton fallback step of the
+        Levenberg-Marquardt iteration.
+    stall_factor : float
+        A fit whose cost no step decreases counts as converged when its last
+        step is below ``stall_factor * tol`` standard errors.
+    paper_rel_change : float
+        The paper's stop rule: relative change of J = det R (Eq. 25).
+    singular_eig : float
+        Eigenvalue of the scaled information matrix, relative to the
+        largest, below which a combination of parameters is not identifiable.
+    correlation_warn : float
+        Correlation magnitude beyond which the fit raises an
+        :class:`~fdml.errors.IdentifiabilityWarning`.
+    correlation_listed : float
+        Correlation magnitude at or above which the summary lists a pair
+        (:func:`fdml.summary.fit_summary`); below ``correlation_warn`` so the
+        table shows the pairs approaching it.
+    gram_max : int
+        Largest frequency count for the O(m^2) Gram-matrix covariance; above
+        it the O(n log m) adjoint transform is cheaper in time and memory.
+    end_offset_warn : float
+        End offset (fraction of the peak) above which a record "ends far from
+        trim" (with ``boundary="none"``).
+    r_floor : float
+        Relative floor added to the diagonal of R: noise-free (simulated) data
+        can make R numerically singular, where the likelihood is unbounded;
+        1e-12 of the largest variance changes nothing at any realistic noise
+        level.
+    """
+
+    settle_tol: float = 1e-4
+    settle_tol_final: float = 1e-10
+    fd_start: float = 0.05
+    central_step: float = 1e-4
+    fd_max_halvings: int = 60
+    tight_below: float = 1e-2
+    gn_max_halvings: int = 30
+    shift_tries: int = 12
+    shift_limit: float = 0.05
+    fallback_halvings: int = 12
+    stall_factor: float = 10.0
+    paper_rel_change: float = 0.01
+    singular_eig: float = 1e-10
+    correlation_warn: float = 0.95
+    correlation_listed: float = 0.9
+    gram_max: int = 1500
+    end_offset_warn: float = 0.1
+    r_floor: float = 1e-12
+
+
+#: The settings every fit uses.
+SETTINGS = EstimatorSettings()
 
 
 @dataclass(frozen=True)
@@ -244,7 +324,7 @@ class Problem:
         return np.concatenate([(d.z - y)[:, self.out_idx] for d, y in zip(self.data, ys)])
 
     def sensitivities(
-        self, theta: np.ndarray, y0: list[np.ndarray] | None = None, tol: float = _SETTLE_TOL
+        self, theta: np.ndarray, y0: list[np.ndarray] | None = None, tol: float = SETTINGS.settle_tol
     ) -> np.ndarray:
         """dy/dtheta, shape (N, n_out, p): Eq. 26 for model parameters, exact for nuisances."""
         p = len(self.slots)
@@ -278,7 +358,7 @@ class Problem:
     def _eval_stacked(self, theta: np.ndarray) -> np.ndarray:
         return np.concatenate([y[:, self.out_idx] for y in self.predict(theta)])
 
-    def _fd_column(self, theta, i, y0s, lo, hi, tol=_SETTLE_TOL) -> np.ndarray:
+    def _fd_column(self, theta, i, y0s, lo, hi, tol=SETTINGS.settle_tol) -> np.ndarray:
         """Eq. 26 with step reduction until the sensitivity settles to ``tol``.
 
         Forward differences err by O(h) (truncation) and O(eps/h) (rounding):
@@ -288,11 +368,11 @@ class Problem:
         """
         name = self.slots[i].name
         scale = max(abs(theta[i]), 1e-3)
-        h = self._steps.get(name, 0.05 * scale)  # THEORY.md 7: start at 5 % of |theta|
-        if tol < _SETTLE_TOL:
-            h = 0.05 * scale
+        h = self._steps.get(name, SETTINGS.fd_start * scale)  # THEORY.md 7: start at 5 % of |theta|
+        if tol < SETTINGS.settle_tol:
+            h = SETTINGS.fd_start * scale
         if self.sensitivity == "central":
-            h = 1e-4 * scale
+            h = SETTINGS.central_step * scale
             tp, tm = theta.copy(), theta.copy()
             tp[i] += h
             tm[i] -= h
@@ -302,7 +382,7 @@ class Problem:
             step = step if theta[i] + step <= hi else -step  # stay inside the bounds
             t = theta.copy()
             t[i] += step
-            if tol < _SETTLE_TOL and theta[i] - step >= lo:
+            if tol < SETTINGS.settle_tol and theta[i] - step >= lo:
                 # final covariance: central differences, O(h^2), settle far below Eq. 26's 1e-4
                 tm = theta.copy()
                 tm[i] -= step
@@ -311,7 +391,7 @@ class Problem:
 
         prev = column(h)
         best, best_change, best_h = prev, math.inf, h
-        for _ in range(60):
+        for _ in range(SETTINGS.fd_max_halvings):
             h *= 0.5
             cur = column(h)
             denom = np.linalg.norm(cur)
@@ -321,7 +401,7 @@ class Problem:
             if change <= tol or change > 4 * best_change:
                 break
             prev = cur
-        if tol >= _SETTLE_TOL:
+        if tol >= SETTINGS.settle_tol:
             self._steps[name] = 2.0 * best_h  # next pass starts one halving above the settled step
         return best
 
@@ -550,7 +630,7 @@ def _end_findings(prob: Problem) -> list:
     out = []
     if prob.boundary == "none":
         for d in prob.data:
-            far = [OUTPUTS[k] for k in (0, 1) if d.end_offset[k] > _END_OFFSET_WARN]
+            far = [OUTPUTS[k] for k in (0, 1) if d.end_offset[k] > SETTINGS.end_offset_warn]
             if far:
                 out.append(
                     Finding(
@@ -561,7 +641,7 @@ def _end_findings(prob: Problem) -> list:
                         kind="estimation",
                         record=d.name,
                         value=float(max(d.end_offset[:2])),
-                        expected=_END_OFFSET_WARN,
+                        expected=SETTINGS.end_offset_warn,
                     )
                 )
     return out
@@ -578,12 +658,6 @@ def _logdet(R: np.ndarray, rows: np.ndarray | None = None) -> float:
     return float(ld)
 
 
-#: Relative floor added to the diagonal of R.  Noise-free (simulated) data can
-#: make R numerically singular, where the likelihood is unbounded; a floor of
-#: 1e-12 of the largest variance changes nothing at any realistic noise level.
-_R_FLOOR = 1e-12
-
-
 def _cov_R(V: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     """Eq. 24 over all rows, shape (n, n); with ``rows`` (band of each row), R_b per band, shape (nb, n, n)."""
     if rows is not None:
@@ -592,7 +666,7 @@ def _cov_R(V: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         )
     # Eq. 24: R_jk = (1/N) sum_i v_ij conj(v_ik) (THEORY.md 7, conjugation convention)
     R = V.T @ V.conj() / V.shape[0]
-    floor = _R_FLOOR * float(np.max(np.real(np.diag(R))))
+    floor = SETTINGS.r_floor * float(np.max(np.real(np.diag(R))))
     return R + floor * np.eye(R.shape[0]) if floor > 0 else R
 
 
@@ -710,7 +784,7 @@ def _identifiability(H1: np.ndarray, names: Sequence[str]) -> tuple[list[str], l
         D = np.sqrt(diag[live])
         Hn = H1[np.ix_(live, live)] / np.outer(D, D)
         w, U = np.linalg.eigh(Hn)
-        for k in np.flatnonzero(w < 1e-10 * max(w.max(), 1e-300)):
+        for k in np.flatnonzero(w < SETTINGS.singular_eig * max(w.max(), 1e-300)):
             comp = np.abs(U[:, k])
             top = [names[live[j]] for j in np.argsort(comp)[::-1][:3] if comp[j] > 0.2]
             msgs.append(
@@ -959,8 +1033,8 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
     for it in range(1, max_iter + 1):
         # Eq. 26 columns settled to 1e-4 while far from the optimum; near it, tight central
         # differences, so the fixed point (and the bounds) match the analytic sensitivities
-        tight = prob.sensitivity == "fd" and rel_prev < 1e-2
-        A = prob.sensitivities(theta, tol=_SETTLE_TOL_FINAL if tight else _SETTLE_TOL)
+        tight = prob.sensitivity == "fd" and rel_prev < SETTINGS.tight_below
+        A = prob.sensitivities(theta, tol=SETTINGS.settle_tol_final if tight else SETTINGS.settle_tol)
         g, H1, H = _grad_hess(A, V, R, full, rows)
         at_lo = (theta <= lo) & (g > 0)
         at_hi = (theta >= hi) & (g < 0)
@@ -987,7 +1061,7 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
             accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, H, J, active, lo, hi, rows)
         else:
             step = step_n
-            for _ in range(30):
+            for _ in range(SETTINGS.gn_max_halvings):
                 accepted, t_new, V_new, R_new, J_new = _try(prob, theta, step, lo, hi, J, rows)
                 if accepted:
                     break
@@ -1003,13 +1077,15 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
             message = f"stopped by the callback after {it} iterations"
             break
         if stop == "paper":
-            if abs(math.exp(J_old - J) - 1.0) < 0.01:  # Eq. 25 rule |J_k-1 - J_k| / J_k, J = det R
+            if abs(math.exp(J_old - J) - 1.0) < SETTINGS.paper_rel_change:  # Eq. 25 rule |J_k-1 - J_k| / J_k
                 converged = True
-                message = f"paper's rule: relative change of det R below 0.01 after {it} iterations"
+                message = (
+                    f"paper's rule: relative change of det R below {SETTINGS.paper_rel_change:g} after {it} iterations"
+                )
                 break
         else:
             if not accepted:
-                converged = bool(rel_step < 10 * tol)  # a plain bool: numpy's is not JSON
+                converged = bool(rel_step < SETTINGS.stall_factor * tol)  # a plain bool: numpy's is not JSON
                 message = "converged: no further decrease of det R" if converged else "stalled: no step decreases det R"
                 break
     if not converged and not stopped:
@@ -1089,9 +1165,9 @@ def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi, rows=None):
         gn = g[idx] / D
         w, Q = np.linalg.eigh(Hn)
         top = max(float(w.max()), 1e-300)
-        mu = 0.0 if w.min() > 1e-10 * top else 2.0 * abs(float(w.min())) + 1e-8 * top
+        mu = 0.0 if w.min() > SETTINGS.singular_eig * top else 2.0 * abs(float(w.min())) + 1e-8 * top
         # strongly indefinite (far from the optimum): the Gauss-Newton step goes further
-        tries = _SHIFT_TRIES if w.min() > -_SHIFT_LIMIT * top else 0
+        tries = SETTINGS.shift_tries if w.min() > -SETTINGS.shift_limit * top else 0
         for _ in range(tries):
             step = np.zeros_like(g)
             step[idx] = -(Q @ ((Q.T @ gn) / (w + mu))) / D
@@ -1101,19 +1177,13 @@ def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi, rows=None):
             last = rest
             mu = 4.0 * mu if mu > 0 else 1e-3 * top
     step = _solve(H1, g, active)
-    for _ in range(12):
+    for _ in range(SETTINGS.fallback_halvings):
         ok, *rest = _try(prob, theta, step, lo, hi, J, rows)
         if ok:
             return (True, *rest)
         last = rest
         step = 0.5 * step  # step halving when the cost rises
     return (False, *last)
-
-
-_SHIFT_TRIES = 12
-#: Shifted Newton only while the most negative curvature of the scaled concentrated
-#: Hessian is within this fraction of the largest one.
-_SHIFT_LIMIT = 0.05
 
 
 def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
@@ -1176,7 +1246,7 @@ def _white_cov_g(
     for d in prob.data:
         Cr = C[off : off + d.m]
         off += d.m
-        if not (prob.boundary == "measured" and bchan) and d.m <= _GRAM_MAX:
+        if not (prob.boundary == "measured" and bchan) and d.m <= SETTINGS.gram_max:
             # frequency-domain form, O(m^2): g = Re sum_i C_i v_i with E{v v^H} = Sigma (x) Psi,
             # E{v v^T} = Sigma (x) Phi, Psi = (F P)(F P)^H, Phi = (F P)(F P)^T, so
             # Cov g = 1/2 Re sum_ik [Psi_ik C_i Sigma C_k^H + Phi_ik C_i Sigma C_k^T]
@@ -1215,6 +1285,20 @@ def _naive_sigma(F: np.ndarray) -> np.ndarray:
             return np.sqrt(np.abs(np.diag(np.linalg.pinv(F))))
 
 
+def _warn_at_bounds(prob: Problem, theta: np.ndarray) -> None:
+    """A :class:`~fdml.errors.BoundsWarning` for every estimate that ended on one of its bounds."""
+    lo, hi = prob.bounds()
+    for i, name in enumerate(prob.names):
+        side = "lower" if theta[i] <= lo[i] else "upper" if theta[i] >= hi[i] else None
+        if side is not None:
+            warnings.warn(
+                f"parameter {name} ended on its {side} bound {theta[i]:g}: the likelihood's optimum may lie "
+                "beyond it, and its standard error (an interior optimum's) does not hold; widen or drop the bound",
+                BoundsWarning,
+                stacklevel=5,
+            )
+
+
 def _finish(
     prob,
     theta,
@@ -1234,7 +1318,7 @@ def _finish(
 ) -> FitResult:
     names = prob.names
     if A is None:  # Eq. 26 columns for the bounds are the tight central differences
-        A = prob.sensitivities(theta, tol=_SETTLE_TOL_FINAL)
+        A = prob.sensitivities(theta, tol=SETTINGS.settle_tol_final)
     N = prob.N
     W = _weights(R, rows)  # band-wise noise: R_b^-1 per row
     p_ = A.shape[2]
@@ -1271,10 +1355,14 @@ def _finish(
     np.fill_diagonal(corr, 1.0)
     for i in range(len(names)):
         for j in range(i):
-            if np.isfinite(corr[i, j]) and abs(corr[i, j]) > 0.95:
-                m = f"parameters {names[j]} and {names[i]} are correlated at {corr[i, j]:+.3f} (beyond 0.95)"
+            if np.isfinite(corr[i, j]) and abs(corr[i, j]) > SETTINGS.correlation_warn:
+                m = (
+                    f"parameters {names[j]} and {names[i]} are correlated at {corr[i, j]:+.3f} "
+                    f"(beyond {SETTINGS.correlation_warn:g})"
+                )
                 warnings.warn(m, IdentifiabilityWarning, stacklevel=4)
     model = prob.model.with_values({n: theta[i] for i, n in enumerate(names) if not prob.slots[i].role.nuisance})
+    _warn_at_bounds(prob, theta)
     return FitResult.build(
         prob=prob,
         model=model,

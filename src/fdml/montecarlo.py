@@ -453,11 +453,12 @@ def monte_carlo(
     kw = _check_fit_kwargs(fit_kwargs)
     noise = _check_noise(noise)
     # the names the study reports: estimated model parameters, not nuisance terms
-    names = [nm for nm in fmodel.parameters.free_names if not nm.startswith("bias_")]
+    names = list(fmodel.parameters.free_model_names)
     for nm in kw.get("fix", {}) or ():
         if nm in names:
             names.remove(nm)
-    names += [nm for nm in (kw.get("free") or ()) if nm not in names and not nm.startswith("bias_")]
+    pars = fmodel.parameters
+    names += [nm for nm in (kw.get("free") or ()) if nm not in names and not (nm in pars and pars[nm].role.nuisance)]
     if not names:
         raise FdmlError("the fitted model has no free parameters")
     tvals = truth.parameters.values

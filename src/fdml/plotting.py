@@ -89,10 +89,6 @@ def _check_outputs(outputs) -> list[str]:
     return outputs
 
 
-def _record_suffix(result, record: int) -> str:
-    return f"[{result.spectra[record]['name']}]" if len(result.spectra) > 1 else ""
-
-
 # --- the Cramer-Rao band of the fitted spectra ---------------------------------------------------
 
 
@@ -141,11 +137,12 @@ def spectra_uncertainty(result, record: int = 0, *, rel_step: float = 1e-6):
     cov = np.where(np.isfinite(cov), cov, 0.0)
     cov[~ok, :] = 0.0
     cov[:, ~ok] = 0.0
-    suffix = _record_suffix(result, record)
+    rec_name = result.spectra[record]["name"]
     params = result.model.parameters
     A = np.zeros(y0.shape + (p,), complex)
     for i, name in enumerate(result.names):
-        if not ok[i] or ("[" in name and not name.endswith(suffix or "\0")):
+        slot = result.slots[i]
+        if not ok[i] or slot.record not in (None, rec_name):
             continue  # unidentified, or a nuisance term of another record
         v = float(result.values[i])
         h = rel_step * max(abs(v), 1e-3)
@@ -287,7 +284,7 @@ def plot_spectra(
 # --- time histories ------------------------------------------------------------------------------
 
 
-def simulate_fit(result, record: int = 0, *, trim_window: float = 0.5):
+def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
     """The model's time histories at the estimate for one record of a fit.
 
     What the frequency-domain model of the record (``z = G u + H d + b 1``,
@@ -306,8 +303,8 @@ def simulate_fit(result, record: int = 0, *, trim_window: float = 0.5):
       and the response to the estimated state-equation biases (constant
       forcing from t = 0);
     * the estimated output biases and the trim removed before the transform
-      (first sample, or the mean of the first ``trim_window`` seconds; the
-      result does not store the window, so give the one used in the fit).
+      (first sample, or the mean of the first ``trim_window`` seconds, the
+      window the fit used: ``result.options["trim_window"]``).
 
     Not reproduced: the end values ``xT`` (a property of the finite
     transform, not of the motion; compare them with the simulated end
@@ -323,7 +320,8 @@ def simulate_fit(result, record: int = 0, *, trim_window: float = 0.5):
         A fit made from time-domain records (it keeps them).
     record : int, optional
     trim_window : float, optional
-        Leading window of ``trim="mean"``, s.
+        Leading window of ``trim="mean"``, s; default the fit's (0.5 s for a
+        result saved before fits kept their options).
 
     Returns
     -------
@@ -341,6 +339,8 @@ def simulate_fit(result, record: int = 0, *, trim_window: float = 0.5):
     raw = result.record(record)
     tr = result.time_records[record]
     mode = tr["trim_mode"]
+    if trim_window is None:
+        trim_window = float(result.options.get("trim_window", 0.5))  # 0.5 s: fdml.fit's default, for old files
     trimmed = raw.remove_trim(mode, window=trim_window) if mode != "none" else raw
     trim = {k: float(raw[k][0] - trimmed[k][0]) for k in raw.signals}
     model = result.model
@@ -414,7 +414,7 @@ def plot_time_histories(
     outputs: Sequence[str] | None = None,
     inputs: bool = True,
     angle_unit: str = "deg",
-    trim_window: float = 0.5,
+    trim_window: float | None = None,
     axes=None,
     ax=None,
     title: str | None = None,
@@ -439,7 +439,7 @@ def plot_time_histories(
     angle_unit : {"deg", "rad"}, optional
         Units of alpha, q, the elevator and the gust angle (a_z is in g).
     trim_window : float, optional
-        Leading window of ``trim="mean"``, s.
+        Leading window of ``trim="mean"``, s; default the fit's (:func:`simulate_fit`).
     axes, ax : array of Axes, optional
         One per panel (inputs first), in a column; made if not given.
     title : str, optional
@@ -594,8 +594,7 @@ def plot_correlation(
     """
     all_names = list(result.names)
     if names is None:
-        params = result.model.parameters
-        names = [n for n in all_names if nuisance or (n in params and not n.startswith("bias_"))]
+        names = list(all_names if nuisance else result.model_names)
     else:
         bad = [n for n in names if n not in all_names]
         if bad:

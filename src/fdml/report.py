@@ -45,7 +45,7 @@ def _figure(figsize):
 
 
 def write_report(
-    result_or_path, out_dir=None, *, freq_unit: str = "rad/s", dpi: int = 110, trim_window: float = 0.5
+    result_or_path, out_dir=None, *, freq_unit: str = "rad/s", dpi: int = 110, trim_window: float | None = None
 ) -> dict:
     """Write a fit's figures and a Markdown report into a folder.
 
@@ -61,7 +61,8 @@ def write_report(
     dpi : int, optional
         Resolution of the PNG files.
     trim_window : float, optional
-        Leading window of ``trim="mean"`` fits, s (for the time histories).
+        Leading window of ``trim="mean"`` fits, s (for the time histories);
+        default the fit's own (``FitResult.options``).
 
     Returns
     -------

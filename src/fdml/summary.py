@@ -28,6 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .models.base import OUTPUTS
+from .models.measurement import OUTPUT_BIAS_NAMES
+from .parameters import NUISANCE_ROLES, Role
+
 __all__ = ["Summary", "Table", "Column", "fit_summary", "comparison_summary", "parameter_unit"]
 
 #: Units of the nuisance terms and derived quantities that are not model parameters.
@@ -64,13 +68,11 @@ _COV_TYPES = {
     "naive": "naive (2 Re sum A^H R^-1 A)^-1, every frequency independent",
 }
 
-#: Correlations at or above this magnitude are listed in the summary.
-CORRELATION_LISTED = 0.9
-
 
 def parameter_unit(result, name: str) -> str:
     """Unit of an estimated, fixed or derived quantity of ``result`` ('' if unknown)."""
-    base = name.split("[")[0]
+    slot = result.slot(name) if hasattr(result, "slot") else None
+    base = name if slot is None else slot.base
     params = result.model.parameters
     if base in params:
         unit = params[base].unit
@@ -364,17 +366,21 @@ def _render_text(title, header, tables, notes, digits) -> str:
 
 
 def _biases_used(res) -> list[str]:
-    """Which bias terms a fit estimated, from its names (and its ``nuisance`` record)."""
-    bases = [n.split("[")[0] for n in res.names]
+    """Which bias terms a fit estimated, from the roles of its estimates and fixed parameters."""
+    roles = {s.role for s in res.slots}
     out = []
-    outs = [b[5:] for b in dict.fromkeys(bases) if b in ("bias_alpha", "bias_q", "bias_az")]
+    outs = [
+        OUTPUTS[OUTPUT_BIAS_NAMES.index(b)]
+        for b in dict.fromkeys(s.base for s in res.slots if s.role is Role.OUTPUT_BIAS)
+    ]
     if outs:
         out.append("output biases " + ",".join(outs))
-    if "bias_alpha_dot" in bases or "bias_q_dot" in bases:
+    if Role.STATE_BIAS in roles:
         out.append("state-equation biases")
-    if "bias_de" in bases:
+    if Role.INPUT_BIAS in roles:
         out.append("elevator bias")
-    fixed = [k for k, v in res.fixed.items() if k.startswith("bias_") and v != 0.0]
+    params = res.model.parameters
+    fixed = [k for k, v in res.fixed.items() if k in params and params[k].role.nuisance and v != 0.0]
     if fixed:
         out.append("fixed " + ", ".join(fixed))
     return out
@@ -453,11 +459,9 @@ _PARAM_COLUMNS = (
 
 def _shown_fixed(res) -> dict:
     """Fixed parameters worth listing (zero biases and zero delays are absent terms, not choices)."""
-    return {
-        k: v
-        for k, v in res.fixed.items()
-        if not (k.startswith("bias_") and v == 0.0) and not (k.startswith("tau_") and v == 0.0)
-    }
+    params = res.model.parameters
+    absent = {Role.DELAY} | NUISANCE_ROLES
+    return {k: v for k, v in res.fixed.items() if not (v == 0.0 and k in params and params[k].role in absent)}
 
 
 def fit_summary(res, digits: int = 6) -> Summary:
@@ -465,7 +469,7 @@ def fit_summary(res, digits: int = 6) -> Summary:
 
     Tables: ``parameters`` (estimates, then the listed fixed parameters
     flagged ``fixed``), ``derived`` (the alternate set with delta-method
-    standard errors) and ``correlations`` (pairs at or above 0.9); notes:
+    standard errors) and ``correlations`` (pairs at or above ``SETTINGS.correlation_listed``, 0.9); notes:
     the data check's findings (with their codes), the adequacy check
     (:mod:`fdml.adequacy`: flagged effects, or that nothing was flagged) and
     the warnings raised by the fit.
@@ -500,12 +504,15 @@ def fit_summary(res, digits: int = 6) -> Summary:
         )
         dcols = (Column("quantity", "derived"),) + _PARAM_COLUMNS[1:]
         tables.append(Table("derived", "Derived set (delta method)", dcols, drows))
+    from .estimate import SETTINGS  # the estimator's named thresholds
+
+    listed = SETTINGS.correlation_listed
     corr = np.asarray(res.corr, float)
     pairs = []
     for i in range(len(res.names)):
         for j in range(i):
             r = corr[i, j]
-            if np.isfinite(r) and abs(r) >= CORRELATION_LISTED:
+            if np.isfinite(r) and abs(r) >= listed:
                 pairs.append((res.names[j], res.names[i], float(r)))
     if pairs:
         pairs.sort(key=lambda p: -abs(p[2]))
@@ -514,7 +521,7 @@ def fit_summary(res, digits: int = 6) -> Summary:
             Column("parameter_2", "with"),
             Column("correlation", "correlation", "z"),
         )
-        tables.append(Table("correlations", f"Correlations |r| >= {CORRELATION_LISTED:g}", ccols, tuple(pairs)))
+        tables.append(Table("correlations", f"Correlations |r| >= {listed:g}", ccols, tuple(pairs)))
     notes = [("data check", [str(f) for f in getattr(res, "findings", ())]), ("warnings", list(res.warnings))]
     if getattr(res, "adequacy", None) is not None:  # fdml.adequacy: score tests and residual checks
         notes.insert(1, ("adequacy", res.adequacy.lines()))
@@ -581,6 +588,3 @@ def comparison_summary(cmp, reference: Mapping | None = None, digits: int = 4) -
         notes,
         digits=digits,
     )
-
-
-__all__ += ["CORRELATION_LISTED"]

@@ -145,7 +145,7 @@ def fit_time_domain(
     if model.gust:
         inputs["alpha_w"] = rec["alpha_w"]
     zmeas = np.column_stack([rec[o] for o in outputs])
-    names = [n for n in params.free_names if not n.startswith("bias_")]
+    names = list(params.free_model_names)
     theta0 = np.array([params[n].value for n in names])
     nb = len(outputs) if biases else 0
     x0 = np.concatenate([theta0, np.zeros(nb)])

@@ -26,7 +26,6 @@ use this module; none keeps its own formula.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import NamedTuple
 
 import numpy as np
@@ -88,30 +87,6 @@ class Nuisance(NamedTuple):
             xT=eta[5:7] if boundary else None,
             state_biases=eta[7:9] if state_biases else None,
             input_bias=float(eta[9]) if input_bias else None,
-        )
-
-    @classmethod
-    def from_values(cls, values: Mapping[str, float], suffix: str, *, biases, x0, xT, boundary: bool) -> Nuisance:
-        """From estimates by name (``bias_alpha[suffix]``, ``x0_q[suffix]``, ...).
-
-        ``biases``, ``x0``, ``xT`` are the values of the terms that were not
-        estimated (the model's fixed biases, the measured boundary values).
-        State-equation and elevator biases are on when any of their names is
-        present.  The one place where the names of a result's per-record
-        nuisance estimates are read.
-        """
-
-        def get(names, default):
-            return np.array([values.get(n + suffix, v) for n, v in zip(names, default)], float)
-
-        sb_on = any(n + suffix in values for n in STATE_BIAS_NAMES)
-        ib = values.get(INPUT_BIAS_NAME + suffix)
-        return cls(
-            biases=get(OUTPUT_BIAS_NAMES, biases),
-            x0=get(BOUNDARY_NAMES[:2], x0) if boundary else None,
-            xT=get(BOUNDARY_NAMES[2:], xT) if boundary else None,
-            state_biases=get(STATE_BIAS_NAMES, (0.0, 0.0)) if sb_on else None,
-            input_bias=None if ib is None else float(ib),
         )
 
     def boundary(self, shift: np.ndarray) -> np.ndarray | None:
