@@ -31,17 +31,17 @@ from fdml.plotting import simulate_fit
 from fdml.record import Record, add_noise
 from fdml.results import FitResult, IterationInfo
 from fdml.simulate import simulate_maneuver
-from fdml.warning_log import RecordedWarning
+from fdml.warning_log import RecordedWarning, recording
 
 
 def _quiet_fit(rec, model, **kw):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    with recording(reemit=False):  # kept in the result, not shown
         return fit(rec, model, **kw)
 
 
 @pytest.fixture(scope="module")
 def model():
+    """The steady Navion model (Wells-Keskar's steady set)."""
     return make_model("steady", "navion")
 
 
@@ -260,3 +260,13 @@ def test_settings_are_one_frozen_documented_object(res):
 
 def test_dead_unit_helper_is_gone():
     assert not hasattr(FitResult, "_unit")
+
+
+def test_other_results_are_frozen_too(res, two):
+    from fdml.consistency import consistency
+
+    c = consistency([res, _quiet_fit(two.record(0), make_model("steady", "navion"))])
+    assert c.names == ("CLa_w", "CLa_t", "deps_da", "Cm_de", "Cz_de")  # model parameters by role, no biases
+    for arr in (c.estimates, c.stderr, c.mean, c.p_value):
+        with pytest.raises(ValueError, match="read-only"):
+            arr[..., 0] = 0.0

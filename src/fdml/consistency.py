@@ -11,12 +11,13 @@ factor by which they would have to grow.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy import stats
 
 from .errors import FdmlError
+from .results import frozen
 
 __all__ = ["ConsistencyResult", "consistency"]
 
@@ -56,6 +57,10 @@ class ConsistencyResult:
     scale: np.ndarray
     joint_chi2: float
     joint_p: float
+
+    def __post_init__(self) -> None:
+        for f in fields(self):  # a result is a record: its arrays are read-only
+            object.__setattr__(self, f.name, frozen(getattr(self, f.name)))
 
     def agree(self, alpha: float = 0.05, joint: bool = False) -> bool:
         """True if no parameter's test rejects at level ``alpha`` (Bonferroni over parameters).

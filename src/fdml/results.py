@@ -31,7 +31,7 @@ if TYPE_CHECKING:
     from .adequacy import Adequacy
     from .models.base import Model
 
-__all__ = ["FitResult", "IterationInfo", "load_result", "RESULT_FORMAT"]
+__all__ = ["FitResult", "IterationInfo", "frozen", "load_result", "RESULT_FORMAT"]
 
 #: JSON format identifier and version of saved results.
 RESULT_FORMAT = ("fdml.FitResult", 1)
@@ -684,7 +684,7 @@ class FitResult:
             np.asarray(r["t"], float),
             {k: np.asarray(v, float) for k, v in r["signals"].items()},
             name=r["name"],
-            meta=r["meta"],
+            meta=_thawed(r["meta"]),  # a plain dict, as the record had
             check_units=False,
         )
 

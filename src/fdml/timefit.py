@@ -13,7 +13,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy import optimize
@@ -21,6 +21,7 @@ from scipy import optimize
 from .errors import FdmlError, RecordError
 from .models.base import OUTPUTS, Model
 from .record import Record
+from .results import frozen
 
 __all__ = ["TimeFitResult", "fit_time_domain"]
 
@@ -57,6 +58,10 @@ class TimeFitResult:
     message: str
     elapsed: float
     model: Model
+
+    def __post_init__(self) -> None:
+        for f in fields(self):  # a result is a record: its arrays are read-only
+            object.__setattr__(self, f.name, frozen(getattr(self, f.name)))
 
     @property
     def params(self) -> dict[str, float]:
