@@ -1004,6 +1004,8 @@ def _finite_or_none(x) -> float | None:
 
 def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Problem]:
     """:func:`fit` after its arguments are checked: the result (without its warnings and options) and the problem."""
+    # Long on purpose (~110 lines): one iteration whose state (theta, V, R, J, the last sensitivities and
+    # step) passes from pass to pass and to the covariance; split, it would be threaded through every piece.
     t_start = time.perf_counter()
     method, stop, tol, cov_type = options["method"], options["stop"], options["tol"], options["cov_type"]
     prob = prepare(

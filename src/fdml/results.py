@@ -170,9 +170,6 @@ class FitResult:
         ``max_iter``, ``bounds``, ``noise`` band edges, ``band``, ``free``,
         ``fix``, ...), so that :func:`fdml.plotting.simulate_fit` and
         :func:`fdml.report.write_report` need nothing supplied again.
-
-    Every array is read-only and every mapping immutable: a result is a
-    record of a fit, and ``res.values[0] = 99`` raises.
     adequacy : fdml.adequacy.Adequacy or None
         The fit's adequacy check (score tests of the effect library,
         residual coherence and whiteness; :mod:`fdml.adequacy`), None when
@@ -182,6 +179,10 @@ class FitResult:
         (``fdml fit``): ``airspeed`` ``{"value", "source"}`` (``record``,
         ``--airspeed`` or ``aircraft``) and ``record_conditions`` (what the
         records carry); see :mod:`fdml.conditions`.
+
+    Every array is read-only and every mapping immutable (lists become
+    tuples): a result is a record of a fit, and ``res.values[0] = 99``
+    raises.  :func:`dataclasses.replace` gives a changed copy.
     """
 
     model: Model
@@ -196,8 +197,8 @@ class FitResult:
     iterations: int
     converged: bool
     message: str
-    derived: dict
-    fixed: dict
+    derived: Mapping
+    fixed: Mapping
     at_bound: tuple
     outputs: tuple
     band: tuple | None
@@ -212,10 +213,10 @@ class FitResult:
     elapsed: float = 0.0
     spectra: tuple = field(default=(), repr=False)
     time_records: tuple = field(default=(), repr=False)
-    nuisance: dict = field(default_factory=dict)
+    nuisance: Mapping = field(default_factory=dict)
     findings: tuple = ()
     adequacy: Adequacy | None = None
-    provenance: dict = field(default_factory=dict)
+    provenance: Mapping = field(default_factory=dict)
     slots: tuple = ()
     options: Mapping = field(default_factory=dict)
 
