@@ -270,3 +270,11 @@ def test_other_results_are_frozen_too(res, two):
     for arr in (c.estimates, c.stderr, c.mean, c.p_value):
         with pytest.raises(ValueError, match="read-only"):
             arr[..., 0] = 0.0
+
+
+@pytest.mark.parametrize("bad", [3, "text", {"category": "X"}])
+def test_damaged_warnings_are_refused_in_one_line(res, bad):
+    d = res.to_dict()
+    d["warnings"] = bad if not isinstance(bad, dict) else [bad]
+    with pytest.raises(FdmlError, match="key 'warnings"):
+        FitResult.from_dict(d)

@@ -770,8 +770,11 @@ def _slots_from_fields(f: Fields, names) -> tuple:
 
 def _warnings_from_fields(f: Fields) -> tuple:
     """Recorded warnings: ``{category, message}`` objects, or the strings of files from before."""
+    items = f.raw("warnings", None) or []
+    if not isinstance(items, list):
+        raise f.error("warnings", "must be a list of warnings")
     out = []
-    for i, w in enumerate(f.raw("warnings", None) or ()):
+    for i, w in enumerate(items):
         if isinstance(w, str):
             out.append(RecordedWarning.from_value(w))
             continue
