@@ -460,7 +460,7 @@ class FitResult:
 
         Keys: model, effects (:meth:`effects_brief`), params (name -> {value,
         stderr}), derived (name -> {value, stderr}), cost, iterations, converged, message, band, outputs,
-        records, boundary, cov_type, warnings, findings (the data check's,
+        records, boundary, cov_type, warnings (each ``{category, message}``), findings (the data check's,
         each with its ``code``), adequacy (flagged effects and residual
         checks, :meth:`fdml.adequacy.Adequacy.brief`), provenance.  Infinite standard errors are
         written as the string "inf".
