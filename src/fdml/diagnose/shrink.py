@@ -18,12 +18,12 @@
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
 from ..estimate import fit as fdml_fit
 from ..models.effects import CHANNELS
+from ..warning_log import recording
 from .data import AnalysisData
 from .likelihood import DiagFit, NoiseBands, diag_fit
 from .locate import GapMap, forced_response, gap_map
@@ -162,8 +162,7 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
 def frozen_fit(data: AnalysisData, model, bands: NoiseBands, options: dict) -> DiagFit:
     """The model with every model parameter frozen; only each record's nuisance terms are fitted (hold-out)."""
     frozen = model.with_parameters(model.parameters.only_free([]))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    with recording(reemit=False) as log:  # kept in the DiagFit
         # the records were checked once (core._data_findings); a frozen model needs no adequacy check
         res = fdml_fit(list(data.spectra), frozen, cov_type="naive", check=False, adequacy=False, **options)
-    return diag_fit(res, data, bands, {}, **options)
+    return diag_fit(res, data, bands, {}, log, **options)
