@@ -312,19 +312,22 @@ class MonteCarloResult:
 
     # --- JSON -----------------------------------------------------------------------------------
     def to_dict(self) -> dict:
+        """JSON-ready dict; the per-run arrays write a missing value (nan) as null."""
+        from .jsoncodec import to_jsonable
+
         def arr(a):
-            return [[None if not math.isfinite(v) else v for v in r] for r in np.asarray(a, float).tolist()]
+            return to_jsonable(np.asarray(a, float), nonfinite="null")
 
         return {
             "format": MC_FORMAT[0],
             "version": MC_FORMAT[1],
             "names": list(self.names),
-            "truth": [None if not math.isfinite(v) else v for v in self.truth.tolist()],
+            "truth": arr(self.truth),
             "estimates": arr(self.estimates),
             "stderr": arr(self.stderr),
             "converged": self.converged.tolist(),
             "iterations": self.iterations.tolist(),
-            "fit_seconds": [None if not math.isfinite(v) else v for v in self.fit_seconds.tolist()],
+            "fit_seconds": arr(self.fit_seconds),
             "errors": {str(k): v for k, v in self.errors.items()},
             "settings": self.settings,
             "wall_time": self.wall_time,

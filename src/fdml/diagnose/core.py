@@ -626,9 +626,9 @@ def _assemble(
     fp, comp, selected = [], [], []
     for a in sel.accepted:
         nulls = a.effect.nulls(base_fit.model if a.step == 0 else a.fit.model)
-        fp += [dict(x, effect=a.key) for x in footprint(su.data, a.fit, nulls, base_map, su.channels)]
+        fp += [dict(x, effect=a.key) for x in footprint(su.data, a.fit, nulls, base_map)]
         if a.step == 0:
-            comp = compensation(su.data, a.fit, base_fit, nulls, base_map, su.channels)
+            comp = compensation(su.data, a.fit, base_fit, nulls, base_map)
         entry = next(r for r in ranking if r["key"] == a.key and r["step"] == a.step)
         selected.append({**entry, "parameter_shifts": parameter_shifts(base_fit, a.fit)})
     shifts = parameter_shifts(base_fit, sel.final) if sel.accepted else {}

@@ -64,7 +64,7 @@ def _predict_rows(fit: DiagFit, theta: np.ndarray) -> np.ndarray:
     return np.concatenate(fit.prob.predict(theta))
 
 
-def _cell_energy(data: AnalysisData, delta: np.ndarray, before: GapMap, channels) -> list:
+def _cell_energy(data: AnalysisData, delta: np.ndarray, before: GapMap) -> list:
     om = data.stacked_omega()
     dft = data.stacked_dft()
     nb = before.edges.size - 1
@@ -83,7 +83,7 @@ def _cell_energy(data: AnalysisData, delta: np.ndarray, before: GapMap, channels
     return out
 
 
-def footprint(data: AnalysisData, fit: DiagFit, nulls: dict, before: GapMap, channels) -> list:
+def footprint(data: AnalysisData, fit: DiagFit, nulls: dict, before: GapMap) -> list:
     """Energy of the effect itself per cell (in noise-floor units) and its share."""
     theta0 = fit.theta.copy()
     for n, v in nulls.items():
@@ -91,7 +91,7 @@ def footprint(data: AnalysisData, fit: DiagFit, nulls: dict, before: GapMap, cha
             theta0[fit.names.index(n)] = v
     # nuisance (non-free) effect parameters live in the model, not in theta (see _predict_null)
     delta = _predict_rows(fit, fit.theta) - _predict_null(fit, theta0, nulls)
-    return _cell_energy(data, delta, before, channels)
+    return _cell_energy(data, delta, before)
 
 
 def _predict_null(fit: DiagFit, theta0: np.ndarray, nulls: dict) -> np.ndarray:
@@ -108,14 +108,14 @@ def _predict_null(fit: DiagFit, theta0: np.ndarray, nulls: dict) -> np.ndarray:
         prob.model = saved
 
 
-def compensation(data: AnalysisData, fit: DiagFit, base: DiagFit, nulls: dict, before: GapMap, channels) -> list:
+def compensation(data: AnalysisData, fit: DiagFit, base: DiagFit, nulls: dict, before: GapMap) -> list:
     """How the base parameters moved to imitate the effect: per-cell energy of y(aug, eta0) - y(base)."""
     theta0 = fit.theta.copy()
     for n, v in nulls.items():
         if n in fit.names:
             theta0[fit.names.index(n)] = v
     delta = _predict_null(fit, theta0, nulls) - _predict_rows(base, base.theta)
-    return _cell_energy(data, delta, before, channels)
+    return _cell_energy(data, delta, before)
 
 
 def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
