@@ -121,3 +121,23 @@ def test_a_diagnosis_keeps_the_warnings_of_its_fits(monkeypatch, clean):
     back = DiagnosisReport.from_dict(d)
     assert back.to_dict() == rep.to_dict()
     assert back.verdict == rep.verdict and back.warnings == tuple(rep.warnings)
+
+
+def test_a_validation_run_counts_the_warnings_of_its_diagnosis(monkeypatch):
+    import fdml.diagnose.likelihood as lik
+    from fdml.diagnose.validation import Scenario, run_scenario
+
+    real = lik.fdml_fit
+
+    def warning_fit(*args, **kw):
+        warnings.warn("a warning raised inside the diagnosis's fit", ConvergenceWarning, stacklevel=2)
+        return real(*args, **kw)
+
+    monkeypatch.setattr(lik, "fdml_fit", warning_fit)
+    sc = Scenario(None, {}, "-", "3211", 0.03, "white", 11, "none-white")
+    row, shown = shown_while(lambda: run_scenario(sc, diagnose_options={"library": ["time_delay@q"], "max_effects": 1}))
+    assert row["verdict"] != "error", row["status"]
+    assert [w for w in shown if w.category is ConvergenceWarning] == []
+    kept = json.loads(row["warnings"])
+    assert "ConvergenceWarning: a warning raised inside the diagnosis's fit" in kept
+    assert row["n_warnings"] == len(kept)

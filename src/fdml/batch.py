@@ -11,7 +11,7 @@ a record) of a folder, a glob or a list, each on its own, and writes
     instead, for a record that failed: its error (type and one-line message);
 ``OUT/table.csv``, ``OUT/table.json``
     one row per record, in source order: estimates, standard errors, cost,
-    convergence, iterations, fit time, error.
+    convergence, iterations, fit time, error, warnings.
 
 Every file is written under a temporary name and renamed into place, so no
 result file is ever half-written.  A result file whose input hash (record
@@ -21,10 +21,13 @@ Workers write their result and return only a short row, which the parent
 appends to a spool file; it keeps the list of sources and a file offset per
 record, so peak memory stays flat in the number of records.
 
-Engines: ``"process"`` (the standard library's process pool, default),
-``"serial"`` (in this process) or a ``dask.distributed.Client`` (optional
-``dask`` extra; the record paths and ``OUT`` must then be visible to every
-worker, e.g. on a shared file system).  A task is idempotent: run twice (Dask
+Engines (:mod:`fdml.parallel`, the one engine of fdml): ``"process"`` (a
+local process pool, default), ``"serial"`` (in this process) or a
+``dask.distributed.Client`` (optional ``dask`` extra; the record paths and
+``OUT`` must then be visible to every worker, e.g. on a shared file system).
+The warnings of every fit are kept, with their category, in its row (column
+``warnings``) and result file, and counted in :class:`BatchSummary`; the
+workers print none.  A task is idempotent: run twice (Dask
 reruns a task whose worker died), it writes the same file by the same atomic
 rename, so every record ends with exactly one result file and one row.
 """
@@ -973,7 +976,7 @@ def run_batch(
     so concurrent batches give what the same batches one after the other give;
     see :func:`_folder_lock`.  SIGTERM, SIGHUP or SIGINT to this process end
     the run cleanly: the workers are ended, no partial file is left, and a
-    rerun resumes (see :func:`execute`).
+    rerun resumes (see :func:`fdml.parallel.execute`).
     """
     t_start = time.perf_counter()
     items = collect_sources(sources)

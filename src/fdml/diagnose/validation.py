@@ -466,7 +466,8 @@ def validate(
     seed_base : int
         First seed (default the report range; 0 is the tuning range).
     processes : int, optional
-        Worker processes (default: the CPU count).
+        Worker processes of the local pool (:func:`fdml.parallel.execute`; default: the CPU
+        count; 1 runs in this process).
     truths, nulls : sequence of str, optional
         Subsets of :data:`TRUTHS` and :data:`NULLS`.
     threshold : float, optional
