@@ -3,7 +3,7 @@
 Two seed ranges that never overlap:
 
 1. the *tuning* range (seeds from 0): the label threshold (shrink needed for "confirmed") is chosen
-   there by :func:`fdml.diagnose.validate.tune_threshold`;
+   there by :func:`fdml.diagnose.validation.tune_threshold`;
 2. the *report* range (seeds from ``REPORT_SEED_BASE``): the table is computed there, with the
    threshold from step 1, on at least 40 runs per effect and 200 per null case.
 
@@ -27,7 +27,7 @@ OUT = Path(__file__).resolve().parent / "output"
 
 
 def main(argv=None) -> int:
-    from fdml.diagnose.validate import REPORT_SEED_BASE, format_scores, score, tune_threshold, validate
+    from fdml.diagnose.validation import REPORT_SEED_BASE, format_scores, score, tune_threshold, validate
 
     p = argparse.ArgumentParser()
     p.add_argument("phase", choices=("tune", "report", "rescore"))

@@ -8,7 +8,7 @@ import fdml
 from fdml.cli import main
 from fdml.diagnose import diagnose
 from fdml.diagnose.truth import simulate_truth
-from fdml.diagnose.validate import Scenario, run_scenario, score, tune_threshold, wilson
+from fdml.diagnose.validation import Scenario, run_scenario, score, tune_threshold, wilson
 
 
 def run(capsys, *argv):
@@ -105,7 +105,7 @@ def test_cli_bad_input_exits_2_with_one_line(capsys, delay_csv):
 
 
 def test_cli_validate_prints_the_table(capsys, monkeypatch):
-    import fdml.diagnose.validate as V
+    import fdml.diagnose.validation as V
 
     rows = [
         run_scenario(Scenario("time_delay@q", {"tau_q": 0.04}, "large", "3211", 0.03, "white", 5, "time_delay@q")),

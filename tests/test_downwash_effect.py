@@ -126,7 +126,7 @@ def test_diagnosis_names_a_textbook_downwash_lag(navion, maneuver, seed):
     import warnings
 
     from fdml.diagnose import diagnose
-    from fdml.diagnose.validate import BAND, HOLDOUT_OF
+    from fdml.diagnose.validation import BAND, HOLDOUT_OF
 
     tau = navion.aircraft.l_t / navion.U
     kw = dict(noise=0.003, noise_kind="white")

@@ -11,7 +11,7 @@ a record) of a folder, a glob or a list, each on its own, and writes
     instead, for a record that failed: its error (type and one-line message);
 ``OUT/table.csv``, ``OUT/table.json``
     one row per record, in source order: estimates, standard errors, cost,
-    convergence, iterations, fit time, error.
+    convergence, iterations, fit time, error, warnings.
 
 Every file is written under a temporary name and renamed into place, so no
 result file is ever half-written.  A result file whose input hash (record
@@ -21,10 +21,13 @@ Workers write their result and return only a short row, which the parent
 appends to a spool file; it keeps the list of sources and a file offset per
 record, so peak memory stays flat in the number of records.
 
-Engines: ``"process"`` (the standard library's process pool, default),
-``"serial"`` (in this process) or a ``dask.distributed.Client`` (optional
-``dask`` extra; the record paths and ``OUT`` must then be visible to every
-worker, e.g. on a shared file system).  A task is idempotent: run twice (Dask
+Engines (:mod:`fdml.parallel`, the one engine of fdml): ``"process"`` (a
+local process pool, default), ``"serial"`` (in this process) or a
+``dask.distributed.Client`` (optional ``dask`` extra; the record paths and
+``OUT`` must then be visible to every worker, e.g. on a shared file system).
+The warnings of every fit are kept, with their category, in its row (column
+``warnings``) and result file, and counted in :class:`BatchSummary`; the
+workers print none.  A task is idempotent: run twice (Dask
 reruns a task whose worker died), it writes the same file by the same atomic
 rename, so every record ends with exactly one result file and one row.
 """
@@ -36,24 +39,35 @@ import csv
 import functools
 import glob
 import hashlib
-import json
 import logging
 import math
 import os
 import re
-import sys
 import time
-import warnings
-from collections import deque
-from collections.abc import Callable, Generator, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from .errors import FdmlError
 from .jsoncodec import dumps as _dumps
+from .jsoncodec import loads as _loads
 from .outputs import atomic_open, atomic_write_text
+from .parallel import engine_name, execute, one_line
+from .parallel import pool_context as _pool_context  # noqa: F401  (its old name here; scripts and tests use it)
+from .parallel import signals_end_the_run as _signals_end_the_run
+from .warning_log import RecordedWarning, merged, recording
 
-__all__ = ["run_batch", "BatchSummary", "ModelSpec", "collect_sources", "load_source", "BatchItem", "TABLE_FORMAT"]
+__all__ = [
+    "run_batch",
+    "BatchSummary",
+    "ModelSpec",
+    "collect_sources",
+    "load_source",
+    "BatchItem",
+    "TABLE_FORMAT",
+    "check_fit_kwargs",
+    "canonical_json",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -327,28 +341,25 @@ def load_source(path, t0: float | None = None, t1: float | None = None, *, name:
     """Read one record file (and cut a window): the one place the batch reads records.
 
     Uses :func:`fdml.io.load_record` (any supported format; ``read`` are its
-    options: ``format``, ``columns``, ``units``, ``sign``, ``layout``) when it
-    is available, else :func:`fdml.read_csv`.
+    options: ``format``, ``columns``, ``units``, ``sign``, ``layout``).
     """
     from dataclasses import replace
 
-    try:
-        from .io import load_record
-    except ImportError:
-        from .record import read_csv
+    from .io import load_record
 
-        rec = read_csv(path)
-        if t0 is not None or t1 is not None:
-            rec = rec.window(t0, t1)
-    else:
-        rec = load_record(path, t0=t0, t1=t1, **read)
+    rec = load_record(path, t0=t0, t1=t1, **read)
     return replace(rec, name=name) if name else rec
 
 
 # --- hashing --------------------------------------------------------------------------------
-def _canonical(obj) -> str:
-    """Stable JSON text of plain data (numbers, strings, lists, dicts)."""
+def canonical_json(obj) -> str:
+    """Stable JSON text of plain data (numbers, strings, lists, dicts): what input hashes are of.
 
+    Raises
+    ------
+    FdmlError
+        ``obj`` holds something else (options must be shipped to workers and hashed).
+    """
     try:
         return _dumps(obj, compact=True, sort_keys=True, default=None)
     except TypeError as exc:
@@ -363,7 +374,14 @@ def _file_hash(path: str) -> str:
     return h.hexdigest()
 
 
-def _check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
+def check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
+    """``fit_kwargs`` as a dict of :func:`fdml.fit` options, checked once before any task runs.
+
+    Raises
+    ------
+    FdmlError
+        An unknown option, a bad band, or a value that is not plain data.
+    """
     import inspect
 
     from .estimate import fit
@@ -377,17 +395,11 @@ def _check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
         from .spectra import parse_band
 
         parse_band(kw["band"])  # refuse a bad band before any task: it would fail every one of them
-    _canonical(kw)  # plain data only: it is hashed and shipped to workers
+    canonical_json(kw)  # plain data only: it is hashed and shipped to workers
     return kw
 
 
 # --- the task (runs in a worker) ------------------------------------------------------------
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip()
-    first = text.splitlines()[0] if text else ""
-    return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
-
-
 def _num(x: float):
     x = float(x)
     return x if math.isfinite(x) else str(x)
@@ -408,7 +420,7 @@ def _base_row(task: Mapping) -> dict:
         "elapsed": None,
         "n_freq": None,
         "error": "",
-        "warnings": "",
+        "warnings": [],
         "findings": "",
         "result_file": "",
         "params": {},
@@ -419,7 +431,7 @@ def _base_row(task: Mapping) -> dict:
 def error_row(task: Mapping, exc: BaseException | str) -> dict:
     """The table row of a record that failed with ``exc``."""
     row = _base_row(task)
-    row["error"] = exc if isinstance(exc, str) else _one_line(exc)
+    row["error"] = exc if isinstance(exc, str) else one_line(exc)
     return row
 
 
@@ -430,7 +442,7 @@ def _result_paths(task: Mapping) -> tuple[Path, Path]:
 
 def _reusable(path: Path, input_hash: str) -> dict | None:
     try:
-        d = json.loads(path.read_text())
+        d = _loads(path.read_text())
     except (OSError, ValueError):
         return None
     b = d.get("batch") if isinstance(d, dict) else None
@@ -464,7 +476,7 @@ def run_task(task: Mapping) -> dict:
         key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_kwargs"], "fdml": __version__}
         if task.get("read"):  # absent when empty: the hash of a batch without reading options is unchanged
             key["read"] = task["read"]
-        h.update(_canonical(key).encode())
+        h.update(canonical_json(key).encode())
         input_hash = h.hexdigest()
     except OSError as exc:
         from .errors import RecordError
@@ -493,8 +505,7 @@ def run_task(task: Mapping) -> dict:
 
         rec = load_source(task["path"], task["t0"], task["t1"], name=task["key"], **task.get("read", {}))
         model = ModelSpec(**task["spec"]).build()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the result keeps its warnings
+        with recording(reemit=False) as log:  # a worker shows nothing: the row and the result keep them
             res = fit(rec, model, **task["fit_kwargs"])
         row.update(
             status="ok",
@@ -503,7 +514,7 @@ def run_task(task: Mapping) -> dict:
             cost=_num(res.cost),
             elapsed=float(res.elapsed),
             n_freq=int(res.n_freq),
-            warnings="; ".join(map(str, res.warnings)),
+            warnings=[w.to_dict() for w in merged(log, res.warnings)],
             findings=" ".join(f.code for f in res.findings),
             result_file=str(Path("results") / res_path.name),
             params={n: float(v) for n, v in zip(res.names, res.values)},
@@ -534,7 +545,7 @@ def run_task(task: Mapping) -> dict:
 def _write_error(task, row, exc, err_path: Path, res_path: Path, input_hash, t_start=None) -> dict:
     row.update(
         status="error",
-        error=_one_line(exc),
+        error=one_line(exc),
         result_file=str(Path("results") / err_path.name),
         converged=None,
         params={},
@@ -556,423 +567,9 @@ def _write_error(task, row, exc, err_path: Path, res_path: Path, input_hash, t_s
         _unlink(res_path)  # a stale result for other inputs must not stand beside the error
         atomic_write_text(err_path, _dumps(doc, indent=1))
     except Exception as exc2:  # the row still carries the error
-        row["error"] += f" (and the error file could not be written: {_one_line(exc2)})"
+        row["error"] += f" (and the error file could not be written: {one_line(exc2)})"
         row["result_file"] = ""
     return row
-
-
-# --- engines ----------------------------------------------------------------------------------
-def _is_dask_client(engine) -> bool:
-    return type(engine).__module__.split(".")[0] == "distributed" and hasattr(engine, "submit")
-
-
-def _dask_missing() -> FdmlError:
-    return FdmlError("the Dask engine needs the optional 'dask' extra: pip install 'fdml[dask]'")
-
-
-def _resolve_engine(engine, workers):
-    """(kind, client, owned) for an engine argument."""
-    if engine in (None, "process"):
-        return "process", None, False
-    if engine == "serial":
-        return "serial", None, False
-    if _is_dask_client(engine):
-        return "dask", engine, False
-    if isinstance(engine, str) and (engine == "dask" or "://" in engine):
-        try:
-            from distributed import Client, LocalCluster
-        except ImportError:
-            raise _dask_missing() from None
-        if engine == "dask":
-            cluster = LocalCluster(
-                n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=None
-            )
-            return "dask", Client(cluster), True
-        return "dask", Client(engine), True
-    raise FdmlError(
-        f"engine must be 'process', 'serial', 'dask', a scheduler address or a dask.distributed.Client, got {engine!r}"
-    )
-
-
-def _pool_context():
-    """The multiprocessing context of the local pool.
-
-    ``fork`` on Linux while this process has a single thread: no re-import of
-    the caller's ``__main__`` (a script without an ``if __name__ ==
-    "__main__"`` guard works) and nothing to import in the workers.  With
-    other threads alive (a Dask client, a progress bar's monitor) forking is
-    unsafe, so ``forkserver`` (fdml preloaded once, cheap forks after); ``spawn``
-    where neither exists.
-    """
-    import multiprocessing as mp
-    import threading
-
-    methods = mp.get_all_start_methods()
-    if sys.platform.startswith("linux") and "fork" in methods and threading.active_count() == 1:
-        return mp.get_context("fork")
-    if "forkserver" in methods:
-        ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["fdml.batch", "fdml.montecarlo", "fdml.estimate", "fdml.io"])
-        return ctx
-    return mp.get_context("spawn")
-
-
-# --- processes: a run ends with its parent --------------------------------------------------------
-#: Signals that, at their default disposition, end a run by an exception (so its ``finally`` runs).
-_ENDING_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
-#: Seconds a terminated worker process gets to exit before it is killed.
-_STOP_GRACE = 2.0
-#: ``prctl`` option: the signal this process gets when its parent ends (``linux/prctl.h``).
-_PR_SET_PDEATHSIG = 1
-
-
-@contextlib.contextmanager
-def _signals_end_the_run() -> Iterator[None]:
-    """While the block runs, SIGTERM and SIGHUP raise ``SystemExit(128 + signal number)`` here.
-
-    At their default disposition they would kill this process at once and skip
-    the ``finally`` blocks that cancel the tasks, end the worker processes,
-    close the Dask cluster fdml started and remove temporary files; raising
-    runs them, and the exit status is still the shell's 128 + signal number
-    (143 for SIGTERM).  SIGINT raises KeyboardInterrupt as Python's own handler
-    does (only installed where SIGINT is at its default).  A signal that is
-    ignored (SIGHUP under ``nohup``) or has the caller's own handler is left
-    alone, so nested runs install nothing.  The first signal puts the previous
-    handlers back: a second one during the clean-up kills at once (the workers
-    then end by :func:`_die_with_parent`).  Handlers can only be installed from
-    the main thread; in any other thread this does nothing.
-    """
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous: dict = {}
-
-    def restore() -> None:
-        for sig, old in previous.items():
-            if signal.getsignal(sig) is handler:  # not a handler someone installed since
-                signal.signal(sig, old)
-
-    def handler(signum, frame):
-        restore()
-        if signum == signal.SIGINT:
-            raise KeyboardInterrupt
-        raise SystemExit(128 + signum)
-
-    for name in _ENDING_SIGNALS:
-        sig = getattr(signal, name, None)
-        if sig is not None and signal.getsignal(sig) == signal.SIG_DFL:
-            previous[sig] = signal.signal(sig, handler)
-    try:
-        yield
-    finally:
-        restore()
-
-
-def _die_with_parent(owner: int, start_method: str) -> None:
-    """End this worker process when the process that owns its pool ends, even by SIGKILL.
-
-    SIGKILL of the owner runs no clean-up, so the workers must notice on their
-    own.  On Linux with ``fork`` or ``spawn`` (the owner is the parent):
-    ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (:func:`_kill_with_parent`), chosen
-    over a thread that polls :func:`os.getppid` because the kernel delivers it
-    at once, even while the worker is deep in a numpy/LAPACK call that holds
-    the GIL, and it costs nothing while the worker works.  With
-    ``forkserver`` the parent is the forkserver, which exits only when no
-    process holds the owner's "alive" pipe, and every worker holds it (to be a
-    forkserver client itself): the forkserver outlives the owner and the
-    parent-death signal never comes.  There, and where prctl does not exist
-    (macOS), a daemon thread blocks on :func:`multiprocessing.parent_process`'s
-    sentinel (readable once the owner has ended; no polling) and then ends the
-    worker (:func:`_watch_parent`).
-
-    Parameters
-    ----------
-    owner : int
-        Process id of the process that created the pool.
-    start_method : str
-        Its multiprocessing start method.
-    """
-    if start_method != "forkserver" and _kill_with_parent(owner):
-        return
-    _watch_parent()
-
-
-def _kill_with_parent(owner: int) -> bool:
-    """Ask Linux to SIGKILL this process when its parent ends; False where that is not possible.
-
-    The signal follows the *thread* that forked the worker: the pool is
-    created and fed by the thread that iterates :func:`execute`, which lives as
-    long as the run.
-    """
-    import ctypes
-    import signal
-
-    if not sys.platform.startswith("linux"):
-        return False
-    try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        zero = ctypes.c_ulong(0)
-        if libc.prctl(_PR_SET_PDEATHSIG, ctypes.c_ulong(signal.SIGKILL), zero, zero, zero) != 0:
-            return False
-    except (OSError, AttributeError):  # no libc symbol table or no prctl
-        return False
-    if os.getppid() != owner:  # the owner died before prctl took effect: no signal will come
-        os._exit(1)
-    return True
-
-
-def _watch_parent() -> None:
-    """A daemon thread that ends this process once the owner's sentinel says it has ended."""
-    import multiprocessing
-    import multiprocessing.connection
-    import threading
-
-    sentinel = getattr(multiprocessing.parent_process(), "sentinel", None)
-    if sentinel is None:  # not a multiprocessing child: nothing to watch
-        return
-
-    def watch() -> None:
-        multiprocessing.connection.wait([sentinel])  # blocks, GIL released, until the owner ends
-        os._exit(1)
-
-    threading.Thread(target=watch, name="fdml-parent-watch", daemon=True).start()
-
-
-def _worker_init(owner: int, start_method: str) -> None:
-    """Initializer of a local pool worker: it ends with the process that owns the pool.
-
-    Ctrl-C reaches the whole process group, so SIGINT is ignored here and the
-    owner ends the workers itself; SIGTERM and SIGHUP handlers inherited from
-    the owner by ``fork`` (those of :func:`_signals_end_the_run`) go back to
-    the default, which ends the worker; then :func:`_die_with_parent`.
-    """
-    import signal
-
-    with contextlib.suppress(ValueError, OSError):  # never break the pool over this
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        for name in ("SIGTERM", "SIGHUP"):
-            sig = getattr(signal, name, None)
-            if sig is not None and callable(signal.getsignal(sig)):
-                signal.signal(sig, signal.SIG_DFL)
-    _die_with_parent(owner, start_method)
-
-
-def _stop_pool(ex) -> None:
-    """Cancel the tasks not started and end the worker processes now (a run that did not finish).
-
-    ``shutdown(cancel_futures=True)`` alone lets every worker finish the task it
-    runs, minutes for a long fit, and keeps the owner waiting for them at exit.
-    Python 3.14 has the public ``terminate_workers()``; before it the worker
-    processes are reachable only through the executor's private ``_processes``
-    (process id -> :class:`multiprocessing.Process`), read here before
-    ``shutdown`` drops it.  A worker still alive :data:`_STOP_GRACE` s after
-    SIGTERM is killed.
-    """
-    procs = list((getattr(ex, "_processes", None) or {}).values())
-    terminate = getattr(ex, "terminate_workers", None)
-    if terminate is not None:
-        terminate()
-    else:
-        ex.shutdown(wait=False, cancel_futures=True)
-        for p in procs:
-            with contextlib.suppress(ValueError, OSError):  # closed, or already gone
-                p.terminate()
-    deadline = time.monotonic() + _STOP_GRACE
-    for p in procs:
-        with contextlib.suppress(ValueError, OSError):
-            p.join(max(0.0, deadline - time.monotonic()))
-            if p.exitcode is None:
-                p.kill()
-                p.join(_STOP_GRACE)
-
-
-def execute(
-    fn: Callable[[dict], dict],
-    tasks: Iterable[dict],
-    *,
-    engine="process",
-    workers: int | None = None,
-    on_error: Callable[[dict, BaseException | str], dict],
-) -> Generator[dict, None, None]:
-    """Run ``fn(task)`` for every task on ``engine``; yield the results as they finish.
-
-    ``fn`` must be a module-level function returning a small dict.  A task
-    whose execution fails outside ``fn`` (a worker process that died under
-    it, run alone, twice; a Dask ``KilledWorker``) yields ``on_error(task, exc)``.  At most a
-    few tasks per worker are in flight, so memory stays flat in the number
-    of tasks.
-
-    The run ends with this process, whatever ends it.  While the generator
-    runs, SIGTERM and SIGHUP raise here (:func:`_signals_end_the_run`), so on
-    any exception, or when the caller closes the generator early (close it:
-    ``contextlib.closing``), the ``finally`` blocks end the run: local workers
-    are terminated at once (not left to finish their task), a Dask cluster
-    started here is closed, and the futures of a caller's Client are cancelled
-    (the Client stays open).  Local workers also die with SIGKILL of this
-    process (:func:`_die_with_parent`, Linux).
-    """
-    with _signals_end_the_run():
-        kind, client, owned = _resolve_engine(engine, workers)
-        try:
-            if kind == "serial":
-                for task in tasks:
-                    try:
-                        yield fn(task)
-                    except Exception as exc:
-                        yield on_error(task, exc)
-            elif kind == "process":
-                yield from _process_map(fn, tasks, workers or os.cpu_count() or 1, on_error)
-            else:
-                yield from _dask_map(client, fn, tasks, on_error)
-        finally:
-            if owned:
-                cluster = getattr(client, "cluster", None)
-                client.close()
-                if cluster is not None:
-                    cluster.close()
-
-
-def _process_map(fn, tasks, workers: int, on_error) -> Iterator[dict]:
-    """Local process pool with a bounded window; survives worker processes that die.
-
-    A dead worker breaks the whole pool, failing every task in flight; those
-    tasks become suspects and are rerun one at a time in a fresh pool, so an
-    innocent task is never blamed.  A task that kills its worker while running
-    alone :data:`_LONE_DEATHS` times yields an error row.
-    """
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-    from concurrent.futures.process import BrokenProcessPool
-
-    it = iter(tasks)
-    suspects: deque = deque()
-    deaths: dict = {}
-    window = 2 * workers
-    exhausted = False
-    while True:
-        ctx = _pool_context()
-        ex = ProcessPoolExecutor(
-            max_workers=workers,
-            mp_context=ctx,
-            initializer=_worker_init,
-            initargs=(os.getpid(), ctx.get_start_method()),
-        )
-        inflight: dict = {}  # future -> (task, ran alone)
-        broken = finished = False
-        try:
-            while True:
-                while not broken and not any(alone for _, alone in inflight.values()):
-                    if suspects:
-                        if inflight:
-                            break  # a suspect runs alone once the others are done
-                        task, alone = suspects.popleft(), True
-                    elif len(inflight) < window and not exhausted:
-                        try:
-                            task, alone = next(it), False
-                        except StopIteration:
-                            exhausted = True
-                            break
-                    else:
-                        break
-                    try:
-                        inflight[ex.submit(fn, task)] = (task, alone)
-                    except BrokenProcessPool:
-                        suspects.appendleft(task)
-                        broken = True
-                if not inflight:
-                    break
-                done, _ = wait(inflight, return_when=FIRST_COMPLETED)
-                for fut in done:
-                    task, alone = inflight.pop(fut)
-                    try:
-                        out = fut.result()
-                    except BrokenProcessPool:
-                        broken = True
-                        tid = task.get("index", id(task))
-                        if alone:
-                            deaths[tid] = deaths.get(tid, 0) + 1
-                        if deaths.get(tid, 0) >= _LONE_DEATHS:
-                            yield on_error(
-                                task, f"WorkerDied: the worker process died {deaths[tid]} times running this task alone"
-                            )
-                        else:
-                            logger.warning("a worker process died; rerunning task %s on its own", task.get("key", tid))
-                            suspects.append(task)
-                        continue
-                    except Exception as exc:
-                        out = on_error(task, exc)
-                    yield out
-                if broken and not inflight:
-                    break
-            finished = True
-        finally:
-            if finished:
-                ex.shutdown(wait=not broken, cancel_futures=True)
-            else:  # a signal, an error, or the caller stopped early: end the workers now
-                _stop_pool(ex)
-        if not broken:
-            return
-
-
-def _dask_map(client, fn, tasks, on_error) -> Iterator[dict]:
-    try:
-        from distributed import as_completed
-    except ImportError:  # pragma: no cover - a Client exists, so distributed does
-        raise _dask_missing() from None
-    nthreads = sum(client.nthreads().values()) or 1
-    window = max(4 * nthreads, 16)
-    it = iter(tasks)
-    ac = as_completed()
-    pending: dict = {}
-
-    def submit() -> bool:
-        try:
-            task = next(it)
-        except StopIteration:
-            return False
-        fut = client.submit(fn, task, pure=False)
-        pending[fut.key] = (task, fut)
-        ac.add(fut)
-        return True
-
-    try:
-        for _ in range(window):
-            if not submit():
-                break
-        for fut in ac:
-            task, _ = pending.pop(fut.key)
-            try:
-                out = fut.result()
-            except Exception as exc:  # KilledWorker after repeated deaths, a lost connection...
-                out = on_error(task, exc)
-            fut.release()
-            yield out
-            submit()
-    finally:
-        if pending:  # stopped early: drop what has not run
-            client.cancel([f for _, f in pending.values()])
-
-
-def _progress_handler(progress, total: int, desc: str):
-    """(callback(row, done), close) for a ``progress`` argument."""
-    if progress is None or progress is False:
-        return (lambda row, done: None), (lambda: None)
-    if progress is True or progress == "tqdm":
-        try:
-            from tqdm.auto import tqdm
-        except ImportError:
-            raise FdmlError("progress=True needs tqdm: pip install 'fdml[progress]'") from None
-        bar = tqdm(total=total, desc=desc, unit="record")
-
-        def update(row, done):
-            bar.update(1)
-
-        return update, bar.close
-    if callable(progress):
-        return (lambda row, done: progress(done, total, row)), (lambda: None)
-    raise FdmlError(f"progress must be None, True or a callable(done, total, row), got {progress!r}")
 
 
 # --- summary ----------------------------------------------------------------------------------
@@ -994,6 +591,10 @@ class BatchSummary:
     wall_time : float
         Seconds.
     engine : str
+    warnings : dict
+        Category (``"DataWarning"``, ...) -> number of warnings of that
+        category over every record; each row's own are in its ``warnings``
+        column (``"Category: message"``, joined by ``"; "``).
 
     The rows themselves stay on disk (memory flat in the number of records);
     :attr:`rows` reads them from ``table.json``.
@@ -1010,11 +611,12 @@ class BatchSummary:
     wall_time: float
     engine: str
     findings: dict = field(default_factory=dict)
+    warnings: dict = field(default_factory=dict)
 
     @functools.cached_property
     def rows(self) -> list[dict]:
         """One row per record, in source order, as in ``table.json``."""
-        return json.loads(self.table_json.read_text())["rows"]
+        return _loads(self.table_json.read_text())["rows"]
 
     @property
     def n_ok(self) -> int:
@@ -1039,7 +641,30 @@ class BatchSummary:
             "table_json": str(self.table_json),
             "errors": dict(self.errors),
             "findings": dict(self.findings),
+            "warnings": dict(self.warnings),
         }
+
+    @classmethod
+    def from_dict(cls, d: Mapping, *, source: str = "fdml batch summary") -> "BatchSummary":
+        """Inverse of :meth:`to_dict`; a key missing or of the wrong type raises :class:`FdmlError`."""
+        from .jsoncodec import Fields
+
+        f = Fields(d, source)
+        n_total, n_fitted = f.integer("records", minimum=0), f.integer("fitted", minimum=0)
+        return cls(
+            out_dir=Path(f.string("out_dir")),
+            table_csv=Path(f.string("table_csv")),
+            table_json=Path(f.string("table_json")),
+            n_total=n_total,
+            n_fitted=n_fitted,
+            n_reused=f.integer("reused", minimum=0),
+            n_failed=f.integer("failed", minimum=0),
+            errors=f.mapping("errors"),
+            wall_time=f.number("wall_time"),
+            engine=f.string("engine"),
+            findings=f.mapping("findings", default={}),
+            warnings=f.mapping("warnings", default={}),
+        )
 
     def to_frame(self):
         """The table as a pandas DataFrame (pandas is optional)."""
@@ -1063,6 +688,10 @@ class BatchSummary:
                 "--strict makes them errors)"
             )
             lines.extend(f"  {key}: {codes}" for key, codes in self.findings.items())
+        if self.warnings:
+            counts = ", ".join(f"{n} {cat}" for cat, n in sorted(self.warnings.items()))
+            lines.append(f"warnings: {counts} (column 'warnings')")
+            lines.extend(f"  {r['key']}: {_warnings_text(r['warnings'])}" for r in self.rows if r.get("warnings"))
         return "\n".join(lines)
 
 
@@ -1106,12 +735,16 @@ class _RowSpool:
         self.flagged = bytearray(n)  # rows whose data check found something
         self.reused = bytearray(n)
         self.names: dict[str, None] = {}  # ordered union of parameter names
+        self.warnings: dict[str, int] = {}  # warnings by category, over every record
 
     def add(self, row: dict) -> bool:
         """Store ``row``; True if its record had no row yet."""
         i = row["index"]
+        row["warnings"] = _row_warnings(row.get("warnings"))
         self.fh.seek(0, os.SEEK_END)
         first = self.offsets[i] < 0
+        for w in row["warnings"] if first else ():
+            self.warnings[w["category"]] = self.warnings.get(w["category"], 0) + 1
         self.offsets[i] = self.fh.tell()
         self.fh.write(_dumps(row, compact=True).encode() + b"\n")
         self.failed[i] = row["status"] != "ok"
@@ -1126,11 +759,23 @@ class _RowSpool:
         for i, off in enumerate(self.offsets):
             if off >= 0 and (self.failed[i] or not only_failed) and (self.flagged[i] or not only_flagged):
                 self.fh.seek(off)
-                yield json.loads(self.fh.readline())
+                yield _loads(self.fh.readline())
 
     def close(self) -> None:
         self.fh.close()
         _unlink(self.path)
+
+
+def _row_warnings(value) -> list[dict]:
+    """A row's warnings as ``[{"category", "message"}]``; an older row's ``"; "``-joined text is split."""
+    if isinstance(value, str):
+        value = [v for v in value.split("; ") if v]
+    return [RecordedWarning.from_value(v).to_dict() for v in value or ()]
+
+
+def _warnings_text(warnings: list) -> str:
+    """A row's warnings as its CSV cell: ``"Category: message"``, joined by ``"; "``."""
+    return "; ".join(str(RecordedWarning.from_value(w)) for w in warnings)
 
 
 def _write_tables(out_dir: Path, spool: _RowSpool, spec: dict, fit_kwargs: dict) -> tuple[Path, Path]:
@@ -1142,6 +787,7 @@ def _write_tables(out_dir: Path, spool: _RowSpool, spec: dict, fit_kwargs: dict)
         w.writerow(list(_FIXED_COLUMNS) + [c for n in names for c in (n, f"{n}_stderr")])
         for r in spool.rows():
             fixed = ["" if r.get(c) is None else r.get(c) for c in _FIXED_COLUMNS]
+            fixed[_FIXED_COLUMNS.index("warnings")] = _warnings_text(r["warnings"])
             vals = []
             for n in names:
                 vals.append(r["params"].get(n, ""))
@@ -1330,16 +976,16 @@ def run_batch(
     so concurrent batches give what the same batches one after the other give;
     see :func:`_folder_lock`.  SIGTERM, SIGHUP or SIGINT to this process end
     the run cleanly: the workers are ended, no partial file is left, and a
-    rerun resumes (see :func:`execute`).
+    rerun resumes (see :func:`fdml.parallel.execute`).
     """
     t_start = time.perf_counter()
     items = collect_sources(sources)
     spec = ModelSpec.coerce(model_spec).normalized()
     spec.build()  # a bad model spec is one error now, not one per record
     spec_d = spec.to_dict()
-    kw = _check_fit_kwargs(fit_kwargs)
+    kw = check_fit_kwargs(fit_kwargs)
     read = dict(read_kwargs or {})
-    _canonical(read)  # plain data only: it is hashed and shipped to workers
+    canonical_json(read)  # plain data only: it is hashed and shipped to workers
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise FdmlError(f"workers must be a positive integer, got {workers!r}")
     out = Path(out_dir).absolute()
@@ -1360,28 +1006,23 @@ def run_batch(
         }
         for i, it in enumerate(items)
     )
-    update, close = _progress_handler(progress, len(items), "fdml batch")
-    kind = _resolve_kind_name(engine)
     spool = _RowSpool(out / f".rows-{os.getpid()}.jsonl.tmp", len(items))
     done = 0
     run = contextlib.ExitStack()  # closed in reverse: the engine, the folder lock, signal handlers, the spool
     try:
-        try:
-            run.callback(spool.close)
-            run.enter_context(_signals_end_the_run())
-            run.enter_context(_folder_lock(out, spool))
-            rows = run.enter_context(
-                contextlib.closing(execute(run_task, tasks, engine=engine, workers=workers, on_error=error_row))
-            )
-            for row in rows:
-                done += spool.add(row)
-                update(row, done)
-        finally:
-            close()
+        run.callback(spool.close)
+        run.enter_context(_signals_end_the_run())
+        run.enter_context(_folder_lock(out, spool))
+        rows = execute(
+            run_task, tasks, engine=engine, workers=workers, on_error=error_row, progress=progress, total=len(items)
+        )
+        for row in run.enter_context(contextlib.closing(rows)):
+            done += spool.add(row)
         csv_path, json_path = _write_tables(out, spool, spec_d, kw)
         n_failed, n_reused = sum(spool.failed), sum(spool.reused)
         errors = {r["key"]: r["error"] for r in spool.rows(only_failed=True)}
         findings = {r["key"]: r["findings"] for r in spool.rows(only_flagged=True)}
+        warned = dict(spool.warnings)
     finally:
         run.close()
     return BatchSummary(
@@ -1394,16 +1035,7 @@ def run_batch(
         n_failed=n_failed,
         errors=errors,
         wall_time=time.perf_counter() - t_start,
-        engine=kind,
+        engine=engine_name(engine),
         findings=findings,
+        warnings=warned,
     )
-
-
-def _resolve_kind_name(engine) -> str:
-    if engine in (None, "process"):
-        return "process"
-    if engine == "serial":
-        return "serial"
-    if _is_dask_client(engine):
-        return "dask"
-    return "dask" if isinstance(engine, str) else str(type(engine).__name__)

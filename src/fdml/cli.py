@@ -114,12 +114,13 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_BAD_INPUT
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="fdml: %(message)s")
-    if not args.verbose:
-        warnings.simplefilter("ignore")
     from .errors import FdmlError
 
     try:
-        code = int(args.func(args) or 0)
+        with warnings.catch_warnings():
+            if not args.verbose:  # shown with -v only; results keep theirs (fdml.warning_log records past filters)
+                warnings.simplefilter("ignore")
+            code = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
         return code
     except BrokenPipeError as exc:

@@ -13,15 +13,17 @@ estimated model parameter,
   reported uncertainty is right, above 1 if the fits claim more precision
   than they have.
 
-The tasks run on the engines of :mod:`fdml.batch` (process pool, serial, Dask);
-each returns one short row, so memory stays flat in N.
+The tasks run on :func:`fdml.parallel.execute` (process pool, serial, Dask);
+each returns one short row, so memory stays flat in N.  The warnings of every
+fit are recorded with its run (``warnings``; a study of thousands of fits
+shows none on the screen) and counted by category in :meth:`MonteCarloResult.table`.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
-import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,8 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from .batch import ModelSpec, _canonical, _check_fit_kwargs, _one_line, _progress_handler, execute
+from .batch import ModelSpec, canonical_json, check_fit_kwargs
 from .errors import FdmlError
+from .parallel import engine_name, execute, one_line
+from .warning_log import merged, recording
 
 __all__ = ["monte_carlo", "MonteCarloResult", "load_monte_carlo", "MC_FORMAT"]
 
@@ -42,7 +46,7 @@ _CLEAN_CACHE: dict[str, object] = {}
 
 
 def _clean_record(task: Mapping):
-    key = _canonical([task["truth"], task["sim"]])
+    key = canonical_json([task["truth"], task["sim"]])
     rec = _CLEAN_CACHE.get(key)
     if rec is None:
         from .simulate import simulate_maneuver
@@ -71,13 +75,13 @@ def run_trial(task: Mapping) -> dict:
         rec = add_noise(_clean_record(task), noise, rng, relative=not isinstance(noise, Mapping))
         rec = replace(rec, name=f"run{i}")
         model = ModelSpec(**task["fit_model"]).build()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            # records simulated from the model: no adequacy check (fdml.adequacy) unless asked for
+        # records simulated from the model: no adequacy check (fdml.adequacy) unless asked for
+        with recording(reemit=False) as log:  # thousands of fits: counted in the result, not shown
             res = fit(rec, model, **{"adequacy": False, **task["fit_kwargs"]})
         p, e = res.params, res.errors
         row.update(
             ok=True,
+            warnings=[str(w) for w in merged(log, res.warnings)],
             converged=bool(res.converged),
             iterations=int(res.iterations),
             elapsed=float(res.elapsed),
@@ -85,7 +89,7 @@ def run_trial(task: Mapping) -> dict:
             stderr=[e[n] for n in task["names"]],
         )
     except Exception as exc:  # one failed run is counted, never fatal
-        row["error"] = _one_line(exc)
+        row["error"] = one_line(exc)
     return row
 
 
@@ -98,7 +102,8 @@ def _trial_error(task, exc) -> dict:
         "elapsed": math.nan,
         "values": None,
         "stderr": None,
-        "error": exc if isinstance(exc, str) else _one_line(exc),
+        "error": exc if isinstance(exc, str) else one_line(exc),
+        "warnings": [],
     }
 
 
@@ -128,6 +133,11 @@ class MonteCarloResult:
     use_converged_only : bool
         Statistics over converged runs only (default) or over every run that
         returned an estimate.
+    units : dict
+        Parameter -> unit.
+    warnings : dict
+        Run index -> the warnings of its fit (``"Category: message"``), for
+        every run that warned; :attr:`warning_counts` counts them by category.
     """
 
     names: tuple
@@ -142,6 +152,7 @@ class MonteCarloResult:
     wall_time: float
     use_converged_only: bool = True
     units: dict = field(default_factory=dict)
+    warnings: dict = field(default_factory=dict)
 
     # --- statistics ---------------------------------------------------------------------
     @property
@@ -189,6 +200,17 @@ class MonteCarloResult:
         with np.errstate(divide="ignore", invalid="ignore"):
             return self.bias / (self.scatter / math.sqrt(max(self.n_used, 1)))
 
+    @property
+    def warning_counts(self) -> dict[str, int]:
+        """Category -> number of runs whose fit warned with it."""
+        from .warning_log import as_recorded
+
+        counts: dict[str, int] = {}
+        for ws in self.warnings.values():
+            for cat in {w.category for w in as_recorded(ws)}:
+                counts[cat] = counts.get(cat, 0) + 1
+        return dict(sorted(counts.items()))
+
     def stats(self) -> list[dict]:
         """Per parameter: name, truth, mean, bias, scatter, mean_crb, efficiency, bias_z."""
         cols = (self.truth, self.mean, self.bias, self.scatter, self.mean_crb, self.efficiency, self.bias_z)
@@ -205,6 +227,9 @@ class MonteCarloResult:
             f"{self.n_used} of {self.n} runs used ({int(self.converged.sum())} converged, "
             f"{len(self.errors)} failed), {self.wall_time:.1f} s wall"
         )
+        if self.warnings:
+            counts = ", ".join(f"{cat} {k}" for cat, k in self.warning_counts.items())
+            head += f"\n{len(self.warnings)} runs warned ({counts}; per run: .warnings)"
         cols = ("parameter", "truth", "mean", "bias", "scatter", "mean CRB", "scatter/CRB", "bias/se")
         rows = []
         for st in self.stats():
@@ -287,24 +312,28 @@ class MonteCarloResult:
 
     # --- JSON -----------------------------------------------------------------------------------
     def to_dict(self) -> dict:
+        """JSON-ready dict; the per-run arrays write a missing value (nan) as null."""
+        from .jsoncodec import to_jsonable
+
         def arr(a):
-            return [[None if not math.isfinite(v) else v for v in r] for r in np.asarray(a, float).tolist()]
+            return to_jsonable(np.asarray(a, float), nonfinite="null")
 
         return {
             "format": MC_FORMAT[0],
             "version": MC_FORMAT[1],
             "names": list(self.names),
-            "truth": [None if not math.isfinite(v) else v for v in self.truth.tolist()],
+            "truth": arr(self.truth),
             "estimates": arr(self.estimates),
             "stderr": arr(self.stderr),
             "converged": self.converged.tolist(),
             "iterations": self.iterations.tolist(),
-            "fit_seconds": [None if not math.isfinite(v) else v for v in self.fit_seconds.tolist()],
+            "fit_seconds": arr(self.fit_seconds),
             "errors": {str(k): v for k, v in self.errors.items()},
             "settings": self.settings,
             "wall_time": self.wall_time,
             "use_converged_only": self.use_converged_only,
             "units": self.units,
+            "warnings": {str(k): list(v) for k, v in self.warnings.items()},
             "stats": self.stats(),
         }
 
@@ -336,11 +365,7 @@ class MonteCarloResult:
         p = len(names)
         estimates = np.empty((0, p)) if f.raw("estimates") == [] else f.floats("estimates", (None, p), nulls=True)
         n = estimates.shape[0]
-        errors = {}
-        for k, v in f.mapping("errors").items():
-            if not k.strip().lstrip("-").isdigit():
-                raise f.error("errors", f"must map run numbers to messages, has the key {k[:40]!r}")
-            errors[int(k)] = v
+        errors, warned = _by_run(f, "errors"), _by_run(f, "warnings", default={})
         return cls(
             names=names,
             truth=f.floats("truth", (p,), nulls=True),
@@ -354,7 +379,18 @@ class MonteCarloResult:
             wall_time=f.number("wall_time"),
             use_converged_only=f.boolean("use_converged_only", default=True),
             units=f.mapping("units", default={}),
+            warnings={i: tuple(ws) for i, ws in warned.items()},
         )
+
+
+def _by_run(f, key: str, **default) -> dict:
+    """A mapping of run numbers (JSON: strings) to values, read from the study's ``key``."""
+    out = {}
+    for k, v in f.mapping(key, **default).items():
+        if not k.strip().lstrip("-").isdigit():
+            raise f.error(key, f"must map run numbers to messages, has the key {k[:40]!r}")
+        out[int(k)] = v
+    return out
 
 
 def load_monte_carlo(path: str | Path) -> MonteCarloResult:
@@ -450,7 +486,7 @@ def monte_carlo(
     else:
         fit_spec = ModelSpec.coerce(fit_model).normalized()
     fmodel = fit_spec.build()
-    kw = _check_fit_kwargs(fit_kwargs)
+    kw = check_fit_kwargs(fit_kwargs)
     noise = _check_noise(noise)
     # the names the study reports: estimated model parameters, not nuisance terms
     names = list(fmodel.parameters.free_model_names)
@@ -487,28 +523,30 @@ def monte_carlo(
     iters = np.zeros(n, int)
     secs = np.full(n, math.nan)
     errors: dict[int, str] = {}
-    update, close = _progress_handler(progress, n, "fdml montecarlo")
-    done = 0
-    rows = execute(run_trial, tasks, engine=engine, workers=workers, on_error=_trial_error)
-    try:
+    warned: dict[int, tuple] = {}
+    rows = execute(
+        run_trial,
+        tasks,
+        engine=engine,
+        workers=workers,
+        on_error=_trial_error,
+        progress=progress,
+        total=n,
+        desc="fdml montecarlo",
+    )
+    with contextlib.closing(rows):  # at once on any exception (a signal included): the workers end with the run
         for row in rows:
             i = row["index"]
-            done += 1
             if row["ok"]:
                 est[i] = row["values"]
                 se[i] = row["stderr"]
                 conv[i] = row["converged"]
                 iters[i] = row["iterations"]
                 secs[i] = row["elapsed"]
-                errors.pop(i, None)
             else:
                 errors[i] = row["error"]
-            update(row, done)
-    finally:
-        rows.close()  # at once on any exception (a signal included): the workers end with the run
-        close()
-    from .batch import _resolve_kind_name
-
+            if row.get("warnings"):
+                warned[i] = tuple(row["warnings"])
     settings = {
         "truth_kind": truth.kind,
         "fit_kind": fmodel.kind,
@@ -520,7 +558,7 @@ def monte_carlo(
         "seed": int(seed),
         "n": int(n),
         "fit_kwargs": kw,
-        "engine": _resolve_kind_name(engine),
+        "engine": engine_name(engine),
         "workers": workers,
     }
     units = {nm: fmodel.parameters[nm].unit for nm in names if nm in fmodel.parameters}
@@ -536,4 +574,5 @@ def monte_carlo(
         settings=settings,
         wall_time=time.perf_counter() - t_start,
         units=units,
+        warnings=warned,
     )

@@ -1,4 +1,4 @@
-"""Progress callbacks for :func:`fdml.fit` (``callback=``).
+"""Progress: callbacks for :func:`fdml.fit` (``callback=``) and for runs of many tasks.
 
 :func:`fdml.fit` calls ``callback(info)`` after every iteration with an
 :class:`~fdml.results.IterationInfo` (iteration, cost J = det R, params,
@@ -15,6 +15,11 @@ ready-made callbacks and a way to combine them:
 :func:`chain`             several callbacks as one (stops if any asks to)
 ==================  ============================================================
 
+Runs of many tasks (:func:`fdml.parallel.execute`: a batch, a Monte Carlo
+study, the diagnosis validation) report their progress through
+:func:`task_progress`: a tqdm bar, or the caller's ``progress(done, total,
+result)`` once per finished task.
+
 One callback object can serve many fits (a Monte Carlo, several manoeuvres):
 :class:`HistoryRecorder` and :class:`StopAfter` start afresh whenever the
 iteration counter restarts at 1; :class:`TqdmProgress` counts every iteration
@@ -29,7 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-__all__ = ["TqdmProgress", "PrintProgress", "HistoryRecorder", "StopAfter", "chain", "tqdm_available"]
+__all__ = ["TqdmProgress", "PrintProgress", "HistoryRecorder", "StopAfter", "chain", "tqdm_available", "task_progress"]
 
 
 def tqdm_available() -> bool:
@@ -39,6 +44,41 @@ def tqdm_available() -> bool:
     except ImportError:
         return False
     return True
+
+
+def task_progress(progress, total: int | None, desc: str):
+    """``(update(result, done), close())`` for the ``progress`` argument of a run of many tasks.
+
+    Parameters
+    ----------
+    progress : None, False, True or callable
+        None/False: nothing; True: a tqdm bar of ``total`` tasks (the
+        ``progress`` extra); a callable is called as ``progress(done, total,
+        result)`` after every task.
+    total : int or None
+        Number of tasks.
+    desc : str
+        Label of the bar.
+
+    Raises
+    ------
+    FdmlError
+        ``progress`` is none of these, or tqdm is missing.
+    """
+    from .errors import FdmlError
+
+    if progress is None or progress is False:
+        return (lambda result, done: None), (lambda: None)
+    if progress is True or progress == "tqdm":
+        try:
+            from tqdm.auto import tqdm
+        except ImportError:
+            raise FdmlError("progress=True needs tqdm: pip install 'fdml[progress]'") from None
+        bar = tqdm(total=total, desc=desc, unit="task")
+        return (lambda result, done: bar.update(1)), bar.close
+    if callable(progress):
+        return (lambda result, done: progress(done, total, result)), (lambda: None)
+    raise FdmlError(f"progress must be None, True or a callable(done, total, result), got {progress!r}")
 
 
 class TqdmProgress:

@@ -16,7 +16,7 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
-__all__ = ["RecordedWarning", "recording", "as_recorded"]
+__all__ = ["RecordedWarning", "recording", "as_recorded", "merged"]
 
 
 @dataclass(frozen=True)
@@ -102,3 +102,17 @@ def recording(reemit: bool = True) -> Iterator[list[RecordedWarning]]:
             firsts.setdefault((w.category.__name__, str(w.message)), w)
         for w in firsts.values():
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def merged(*groups: Iterable) -> tuple[RecordedWarning, ...]:
+    """The warnings of several records of one computation, each message once, first category kept.
+
+    For a fit run under :func:`recording`: ``merged(log, result.warnings)``
+    keeps what was caught with its category, and adds what the result holds
+    only as text (a result that keeps messages without their category).
+    """
+    out: dict[str, RecordedWarning] = {}
+    for group in groups:
+        for w in as_recorded(group):
+            out.setdefault(w.message, w)
+    return tuple(out.values())

@@ -1,7 +1,7 @@
 """``fdml diagnose RECORD ... --model MODEL``: where the model misses, which effect causes it, how far it shrinks.
 
 ``fdml diagnose --validate`` runs the validation harness instead (records
-simulated with one withheld effect; see :mod:`fdml.diagnose.validate`).
+simulated with one withheld effect; see :mod:`fdml.diagnose.validation`).
 """
 
 from __future__ import annotations
@@ -89,7 +89,7 @@ def _default_lo_hi() -> str:
 def _validate(args) -> int:
     import sys
 
-    from ..diagnose.validate import REPORT_SEED_BASE, validate
+    from ..diagnose.validation import REPORT_SEED_BASE, validate
 
     n_e, n_n = (1, 6) if args.quick else (args.n_effect, args.n_null)
     if args.output:  # before the (long) work

@@ -19,7 +19,7 @@ module                 job
 :mod:`.report`         labels, verdict, JSON; :mod:`.text` the paragraph; :mod:`.plots`
 :mod:`.core`           :func:`diagnose`
 :mod:`.truth`          validation truths (time-domain, one withheld effect)
-:mod:`.validate`       the validation harness
+:mod:`.validation`     the validation harness
 =====================  =================================================================
 
 Example::
@@ -51,8 +51,8 @@ from .report import JSON_KEYS, DiagnosisReport
 
 
 def validate(*args, **kwargs):
-    """Run the validation harness (see :func:`fdml.diagnose.validate.validate`)."""
-    from .validate import validate as _v
+    """Run the validation harness (see :func:`fdml.diagnose.validation.validate`)."""
+    from .validation import validate as _v
 
     return _v(*args, **kwargs)
 

@@ -18,6 +18,7 @@ from ..estimate import NoiseModel
 from ..models.base import Model
 from ..models.effects import Effect, default_library, registered_effects
 from ..record import Record
+from ..warning_log import merged, recording
 from .attribute import Candidate, attribute_step, choose, p_value
 from .data import AnalysisData, analysis_data
 from .disturbance import GustTest, gust_test
@@ -277,6 +278,7 @@ def diagnose(
             ],
             su.settings,
             found,
+            warned=base_fit.warnings,
         )
     base_map, problems = _locate(su, base_fit)
     if not any(c.excitation == "ok" for c in base_map.cells):
@@ -286,13 +288,18 @@ def diagnose(
             su.settings,
             found,
             location=base_map.to_list(),
+            warned=base_fit.warnings,
         )
     sel = _select(su, base_fit, base_map, max_effects=max_effects, refit_top=refit_top)
     shr = _shrink_holdout(su, base_fit, base_map, sel, holdout)
-    rec = recommended_fit(
-        su.data, base_fit.model, [a.effect for a in sel.accepted], start=sel.final.model, **su.options
+    with recording(reemit=False) as log:  # kept in the report
+        rec = recommended_fit(
+            su.data, base_fit.model, [a.effect for a in sel.accepted], start=sel.final.model, **su.options
+        )
+    warned = merged(
+        base_fit.warnings, sel.final.warnings, *(a.fit.warnings for a in sel.accepted), log, rec.warnings if rec else ()
     )
-    return _assemble(su, base_fit, base_map, sel, shr, problems, found, rec, t0)
+    return _assemble(su, base_fit, base_map, sel, shr, problems, found, rec, t0, warned)
 
 
 def _setup(
@@ -534,6 +541,7 @@ def _holdout(su: _Setup, base_fit, sel: _Selection, refitted: list, holdout):
         "shrink": hs_final,
         "flagged_before": hn_flag,
         "unexplained": h_unexp,
+        "warnings": list(h_final.warnings),  # of the frozen fit of the final model
     }
 
 
@@ -572,19 +580,17 @@ def recommended_fit(
     Returns
     -------
     FitResult or None
+        Its warnings are raised to the caller (:func:`diagnose` keeps them in
+        the report).
     """
-    import warnings
-
     from ..estimate import fit as fdml_fit
 
     model = base_model.with_effects(*effects) if effects else base_model
     if start is not None:
         sv = start.parameters.values
         model = model.with_values({k: v for k, v in sv.items() if k in model.parameters and math.isfinite(v)})
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the diagnosis has checked the records; the result keeps warnings
-            return fdml_fit(list(data.spectra), model, outputs=outputs, boundary=boundary, biases=biases, check=False)
+    try:  # the diagnosis has checked the records
+        return fdml_fit(list(data.spectra), model, outputs=outputs, boundary=boundary, biases=biases, check=False)
     except FdmlError as exc:
         logger.warning("the recommended model could not be fitted: %s", exc)
         return None
@@ -594,9 +600,21 @@ def recommended_fit(
 
 
 def _assemble(
-    su: _Setup, base_fit, base_map, sel: _Selection, shr: _Shrink, problems: list, found: list, recommended, t0: float
+    su: _Setup,
+    base_fit,
+    base_map,
+    sel: _Selection,
+    shr: _Shrink,
+    problems: list,
+    found: list,
+    recommended,
+    t0: float,
+    warned: tuple,
 ) -> DiagnosisReport:
-    """Labels, verdict, footprints and compensation of the accepted effects: the frozen report."""
+    """Labels, verdict, footprints and compensation of the accepted effects: the frozen report.
+
+    ``warned``: the warnings of the fits the report keeps (base, final, accepted, recommended).
+    """
     from .text import paragraph
 
     ranking = _ranking(su, sel, shr)
@@ -608,9 +626,9 @@ def _assemble(
     fp, comp, selected = [], [], []
     for a in sel.accepted:
         nulls = a.effect.nulls(base_fit.model if a.step == 0 else a.fit.model)
-        fp += [dict(x, effect=a.key) for x in footprint(su.data, a.fit, nulls, base_map, su.channels)]
+        fp += [dict(x, effect=a.key) for x in footprint(su.data, a.fit, nulls, base_map)]
         if a.step == 0:
-            comp = compensation(su.data, a.fit, base_fit, nulls, base_map, su.channels)
+            comp = compensation(su.data, a.fit, base_fit, nulls, base_map)
         entry = next(r for r in ranking if r["key"] == a.key and r["step"] == a.step)
         selected.append({**entry, "parameter_shifts": parameter_shifts(base_fit, a.fit)})
     shifts = parameter_shifts(base_fit, sel.final) if sel.accepted else {}
@@ -659,6 +677,7 @@ def _assemble(
         },
         findings=tuple(found),
         recommended=recommended,
+        warnings=tuple(warned),
     )
     return replace(report, text=paragraph(report))
 
@@ -770,7 +789,9 @@ def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_
     }
 
 
-def _empty(status: str, problems: list, settings: dict, found: list, location: list | None = None) -> DiagnosisReport:
+def _empty(
+    status: str, problems: list, settings: dict, found: list, location: list | None = None, warned=()
+) -> DiagnosisReport:
     return DiagnosisReport(
         verdict="none",
         status=status,
@@ -784,4 +805,5 @@ def _empty(status: str, problems: list, settings: dict, found: list, location: l
         settings=settings,
         text="No verdict: " + "; ".join(problems),
         findings=tuple(found),
+        warnings=tuple(warned),
     )

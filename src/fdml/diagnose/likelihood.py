@@ -23,7 +23,6 @@ Gaussian bins: -2 log L = 2 C + const; /K counts independent frequencies).
 from __future__ import annotations
 
 import math
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -34,6 +33,7 @@ from ..estimate import fit as fdml_fit
 from ..models.base import Model
 from ..results import FitResult
 from ..score import whitener  # re-exported: the diagnosis's name for it
+from ..warning_log import merged, recording
 from .data import AnalysisData
 
 __all__ = ["DiagFit", "NoiseBands", "band_cost", "fit_model", "likelihood_ratio", "noise_bands", "whitener"]
@@ -93,6 +93,9 @@ class DiagFit:
         fdml's problem for this model and data.
     result : FitResult
         fdml's result (derived values and their standard errors at ``theta``).
+    warnings : tuple of RecordedWarning
+        Every warning raised while fitting it (the diagnosis shows none on the
+        screen: they are kept here and in the report).
     """
 
     model: Model
@@ -106,6 +109,7 @@ class DiagFit:
     message: str
     prob: Problem = field(repr=False)
     result: FitResult | None = field(default=None, repr=False)
+    warnings: tuple = ()
 
     @property
     def params(self) -> dict:
@@ -143,8 +147,7 @@ def fit_model(
                 vals[k] = min(max(float(v), par.lower), par.upper)
         model = model.with_values(vals)
     items = list(data.spectra)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    with recording(reemit=False) as log:
         # the diagnosis checks its records once (core._data_findings); no adequacy check inside its own fits
         # "analytic": closed forms where the model has them, else central differences of the model
         # response (2 evaluations a parameter; Eq. 26's settled forward differences take 4 and more)
@@ -161,14 +164,17 @@ def fit_model(
             adequacy=False,
         )
     stderr = dict(zip(res.names, np.asarray(res.stderr, float).tolist()))
-    return diag_fit(res, data, bands, stderr, outputs=outputs, boundary=boundary, biases=biases)
+    return diag_fit(res, data, bands, stderr, log, outputs=outputs, boundary=boundary, biases=biases)
 
 
-def diag_fit(res, data: AnalysisData, bands: NoiseBands, stderr: dict, **options) -> DiagFit:
-    """A :class:`DiagFit` of the fit ``res``: its problem rebuilt with ``options``, band-wise cost."""
+def diag_fit(res, data: AnalysisData, bands: NoiseBands, stderr: dict, warned=(), **options) -> DiagFit:
+    """A :class:`DiagFit` of the fit ``res``: its problem rebuilt with ``options``, band-wise cost.
+
+    ``warned``: the warnings recorded while ``res`` was fitted; kept in the DiagFit with the
+    result's own and those of rebuilding the problem.
+    """
     items = list(data.spectra)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    with recording(reemit=False) as log:
         prob = prepare(items, res.model, **options)
     theta = np.array([res.params[n] for n in prob.names], float)
     V = prob.residuals(theta)
@@ -185,6 +191,7 @@ def diag_fit(res, data: AnalysisData, bands: NoiseBands, stderr: dict, **options
         message=res.message,
         prob=prob,
         result=res,
+        warnings=merged(warned, res.warnings, log),
     )
 
 

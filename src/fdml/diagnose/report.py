@@ -32,19 +32,22 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
+from ..warning_log import as_recorded
+
 if TYPE_CHECKING:
     from ..results import FitResult
 
 __all__ = ["DiagnosisReport", "label_for", "SHRINK_CONFIRM", "JSON_KEYS"]
 
 #: Shrink of the flagged coherent gap needed for "confirmed".  Chosen on the tuning seed range
-#: (benchmarks/validate_diagnose.py tune: 408 runs, seeds 0-407) by validate.tune_threshold: 0.3-0.6
+#: (benchmarks/validate_diagnose.py tune: 408 runs, seeds 0-407) by validation.tune_threshold: 0.3-0.6
 #: confirmed the same runs and none wrongly, so the most conservative of them; DIAGNOSIS.md proposed 0.5.
 SHRINK_CONFIRM = 0.6
 #: Which remaining flagged cells make an accepted effect "partial": the final fit's own map.  Chosen on
-#: the tuning seed range with the threshold (validate.tune_threshold: J = 0.527 against 0.441 for the
+#: the tuning seed range with the threshold (validation.tune_threshold: J = 0.527 against 0.441 for the
 #: held-out map; 217 against 180 correct confirmations, 1 wrong one).
 UNEXPLAINED_RULE = "in-sample"
+_MISSING = object()
 #: Keys every JSON report has (issue 4).
 JSON_KEYS = ("verdict", "ranking", "ambiguous", "not_identifiable", "location", "footprint", "unexplained")
 
@@ -93,6 +96,13 @@ class DiagnosisReport:
     ``recommended`` is the :class:`~fdml.results.FitResult` of the base
     model plus the accepted effects (None without a verdict), in the JSON as
     ``fdml fit --json`` prints a fit (:meth:`FitResult.brief`).
+    ``warnings`` are the :class:`~fdml.warning_log.RecordedWarning` of the
+    fits the report keeps (base, final, accepted, recommended), which the
+    diagnosis does not show on the screen.
+
+    :meth:`from_dict` reads the JSON back; ``details`` (the fitted objects)
+    are not in the JSON, and ``recommended`` comes back as None (its brief is
+    in :attr:`recommended_brief`).
     """
 
     verdict: str
@@ -115,6 +125,8 @@ class DiagnosisReport:
     details: dict = field(default_factory=dict, repr=False)
     findings: tuple = ()
     recommended: FitResult | None = field(default=None, repr=False)
+    warnings: tuple = ()
+    recommended_brief: dict | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict:
         """JSON-ready dict: the issue's keys first, then the supporting detail."""
@@ -137,9 +149,50 @@ class DiagnosisReport:
             "settings": self.settings,
             "summary": self.text,
             "findings": [f.to_dict() for f in self.findings],
-            "recommended": None if self.recommended is None else self.recommended.brief(),
+            "recommended": self.recommended_brief if self.recommended is None else self.recommended.brief(),
+            "warnings": [w.to_dict() for w in as_recorded(self.warnings)],
         }
         return _clean(d)
+
+    @classmethod
+    def from_dict(cls, d, *, source: str = "fdml diagnosis report") -> DiagnosisReport:
+        """Inverse of :meth:`to_dict` (see the class notes); a key missing or of the wrong type
+        raises :class:`~fdml.errors.FdmlError` ``"<source>: key '<key>' ..."``."""
+        from ..findings import Finding
+        from ..jsoncodec import Fields
+
+        f = Fields(d, source)
+
+        def items(key: str, default=_MISSING) -> list:
+            v = f.raw(key) if default is _MISSING else f.raw(key, default)
+            if not isinstance(v, list):
+                raise f.error(key, "must be a list")
+            return v
+
+        holdout = f.raw("holdout", None)
+        recommended = f.raw("recommended", None)
+        return cls(
+            verdict=f.string("verdict"),
+            status=f.string("status"),
+            problems=items("problems"),
+            ranking=items("ranking"),
+            ambiguous=items("ambiguous"),
+            not_identifiable=items("not_identifiable"),
+            location=items("location"),
+            footprint=items("footprint"),
+            unexplained=items("unexplained"),
+            selected=items("selected", []),
+            location_after=items("location_after", []),
+            compensation=items("compensation", []),
+            parameter_shifts=f.mapping("parameter_shifts", default={}),
+            holdout=None if holdout is None else f.mapping("holdout"),
+            noise=f.mapping("noise", default={}),
+            settings=f.mapping("settings", default={}),
+            text=f.string("summary", default=""),
+            findings=tuple(Finding.from_dict(x) for x in items("findings", [])),
+            warnings=as_recorded(items("warnings", [])),
+            recommended_brief=None if recommended is None else f.mapping("recommended"),
+        )
 
     def to_json(self, path=None, indent: int = 1, *, inputs=()) -> str:
         """JSON text; written atomically to ``path`` when given (never over ``inputs``)."""
@@ -178,6 +231,8 @@ class DiagnosisReport:
                     "fdml diagnose --recommended-output FIT.json saves it"
                 ),
             ]
+        if self.warnings:
+            lines += ["", "warnings of the fits:"] + [f"  {w}" for w in as_recorded(self.warnings)]
         if self.not_identifiable:
             lines.append("")
             lines.append(

@@ -18,12 +18,12 @@
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
 from ..estimate import fit as fdml_fit
 from ..models.effects import CHANNELS
+from ..warning_log import recording
 from .data import AnalysisData
 from .likelihood import DiagFit, NoiseBands, diag_fit
 from .locate import GapMap, forced_response, gap_map
@@ -64,7 +64,7 @@ def _predict_rows(fit: DiagFit, theta: np.ndarray) -> np.ndarray:
     return np.concatenate(fit.prob.predict(theta))
 
 
-def _cell_energy(data: AnalysisData, delta: np.ndarray, before: GapMap, channels) -> list:
+def _cell_energy(data: AnalysisData, delta: np.ndarray, before: GapMap) -> list:
     om = data.stacked_omega()
     dft = data.stacked_dft()
     nb = before.edges.size - 1
@@ -83,7 +83,7 @@ def _cell_energy(data: AnalysisData, delta: np.ndarray, before: GapMap, channels
     return out
 
 
-def footprint(data: AnalysisData, fit: DiagFit, nulls: dict, before: GapMap, channels) -> list:
+def footprint(data: AnalysisData, fit: DiagFit, nulls: dict, before: GapMap) -> list:
     """Energy of the effect itself per cell (in noise-floor units) and its share."""
     theta0 = fit.theta.copy()
     for n, v in nulls.items():
@@ -91,7 +91,7 @@ def footprint(data: AnalysisData, fit: DiagFit, nulls: dict, before: GapMap, cha
             theta0[fit.names.index(n)] = v
     # nuisance (non-free) effect parameters live in the model, not in theta (see _predict_null)
     delta = _predict_rows(fit, fit.theta) - _predict_null(fit, theta0, nulls)
-    return _cell_energy(data, delta, before, channels)
+    return _cell_energy(data, delta, before)
 
 
 def _predict_null(fit: DiagFit, theta0: np.ndarray, nulls: dict) -> np.ndarray:
@@ -108,14 +108,14 @@ def _predict_null(fit: DiagFit, theta0: np.ndarray, nulls: dict) -> np.ndarray:
         prob.model = saved
 
 
-def compensation(data: AnalysisData, fit: DiagFit, base: DiagFit, nulls: dict, before: GapMap, channels) -> list:
+def compensation(data: AnalysisData, fit: DiagFit, base: DiagFit, nulls: dict, before: GapMap) -> list:
     """How the base parameters moved to imitate the effect: per-cell energy of y(aug, eta0) - y(base)."""
     theta0 = fit.theta.copy()
     for n, v in nulls.items():
         if n in fit.names:
             theta0[fit.names.index(n)] = v
     delta = _predict_null(fit, theta0, nulls) - _predict_rows(base, base.theta)
-    return _cell_energy(data, delta, before, channels)
+    return _cell_energy(data, delta, before)
 
 
 def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
@@ -162,8 +162,7 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
 def frozen_fit(data: AnalysisData, model, bands: NoiseBands, options: dict) -> DiagFit:
     """The model with every model parameter frozen; only each record's nuisance terms are fitted (hold-out)."""
     frozen = model.with_parameters(model.parameters.only_free([]))
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
+    with recording(reemit=False) as log:  # kept in the DiagFit
         # the records were checked once (core._data_findings); a frozen model needs no adequacy check
         res = fdml_fit(list(data.spectra), frozen, cov_type="naive", check=False, adequacy=False, **options)
-    return diag_fit(res, data, bands, {}, **options)
+    return diag_fit(res, data, bands, {}, log, **options)

@@ -22,7 +22,7 @@ REPORT_SEED_BASE``) is where the figures come from.  The two never overlap.
 
 from __future__ import annotations
 
-import json
+import contextlib
 import math
 import os
 import time
@@ -32,7 +32,9 @@ from typing import Any
 
 import numpy as np
 
-from ..jsoncodec import dumps
+from ..jsoncodec import dumps, loads
+from ..parallel import execute, one_line
+from ..warning_log import merged, recording
 from .report import SHRINK_CONFIRM, UNEXPLAINED_RULE, label_for
 
 __all__ = [
@@ -138,9 +140,11 @@ def _base(sc: Scenario):
 
 
 def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
-    """Simulate one scenario (record + hold-out), diagnose it blind, return a flat row."""
-    import warnings
+    """Simulate one scenario (record + hold-out), diagnose it blind, return a flat row.
 
+    The row's ``warnings`` (JSON text of ``"Category: message"`` strings) are
+    every warning the diagnosis raised or kept; ``n_warnings`` counts them.
+    """
     from .core import diagnose
     from .truth import simulate_truth
 
@@ -155,12 +159,12 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
         "truth_name": sc.truth_name,
     }
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
+        with recording(reemit=False) as log:  # hundreds of runs: counted in the row, not shown
             rep = diagnose(rec, base, holdout=hold, band=BAND, **(diagnose_options or {}))
     except Exception as exc:  # a crash is a result too: recorded, never hidden
         row.update(status=f"error: {type(exc).__name__}: {exc}", verdict="error", verdict_key="error")
         return row
+    warned = merged(log, rep.warnings)
     sel = rep.selected[0] if rep.selected else None
     g = next((r for r in rep.ranking if r["effect"] == "unmeasured_gust"), None)
     if sel is None and rep.verdict == "unmeasured_gust":
@@ -191,13 +195,29 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
         truth_p_holm=tr["p_holm"] if tr else None,
         truth_not_identifiable=any(n["key"] == sc.truth for n in rep.not_identifiable) if sc.truth else False,
         elapsed=time.perf_counter() - t0,
+        n_warnings=len(warned),
+        warnings=dumps([str(w) for w in warned], indent=None),
     )
     return row
 
 
-def _run(args):
-    sc, opts = args
-    return run_scenario(sc, diagnose_options=opts)
+def _run(task: dict) -> dict:
+    """One validation run (a task of :func:`fdml.parallel.execute`)."""
+    return run_scenario(task["scenario"], diagnose_options=task["options"])
+
+
+def _failed(task: dict, exc) -> dict:
+    """The row of a run whose worker failed outside :func:`run_scenario` (it died, or the simulation raised)."""
+    sc = task["scenario"]
+    msg = exc if isinstance(exc, str) else one_line(exc)
+    return {
+        **{k: v for k, v in asdict(sc).items() if k != "values"},
+        "values": dumps(sc.values, indent=None),
+        "truth_name": sc.truth_name,
+        "status": f"error: {msg}",
+        "verdict": "error",
+        "verdict_key": "error",
+    }
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple:
@@ -222,7 +242,7 @@ def relabel(row: dict, threshold: float, unexplained: str = UNEXPLAINED_RULE) ->
     n_unexp = row.get("unexplained_in_sample" if unexplained == "in-sample" else "unexplained_holdout") or 0
     if row.get("verdict") == "unmeasured_gust":
         return "confirmed" if n_unexp == 0 else "partial"
-    amb = len(json.loads(row.get("ambiguous") or "[]")) > 0
+    amb = len(loads(row.get("ambiguous") or "[]")) > 0
     n_flag = row.get("flagged_before_holdout")
     shr = row.get("shrink")
     return label_for(
@@ -267,7 +287,7 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
         name = rs[0]["truth_name"]
         det = [r for r in rs if r["verdict"] not in ("none", "error")]
         top1 = [r for r in rs if r["verdict"] == name]
-        inset = [r for r in rs if r["verdict"] == name or name in json.loads(r.get("ambiguous_names") or "[]")]
+        inset = [r for r in rs if r["verdict"] == name or name in loads(r.get("ambiguous_names") or "[]")]
         chan = [
             r for r in rs if r["verdict_key"] == rs[0]["truth"] or (name == "unmeasured_gust" and r["verdict"] == name)
         ]
@@ -446,7 +466,8 @@ def validate(
     seed_base : int
         First seed (default the report range; 0 is the tuning range).
     processes : int, optional
-        Worker processes (default: the CPU count).
+        Worker processes of the local pool (:func:`fdml.parallel.execute`; default: the CPU
+        count; 1 runs in this process).
     truths, nulls : sequence of str, optional
         Subsets of :data:`TRUTHS` and :data:`NULLS`.
     threshold : float, optional
@@ -457,34 +478,26 @@ def validate(
         ``progress(done, total)`` after every run.
     """
     scs = scenarios(n_effect=n_effect, n_null=n_null, seed_base=seed_base, truths=truths, nulls=nulls)
-    args = [(sc, diagnose_options) for sc in scs]
+    tasks = [{"index": i, "scenario": sc, "options": diagnose_options} for i, sc in enumerate(scs)]
     procs = processes or os.cpu_count() or 1
     rows = []
-    fh = open(rows_path, "a") if rows_path else None
-    try:
-        if procs > 1:
-            import multiprocessing as mp
-
-            with mp.get_context("fork").Pool(procs) as pool:
-                for i, row in enumerate(pool.imap_unordered(_run, args, chunksize=1)):
-                    rows.append(row)
-                    if fh:
-                        fh.write(dumps(row, indent=None) + "\n")
-                        fh.flush()
-                    if progress:
-                        progress(i + 1, len(args))
-        else:
-            for i, a in enumerate(args):
-                row = _run(a)
-                rows.append(row)
-                if fh:
-                    fh.write(dumps(row, indent=None) + "\n")
-                    fh.flush()
-                if progress:
-                    progress(i + 1, len(args))
-    finally:
-        if fh:
-            fh.close()
+    report = (lambda done, total, row: progress(done, total)) if progress else None
+    runs = execute(
+        _run,
+        tasks,
+        engine="process" if procs > 1 else "serial",
+        workers=procs,
+        on_error=_failed,
+        progress=report,
+        total=len(tasks),
+    )
+    with contextlib.ExitStack() as stack:
+        fh = stack.enter_context(open(rows_path, "a")) if rows_path else None
+        for row in stack.enter_context(contextlib.closing(runs)):
+            rows.append(row)
+            if fh:
+                fh.write(dumps(row, indent=None) + "\n")
+                fh.flush()
     th = SHRINK_CONFIRM if threshold is None else threshold
     settings = {
         "n_effect": n_effect,
