@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from .batch import ModelSpec, _canonical, _check_fit_kwargs, _one_line, _progress_handler, execute
+from .channels import OUTPUTS
 from .errors import FdmlError
 
 __all__ = ["monte_carlo", "MonteCarloResult", "load_monte_carlo", "MC_FORMAT"]
@@ -367,7 +368,7 @@ def load_monte_carlo(path: str | Path) -> MonteCarloResult:
 
 def _check_noise(noise):
     if isinstance(noise, Mapping):
-        unknown = set(noise) - {"alpha", "q", "az"}
+        unknown = set(noise) - set(OUTPUTS)
         if unknown:
             raise FdmlError(f"noise given for unknown output(s) {sorted(unknown)}; outputs: alpha, q, az")
         out = {k: float(v) for k, v in noise.items()}

@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .channels import OUTPUTS, SIGNALS
 from .errors import BandError, RecordError
-from .record import SIGNALS, Record
+from .record import Record
 
 __all__ = ["check_quality", "QualityReport", "ChannelQuality", "LOW_INPUT_DB", "GOOD_COHERENCE"]
 
@@ -261,9 +262,7 @@ def _finite_list(a):
     return [float(x) if math.isfinite(x) else str(x) for x in np.asarray(a, float)]
 
 
-def check_quality(
-    record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS, outputs=("alpha", "q", "az")
-) -> QualityReport:
+def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS, outputs=OUTPUTS) -> QualityReport:
     """Check a record's sampling, channels and excitation before a fit.
 
     Parameters
@@ -295,7 +294,7 @@ def check_quality(
     which, and the significance threshold follows the number of averages.
     """
     from . import fourier
-    from .spectra import parse_band
+    from .spectral import parse_band
 
     if not isinstance(record, Record):
         raise RecordError(f"expected an fdml Record, got {type(record).__name__}")

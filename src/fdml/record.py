@@ -19,31 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .channels import OUTPUTS, SIGNALS, display_unit
+from .channels import REQUIRED as REQUIRED_SIGNALS
 from .errors import RecordError
 from .outputs import atomic_write_text  # re-exported: fdml.record.atomic_write_text predates fdml.outputs
 
 __all__ = ["Record", "read_csv", "add_noise", "SIGNALS", "REQUIRED_SIGNALS", "atomic_write_text"]
 
-#: Signals fdml knows, with their units.  The first five enter fits; the others
-#: (pitch attitude, airspeed, pitch acceleration, longitudinal specific force,
-#: altitude, dynamic pressure, inertial vertical speed ``hdot`` positive up) serve
-#: data-compatibility checks and gust estimation.
-SIGNALS = {
-    "de": "rad",
-    "alpha": "rad",
-    "q": "rad/s",
-    "az": "g",
-    "alpha_w": "rad",
-    "theta": "rad",
-    "V": "m/s",
-    "qdot": "rad/s^2",
-    "ax": "g",
-    "h": "m",
-    "qbar": "Pa",
-    "hdot": "m/s",
-}
-#: Signals every record must have.
-REQUIRED_SIGNALS = ("de", "alpha", "q", "az")
 
 #: Largest plausible perturbation magnitudes in SI units.  A larger value in a
 #: channel almost always means degrees (or deg/s) where radians are due:
@@ -143,7 +125,7 @@ class Record:
                     span = float(np.max(np.abs(sig[k] - sig[k][0])))
                     peak = float(np.max(np.abs(sig[k])))
                     if max(span, peak) > lim:
-                        unit = "deg/s" if k == "q" else "deg"
+                        unit = display_unit(SIGNALS[k])[1]
                         raise RecordError(
                             f"{where}: {k} reaches {max(span, peak):.3g} {SIGNALS[k]}, which looks like "
                             f"{unit} where {SIGNALS[k]} is due; convert to radians "
@@ -292,7 +274,7 @@ def add_noise(record: Record, noise, rng: np.random.Generator, *, relative: bool
     """
     if not isinstance(rng, np.random.Generator):
         raise RecordError("add_noise needs a numpy Generator (np.random.default_rng(seed))")
-    outs = ("alpha", "q", "az")
+    outs = OUTPUTS
     if isinstance(noise, Mapping):
         unknown = set(noise) - set(outs)
         if unknown:

@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .channels import OUTPUTS
 from .errors import FdmlError
 from .findings import KINDS as _FINDING_KINDS
 from .findings import Finding
@@ -241,11 +242,7 @@ class FitResult:
             time_records = ()
         nuisance = {
             "boundary": prob.boundary,
-            "output_biases": [
-                ["alpha", "q", "az"][k]
-                for k in prob.out_idx
-                if prob.model.parameters[f"bias_{['alpha', 'q', 'az'][k]}"].free
-            ],
+            "output_biases": [OUTPUTS[k] for k in prob.out_idx if prob.model.parameters[f"bias_{OUTPUTS[k]}"].free],
             "state_biases": bool(getattr(prob, "state_biases", False)),
             "input_bias": bool(getattr(prob, "input_bias", False)),
             "trim": [d.trim_mode for d in prob.data],
@@ -268,7 +265,7 @@ class FitResult:
             derived=derived,
             fixed=fixed,
             at_bound=at_bound,
-            outputs=tuple(["alpha", "q", "az"][k] for k in prob.out_idx),
+            outputs=tuple(OUTPUTS[k] for k in prob.out_idx),
             band=band,
             n_freq=prob.N,
             records=tuple(d.name for d in prob.data),
@@ -518,7 +515,7 @@ class FitResult:
         model = _model_from_fields(f)
         names = f.strings("names")
         n = len(names)
-        outputs = f.strings("outputs", choices=("alpha", "q", "az"))
+        outputs = f.strings("outputs", choices=OUTPUTS)
         k = len(outputs)
         spectra = tuple(_spectrum_from_fields(s) for s in f.items("spectra", default=[]))
         return cls(

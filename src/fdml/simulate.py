@@ -41,6 +41,7 @@ import numpy as np
 from scipy import interpolate, linalg, signal
 
 from .aero import get_indicial
+from .channels import OUTPUTS, SIGNALS
 from .constants import G0
 from .errors import ParameterError, RecordError
 from .maneuvers import DEFAULT_AMPLITUDE, DRYDEN_L, dryden_gust, make_input, time_vector
@@ -64,9 +65,6 @@ DEFAULT_POLE_STEPS = 16
 _UNIFORM_RTOL = 1e-6
 #: F-term models: largest input at t = 0, relative to its peak, treated as starting from zero.
 _START_RTOL = 1e-9
-#: Noise channels and their units.
-_NOISE_UNITS = {"alpha": "rad", "q": "rad/s", "az": "g"}
-_OUTPUTS = ("alpha", "q", "az")
 
 
 # --- the linear system ---------------------------------------------------------------
@@ -809,7 +807,7 @@ def _check_noise(noise, rng):
         return None
     if not isinstance(noise, Mapping):
         raise ParameterError("noise must be a mapping {'alpha': rad, 'q': rad/s, 'az': g} of standard deviations")
-    bad = [k for k in noise if k not in _NOISE_UNITS]
+    bad = [k for k in noise if k not in OUTPUTS]
     if bad:
         raise ParameterError(f"unknown noise channel(s) {', '.join(map(str, bad))}; channels: alpha, q, az")
     out = {}
@@ -817,9 +815,9 @@ def _check_noise(noise, rng):
         try:
             s = float(v)
         except (TypeError, ValueError):
-            raise ParameterError(f"noise std for {k} must be a number ({_NOISE_UNITS[k]}), got {v!r}") from None
+            raise ParameterError(f"noise std for {k} must be a number ({SIGNALS[k]}), got {v!r}") from None
         if not (math.isfinite(s) and s >= 0):
-            raise ParameterError(f"noise std for {k} must be finite and >= 0 ({_NOISE_UNITS[k]}), got {v!r}")
+            raise ParameterError(f"noise std for {k} must be finite and >= 0 ({SIGNALS[k]}), got {v!r}")
         out[k] = s
     if rng is None or not isinstance(rng, np.random.Generator):
         raise ParameterError("noise needs rng, a numpy Generator (np.random.default_rng(seed))")
@@ -901,9 +899,9 @@ def simulate(
     else:
         y, integration = _simulate_memory(sys, tau, dt, sig, substeps, pole_steps)
     y = _delay_outputs(y, tau, sys.out_delay)
-    y = y + np.array([p[f"bias_{k}"] for k in _OUTPUTS])
+    y = y + np.array([p[f"bias_{k}"] for k in OUTPUTS])
     if noise:
-        for i, k in enumerate(_OUTPUTS):  # fixed channel order: reproducible for a given seed
+        for i, k in enumerate(OUTPUTS):  # fixed channel order: reproducible for a given seed
             if k in noise:
                 y[:, i] += noise[k] * rng.standard_normal(t.size)
     signals = {"de": sig["de"], "alpha": y[:, 0], "q": y[:, 1], "az": y[:, 2]}

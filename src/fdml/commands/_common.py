@@ -152,7 +152,7 @@ def check_band_option(text, option: str = "--band", *, positive: bool = True) ->
     ``montecarlo`` and ``batch`` would otherwise fail every run one by one and
     print a table of NaN; the message names ``option``.
     """
-    from ..spectra import parse_band
+    from ..spectral import parse_band
 
     parse_band(text, what=option, positive=positive)
 

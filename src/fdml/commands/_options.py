@@ -60,14 +60,14 @@ def _model_choices() -> tuple[str, ...]:
 
 
 def _band_default() -> str:
-    from ..spectra import DEFAULT_BAND
+    from ..spectral import DEFAULT_BAND
 
     return ":".join(f"{x:g}" for x in DEFAULT_BAND)
 
 
 #: Model names, from :data:`fdml.models.MODEL_KINDS` (the one list).
 MODEL_CHOICES = _model_choices()
-#: The default band ``LO:HI:STEP`` (rad/s), from :data:`fdml.spectra.DEFAULT_BAND`.
+#: The default band ``LO:HI:STEP`` (rad/s), from :data:`fdml.spectral.DEFAULT_BAND`.
 DEFAULT_BAND_TEXT = _band_default()
 #: The one rule for the model when --model is not given (quoted in --help).
 MODEL_RULE = "unsteady with --aircraft, else dimensional with --airspeed or the record's mean airspeed"

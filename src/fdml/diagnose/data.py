@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import BandError, RecordError
 from ..fourier import check_band
 from ..record import Record
-from ..spectra import spectra
+from ..spectral import spectra
 
 __all__ = ["AnalysisData", "analysis_data", "parse_diag_band", "DEFAULT_DIAG_BAND"]
 
@@ -135,7 +135,7 @@ def analysis_data(
     oversample : int, optional
         K >= 1 (default 2).
     trim : str, optional
-        Trim removal passed to :func:`fdml.spectra.spectra`.
+        Trim removal passed to :func:`fdml.spectral.spectra`.
     gust : bool, optional
         Keep the alpha_w input (default: when every record has it).
 

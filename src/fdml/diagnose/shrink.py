@@ -22,8 +22,8 @@ import warnings
 
 import numpy as np
 
+from ..channels import OUTPUTS as CHANNELS
 from ..estimate import fit as fdml_fit
-from ..models.effects import CHANNELS
 from .data import AnalysisData
 from .likelihood import DiagFit, NoiseBands, diag_fit
 from .locate import GapMap, forced_response, gap_map

@@ -37,6 +37,7 @@ import math
 import numpy as np
 from scipy import interpolate, signal
 
+from ..channels import OUTPUTS
 from ..constants import G0
 from ..errors import ParameterError
 from ..maneuvers import dryden_gust, make_input, time_vector
@@ -144,7 +145,7 @@ def _downwash_delay(model, t, inputs, tau: float, sub: int = 8) -> dict:
         x[k + 1] = Phi @ x[k] + G1 @ w0 + G2 @ (w1 - w0)
     ys = real.C @ x.T + real.D @ u.T
     ys[2] += caz * (ad - x[:, 0])
-    return {ch: ys[i, ::sub].copy() for i, ch in enumerate(("alpha", "q", "az"))}
+    return {ch: ys[i, ::sub].copy() for i, ch in enumerate(OUTPUTS)}
 
 
 def _qdot(model, values, t, inputs) -> np.ndarray:
@@ -255,7 +256,7 @@ def simulate_truth(
         sim_inputs["de"] = _lsim([1.0], [values["T_act"], 1.0], de, t)
     mvals = {k: v for k, v in values.items() if k in model.parameters}
     rec = simulate(model, t, sim_inputs, mvals or None)
-    y = {k: rec[k].copy() for k in ("alpha", "q", "az")}
+    y = {k: rec[k].copy() for k in OUTPUTS}
     if key is not None and key.startswith("time_delay@") and key != "time_delay@de":
         ch = key.split("@")[1]
         y[ch] = _delay(t, y[ch], values[f"tau_{ch}"])
@@ -278,7 +279,7 @@ def simulate_truth(
         y["alpha"] = _lsim([w * w], [1.0, 2 * z * w, w * w], y["alpha"], t)
     keep = slice(n0, t.size)
     y = {k: v[keep] for k, v in y.items()}
-    for ch in ("alpha", "q", "az"):
+    for ch in OUTPUTS:
         if noise > 0:
             y[ch] = y[ch] + noise * float(np.std(y[ch])) * sensor_noise(rng, tr.size, dt, noise_kind)
     signals = {"de": de[keep], **y}

@@ -9,8 +9,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ..channels import REQUIRED, SIGNALS
 from ..errors import RecordError
-from ..record import SIGNALS
 from ._common import check_path, check_trim, finish, wrap_read_error
 from .units import QUANTITY, normalise_unit, unit_factor
 
@@ -112,7 +112,7 @@ def read_csv_mapped(
             raise RecordError(
                 f"{p}: {label} names unknown fdml signal(s) {', '.join(map(repr, bad))}; known: {', '.join(known)}"
             )
-    missing_req = [k for k in ("t", "de", "alpha", "q", "az") if k not in columns]
+    missing_req = [k for k in ("t", *REQUIRED) if k not in columns]
     if missing_req:
         raise RecordError(f"{p}: the column map lacks {', '.join(missing_req)} (t, de, alpha, q and az are required)")
     extra_units = [k for k in units if k not in columns]

@@ -26,6 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..channels import OUTPUTS, SIGNALS
 from ..constants import G0
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters
@@ -33,8 +34,6 @@ from ..parameters import Parameter, Parameters
 __all__ = ["Model", "ModelResponse", "OUTPUTS", "solve_short_period"]
 
 #: Output channels of every model, in order: alpha (rad), q (rad/s), a_z (g).
-OUTPUTS = ("alpha", "q", "az")
-OUTPUT_UNITS = {"alpha": "rad", "q": "rad/s", "az": "g", "de": "rad", "alpha_w": "rad"}
 
 
 @dataclass(frozen=True)
@@ -189,7 +188,7 @@ class Model:
                     f"bias_{name}",
                     0.0,
                     free=self.output_bias,
-                    unit=OUTPUT_UNITS[name],
+                    unit=SIGNALS[name],
                     description=f"output bias on {name}",
                 )
             )

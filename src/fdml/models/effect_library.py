@@ -39,11 +39,11 @@ from typing import Any
 
 import numpy as np
 
+from ..channels import INPUT, OUTPUTS
 from ..constants import G0
 from ..errors import ParameterError
 from .base import Model
 from .effects import (
-    CHANNELS,
     Effect,
     FreeParameterEffect,
     MatrixEffect,
@@ -79,7 +79,7 @@ class Dispatch(Effect):
     def impl(self, model: Model):
         return self.impls.get(root_model(model).kind)
 
-    def applicable(self, model, inputs=("de",), outputs=CHANNELS):
+    def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         imp = self.impl(model)
         if imp is None:
             return f"not defined for the {root_model(model).kind} model"
@@ -580,7 +580,7 @@ def _delay_realize(row: int, name: str):
 
 
 def _make_output_delay(ch: str) -> OutputEffect:
-    row = CHANNELS.index(ch)
+    row = OUTPUTS.index(ch)
     name = f"tau_{ch}"
     return OutputEffect(
         "time_delay",
@@ -807,9 +807,9 @@ def _make_scale(ch: str) -> OutputEffect:
                 description=f"gain error of {ch}",
             ),
         ),
-        _scale(CHANNELS.index(ch), name),
+        _scale(OUTPUTS.index(ch), name),
         signature=f"{ch} too large or small at every frequency",
-        realize=_scale_realize(CHANNELS.index(ch), name),
+        realize=_scale_realize(OUTPUTS.index(ch), name),
     )
 
 
@@ -851,12 +851,12 @@ BUILTINS = (
     GUST_LAG,
     GUST_TAIL,
     TIME_DELAY_DE,
-    *(_make_output_delay(c) for c in CHANNELS),
+    *(_make_output_delay(c) for c in OUTPUTS),
     ACTUATOR_LAG,
     SENSOR_OFFSET_AZ,
     SENSOR_OFFSET_ALPHA,
     STRUCTURAL_MODE,
-    *(_make_scale(c) for c in CHANNELS),
+    *(_make_scale(c) for c in OUTPUTS),
     UnmeasuredGust(),
 )
 

@@ -48,6 +48,7 @@ from typing import cast
 
 import numpy as np
 
+from ..channels import INPUT, OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..parameters import Parameter, Parameters
 from .base import Model, ModelResponse
@@ -68,7 +69,6 @@ __all__ = [
     "applied_effects",
     "with_gust",
     "scale_rows",
-    "CHANNELS",
     "resolve_effect",
     "with_effects",
     "assemble",
@@ -76,9 +76,6 @@ __all__ = [
     "confounded_effect_parameters",
     "catalogue",
 ]
-
-#: Output channels, in the row order of G, H and P.
-CHANNELS = ("alpha", "q", "az")
 
 
 @dataclass(frozen=True)
@@ -171,14 +168,14 @@ class Effect:
         return f"{self.name}@{self.channel}" if self.channel else self.name
 
     def applicable(
-        self, model: Model, inputs: Sequence[str] = ("de",), outputs: Sequence[str] = CHANNELS
+        self, model: Model, inputs: Sequence[str] = (INPUT,), outputs: Sequence[str] = OUTPUTS
     ) -> str | None:
         """None if the effect can be tested on ``model`` with these channels, else the reason."""
         for need in self.needs:
             if need not in inputs and need not in outputs:
                 return f"needs the {need} channel, which the record(s) lack"
         for ch in self.channel.split(","):
-            if ch in CHANNELS and ch not in outputs:
+            if ch in OUTPUTS and ch not in outputs:
                 return f"acts on {ch}, which is not among the fitted outputs"
         return None
 
@@ -438,7 +435,7 @@ class OutputEffect(Effect):
     def output(self, s, p, G, H, P, root):
         return self._fn(s, p, G, H, P, root)
 
-    def applicable(self, model, inputs=("de",), outputs=CHANNELS):
+    def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)
         if why is None and self._applies is not None:
             why = self._applies(root_model(model))
@@ -471,7 +468,7 @@ class MatrixEffect(OutputEffect):
     def output(self, s, p, G, H, P, root):  # pragma: no cover - never called for matrix effects
         return G, H, P
 
-    def applicable(self, model, inputs=("de",), outputs=CHANNELS):
+    def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)
         if why is None and not hasattr(root_model(model), "_matrices"):
             why = "the base model does not expose its state-space matrices"
@@ -523,7 +520,7 @@ class FreeParameterEffect(Effect):
             root = self._convert(root)
         return root
 
-    def applicable(self, model, inputs=("de",), outputs=CHANNELS):
+    def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)
         if why is not None:
             return why
@@ -618,7 +615,7 @@ def resolve_effect(spec, model: Model | None = None) -> Effect:
             f"effect {name} has no channel {channel!r}; its channels: {', '.join(e.channel for e in variants)}"
         )
     if len(variants) > 1 and model is not None:
-        usable = [e for e in variants if e.applicable(model, model.inputs, CHANNELS) is None]
+        usable = [e for e in variants if e.applicable(model, model.inputs, OUTPUTS) is None]
         variants = usable if len(usable) == 1 else variants
     if len(variants) > 1:
         raise ParameterError(
@@ -650,7 +647,7 @@ def with_effects(model: Model, effects) -> Model:
             )
         if any(e.key == eff.key for e in parts):
             raise ParameterError(f"effect {eff.key} is already in the model")
-        why = eff.applicable(model, model.inputs, CHANNELS)
+        why = eff.applicable(model, model.inputs, OUTPUTS)
         if why is not None:
             raise ParameterError(f"effect {eff.key} on the {root_model(model).kind} model: {why}")
         impl = eff.impl(model) if hasattr(eff, "impl") else eff  # a Dispatch: the variant for this model
@@ -719,7 +716,7 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
     """
     if not isinstance(model, AugmentedModel) or not model.requested:
         return []
-    rows = [CHANNELS.index(o) for o in outputs]
+    rows = [OUTPUTS.index(o) for o in outputs]
     free = [n for n in model.parameters.free_names if not n.startswith("bias_")]
     if not free:  # every parameter fixed (a prediction): nothing to confound
         return []

@@ -70,6 +70,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .channels import SIGNALS, display_unit
 from .constants import G0
 from .errors import FdmlError, IdentifiabilityWarning, RecordError
 from .record import Record
@@ -202,7 +203,7 @@ class CompatibilityResult:
             f"  {'parameter':10s} {'estimate':>12s} {'std err':>10s} {'(white)':>10s}  unit     z    description",
         ]
         for p in self.params.values():
-            f, u = _display_factor(p.unit)
+            f, u = display_unit(p.unit)
             lines.append(
                 f"  {p.name:10s} {p.value * f:12.5g} {p.stderr * f:10.3g} {p.stderr_white * f:10.3g}  "
                 f"{u:6s} {p.z:5.1f}  {p.description}"
@@ -211,20 +212,20 @@ class CompatibilityResult:
             lines.append("")
             lines.append("  not estimated:")
             for k, (v, why) in self.fixed.items():
-                f, u = _display_factor(PARAMETERS[k][1])
+                f, u = display_unit(PARAMETERS[k][1])
                 lines.append(f"    {k:10s} = {v * f:g} {u}: {why}")
         lines.append("")
         lines.append(
             "  initial states: "
             + ", ".join(
-                f"{k} = {p.value * _display_factor(p.unit)[0]:.5g} {_display_factor(p.unit)[1]}"
+                f"{k} = {p.value * display_unit(p.unit)[0]:.5g} {display_unit(p.unit)[1]}"
                 for k, p in self.states.items()
             )
         )
         lines.append(
             "  residual RMS: "
             + ", ".join(
-                f"{k} {v * _display_factor(_OUT_UNITS[k])[0]:.3g} {_display_factor(_OUT_UNITS[k])[1]}"
+                f"{k} {v * display_unit(SIGNALS[k])[0]:.3g} {display_unit(SIGNALS[k])[1]}"
                 for k, v in self.residual_rms.items()
             )
         )
@@ -260,16 +261,9 @@ class CompatibilityResult:
         }
 
 
-_OUT_UNITS = {"alpha": "rad", "theta": "rad", "V": "m/s", "h": "m"}
-
-
-def _display_factor(unit: str) -> tuple[float, str]:
-    return {"rad": (180 / math.pi, "deg"), "rad/s": (180 / math.pi, "deg/s")}.get(unit, (1.0, unit))
-
-
 # --- corrections -------------------------------------------------------------------------------
 def apply_corrections(record: Record, values: dict) -> Record:
-    """Invert the sensor models of :mod:`fdml.compat` on a record.
+    """Invert the sensor models of :mod:`fdml.flightpath` on a record.
 
     ``q = (q_m - b_q)/K_q``, ``a_z(t) = (a_z,m(t + tau_az) - b_az)/K_az``,
     ``a_x = a_x,m - b_ax``, ``alpha(t) = (alpha_m(t + tau_alpha) - b_alpha)/K_alpha``,
@@ -865,7 +859,7 @@ def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
     out = []
     sig = [p for p in params.values() if p.z > SIGNIFICANT]
     for p in sorted(sig, key=lambda p: -p.z):
-        f, u = _display_factor(p.unit)
+        f, u = display_unit(p.unit)
         out.append(
             f"{p.description} {p.name} = {p.value * f:.4g} +- {p.stderr * f:.2g} {u}: "
             f"{p.z:.1f} standard errors from {p.nominal * f:g}, significant"
@@ -891,7 +885,7 @@ def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
         rms = float(np.sqrt(np.mean((prob.meas[k][prob.sel] - y[k][prob.sel]) ** 2)))
         floor = noise_level(prob.meas[k])
         if rms > RESIDUAL_FACTOR * floor:
-            f, u = _display_factor(_OUT_UNITS[k])
+            f, u = display_unit(SIGNALS[k])
             out.append(
                 f"the kinematics do not close for {k}: residual RMS {rms * f:.3g} {u} is "
                 f"{rms / floor:.0f} times its noise level ({floor * f:.2g} {u}); wind, sensor dynamics or "

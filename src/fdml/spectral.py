@@ -17,14 +17,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import fourier
+from .channels import OUTPUTS
 from .errors import BandError, RecordError
 from .record import Record
 
-__all__ = ["FrequencyData", "spectra", "parse_band", "DEFAULT_BAND", "OUTPUT_NAMES"]
+__all__ = ["FrequencyData", "spectra", "parse_band", "DEFAULT_BAND"]
 
 #: The paper's grid: 0.1 to 10 rad/s at 0.1 rad/s ("10 points per radian").
 DEFAULT_BAND = (0.1, 10.0, 0.1)
-OUTPUT_NAMES = ("alpha", "q", "az")
 
 
 def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[float, float, float]:
@@ -285,7 +285,7 @@ def spectra(
             "too few samples for this band"
         )
     rec = record.remove_trim(trim, window=trim_window)
-    outs = np.column_stack([rec[k] for k in OUTPUT_NAMES])
+    outs = np.column_stack([rec[k] for k in OUTPUTS])
     inputs = ("de", "alpha_w") if rec.has("alpha_w") else ("de",)
     ins = np.column_stack([rec[k] for k in inputs])
     ones = np.ones(rec.n)
