@@ -332,7 +332,7 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
 
 def _system(model, p) -> _System:
     """The model's state space, composed through its effects (matrix-level, then output-level, in order)."""
-    from .models.effects import MatrixEffect, applied_effects, root_model
+    from .models.augment import MatrixEffect, applied_effects, root_model
 
     root, effects = root_model(model), applied_effects(model)
     matrix = [e for e in effects if isinstance(e, MatrixEffect)]

@@ -1,4 +1,4 @@
-"""The built-in library of candidate effects (registered on import).
+"""The built-in library of candidate effects (registered by :mod:`fdml.models.effects`).
 
 =====================  =========  ============================================================
 effect                 channel    augmentation (null in brackets)
@@ -42,17 +42,16 @@ import numpy as np
 from ..channels import INPUT, OUTPUTS
 from ..constants import G0
 from ..errors import ParameterError
-from .base import Model
-from .effects import (
+from .augment import (
     Effect,
     FreeParameterEffect,
     MatrixEffect,
     OutputEffect,
     Param,
-    register_effect,
     root_model,
     scale_rows,
 )
+from .base import Model
 
 __all__ = ["Dispatch", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
 
@@ -859,6 +858,3 @@ BUILTINS = (
     *(_make_scale(c) for c in OUTPUTS),
     UnmeasuredGust(),
 )
-
-for _eff in BUILTINS:
-    register_effect(_eff, replace_existing=True)
