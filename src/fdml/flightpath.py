@@ -565,6 +565,114 @@ def _default_free(record: Record) -> tuple[list[str], dict]:
     return free, why
 
 
+def _checked_airspeed(record: Record, U: float | None) -> float:
+    """Refuse a record the check cannot use (trim removed, a_z sign flipped, no airspeed); the airspeed, m/s."""
+    if not isinstance(record, Record):
+        raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
+    az_mean = float(np.mean(record["az"]))
+    if 0.4 < az_mean < 1.6:
+        raise RecordError(
+            f"record {record.name!r}: mean a_z is {az_mean:+.3g} g; in level flight fdml's a_z (body z, "
+            "positive down, THEORY.md Eq. 5) is near -1 g: the sign looks flipped (a normal acceleration "
+            "a_n, positive up?). Load it with the sign reversed (--sign az=-1)"
+        )
+    if not -1.6 < az_mean < -0.4:
+        raise RecordError(
+            f"record {record.name!r}: mean a_z is {az_mean:.3g} g; the compatibility check needs the record "
+            "with trim kept (a_z near -1 g in level flight, body z positive down). Load it without trim= "
+            "or add the trim back"
+        )
+    if U is None:
+        U = record.meta.get("U")
+    if not record.has("V") and (U is None or not U > 0):
+        raise RecordError(f"record {record.name!r} has no airspeed V: pass U= (m/s)")
+    return float(U) if U is not None else float(np.mean(record["V"]))
+
+
+def _choose_free(record: Record, estimate, fix) -> tuple[list[str], dict[str, float], dict[str, str]]:
+    """Free parameters, values of the fixed ones and why each is not estimated."""
+    free, why = _default_free(record)
+    if estimate is not None:
+        estimate = list(estimate)
+        bad = [k for k in estimate if k not in PARAMETERS]
+        if bad:
+            raise FdmlError(f"unknown compatibility parameter(s) {bad}; known: {', '.join(PARAMETERS)}")
+        free = estimate
+        why = {k: "not requested" for k in PARAMETERS if k not in free}
+    fixed_vals = {k: PARAMETERS[k][0] for k in PARAMETERS if k not in free}
+    for k, v in dict(fix or {}).items():
+        if k not in PARAMETERS:
+            raise FdmlError(f"unknown compatibility parameter {k!r}; known: {', '.join(PARAMETERS)}")
+        if k in free:
+            free.remove(k)
+        fixed_vals[k] = float(v)
+        why[k] = "fixed by the caller"
+    return free, fixed_vals, why
+
+
+def _start(prob: _Problem, free: list[str], max_shift: float):
+    """Start (nominal sensors, measured initial states), bounds and typical sizes of the unknowns."""
+    record = prob.rec
+    x0_list = [PARAMETERS[k][0] for k in free]
+    x0_list.append(float(record["alpha"][0]))
+    if prob.has_theta:
+        x0_list.append(float(record["theta"][0]))
+    if prob.V_state:
+        x0_list.append(float(record["V"][0]))
+    if prob.has_h:
+        x0_list.append(float(record["h"][0]))
+    x0 = np.array(x0_list, dtype=float)
+    lo = np.full(x0.size, -np.inf)
+    hi = np.full(x0.size, np.inf)
+    for i, k in enumerate(free):
+        if k.startswith("tau_"):
+            lo[i], hi[i] = -max_shift, max_shift
+        elif k.startswith("K_"):
+            lo[i], hi[i] = 0.2, 5.0
+    typ = np.array([_TYPICAL[PARAMETERS[k][1]] for k in free] + [_TYPICAL[_STATE_UNITS[k]] for k in prob.states])
+    return x0, lo, hi, typ
+
+
+def _solve(prob: _Problem, x0, lo, hi, typ):
+    """Levenberg-Marquardt passes, each output weighted by its residual RMS of the pass before.
+
+    Returns the estimate, the settled output weights (std per output), whether it converged, and why not.
+    """
+    record = prob.rec
+    sigma = {k: max(noise_level(record[k]), _sigma_floor(record[k])) for k in prob.outputs}
+    x = x0
+    converged = False
+    message = ""
+    for _ in range(_WEIGHT_PASSES):
+        x, r, J, ok, message = _levenberg_marquardt(lambda z: prob.residuals(z, sigma), x, lo, hi, typ)
+        new = {}
+        for j, k in enumerate(prob.outputs):
+            e = r[j * prob.n_used : (j + 1) * prob.n_used] * sigma[k]
+            new[k] = max(float(np.sqrt(np.mean(e**2))), _sigma_floor(record[k]))
+        change = max(abs(new[k] / sigma[k] - 1) for k in sigma)
+        sigma = new
+        if change < _WEIGHT_TOL:
+            converged = ok
+            break
+    else:
+        message = f"output weights still changing by {100 * change:.2g} % after {_WEIGHT_PASSES} passes"
+    return x, sigma, converged, message
+
+
+def _uncertainty(prob: _Problem, J, r, x, sigma):
+    """Standard errors (the largest of white, coloured and noise-propagated), the white ones, and correlations."""
+    cov_w, cov_c = _covariances(J, r, len(prob.outputs), prob.n_used)
+    cov_n = prob.noise_covariance(J, prob.unpack(x), sigma)
+    se_w = np.sqrt(np.clip(np.diag(cov_w), 0, None))
+    se_c = np.sqrt(np.clip(np.diag(cov_c), 0, None))
+    se_n = np.sqrt(np.clip(np.diag(cov_n), 0, None))
+    se = np.maximum.reduce([se_w, se_c, se_n])
+    cov = cov_n if np.sum(se_n >= se_c) >= np.sum(se_c > se_n) else cov_c
+    d = np.sqrt(np.clip(np.diag(cov), 0, None))
+    d = np.where(d > 0, d, np.nan)
+    return se, se_w, cov / np.outer(d, d)
+
+
 def check_compatibility(
     record: Record,
     *,
@@ -605,92 +713,15 @@ def check_compatibility(
         If the record looks trimmed (a_z near 0 instead of -1 g), lacks an
         airspeed, or is too short.
     """
-    if not isinstance(record, Record):
-        raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
-    az_mean = float(np.mean(record["az"]))
-    if 0.4 < az_mean < 1.6:
-        raise RecordError(
-            f"record {record.name!r}: mean a_z is {az_mean:+.3g} g; in level flight fdml's a_z (body z, "
-            "positive down, THEORY.md Eq. 5) is near -1 g: the sign looks flipped (a normal acceleration "
-            "a_n, positive up?). Load it with the sign reversed (--sign az=-1)"
-        )
-    if not -1.6 < az_mean < -0.4:
-        raise RecordError(
-            f"record {record.name!r}: mean a_z is {az_mean:.3g} g; the compatibility check needs the record "
-            "with trim kept (a_z near -1 g in level flight, body z positive down). Load it without trim= "
-            "or add the trim back"
-        )
-    if U is None:
-        U = record.meta.get("U")
-    if not record.has("V") and (U is None or not U > 0):
-        raise RecordError(f"record {record.name!r} has no airspeed V: pass U= (m/s)")
-    U = float(U) if U is not None else float(np.mean(record["V"]))
-    free, why = _default_free(record)
-    if estimate is not None:
-        estimate = list(estimate)
-        bad = [k for k in estimate if k not in PARAMETERS]
-        if bad:
-            raise FdmlError(f"unknown compatibility parameter(s) {bad}; known: {', '.join(PARAMETERS)}")
-        free = estimate
-        why = {k: "not requested" for k in PARAMETERS if k not in free}
-    fixed_vals = {k: PARAMETERS[k][0] for k in PARAMETERS if k not in free}
-    for k, v in dict(fix or {}).items():
-        if k not in PARAMETERS:
-            raise FdmlError(f"unknown compatibility parameter {k!r}; known: {', '.join(PARAMETERS)}")
-        if k in free:
-            free.remove(k)
-        fixed_vals[k] = float(v)
-        why[k] = "fixed by the caller"
+    U = _checked_airspeed(record, U)
+    free, fixed_vals, why = _choose_free(record, estimate, fix)
     prob = _Problem(record, free, fixed_vals, max_shift, U)
-    # start: nominal sensors, measured initial states
-    x0_list = [PARAMETERS[k][0] for k in free]
-    x0_list.append(float(record["alpha"][0]))
-    if prob.has_theta:
-        x0_list.append(float(record["theta"][0]))
-    if prob.V_state:
-        x0_list.append(float(record["V"][0]))
-    if prob.has_h:
-        x0_list.append(float(record["h"][0]))
-    x0 = np.array(x0_list, dtype=float)
-    lo = np.full(x0.size, -np.inf)
-    hi = np.full(x0.size, np.inf)
-    for i, k in enumerate(free):
-        if k.startswith("tau_"):
-            lo[i], hi[i] = -max_shift, max_shift
-        elif k.startswith("K_"):
-            lo[i], hi[i] = 0.2, 5.0
-    typ = np.array([_TYPICAL[PARAMETERS[k][1]] for k in free] + [_TYPICAL[_STATE_UNITS[k]] for k in prob.states])
-    sigma = {k: max(noise_level(record[k]), _sigma_floor(record[k])) for k in prob.outputs}
-    x = x0
-    converged = False
-    message = ""
-    for _ in range(_WEIGHT_PASSES):
-        x, r, J, ok, message = _levenberg_marquardt(lambda z: prob.residuals(z, sigma), x, lo, hi, typ)
-        new = {}
-        for j, k in enumerate(prob.outputs):
-            e = r[j * prob.n_used : (j + 1) * prob.n_used] * sigma[k]
-            new[k] = max(float(np.sqrt(np.mean(e**2))), _sigma_floor(record[k]))
-        change = max(abs(new[k] / sigma[k] - 1) for k in sigma)
-        sigma = new
-        if change < _WEIGHT_TOL:
-            converged = ok
-            break
-    else:
-        message = f"output weights still changing by {100 * change:.2g} % after {_WEIGHT_PASSES} passes"
+    x0, lo, hi, typ = _start(prob, free, max_shift)
+    x, sigma, converged, message = _solve(prob, x0, lo, hi, typ)
     # residuals and Jacobian at the settled weights
     r = prob.residuals(x, sigma)
     J = _jacobian(lambda z: prob.residuals(z, sigma), x, r, typ, lo, hi)
-    p = prob.unpack(x)
-    cov_w, cov_c = _covariances(J, r, len(prob.outputs), prob.n_used)
-    cov_n = prob.noise_covariance(J, p, sigma)
-    se_w = np.sqrt(np.clip(np.diag(cov_w), 0, None))
-    se_c = np.sqrt(np.clip(np.diag(cov_c), 0, None))
-    se_n = np.sqrt(np.clip(np.diag(cov_n), 0, None))
-    se = np.maximum.reduce([se_w, se_c, se_n])
-    cov = cov_n if np.sum(se_n >= se_c) >= np.sum(se_c > se_n) else cov_c
-    d = np.sqrt(np.clip(np.diag(cov), 0, None))
-    d = np.where(d > 0, d, np.nan)
-    corr = cov / np.outer(d, d)
+    se, se_w, corr = _uncertainty(prob, J, r, x, sigma)
     params = {}
     for i, k in enumerate(free):
         nom, unit, desc = PARAMETERS[k]
@@ -701,7 +732,7 @@ def check_compatibility(
         states[k] = ParameterEstimate(
             k, float(x[i]), float(se[i]), float(se_w[i]), _STATE_UNITS[k], "initial state", float(x0[i])
         )
-    y = prob.simulate(p)
+    y = prob.simulate(prob.unpack(x))
     rms = {k: float(np.sqrt(np.mean((prob.meas[k][prob.sel] - y[k][prob.sel]) ** 2))) for k in prob.outputs}
     fixed = {k: (fixed_vals[k], why.get(k, "fixed")) for k in PARAMETERS if k not in free}
     findings = _findings(params, fixed, free, prob, x, se, hi, lo)

@@ -177,6 +177,21 @@ def sensor_noise(rng: np.random.Generator, n: int, dt: float, kind: str = "white
     return w + c * x
 
 
+def _elevator(maneuver: str, tr: np.ndarray, amp: float, rng: np.random.Generator) -> np.ndarray:
+    """The elevator input (rad) of a truth record on its time grid ``tr`` (s)."""
+    if maneuver == "multisine":
+        # a multisine over the first 3/4 of the record, then the input stops (flight-test practice)
+        n1 = int(round(0.75 * (tr.size - 1))) + 1
+        u = make_input("multisine", tr[:n1], amp, omega_lo=0.4, omega_hi=12.0, phases="random", rng=rng)
+        return np.concatenate([u, np.zeros(tr.size - n1)])
+    elif maneuver == "3211":
+        return make_input("3211", tr, amp, unit=0.4, rise=0.04)
+    elif maneuver == "doublet":
+        return make_input("doublet", tr, amp, width=0.4, rise=0.04)
+    else:
+        raise ParameterError(f"unknown manoeuvre {maneuver!r}; use 3211, doublet or multisine")
+
+
 def simulate_truth(
     base,
     key: str | None,
@@ -222,17 +237,7 @@ def simulate_truth(
     n0 = int(round(warm / dt))
     tr = t[: t.size - n0]  # the kept record's own time axis
     amp = amplitude if amplitude is not None else math.radians(1.0)
-    if maneuver == "multisine":
-        # a multisine over the first 3/4 of the record, then the input stops (flight-test practice)
-        n1 = int(round(0.75 * (tr.size - 1))) + 1
-        u = make_input("multisine", tr[:n1], amp, omega_lo=0.4, omega_hi=12.0, phases="random", rng=rng)
-        de_rec = np.concatenate([u, np.zeros(tr.size - n1)])
-    elif maneuver == "3211":
-        de_rec = make_input("3211", tr, amp, unit=0.4, rise=0.04)
-    elif maneuver == "doublet":
-        de_rec = make_input("doublet", tr, amp, width=0.4, rise=0.04)
-    else:
-        raise ParameterError(f"unknown manoeuvre {maneuver!r}; use 3211, doublet or multisine")
+    de_rec = _elevator(maneuver, tr, amp, rng)
     de = np.concatenate([np.zeros(n0), de_rec])
     inputs = {"de": de}
     U = base.U
