@@ -720,7 +720,7 @@ def check_compatibility(
     x, sigma, converged, message = _solve(prob, x0, lo, hi, typ)
     # residuals and Jacobian at the settled weights
     r = prob.residuals(x, sigma)
-    J = _jacobian(lambda z: prob.residuals(z, sigma), x, r, typ, lo, hi)
+    J = _jacobian(lambda z: prob.residuals(z, sigma), x, r, typ, hi)
     se, se_w, corr = _uncertainty(prob, J, r, x, sigma)
     params = {}
     for i, k in enumerate(free):
@@ -735,7 +735,7 @@ def check_compatibility(
     y = prob.simulate(prob.unpack(x))
     rms = {k: float(np.sqrt(np.mean((prob.meas[k][prob.sel] - y[k][prob.sel]) ** 2))) for k in prob.outputs}
     fixed = {k: (fixed_vals[k], why.get(k, "fixed")) for k in PARAMETERS if k not in free}
-    findings = _findings(params, fixed, free, prob, x, se, hi, lo)
+    findings = _findings(params, free, prob, x, hi, lo, rms)
     out = CompatibilityResult(
         name=record.name,
         params=params,
@@ -776,7 +776,7 @@ def noise_level(x: np.ndarray) -> float:
 _TYPICAL = {"rad/s": 1e-2, "g": 1e-1, "-": 1.0, "s": 1e-1, "rad": 1e-1, "m/s": 10.0, "m": 100.0}
 
 
-def _jacobian(fun, x, r, typ, lo, hi):
+def _jacobian(fun, x, r, typ, hi):
     """Forward-difference Jacobian; steps of 1e-6 typical magnitudes, away from bounds."""
     J = np.empty((r.size, x.size))
     for i in range(x.size):
@@ -803,7 +803,7 @@ def _levenberg_marquardt(fun, x, lo, hi, typ, max_iter: int = 100):
     m, n = r.size, x.size
     message = "iteration limit reached"
     converged = False
-    J = _jacobian(fun, x, r, typ, lo, hi)
+    J = _jacobian(fun, x, r, typ, hi)
     for _ in range(max_iter):
         g = J.T @ r
         H = J.T @ J
@@ -827,7 +827,7 @@ def _levenberg_marquardt(fun, x, lo, hi, typ, max_iter: int = 100):
         rel = (cost - cn) / cost
         x, r, cost = xn, rn, cn
         lam = max(lam / 3.0, 1e-12)
-        J = _jacobian(fun, x, r, typ, lo, hi)
+        J = _jacobian(fun, x, r, typ, hi)
         try:
             se = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)) * cost / max(m - n, 1), 1e-300, None))
         except np.linalg.LinAlgError:
@@ -886,7 +886,8 @@ def _covariances(J: np.ndarray, r: np.ndarray, n_out: int, n_used: int):
     return Minv * s2, cov_c
 
 
-def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
+def _findings(params, free, prob, x, hi, lo, rms: dict[str, float]) -> list[str]:
+    """Significant sensor errors, estimates at a bound, and outputs whose residual RMS exceeds the noise."""
     out = []
     sig = [p for p in params.values() if p.z > SIGNIFICANT]
     for p in sorted(sig, key=lambda p: -p.z):
@@ -910,16 +911,13 @@ def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
             "b_alpha rests on the altitude channel (h_dot = V sin(theta - alpha)): a static-pressure error of "
             "a barometric altitude, or a steady vertical wind, reads as an alpha bias"
         )
-    p = prob.unpack(x)
-    y = prob.simulate(p)
     for k in prob.outputs:
-        rms = float(np.sqrt(np.mean((prob.meas[k][prob.sel] - y[k][prob.sel]) ** 2)))
         floor = noise_level(prob.meas[k])
-        if rms > RESIDUAL_FACTOR * floor:
+        if rms[k] > RESIDUAL_FACTOR * floor:
             f, u = display_unit(SIGNALS[k])
             out.append(
-                f"the kinematics do not close for {k}: residual RMS {rms * f:.3g} {u} is "
-                f"{rms / floor:.0f} times its noise level ({floor * f:.2g} {u}); wind, sensor dynamics or "
+                f"the kinematics do not close for {k}: residual RMS {rms[k] * f:.3g} {u} is "
+                f"{rms[k] / floor:.0f} times its noise level ({floor * f:.2g} {u}); wind, sensor dynamics or "
                 "errors outside the sensor models remain"
             )
     return out
