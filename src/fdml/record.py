@@ -22,9 +22,9 @@ import numpy as np
 from .channels import OUTPUTS, SIGNALS, display_unit
 from .channels import REQUIRED as REQUIRED_SIGNALS
 from .errors import RecordError
-from .outputs import atomic_write_text  # re-exported: fdml.record.atomic_write_text predates fdml.outputs
+from .outputs import atomic_write_text
 
-__all__ = ["Record", "read_csv", "add_noise", "SIGNALS", "REQUIRED_SIGNALS", "atomic_write_text"]
+__all__ = ["Record", "read_csv", "add_noise", "SIGNALS", "REQUIRED_SIGNALS"]
 
 
 #: Largest plausible perturbation magnitudes in SI units.  A larger value in a
