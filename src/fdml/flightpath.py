@@ -318,6 +318,16 @@ def _integrate(a, th, V, h, dt, n, q, az, ax, Vin):
     hdt = 0.5 * dt
     sixth = dt / 6.0
     vstate = Vin is None
+
+    def rates(a, v, th, q, z, x):
+        """alpha_dot, V_dot (0 when V is an input) and h_dot of the kinematics at one RK4 stage."""
+        ca, sa, gm = cos(a), sin(a), th - a
+        return (
+            q + g / v * (z * ca - x * sa + cos(gm)),
+            (g * (x * ca + z * sa - sin(gm)) if vstate else 0.0),
+            v * sin(gm),
+        )
+
     for k in range(n - 1):
         i0 = 2 * k
         q0, q1, q2 = q[i0], q[i0 + 1], q[i0 + 2]
@@ -332,36 +342,16 @@ def _integrate(a, th, V, h, dt, n, q, az, ax, Vin):
             v1 = V
         else:
             v1, vm, v4 = Vin[i0], Vin[i0 + 1], Vin[i0 + 2]
-        # stage 1
-        ca, sa = cos(a), sin(a)
-        gm = t1 - a
-        da1 = q0 + g / v1 * (z0 * ca - x0 * sa + cos(gm))
-        dV1 = g * (x0 * ca + z0 * sa - sin(gm)) if vstate else 0.0
-        dh1 = v1 * sin(gm)
-        # stage 2
+        da1, dV1, dh1 = rates(a, v1, t1, q0, z0, x0)
         a2 = a + hdt * da1
         v2 = V + hdt * dV1 if vstate else vm
-        ca, sa = cos(a2), sin(a2)
-        gm = t2 - a2
-        da2 = q1 + g / v2 * (z1 * ca - x1a * sa + cos(gm))
-        dV2 = g * (x1a * ca + z1 * sa - sin(gm)) if vstate else 0.0
-        dh2 = v2 * sin(gm)
-        # stage 3
+        da2, dV2, dh2 = rates(a2, v2, t2, q1, z1, x1a)
         a3 = a + hdt * da2
         v3 = V + hdt * dV2 if vstate else vm
-        ca, sa = cos(a3), sin(a3)
-        gm = t3 - a3
-        da3 = q1 + g / v3 * (z1 * ca - x1b * sa + cos(gm))
-        dV3 = g * (x1b * ca + z1 * sa - sin(gm)) if vstate else 0.0
-        dh3 = v3 * sin(gm)
-        # stage 4
+        da3, dV3, dh3 = rates(a3, v3, t3, q1, z1, x1b)
         a4 = a + dt * da3
         vv4 = V + dt * dV3 if vstate else v4
-        ca, sa = cos(a4), sin(a4)
-        gm = t4 - a4
-        da4 = q2 + g / vv4 * (z2 * ca - x2 * sa + cos(gm))
-        dV4 = g * (x2 * ca + z2 * sa - sin(gm)) if vstate else 0.0
-        dh4 = vv4 * sin(gm)
+        da4, dV4, dh4 = rates(a4, vv4, t4, q2, z2, x2)
         a += sixth * (da1 + 2 * da2 + 2 * da3 + da4)
         th += sixth * (q0 + 4 * q1 + q2)
         if vstate:
