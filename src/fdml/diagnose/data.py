@@ -30,7 +30,7 @@ import numpy as np
 from ..errors import BandError, RecordError
 from ..fourier import check_band
 from ..record import Record
-from ..spectral import spectra
+from ..spectral import band_numbers, spectra
 
 __all__ = ["AnalysisData", "analysis_data", "parse_diag_band", "DEFAULT_DIAG_BAND"]
 
@@ -46,21 +46,7 @@ def parse_diag_band(band) -> tuple[float, float]:
     """
     if band is None:
         return DEFAULT_DIAG_BAND
-    if isinstance(band, str):
-        parts = band.split(":")
-        if len(parts) not in (2, 3):
-            raise BandError(f"band {band!r} must be LO:HI (rad/s), e.g. 0.3:12")
-        try:
-            band = tuple(float(x) for x in parts)
-        except ValueError:
-            raise BandError(f"band {band!r} must be numbers LO:HI in rad/s") from None
-    try:
-        vals = [float(x) for x in band]
-    except (TypeError, ValueError):
-        raise BandError(f"band {band!r} must be (lo, hi) in rad/s") from None
-    if len(vals) not in (2, 3):
-        raise BandError(f"band {band!r} must be (lo, hi) in rad/s")
-    lo, hi = vals[0], vals[1]
+    lo, hi = band_numbers(band, (2, 3), example="0.3:12")[:2]
     check_band(lo, hi, None, what="band", positive=True)  # fdml's one band check (no grid here)
     if not lo < hi:
         raise BandError(f"band must satisfy 0 < lo < hi (rad/s), got {lo:g}:{hi:g}")
