@@ -666,21 +666,24 @@ def _vane_offset_realize(sys, p, root):
     return mix_output(sys, 0, 1, -p["x_alpha"] / root.U)  # alpha - x q / U
 
 
+def _lever_arm(name: str, sensor: str) -> Param:
+    """A sensor's distance ahead of the c.g., m (null 0; plausible within 10 m of it)."""
+    return Param(
+        name,
+        0.0,
+        lower=-30.0,
+        upper=30.0,
+        plausible=(-10.0, 10.0),
+        unit="m",
+        start=0.05,
+        description=f"{sensor} ahead of the c.g.",
+    )
+
+
 SENSOR_OFFSET_AZ = OutputEffect(
     "sensor_offset",
     "az",
-    (
-        Param(
-            "x_az",
-            0.0,
-            lower=-30.0,
-            upper=30.0,
-            plausible=(-10.0, 10.0),
-            unit="m",
-            start=0.05,
-            description="accelerometer ahead of the c.g.",
-        ),
-    ),
+    (_lever_arm("x_az", "accelerometer"),),
     _accel_offset,
     signature="a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
     realize=_accel_offset_realize,
@@ -688,18 +691,7 @@ SENSOR_OFFSET_AZ = OutputEffect(
 SENSOR_OFFSET_ALPHA = OutputEffect(
     "sensor_offset",
     "alpha",
-    (
-        Param(
-            "x_alpha",
-            0.0,
-            lower=-30.0,
-            upper=30.0,
-            plausible=(-10.0, 10.0),
-            unit="m",
-            start=0.05,
-            description="alpha vane ahead of the c.g.",
-        ),
-    ),
+    (_lever_arm("x_alpha", "alpha vane"),),
     _vane_offset,
     signature="alpha picks up -x q/U: phase change on alpha",
     realize=_vane_offset_realize,
