@@ -45,7 +45,7 @@ from .channels import OUTPUTS, SIGNALS
 from .constants import G0
 from .errors import ParameterError, RecordError
 from .maneuvers import DEFAULT_AMPLITUDE, DRYDEN_L, dryden_gust, make_input, time_vector
-from .record import Record, add_noise
+from .record import Record, add_noise, uniform_interval
 
 __all__ = [
     "simulate",
@@ -745,20 +745,7 @@ def _check_time(t) -> tuple[np.ndarray, float]:
     if not np.all(np.isfinite(t)):
         i = int(np.argmax(~np.isfinite(t)))
         raise RecordError(f"simulate: t has a non-finite value at sample {i}")
-    d = np.diff(t)
-    if np.any(d <= 0):
-        i = int(np.argmax(d <= 0))
-        raise RecordError(f"simulate: t is not strictly increasing at sample {i + 1}")
-    dt = (t[-1] - t[0]) / (t.size - 1)
-    dev = np.max(np.abs(d - dt)) / dt
-    if dev > _UNIFORM_RTOL:
-        i = int(np.argmax(np.abs(d - dt)))
-        raise RecordError(
-            f"simulate: t is not uniformly spaced: interval {d[i]:.9g} s at sample {i + 1} differs from "
-            f"the mean {dt:.9g} s by {dev:.3g} of dt (limit {_UNIFORM_RTOL:g}); "
-            "use a uniform grid, e.g. fdml.maneuvers.time_vector"
-        )
-    return t, float(dt)
+    return t, uniform_interval(t, _UNIFORM_RTOL, "simulate", "use a uniform grid, e.g. fdml.maneuvers.time_vector")
 
 
 def _check_inputs(model, t: np.ndarray, inputs) -> dict[str, np.ndarray]:
