@@ -25,6 +25,7 @@ REGISTRY = SRC / "channels.py"
 
 OUTPUTS = {"alpha", "q", "az"}
 REQUIRED = {"de", "alpha", "q", "az"}
+INPUTS = {"de", "alpha_w"}
 #: Two record-format names no other literal collection would hold together.
 FORMAT_MARK = {"sidpac", "dlr-asc"}
 
@@ -47,7 +48,7 @@ def _copies(path: Path) -> list[str]:
             items = _strings(node)
             if items is None:
                 continue
-            if set(items) in (OUTPUTS, REQUIRED):
+            if set(items) in (OUTPUTS, REQUIRED, INPUTS):
                 found.append(f"{node.lineno}: channel collection {items}")
             elif FORMAT_MARK <= set(items):
                 found.append(f"{node.lineno}: record formats {items}")
@@ -69,6 +70,7 @@ def test_the_scan_finds_the_registry_itself():
     kinds = " ".join(_copies(REGISTRY))
     for what in ("channel collection", "unit map", "record formats"):
         assert what in kinds
+    assert "['de', 'alpha_w']" in kinds
 
 
 def test_registry_is_what_the_package_uses():

@@ -29,12 +29,12 @@ __all__ = [
 #: Output channels of every model, in the row order of G, H and P: alpha (rad),
 #: q (rad/s), a_z (g, body z positive down).
 OUTPUTS = ("alpha", "q", "az")
-#: The control input: elevator deflection, rad, trailing edge down positive.
-INPUT = "de"
-#: The measured vertical gust angle, rad: a model's second input when it has one.
-GUST = "alpha_w"
-#: Input channels a model may have, in column order of G.
-INPUTS = (INPUT, GUST)
+#: Input channels a model may have, in column order of G: the elevator and, for a
+#: model with a gust input, the measured vertical gust angle.
+INPUTS = ("de", "alpha_w")
+#: The control input (elevator deflection, rad, trailing edge down positive) and the
+#: gust channel (measured vertical gust angle, rad).
+INPUT, GUST = INPUTS
 #: Channels every record must have: the elevator and the three outputs.
 REQUIRED = (INPUT, *OUTPUTS)
 

@@ -41,7 +41,7 @@ import numpy as np
 from scipy import interpolate, linalg, signal
 
 from .aero import get_indicial
-from .channels import OUTPUTS, SIGNALS
+from .channels import INPUTS, OUTPUTS, SIGNALS
 from .constants import G0
 from .errors import ParameterError, RecordError
 from .maneuvers import DEFAULT_AMPLITUDE, DRYDEN_L, dryden_gust, make_input, time_vector
@@ -751,7 +751,7 @@ def _check_time(t) -> tuple[np.ndarray, float]:
 def _check_inputs(model, t: np.ndarray, inputs) -> dict[str, np.ndarray]:
     if not isinstance(inputs, Mapping):
         raise RecordError("simulate: inputs must be a mapping such as {'de': array, 'alpha_w': array}")
-    needed = ("de", "alpha_w") if model.gust else ("de",)
+    needed = INPUTS if model.gust else INPUTS[:1]
     missing = [k for k in needed if k not in inputs]
     if missing:
         extra = " (the model has a gust input; pass alpha_w, rad)" if "alpha_w" in missing else ""

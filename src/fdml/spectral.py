@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import fourier
-from .channels import OUTPUTS
+from .channels import GUST, INPUTS, OUTPUTS
 from .errors import BandError, RecordError
 from .record import Record
 
@@ -312,7 +312,7 @@ def spectra(
         )
     rec = record.remove_trim(trim, window=trim_window)
     outs = np.column_stack([rec[k] for k in OUTPUTS])
-    inputs = ("de", "alpha_w") if rec.has("alpha_w") else ("de",)
+    inputs = INPUTS if rec.has(GUST) else INPUTS[:1]
     ins = np.column_stack([rec[k] for k in inputs])
     ones = np.ones(rec.n)
     X = fourier.finite_fourier_transform(

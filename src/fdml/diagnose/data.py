@@ -27,6 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..channels import INPUTS
 from ..errors import BandError, RecordError
 from ..fourier import check_band
 from ..record import Record
@@ -165,5 +166,5 @@ def analysis_data(
         from dataclasses import replace
 
         out = [replace(d, u=d.u[:, :1], inputs=("de",)) if d.u.shape[1] > 1 else d for d in out]
-    inputs = ("de", "alpha_w") if gust else ("de",)
+    inputs = INPUTS if gust else INPUTS[:1]
     return AnalysisData(tuple(out), tuple(masks), K, (lo, hi), inputs)

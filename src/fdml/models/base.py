@@ -26,7 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..channels import OUTPUTS, SIGNALS
+from ..channels import INPUTS, OUTPUTS, SIGNALS
 from ..constants import G0
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters
@@ -174,7 +174,7 @@ class Model:
     @property
     def inputs(self) -> tuple[str, ...]:
         """Input names: ``('de',)`` or ``('de', 'alpha_w')``."""
-        return ("de", "alpha_w") if self.gust else ("de",)
+        return INPUTS if self.gust else INPUTS[:1]
 
     def _common_parameters(self) -> list[Parameter]:
         out = [Parameter("tau_de", 0.0, free=False, lower=0.0, unit="s", description="elevator time delay")]
