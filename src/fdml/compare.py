@@ -20,7 +20,6 @@ from .results import FitResult
 __all__ = ["Comparison", "compare_steady_unsteady", "ALTERNATE_NAMES"]
 
 
-
 def _column(res: FitResult) -> dict[str, tuple[float, float]]:
     out = {}
     for n in ALTERNATE_NAMES:
