@@ -26,7 +26,7 @@ from fdml.io import read_csv_mapped, read_fdml_csv
 from fdml.models import make_model
 from fdml.record import Record, add_noise, read_csv
 from fdml.simulate import simulate_maneuver
-from fdml.spectra import spectra
+from fdml.spectral import spectra
 
 MAPPED = ["--columns", "t=t,de=de,alpha=alpha,q=q,az=az", "--units", "de=rad,alpha=rad,q=rad/s,az=g"]
 STEADY = ["--aircraft", "navion", "--model", "steady"]

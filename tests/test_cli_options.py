@@ -205,7 +205,7 @@ def test_hidden_aliases_parse_to_the_same_dest(name):
 
 def test_choices_and_band_default_come_from_the_library():
     from fdml.models import MODEL_KINDS
-    from fdml.spectra import DEFAULT_BAND
+    from fdml.spectral import DEFAULT_BAND
 
     assert MODEL_CHOICES == tuple(MODEL_KINDS)
     assert tuple(float(x) for x in DEFAULT_BAND_TEXT.split(":")) == DEFAULT_BAND

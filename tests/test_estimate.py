@@ -21,7 +21,7 @@ from fdml.errors import (
 from fdml.estimate import _cov_R, _grad_hess, prepare
 from fdml.models import make_model
 from fdml.record import Record
-from fdml.spectra import FrequencyData
+from fdml.spectral import FrequencyData
 
 DIM = ("Z_a", "Z_q", "Z_de", "M_a", "M_q", "M_de")
 

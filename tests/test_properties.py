@@ -45,7 +45,7 @@ from fdml.io import (
 )
 from fdml.record import Record
 from fdml.results import FitResult, load_result
-from fdml.spectra import parse_band
+from fdml.spectral import parse_band
 
 hypothesis = pytest.importorskip("hypothesis")
 from hypothesis import HealthCheck, given, settings  # noqa: E402

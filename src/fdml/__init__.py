@@ -36,16 +36,17 @@ _LAZY = {
     "Parameters": "parameters",
     "Record": "record",
     "read_csv": "record",
+    "load_record": "io",
     "FitResult": "results",
     "load_result": "results",
     "compare_steady_unsteady": "compare",
     "fit_time_domain": "timefit",
 }
 
-# spectra() shares its name with its module, so bind it eagerly (numpy only); the
-# simulator and the consistency test stay in their modules (fdml.simulate.simulate,
-# fdml.consistency.consistency) because they load scipy.
-from .spectra import FrequencyData, spectra  # noqa: E402
+# spectra() lives in fdml.spectral, so the function never hides a module of its name;
+# it is bound eagerly (numpy only).  The simulator and the consistency test stay in
+# their modules (fdml.simulate.simulate, fdml.consistency.consistency): they load scipy.
+from .spectral import FrequencyData, spectra  # noqa: E402
 
 __all__ = ["__version__", "FrequencyData", "spectra", *_LAZY]
 

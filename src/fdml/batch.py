@@ -392,7 +392,7 @@ def check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
     if unknown:
         raise FdmlError(f"unknown fit option(s) {unknown}; fit takes {', '.join(sorted(allowed))}")
     if kw.get("band") is not None:
-        from .spectra import parse_band
+        from .spectral import parse_band
 
         parse_band(kw["band"])  # refuse a bad band before any task: it would fail every one of them
     canonical_json(kw)  # plain data only: it is hashed and shipped to workers

@@ -14,12 +14,10 @@ from dataclasses import dataclass
 from .aircraft import Aircraft, load_aircraft
 from .estimate import fit
 from .models import make_model
+from .models.wells_keskar import ALTERNATE_NAMES
 from .results import FitResult
 
 __all__ = ["Comparison", "compare_steady_unsteady", "ALTERNATE_NAMES"]
-
-#: The six derivatives of WK Tables 1 and 3, in the tables' order.
-ALTERNATE_NAMES = ("Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q", "Cm_de")
 
 
 def _column(res: FitResult) -> dict[str, tuple[float, float]]:

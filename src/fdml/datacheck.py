@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .channels import OUTPUTS, REQUIRED, SIGNALS
 from .constants import G0
 from .findings import Finding
 from .record import Record
@@ -77,7 +78,6 @@ _VOUCH_FIT = 0.9
 #: An output fails the response check when its coherence with the elevator exceeds the
 #: 5 % significance threshold at fewer than this fraction of the band's estimates.
 _MIN_COHERENT_FRACTION = 0.2
-_OUTPUTS = ("alpha", "q", "az")
 
 
 @dataclass(frozen=True)
@@ -258,23 +258,20 @@ def _range_findings(record: Record):
             what = "perturbation " if sig == "az" else ""
             yield Finding(
                 f"units.{names[sig]}",
-                f"{sig} {what}reaches {size:.3g} {_SI[sig]}, beyond the plausible {limit:g} {_SI[sig]} of a "
-                f"short-period manoeuvre: it looks like {unit} where {_SI[sig]} is due",
+                f"{sig} {what}reaches {size:.3g} {SIGNALS[sig]}, beyond the plausible {limit:g} {SIGNALS[sig]} of a "
+                f"short-period manoeuvre: it looks like {unit} where {SIGNALS[sig]} is due",
                 record=record.name,
                 value=size,
                 expected=limit,
             )
 
 
-_SI = {"de": "rad", "alpha": "rad", "q": "rad/s", "az": "g"}
-
-
 # --- kinematic identity ----------------------------------------------------------------------
 def _spectra_or_none(record: Record, band):
     from .errors import FdmlError
-    from .spectra import spectra
+    from .spectral import spectra
 
-    if not all(record.has(k) for k in _OUTPUTS + ("de",)):
+    if not all(record.has(k) for k in REQUIRED):
         return None
     try:
         return spectra(record, band=band, trim="none")
@@ -321,7 +318,7 @@ def _kinematic_fit(data, U: float | None) -> KinematicFit:
     a, b, r2 = fits[perm]
     labelled = fits[(0, 1, 2)]
     return KinematicFit(
-        order=tuple(_OUTPUTS[i] for i in perm),
+        order=tuple(OUTPUTS[i] for i in perm),
         slope_q=float(a),
         slope_az=float(b),
         expected_az=expected,
@@ -391,8 +388,8 @@ def _kinematic_findings(k: KinematicFit, name: str):
         f"alpha_dot = {k.slope_q:.4g} q + {k.slope_az:.4g} a_z in the band (expected 1{exp_b}; "
         f"{100 * k.fit:.0f} % of alpha_dot explained)"
     )
-    if k.order != _OUTPUTS:
-        labels = ", ".join(f"{lab} holds {true}" for lab, true in zip(k.order, _OUTPUTS) if lab != true)
+    if k.order != OUTPUTS:
+        labels = ", ".join(f"{lab} holds {true}" for lab, true in zip(k.order, OUTPUTS) if lab != true)
         yield Finding(
             "channels.swapped",
             f"the outputs satisfy the kinematic identity (THEORY.md Eq. 5) only when relabelled: "
@@ -465,7 +462,7 @@ def _coherent_fraction(record: Record, data) -> tuple[dict, float]:
     if data is None or not record.has("de"):
         return {}, math.nan
     lo, hi = float(data.omega.min()), float(data.omega.max())
-    outs = [o for o in _OUTPUTS if record.has(o)]
+    outs = [o for o in OUTPUTS if record.has(o)]
     try:
         coh, _, _, thr = _coherence(record, outs, lo, hi)
     except (ValueError, FloatingPointError):  # degenerate record (constant input): quality reports it

@@ -65,7 +65,7 @@ from .models.measurement import predict as _measure
 from .parameters import Role, as_names, check_fix_free
 from .record import Record
 from .results import FitResult, IterationInfo
-from .spectra import FrequencyData, spectra
+from .spectral import FrequencyData, spectra
 from .warning_log import recording
 
 __all__ = ["SETTINGS", "EstimatorSettings", "NoiseModel", "Problem", "fit", "parse_outputs", "prepare"]
@@ -900,7 +900,7 @@ def fit(
         Eq. 24 over the whole band, ``cost`` is exp((1/N) sum_b N_b ln det R_b),
         and the ``white`` covariance scales the noise to each band's level.
     trim, trim_window, end_correction :
-        Passed to :func:`fdml.spectra.spectra` for records.
+        Passed to :func:`fdml.spectral.spectra` for records.
     callback : callable, optional
         Called after every iteration with an :class:`IterationInfo`; return
         True to stop the fit cleanly (the result says so).

@@ -22,11 +22,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .channels import OUTPUTS
 from .errors import ParameterError
 
 __all__ = ["to_frd", "to_statespace", "to_control", "ControlExport", "descriptor_matrices"]
 
-_OUTPUTS = ("alpha", "q", "az")
 _RATIONAL = ("steady", "derivatives", "dimensional")
 
 
@@ -77,7 +77,7 @@ def to_frd(result_or_model, omega=None, *, name: str | None = None):
         raise ParameterError("omega must hold finite positive frequencies (rad/s)")
     G = model.frequency_response(omega)
     return control.FrequencyResponseData(
-        G, omega, inputs=list(model.inputs), outputs=list(_OUTPUTS), name=name or f"fdml {model.kind}"
+        G, omega, inputs=list(model.inputs), outputs=list(OUTPUTS), name=name or f"fdml {model.kind}"
     )
 
 
@@ -191,7 +191,7 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
     sysname = name or f"fdml {model.kind}"
     chans = [f"u{j}" for j in range(len(real.channels))]
     plant = control.StateSpace(
-        real.A, real.B, real.C, real.D, inputs=chans, outputs=list(_OUTPUTS), states=states, name=sysname
+        real.A, real.B, real.C, real.D, inputs=chans, outputs=list(OUTPUTS), states=states, name=sysname
     )
     delays = [d for _, d in real.channels] + list(real.output_delays)
     if any(delays) and pade is None:
@@ -204,10 +204,10 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
     # inputs -> channels: each channel is its signal through its delay (identity when undelayed)
     spread = np.array([[1.0 if nm == sig else 0.0 for sig in inputs] for nm, _ in real.channels])
     ind = _delay_block([d for _, d in real.channels], [f"{nm}_delay" for nm, _ in real.channels], pade)
-    outd = _delay_block(list(real.output_delays), [f"{o}_delay" for o in _OUTPUTS], pade)
+    outd = _delay_block(list(real.output_delays), [f"{o}_delay" for o in OUTPUTS], pade)
     A, B, C, D, names = _series(ind, (plant.A, plant.B, plant.C, plant.D, states), outd)
     return control.StateSpace(
-        A, B @ spread, C, D @ spread, inputs=inputs, outputs=list(_OUTPUTS), states=names, name=sysname
+        A, B @ spread, C, D @ spread, inputs=inputs, outputs=list(OUTPUTS), states=names, name=sysname
     )
 
 

@@ -152,7 +152,7 @@ def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False)
     """Validate a band (rad/s) before anything is built from it.
 
     The one check behind every band fdml accepts (``--band``, ``--omega``,
-    ``band=``): :func:`omega_band`, :func:`fdml.spectra.parse_band` and the
+    ``band=``): :func:`omega_band`, :func:`fdml.spectral.parse_band` and the
     diagnosis band parser all call it.
 
     Parameters

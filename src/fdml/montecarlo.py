@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from .batch import ModelSpec, canonical_json, check_fit_kwargs
+from .channels import OUTPUTS
 from .errors import FdmlError
 from .parallel import engine_name, execute, one_line
 from .warning_log import merged, recording
@@ -403,7 +404,7 @@ def load_monte_carlo(path: str | Path) -> MonteCarloResult:
 
 def _check_noise(noise):
     if isinstance(noise, Mapping):
-        unknown = set(noise) - {"alpha", "q", "az"}
+        unknown = set(noise) - set(OUTPUTS)
         if unknown:
             raise FdmlError(f"noise given for unknown output(s) {sorted(unknown)}; outputs: alpha, q, az")
         out = {k: float(v) for k, v in noise.items()}

@@ -26,6 +26,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .channels import OUTPUTS as _OUTPUTS
+
 __all__ = [
     "plot_spectra",
     "plot_time_histories",
@@ -35,7 +37,6 @@ __all__ = [
     "simulate_fit",
 ]
 
-_OUTPUTS = ("alpha", "q", "az")
 _LABELS = {"alpha": r"$\tilde\alpha$ (rad s)", "q": r"$\tilde q$ (rad)", "az": r"$\tilde a_z$ (g s)"}
 _DEG = 180.0 / math.pi
 

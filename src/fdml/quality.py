@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .channels import OUTPUTS, SIGNALS
 from .errors import BandError, RecordError
-from .record import SIGNALS, Record
+from .record import Record
 
 __all__ = ["check_quality", "QualityReport", "ChannelQuality", "LOW_INPUT_DB", "GOOD_COHERENCE"]
 
@@ -261,9 +262,7 @@ def _finite_list(a):
     return [float(x) if math.isfinite(x) else str(x) for x in np.asarray(a, float)]
 
 
-def check_quality(
-    record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS, outputs=("alpha", "q", "az")
-) -> QualityReport:
+def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS, outputs=OUTPUTS) -> QualityReport:
     """Check a record's sampling, channels and excitation before a fit.
 
     Parameters
@@ -295,7 +294,7 @@ def check_quality(
     which, and the significance threshold follows the number of averages.
     """
     from . import fourier
-    from .spectra import parse_band
+    from .spectral import parse_band
 
     if not isinstance(record, Record):
         raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
@@ -312,43 +311,9 @@ def check_quality(
     n, dt, T = record.n, record.dt, record.duration
     d = np.diff(record.t)
     jitter = float(np.max(np.abs(d - dt)) / dt)
-    findings: list[str] = []
-    findings_low: list[str] = []
-    n_defects = 0
 
     # --- channels --------------------------------------------------------------------------
-    chans = []
-    f_hi_hz = hi / (2 * math.pi)
-    for name in [k for k in SIGNALS if k in record.signals]:
-        c = _channel(name, record[name], dt, is_input=(name == "de"))
-        chans.append(c)
-        if c.change_rate < 2 * f_hi_hz and c.n_levels > 1:
-            msg = (
-                f"{name} changes value only {c.change_rate:.3g} times per second ({c.n_levels} levels, step "
-                f"{c.resolution:.3g} {c.unit}): it cannot follow motion above about {c.change_rate / 2:.3g} Hz, "
-                f"and the band reaches {f_hi_hz:.3g} Hz"
-            )
-            (findings if name in ("de", *outputs) else findings_low).append(msg)
-        if c.repeat_fraction > 0.5 and name != "de":
-            msg = (
-                f"{name} repeats its previous value in {100 * c.repeat_fraction:.0f} % of the samples "
-                f"({c.n_levels} levels, step {c.resolution:.3g} {c.unit}): a slow update or a coarse resolution"
-            )
-            (findings if name in outputs else findings_low).append(msg)
-        if (c.holds or c.clipped) and name != "de":
-            n_defects += 1
-        if c.holds and name != "de":
-            tot = sum(h[1] for h in c.holds)
-            findings.append(
-                f"{name} holds its value {len(c.holds)} time(s) while the signal moves "
-                f"(dropouts; {tot:.3g} s in all, longest {max(h[1] for h in c.holds):.3g} s at "
-                f"t = {max(c.holds, key=lambda h: h[1])[0]:.4g} s)"
-            )
-        if c.clipped and name != "de":
-            findings.append(
-                f"{name} is flat at its {' and '.join(c.clipped)} value while heading further: "
-                "possible sensor saturation"
-            )
+    chans, findings, findings_low, n_defects = _channel_findings(record, outputs, hi)
     if jitter > 1e-6:
         findings_low.append(f"sample intervals vary by up to {100 * jitter:.2g} % of dt")
 
@@ -383,6 +348,83 @@ def check_quality(
     required = max(1, math.ceil(n_params / (2 * n_out)))
     sufficient = useful >= required and peak > 0
 
+    head = _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, omega, low_mask, coh, thr)
+    if "too short" in method:
+        head.append(method)
+    if n_defects == 0:
+        findings.append("no dropouts or saturation in any measured channel")
+    findings = head + findings + findings_low + [f"sampling {1 / dt:.4g} Hz, jitter {jitter:.2g} of dt"]
+
+    return QualityReport(
+        name=record.name,
+        n=n,
+        dt=dt,
+        duration=T,
+        jitter=jitter,
+        channels=tuple(chans),
+        band=(lo, hi, step),
+        omega=omega,
+        input_db=input_db,
+        input_energy_fraction=frac,
+        low_input=tuple(low_input),
+        coherence=coh,
+        coherence_omega=coh_w,
+        coherence_method=method,
+        coherence_threshold=thr,
+        independent_frequencies=independent,
+        useful_frequencies=useful,
+        required_frequencies=required,
+        n_params=int(n_params),
+        sufficient=bool(sufficient),
+        findings=tuple(findings),
+    )
+
+
+def _channel_findings(record: Record, outputs, hi: float):
+    """Each channel's quantisation, holds and clipping; findings on the fitted channels, the others', and defects."""
+    dt = record.dt
+    findings: list[str] = []
+    findings_low: list[str] = []
+    n_defects = 0
+    chans = []
+    f_hi_hz = hi / (2 * math.pi)
+    for name in [k for k in SIGNALS if k in record.signals]:
+        c = _channel(name, record[name], dt, is_input=(name == "de"))
+        chans.append(c)
+        if c.change_rate < 2 * f_hi_hz and c.n_levels > 1:
+            msg = (
+                f"{name} changes value only {c.change_rate:.3g} times per second ({c.n_levels} levels, step "
+                f"{c.resolution:.3g} {c.unit}): it cannot follow motion above about {c.change_rate / 2:.3g} Hz, "
+                f"and the band reaches {f_hi_hz:.3g} Hz"
+            )
+            (findings if name in ("de", *outputs) else findings_low).append(msg)
+        if c.repeat_fraction > 0.5 and name != "de":
+            msg = (
+                f"{name} repeats its previous value in {100 * c.repeat_fraction:.0f} % of the samples "
+                f"({c.n_levels} levels, step {c.resolution:.3g} {c.unit}): a slow update or a coarse resolution"
+            )
+            (findings if name in outputs else findings_low).append(msg)
+        if (c.holds or c.clipped) and name != "de":
+            n_defects += 1
+        if c.holds and name != "de":
+            tot = sum(h[1] for h in c.holds)
+            findings.append(
+                f"{name} holds its value {len(c.holds)} time(s) while the signal moves "
+                f"(dropouts; {tot:.3g} s in all, longest {max(h[1] for h in c.holds):.3g} s at "
+                f"t = {max(c.holds, key=lambda h: h[1])[0]:.4g} s)"
+            )
+        if c.clipped and name != "de":
+            findings.append(
+                f"{name} is flat at its {' and '.join(c.clipped)} value while heading further: "
+                "possible sensor saturation"
+            )
+    return chans, findings, findings_low, n_defects
+
+
+def _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, omega, low_mask, coh, thr) -> list[str]:
+    """The verdict's first findings: sufficiency of excitation, input energy in the band, coherence."""
+    lo, hi, _step = band
+    low_input = _intervals(omega, low_mask)
     head = []
     if peak == 0:
         head.append("the elevator does not move: the record carries no input; no parameter can be identified")
@@ -414,35 +456,7 @@ def check_quality(
                     f"coherence de -> {k} is below {GOOD_COHERENCE:g} at {100 * (1 - good_frac):.0f} % "
                     f"of the band (median {np.median(g):.2f}): noise or nonlinearity dominate there"
                 )
-    if "too short" in method:
-        head.append(method)
-    if n_defects == 0:
-        findings.append("no dropouts or saturation in any measured channel")
-    findings = head + findings + findings_low + [f"sampling {1 / dt:.4g} Hz, jitter {jitter:.2g} of dt"]
-
-    return QualityReport(
-        name=record.name,
-        n=n,
-        dt=dt,
-        duration=T,
-        jitter=jitter,
-        channels=tuple(chans),
-        band=(lo, hi, step),
-        omega=omega,
-        input_db=input_db,
-        input_energy_fraction=frac,
-        low_input=tuple(low_input),
-        coherence=coh,
-        coherence_omega=coh_w,
-        coherence_method=method,
-        coherence_threshold=thr,
-        independent_frequencies=independent,
-        useful_frequencies=useful,
-        required_frequencies=required,
-        n_params=int(n_params),
-        sufficient=bool(sufficient),
-        findings=tuple(findings),
-    )
+    return head
 
 
 def _input_energy(u: np.ndarray, dt: float, omega: np.ndarray):

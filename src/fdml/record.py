@@ -19,31 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
+from .channels import OUTPUTS, SIGNALS, display_unit
+from .channels import REQUIRED as REQUIRED_SIGNALS
 from .errors import RecordError
-from .outputs import atomic_write_text  # re-exported: fdml.record.atomic_write_text predates fdml.outputs
+from .outputs import atomic_write_text
 
-__all__ = ["Record", "read_csv", "add_noise", "SIGNALS", "REQUIRED_SIGNALS", "atomic_write_text"]
+__all__ = ["Record", "read_csv", "add_noise", "uniform_interval", "SIGNALS", "REQUIRED_SIGNALS"]
 
-#: Signals fdml knows, with their units.  The first five enter fits; the others
-#: (pitch attitude, airspeed, pitch acceleration, longitudinal specific force,
-#: altitude, dynamic pressure, inertial vertical speed ``hdot`` positive up) serve
-#: data-compatibility checks and gust estimation.
-SIGNALS = {
-    "de": "rad",
-    "alpha": "rad",
-    "q": "rad/s",
-    "az": "g",
-    "alpha_w": "rad",
-    "theta": "rad",
-    "V": "m/s",
-    "qdot": "rad/s^2",
-    "ax": "g",
-    "h": "m",
-    "qbar": "Pa",
-    "hdot": "m/s",
-}
-#: Signals every record must have.
-REQUIRED_SIGNALS = ("de", "alpha", "q", "az")
 
 #: Largest plausible perturbation magnitudes in SI units.  A larger value in a
 #: channel almost always means degrees (or deg/s) where radians are due:
@@ -105,21 +87,7 @@ class Record:
         if t.size < 4:
             raise RecordError(f"{where}: only {t.size} samples; at least 4 are needed")
         _check_finite(t, "t", where)
-        dt = np.diff(t)
-        if np.any(dt <= 0):
-            i = int(np.argmax(dt <= 0))
-            raise RecordError(
-                f"{where}: time is not strictly increasing at sample {i + 1} (t = {t[i]:.6g} then {t[i + 1]:.6g} s)"
-            )
-        mean_dt = (t[-1] - t[0]) / (t.size - 1)
-        jitter = np.max(np.abs(dt - mean_dt)) / mean_dt
-        if jitter > _JITTER_TOL:
-            i = int(np.argmax(np.abs(dt - mean_dt)))
-            raise RecordError(
-                f"{where}: uneven sampling: interval {dt[i]:.6g} s at sample {i + 1} differs from the "
-                f"mean {mean_dt:.6g} s by {100 * jitter:.3g} % (limit {100 * _JITTER_TOL:.2g} %); "
-                "resample the record onto a uniform grid first"
-            )
+        mean_dt = uniform_interval(t, _JITTER_TOL, where, "resample the record onto a uniform grid first")
         unit_problem = _time_unit_problem(mean_dt, float(t[-1] - t[0]))
         if unit_problem:
             raise RecordError(f"{where}: {unit_problem}")
@@ -143,7 +111,7 @@ class Record:
                     span = float(np.max(np.abs(sig[k] - sig[k][0])))
                     peak = float(np.max(np.abs(sig[k])))
                     if max(span, peak) > lim:
-                        unit = "deg/s" if k == "q" else "deg"
+                        unit = display_unit(SIGNALS[k])[1]
                         raise RecordError(
                             f"{where}: {k} reaches {max(span, peak):.3g} {SIGNALS[k]}, which looks like "
                             f"{unit} where {SIGNALS[k]} is due; convert to radians "
@@ -270,6 +238,43 @@ class Record:
         return Path(path)
 
 
+def uniform_interval(t: np.ndarray, tol: float, where: str, advice: str) -> float:
+    """Mean sample interval, s, of a time vector that must rise strictly and evenly.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Time, s, finite, n >= 2.
+    tol : float
+        Largest deviation of an interval from the mean interval, as a fraction of it.
+    where : str
+        What the time vector belongs to, for messages (``"record 'x'"``, ``"simulate"``).
+    advice : str
+        What to do about uneven sampling, appended to its message.
+
+    Raises
+    ------
+    RecordError
+        Naming the first sample where time does not increase, or the interval
+        farthest from the mean when it is farther than ``tol``.
+    """
+    d = np.diff(t)
+    if np.any(d <= 0):
+        i = int(np.argmax(d <= 0))
+        raise RecordError(
+            f"{where}: time is not strictly increasing at sample {i + 1} (t = {t[i]:.9g} then {t[i + 1]:.9g} s)"
+        )
+    mean_dt = float((t[-1] - t[0]) / (t.size - 1))
+    dev = np.abs(d - mean_dt) / mean_dt
+    i = int(np.argmax(dev))
+    if dev[i] > tol:
+        raise RecordError(
+            f"{where}: time is not uniformly spaced (uneven sampling): interval {d[i]:.9g} s at sample {i + 1} "
+            f"differs from the mean {mean_dt:.9g} s by {dev[i]:.3g} of it (limit {tol:.3g}); {advice}"
+        )
+    return mean_dt
+
+
 def add_noise(record: Record, noise, rng: np.random.Generator, *, relative: bool = False) -> Record:
     """Add white Gaussian noise to the outputs of a record.
 
@@ -292,7 +297,7 @@ def add_noise(record: Record, noise, rng: np.random.Generator, *, relative: bool
     """
     if not isinstance(rng, np.random.Generator):
         raise RecordError("add_noise needs a numpy Generator (np.random.default_rng(seed))")
-    outs = ("alpha", "q", "az")
+    outs = OUTPUTS
     if isinstance(noise, Mapping):
         unknown = set(noise) - set(outs)
         if unknown:

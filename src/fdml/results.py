@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .channels import OUTPUTS
 from .errors import FdmlError
 from .findings import KINDS as _FINDING_KINDS
 from .findings import Finding
@@ -341,7 +342,7 @@ class FitResult:
             derived=derived,
             fixed=fixed,
             at_bound=at_bound,
-            outputs=tuple(["alpha", "q", "az"][k] for k in prob.out_idx),
+            outputs=tuple(OUTPUTS[k] for k in prob.out_idx),
             band=band,
             n_freq=prob.N,
             records=tuple(d.name for d in prob.data),
@@ -631,7 +632,7 @@ class FitResult:
         model = _model_from_fields(f)
         names = f.strings("names")
         n = len(names)
-        outputs = f.strings("outputs", choices=("alpha", "q", "az"))
+        outputs = f.strings("outputs", choices=OUTPUTS)
         k = len(outputs)
         spectra = tuple(_spectrum_from_fields(s) for s in f.items("spectra", default=[]))
         return cls(

@@ -41,10 +41,11 @@ import numpy as np
 from scipy import interpolate, linalg, signal
 
 from .aero import get_indicial
+from .channels import INPUTS, OUTPUTS, SIGNALS
 from .constants import G0
 from .errors import ParameterError, RecordError
 from .maneuvers import DEFAULT_AMPLITUDE, DRYDEN_L, dryden_gust, make_input, time_vector
-from .record import Record, add_noise
+from .record import Record, add_noise, uniform_interval
 
 __all__ = [
     "simulate",
@@ -64,9 +65,6 @@ DEFAULT_POLE_STEPS = 16
 _UNIFORM_RTOL = 1e-6
 #: F-term models: largest input at t = 0, relative to its peak, treated as starting from zero.
 _START_RTOL = 1e-9
-#: Noise channels and their units.
-_NOISE_UNITS = {"alpha": "rad", "q": "rad/s", "az": "g"}
-_OUTPUTS = ("alpha", "q", "az")
 
 
 # --- the linear system ---------------------------------------------------------------
@@ -334,7 +332,7 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
 
 def _system(model, p) -> _System:
     """The model's state space, composed through its effects (matrix-level, then output-level, in order)."""
-    from .models.effects import MatrixEffect, applied_effects, root_model
+    from .models.augment import MatrixEffect, applied_effects, root_model
 
     root, effects = root_model(model), applied_effects(model)
     matrix = [e for e in effects if isinstance(e, MatrixEffect)]
@@ -747,26 +745,13 @@ def _check_time(t) -> tuple[np.ndarray, float]:
     if not np.all(np.isfinite(t)):
         i = int(np.argmax(~np.isfinite(t)))
         raise RecordError(f"simulate: t has a non-finite value at sample {i}")
-    d = np.diff(t)
-    if np.any(d <= 0):
-        i = int(np.argmax(d <= 0))
-        raise RecordError(f"simulate: t is not strictly increasing at sample {i + 1}")
-    dt = (t[-1] - t[0]) / (t.size - 1)
-    dev = np.max(np.abs(d - dt)) / dt
-    if dev > _UNIFORM_RTOL:
-        i = int(np.argmax(np.abs(d - dt)))
-        raise RecordError(
-            f"simulate: t is not uniformly spaced: interval {d[i]:.9g} s at sample {i + 1} differs from "
-            f"the mean {dt:.9g} s by {dev:.3g} of dt (limit {_UNIFORM_RTOL:g}); "
-            "use a uniform grid, e.g. fdml.maneuvers.time_vector"
-        )
-    return t, float(dt)
+    return t, uniform_interval(t, _UNIFORM_RTOL, "simulate", "use a uniform grid, e.g. fdml.maneuvers.time_vector")
 
 
 def _check_inputs(model, t: np.ndarray, inputs) -> dict[str, np.ndarray]:
     if not isinstance(inputs, Mapping):
         raise RecordError("simulate: inputs must be a mapping such as {'de': array, 'alpha_w': array}")
-    needed = ("de", "alpha_w") if model.gust else ("de",)
+    needed = INPUTS if model.gust else INPUTS[:1]
     missing = [k for k in needed if k not in inputs]
     if missing:
         extra = " (the model has a gust input; pass alpha_w, rad)" if "alpha_w" in missing else ""
@@ -809,7 +794,7 @@ def _check_noise(noise, rng):
         return None
     if not isinstance(noise, Mapping):
         raise ParameterError("noise must be a mapping {'alpha': rad, 'q': rad/s, 'az': g} of standard deviations")
-    bad = [k for k in noise if k not in _NOISE_UNITS]
+    bad = [k for k in noise if k not in OUTPUTS]
     if bad:
         raise ParameterError(f"unknown noise channel(s) {', '.join(map(str, bad))}; channels: alpha, q, az")
     out = {}
@@ -817,9 +802,9 @@ def _check_noise(noise, rng):
         try:
             s = float(v)
         except (TypeError, ValueError):
-            raise ParameterError(f"noise std for {k} must be a number ({_NOISE_UNITS[k]}), got {v!r}") from None
+            raise ParameterError(f"noise std for {k} must be a number ({SIGNALS[k]}), got {v!r}") from None
         if not (math.isfinite(s) and s >= 0):
-            raise ParameterError(f"noise std for {k} must be finite and >= 0 ({_NOISE_UNITS[k]}), got {v!r}")
+            raise ParameterError(f"noise std for {k} must be finite and >= 0 ({SIGNALS[k]}), got {v!r}")
         out[k] = s
     if rng is None or not isinstance(rng, np.random.Generator):
         raise ParameterError("noise needs rng, a numpy Generator (np.random.default_rng(seed))")
@@ -901,9 +886,9 @@ def simulate(
     else:
         y, integration = _simulate_memory(sys, tau, dt, sig, substeps, pole_steps)
     y = _delay_outputs(y, tau, sys.out_delay)
-    y = y + np.array([p[f"bias_{k}"] for k in _OUTPUTS])
+    y = y + np.array([p[f"bias_{k}"] for k in OUTPUTS])
     if noise:
-        for i, k in enumerate(_OUTPUTS):  # fixed channel order: reproducible for a given seed
+        for i, k in enumerate(OUTPUTS):  # fixed channel order: reproducible for a given seed
             if k in noise:
                 y[:, i] += noise[k] * rng.standard_normal(t.size)
     signals = {"de": sig["de"], "alpha": y[:, 0], "q": y[:, 1], "az": y[:, 2]}

@@ -550,7 +550,7 @@ def comparison_summary(cmp, reference: Mapping | None = None, digits: int = 4) -
         errors, and their difference in combined standard errors
         (``shift/sigma``).
     """
-    from .compare import ALTERNATE_NAMES
+    from .models.wells_keskar import ALTERNATE_NAMES
 
     cols = [
         Column("derivative", "derivative"),

@@ -109,7 +109,7 @@ def fit_time_domain(
     outputs : sequence of str or str, optional
         Outputs in the fit (default alpha, q, az).
     trim : {"first", "mean", "none"}, optional
-        Trim removal, as in :func:`fdml.spectra.spectra`.
+        Trim removal, as in :func:`fdml.spectral.spectra`.
     biases : bool, optional
         Estimate a constant output bias per fitted output (default True).
     free, fix : optional

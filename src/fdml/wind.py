@@ -36,7 +36,7 @@ speed and track, which fdml records do not carry: it is an argument
 level flight.
 
 Corrections to alpha (noseboom position, upwash, vane lag) must be applied
-first, e.g. with :func:`fdml.compat.check_compatibility` (``correct=True``):
+first, e.g. with :func:`fdml.flightpath.check_compatibility` (``correct=True``):
 any alpha error appears one-for-one in alpha_w.
 """
 
@@ -230,7 +230,7 @@ def gust_angle(
     )
     notes.append(
         "any error of alpha (bias, scale, lag, upwash) appears one-for-one in alpha_w: correct alpha "
-        "first (fdml.compat)"
+        "first (fdml.flightpath)"
     )
     if horizontal_wind == 0.0:
         notes.append(
@@ -259,6 +259,6 @@ def savgol_coeffs(n_win: int, dt: float) -> np.ndarray:
 
 
 def _noise(x: np.ndarray) -> float:
-    from .compat import noise_level
+    from .flightpath import noise_level
 
     return noise_level(x)

@@ -6,6 +6,13 @@ import argparse
 import math
 
 
+def default_model(args) -> str:
+    """The model kind by the one rule: --model, else unsteady with --aircraft, else dimensional."""
+    if getattr(args, "model", None):
+        return args.model
+    return "unsteady" if getattr(args, "aircraft", None) is not None else "dimensional"
+
+
 def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
     """Parse ``["Cm_de=-1.4", ...]`` into ``{"Cm_de": -1.4}``."""
     from ..errors import ParameterError
@@ -80,7 +87,6 @@ def model_for_records(args, records, values: dict | None = None):
     from ..conditions import record_airspeed, record_conditions
     from ..errors import ParameterError
     from ..models import make_model
-    from ._options import default_model
 
     kind = default_model(args)
     opts: dict = {"gust": bool(args.gust)}
@@ -129,7 +135,6 @@ def model_spec_from_args(args, **fields):
     """
     from ..batch import ModelSpec
     from ..errors import FdmlError
-    from ._options import default_model
 
     kind = default_model(args)
     if kind == "dimensional" and args.aircraft is None and args.airspeed is None:
@@ -152,7 +157,7 @@ def check_band_option(text, option: str = "--band", *, positive: bool = True) ->
     ``montecarlo`` and ``batch`` would otherwise fail every run one by one and
     print a table of NaN; the message names ``option``.
     """
-    from ..spectra import parse_band
+    from ..spectral import parse_band
 
     parse_band(text, what=option, positive=positive)
 

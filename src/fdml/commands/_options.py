@@ -30,6 +30,8 @@ from __future__ import annotations
 
 import argparse
 
+from ._common import add_effect_argument, default_model, positive_int
+
 __all__ = [
     "DEFAULT_BAND_TEXT",
     "MODEL_CHOICES",
@@ -60,14 +62,14 @@ def _model_choices() -> tuple[str, ...]:
 
 
 def _band_default() -> str:
-    from ..spectra import DEFAULT_BAND
+    from ..spectral import DEFAULT_BAND
 
     return ":".join(f"{x:g}" for x in DEFAULT_BAND)
 
 
 #: Model names, from :data:`fdml.models.MODEL_KINDS` (the one list).
 MODEL_CHOICES = _model_choices()
-#: The default band ``LO:HI:STEP`` (rad/s), from :data:`fdml.spectra.DEFAULT_BAND`.
+#: The default band ``LO:HI:STEP`` (rad/s), from :data:`fdml.spectral.DEFAULT_BAND`.
 DEFAULT_BAND_TEXT = _band_default()
 #: The one rule for the model when --model is not given (quoted in --help).
 MODEL_RULE = "unsteady with --aircraft, else dimensional with --airspeed or the record's mean airspeed"
@@ -95,8 +97,6 @@ def add_model_options(
     (simulate: fly in turbulence, ``--gust [STD]``) or ``""`` (no option).
     ``old``: hidden aliases of --model (diagnose: ``--base``).
     """
-    from ._common import add_effect_argument
-
     g = p.add_argument_group("model")
     g.add_argument(
         "--aircraft", metavar="NAME|FILE.json", help="preset (navion, sundowner, do128) or an aircraft JSON file"
@@ -132,13 +132,6 @@ def add_model_options(
     add_effect_argument(g)
 
 
-def default_model(args) -> str:
-    """The model kind by the one rule: --model, else unsteady with --aircraft, else dimensional."""
-    if getattr(args, "model", None):
-        return args.model
-    return "unsteady" if getattr(args, "aircraft", None) is not None else "dimensional"
-
-
 def add_set_option(p, help: str = "parameter values") -> None:
     """--set NAME=VALUE ..., repeatable."""
     accumulating(p, "--set", metavar="NAME=VALUE", help=f"{help} (repeatable)")
@@ -169,8 +162,6 @@ def add_output_option(p, *, kind: str, metavar: str, help: str, old: tuple = (),
 
 def add_workers_option(p, *, old: tuple = ()) -> None:
     """--workers N (local worker processes); ``old``: hidden aliases (``--processes``)."""
-    from ._common import positive_int
-
     p.add_argument(
         "--workers", type=positive_int, metavar="N", default=None, help="local worker processes (default: all cores)"
     )

@@ -54,7 +54,7 @@ def run(args) -> int:
 
     compat, compat_note = None, None
     if args.compat:
-        from ..compat import check_compatibility
+        from ..flightpath import check_compatibility
 
         try:
             compat = check_compatibility(rec)

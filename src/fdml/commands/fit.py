@@ -94,7 +94,7 @@ def run(args) -> int:
     from ..estimate import fit
     from ..io import load_records
     from ..io.cli import record_options
-    from ..spectra import spectra
+    from ..spectral import spectra
 
     if args.output:  # before any work: the result must not replace an input, a folder or a device
         from ..outputs import check_output

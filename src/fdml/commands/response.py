@@ -24,7 +24,7 @@ def run(args) -> int:
     import numpy as np
 
     from ..fourier import omega_band
-    from ..spectra import parse_band
+    from ..spectral import parse_band
 
     model = make_model_from_args(args, assignments(args.set))
     omega = omega_band(*parse_band(args.band, what="--band/--omega", positive=False))

@@ -8,8 +8,6 @@ module                 job
 :mod:`.likelihood`     fits under a band-wise noise model; LR = 2 (C0 - C1) / K
 :mod:`.locate`         the gap map: coherent vs incoherent residual per channel x band,
                        noise floor, gain/phase error with bounds, F tests, Holm/BH
-:mod:`.effects`        nested augmentations of any model; the open registry
-:mod:`.library`        the built-in effects (lift_lag ... unmeasured_gust)
 :mod:`.screen`         score (LM) screen, aliasing, minimum detectable effect (in
                        :mod:`fdml.score`, shared with every fit's adequacy check)
 :mod:`.attribute`      refits, chi2 / chi-bar-square / Davies nulls (:mod:`fdml.score`), Holm,
@@ -21,6 +19,10 @@ module                 job
 :mod:`.truth`          validation truths (time-domain, one withheld effect)
 :mod:`.validation`     the validation harness
 =====================  =================================================================
+
+The candidate effects and their open registry are :mod:`fdml.models.augment` (what an effect
+is), :mod:`fdml.models.effect_library` (the built-in ones, lift_lag ... unmeasured_gust) and
+:mod:`fdml.models.effects` (the registry); the names a user needs are re-exported here.
 
 Example::
 

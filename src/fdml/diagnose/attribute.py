@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..channels import OUTPUTS
 from ..models.effects import Effect
 from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, screen
 from ..score import grid_variation as _grid_variation
@@ -227,7 +228,7 @@ def attribute_step(
 def _outputs(options):
     outs = options.get("outputs")
     if outs is None:
-        return ("alpha", "q", "az")
+        return OUTPUTS
     if isinstance(outs, str):
         return tuple(o.strip() for o in outs.split(","))
     return tuple(outs)

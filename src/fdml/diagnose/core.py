@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..channels import OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..estimate import NoiseModel
 from ..models.base import Model
@@ -324,7 +325,7 @@ def _setup(
     effects = _library(library)
     data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust)
     nb = noise_bands(data, mode=noise)
-    channels = tuple(outputs.split(",") if isinstance(outputs, str) else (outputs or ("alpha", "q", "az")))
+    channels = tuple(outputs.split(",") if isinstance(outputs, str) else (outputs or OUTPUTS))
     channels = tuple(c.strip() for c in channels)
     edges = np.asarray(bands, float) if bands is not None else default_bands(data)
     if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):

@@ -27,10 +27,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..channels import INPUTS
 from ..errors import BandError, RecordError
 from ..fourier import check_band
 from ..record import Record
-from ..spectra import spectra
+from ..spectral import band_numbers, spectra
 
 __all__ = ["AnalysisData", "analysis_data", "parse_diag_band", "DEFAULT_DIAG_BAND"]
 
@@ -46,21 +47,7 @@ def parse_diag_band(band) -> tuple[float, float]:
     """
     if band is None:
         return DEFAULT_DIAG_BAND
-    if isinstance(band, str):
-        parts = band.split(":")
-        if len(parts) not in (2, 3):
-            raise BandError(f"band {band!r} must be LO:HI (rad/s), e.g. 0.3:12")
-        try:
-            band = tuple(float(x) for x in parts)
-        except ValueError:
-            raise BandError(f"band {band!r} must be numbers LO:HI in rad/s") from None
-    try:
-        vals = [float(x) for x in band]
-    except (TypeError, ValueError):
-        raise BandError(f"band {band!r} must be (lo, hi) in rad/s") from None
-    if len(vals) not in (2, 3):
-        raise BandError(f"band {band!r} must be (lo, hi) in rad/s")
-    lo, hi = vals[0], vals[1]
+    lo, hi = band_numbers(band, (2, 3), example="0.3:12")[:2]
     check_band(lo, hi, None, what="band", positive=True)  # fdml's one band check (no grid here)
     if not lo < hi:
         raise BandError(f"band must satisfy 0 < lo < hi (rad/s), got {lo:g}:{hi:g}")
@@ -135,7 +122,7 @@ def analysis_data(
     oversample : int, optional
         K >= 1 (default 2).
     trim : str, optional
-        Trim removal passed to :func:`fdml.spectra.spectra`.
+        Trim removal passed to :func:`fdml.spectral.spectra`.
     gust : bool, optional
         Keep the alpha_w input (default: when every record has it).
 
@@ -179,5 +166,5 @@ def analysis_data(
         from dataclasses import replace
 
         out = [replace(d, u=d.u[:, :1], inputs=("de",)) if d.u.shape[1] > 1 else d for d in out]
-    inputs = ("de", "alpha_w") if gust else ("de",)
+    inputs = INPUTS if gust else INPUTS[:1]
     return AnalysisData(tuple(out), tuple(masks), K, (lo, hi), inputs)

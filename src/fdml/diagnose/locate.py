@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 
+from ..channels import OUTPUTS
 from ..score import bh, holm  # the family-wise corrections live with the score tests
 from .data import AnalysisData
 
@@ -329,7 +330,7 @@ def gap_map(
     forced: np.ndarray,
     edges: np.ndarray,
     *,
-    channels=("alpha", "q", "az"),
+    channels=OUTPUTS,
     alpha: float = 0.05,
     floors: dict | None = None,
     designs: dict | None = None,
@@ -349,13 +350,12 @@ def gap_map(
         ``{(channel, band index): floor}`` to hold the noise floors of another
         map (for before/after comparisons).
     """
-    from ..models.effects import CHANNELS
 
     cells = []
     nb = edges.size - 1
     designs = {} if designs is None else designs
     for ch in channels:
-        c = CHANNELS.index(ch)
+        c = OUTPUTS.index(ch)
         for b in range(nb):
             key = (ch, b)
             if key not in designs:

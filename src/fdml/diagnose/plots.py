@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 
+from ..channels import OUTPUTS
+
 __all__ = ["plot_report"]
 
 _CH = {"alpha": r"$\alpha$", "q": "$q$", "az": "$a_z$"}
@@ -92,7 +94,7 @@ def plot_report(rep, path=None):
     Gf = np.concatenate([final.model.evaluate(d.omega).G[:, :, 0] for d in data.spectra])[rows]
     good = np.abs(u) > 0.05 * np.max(np.abs(u))
     Gd = Gb + e / np.where(good, u, 1.0)[:, None]
-    for j, ch in enumerate(("alpha", "q", "az")):
+    for j, ch in enumerate(OUTPUTS):
         axm = fig.add_subplot(gs[1, j])
         axp = fig.add_subplot(gs[2, j], sharex=axm)
         k = order[good[order]]

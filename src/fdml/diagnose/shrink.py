@@ -21,8 +21,8 @@ import math
 
 import numpy as np
 
+from ..channels import OUTPUTS as CHANNELS
 from ..estimate import fit as fdml_fit
-from ..models.effects import CHANNELS
 from ..warning_log import recording
 from .data import AnalysisData
 from .likelihood import DiagFit, NoiseBands, diag_fit

@@ -37,6 +37,7 @@ import math
 import numpy as np
 from scipy import interpolate, signal
 
+from ..channels import OUTPUTS
 from ..constants import G0
 from ..errors import ParameterError
 from ..maneuvers import dryden_gust, make_input, time_vector
@@ -144,7 +145,7 @@ def _downwash_delay(model, t, inputs, tau: float, sub: int = 8) -> dict:
         x[k + 1] = Phi @ x[k] + G1 @ w0 + G2 @ (w1 - w0)
     ys = real.C @ x.T + real.D @ u.T
     ys[2] += caz * (ad - x[:, 0])
-    return {ch: ys[i, ::sub].copy() for i, ch in enumerate(("alpha", "q", "az"))}
+    return {ch: ys[i, ::sub].copy() for i, ch in enumerate(OUTPUTS)}
 
 
 def _qdot(model, values, t, inputs) -> np.ndarray:
@@ -174,6 +175,21 @@ def sensor_noise(rng: np.random.Generator, n: int, dt: float, kind: str = "white
     # AR(1) spectrum at low frequency is (1 + a)/(1 - a) times its variance density; scale to the ratio
     c = math.sqrt(COLOURED_LF_RATIO * (1 - a) / (1 + a))
     return w + c * x
+
+
+def _elevator(maneuver: str, tr: np.ndarray, amp: float, rng: np.random.Generator) -> np.ndarray:
+    """The elevator input (rad) of a truth record on its time grid ``tr`` (s)."""
+    if maneuver == "multisine":
+        # a multisine over the first 3/4 of the record, then the input stops (flight-test practice)
+        n1 = int(round(0.75 * (tr.size - 1))) + 1
+        u = make_input("multisine", tr[:n1], amp, omega_lo=0.4, omega_hi=12.0, phases="random", rng=rng)
+        return np.concatenate([u, np.zeros(tr.size - n1)])
+    elif maneuver == "3211":
+        return make_input("3211", tr, amp, unit=0.4, rise=0.04)
+    elif maneuver == "doublet":
+        return make_input("doublet", tr, amp, width=0.4, rise=0.04)
+    else:
+        raise ParameterError(f"unknown manoeuvre {maneuver!r}; use 3211, doublet or multisine")
 
 
 def simulate_truth(
@@ -221,17 +237,7 @@ def simulate_truth(
     n0 = int(round(warm / dt))
     tr = t[: t.size - n0]  # the kept record's own time axis
     amp = amplitude if amplitude is not None else math.radians(1.0)
-    if maneuver == "multisine":
-        # a multisine over the first 3/4 of the record, then the input stops (flight-test practice)
-        n1 = int(round(0.75 * (tr.size - 1))) + 1
-        u = make_input("multisine", tr[:n1], amp, omega_lo=0.4, omega_hi=12.0, phases="random", rng=rng)
-        de_rec = np.concatenate([u, np.zeros(tr.size - n1)])
-    elif maneuver == "3211":
-        de_rec = make_input("3211", tr, amp, unit=0.4, rise=0.04)
-    elif maneuver == "doublet":
-        de_rec = make_input("doublet", tr, amp, width=0.4, rise=0.04)
-    else:
-        raise ParameterError(f"unknown manoeuvre {maneuver!r}; use 3211, doublet or multisine")
+    de_rec = _elevator(maneuver, tr, amp, rng)
     de = np.concatenate([np.zeros(n0), de_rec])
     inputs = {"de": de}
     U = base.U
@@ -255,7 +261,7 @@ def simulate_truth(
         sim_inputs["de"] = _lsim([1.0], [values["T_act"], 1.0], de, t)
     mvals = {k: v for k, v in values.items() if k in model.parameters}
     rec = simulate(model, t, sim_inputs, mvals or None)
-    y = {k: rec[k].copy() for k in ("alpha", "q", "az")}
+    y = {k: rec[k].copy() for k in OUTPUTS}
     if key is not None and key.startswith("time_delay@") and key != "time_delay@de":
         ch = key.split("@")[1]
         y[ch] = _delay(t, y[ch], values[f"tau_{ch}"])
@@ -278,7 +284,7 @@ def simulate_truth(
         y["alpha"] = _lsim([w * w], [1.0, 2 * z * w, w * w], y["alpha"], t)
     keep = slice(n0, t.size)
     y = {k: v[keep] for k, v in y.items()}
-    for ch in ("alpha", "q", "az"):
+    for ch in OUTPUTS:
         if noise > 0:
             y[ch] = y[ch] + noise * float(np.std(y[ch])) * sensor_noise(rng, tr.size, dt, noise_kind)
     signals = {"de": de[keep], **y}

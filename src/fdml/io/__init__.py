@@ -28,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..channels import FORMATS
 from ..errors import RecordError
 from ..record import Record, read_csv
 from ._common import check_path, check_trim, finish
@@ -56,8 +57,6 @@ __all__ = [
     "to_si",
 ]
 
-#: Format names accepted by :func:`load_record`.
-FORMATS = ("auto", "sidpac", "dlr-asc", "dlr-mat", "csv", "csv-map")
 #: Relative difference of sample intervals tolerated between records fitted together.
 _RATE_TOL = 1e-6
 

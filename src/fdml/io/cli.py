@@ -7,16 +7,16 @@ from __future__ import annotations
 
 import argparse
 
-__all__ = ["add_record_arguments", "record_options", "parse_mapping"]
+from ..channels import FORMATS
 
-_FORMATS = ("auto", "sidpac", "dlr-asc", "dlr-mat", "csv", "csv-map")
+__all__ = ["add_record_arguments", "record_options", "parse_mapping"]
 
 
 def add_record_arguments(p: argparse.ArgumentParser) -> None:
     """--format, --t0, --t1, --columns, --units, --sign, --layout."""
     g = p.add_argument_group("reading records")
     g.add_argument(
-        "--format", default=None, choices=_FORMATS, help="record format (default auto: by extension and content)"
+        "--format", default=None, choices=FORMATS, help="record format (default auto: by extension and content)"
     )
     g.add_argument("--t0", type=float, metavar="S", help="window start, s")
     g.add_argument("--t1", type=float, metavar="S", help="window end, s")

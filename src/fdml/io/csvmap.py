@@ -9,8 +9,8 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from ..channels import REQUIRED, SIGNALS
 from ..errors import RecordError
-from ..record import SIGNALS
 from ._common import check_path, check_trim, finish, wrap_read_error
 from .units import QUANTITY, normalise_unit, unit_factor
 
@@ -98,6 +98,25 @@ def read_csv_mapped(
     """
     p = check_path(path)
     check_trim(trim)
+    units, sign = _check_maps(p, columns, units, sign)
+    header, col_index, header_units, data = _read_columns(p, columns, delimiter)
+    t, signals, conv, chans = _convert(p, header, col_index, header_units, data, units, sign)
+    m = {
+        "source": str(p),
+        "format": "csv-map",
+        "channels": chans,
+        "conversion": conv,
+        "sign": {k: int(sign.get(k, 1)) for k in signals},
+    }
+    user_meta = dict(meta or {})
+    if "V" in signals and "U" not in user_meta:
+        m["_per_sample"] = {"U": signals["V"]}
+    m.update(user_meta)
+    return finish(p, t, signals, m, name=name, t0=t0, t1=t1, trim=trim, check_units=check_units)
+
+
+def _check_maps(p, columns, units, sign) -> tuple[dict, dict]:
+    """Check the column, unit and sign maps against fdml's signals; the unit and sign maps as dicts."""
     if not isinstance(columns, Mapping) or not columns:
         raise RecordError(
             f"{p}: columns must map fdml signals to CSV column names, e.g. "
@@ -112,7 +131,7 @@ def read_csv_mapped(
             raise RecordError(
                 f"{p}: {label} names unknown fdml signal(s) {', '.join(map(repr, bad))}; known: {', '.join(known)}"
             )
-    missing_req = [k for k in ("t", "de", "alpha", "q", "az") if k not in columns]
+    missing_req = [k for k in ("t", *REQUIRED) if k not in columns]
     if missing_req:
         raise RecordError(f"{p}: the column map lacks {', '.join(missing_req)} (t, de, alpha, q and az are required)")
     extra_units = [k for k in units if k not in columns]
@@ -124,7 +143,11 @@ def read_csv_mapped(
     for k, v in sign.items():
         if isinstance(v, bool) or v not in (1, -1):  # exactly +-1: a scale factor belongs in units=
             raise RecordError(f"{p}: sign of {k} must be +1 or -1, got {v!r}")
+    return units, sign
 
+
+def _read_columns(p, columns, delimiter):
+    """Header cells, column index and header unit per mapped signal, and the numeric data (unmapped: nan)."""
     try:
         text = p.read_text(encoding="utf-8-sig")  # UTF-8; a leading BOM (spreadsheet export) is dropped
     except (OSError, UnicodeDecodeError) as exc:
@@ -171,7 +194,11 @@ def read_csv_mapped(
                 raise RecordError(f"{p}: line {lineno}, column {header[c]!r}: {s!r} is not a number") from None
     if data.shape[0] < 4:
         raise RecordError(f"{p}: only {data.shape[0]} data row(s); at least 4 are needed")
+    return header, col_index, header_units, data
 
+
+def _convert(p, header, col_index, header_units, data, units, sign):
+    """Time and signals in fdml's units and signs, with the conversion and source column of each."""
     signals, conv, chans = {}, {}, {}
     t = None
     for sig, i in col_index.items():
@@ -195,18 +222,7 @@ def read_csv_mapped(
             t = x
         else:
             signals[sig] = x
-    m = {
-        "source": str(p),
-        "format": "csv-map",
-        "channels": chans,
-        "conversion": conv,
-        "sign": {k: int(sign.get(k, 1)) for k in signals},
-    }
-    user_meta = dict(meta or {})
-    if "V" in signals and "U" not in user_meta:
-        m["_per_sample"] = {"U": signals["V"]}
-    m.update(user_meta)
-    return finish(p, t, signals, m, name=name, t0=t0, t1=t1, trim=trim, check_units=check_units)
+    return t, signals, conv, chans
 
 
 def _splitter(p, sample: list[str], delimiter: str | None):

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..channels import CONDITION_UNITS, REQUIRED
 from ..errors import RecordError
 from ._common import check_path, check_trim, finish, read_mat, wrap_read_error
 from .units import QUANTITY, to_si, unit_factor
@@ -75,13 +76,12 @@ LAYOUTS = {
         # ATTAS mass and geometry as used with these records by the book's own
         # pre-processing (umr_reg_attas.m); the data README gives none.
         "constants": {"mass": 17631.0, "Iy": 2.52687e5, "S_w": 64.0, "c_w": 3.159, "b": 21.5},
-        "constants_units": {"mass": "kg", "Iy": "kg m^2", "S_w": "m^2", "c_w": "m", "b": "m"},
+        "constants_units": {k: CONDITION_UNITS[k] for k in ("mass", "Iy", "S_w", "c_w", "b")},
         "constants_source": "Jategaonkar, Flight Vehicle System Identification (2nd ed.), umr_reg_attas.m "
         "(mass, iY, sRef, lRef, 2 bRef); not in the data README",
         "aircraft": "DLR ATTAS (VFW-614)",
     },
 }
-_REQUIRED = ("de", "alpha", "q", "az")
 
 
 def _layout(layout: str) -> dict:
@@ -265,7 +265,7 @@ def _build(p, data, lay, fmt, t0, t1, trim, name, check_units, variable=None):
             continue
         x = data[:, col - 1]
         if not np.any(x != 0.0):
-            if sig in _REQUIRED:
+            if sig in REQUIRED:
                 raise RecordError(f"{p}: column {col} ({sig}) holds only zeros: the channel was not recorded")
             continue
         signals[sig] = to_si(x, unit, sig, what=f"{p} column {col}")
@@ -291,5 +291,5 @@ def _build(p, data, lay, fmt, t0, t1, trim, name, check_units, variable=None):
     meta["_per_sample"] = per
     meta.update(lay["constants"])
     meta["constants_source"] = lay["constants_source"]
-    meta["units"] = {"U": "m/s", "rho": "kg/m^3", "rho_from_data": "kg/m^3", **lay["constants_units"]}
+    meta["units"] = {k: CONDITION_UNITS[k] for k in ("U", "rho", "rho_from_data")} | lay["constants_units"]
     return finish(p, t, signals, meta, name=name, t0=t0, t1=t1, trim=trim, check_units=check_units)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..channels import CONDITION_UNITS, REQUIRED
 from ..errors import RecordError
 from ._common import check_path, check_trim, finish, read_mat
 from .units import to_si, unit_factor
@@ -34,7 +35,6 @@ _CONDITION_COLUMNS = {
     "mass": (48, "slug", "mass", "mass"),
     "Iy": (50, "slug ft^2", "iyy", "inertia"),
 }
-_REQUIRED = ("de", "alpha", "q", "az")
 
 
 def read_sidpac(
@@ -58,7 +58,7 @@ def read_sidpac(
         first sample).
     trim : {None, "none", "first", "mean"}, optional
         Trim is **kept** by default (the estimator removes it,
-        :func:`fdml.spectra.spectra`); ``"first"`` or ``"mean"`` subtract the
+        :func:`fdml.spectral.spectra`); ``"first"`` or ``"mean"`` subtract the
         first sample or the mean over the leading 0.5 s from every signal.
     original : bool, optional
         Read ``fdatao`` (the measurements as recorded) instead of ``fdata``.
@@ -135,7 +135,7 @@ def read_sidpac(
     for sig, (col, unit, _word) in SIDPAC_COLUMNS.items():
         x = np.asarray(fd[:, col - 1], dtype=float)
         if not np.any(x != 0.0):
-            if sig in _REQUIRED:
+            if sig in REQUIRED:
                 raise RecordError(f"{p}: column {col} ({sig}) holds only zeros: the channel was not recorded")
             absent.append(sig)
             continue
@@ -169,7 +169,7 @@ def read_sidpac(
     ):
         if var in mat and np.size(mat[var]) == 1:
             meta[k] = float(np.asarray(mat[var], dtype=float).ravel()[0]) * unit_factor(unit, quantity)
-    meta["units"] = {"U": "m/s", "rho": "kg/m^3", "mass": "kg", "Iy": "kg m^2", "S_w": "m^2", "c_w": "m", "b": "m"}
+    meta["units"] = {k: CONDITION_UNITS[k] for k in ("U", "rho", "mass", "Iy", "S_w", "c_w", "b")}
     return finish(p, t, signals, meta, name=name, t0=t0, t1=t1, trim=trim, check_units=check_units)
 
 

@@ -26,6 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..channels import INPUTS, OUTPUTS, SIGNALS
 from ..constants import G0
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters, Role
@@ -33,8 +34,6 @@ from ..parameters import Parameter, Parameters, Role
 __all__ = ["Model", "ModelResponse", "OUTPUTS", "solve_short_period"]
 
 #: Output channels of every model, in order: alpha (rad), q (rad/s), a_z (g).
-OUTPUTS = ("alpha", "q", "az")
-OUTPUT_UNITS = {"alpha": "rad", "q": "rad/s", "az": "g", "de": "rad", "alpha_w": "rad"}
 
 
 @dataclass(frozen=True)
@@ -180,7 +179,7 @@ class Model:
     @property
     def inputs(self) -> tuple[str, ...]:
         """Input names: ``('de',)`` or ``('de', 'alpha_w')``."""
-        return ("de", "alpha_w") if self.gust else ("de",)
+        return INPUTS if self.gust else INPUTS[:1]
 
     def _common_parameters(self) -> list[Parameter]:
         what = {"tau_de": "elevator time delay", "tau_alpha_w": "gust-angle time delay"}
@@ -194,7 +193,7 @@ class Model:
                     f"bias_{name}",
                     0.0,
                     free=self.output_bias,
-                    unit=OUTPUT_UNITS[name],
+                    unit=SIGNALS[name],
                     description=f"output bias on {name}",
                     role=Role.OUTPUT_BIAS,
                 )

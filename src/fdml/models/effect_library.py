@@ -1,4 +1,4 @@
-"""The built-in library of candidate effects (registered on import).
+"""The built-in library of candidate effects (registered by :mod:`fdml.models.effects`).
 
 =====================  =========  ============================================================
 effect                 channel    augmentation (null in brackets)
@@ -39,20 +39,19 @@ from typing import Any
 
 import numpy as np
 
+from ..channels import INPUT, OUTPUTS
 from ..constants import G0
 from ..errors import ParameterError
-from .base import Model
-from .effects import (
-    CHANNELS,
+from .augment import (
     Effect,
     FreeParameterEffect,
     MatrixEffect,
     OutputEffect,
     Param,
-    register_effect,
     root_model,
     scale_rows,
 )
+from .base import Model
 
 __all__ = ["Dispatch", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
 
@@ -79,7 +78,7 @@ class Dispatch(Effect):
     def impl(self, model: Model):
         return self.impls.get(root_model(model).kind)
 
-    def applicable(self, model, inputs=("de",), outputs=CHANNELS):
+    def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         imp = self.impl(model)
         if imp is None:
             return f"not defined for the {root_model(model).kind} model"
@@ -580,7 +579,7 @@ def _delay_realize(row: int, name: str):
 
 
 def _make_output_delay(ch: str) -> OutputEffect:
-    row = CHANNELS.index(ch)
+    row = OUTPUTS.index(ch)
     name = f"tau_{ch}"
     return OutputEffect(
         "time_delay",
@@ -667,21 +666,24 @@ def _vane_offset_realize(sys, p, root):
     return mix_output(sys, 0, 1, -p["x_alpha"] / root.U)  # alpha - x q / U
 
 
+def _lever_arm(name: str, sensor: str) -> Param:
+    """A sensor's distance ahead of the c.g., m (null 0; plausible within 10 m of it)."""
+    return Param(
+        name,
+        0.0,
+        lower=-30.0,
+        upper=30.0,
+        plausible=(-10.0, 10.0),
+        unit="m",
+        start=0.05,
+        description=f"{sensor} ahead of the c.g.",
+    )
+
+
 SENSOR_OFFSET_AZ = OutputEffect(
     "sensor_offset",
     "az",
-    (
-        Param(
-            "x_az",
-            0.0,
-            lower=-30.0,
-            upper=30.0,
-            plausible=(-10.0, 10.0),
-            unit="m",
-            start=0.05,
-            description="accelerometer ahead of the c.g.",
-        ),
-    ),
+    (_lever_arm("x_az", "accelerometer"),),
     _accel_offset,
     signature="a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
     realize=_accel_offset_realize,
@@ -689,18 +691,7 @@ SENSOR_OFFSET_AZ = OutputEffect(
 SENSOR_OFFSET_ALPHA = OutputEffect(
     "sensor_offset",
     "alpha",
-    (
-        Param(
-            "x_alpha",
-            0.0,
-            lower=-30.0,
-            upper=30.0,
-            plausible=(-10.0, 10.0),
-            unit="m",
-            start=0.05,
-            description="alpha vane ahead of the c.g.",
-        ),
-    ),
+    (_lever_arm("x_alpha", "alpha vane"),),
     _vane_offset,
     signature="alpha picks up -x q/U: phase change on alpha",
     realize=_vane_offset_realize,
@@ -807,9 +798,9 @@ def _make_scale(ch: str) -> OutputEffect:
                 description=f"gain error of {ch}",
             ),
         ),
-        _scale(CHANNELS.index(ch), name),
+        _scale(OUTPUTS.index(ch), name),
         signature=f"{ch} too large or small at every frequency",
-        realize=_scale_realize(CHANNELS.index(ch), name),
+        realize=_scale_realize(OUTPUTS.index(ch), name),
     )
 
 
@@ -851,14 +842,11 @@ BUILTINS = (
     GUST_LAG,
     GUST_TAIL,
     TIME_DELAY_DE,
-    *(_make_output_delay(c) for c in CHANNELS),
+    *(_make_output_delay(c) for c in OUTPUTS),
     ACTUATOR_LAG,
     SENSOR_OFFSET_AZ,
     SENSOR_OFFSET_ALPHA,
     STRUCTURAL_MODE,
-    *(_make_scale(c) for c in CHANNELS),
+    *(_make_scale(c) for c in OUTPUTS),
     UnmeasuredGust(),
 )
-
-for _eff in BUILTINS:
-    register_effect(_eff, replace_existing=True)

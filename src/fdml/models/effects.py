@@ -36,21 +36,33 @@ A user adds an effect in a few lines::
                     plausible=(0.0, 0.1), unit="s"),), gyro_lag))
 
 Everything here is a pure function of ``s = j omega`` (rad/s) vectorised over
-frequency.
+frequency.  The effect classes live in :mod:`fdml.models.augment` (re-exported here), the
+built-in effects in :mod:`fdml.models.effect_library`; this module holds the registry and fills
+it from the library once, at import.
 """
 
 from __future__ import annotations
 
-import math
-from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field, replace
-from typing import cast
+from collections.abc import Sequence
 
 import numpy as np
 
-from ..errors import FdmlError, ParameterError
-from ..parameters import Parameter, Parameters, Role
-from .base import Model, ModelResponse
+from ..channels import OUTPUTS
+from ..errors import ParameterError
+from .augment import (
+    AugmentedModel,
+    Effect,
+    FreeParameterEffect,
+    MatrixEffect,
+    OutputEffect,
+    Param,
+    applied_effects,
+    root_model,
+    scale_rows,
+    with_gust,
+)
+from .base import Model
+from .effect_library import BUILTINS
 
 __all__ = [
     "Param",
@@ -59,16 +71,15 @@ __all__ = [
     "MatrixEffect",
     "FreeParameterEffect",
     "AugmentedModel",
+    "root_model",
+    "applied_effects",
+    "with_gust",
+    "scale_rows",
     "register_effect",
     "unregister_effect",
     "get_effect",
     "registered_effects",
     "default_library",
-    "root_model",
-    "applied_effects",
-    "with_gust",
-    "scale_rows",
-    "CHANNELS",
     "resolve_effect",
     "with_effects",
     "assemble",
@@ -76,510 +87,6 @@ __all__ = [
     "confounded_effect_parameters",
     "catalogue",
 ]
-
-#: Output channels, in the row order of G, H and P.
-CHANNELS = ("alpha", "q", "az")
-
-
-@dataclass(frozen=True)
-class Param:
-    """A parameter an effect adds (or frees).
-
-    Parameters
-    ----------
-    name : str
-        Parameter name inside the augmented model (unique across effects).
-    null : float or None
-        Value at which the effect vanishes.  ``None`` for an effect that frees
-        an existing parameter: the null is then that parameter's value in the
-        base model.
-    lower, upper : float
-        Bounds for the estimator.  A null on a bound makes the test one-sided
-        (chi-bar-square null distribution).
-    plausible : (float, float), optional
-        Physical range; a fitted value outside it means the effect is
-        absorbing something else, and the MDE screen compares against it.
-    unit, description : str
-    start : float, optional
-        A typical non-null size (used for start values and finite-difference
-        steps); default 1 % of the plausible range, else 1e-3.
-    nuisance : bool, optional
-        A parameter that is not identified when the effect is absent (a
-        structural mode's frequency and damping): held fixed on a grid for the
-        test, then refined continuously (DIAGNOSIS.md 2.6 rule 5).
-    """
-
-    name: str
-    null: float | None = 0.0
-    lower: float = -math.inf
-    upper: float = math.inf
-    plausible: tuple | None = None
-    unit: str = ""
-    description: str = ""
-    start: float | None = None
-    nuisance: bool = False
-
-    def typical(self) -> float:
-        """A small, typical non-null size (for finite differences and MDE units)."""
-        if self.start is not None:
-            return abs(float(self.start))
-        if self.plausible is not None:
-            lo, hi = self.plausible
-            return 0.01 * max(abs(hi - lo), 1e-12)
-        return 1e-3
-
-
-class Effect:
-    """An unmodelled effect, testable as a nested augmentation of a model.
-
-    Subclasses set :attr:`name` (the library name, e.g. ``"time_delay"``),
-    :attr:`channel` (``alpha``, ``q``, ``az``, ``de``, ``alpha_w`` or a comma
-    list), :attr:`params` and implement :meth:`augment`.
-
-    Attributes
-    ----------
-    name : str
-        Library name, shared by the variants of one effect.
-    channel : str
-        Where it applies.
-    params : tuple of Param
-    kind : {"deterministic", "noise"}
-        Noise-kind effects change the residual's covariance, not the
-        model's response; they are tested separately (after the
-        deterministic ones) on the part of the residual that is incoherent
-        with the inputs.
-    needs : tuple of str
-        Record channels required (e.g. ``("alpha_w",)``).
-    nuisance_grid : dict, optional
-        ``{param name: grid}`` for parameters that are not identified under
-        the null (Davies problem; e.g. a structural mode's frequency).
-    signature : str
-        One line on where the effect shows, for reports.
-    """
-
-    name: str = "effect"
-    channel: str = ""
-    params: tuple = ()
-    kind: str = "deterministic"
-    needs: tuple = ()
-    nuisance_grid: dict | None = None
-    signature: str = ""
-
-    @property
-    def key(self) -> str:
-        """Unique id of this variant: ``name@channel``."""
-        return f"{self.name}@{self.channel}" if self.channel else self.name
-
-    def applicable(
-        self, model: Model, inputs: Sequence[str] = ("de",), outputs: Sequence[str] = CHANNELS
-    ) -> str | None:
-        """None if the effect can be tested on ``model`` with these channels, else the reason."""
-        for need in self.needs:
-            if need not in inputs and need not in outputs:
-                return f"needs the {need} channel, which the record(s) lack"
-        for ch in self.channel.split(","):
-            if ch in CHANNELS and ch not in outputs:
-                return f"acts on {ch}, which is not among the fitted outputs"
-        return None
-
-    def param_list(self, model: Model) -> tuple:
-        """The :class:`Param` list for this base model (most effects: :attr:`params`)."""
-        return tuple(self.params)
-
-    def augment(self, model: Model) -> Model:  # pragma: no cover - abstract
-        """The augmented model, with the new parameters free and at their null."""
-        raise NotImplementedError
-
-    def nulls(self, model: Model) -> dict[str, float]:
-        """Null values of the effect's parameters on ``model``."""
-        out = {}
-        vals = model.parameters.values
-        for p in self.param_list(model):
-            out[p.name] = vals.get(p.name, 0.0) if p.null is None else float(p.null)
-        return out
-
-    def simulate(self, t, signals: dict, values: Mapping[str, float], model: Model) -> dict:
-        """Apply the effect to noise-free time histories (for truth generation).
-
-        Built-in effects implement it in :mod:`fdml.diagnose.truth`; a user
-        effect without a time-domain form cannot be used as a validation truth.
-        """
-        raise FdmlError(f"effect {self.key} has no time-domain form for validation truths")
-
-    def realize(self, target, p: Mapping[str, float], root: Model):
-        """The effect on a time-domain realisation (see :func:`fdml.simulate.realize`).
-
-        Output-level effects act on the state space of the base model
-        (``fdml.simulate`` helpers ``delay_output``, ``scale_output``,
-        ``mix_output``, ``add_output_rate``, ``filter_input``, ``add_mode``);
-        matrix-level effects on its descriptor form
-        (:class:`fdml.simulate.Descriptor`) or, on a Wells-Keskar base, on the
-        options of its realisation.  An effect without one cannot be simulated.
-        """
-        raise ParameterError(
-            f"effect {self.key} has no time-domain realisation: it can be fitted, "
-            "not simulated or exported as a state space"
-        )
-
-    def describe(self) -> str:
-        return self.signature or self.key
-
-    def label(self) -> str:
-        """Short name for a model's description: ``alpha time delay (tau_alpha, s)``."""
-        where = "" if not self.channel else f"{self.channel} "
-        pars = ", ".join(f"{p.name}, {p.unit}" if p.unit else p.name for p in self.params if not p.nuisance)
-        return f"{where}{self.name.replace('_', ' ')}" + (f" ({pars})" if pars else "")
-
-
-# --- the augmented model ---------------------------------------------------------------
-
-
-@dataclass(frozen=True, kw_only=True)
-class AugmentedModel(Model):
-    """A base fdml model plus a sequence of output- or matrix-level effects.
-
-    Its parameter set is the root model's followed by every effect's new
-    parameters; ``evaluate`` applies the matrix-level effects before the
-    short-period solve and the output-level effects after it, in order.  The
-    estimator sees an ordinary :class:`~fdml.models.base.Model`.
-    """
-
-    root: Model = field(default=None)  # type: ignore[assignment]
-    effects: tuple = ()
-    #: The effects as requested (:meth:`Model.with_effects`), free-parameter ones included; these
-    #: describe and serialise the model.  Empty for the diagnosis' internal augmentations.
-    requested: tuple = ()
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.root, Model) or isinstance(self.root, AugmentedModel):
-            raise ParameterError("AugmentedModel needs a plain fdml model as root")
-        object.__setattr__(self, "gust", self.root.gust)
-        object.__setattr__(self, "output_bias", self.root.output_bias)
-        if self.parameters is None:
-            items = list(self.root.parameters.items)
-            for eff in self.effects:
-                for par in eff.param_list(self.root):
-                    items.append(
-                        Parameter(
-                            par.name,
-                            0.0 if par.null is None else par.null,
-                            free=False,
-                            lower=par.lower,
-                            upper=par.upper,
-                            unit=par.unit,
-                            description=par.description or eff.key,
-                            role=Role.EFFECT,
-                        )
-                    )
-            object.__setattr__(self, "parameters", Parameters(tuple(items)))
-
-    @property
-    def parts(self) -> tuple:
-        """The effects that make this model (as requested, else the applied ones)."""
-        return self.requested or self.effects
-
-    @property
-    def kind(self) -> str:  # type: ignore[override]
-        return "+".join([self.root.kind] + [e.key for e in self.parts])
-
-    def sensitivity(self, omega, values=None, names=(), parts=("G", "H", "P")):
-        if not self.effects:  # only freed parameters of the root: its analytic sensitivities
-            return self.root.sensitivity(omega, self._root_values(self.values(values)), names, parts)
-        return super().sensitivity(omega, values, names, parts)
-
-    @property
-    def U(self) -> float:
-        return self.root.U
-
-    @property
-    def aircraft(self):
-        return getattr(self.root, "aircraft", None)
-
-    def _root_values(self, p: Mapping[str, float]) -> dict[str, float]:
-        names = self.root.parameters.names
-        return {k: p[k] for k in names}
-
-    def _matrices(self, s, p):
-        M, B, E = self.root._matrices(s, self._root_values(p))
-        for eff in self.effects:
-            if isinstance(eff, MatrixEffect):
-                M, B, E = eff.matrices(s, p, M, B, E, self.root)
-        return M, B, E
-
-    def evaluate(self, omega, values: Mapping[str, float] | None = None) -> ModelResponse:
-        """:meth:`Model.evaluate` (its ``_matrices`` apply the matrix-level effects), then the output-level ones."""
-        r = Model.evaluate(self, omega, values)  # input delays and the solve: written once, in Model
-        p = self.values(values)
-        s = 1j * r.omega
-        G, H, P = r.G, r.H, r.P
-        for eff in self.effects:
-            if isinstance(eff, OutputEffect):
-                G, H, P = eff.output(s, p, G, H, P, self.root)
-        return ModelResponse(omega, G, H, P)
-
-    def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
-        return self.root.derived(self._root_values(self.values(values)))
-
-    def describe(self) -> str:
-        """The model by its parts: ``dimensional model (...) + alpha time delay (tau_alpha, s) + ...``."""
-        return " + ".join([self.root.describe()] + [e.label() for e in self.parts])
-
-    def __repr__(self) -> str:
-        return f"<fdml model: {self.describe()}>"
-
-
-def root_model(model: Model) -> Model:
-    """The plain fdml model under any augmentation."""
-    return model.root if isinstance(model, AugmentedModel) else model
-
-
-def applied_effects(model: Model) -> tuple:
-    """Output/matrix effects applied to ``model`` (empty for a plain model)."""
-    return model.effects if isinstance(model, AugmentedModel) else ()
-
-
-def _rebuild(model: Model, root: Model, effects: tuple) -> Model:
-    """A model with a new root and effect list, keeping every common parameter's value and status."""
-    if not effects:
-        new = root
-    else:
-        new = AugmentedModel(root=root, effects=effects)
-    old = {p.name: p for p in model.parameters}
-    items = []
-    for p in new.parameters:
-        q = old.get(p.name)
-        if q is None or (q.value, q.free, q.lower, q.upper) == (p.value, p.free, p.lower, p.upper):
-            items.append(p)
-        else:
-            items.append(replace(p, value=q.value, free=q.free, lower=q.lower, upper=q.upper))
-    if all(a is b for a, b in zip(items, new.parameters.items)):  # nothing to carry over
-        return new
-    return new.with_parameters(Parameters(tuple(items)))
-
-
-def _append(model: Model, effect: "Effect") -> Model:
-    """``model`` with an output/matrix effect appended; its parameters free at the null."""
-    root, effs = root_model(model), applied_effects(model)
-    if any(e.key == effect.key for e in effs):
-        raise ParameterError(f"effect {effect.key} is already in the model")
-    new = _rebuild(model, root, effs + (effect,))
-    names = [p.name for p in effect.param_list(root) if not p.nuisance]
-    return new.with_parameters(new.parameters.free(names))
-
-
-def with_gust(model: Model) -> Model:
-    """The same model (same parameter values) with a gust input alpha_w added.
-
-    Used for the direction of unmeasured turbulence in output space; returns
-    ``model`` itself when it already has a gust input.
-    """
-    if model.gust:
-        return model
-    root, effs = root_model(model), applied_effects(model)
-    groot = replace(root, gust=True, parameters=cast(Parameters, None))  # None: the default set (Model.__post_init__)
-    vals = root.parameters.values
-    common = {k: v for k, v in vals.items() if k in groot.parameters}
-    groot = groot.with_values(common)
-    if not effs:
-        return groot
-    aug = AugmentedModel(root=groot, effects=effs)
-    ev = model.parameters.values
-    return aug.with_values({k: v for k, v in ev.items() if k in aug.parameters})
-
-
-# --- effect kinds ----------------------------------------------------------------------
-
-
-class OutputEffect(Effect):
-    """An effect on the model's frequency response (G, H, P), for any fdml model.
-
-    Parameters
-    ----------
-    name, channel : str
-    params : tuple of Param
-    fn : callable
-        ``fn(s, p, G, H, P, root) -> (G, H, P)``: ``s`` = j omega (n,), ``p``
-        all parameter values by name, ``G`` (n, 3, n_in), ``H`` and ``P``
-        (n, 3, 2), ``root`` the plain base model (for U, the aircraft).
-        Must return the inputs unchanged when the effect's parameters are at
-        their nulls.
-    needs : tuple of str, optional
-    signature : str, optional
-    nuisance_grid : dict, optional
-    applies : callable, optional
-        ``applies(model) -> str | None``: a reason the effect cannot be tested
-        on this base model (e.g. no chord for a lift lag), or None.
-    """
-
-    def __init__(
-        self,
-        name: str,
-        channel: str,
-        params: Sequence[Param],
-        fn: Callable,
-        *,
-        needs: Sequence[str] = (),
-        signature: str = "",
-        nuisance_grid: dict | None = None,
-        applies: Callable | None = None,
-        simulate: Callable | None = None,
-        realize: Callable | None = None,
-    ):
-        self._realize = realize
-        self.name = name
-        self.channel = channel
-        self.params = tuple(params)
-        self._fn = fn
-        self.needs = tuple(needs)
-        self.signature = signature
-        self.nuisance_grid = nuisance_grid
-        self._applies = applies
-        self._simulate = simulate
-
-    def output(self, s, p, G, H, P, root):
-        return self._fn(s, p, G, H, P, root)
-
-    def applicable(self, model, inputs=("de",), outputs=CHANNELS):
-        why = super().applicable(model, inputs, outputs)
-        if why is None and self._applies is not None:
-            why = self._applies(root_model(model))
-        return why
-
-    def augment(self, model: Model) -> Model:
-        return _append(model, self)
-
-    def realize(self, target, p, root):
-        if self._realize is None:
-            return super().realize(target, p, root)
-        return self._realize(target, p, root)
-
-    def simulate(self, t, signals, values, model):
-        if self._simulate is None:
-            return super().simulate(t, signals, values, model)
-        return self._simulate(t, signals, values, model)
-
-
-class MatrixEffect(OutputEffect):
-    """An effect on the short-period matrices (M, B, E) before the solve.
-
-    ``fn(s, p, M, B, E, root) -> (M, B, E)`` with ``M`` (n, 2, 2) = sE - A(s),
-    ``B`` (n, 2, n_in) without input delays, ``E`` (2, 2) or (n, 2, 2).
-    """
-
-    def matrices(self, s, p, M, B, E, root):
-        return self._fn(s, p, M, B, E, root)
-
-    def output(self, s, p, G, H, P, root):  # pragma: no cover - never called for matrix effects
-        return G, H, P
-
-    def applicable(self, model, inputs=("de",), outputs=CHANNELS):
-        why = super().applicable(model, inputs, outputs)
-        if why is None and not hasattr(root_model(model), "_matrices"):
-            why = "the base model does not expose its state-space matrices"
-        return why
-
-
-class FreeParameterEffect(Effect):
-    """An effect that exists in the base model as a fixed parameter: testing it frees it.
-
-    Parameters
-    ----------
-    name, channel : str
-    param : Param
-        ``null=None`` takes the null from the base model's value; a number
-        sets the parameter to it first (e.g. y_w = 0 on a steady model).
-    models : tuple of str
-        Base model kinds this applies to.
-    convert : callable, optional
-        ``convert(root) -> root'``: rewrite the base model first (e.g. steady
-        to the unsteady model with every lag off); must be the same model.
-    """
-
-    def __init__(
-        self,
-        name: str,
-        channel: str,
-        param: Param,
-        models: Sequence[str],
-        *,
-        convert: Callable | None = None,
-        needs: Sequence[str] = (),
-        signature: str = "",
-        simulate: Callable | None = None,
-        bounds: tuple | None = None,
-    ):
-        self.name = name
-        self.channel = channel
-        self.params = (param,)
-        self.models = tuple(models)
-        self._convert = convert
-        self.needs = tuple(needs)
-        self.signature = signature
-        self._simulate = simulate
-        self._bounds = bounds
-
-    def _target_root(self, model: Model) -> Model:
-        root = root_model(model)
-        if self._convert is not None:
-            root = self._convert(root)
-        return root
-
-    def applicable(self, model, inputs=("de",), outputs=CHANNELS):
-        why = super().applicable(model, inputs, outputs)
-        if why is not None:
-            return why
-        root = root_model(model)
-        if root.kind not in self.models:
-            return f"not defined for the {root.kind} model"
-        name = self.params[0].name
-        try:
-            troot = self._target_root(model)
-        except FdmlError as exc:
-            return str(exc)
-        if name not in troot.parameters:
-            return f"the {root.kind} model has no parameter {name}"
-        if name in model.parameters and model.parameters[name].free:
-            return f"{name} is already free in the base model"
-        return None
-
-    def nulls(self, model: Model) -> dict[str, float]:
-        par = self.params[0]
-        if par.null is not None:
-            return {par.name: float(par.null)}
-        vals = model.parameters.values
-        if par.name in vals:
-            return {par.name: vals[par.name]}
-        return {par.name: self._target_root(model).parameters.values[par.name]}
-
-    def augment(self, model: Model) -> Model:
-        par = self.params[0]
-        troot = self._target_root(model)
-        new = _rebuild(model, troot, applied_effects(model))
-        null = self.nulls(model)[par.name]
-        params = new.parameters.with_values({par.name: null}).free([par.name])
-        lo, hi = self._bounds if self._bounds is not None else (par.lower, par.upper)
-        if lo != -math.inf or hi != math.inf:
-            cur = params[par.name]
-            params = params.bound(par.name, min(lo, cur.value), max(hi, cur.value))
-        return new.with_parameters(params)
-
-    def simulate(self, t, signals, values, model):
-        if self._simulate is None:
-            return super().simulate(t, signals, values, model)
-        return self._simulate(t, signals, values, model)
-
-
-def scale_rows(G, H, P, row: int, factor):
-    """Multiply output row ``row`` of G, H and P by ``factor`` (scalar or (n,) array)."""
-    f = np.asarray(factor)
-    f = f[:, None] if f.ndim == 1 else f
-    G = G.copy()
-    H = H.copy()
-    P = P.copy()
-    G[:, row] = G[:, row] * f
-    H[:, row] = H[:, row] * f
-    P[:, row] = P[:, row] * f
-    return G, H, P
 
 
 # --- effects as parts of a model ----------------------------------------------------------
@@ -619,7 +126,7 @@ def resolve_effect(spec, model: Model | None = None) -> Effect:
             f"effect {name} has no channel {channel!r}; its channels: {', '.join(e.channel for e in variants)}"
         )
     if len(variants) > 1 and model is not None:
-        usable = [e for e in variants if e.applicable(model, model.inputs, CHANNELS) is None]
+        usable = [e for e in variants if e.applicable(model, model.inputs, OUTPUTS) is None]
         variants = usable if len(usable) == 1 else variants
     if len(variants) > 1:
         raise ParameterError(
@@ -651,7 +158,7 @@ def with_effects(model: Model, effects) -> Model:
             )
         if any(e.key == eff.key for e in parts):
             raise ParameterError(f"effect {eff.key} is already in the model")
-        why = eff.applicable(model, model.inputs, CHANNELS)
+        why = eff.applicable(model, model.inputs, OUTPUTS)
         if why is not None:
             raise ParameterError(f"effect {eff.key} on the {root_model(model).kind} model: {why}")
         impl = eff.impl(model) if hasattr(eff, "impl") else eff  # a Dispatch: the variant for this model
@@ -720,7 +227,7 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
     """
     if not isinstance(model, AugmentedModel) or not model.requested:
         return []
-    rows = [CHANNELS.index(o) for o in outputs]
+    rows = [OUTPUTS.index(o) for o in outputs]
     free = list(model.parameters.free_model_names)
     if not free:  # every parameter fixed (a prediction): nothing to confound
         return []
@@ -825,7 +332,6 @@ def unregister_effect(key: str) -> None:
 
 def get_effect(key: str) -> Effect:
     """A registered effect by ``name@channel`` key."""
-    _ensure_builtins()
     try:
         return _REGISTRY[key]
     except KeyError:
@@ -834,7 +340,6 @@ def get_effect(key: str) -> Effect:
 
 def registered_effects() -> tuple:
     """Every registered effect, in registration order."""
-    _ensure_builtins()
     return tuple(_REGISTRY.values())
 
 
@@ -851,5 +356,6 @@ def default_library(names: Sequence[str] | None = None) -> tuple:
     return out
 
 
-def _ensure_builtins() -> None:
-    from . import effect_library  # noqa: F401  (registers the built-in effects on import)
+# The registry's one filling: the built-in library, checked like any user's effect.
+for _effect in BUILTINS:
+    register_effect(_effect)

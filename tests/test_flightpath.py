@@ -1,8 +1,8 @@
 """Data-compatibility check: known sensor errors injected into exact kinematics, and the real records.
 
-The synthetic truth is made independently of fdml.compat: a short-period response (scipy lsim)
+The synthetic truth is made independently of fdml.flightpath: a short-period response (scipy lsim)
 gives smooth q and a_z; the kinematic equations are integrated on a grid five times finer than
-the record with their own RK4; then the sensor models of fdml.compat corrupt the samples.
+the record with their own RK4; then the sensor models of fdml.flightpath corrupt the samples.
 """
 
 import math
@@ -12,13 +12,13 @@ import pytest
 from scipy import signal
 from scipy.interpolate import CubicSpline
 
-from fdml.compat import PARAMETERS, apply_corrections, check_compatibility, noise_level
 from fdml.constants import DEG, G0
 from fdml.errors import FdmlError, RecordError
+from fdml.flightpath import PARAMETERS, apply_corrections, check_compatibility, noise_level
 from fdml.io import data_path, load_record
 from fdml.record import Record
 
-#: Noise levels of the Twin Otter at 50 Hz (third-difference estimates, see fdml.compat.noise_level).
+#: Noise levels of the Twin Otter at 50 Hz (third-difference estimates, see fdml.flightpath.noise_level).
 NOISE = {"q": 2e-4, "az": 1e-3, "ax": 5e-4, "alpha": 1e-4, "theta": 1e-4, "V": 0.02, "h": 0.15}
 #: Injected sensor errors (measured = K true(t - tau) + b).
 ERRORS = {

@@ -17,14 +17,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import fourier
+from .channels import GUST, INPUTS, OUTPUTS
 from .errors import BandError, RecordError
 from .record import Record
 
-__all__ = ["FrequencyData", "spectra", "parse_band", "DEFAULT_BAND", "OUTPUT_NAMES"]
+__all__ = ["FrequencyData", "spectra", "parse_band", "band_numbers", "DEFAULT_BAND"]
 
 #: The paper's grid: 0.1 to 10 rad/s at 0.1 rad/s ("10 points per radian").
 DEFAULT_BAND = (0.1, 10.0, 0.1)
-OUTPUT_NAMES = ("alpha", "q", "az")
 
 
 def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[float, float, float]:
@@ -49,20 +49,46 @@ def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[floa
     """
     if band is None:
         return DEFAULT_BAND
-    if isinstance(band, str):
-        parts = band.split(":")
-        if len(parts) != 3:
-            raise BandError(f"{what} {band!r} must be LO:HI:STEP in rad/s, e.g. 0.1:10:0.1")
-        try:
-            band = tuple(float(x) for x in parts)
-        except ValueError:
-            raise BandError(f"{what} {band!r} must be three numbers LO:HI:STEP in rad/s") from None
-    try:
-        lo, hi, step = (float(x) for x in band)
-    except (TypeError, ValueError):
-        raise BandError(f"{what} {band!r} must be (lo, hi, step) in rad/s") from None
+    lo, hi, step = band_numbers(band, (3,), what=what, example="0.1:10:0.1")
     lo, hi, step, _ = fourier.check_band(lo, hi, step, what=what, positive=positive)
     return lo, hi, step
+
+
+def band_numbers(band, sizes: tuple[int, ...], *, what: str = "band", example: str) -> list[float]:
+    """The numbers of a band written ``"A:B[:C]"`` or given as a sequence, before any range check.
+
+    Parameters
+    ----------
+    band : str or sequence
+        ``"LO:HI:STEP"`` (or ``"LO:HI"``) or a sequence of numbers, rad/s.
+    sizes : tuple of int
+        How many numbers are accepted: ``(3,)`` for LO:HI:STEP, ``(2, 3)`` for LO:HI with an optional step.
+    what : str, optional
+        How the band is named in messages (``"--band"`` on the command line).
+    example : str
+        A valid band, shown in the message for a malformed string.
+
+    Raises
+    ------
+    BandError
+        A string or sequence with another count of parts, or parts that are not numbers.
+    """
+    form = "LO:HI:STEP" if min(sizes) == 3 else "LO:HI"
+    if isinstance(band, str):
+        parts = band.split(":")
+        if len(parts) not in sizes:
+            raise BandError(f"{what} {band!r} must be {form} in rad/s, e.g. {example}")
+        try:
+            return [float(x) for x in parts]
+        except ValueError:
+            raise BandError(f"{what} {band!r} must be numbers {form} in rad/s") from None
+    try:
+        vals = [float(x) for x in band]
+    except (TypeError, ValueError):
+        vals = []
+    if len(vals) not in sizes:
+        raise BandError(f"{what} {band!r} must be ({form.lower().replace(':', ', ')}) in rad/s")
+    return vals
 
 
 @dataclass(frozen=True)
@@ -285,8 +311,8 @@ def spectra(
             "too few samples for this band"
         )
     rec = record.remove_trim(trim, window=trim_window)
-    outs = np.column_stack([rec[k] for k in OUTPUT_NAMES])
-    inputs = ("de", "alpha_w") if rec.has("alpha_w") else ("de",)
+    outs = np.column_stack([rec[k] for k in OUTPUTS])
+    inputs = INPUTS if rec.has(GUST) else INPUTS[:1]
     ins = np.column_stack([rec[k] for k in inputs])
     ones = np.ones(rec.n)
     X = fourier.finite_fourier_transform(

@@ -70,6 +70,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from .channels import SIGNALS, display_unit
 from .constants import G0
 from .errors import FdmlError, IdentifiabilityWarning, RecordError
 from .record import Record
@@ -202,7 +203,7 @@ class CompatibilityResult:
             f"  {'parameter':10s} {'estimate':>12s} {'std err':>10s} {'(white)':>10s}  unit     z    description",
         ]
         for p in self.params.values():
-            f, u = _display_factor(p.unit)
+            f, u = display_unit(p.unit)
             lines.append(
                 f"  {p.name:10s} {p.value * f:12.5g} {p.stderr * f:10.3g} {p.stderr_white * f:10.3g}  "
                 f"{u:6s} {p.z:5.1f}  {p.description}"
@@ -211,20 +212,20 @@ class CompatibilityResult:
             lines.append("")
             lines.append("  not estimated:")
             for k, (v, why) in self.fixed.items():
-                f, u = _display_factor(PARAMETERS[k][1])
+                f, u = display_unit(PARAMETERS[k][1])
                 lines.append(f"    {k:10s} = {v * f:g} {u}: {why}")
         lines.append("")
         lines.append(
             "  initial states: "
             + ", ".join(
-                f"{k} = {p.value * _display_factor(p.unit)[0]:.5g} {_display_factor(p.unit)[1]}"
+                f"{k} = {p.value * display_unit(p.unit)[0]:.5g} {display_unit(p.unit)[1]}"
                 for k, p in self.states.items()
             )
         )
         lines.append(
             "  residual RMS: "
             + ", ".join(
-                f"{k} {v * _display_factor(_OUT_UNITS[k])[0]:.3g} {_display_factor(_OUT_UNITS[k])[1]}"
+                f"{k} {v * display_unit(SIGNALS[k])[0]:.3g} {display_unit(SIGNALS[k])[1]}"
                 for k, v in self.residual_rms.items()
             )
         )
@@ -260,16 +261,9 @@ class CompatibilityResult:
         }
 
 
-_OUT_UNITS = {"alpha": "rad", "theta": "rad", "V": "m/s", "h": "m"}
-
-
-def _display_factor(unit: str) -> tuple[float, str]:
-    return {"rad": (180 / math.pi, "deg"), "rad/s": (180 / math.pi, "deg/s")}.get(unit, (1.0, unit))
-
-
 # --- corrections -------------------------------------------------------------------------------
 def apply_corrections(record: Record, values: dict) -> Record:
-    """Invert the sensor models of :mod:`fdml.compat` on a record.
+    """Invert the sensor models of :mod:`fdml.flightpath` on a record.
 
     ``q = (q_m - b_q)/K_q``, ``a_z(t) = (a_z,m(t + tau_az) - b_az)/K_az``,
     ``a_x = a_x,m - b_ax``, ``alpha(t) = (alpha_m(t + tau_alpha) - b_alpha)/K_alpha``,
@@ -324,6 +318,16 @@ def _integrate(a, th, V, h, dt, n, q, az, ax, Vin):
     hdt = 0.5 * dt
     sixth = dt / 6.0
     vstate = Vin is None
+
+    def rates(a, v, th, q, z, x):
+        """alpha_dot, V_dot (0 when V is an input) and h_dot of the kinematics at one RK4 stage."""
+        ca, sa, gm = cos(a), sin(a), th - a
+        return (
+            q + g / v * (z * ca - x * sa + cos(gm)),
+            (g * (x * ca + z * sa - sin(gm)) if vstate else 0.0),
+            v * sin(gm),
+        )
+
     for k in range(n - 1):
         i0 = 2 * k
         q0, q1, q2 = q[i0], q[i0 + 1], q[i0 + 2]
@@ -338,36 +342,16 @@ def _integrate(a, th, V, h, dt, n, q, az, ax, Vin):
             v1 = V
         else:
             v1, vm, v4 = Vin[i0], Vin[i0 + 1], Vin[i0 + 2]
-        # stage 1
-        ca, sa = cos(a), sin(a)
-        gm = t1 - a
-        da1 = q0 + g / v1 * (z0 * ca - x0 * sa + cos(gm))
-        dV1 = g * (x0 * ca + z0 * sa - sin(gm)) if vstate else 0.0
-        dh1 = v1 * sin(gm)
-        # stage 2
+        da1, dV1, dh1 = rates(a, v1, t1, q0, z0, x0)
         a2 = a + hdt * da1
         v2 = V + hdt * dV1 if vstate else vm
-        ca, sa = cos(a2), sin(a2)
-        gm = t2 - a2
-        da2 = q1 + g / v2 * (z1 * ca - x1a * sa + cos(gm))
-        dV2 = g * (x1a * ca + z1 * sa - sin(gm)) if vstate else 0.0
-        dh2 = v2 * sin(gm)
-        # stage 3
+        da2, dV2, dh2 = rates(a2, v2, t2, q1, z1, x1a)
         a3 = a + hdt * da2
         v3 = V + hdt * dV2 if vstate else vm
-        ca, sa = cos(a3), sin(a3)
-        gm = t3 - a3
-        da3 = q1 + g / v3 * (z1 * ca - x1b * sa + cos(gm))
-        dV3 = g * (x1b * ca + z1 * sa - sin(gm)) if vstate else 0.0
-        dh3 = v3 * sin(gm)
-        # stage 4
+        da3, dV3, dh3 = rates(a3, v3, t3, q1, z1, x1b)
         a4 = a + dt * da3
         vv4 = V + dt * dV3 if vstate else v4
-        ca, sa = cos(a4), sin(a4)
-        gm = t4 - a4
-        da4 = q2 + g / vv4 * (z2 * ca - x2 * sa + cos(gm))
-        dV4 = g * (x2 * ca + z2 * sa - sin(gm)) if vstate else 0.0
-        dh4 = vv4 * sin(gm)
+        da4, dV4, dh4 = rates(a4, vv4, t4, q2, z2, x2)
         a += sixth * (da1 + 2 * da2 + 2 * da3 + da4)
         th += sixth * (q0 + 4 * q1 + q2)
         if vstate:
@@ -571,6 +555,114 @@ def _default_free(record: Record) -> tuple[list[str], dict]:
     return free, why
 
 
+def _checked_airspeed(record: Record, U: float | None) -> float:
+    """Refuse a record the check cannot use (trim removed, a_z sign flipped, no airspeed); the airspeed, m/s."""
+    if not isinstance(record, Record):
+        raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
+    az_mean = float(np.mean(record["az"]))
+    if 0.4 < az_mean < 1.6:
+        raise RecordError(
+            f"record {record.name!r}: mean a_z is {az_mean:+.3g} g; in level flight fdml's a_z (body z, "
+            "positive down, THEORY.md Eq. 5) is near -1 g: the sign looks flipped (a normal acceleration "
+            "a_n, positive up?). Load it with the sign reversed (--sign az=-1)"
+        )
+    if not -1.6 < az_mean < -0.4:
+        raise RecordError(
+            f"record {record.name!r}: mean a_z is {az_mean:.3g} g; the compatibility check needs the record "
+            "with trim kept (a_z near -1 g in level flight, body z positive down). Load it without trim= "
+            "or add the trim back"
+        )
+    if U is None:
+        U = record.meta.get("U")
+    if not record.has("V") and (U is None or not U > 0):
+        raise RecordError(f"record {record.name!r} has no airspeed V: pass U= (m/s)")
+    return float(U) if U is not None else float(np.mean(record["V"]))
+
+
+def _choose_free(record: Record, estimate, fix) -> tuple[list[str], dict[str, float], dict[str, str]]:
+    """Free parameters, values of the fixed ones and why each is not estimated."""
+    free, why = _default_free(record)
+    if estimate is not None:
+        estimate = list(estimate)
+        bad = [k for k in estimate if k not in PARAMETERS]
+        if bad:
+            raise FdmlError(f"unknown compatibility parameter(s) {bad}; known: {', '.join(PARAMETERS)}")
+        free = estimate
+        why = {k: "not requested" for k in PARAMETERS if k not in free}
+    fixed_vals = {k: PARAMETERS[k][0] for k in PARAMETERS if k not in free}
+    for k, v in dict(fix or {}).items():
+        if k not in PARAMETERS:
+            raise FdmlError(f"unknown compatibility parameter {k!r}; known: {', '.join(PARAMETERS)}")
+        if k in free:
+            free.remove(k)
+        fixed_vals[k] = float(v)
+        why[k] = "fixed by the caller"
+    return free, fixed_vals, why
+
+
+def _start(prob: _Problem, free: list[str], max_shift: float):
+    """Start (nominal sensors, measured initial states), bounds and typical sizes of the unknowns."""
+    record = prob.rec
+    x0_list = [PARAMETERS[k][0] for k in free]
+    x0_list.append(float(record["alpha"][0]))
+    if prob.has_theta:
+        x0_list.append(float(record["theta"][0]))
+    if prob.V_state:
+        x0_list.append(float(record["V"][0]))
+    if prob.has_h:
+        x0_list.append(float(record["h"][0]))
+    x0 = np.array(x0_list, dtype=float)
+    lo = np.full(x0.size, -np.inf)
+    hi = np.full(x0.size, np.inf)
+    for i, k in enumerate(free):
+        if PARAMETERS[k][1] == "s":  # a time shift (tau_*)
+            lo[i], hi[i] = -max_shift, max_shift
+        elif PARAMETERS[k][1] == "-":  # a scale factor (K_*)
+            lo[i], hi[i] = 0.2, 5.0
+    typ = np.array([_TYPICAL[PARAMETERS[k][1]] for k in free] + [_TYPICAL[_STATE_UNITS[k]] for k in prob.states])
+    return x0, lo, hi, typ
+
+
+def _solve(prob: _Problem, x0, lo, hi, typ):
+    """Levenberg-Marquardt passes, each output weighted by its residual RMS of the pass before.
+
+    Returns the estimate, the settled output weights (std per output), whether it converged, and why not.
+    """
+    record = prob.rec
+    sigma = {k: max(noise_level(record[k]), _sigma_floor(record[k])) for k in prob.outputs}
+    x = x0
+    converged = False
+    message = ""
+    for _ in range(_WEIGHT_PASSES):
+        x, r, J, ok, message = _levenberg_marquardt(lambda z: prob.residuals(z, sigma), x, lo, hi, typ)
+        new = {}
+        for j, k in enumerate(prob.outputs):
+            e = r[j * prob.n_used : (j + 1) * prob.n_used] * sigma[k]
+            new[k] = max(float(np.sqrt(np.mean(e**2))), _sigma_floor(record[k]))
+        change = max(abs(new[k] / sigma[k] - 1) for k in sigma)
+        sigma = new
+        if change < _WEIGHT_TOL:
+            converged = ok
+            break
+    else:
+        message = f"output weights still changing by {100 * change:.2g} % after {_WEIGHT_PASSES} passes"
+    return x, sigma, converged, message
+
+
+def _uncertainty(prob: _Problem, J, r, x, sigma):
+    """Standard errors (the largest of white, coloured and noise-propagated), the white ones, and correlations."""
+    cov_w, cov_c = _covariances(J, r, len(prob.outputs), prob.n_used)
+    cov_n = prob.noise_covariance(J, prob.unpack(x), sigma)
+    se_w = np.sqrt(np.clip(np.diag(cov_w), 0, None))
+    se_c = np.sqrt(np.clip(np.diag(cov_c), 0, None))
+    se_n = np.sqrt(np.clip(np.diag(cov_n), 0, None))
+    se = np.maximum.reduce([se_w, se_c, se_n])
+    cov = cov_n if np.sum(se_n >= se_c) >= np.sum(se_c > se_n) else cov_c
+    d = np.sqrt(np.clip(np.diag(cov), 0, None))
+    d = np.where(d > 0, d, np.nan)
+    return se, se_w, cov / np.outer(d, d)
+
+
 def check_compatibility(
     record: Record,
     *,
@@ -611,92 +703,15 @@ def check_compatibility(
         If the record looks trimmed (a_z near 0 instead of -1 g), lacks an
         airspeed, or is too short.
     """
-    if not isinstance(record, Record):
-        raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
-    az_mean = float(np.mean(record["az"]))
-    if 0.4 < az_mean < 1.6:
-        raise RecordError(
-            f"record {record.name!r}: mean a_z is {az_mean:+.3g} g; in level flight fdml's a_z (body z, "
-            "positive down, THEORY.md Eq. 5) is near -1 g: the sign looks flipped (a normal acceleration "
-            "a_n, positive up?). Load it with the sign reversed (--sign az=-1)"
-        )
-    if not -1.6 < az_mean < -0.4:
-        raise RecordError(
-            f"record {record.name!r}: mean a_z is {az_mean:.3g} g; the compatibility check needs the record "
-            "with trim kept (a_z near -1 g in level flight, body z positive down). Load it without trim= "
-            "or add the trim back"
-        )
-    if U is None:
-        U = record.meta.get("U")
-    if not record.has("V") and (U is None or not U > 0):
-        raise RecordError(f"record {record.name!r} has no airspeed V: pass U= (m/s)")
-    U = float(U) if U is not None else float(np.mean(record["V"]))
-    free, why = _default_free(record)
-    if estimate is not None:
-        estimate = list(estimate)
-        bad = [k for k in estimate if k not in PARAMETERS]
-        if bad:
-            raise FdmlError(f"unknown compatibility parameter(s) {bad}; known: {', '.join(PARAMETERS)}")
-        free = estimate
-        why = {k: "not requested" for k in PARAMETERS if k not in free}
-    fixed_vals = {k: PARAMETERS[k][0] for k in PARAMETERS if k not in free}
-    for k, v in dict(fix or {}).items():
-        if k not in PARAMETERS:
-            raise FdmlError(f"unknown compatibility parameter {k!r}; known: {', '.join(PARAMETERS)}")
-        if k in free:
-            free.remove(k)
-        fixed_vals[k] = float(v)
-        why[k] = "fixed by the caller"
+    U = _checked_airspeed(record, U)
+    free, fixed_vals, why = _choose_free(record, estimate, fix)
     prob = _Problem(record, free, fixed_vals, max_shift, U)
-    # start: nominal sensors, measured initial states
-    x0_list = [PARAMETERS[k][0] for k in free]
-    x0_list.append(float(record["alpha"][0]))
-    if prob.has_theta:
-        x0_list.append(float(record["theta"][0]))
-    if prob.V_state:
-        x0_list.append(float(record["V"][0]))
-    if prob.has_h:
-        x0_list.append(float(record["h"][0]))
-    x0 = np.array(x0_list, dtype=float)
-    lo = np.full(x0.size, -np.inf)
-    hi = np.full(x0.size, np.inf)
-    for i, k in enumerate(free):
-        if PARAMETERS[k][1] == "s":  # a time shift (tau_*)
-            lo[i], hi[i] = -max_shift, max_shift
-        elif PARAMETERS[k][1] == "-":  # a scale factor (K_*)
-            lo[i], hi[i] = 0.2, 5.0
-    typ = np.array([_TYPICAL[PARAMETERS[k][1]] for k in free] + [_TYPICAL[_STATE_UNITS[k]] for k in prob.states])
-    sigma = {k: max(noise_level(record[k]), _sigma_floor(record[k])) for k in prob.outputs}
-    x = x0
-    converged = False
-    message = ""
-    for _ in range(_WEIGHT_PASSES):
-        x, r, J, ok, message = _levenberg_marquardt(lambda z: prob.residuals(z, sigma), x, lo, hi, typ)
-        new = {}
-        for j, k in enumerate(prob.outputs):
-            e = r[j * prob.n_used : (j + 1) * prob.n_used] * sigma[k]
-            new[k] = max(float(np.sqrt(np.mean(e**2))), _sigma_floor(record[k]))
-        change = max(abs(new[k] / sigma[k] - 1) for k in sigma)
-        sigma = new
-        if change < _WEIGHT_TOL:
-            converged = ok
-            break
-    else:
-        message = f"output weights still changing by {100 * change:.2g} % after {_WEIGHT_PASSES} passes"
+    x0, lo, hi, typ = _start(prob, free, max_shift)
+    x, sigma, converged, message = _solve(prob, x0, lo, hi, typ)
     # residuals and Jacobian at the settled weights
     r = prob.residuals(x, sigma)
-    J = _jacobian(lambda z: prob.residuals(z, sigma), x, r, typ, lo, hi)
-    p = prob.unpack(x)
-    cov_w, cov_c = _covariances(J, r, len(prob.outputs), prob.n_used)
-    cov_n = prob.noise_covariance(J, p, sigma)
-    se_w = np.sqrt(np.clip(np.diag(cov_w), 0, None))
-    se_c = np.sqrt(np.clip(np.diag(cov_c), 0, None))
-    se_n = np.sqrt(np.clip(np.diag(cov_n), 0, None))
-    se = np.maximum.reduce([se_w, se_c, se_n])
-    cov = cov_n if np.sum(se_n >= se_c) >= np.sum(se_c > se_n) else cov_c
-    d = np.sqrt(np.clip(np.diag(cov), 0, None))
-    d = np.where(d > 0, d, np.nan)
-    corr = cov / np.outer(d, d)
+    J = _jacobian(lambda z: prob.residuals(z, sigma), x, r, typ, hi)
+    se, se_w, corr = _uncertainty(prob, J, r, x, sigma)
     params = {}
     for i, k in enumerate(free):
         nom, unit, desc = PARAMETERS[k]
@@ -707,10 +722,10 @@ def check_compatibility(
         states[k] = ParameterEstimate(
             k, float(x[i]), float(se[i]), float(se_w[i]), _STATE_UNITS[k], "initial state", float(x0[i])
         )
-    y = prob.simulate(p)
+    y = prob.simulate(prob.unpack(x))
     rms = {k: float(np.sqrt(np.mean((prob.meas[k][prob.sel] - y[k][prob.sel]) ** 2))) for k in prob.outputs}
     fixed = {k: (fixed_vals[k], why.get(k, "fixed")) for k in PARAMETERS if k not in free}
-    findings = _findings(params, fixed, free, prob, x, se, hi, lo)
+    findings = _findings(params, free, prob, x, hi, lo, rms)
     out = CompatibilityResult(
         name=record.name,
         params=params,
@@ -751,7 +766,7 @@ def noise_level(x: np.ndarray) -> float:
 _TYPICAL = {"rad/s": 1e-2, "g": 1e-1, "-": 1.0, "s": 1e-1, "rad": 1e-1, "m/s": 10.0, "m": 100.0}
 
 
-def _jacobian(fun, x, r, typ, lo, hi):
+def _jacobian(fun, x, r, typ, hi):
     """Forward-difference Jacobian; steps of 1e-6 typical magnitudes, away from bounds."""
     J = np.empty((r.size, x.size))
     for i in range(x.size):
@@ -778,7 +793,7 @@ def _levenberg_marquardt(fun, x, lo, hi, typ, max_iter: int = 100):
     m, n = r.size, x.size
     message = "iteration limit reached"
     converged = False
-    J = _jacobian(fun, x, r, typ, lo, hi)
+    J = _jacobian(fun, x, r, typ, hi)
     for _ in range(max_iter):
         g = J.T @ r
         H = J.T @ J
@@ -802,7 +817,7 @@ def _levenberg_marquardt(fun, x, lo, hi, typ, max_iter: int = 100):
         rel = (cost - cn) / cost
         x, r, cost = xn, rn, cn
         lam = max(lam / 3.0, 1e-12)
-        J = _jacobian(fun, x, r, typ, lo, hi)
+        J = _jacobian(fun, x, r, typ, hi)
         try:
             se = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)) * cost / max(m - n, 1), 1e-300, None))
         except np.linalg.LinAlgError:
@@ -861,11 +876,12 @@ def _covariances(J: np.ndarray, r: np.ndarray, n_out: int, n_used: int):
     return Minv * s2, cov_c
 
 
-def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
+def _findings(params, free, prob, x, hi, lo, rms: dict[str, float]) -> list[str]:
+    """Significant sensor errors, estimates at a bound, and outputs whose residual RMS exceeds the noise."""
     out = []
     sig = [p for p in params.values() if p.z > SIGNIFICANT]
     for p in sorted(sig, key=lambda p: -p.z):
-        f, u = _display_factor(p.unit)
+        f, u = display_unit(p.unit)
         out.append(
             f"{p.description} {p.name} = {p.value * f:.4g} +- {p.stderr * f:.2g} {u}: "
             f"{p.z:.1f} standard errors from {p.nominal * f:g}, significant"
@@ -885,16 +901,13 @@ def _findings(params, fixed, free, prob, x, se, hi, lo) -> list[str]:
             "b_alpha rests on the altitude channel (h_dot = V sin(theta - alpha)): a static-pressure error of "
             "a barometric altitude, or a steady vertical wind, reads as an alpha bias"
         )
-    p = prob.unpack(x)
-    y = prob.simulate(p)
     for k in prob.outputs:
-        rms = float(np.sqrt(np.mean((prob.meas[k][prob.sel] - y[k][prob.sel]) ** 2)))
         floor = noise_level(prob.meas[k])
-        if rms > RESIDUAL_FACTOR * floor:
-            f, u = _display_factor(_OUT_UNITS[k])
+        if rms[k] > RESIDUAL_FACTOR * floor:
+            f, u = display_unit(SIGNALS[k])
             out.append(
-                f"the kinematics do not close for {k}: residual RMS {rms * f:.3g} {u} is "
-                f"{rms / floor:.0f} times its noise level ({floor * f:.2g} {u}); wind, sensor dynamics or "
+                f"the kinematics do not close for {k}: residual RMS {rms[k] * f:.3g} {u} is "
+                f"{rms[k] / floor:.0f} times its noise level ({floor * f:.2g} {u}); wind, sensor dynamics or "
                 "errors outside the sensor models remain"
             )
     return out
