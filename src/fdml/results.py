@@ -410,7 +410,7 @@ class FitResult:
         The ``v`` of Eq. 19 whose covariance is ``R`` (Eq. 24): the measured
         spectra minus :meth:`fitted_spectra`, for the fitted outputs.
         """
-        idx = [("alpha", "q", "az").index(o) for o in self.outputs]
+        idx = [OUTPUTS.index(o) for o in self.outputs]
         parts = [(s["z"] - self.fitted_spectra(r))[:, idx] for r, s in enumerate(self.spectra)]
         out = np.concatenate(parts) if parts else np.zeros((0, len(idx)), complex)
         out.setflags(write=False)
