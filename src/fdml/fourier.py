@@ -23,7 +23,7 @@ where the endpoint coefficients a_k touch only the first and last K samples:
 
 For "cubic", W and a_k are assembled from the moments
 mu_q(theta) = integral_0^1 u^q exp(-j theta u) du (q = 0..3) of the Lagrange
-basis polynomials.  The moments are summed as Taylor series for |theta| < 1 and
+basis polynomials.  The moments are summed as Taylor series for ``|theta| < 1`` and
 by the closed-form recursion otherwise, so no quantity is ever divided by
 theta^4 and small theta (including 0) loses nothing to cancellation.  For the
 record, W(theta) = (6 + theta^2) (3 - 4 cos theta + cos 2 theta) / (3 theta^4).
@@ -479,7 +479,7 @@ def finite_fourier_transform(x, dt, omega, *, method="auto", end_correction="cub
     dt : float
         Sample interval, s (> 0).
     omega : array_like, shape (m,)
-        Angular frequencies, rad/s, in any order, |omega| <= pi/dt.
+        Angular frequencies, rad/s, in any order, ``|omega| <= pi/dt``.
     method : {"auto", "czt", "direct"}
         How the interior sum is evaluated: "czt" (blocked chirp-z, needs an
         evenly spaced omega), "direct" (chunked matrix products), or "auto"

@@ -136,7 +136,7 @@ class QualityReport:
     omega : ndarray
         Band frequencies, rad/s.
     input_db : ndarray
-        Input energy spectrum |de(w)|^2 on ``omega``, dB relative to its peak
+        Input energy spectrum ``|de(w)|^2`` on ``omega``, dB relative to its peak
         over all frequencies (0 to Nyquist).
     input_energy_fraction : float
         Fraction of the input's energy (mean removed) at frequencies inside the band.
