@@ -34,8 +34,10 @@ K = -ct.tf([1.5, 0.6], [1, 0])  # PI, de = -(1.5 + 0.6/s) (theta_ref - theta)
 L = ct.series(K, theta_of_de)
 T = ct.feedback(L, 1)
 gm, pm, wcg, wcp = ct.margin(L)
-print(f"gain margin {20 * np.log10(gm) if np.isfinite(gm) else np.inf:.1f} dB, "
-      f"phase margin {pm:.1f} deg at {wcp:.2f} rad/s")
+print(
+    f"gain margin {20 * np.log10(gm) if np.isfinite(gm) else np.inf:.1f} dB, "
+    f"phase margin {pm:.1f} deg at {wcp:.2f} rad/s"
+)
 print("closed-loop poles:", np.round(ct.poles(T), 3))
 
 # %%

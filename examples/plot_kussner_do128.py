@@ -18,8 +18,9 @@ from fdml.simulate import simulate_maneuver
 
 ac = fdml.get_aircraft("do128")
 truth = fdml.make_model("unsteady", ac, gust=True)
-rec = simulate_maneuver(truth, "3211", duration=30.0, dt=0.02, gust_std=1.5, seed=3,
-                        noise={"alpha": 1e-3, "q": 2e-3, "az": 5e-3})
+rec = simulate_maneuver(
+    truth, "3211", duration=30.0, dt=0.02, gust_std=1.5, seed=3, noise={"alpha": 1e-3, "q": 2e-3, "az": 5e-3}
+)
 b1_true = truth.parameters["b1"].value
 print(f"channels {', '.join(rec.signals)}; b1 (true) = {b1_true}")
 
@@ -30,8 +31,7 @@ b1_start = get_indicial("kussner_jones_2d").mean_lag
 best = fdml.fit(rec, truth.with_values(b1=b1_start), band=band, free=["b1"])
 no_lag = fdml.fit(rec, truth, band=band, fix={"b1": 0.0})
 b1, se = best["b1"], best.errors["b1"]
-print(f"b1 = {b1:.2f} +/- {se:.2f} semichords (start {b1_start:.2f}); "
-      f"T* = {ac.c_w * b1 / (2 * ac.U):.3f} s")
+print(f"b1 = {b1:.2f} +/- {se:.2f} semichords (start {b1_start:.2f}); T* = {ac.c_w * b1 / (2 * ac.U):.3f} s")
 print(f"det R without the lag / with it: {no_lag.cost / best.cost:.2f}")
 
 # %%

@@ -10,7 +10,6 @@ thing.
 """
 
 import matplotlib.pyplot as plt
-import numpy as np
 
 import fdml
 from fdml.montecarlo import monte_carlo

@@ -32,8 +32,10 @@ print(res.summary())
 # %%
 # Each estimate against the truth, in standard errors:
 for n in theta:
-    print(f"{n:8s} true {true[n]:8.4g}  estimate {res[n]:8.4g} +/- {res.errors[n]:.2g}"
-          f"  ({(res[n] - true[n]) / res.errors[n]:+.1f} s.e.)")
+    print(
+        f"{n:8s} true {true[n]:8.4g}  estimate {res[n]:8.4g} +/- {res.errors[n]:.2g}"
+        f"  ({(res[n] - true[n]) / res.errors[n]:+.1f} s.e.)"
+    )
 
 # %%
 # Measured and fitted spectra, with the fit's uncertainty band:

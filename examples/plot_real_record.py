@@ -20,12 +20,13 @@ from fdml.io import data_path, load_record
 from fdml.plotting import plot_time_histories
 
 if not os.environ.get("FDML_DATA"):
-    print("FDML_DATA is unset: the real flight records are not available here, so this example "
-          "stops. Set FDML_DATA to the folder that holds twin_otter/ to run it.")
+    print(
+        "FDML_DATA is unset: the real flight records are not available here, so this example "
+        "stops. Set FDML_DATA to the folder that holds twin_otter/ to run it."
+    )
 else:
     rec = load_record(data_path("twin_otter/totter_lon_020213f1_017.mat"))
-    print(f"{rec.name}: {rec.meta['format']}, {rec.duration:.1f} s at {1 / rec.dt:.0f} Hz, "
-          f"U = {rec.meta['U']:.1f} m/s")
+    print(f"{rec.name}: {rec.meta['format']}, {rec.duration:.1f} s at {1 / rec.dt:.0f} Hz, U = {rec.meta['U']:.1f} m/s")
 
     # %%
     # Fit the dimensional model over 0.1-1.5 Hz on a 0.02 Hz grid (both in rad/s):

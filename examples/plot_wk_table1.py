@@ -20,8 +20,7 @@ from fdml.simulate import simulate_maneuver
 
 ac = fdml.get_aircraft("navion")
 truth = fdml.make_model("unsteady", ac)
-rec = add_noise(simulate_maneuver(truth, "3211", duration=12.0, dt=0.02), 0.02,
-                np.random.default_rng(1), relative=True)
+rec = add_noise(simulate_maneuver(truth, "3211", duration=12.0, dt=0.02), 0.02, np.random.default_rng(1), relative=True)
 cmp = compare_steady_unsteady(rec, ac)
 print(cmp.table(reference=WK_TABLE1))
 
@@ -29,10 +28,16 @@ print(cmp.table(reference=WK_TABLE1))
 # How far the steady fit moved, against the paper's shift:
 u, s = cmp.unsteady_set, cmp.steady_set
 for n in ALTERNATE_NAMES:
-    print(f"{n:6s} unsteady {u[n][0]:7.2f}  steady {s[n][0]:7.2f}   "
-          f"WK Table 1: {WK_TABLE1[n][0]:7.2f} {WK_TABLE1[n][1]:7.2f}")
+    print(
+        f"{n:6s} unsteady {u[n][0]:7.2f}  steady {s[n][0]:7.2f}   "
+        f"WK Table 1: {WK_TABLE1[n][0]:7.2f} {WK_TABLE1[n][1]:7.2f}"
+    )
 print(f"det R, steady / unsteady = {cmp.steady.cost / cmp.unsteady.cost:.1f}")
 
 # %%
-fig, axes = plot_spectra([cmp.unsteady, cmp.steady], ["unsteady fit", "steady (six-derivative) fit"],
-                         crb=False, title="Navion, WK Table 1 set-up")
+fig, axes = plot_spectra(
+    [cmp.unsteady, cmp.steady],
+    ["unsteady fit", "steady (six-derivative) fit"],
+    crb=False,
+    title="Navion, WK Table 1 set-up",
+)

@@ -80,7 +80,9 @@ class FdmlCli(SphinxDirective):
                 lines += _parser_lines(inner, f"fdml {name} {inner_name}", "~", _help_of(sub, inner_name))
         container = nodes.section()
         container.document = self.state.document
-        self.state.nested_parse(StringList(lines, source="fdml.cli.build_parser"), self.content_offset, container)
+        self.state.nested_parse(
+            StringList(lines, source="fdml.cli.build_parser"), self.content_offset, container, match_titles=True
+        )
         return list(container.children)
 
 
