@@ -169,8 +169,14 @@ def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False)
 
     Returns
     -------
-    lo, hi, step, count : float, float, float or None, int
-        ``count`` is the number of grid points (0 without a step).
+    lo : float
+        Lowest frequency, rad/s.
+    hi : float
+        Highest frequency, rad/s.
+    step : float or None
+        Grid step, rad/s.
+    count : int
+        The number of grid points (0 without a step).
 
     Raises
     ------
@@ -566,8 +572,10 @@ def gram(n, dt, omega, *, end_correction="cubic"):
 
     Returns
     -------
-    FFH, FFT : numpy.ndarray, complex, shape (m, m)
-        s^2.
+    FFH : numpy.ndarray, complex, shape (m, m)
+        F F^H, s^2.
+    FFT : numpy.ndarray, complex, shape (m, m)
+        F F^T, s^2.
     """
     _, n, dt, omega = _check(dt, omega, end_correction, "direct", n=n)
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)

@@ -158,6 +158,7 @@ class HistoryRecorder:
 
     @property
     def history(self) -> list:
+        """The iterations of the latest fit (empty before the first)."""
         return self.fits[-1] if self.fits else []
 
     def __call__(self, info) -> None:

@@ -103,6 +103,7 @@ class ChannelQuality:
     flags: tuple = ()
 
     def to_dict(self) -> dict:
+        """The channel's quality figures as plain JSON data."""
         return {
             "name": self.name,
             "unit": self.unit,
@@ -189,6 +190,7 @@ class QualityReport:
     findings: tuple = field(default=())
 
     def channel(self, name: str) -> ChannelQuality:
+        """The report of channel ``name`` (KeyError if there is none)."""
         for c in self.channels:
             if c.name == name:
                 return c
