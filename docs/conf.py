@@ -3,11 +3,7 @@
 from __future__ import annotations
 
 import os
-import sys
-from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE / "_ext"))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 import fdml  # noqa: E402
@@ -25,8 +21,11 @@ extensions = [
     "numpydoc",
     "myst_parser",
     "sphinx_gallery.gen_gallery",
-    "fdml_cli",
+    "sphinxarg.ext",  # the CLI reference from fdml.cli.build_parser
 ]
+
+# no en dashes for "--": option names in the CLI reference and the prose stay as typed
+smartquotes_action = "qe"
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
 exclude_patterns = ["_build", "_templates", "**.ipynb_checkpoints", "gallery/*.ipynb", "gallery/*.py"]
