@@ -36,6 +36,8 @@ myst_heading_anchors = 3
 autosummary_generate = True
 autosummary_imported_members = False
 autosummary_ignore_module_all = False  # a module's page lists exactly its __all__
+# names documented at the top level (fdml.X) are listed, not documented again, on their module's page
+autosummary_context = {"toplevel": [n for n in fdml.__all__ if n != "__version__"]}
 autodoc_default_options = {"members": False}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
