@@ -84,7 +84,12 @@ _VECTORISES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 @contextlib.contextmanager
 def invocation(fit_argv, diagnose_argv=None):
-    """Within the block, warnings quote these commands (argv lists, ``fdml fit ...`` and ``fdml diagnose ...``)."""
+    """Within the block, warnings quote these commands (argv lists, ``fdml fit ...`` and ``fdml diagnose ...``).
+
+    Yields
+    ------
+    None
+    """
     token = _COMMAND.set((list(fit_argv), None if diagnose_argv is None else list(diagnose_argv)))
     try:
         yield
@@ -132,6 +137,7 @@ class EffectTest:
         return f"{self.effect}:{self.channel}"
 
     def describe(self) -> str:
+        """One line: the effect, its expected parameter values, LR, p and Holm-corrected p."""
         vals = ", ".join(f"{k} = {_fmt(v, self.units.get(k, ''))}" for k, v in self.expected.items())
         return f"{self.key} ({vals}; LR {self.statistic:.3g}, p {self.p_value:.2g}, Holm p {self.p_holm:.2g})"
 
@@ -183,6 +189,7 @@ class Adequacy:
 
     @property
     def residual_flags(self) -> tuple:
+        """The residual checks (coherence, whiteness) that failed at the family level, after Holm."""
         return tuple(c for c in (self.coherence, self.whiteness) if c.p_holm < self.alpha)
 
     @property
@@ -201,6 +208,7 @@ class Adequacy:
         }
 
     def to_dict(self) -> dict:
+        """The adequacy check as plain JSON data."""
         return {
             "alpha": self.alpha,
             "effects": [_effect_dict(e) for e in self.effects],

@@ -217,7 +217,7 @@ class IndicialFunction:
     source: str = ""
 
     def step(self, tau):
-        """phi(tau), the normalised indicial response, tau in semichords."""
+        """The normalised indicial response phi(tau), tau in semichords."""
         tau = np.asarray(tau, dtype=float)
         A = np.asarray(self.amplitudes)[:, None]
         b = np.asarray(self.rates)[:, None]

@@ -620,6 +620,7 @@ class BatchSummary:
 
     @property
     def n_ok(self) -> int:
+        """Records fitted without error."""
         return self.n_total - self.n_failed
 
     @property

@@ -114,7 +114,7 @@ class KinematicFit:
 
     @property
     def implied_airspeed(self) -> float:
-        """g / slope_az, m/s: the airspeed the a_z slope implies (as labelled)."""
+        """The airspeed the a_z slope implies (as labelled), g / slope_az, m/s."""
         return G0 / self.slope_az if self.slope_az != 0 else math.inf
 
 

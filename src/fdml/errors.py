@@ -29,8 +29,10 @@ class AircraftError(FdmlError):
 
 
 class OutputError(FdmlError):
-    """An output path is unsafe or unwritable: it is one of the inputs, a device, a FIFO,
-    a folder, or its folder cannot be written."""
+    """An output path is unsafe or unwritable.
+
+    It is one of the inputs, a device, a FIFO, a folder, or its folder cannot be written.
+    """
 
 
 class DataCheckError(FdmlError):

@@ -273,6 +273,7 @@ class Problem:
         return np.array(lo), np.array(hi)
 
     def model_values(self, theta: np.ndarray) -> dict[str, float]:
+        """The model's parameter values with the model entries of ``theta`` in place."""
         vals = self.model.parameters.values
         for i in self.model_slots:
             vals[self.slots[i].name] = float(theta[i])
@@ -326,7 +327,7 @@ class Problem:
     def sensitivities(
         self, theta: np.ndarray, y0: list[np.ndarray] | None = None, tol: float = SETTINGS.settle_tol
     ) -> np.ndarray:
-        """dy/dtheta, shape (N, n_out, p): Eq. 26 for model parameters, exact for nuisances."""
+        """The sensitivities dy/dtheta, shape (N, n_out, p): Eq. 26 for model parameters, exact for nuisances."""
         p = len(self.slots)
         A = np.zeros((self.N, self.n_out, p), complex)
         offs = np.cumsum([0] + [d.m for d in self.data])

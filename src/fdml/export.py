@@ -98,8 +98,14 @@ def descriptor_matrices(model, values=None):
 
     Returns
     -------
-    E, A, B0, B1 : ndarray
-        Shapes (2, 2), (2, 2), (2, n_in), (2, n_in).
+    E : ndarray
+        Shape (2, 2).
+    A : ndarray
+        Shape (2, 2).
+    B0 : ndarray
+        Shape (2, n_in).
+    B1 : ndarray
+        Shape (2, n_in).
     """
     if model.kind not in _RATIONAL:
         raise ParameterError(_not_rational(model))

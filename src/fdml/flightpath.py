@@ -126,6 +126,7 @@ class ParameterEstimate:
         return abs(self.value - self.nominal) / self.stderr if self.stderr > 0 else math.inf
 
     def to_dict(self) -> dict:
+        """The estimate, its standard errors, unit and description as plain JSON data."""
         return {
             "value": self.value,
             "stderr": self.stderr,

@@ -23,7 +23,7 @@ where the endpoint coefficients a_k touch only the first and last K samples:
 
 For "cubic", W and a_k are assembled from the moments
 mu_q(theta) = integral_0^1 u^q exp(-j theta u) du (q = 0..3) of the Lagrange
-basis polynomials.  The moments are summed as Taylor series for |theta| < 1 and
+basis polynomials.  The moments are summed as Taylor series for ``|theta| < 1`` and
 by the closed-form recursion otherwise, so no quantity is ever divided by
 theta^4 and small theta (including 0) loses nothing to cancellation.  For the
 record, W(theta) = (6 + theta^2) (3 - 4 cos theta + cos 2 theta) / (3 theta^4).
@@ -169,8 +169,14 @@ def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False)
 
     Returns
     -------
-    lo, hi, step, count : float, float, float or None, int
-        ``count`` is the number of grid points (0 without a step).
+    lo : float
+        Lowest frequency, rad/s.
+    hi : float
+        Highest frequency, rad/s.
+    step : float or None
+        Grid step, rad/s.
+    count : int
+        The number of grid points (0 without a step).
 
     Raises
     ------
@@ -479,7 +485,7 @@ def finite_fourier_transform(x, dt, omega, *, method="auto", end_correction="cub
     dt : float
         Sample interval, s (> 0).
     omega : array_like, shape (m,)
-        Angular frequencies, rad/s, in any order, |omega| <= pi/dt.
+        Angular frequencies, rad/s, in any order, ``|omega| <= pi/dt``.
     method : {"auto", "czt", "direct"}
         How the interior sum is evaluated: "czt" (blocked chirp-z, needs an
         evenly spaced omega), "direct" (chunked matrix products), or "auto"
@@ -566,8 +572,10 @@ def gram(n, dt, omega, *, end_correction="cubic"):
 
     Returns
     -------
-    FFH, FFT : numpy.ndarray, complex, shape (m, m)
-        s^2.
+    FFH : numpy.ndarray, complex, shape (m, m)
+        F F^H, s^2.
+    FFT : numpy.ndarray, complex, shape (m, m)
+        F F^T, s^2.
     """
     _, n, dt, omega = _check(dt, omega, end_correction, "direct", n=n)
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)

@@ -400,6 +400,7 @@ class Fields:
         self.doc = doc
 
     def name(self, key: str) -> str:
+        """The key's full path in the file (prefix and key)."""
         return f"{self.prefix}{key}"
 
     def error(self, key: str, text: str) -> FdmlError:
@@ -410,6 +411,7 @@ class Fields:
         return key in self.doc
 
     def raw(self, key: str, default=_MISSING):
+        """The value of ``key`` as decoded, or ``default``; a missing key without default is an error."""
         if key not in self.doc:
             if default is _MISSING:
                 raise self.error(key, "is missing")
@@ -439,6 +441,8 @@ class Fields:
         return v
 
     def integer(self, key: str, default=_MISSING, minimum: int | None = None) -> int:
+        """The integer at ``key`` (not a bool), at least ``minimum`` when given."""
+
         def conv(v):
             if isinstance(v, bool) or not isinstance(v, int):
                 raise TypeError(f"must be an integer, got {_kind(v)}")
@@ -454,6 +458,8 @@ class Fields:
     def number(self, key: str, default: float | None = ..., allow_none: bool = False) -> float | None: ...
 
     def number(self, key: str, default: Any = _MISSING, allow_none: bool = False) -> float | None:
+        """The finite number at ``key`` as a float (None allowed with ``allow_none``)."""
+
         def conv(v):
             if v is None and allow_none:
                 return None
@@ -462,6 +468,8 @@ class Fields:
         return self._get(key, default, conv)
 
     def boolean(self, key: str, default=_MISSING) -> bool:
+        """The boolean at ``key``."""
+
         def conv(v):
             if not isinstance(v, bool):
                 raise TypeError(f"must be true or false, got {_kind(v)}")
@@ -477,6 +485,8 @@ class Fields:
     ) -> str | None: ...
 
     def string(self, key: str, default: Any = _MISSING, choices: Any = None, allow_none: bool = False) -> str | None:
+        """The string at ``key``, one of ``choices`` when given (None allowed with ``allow_none``)."""
+
         def conv(v):
             if v is None and allow_none:
                 return None
@@ -489,6 +499,8 @@ class Fields:
         return self._get(key, default, conv)
 
     def strings(self, key: str, default=_MISSING, length: int | None = None, choices=None) -> tuple:
+        """The list of strings at ``key`` as a tuple, of ``length`` and from ``choices`` when given."""
+
         def conv(v):
             if not isinstance(v, list):
                 raise TypeError(f"must be a list of strings, got {_kind(v)}")
@@ -506,6 +518,8 @@ class Fields:
         return self._get(key, default, conv)
 
     def numbers(self, key: str, default=_MISSING, length: int | None = None, min_length: int = 0) -> tuple:
+        """The list of finite numbers at ``key`` as a tuple of floats."""
+
         def conv(v):
             a = float_array(v, (length,))
             if a.size < min_length:
@@ -515,6 +529,7 @@ class Fields:
         return self._get(key, default, conv)
 
     def floats(self, key: str, shape=None, default=_MISSING, nulls: bool = False) -> np.ndarray:
+        """The float array at ``key``, of ``shape`` when given (NaN for null with ``nulls``)."""
         return self._get(key, default, lambda v: float_array(v, shape, nulls=nulls))
 
     def flags(self, key: str, length: int | None = None, default=_MISSING) -> np.ndarray:
@@ -526,9 +541,12 @@ class Fields:
         return self._get(key, default, lambda v: np.array(_typed_list(v, int, "integers", length), int))
 
     def complexes(self, key: str, shape=None, default=_MISSING) -> np.ndarray:
+        """The complex array at ``key`` (stored as real and imaginary parts), of ``shape`` when given."""
         return self._get(key, default, lambda v: complex_array(v, shape))
 
     def mapping(self, key: str, default=_MISSING) -> dict:
+        """The JSON object at ``key`` as a dict."""
+
         def conv(v):
             if not isinstance(v, Mapping):
                 raise TypeError(f"must be an object, got {_kind(v)}")

@@ -193,7 +193,7 @@ def multisine(
     t : array_like, shape (n,)
         Uniform time, s.
     amplitude : float, optional
-        Peak |u| on the samples, rad.
+        Peak ``|u|`` on the samples, rad.
     omega_lo, omega_hi : float, optional
         Band edges, rad/s (0 < omega_lo < omega_hi < pi/dt).
     n_components : int, optional

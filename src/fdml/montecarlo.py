@@ -169,14 +169,17 @@ class MonteCarloResult:
 
     @property
     def n_used(self) -> int:
+        """Runs that enter the statistics."""
         return int(self.used.sum())
 
     @property
     def mean(self) -> np.ndarray:
+        """Mean estimate per parameter over the runs used."""
         return self.estimates[self.used].mean(axis=0)
 
     @property
     def bias(self) -> np.ndarray:
+        """Mean estimate minus truth, per parameter, in its unit."""
         return self.mean - self.truth
 
     @property
@@ -191,7 +194,7 @@ class MonteCarloResult:
 
     @property
     def efficiency(self) -> np.ndarray:
-        """scatter / mean CRB (1 for an efficient estimator with honest error bars)."""
+        """Scatter / mean CRB per parameter (1 for an efficient estimator with honest error bars)."""
         with np.errstate(divide="ignore", invalid="ignore"):
             return self.scatter / self.mean_crb
 
@@ -349,8 +352,11 @@ class MonteCarloResult:
 
     @classmethod
     def from_dict(cls, d: Mapping, *, source: str = "fdml Monte Carlo result") -> "MonteCarloResult":
-        """Inverse of :meth:`to_dict`; a key missing or of the wrong type or shape raises
-        :class:`FdmlError` ``"<source>: key '<key>' ..."``."""
+        """Inverse of :meth:`to_dict`.
+
+        A key missing or of the wrong type or shape raises :class:`FdmlError`
+        ``"<source>: key '<key>' ..."``.
+        """
         from .jsoncodec import Fields
 
         f = Fields(d, source)

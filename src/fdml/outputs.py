@@ -289,7 +289,13 @@ class StagedOutputs:
 
     @contextlib.contextmanager
     def open(self, path, mode: str = "w", *, encoding: str = "utf-8", what: str = "output file") -> Iterator:
-        """A file handle (``"w"`` text, ``"wb"`` binary) whose content is staged for ``path``."""
+        """A file handle (``"w"`` text, ``"wb"`` binary) whose content is staged for ``path``.
+
+        Yields
+        ------
+        file object
+            Write the content to it.
+        """
         if mode not in ("w", "wt", "wb"):
             raise ValueError(f"mode must be 'w' or 'wb', got {mode!r}")
         pending, fd = self._stage(path, what)
@@ -385,6 +391,11 @@ def atomic_open(
         Text (UTF-8, no newline translation) or binary.
     inputs : iterable of str or Path, optional
         The command's inputs (see :func:`check_output`).
+
+    Yields
+    ------
+    file object
+        Write the content to it.
 
     Raises
     ------

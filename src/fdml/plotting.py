@@ -1,15 +1,15 @@
 """Figures of fits, with matplotlib (imported only when a plot is made).
 
-=========================  =====================================================
-:func:`plot_spectra`       measured against model output spectra, magnitude and
-                           phase per output (WK Figs. 3-5), with the Cramer-Rao
-                           band of the fitted spectrum
-:func:`plot_time_histories` measured time histories against the model simulated
-                           in the time domain from the estimate
-:func:`plot_residual_spectra` |residual| per output against frequency, with the
-                           noise floor implied by R
-:func:`plot_correlation`   the parameter correlation matrix as a heat map
-=========================  =====================================================
+=============================  =====================================================
+:func:`plot_spectra`           measured against model output spectra, magnitude and
+                               phase per output (WK Figs. 3-5), with the Cramer-Rao
+                               band of the fitted spectrum
+:func:`plot_time_histories`    measured time histories against the model simulated
+                               in the time domain from the estimate
+:func:`plot_residual_spectra`  ``|residual|`` per output against frequency, with the
+                               noise floor implied by R
+:func:`plot_correlation`       the parameter correlation matrix as a heat map
+=============================  =====================================================
 
 Every function takes ``ax=`` / ``axes=`` (or makes its own figure), returns
 ``(figure, axes)`` and never calls ``show()``.  Frequency axes are in rad/s
@@ -112,7 +112,7 @@ def spectra_uncertainty(result, record: int = 0, *, rel_step: float = 1e-6):
     by central differences of :meth:`FitResult.fitted_spectra` (exact for the
     nuisance terms, which enter linearly).  This is the variance of the
     complex prediction, ``E|y - E y|^2``: the radius of its uncertainty disc,
-    which bounds the spread of both the magnitude and (divided by |y|) the
+    which bounds the spread of both the magnitude and (divided by ``|y|``) the
     phase.
 
     Parameters
@@ -185,7 +185,7 @@ def plot_spectra(
     timing drops out.  The shaded band is ``+-sigma`` standard deviations of
     the fitted spectrum from the parameter covariance (the Cramer-Rao bound
     for ``cov_type="white"``; see :func:`spectra_uncertainty`): on the
-    magnitude ``|y| +- sigma sd(y)`` (clipped at 1e-3 |y| on a log axis), on
+    magnitude ``|y| +- sigma sd(y)`` (clipped at ``1e-3 |y|`` on a log axis), on
     the phase ``+- sigma sd(y)/|y|`` rad.
 
     Parameters
@@ -503,7 +503,7 @@ def plot_residual_spectra(
     ax=None,
     title: str | None = None,
 ):
-    """|measured - fitted| spectra per output, with the noise floor implied by R.
+    """Residual spectra ``|measured - fitted|`` per output, with the noise floor implied by R.
 
     For complex Gaussian residuals with covariance R (Eq. 24), ``E|v_k|^2 =
     R_kk``: the solid line is that RMS level ``sqrt(R_kk)``, the dashed line

@@ -6,14 +6,14 @@ step_in_stderr); a callback that returns True stops the fit cleanly (the
 result has ``stopped=True`` and says so in its message).  This module has
 ready-made callbacks and a way to combine them:
 
-==================  ============================================================
+========================  ============================================================
 :class:`TqdmProgress`     a tqdm bar (optional extra ``progress``)
 :class:`PrintProgress`    one line per iteration on a stream (stderr by default)
 :class:`HistoryRecorder`  keeps every IterationInfo (cost and parameter paths)
 :class:`StopAfter`        stops after N iterations, a time limit, or once the
                           step falls below a size
 :func:`chain`             several callbacks as one (stops if any asks to)
-==================  ============================================================
+========================  ============================================================
 
 Runs of many tasks (:func:`fdml.parallel.execute`: a batch, a Monte Carlo
 study, the diagnosis validation) report their progress through
@@ -198,6 +198,7 @@ class HistoryRecorder:
 
     @property
     def history(self) -> list:
+        """The iterations of the latest fit (empty before the first)."""
         return self.fits[-1] if self.fits else []
 
     def __call__(self, info) -> None:

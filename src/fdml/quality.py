@@ -104,6 +104,7 @@ class ChannelQuality:
     flags: tuple = ()
 
     def to_dict(self) -> dict:
+        """The channel's quality figures as plain JSON data."""
         return {
             "name": self.name,
             "unit": self.unit,
@@ -137,7 +138,7 @@ class QualityReport:
     omega : ndarray
         Band frequencies, rad/s.
     input_db : ndarray
-        Input energy spectrum |de(w)|^2 on ``omega``, dB relative to its peak
+        Input energy spectrum ``|de(w)|^2`` on ``omega``, dB relative to its peak
         over all frequencies (0 to Nyquist).
     input_energy_fraction : float
         Fraction of the input's energy (mean removed) at frequencies inside the band.
@@ -190,6 +191,7 @@ class QualityReport:
     findings: tuple = field(default=())
 
     def channel(self, name: str) -> ChannelQuality:
+        """The report of channel ``name`` (KeyError if there is none)."""
         for c in self.channels:
             if c.name == name:
                 return c

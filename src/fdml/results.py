@@ -255,6 +255,7 @@ class FitResult:
         method,
         stop,
     ) -> "FitResult":
+        """Assemble the result of a finished fit from the estimator's state (used by :func:`fdml.fit`)."""
         names = prob.names
         lo, hi = prob.bounds()
         at_bound = tuple(

@@ -109,7 +109,7 @@ def chi2_sf(x: float, df: float) -> float:
 
 
 def chi2_logsf(x: float, df: float) -> float:
-    """log P(chi2_df > x), by the branches of ``scipy.stats.chi2.logsf``.
+    """The log tail probability log P(chi2_df > x), by the branches of ``scipy.stats.chi2.logsf``.
 
     Above the median ``log(sf)``, below it ``log1p(-cdf)`` (accurate where the
     tail probability is close to 1); -inf where the tail underflows.
@@ -360,9 +360,11 @@ class ScreenContext:
         return np.vstack([M.real, M.imag])
 
     def perp(self, X):
+        """The part of ``X`` orthogonal to the base model's sensitivities (whitened)."""
         return X - self.Q @ (self.Q.T @ X)
 
     def perp_floor(self, X):
+        """The part of ``X`` orthogonal to the base sensitivities weighted by the noise floors."""
         return X - self.Qf @ (self.Qf.T @ X)
 
     @property
@@ -385,7 +387,10 @@ class ScreenContext:
         return self.white(A), self.floor(A)
 
     def candidate_sensitivities(self, model, names, steps, one_sided) -> np.ndarray:
-        """d(prediction)/d(eta) at the model's values by central (or forward) differences, shape (N, n_out, q)."""
+        """Sensitivities d(prediction)/d(eta) at the model's values, by central (or forward) differences.
+
+        Shape (N, n_out, q).
+        """
         prob = prepare(self.spectra, model, sensitivity="central", **self.options)
         theta = np.array([self.fit.params.get(n, model.parameters.values.get(n, 0.0)) for n in prob.names])
         idx = {n: i for i, n in enumerate(prob.names)}
@@ -409,8 +414,11 @@ class ScreenContext:
         return self.pair(self.candidate_sensitivities(model, names, steps, one_sided))
 
     def candidate_sensitivities_many(self, cands) -> list:
-        """:meth:`candidate_sensitivities` of each ``(model, names, steps, one_sided)``; an exception in place
-        of a candidate that cannot be evaluated.  A subclass may take them together."""
+        """Compute :meth:`candidate_sensitivities` of each ``(model, names, steps, one_sided)``.
+
+        An exception stands in place of a candidate that cannot be evaluated.  A subclass may
+        take them together.
+        """
         out: list[np.ndarray | Exception] = []
         for args in cands:
             try:

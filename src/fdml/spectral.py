@@ -129,7 +129,7 @@ class FrequencyData:
     band : tuple
         (lo, hi, step), rad/s, when built from a band.
     end_offset : ndarray, shape (3,)
-        |x(T) - trim| / max|x - trim| per output: how far from trim it ends.
+        ``|x(T) - trim| / max|x - trim|`` per output: how far from trim it ends.
     meta : dict
         The record's meta data (airspeed, source, trim values).
     record : Record or None

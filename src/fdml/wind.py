@@ -122,6 +122,7 @@ class GustEstimate:
         )
 
     def summary(self) -> str:
+        """A few lines: source channels, gust angle and wind statistics, noise level."""
         lines = [
             f"Vertical gust angle from {self.source} ({', '.join(self.channels)})",
             f"  alpha_w: mean {math.degrees(np.mean(self.alpha_w)):.3g} deg, RMS about the mean "
@@ -133,6 +134,7 @@ class GustEstimate:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
+        """The estimate's time histories and settings as plain JSON data."""
         return {
             "t": self.t.tolist(),
             "alpha_w": self.alpha_w.tolist(),

@@ -81,13 +81,16 @@ class Candidate:
 
     @property
     def name(self) -> str:
+        """The effect's name (``time_delay``, ...)."""
         return self.effect.name
 
     @property
     def channel(self) -> str:
+        """The channel the effect acts on (``alpha``, ``de``, ...)."""
         return self.effect.channel
 
     def significant(self, alpha: float) -> bool:
+        """Whether the Holm-corrected p-value is below ``alpha``."""
         return self.p_holm is not None and self.p_holm < alpha
 
 

@@ -80,6 +80,7 @@ class AnalysisData:
 
     @property
     def n_records(self) -> int:
+        """Number of records analysed together."""
         return len(self.spectra)
 
     @property
@@ -92,12 +93,15 @@ class AnalysisData:
         return np.concatenate([d.omega for d in self.spectra])
 
     def stacked_dft(self) -> np.ndarray:
+        """The records' transforms on the analysis grid, stacked along frequency."""
         return np.concatenate(self.dft)
 
     def stacked_record(self) -> np.ndarray:
+        """For each stacked frequency, the index of its record."""
         return np.concatenate([np.full(d.m, i) for i, d in enumerate(self.spectra)])
 
     def names(self) -> list[str]:
+        """The records' names, in order."""
         return [d.name for d in self.spectra]
 
 

@@ -113,9 +113,11 @@ class DiagFit:
 
     @property
     def params(self) -> dict:
+        """Estimated parameter values by name."""
         return dict(zip(self.names, self.theta.tolist()))
 
     def model_values(self) -> dict:
+        """All model parameter values with the estimates in place."""
         return self.prob.model_values(self.theta)
 
     def full_residual(self) -> np.ndarray:

@@ -119,6 +119,8 @@ class Cell:
     extra: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
+        """The cell as plain JSON data (non-finite numbers as None)."""
+
         def num(x):
             if x is None:
                 return None
@@ -162,12 +164,15 @@ class GapMap:
     )
 
     def cell(self, channel: str, b: int) -> Cell:
+        """The cell of ``channel`` in band number ``b``."""
         return self.cells[self.channels.index(channel) * (self.edges.size - 1) + b]
 
     def flagged(self) -> list:
+        """The cells whose gap is significant."""
         return [c for c in self.cells if c.significant]
 
     def to_list(self) -> list:
+        """Every cell as plain JSON data, channel by channel."""
         return [c.to_dict() for c in self.cells]
 
 

@@ -104,6 +104,7 @@ class Scenario:
 
     @property
     def truth_name(self) -> str:
+        """The withheld effect's name, or ``"none"`` for a null case."""
         if self.truth is None:
             return "none"
         return self.truth.split("@")[0]
@@ -112,8 +113,11 @@ class Scenario:
 def scenarios(
     *, n_effect: int = 4, n_null: int = 34, seed_base: int = REPORT_SEED_BASE, truths=None, nulls=None
 ) -> list:
-    """The scenario list: every truth x size x manoeuvre x noise level x ``n_effect`` seeds, and
-    every null x manoeuvre x noise level x ``n_null`` seeds."""
+    """The scenario list of the validation.
+
+    Every truth x size x manoeuvre x noise level x ``n_effect`` seeds, and every null x
+    manoeuvre x noise level x ``n_null`` seeds.
+    """
     out = []
     seed = seed_base
     for key in TRUTHS if truths is None else truths:
@@ -390,6 +394,7 @@ class ValidationResult:
     settings: dict = field(default_factory=dict)
 
     def table(self) -> str:
+        """The scores as a text table (:func:`format_scores`)."""
         return format_scores(self.scores)
 
     def to_json(self, path=None, *, inputs=()) -> str:

@@ -70,7 +70,7 @@ def read_fdml_csv(
     name: str | None = None,
     check_units: bool = True,
 ) -> Record:
-    """fdml's own CSV (:func:`fdml.record.read_csv`) with a window and trim options."""
+    """Read fdml's own CSV (:func:`fdml.record.read_csv`) with a window and trim options."""
     p = check_path(path)
     check_trim(trim)
     rec = read_csv(p, name=name, check_units=check_units)

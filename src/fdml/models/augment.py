@@ -177,6 +177,7 @@ class Effect:
         )
 
     def describe(self) -> str:
+        """A short description of the effect: its signature, else its key."""
         return self.signature or self.key
 
     def label(self) -> str:
@@ -248,6 +249,7 @@ class AugmentedModel(Model):
 
     @property
     def aircraft(self):
+        """The base model's aircraft (None for a model without one)."""
         return getattr(self.root, "aircraft", None)
 
     def _root_values(self, p: Mapping[str, float]) -> dict[str, float]:
@@ -392,6 +394,7 @@ class OutputEffect(Effect):
         self._simulate = simulate
 
     def output(self, s, p, G, H, P, root):
+        """Apply the effect to the output matrices at ``s = j omega``; returns ``(G, H, P)``."""
         return self._fn(s, p, G, H, P, root)
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
@@ -422,9 +425,11 @@ class MatrixEffect(OutputEffect):
     """
 
     def matrices(self, s, p, M, B, E, root):
+        """Apply the effect to the short-period matrices; returns ``(M, B, E)``."""
         return self._fn(s, p, M, B, E, root)
 
     def output(self, s, p, G, H, P, root):  # pragma: no cover - never called for matrix effects
+        """Leave the outputs unchanged: a matrix effect acts through :meth:`matrices`."""
         return G, H, P
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):

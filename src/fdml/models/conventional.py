@@ -165,9 +165,9 @@ class DimensionalModel(Model):
 
     Parameters
     ----------
-    U : float, optional
-        Airspeed, m/s (needed for a_z, Eq. 5).  Taken from ``aircraft`` when
-        that is given.
+    airspeed : float, optional
+        Airspeed U, m/s (needed for a_z, Eq. 5); without it, the
+        ``aircraft``'s U.
     aircraft : Aircraft, optional
         When given, supplies U, start values from its constants and the
         non-dimensional derived set.

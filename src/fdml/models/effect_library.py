@@ -76,6 +76,7 @@ class Dispatch(Effect):
         self.nuisance_grid = first.nuisance_grid
 
     def impl(self, model: Model):
+        """The implementation for ``model``'s base kind (None if the effect does not apply)."""
         return self.impls.get(root_model(model).kind)
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
