@@ -1,0 +1,1 @@
+"""Experiment design: planned inputs, predicted bounds, steady-versus-unsteady discrimination."""
