@@ -69,6 +69,16 @@ class Prediction:
         """Predicted standard error of ``name`` over |its value|."""
         return self.stderr[name] / abs(self.values[name]) if self.values[name] else math.inf
 
+    def model_cov(self) -> np.ndarray:
+        """Predicted covariance of the model parameters (nuisance terms left out)."""
+        idx = [i for i, n in enumerate(self.names) if not _nuisance(n)]
+        return self.cov[np.ix_(idx, idx)]
+
+    def cov_of(self, names) -> list[float]:
+        """Predicted variances of the named estimates."""
+        se = self.stderr
+        return [se[n] ** 2 for n in names]
+
     def to_dict(self, model_only: bool = True) -> dict:
         """``{name: {"value": v, "stderr": s}}`` (model parameters only by default)."""
         se = self.stderr
