@@ -205,7 +205,7 @@ def test_minimum_detectable_delay_is_detected_at_the_stated_power():
 
 
 def test_design_gains_over_3211():
-    d = design(make_model("unsteady", "navion"), criterion="d-optimal", duration=12.0, band="0.5:10")
+    d = design(make_model("unsteady", "navion"), criterion="d-optimal", duration=12.0, band="0.5:10", refine=6)
     assert set(d.baselines) == {"3211", "sweep"}
     g = d.gains()["3211"]
     assert np.exp(np.mean(np.log(list(g.values())))) > 1.0  # the design beats the 3-2-1-1 on average
@@ -222,3 +222,18 @@ def test_design_refusals():
         design(make_model("steady", "navion"), criterion="discriminate", duration=12.0)
     with pytest.raises(BandError, match="Nyquist"):
         design(mu, band="0.5:200", duration=12.0)
+
+
+def test_discrimination_design_beats_the_classic_inputs():
+    """Navion, 12 s, 1 deg, noise 10 % of the 3-2-1-1 response: a larger lambda than a 3-2-1-1 and a sweep."""
+    d = design(
+        make_model("unsteady", "navion"), criterion="discriminate", duration=12.0, band="0.5:10", noise=0.1, refine=20
+    )
+    lam = {k: v.noncentrality for k, v in d.discrimination.items()}
+    assert lam[d.input.name] > max(lam["3211"], lam["sweep"]), lam
+    assert d.input.report()["within_limits"]
+
+
+def test_a_optimal_design_names_its_targets():
+    d = design(make_model("unsteady", "navion"), criterion="a-optimal", targets=["Cm_de"], duration=12.0, refine=4)
+    assert d.criterion == "a-optimal" and "Cm_de" in d.predicted.to_dict()

@@ -15,7 +15,7 @@ from conftest import assert_refused_in_one_line
 from fdml.cli import main
 from fdml.record import read_csv
 
-NAVION = ["design", "--aircraft", "navion", "--model", "unsteady", "--duration", "12"]
+NAVION = ["design", "--aircraft", "navion", "--model", "unsteady", "--duration", "12", "--refine", "4"]
 
 
 def _run(args, cwd):
@@ -61,7 +61,7 @@ def test_design_predicts_for_a_given_input(designed, tmp_path):
 
 
 def test_design_prints_a_table(tmp_path, capsys):
-    code = main(NAVION + ["--band", "0.5:8", "-o", str(tmp_path / "x.csv")])
+    code = main(NAVION + ["--criterion", "discriminate", "--band", "0.5:8", "-o", str(tmp_path / "x.csv")])
     out = capsys.readouterr().out
     assert code == 0
     assert "3211" in out and "sweep" in out and "P(detect)" in out

@@ -58,6 +58,13 @@ def register(sub) -> None:
         "--steady", choices=("steady", "derivatives"), default="steady", help="steady model told from (default steady)"
     )
     p.add_argument("--level", type=float, default=0.05, help="test level of the detection probability (default 0.05)")
+    p.add_argument(
+        "--refine",
+        type=int,
+        default=40,
+        metavar="N",
+        help="full evaluations of the criterion that refine the optimised spectrum (default 40; 0: none)",
+    )
     p.add_argument("--input", metavar="FILE.csv", help="predict for this input (t, de) instead of designing one")
     O.add_output_option(
         p, kind="file", metavar="INPUT.csv", help="the designed input (t, de), and a figure beside it (.png)"
@@ -111,6 +118,7 @@ def run(args) -> int:
         level=args.level,
         given=given,
         free=_names(args.free),
+        refine=max(args.refine, 0),
     )
     if args.output is not None:
         import matplotlib

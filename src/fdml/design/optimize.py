@@ -26,6 +26,7 @@ surrogate.
 from __future__ import annotations
 
 import numpy as np
+from scipy import optimize
 
 from .. import maneuvers as mv
 from ..errors import FdmlError, ParameterError
@@ -39,6 +40,8 @@ CRITERIA = ("d-optimal", "a-optimal", "discriminate")
 _ITERATIONS = 300
 #: Power fractions below this share of the largest are dropped (fewer harmonics, lower crest factor).
 _DROP = 1e-3
+#: Harmonic groups whose power the full-criterion refinement adjusts.
+_GROUPS = 6
 
 
 def model_parameters(model) -> list[str]:
@@ -145,25 +148,61 @@ _MIXTURES = (0.0, 0.25, 0.5, 1.0)
 
 
 def optimal_input(
-    criterion: str, model, lim: Limits, band, stds, *, targets=(), steady=None, outputs=OUTPUTS, score=None
+    criterion: str,
+    model,
+    lim: Limits,
+    band,
+    stds,
+    *,
+    targets=(),
+    steady=None,
+    outputs=OUTPUTS,
+    score=None,
+    refine: int = 40,
 ) -> DesignInput:
     """The optimised multisine: allocated power per harmonic, minimum-crest phases, peak at the limit.
 
     ``score(input) -> float`` (larger is better) judges the candidate mixtures of
-    the optimal allocation with a flat spectrum by the full prediction; without
-    it the optimal allocation itself is returned.
+    the optimal allocation with a flat spectrum by the full prediction, and
+    ``refine`` full evaluations then adjust the power of a few harmonic groups
+    (:func:`_refine`); without ``score`` the optimal allocation itself is returned.
     """
     t = mv.time_vector(lim.duration, lim.dt)
     omega = mv.multisine_frequencies(t, *band)
     w_opt = allocate(criterion, model, omega, stds, targets=targets, steady=steady, outputs=outputs)
-    best, best_score = None, -np.inf
-    for beta in _MIXTURES if score is not None else (0.0,):
-        w = (1.0 - beta) * w_opt + beta / w_opt.size
-        w = np.where(w < _DROP * w.max(), 0.0, w)
+
+    def make(w):
+        w = np.where(w < _DROP * w.max(), 0.0, w / w.sum())
         inp = multisine_input(lim, band, np.sqrt(w), phases="min-crest", name=f"{criterion} multisine")
-        inp = DesignInput(inp.name, inp.t, inp.signals, {**inp.options, "power": w.tolist(), "flat_share": beta}, lim)
-        s = score(inp) if score is not None else 0.0
-        if s > best_score:
-            best, best_score = inp, s
-    assert best is not None
-    return best
+        return DesignInput(inp.name, inp.t, inp.signals, {**inp.options, "power": w.tolist()}, lim)
+
+    if score is None:
+        return make(w_opt)
+    cands = [(1.0 - beta) * w_opt + beta / w_opt.size for beta in _MIXTURES]
+    scores = [score(make(w)) for w in cands]
+    w0 = cands[int(np.argmax(scores))]
+    return make(_refine(w0, lambda w: score(make(w)), refine)) if refine else make(w0)
+
+
+def _refine(w0: np.ndarray, score, evaluations: int) -> np.ndarray:
+    """Nelder-Mead on log power multipliers of a few harmonic groups, by the full criterion.
+
+    The surrogate leaves out what the full prediction has (boundary terms and
+    biases that absorb the lowest harmonics, the crest factor the peak limit
+    turns into power); a few dozen full evaluations correct the allocation.
+    """
+    groups = np.array_split(np.arange(w0.size), min(_GROUPS, w0.size))
+    which = np.concatenate([np.full(g.size, i) for i, g in enumerate(groups)])
+    seen: dict = {}
+
+    def cost(x):
+        key = tuple(np.round(x, 6))
+        if key not in seen:
+            seen[key] = -score(w0 * np.exp(x)[which])
+        return seen[key]
+
+    x0 = np.zeros(len(groups))
+    simplex = np.vstack([x0, x0 + 1.5 * np.eye(len(groups))])  # steps of e^1.5 ~ 4.5x in power
+    res = optimize.minimize(cost, x0, method="Nelder-Mead", options={"maxfev": evaluations, "initial_simplex": simplex})
+    x = res.x if res.fun < cost(x0) else x0
+    return w0 * np.exp(x)[which]

@@ -146,6 +146,7 @@ def design(
     level: float = 0.05,
     given: DesignInput | None = None,
     free=None,
+    refine: int = 40,
 ) -> Design:
     """Design (or assess a given) input for ``model`` and compare it with classic inputs.
 
@@ -172,6 +173,8 @@ def design(
         Predict for this input instead of designing one.
     free : sequence of str, optional
         Parameters to free as well (``b1`` of a gust model).
+    refine : int, optional
+        Full evaluations of the criterion that refine the optimised spectrum (0: none).
 
     Returns
     -------
@@ -190,7 +193,9 @@ def design(
     stds = noise_stds(response(model, ref), noise)
     if given is None:
         score = _scorer(criterion, model, ms, stds, fband, targets)
-        inp = optimal_input(criterion, model, lim, fband[:2], stds, targets=targets, steady=ms, score=score)
+        inp = optimal_input(
+            criterion, model, lim, fband[:2], stds, targets=targets, steady=ms, score=score, refine=refine
+        )
         base = {k: classic_input(k, lim, fband[:2]) for k in baselines}
     else:
         inp, base = given, {}
