@@ -292,12 +292,7 @@ def multisine_frequencies(
     """
     t = _time(t)
     T = t[-1] - t[0]
-    lo, hi = _positive(omega_lo, "omega_lo (rad/s)"), _positive(omega_hi, "omega_hi (rad/s)")
-    if not lo < hi:
-        raise ParameterError(f"multisine band [{lo}, {hi}] rad/s is empty")
-    nyq = np.pi * (t.size - 1) / T
-    if hi >= nyq:
-        raise ParameterError(f"multisine band edge {hi} rad/s is not below the Nyquist frequency {nyq:.4g} rad/s")
+    lo, hi = _band(t, omega_lo, omega_hi, "multisine")
     d = 2.0 * np.pi / T
     k = np.arange(math.ceil(lo / d - 1e-9), math.floor(hi / d + 1e-9) + 1)
     if k.size == 0:
@@ -436,12 +431,9 @@ def sweep(
     """
     t = _time(t)
     amplitude = _finite(amplitude, "amplitude (rad)")
-    lo, hi = _positive(omega_lo, "omega_lo (rad/s)"), _positive(omega_hi, "omega_hi (rad/s)")
+    lo, hi = _band(t, omega_lo, omega_hi, "sweep")
     tau = t - t[0]
     T = tau[-1]
-    nyq = np.pi * (t.size - 1) / T
-    if not lo < hi < nyq:
-        raise ParameterError(f"sweep band [{lo}, {hi}] rad/s must be increasing and below Nyquist {nyq:.4g} rad/s")
     if not 0.0 <= taper <= 0.5:
         raise ParameterError(f"sweep taper must be a fraction in [0, 0.5], got {taper!r}")
     if kind == "linear":
@@ -667,6 +659,17 @@ def _positive(x, label: str) -> float:
     if v <= 0:
         raise ParameterError(f"{label} must be positive, got {x!r}")
     return v
+
+
+def _band(t: np.ndarray, omega_lo, omega_hi, what: str) -> tuple[float, float]:
+    """Band edges checked: positive, increasing, the upper one below the Nyquist frequency of t."""
+    lo, hi = _positive(omega_lo, "omega_lo (rad/s)"), _positive(omega_hi, "omega_hi (rad/s)")
+    if not lo < hi:
+        raise ParameterError(f"{what} band [{lo}, {hi}] rad/s is empty")
+    nyq = np.pi * (t.size - 1) / (t[-1] - t[0])
+    if hi >= nyq:
+        raise ParameterError(f"{what} band edge {hi} rad/s is not below the Nyquist frequency {nyq:.4g} rad/s")
+    return lo, hi
 
 
 def _time(t) -> np.ndarray:
