@@ -45,7 +45,7 @@ def register(sub) -> None:
     O.add_set_option(p)
     p.add_argument("--criterion", choices=_CRITERIA, default="d-optimal", help="design criterion (default d-optimal)")
     p.add_argument("--targets", metavar="NAME,...", help="parameters of the a-optimal criterion, e.g. b1,y_w,G")
-    p.add_argument("--free", metavar="NAME,...", help="free further parameters (b1 of a gust model)")
+    O.accumulating(p, "--free", metavar="NAME", help="free further parameters, e.g. b1 of a gust model (repeatable)")
     p.add_argument("--duration", type=float, default=20.0, help="record length, s (default 20)")
     p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
     p.add_argument("--amplitude", default="1deg", help="peak elevator, rad or e.g. 3deg (default 1deg)")
@@ -81,8 +81,10 @@ def _noise(text):
     return parse(text)[0]
 
 
-def _names(text: str | None) -> list[str]:
-    return [x.strip() for x in (text or "").split(",") if x.strip()]
+def _names(items) -> list[str]:
+    """'a,b' or ['a', 'b,c'] -> ['a', 'b', 'c']."""
+    items = [items] if isinstance(items, str) else list(items or [])
+    return [x.strip() for item in items for x in item.split(",") if x.strip()]
 
 
 def run(args) -> int:
