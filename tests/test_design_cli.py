@@ -61,10 +61,11 @@ def test_design_predicts_for_a_given_input(designed, tmp_path):
 
 
 def test_design_prints_a_table(tmp_path, capsys):
-    code = main(NAVION + ["--criterion", "discriminate", "--band", "0.5:8", "-o", str(tmp_path / "x.csv")])
+    args = ["--criterion", "discriminate", "--band", "0.5:8", "--detect", "time_delay:alpha"]
+    code = main(NAVION + args + ["-o", str(tmp_path / "x.csv")])
     out = capsys.readouterr().out
     assert code == 0
-    assert "3211" in out and "sweep" in out and "P(detect)" in out
+    assert "3211" in out and "sweep" in out and "P(detect)" in out and "tau_alpha" in out
     assert (tmp_path / "x.csv").exists() and (tmp_path / "x.png").exists()
 
 
@@ -78,6 +79,7 @@ def test_design_prints_a_table(tmp_path, capsys):
         (["--criterion", "a-optimal", "--targets", "b1"], ["not in the"]),
         (["--criterion", "a-optimal"], ["target"]),
         (["--model", "steady", "--criterion", "discriminate"], ["unsteady"]),
+        (["--detect", "no_such_effect"], ["no_such_effect"]),
     ],
 )
 def test_design_refuses_in_one_line(tmp_path, capsys, extra, expected):

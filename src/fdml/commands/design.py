@@ -58,6 +58,13 @@ def register(sub) -> None:
         "--steady", choices=("steady", "derivatives"), default="steady", help="steady model told from (default steady)"
     )
     p.add_argument("--level", type=float, default=0.05, help="test level of the detection probability (default 0.05)")
+    O.accumulating(
+        p,
+        "--detect",
+        metavar="EFFECT",
+        help="report the minimum detectable value of a library effect with the input, e.g. time_delay:alpha "
+        "(repeatable; 'fdml effects' lists them)",
+    )
     p.add_argument(
         "--refine",
         type=int,
@@ -121,6 +128,7 @@ def run(args) -> int:
         given=given,
         free=_names(args.free),
         refine=max(args.refine, 0),
+        detect=_names(args.detect),
     )
     if args.output is not None:
         import matplotlib

@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import BandError, ParameterError
 from ..models import make_model
-from .discriminate import Discrimination, discriminate
+from .discriminate import Discrimination, discriminate, minimum_detectable
 from .inputs import DesignInput, Limits, classic_input
 from .optimize import CRITERIA, optimal_input
 from .predict import Prediction, noise_stds, predict, response
@@ -47,6 +47,8 @@ class Design:
         Measurement-noise stds used for every input (rad, rad/s, g).
     band : tuple
         The fit's band (lo, hi, step), rad/s.
+    detectable : tuple of Detectable
+        Minimum detectable value of each parameter of the effects asked for, with the input.
     """
 
     criterion: str
@@ -56,6 +58,7 @@ class Design:
     discrimination: dict = field(default_factory=dict)
     noise: dict = field(default_factory=dict)
     band: tuple = ()
+    detectable: tuple = ()
 
     def gains(self) -> dict[str, dict[str, float]]:
         """Ratio of each baseline's predicted stderr to the input's, per model parameter (> 1: a gain)."""
@@ -75,6 +78,11 @@ class Design:
             row = f"{n:<12}{self.predicted.values[n]:>10.4g}"
             row += "".join(f"{p.stderr.get(n, math.nan):>20.3g}" for p in cols.values())
             lines.append(row)
+        if self.detectable:
+            lines.append("")
+            lines.append(f"{'effect':<22}{'parameter':<12}{'min. detectable':>16}  (power, level)")
+            for e in self.detectable:
+                lines.append(f"{e.effect[:22]:<22}{e.parameter:<12}{e.minimum:>16.4g}  ({e.power:g}, {e.level:g})")
         if self.discrimination:
             lines.append("")
             lines.append(f"{'steady vs unsteady':<22}{'lambda':>10}{'P(detect)':>11}{'P(favoured)':>13}")
@@ -98,6 +106,7 @@ class Design:
             "noise": self.noise,
             "predicted": predicted,
             "discrimination": {k: d.to_dict() for k, d in self.discrimination.items()},
+            "detectable": [e.to_dict() for e in self.detectable],
         }
 
 
@@ -147,6 +156,7 @@ def design(
     given: DesignInput | None = None,
     free=None,
     refine: int = 40,
+    detect=(),
 ) -> Design:
     """Design (or assess a given) input for ``model`` and compare it with classic inputs.
 
@@ -175,6 +185,9 @@ def design(
         Parameters to free as well (``b1`` of a gust model).
     refine : int, optional
         Full evaluations of the criterion that refine the optimised spectrum (0: none).
+    detect : sequence of str, optional
+        Library effects (``time_delay:alpha``, ``actuator_lag``, ``sensor_offset@az``) whose
+        minimum detectable values (power 0.9 at ``level``) with the input are reported.
 
     Returns
     -------
@@ -206,7 +219,8 @@ def design(
     if ms is not None:
         for k, b in {inp.name: inp, **base}.items():
             disc[k] = discriminate(model, ms, b, noise=stds, level=level, band=fband)
-    return Design(criterion, inp, pred, preds, disc, stds, fband)
+    found = tuple(e for eff in detect for e in minimum_detectable(model, eff, inp, noise=stds, level=level, band=fband))
+    return Design(criterion, inp, pred, preds, disc, stds, fband, found)
 
 
 def _scorer(criterion: str, model, steady, stds, band, targets):
