@@ -32,6 +32,7 @@ COMMANDS = (
     "diagnose",
     "aircraft",
     "effects",
+    "design",
 )
 
 

@@ -1277,6 +1277,39 @@ def _white_cov_g(
     return cov
 
 
+def information(A: np.ndarray, W: np.ndarray) -> np.ndarray:
+    """Re sum_i A_i^H W_i A_i (Eq. 23's matrix), shape (p, p), for sensitivities A (N, n_out, p).
+
+    ``W`` is R^-1 (n_out, n_out), or one R_b^-1 per row (N, n_out, n_out).
+    """
+    p = A.shape[2]
+    return np.real(A.reshape(-1, p).conj().T @ (W @ A).reshape(-1, p))
+
+
+def white_covariance(
+    prob: Problem,
+    A: np.ndarray,
+    R: np.ndarray,
+    Minv: np.ndarray,
+    shape: np.ndarray | None = None,
+    W: np.ndarray | None = None,
+) -> np.ndarray:
+    """The fit's ``white`` covariance of the estimate: Minv Cov(g) Minv, inflated for an estimated R.
+
+    ``Minv`` is the inverse of :func:`information`; Cov(g) carries white
+    time-domain noise through the transform, grid and trim exactly
+    (:func:`_white_cov_g`, whose noise level is the one R implies).  Used by
+    :func:`fit` at the estimate and by :mod:`fdml.design` for a predicted R.
+    """
+    Cg = _white_cov_g(prob, A, R, shape, W)
+    # R is estimated from the same residuals, so the weights are random: with N_eff
+    # independent frequencies and n_out outputs the variance grows by about
+    # N_eff / (N_eff - n_out) (verified by Monte Carlo: 6, 10 and 20 s records)
+    n_eff = sum(d.independent_frequencies() for d in prob.data)
+    inflate = n_eff / max(n_eff - prob.n_out, 1.0)
+    return inflate * (Minv @ Cg @ Minv)
+
+
 def _naive_sigma(F: np.ndarray) -> np.ndarray:
     """sqrt(diag(F^-1)) for an information matrix F (Cholesky; pseudo-inverse if singular)."""
     try:
@@ -1324,8 +1357,7 @@ def _finish(
         A = prob.sensitivities(theta, tol=SETTINGS.settle_tol_final)
     N = prob.N
     W = _weights(R, rows)  # band-wise noise: R_b^-1 per row
-    p_ = A.shape[2]
-    M = np.real(A.reshape(-1, p_).conj().T @ (W @ A).reshape(-1, p_))  # Re sum A^H R^-1 A
+    M = information(A, W)
     msgs, dead = _identifiability(2 * M / N, names)
     for m in dict.fromkeys(msgs):
         warnings.warn(m, IdentifiabilityWarning, stacklevel=4)
@@ -1340,13 +1372,8 @@ def _finish(
             shape = _residual_shape(prob, V) if cov_type == "colored" else None
             if rows is not None and shape is None:  # the noise model's own level per band and output
                 shape = np.sqrt(np.real(np.diagonal(R, axis1=1, axis2=2))[rows] / np.real(np.diag(_cov_R(V)))[None, :])
-            Cg = _white_cov_g(prob, A[:, :, idx], R if rows is None else _cov_R(V), shape, W)
-            # R is estimated from the same residuals, so the weights are random: with N_eff
-            # independent frequencies and n_out outputs the variance grows by about
-            # N_eff / (N_eff - n_out) (verified by Monte Carlo: 6, 10 and 20 s records)
-            n_eff = sum(d.independent_frequencies() for d in prob.data)
-            inflate = n_eff / max(n_eff - prob.n_out, 1.0)
-            cov[np.ix_(idx, idx)] = inflate * (Minv @ Cg @ Minv)
+            R_g = R if rows is None else _cov_R(V)
+            cov[np.ix_(idx, idx)] = white_covariance(prob, A[:, :, idx], R_g, Minv, shape, W)
         else:
             cov[np.ix_(idx, idx)] = cov_naive[np.ix_(idx, idx)]
     for k in np.flatnonzero(~live):

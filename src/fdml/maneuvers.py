@@ -8,8 +8,11 @@ time vector ``t`` (s) and returns an array of the same shape.
 * :func:`doublet` and :func:`three_two_one_one` are step sequences whose edges
   may be smoothed by a raised-cosine ramp of duration ``rise``: real elevators
   are rate limited, and smooth edges make Fourier cross-checks converge.
-* :func:`multisine` is a Schroeder-phased sum of harmonics of the record
-  length, scaled to a given peak.
+* :func:`multisine` is a sum of harmonics of the record length (flat or
+  shaped amplitudes; Schroeder, random or minimum-crest-factor phases),
+  scaled to a given peak; ``stride``/``offset`` give several inputs mutually
+  orthogonal (interleaved) harmonics.
+* :func:`sweep` is a linear or logarithmic frequency sweep.
 * :func:`dryden_gust` samples the Dryden vertical-turbulence process exactly.
 """
 
@@ -30,6 +33,12 @@ __all__ = [
     "doublet",
     "three_two_one_one",
     "multisine",
+    "multisine_frequencies",
+    "min_crest_phases",
+    "schroeder_phases",
+    "crest_factor",
+    "relative_peak_factor",
+    "sweep",
     "dryden_gust",
     "dryden_psd",
     "make_input",
@@ -179,8 +188,11 @@ def multisine(
     phases="schroeder",
     rng=None,
     zero_start: bool = True,
+    amplitudes=None,
+    stride: int = 1,
+    offset: int = 0,
 ) -> np.ndarray:
-    """Flat-spectrum multisine: harmonics of 2 pi / T inside a band, peak-scaled.
+    """Multisine: harmonics of 2 pi / T inside a band, peak-scaled.
 
     ``u(t) = sum_k cos(omega_k t + phi_k)``, scaled so that ``max |u| = amplitude``
     on the samples, with ``omega_k = 2 pi k / T`` and ``T = t[-1] - t[0]``: every
@@ -199,9 +211,10 @@ def multisine(
     n_components : int, optional
         Number of harmonics, spread evenly over those inside the band (all of
         them by default).
-    phases : {"schroeder", "random"} or array_like, optional
+    phases : {"schroeder", "random", "min-crest"} or array_like, optional
         Schroeder (1970) phases ``phi_k = -pi k (k - 1) / K`` (low crest factor),
-        uniform random phases drawn from ``rng``, or explicit phases (rad).
+        uniform random phases drawn from ``rng``, phases optimised for the
+        minimum crest factor (:func:`min_crest_phases`), or explicit phases (rad).
     rng : numpy.random.Generator, optional
         Needed for ``phases="random"``.
     zero_start : bool, optional
@@ -210,6 +223,13 @@ def multisine(
         flight-test multisines do; the amplitude spectrum and crest factor are
         unchanged.  A step at t = 0 would otherwise excite the singular F-term
         of THEORY.md Eq. 2 at t = T.
+    amplitudes : array_like, optional
+        Relative amplitude of each harmonic (default flat); the peak scaling
+        applies on top.
+    stride, offset : int, optional
+        Keep the harmonics whose index (counted from the first in the band) is
+        ``offset`` modulo ``stride``: inputs with the same stride and different
+        offsets have mutually orthogonal harmonics over the record.
 
     Returns
     -------
@@ -218,12 +238,16 @@ def multisine(
     """
     t = _time(t)
     amplitude = _finite(amplitude, "amplitude (rad)")
-    omega_k = multisine_frequencies(t, omega_lo, omega_hi, n_components)
+    omega_k = multisine_frequencies(t, omega_lo, omega_hi, n_components, stride=stride, offset=offset)
     K = omega_k.size
+    amps = np.ones(K) if amplitudes is None else np.asarray(amplitudes, dtype=float)
+    if amps.shape != (K,) or not np.all(np.isfinite(amps)) or np.any(amps < 0) or not np.any(amps):
+        raise ParameterError(f"multisine amplitudes: {K} finite values >= 0, not all zero, are needed")
     if isinstance(phases, str):
-        if phases == "schroeder":
-            k = np.arange(1, K + 1)
-            phi = -np.pi * k * (k - 1) / K  # Schroeder (1970), flat power spectrum
+        if phases in ("schroeder", "min-crest"):
+            phi = schroeder_phases(amps)
+            if phases == "min-crest":
+                phi = min_crest_phases(omega_k, amps, t - t[0], phi)
         elif phases == "random":
             if rng is None:
                 raise ParameterError("random multisine phases need rng (a numpy Generator)")
@@ -236,15 +260,17 @@ def multisine(
             raise ParameterError(f"{phi.size} phases given for {K} multisine components")
     tau = t - t[0]
     if zero_start:
-        phi = phi + omega_k * _upward_zero(omega_k, phi, tau[-1])
-    u = np.cos(np.outer(tau, omega_k) + phi).sum(axis=1)
+        phi = phi + omega_k * _upward_zero(omega_k, phi, tau[-1], amps)
+    u = np.cos(np.outer(tau, omega_k) + phi) @ amps
     if zero_start:
         u[0] = 0.0  # the crossing is found to ~1e-16 of the peak; make it exact
         u[-1] = 0.0
     return amplitude * u / np.max(np.abs(u))
 
 
-def multisine_frequencies(t, omega_lo: float, omega_hi: float, n_components: int | None = None) -> np.ndarray:
+def multisine_frequencies(
+    t, omega_lo: float, omega_hi: float, n_components: int | None = None, *, stride: int = 1, offset: int = 0
+) -> np.ndarray:
     """The multisine harmonics ``2 pi k / T`` inside [omega_lo, omega_hi], rad/s.
 
     Parameters
@@ -255,6 +281,9 @@ def multisine_frequencies(t, omega_lo: float, omega_hi: float, n_components: int
         Band, rad/s.
     n_components : int, optional
         How many to keep (evenly spread); all by default.
+    stride, offset : int, optional
+        Keep every ``stride``-th harmonic of the band starting at the
+        ``offset``-th (0-based): interleaved, mutually orthogonal sets.
 
     Returns
     -------
@@ -263,16 +292,18 @@ def multisine_frequencies(t, omega_lo: float, omega_hi: float, n_components: int
     """
     t = _time(t)
     T = t[-1] - t[0]
-    lo, hi = _positive(omega_lo, "omega_lo (rad/s)"), _positive(omega_hi, "omega_hi (rad/s)")
-    if not lo < hi:
-        raise ParameterError(f"multisine band [{lo}, {hi}] rad/s is empty")
-    nyq = np.pi * (t.size - 1) / T
-    if hi >= nyq:
-        raise ParameterError(f"multisine band edge {hi} rad/s is not below the Nyquist frequency {nyq:.4g} rad/s")
+    lo, hi = _band(t, omega_lo, omega_hi, "multisine")
     d = 2.0 * np.pi / T
     k = np.arange(math.ceil(lo / d - 1e-9), math.floor(hi / d + 1e-9) + 1)
     if k.size == 0:
         raise ParameterError(f"no harmonic of 2 pi/T = {d:.4g} rad/s lies in [{lo}, {hi}] rad/s; lengthen the record")
+    if isinstance(stride, bool) or int(stride) != stride or stride < 1 or not 0 <= int(offset) < stride:
+        raise ParameterError(
+            f"multisine stride {stride!r} and offset {offset!r}: need stride >= 1, 0 <= offset < stride"
+        )
+    k = k[int(offset) :: int(stride)]
+    if k.size == 0:
+        raise ParameterError(f"the band holds no harmonic for offset {offset} of stride {stride}; lengthen the record")
     if n_components is not None:
         n = int(n_components)
         if n < 1 or n > k.size:
@@ -283,11 +314,148 @@ def multisine_frequencies(t, omega_lo: float, omega_hi: float, n_components: int
     return k * d
 
 
-def _upward_zero(omega, phi, T: float) -> float:
-    """First time in [0, T) where sum cos(omega t + phi) crosses zero upwards."""
-    f = lambda x: float(np.cos(omega * x + phi).sum())  # noqa: E731
+def schroeder_phases(amplitudes) -> np.ndarray:
+    """Schroeder (1970) phases for harmonics of relative amplitudes a_k, rad.
+
+    ``phi_k = phi_1 - 2 pi sum_{l<k} (k - l) p_l`` with power fractions
+    ``p_l = a_l^2 / sum a^2``; for a flat spectrum this is ``-pi k (k - 1) / K``.
+    """
+    a = np.asarray(amplitudes, dtype=float)
+    p = a**2 / np.sum(a**2)
+    k = np.arange(1, a.size + 1)
+    # sum_{l<k} (k - l) p_l for every k at once: a lower-triangular weight matrix
+    W = np.clip(k[:, None] - k[None, :], 0, None)
+    return -2.0 * np.pi * (W @ p)
+
+
+def crest_factor(u) -> float:
+    """Crest factor max|u| / rms(u) (sqrt 2 for one sinusoid)."""
+    u = np.asarray(u, dtype=float)
+    return float(np.max(np.abs(u)) / np.sqrt(np.mean(u**2)))
+
+
+def relative_peak_factor(u) -> float:
+    """Morelli's relative peak factor (max u - min u) / (2 sqrt(2) rms(u)): 1 for one sinusoid."""
+    u = np.asarray(u, dtype=float)
+    return float((np.max(u) - np.min(u)) / (2.0 * math.sqrt(2.0) * np.sqrt(np.mean(u**2))))
+
+
+#: Iterations of the clipping algorithm of :func:`min_crest_phases`.
+_CLIP_ITERATIONS = 1000
+#: Clipping level as a fraction of the current peak (0.9 gave the lowest crest factors of 0.7-0.95
+#: on flat 2-45-harmonic multisines).
+_CLIP_LEVEL = 0.9
+
+
+def min_crest_phases(omega, amplitudes, tau, phases=None, iterations: int = _CLIP_ITERATIONS) -> np.ndarray:
+    """Phases that lower the crest factor of ``sum a_k cos(omega_k tau + phi_k)`` by iterative clipping.
+
+    Van den Bos's clipping algorithm (as in the flight-test multisine
+    literature, e.g. Morelli's relative-peak-factor optimisation): clip the
+    signal at 90 % of its peak, take the phases of the clipped signal's
+    Fourier coefficients at the harmonics, keep the amplitudes, repeat (FFT
+    over one period, so each pass is O(n log n)); the best phases met are kept.  The amplitude spectrum is
+    never changed, so the information the input carries (which depends on the
+    power per harmonic only) is kept while its peak falls.
+
+    Parameters
+    ----------
+    omega : ndarray, shape (K,)
+        Harmonic frequencies, rad/s (multiples of 2 pi / T).
+    amplitudes : ndarray, shape (K,)
+        Relative amplitudes.
+    tau : ndarray, shape (n,)
+        Time from the record start, s.
+    phases : ndarray, optional
+        Start phases (default Schroeder's).
+    iterations : int, optional
+
+    Returns
+    -------
+    ndarray, shape (K,)
+        The phases of the lowest crest factor met, rad.
+    """
+    a = np.asarray(amplitudes, dtype=float)
+    phi = schroeder_phases(a) if phases is None else np.asarray(phases, dtype=float)
+    tau = np.asarray(tau, dtype=float)
+    n = tau.size - 1  # one period of the harmonics: the last sample repeats the first
+    bins = np.asarray(omega) * tau[-1] / (2.0 * np.pi)
+    k = np.round(bins).astype(int)
+    if np.any(np.abs(bins - k) > 1e-6) or np.any(k < 1) or np.any(k >= n / 2):
+        raise ParameterError("min-crest phases need harmonics of 2 pi/T below the Nyquist frequency")
+    best, best_cf = phi, math.inf
+    spec = np.zeros(n // 2 + 1, complex)
+    for _ in range(iterations):
+        spec[k] = a * np.exp(1j * phi)
+        u = np.fft.irfft(spec, n)  # sum a_k cos(omega_k tau + phi_k) up to a constant factor, O(n log n)
+        peak, rms = np.max(np.abs(u)), np.sqrt(np.mean(u**2))
+        cf = peak / rms
+        if cf < best_cf - 1e-9:
+            best, best_cf = phi, cf
+        level = _CLIP_LEVEL * peak
+        phi = np.angle(np.fft.rfft(np.clip(u, -level, level))[k])  # the clipped signal's phases at the harmonics
+    return best
+
+
+def sweep(
+    t,
+    amplitude: float = DEFAULT_AMPLITUDE,
+    omega_lo: float = 0.5,
+    omega_hi: float = 10.0,
+    kind: str = "linear",
+    taper: float = 0.05,
+) -> np.ndarray:
+    """Frequency sweep ``amplitude sin(phi(t))`` from omega_lo to omega_hi over the record.
+
+    Linear: ``omega(t) = omega_lo + (omega_hi - omega_lo) t / T``; logarithmic:
+    ``omega(t) = omega_lo (omega_hi / omega_lo)^(t / T)`` (more time at low
+    frequency, as CIFER's sweeps).  It starts at zero; a raised-cosine taper
+    over the last ``taper`` fraction of the record brings it back to zero.
+
+    Parameters
+    ----------
+    t : array_like, shape (n,)
+        Uniform time, s.
+    amplitude : float, optional
+        Peak, rad.
+    omega_lo, omega_hi : float, optional
+        Start and end frequencies, rad/s (0 < omega_lo < omega_hi < pi/dt).
+    kind : {"linear", "log"}, optional
+    taper : float, optional
+        Fraction of the record (0..0.5) tapered to zero at the end.
+
+    Returns
+    -------
+    ndarray, shape (n,)
+        u(t), rad.
+    """
+    t = _time(t)
+    amplitude = _finite(amplitude, "amplitude (rad)")
+    lo, hi = _band(t, omega_lo, omega_hi, "sweep")
+    tau = t - t[0]
+    T = tau[-1]
+    if not 0.0 <= taper <= 0.5:
+        raise ParameterError(f"sweep taper must be a fraction in [0, 0.5], got {taper!r}")
+    if kind == "linear":
+        phase = lo * tau + 0.5 * (hi - lo) * tau**2 / T
+    elif kind == "log":
+        r = math.log(hi / lo)
+        phase = lo * T / r * np.expm1(r * tau / T)
+    else:
+        raise ParameterError(f"unknown sweep kind {kind!r}; use 'linear' or 'log'")
+    w = np.ones_like(tau)
+    if taper > 0:
+        x = np.clip((T - tau) / (taper * T), 0.0, 1.0)
+        w = 0.5 * (1.0 - np.cos(np.pi * x))
+    return amplitude * np.sin(phase) * w
+
+
+def _upward_zero(omega, phi, T: float, amps=None) -> float:
+    """First time in [0, T) where sum a_k cos(omega_k t + phi_k) crosses zero upwards."""
+    a = np.ones(omega.size) if amps is None else amps
+    f = lambda x: float(np.cos(omega * x + phi) @ a)  # noqa: E731
     grid = np.linspace(0.0, T, 64 * omega.size + 64)
-    vals = np.cos(np.outer(grid, omega) + phi).sum(axis=1)
+    vals = np.cos(np.outer(grid, omega) + phi) @ a
     up = np.nonzero((vals[:-1] < 0) & (vals[1:] >= 0))[0]
     if up.size == 0:  # pragma: no cover - a zero-mean periodic signal always crosses
         raise ParameterError("the multisine has no zero crossing")
@@ -431,7 +599,7 @@ def dryden_gust(
 # --- dispatch ---------------------------------------------------------------------
 
 #: Input kinds understood by :func:`make_input`.
-INPUT_KINDS = ("doublet", "3211", "multisine")
+INPUT_KINDS = ("doublet", "3211", "multisine", "sweep")
 
 
 def make_input(kind: str, t, amplitude: float = DEFAULT_AMPLITUDE, **kw) -> np.ndarray:
@@ -439,8 +607,9 @@ def make_input(kind: str, t, amplitude: float = DEFAULT_AMPLITUDE, **kw) -> np.n
 
     Parameters
     ----------
-    kind : {"doublet", "3211", "multisine"}
-        The generator: :func:`doublet`, :func:`three_two_one_one` or :func:`multisine`.
+    kind : {"doublet", "3211", "multisine", "sweep"}
+        The generator: :func:`doublet`, :func:`three_two_one_one`, :func:`multisine`
+        or :func:`sweep`.
     t : array_like, shape (n,)
         Time, s.
     amplitude : float, optional
@@ -459,6 +628,7 @@ def make_input(kind: str, t, amplitude: float = DEFAULT_AMPLITUDE, **kw) -> np.n
         "doublet": doublet,
         "3211": three_two_one_one,
         "multisine": multisine,
+        "sweep": sweep,
     }
     try:
         fn = funcs[kind]
@@ -489,6 +659,17 @@ def _positive(x, label: str) -> float:
     if v <= 0:
         raise ParameterError(f"{label} must be positive, got {x!r}")
     return v
+
+
+def _band(t: np.ndarray, omega_lo, omega_hi, what: str) -> tuple[float, float]:
+    """Band edges checked: positive, increasing, the upper one below the Nyquist frequency of t."""
+    lo, hi = _positive(omega_lo, "omega_lo (rad/s)"), _positive(omega_hi, "omega_hi (rad/s)")
+    if not lo < hi:
+        raise ParameterError(f"{what} band [{lo}, {hi}] rad/s is empty")
+    nyq = np.pi * (t.size - 1) / (t[-1] - t[0])
+    if hi >= nyq:
+        raise ParameterError(f"{what} band edge {hi} rad/s is not below the Nyquist frequency {nyq:.4g} rad/s")
+    return lo, hi
 
 
 def _time(t) -> np.ndarray:

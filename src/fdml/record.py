@@ -349,7 +349,9 @@ def _check_finite(a: np.ndarray, label: str, where: str) -> None:
         raise RecordError(f"{where}: {label} has {int(bad.sum())} non-finite value(s) (first: {kind} at sample {i})")
 
 
-def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = True) -> Record:
+def read_csv(
+    path: str | Path, *, name: str | None = None, check_units: bool = True, require: tuple = REQUIRED_SIGNALS
+) -> Record:
     """Read fdml's own CSV layout.
 
     A header row naming ``t`` (s), ``de`` (rad), ``alpha`` (rad), ``q``
@@ -357,6 +359,7 @@ def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = T
     columns are ignored.  The record is returned as recorded (trim not removed).
     The file is UTF-8 (a byte-order mark, as spreadsheet programs write, is
     accepted); a column fdml reads that appears twice in the header is an error.
+    ``require`` names the signals that must be present (an input history: ``("de",)``).
     """
     path = Path(path)
     if not path.exists():
@@ -394,6 +397,13 @@ def read_csv(path: str | Path, *, name: str | None = None, check_units: bool = T
         cols[h] = data[:, i]
     signals = {k: cols[k] for k in SIGNALS if k in cols}
     try:
-        return Record(cols["t"], signals, name=name or path.stem, meta={"source": str(path)}, check_units=check_units)
+        return Record(
+            cols["t"],
+            signals,
+            name=name or path.stem,
+            meta={"source": str(path)},
+            check_units=check_units,
+            require=require,
+        )
     except RecordError as exc:
         raise RecordError(f"record file {path}: {exc}") from None

@@ -1,0 +1,268 @@
+"""One call that plans a manoeuvre: the optimised input, its predicted bounds, the baselines, discrimination.
+
+All inputs compared see the same sensor: a noise given as a fraction of
+output RMS is turned into standard deviations once, from the response to the
+3-2-1-1 of the same peak amplitude, and those stds are used for every input.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import BandError, ParameterError
+from ..models import make_model
+from .discriminate import Discrimination, discriminate, minimum_detectable
+from .inputs import DesignInput, Limits, classic_input
+from .optimize import CRITERIA, optimal_input
+from .predict import Prediction, noise_stds, predict, response
+
+__all__ = ["Design", "design", "parse_design_band", "BASELINES"]
+
+#: The classic inputs an optimised one is compared with (same duration and peak).
+BASELINES = ("3211", "sweep")
+#: Default grid step of the fit's band, rad/s (fdml.spectra's default step).
+_STEP = 0.1
+
+
+@dataclass(frozen=True)
+class Design:
+    """A planned manoeuvre.
+
+    Attributes
+    ----------
+    criterion : str
+        ``d-optimal``, ``a-optimal``, ``discriminate`` or ``given`` (an input from a file).
+    input : DesignInput
+        The optimised (or given) input.
+    predicted : Prediction
+        Its predicted bounds.
+    baselines : dict
+        ``{name: Prediction}`` of the classic inputs of equal duration and peak.
+    discrimination : dict
+        ``{name: Discrimination}`` for the input and each baseline (unsteady models only).
+    noise : dict
+        Measurement-noise stds used for every input (rad, rad/s, g).
+    band : tuple
+        The fit's band (lo, hi, step), rad/s.
+    detectable : tuple of Detectable
+        Minimum detectable value of each parameter of the effects asked for, with the input.
+    """
+
+    criterion: str
+    input: DesignInput
+    predicted: Prediction
+    baselines: dict = field(default_factory=dict)
+    discrimination: dict = field(default_factory=dict)
+    noise: dict = field(default_factory=dict)
+    band: tuple = ()
+    detectable: tuple = ()
+
+    def gains(self) -> dict[str, dict[str, float]]:
+        """Ratio of each baseline's predicted stderr to the input's, per model parameter (> 1: a gain)."""
+        se = self.predicted.to_dict()
+        return {
+            b: {n: p.to_dict()[n]["stderr"] / se[n]["stderr"] for n in se if n in p.to_dict()}
+            for b, p in self.baselines.items()
+        }
+
+    def table(self) -> str:
+        """Plain-text table: value and predicted stderr per parameter, input and baselines; discrimination."""
+        names = list(self.predicted.to_dict())
+        cols = {self.input.name: self.predicted, **self.baselines}
+        head = f"{'parameter':<12}{'value':>10}" + "".join(f"{c[:18]:>20}" for c in cols)
+        lines = [head, "-" * len(head)]
+        for n in names:
+            row = f"{n:<12}{self.predicted.values[n]:>10.4g}"
+            row += "".join(f"{p.stderr.get(n, math.nan):>20.3g}" for p in cols.values())
+            lines.append(row)
+        if self.detectable:
+            lines.append("")
+            lines.append(f"{'effect':<22}{'parameter':<12}{'min. detectable':>16}  (power, level)")
+            for e in self.detectable:
+                lines.append(f"{e.effect[:22]:<22}{e.parameter:<12}{e.minimum:>16.4g}  ({e.power:g}, {e.level:g})")
+        if self.discrimination:
+            lines.append("")
+            lines.append(f"{'steady vs unsteady':<22}{'lambda':>10}{'P(detect)':>11}{'P(favoured)':>13}")
+            for k, d in self.discrimination.items():
+                lines.append(f"{k[:22]:<22}{d.noncentrality:>10.3g}{d.probability:>11.3f}{d.favoured:>13.3f}")
+        return "\n".join(lines)
+
+    def to_dict(self, csv_path=None) -> dict:
+        """JSON-ready: ``input`` (the CSV path), ``predicted`` (with ``baselines``), ``discrimination``."""
+        predicted = {
+            "input": self.input.name,
+            "parameters": self.predicted.to_dict(),
+            "baselines": {k: p.to_dict() for k, p in self.baselines.items()},
+            "gains": self.gains(),
+        }
+        return {
+            "input": None if csv_path is None else str(csv_path),
+            "criterion": self.criterion,
+            "limits": self.input.report(),
+            "band": list(self.band),
+            "noise": self.noise,
+            "predicted": predicted,
+            "discrimination": {k: d.to_dict() for k, d in self.discrimination.items()},
+            "detectable": [e.to_dict() for e in self.detectable],
+        }
+
+
+def parse_design_band(band, dt: float) -> tuple[float, float, float]:
+    """``"LO:HI[:STEP]"`` or a tuple, rad/s; HI must lie below the Nyquist frequency pi/dt."""
+    if band is None:
+        band = (0.5, 10.0)
+    if isinstance(band, str):
+        try:
+            parts = [float(x) for x in band.split(":")]
+        except ValueError:
+            raise BandError(f"band {band!r} must be LO:HI or LO:HI:STEP in rad/s") from None
+    else:
+        parts = [float(x) for x in band]
+    if len(parts) not in (2, 3) or not all(map(math.isfinite, parts)):
+        raise BandError(f"band {band!r} must be LO:HI or LO:HI:STEP in rad/s")
+    lo, hi = parts[0], parts[1]
+    step = parts[2] if len(parts) == 3 else _STEP
+    if not (0 < lo < hi) or step <= 0:
+        raise BandError(f"band {band!r}: need 0 < LO < HI and STEP > 0 (rad/s)")
+    nyq = math.pi / dt
+    if hi >= nyq:
+        raise BandError(f"band edge {hi:g} rad/s is above the Nyquist frequency pi/dt = {nyq:.4g} rad/s")
+    return lo, hi, step
+
+
+def _steady_for(model, steady_kind: str):
+    if model.kind != "unsteady":
+        return None
+    return make_model(steady_kind, model.aircraft, gust=model.gust)
+
+
+def design(
+    model,
+    *,
+    criterion: str = "d-optimal",
+    duration: float = 20.0,
+    amplitude: float = math.radians(1.0),
+    band=None,
+    dt: float = 0.02,
+    rate: float = math.inf,
+    noise=0.05,
+    targets=(),
+    steady: str = "steady",
+    baselines=BASELINES,
+    level: float = 0.05,
+    given: DesignInput | None = None,
+    free=None,
+    refine: int = 40,
+    detect=(),
+) -> Design:
+    """Design (or assess a given) input for ``model`` and compare it with classic inputs.
+
+    Parameters
+    ----------
+    model : Model
+        The truth, at its parameter values (``unsteady`` for discrimination).
+    criterion : {"d-optimal", "a-optimal", "discriminate"}, optional
+    duration, amplitude, dt, rate : float, optional
+        Record length (s), peak elevator (rad), sample interval (s), rate limit (rad/s).
+    band : str or tuple, optional
+        ``LO:HI[:STEP]`` rad/s: the input's band and the fit's (step default 0.1).
+    noise : float or mapping, optional
+        Fraction of output RMS in the 3-2-1-1 response, or stds.
+    targets : sequence of str, optional
+        The a-optimal subset.
+    steady : {"steady", "derivatives"}, optional
+        The steady model the unsteady one is told from.
+    baselines : sequence of str, optional
+        Classic inputs compared (:data:`fdml.design.inputs.CLASSIC_KINDS`).
+    level : float, optional
+        Test level of the detection probability.
+    given : DesignInput, optional
+        Predict for this input instead of designing one.
+    free : sequence of str, optional
+        Parameters to free as well (``b1`` of a gust model).
+    refine : int, optional
+        Full evaluations of the criterion that refine the optimised spectrum (0: none).
+    detect : sequence of str, optional
+        Library effects (``time_delay:alpha``, ``actuator_lag``, ``sensor_offset@az``) whose
+        minimum detectable values (power 0.9 at ``level``) with the input are reported.
+
+    Returns
+    -------
+    Design
+    """
+    if criterion not in CRITERIA:
+        raise ParameterError(f"unknown criterion {criterion!r}; criteria: {', '.join(CRITERIA)}")
+    if free:
+        model = model.with_parameters(model.parameters.free(list(free)))
+    if given is not None:
+        dt, duration = float(given.t[1] - given.t[0]), float(given.t[-1])
+    fband = parse_design_band(band, dt)
+    lim = Limits(amplitude=amplitude, duration=duration, dt=dt, rate=rate)
+    ms = _steady_for(model, steady)
+    ref = classic_input("3211", lim, fband[:2]) if given is None else given
+    stds = noise_stds(response(model, ref), noise)
+    if given is None:
+        score = _scorer(criterion, model, ms, stds, fband, targets)
+        inp = optimal_input(
+            criterion, model, lim, fband[:2], stds, targets=targets, steady=ms, score=score, refine=refine
+        )
+        base = {k: classic_input(k, lim, fband[:2]) for k in baselines}
+    else:
+        inp, base = given, {}
+        criterion = "given"
+    pred = predict(model, inp, noise=stds, band=fband)
+    preds = {k: predict(model, b, noise=stds, band=fband) for k, b in base.items()}
+    disc: dict[str, Discrimination] = {}
+    if ms is not None:
+        for k, b in {inp.name: inp, **base}.items():
+            disc[k] = discriminate(model, ms, b, noise=stds, level=level, band=fband)
+    found = tuple(e for eff in detect for e in minimum_detectable(model, eff, inp, noise=stds, level=level, band=fband))
+    return Design(criterion, inp, pred, preds, disc, stds, fband, found)
+
+
+def _scorer(criterion: str, model, steady, stds, band, targets):
+    """The criterion by the full prediction (larger is better)."""
+    if criterion == "discriminate":
+        return lambda inp: discriminate(model, steady, inp, noise=stds, band=band).noncentrality
+    if criterion == "a-optimal":
+        return lambda inp: -sum(predict(model, inp, noise=stds, band=band).cov_of(targets))
+
+    def d_score(inp):
+        p = predict(model, inp, noise=stds, band=band)
+        return -float(np.linalg.slogdet(p.model_cov())[1])
+
+    return d_score
+
+
+def plot_design(d: Design, fig=None):
+    """Input history and its spectrum (with the baselines'), and predicted stderr ratios."""
+    import matplotlib.pyplot as plt
+
+    from .inputs import spectrum
+
+    fig = fig or plt.figure(figsize=(10, 7))
+    ax1, ax2, ax3 = fig.add_subplot(311), fig.add_subplot(312), fig.add_subplot(313)
+    ax1.plot(d.input.t, np.degrees(d.input.de), label=d.input.name)
+    ax1.set_xlabel("t, s")
+    ax1.set_ylabel("de, deg")
+    omega = np.linspace(d.band[0], d.band[1], 400)
+    for name, inp in [(d.input.name, d.input)] + [(k, p.input) for k, p in d.baselines.items()]:
+        ax2.semilogy(omega, np.degrees(spectrum(inp, omega)), label=name)
+    ax2.set_xlabel("omega, rad/s")
+    ax2.set_ylabel("|de(j omega)|, deg s")
+    ax2.legend(fontsize=8)
+    gains = d.gains()
+    names = list(d.predicted.to_dict())
+    x = np.arange(len(names))
+    for i, (b, g) in enumerate(gains.items()):
+        ax3.bar(x + 0.8 * i / max(len(gains), 1), [g[n] for n in names], width=0.8 / max(len(gains), 1), label=b)
+    ax3.axhline(1.0, color="k", lw=0.8)
+    ax3.set_xticks(x + 0.4 - 0.4 / max(len(gains), 1), names, fontsize=8)
+    ax3.set_ylabel("stderr ratio baseline / design")
+    if gains:
+        ax3.legend(fontsize=8)
+    fig.tight_layout()
+    return fig

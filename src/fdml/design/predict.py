@@ -1,0 +1,213 @@
+"""Predicted covariance of the estimates for a planned input (THEORY.md Eqs. 20-26).
+
+The prediction is the estimator's own bound, reached through its own code:
+the noise-free response to the input is transformed and set up exactly as
+:func:`fdml.fit` sets up a record (:func:`fdml.estimate.prepare`: the band,
+boundary terms, output biases, trim removal), the sensitivities are the fit's
+(analytic or Eq. 26), and the covariance is the fit's ``white`` sandwich
+(:func:`fdml.estimate.white_covariance`) with R the residual covariance the
+fit would estimate (Eq. 24) for white measurement noise of the given
+standard deviations.  A Monte Carlo of the time-domain simulator and
+:func:`fdml.fit` confirms it (``benchmarks/design_validation.py``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import FdmlError, ParameterError
+from ..estimate import Problem, information, prepare, white_covariance
+from ..models.base import OUTPUTS
+from ..record import Record
+from ..simulate import simulate
+from .inputs import DesignInput
+
+__all__ = ["Prediction", "predict", "noise_stds", "response"]
+
+#: Settling tolerance of Eq. 26 sensitivities behind the bound (as the fit's final covariance).
+_SETTLE_FINAL = 1e-10
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Predicted standard errors of one input.
+
+    Attributes
+    ----------
+    names : tuple of str
+        Estimated quantities, in the fit's order (model parameters, then
+        output biases and boundary values).
+    values : dict
+        Their true values.
+    cov : ndarray, shape (p, p)
+        Predicted covariance of the estimates (the fit's ``white`` bound).
+    noise : dict
+        Measurement-noise standard deviations per output (rad, rad/s, g).
+    information : ndarray, shape (p, p)
+        ``2 Re sum A^H R^-1 A`` (the naive information, Eq. 23's matrix).
+    input : DesignInput
+        The input the prediction is for.
+    """
+
+    names: tuple
+    values: dict
+    cov: np.ndarray = field(repr=False)
+    noise: dict
+    information: np.ndarray = field(repr=False)
+    input: DesignInput = field(repr=False)
+
+    @property
+    def stderr(self) -> dict[str, float]:
+        """Predicted standard error per estimated quantity."""
+        return dict(zip(self.names, np.sqrt(np.diag(self.cov)).tolist()))
+
+    def relative(self, name: str) -> float:
+        """Predicted standard error of ``name`` over |its value|."""
+        return self.stderr[name] / abs(self.values[name]) if self.values[name] else math.inf
+
+    def model_cov(self) -> np.ndarray:
+        """Predicted covariance of the model parameters (nuisance terms left out)."""
+        idx = [i for i, n in enumerate(self.names) if not _nuisance(n)]
+        return self.cov[np.ix_(idx, idx)]
+
+    def cov_of(self, names) -> list[float]:
+        """Predicted variances of the named estimates."""
+        se = self.stderr
+        return [se[n] ** 2 for n in names]
+
+    def to_dict(self, model_only: bool = True) -> dict:
+        """``{name: {"value": v, "stderr": s}}`` (model parameters only by default)."""
+        se = self.stderr
+        keep = [n for n in self.names if not model_only or not _nuisance(n)]
+        return {n: {"value": self.values[n], "stderr": se[n]} for n in keep}
+
+
+def _nuisance(name: str) -> bool:
+    return name.startswith(("bias_", "x0_", "xT_"))
+
+
+def response(model, inp: DesignInput, values: Mapping | None = None) -> Record:
+    """The noise-free response of ``model`` to the input (:func:`fdml.simulate.simulate`)."""
+    signals = dict(inp.signals)
+    if model.gust and "alpha_w" not in signals:
+        signals["alpha_w"] = np.zeros_like(inp.t)
+    if not model.gust:
+        signals.pop("alpha_w", None)
+    return simulate(model, inp.t, signals, values, name=inp.name)
+
+
+def noise_stds(rec: Record, noise) -> dict[str, float]:
+    """Noise standard deviations per output from a fraction of each output's RMS or a mapping.
+
+    A number is a fraction of each output's RMS about its mean in the
+    noise-free record, as :func:`fdml.record.add_noise` with ``relative=True``
+    (``fdml simulate --noise``).
+    """
+    if isinstance(noise, Mapping):
+        bad = sorted(set(noise) - set(OUTPUTS))
+        if bad:
+            raise ParameterError(f"noise given for unknown output(s) {bad}; outputs: {', '.join(OUTPUTS)}")
+        out = {k: float(noise.get(k, 0.0)) for k in OUTPUTS}
+    else:
+        try:
+            frac = float(noise)
+        except (TypeError, ValueError):
+            raise ParameterError(
+                f"noise must be a fraction of output RMS or a mapping of stds, got {noise!r}"
+            ) from None
+        out = {k: frac * float(np.std(rec[k])) for k in OUTPUTS}
+    if not all(math.isfinite(v) and v >= 0 for v in out.values()):
+        raise ParameterError(f"noise standard deviations must be finite and >= 0, got {out}")
+    return out
+
+
+def expected_R(prob: Problem, stds: Mapping[str, float]) -> np.ndarray:
+    """The residual covariance (Eq. 24) a fit would estimate for white noise of these stds.
+
+    White noise of per-sample covariance Sigma gives E R = Sigma mean_i ||F_i||^2
+    less the fraction the p estimated parameters absorb, (N_real - p) / N_real
+    (the inverse of the scaling in :func:`fdml.estimate._white_cov_g`).
+    """
+    sig = np.array([stds[OUTPUTS[k]] for k in prob.out_idx])
+    if np.any(sig <= 0):
+        zero = [OUTPUTS[k] for k, s in zip(prob.out_idx, sig) if s <= 0]
+        raise ParameterError(f"noise of the fitted output(s) {', '.join(zero)} is zero: the bounds would be zero")
+    gains = np.concatenate([d.noise_gain(include_trim=False) for d in prob.data])
+    n_real = 2 * prob.n_out * sum(d.independent_frequencies() for d in prob.data)
+    dof = n_real / max(n_real - len(prob.slots), 1.0)
+    return np.diag(sig**2) * float(np.mean(gains)) / dof
+
+
+def predict(
+    model,
+    inp: DesignInput,
+    *,
+    noise=0.05,
+    values: Mapping | None = None,
+    band=None,
+    outputs=None,
+    free=None,
+    fix=None,
+    boundary: str = "estimated",
+    biases="auto",
+) -> Prediction:
+    """Predicted covariance of the estimates of ``model`` from a record flown with ``inp``.
+
+    Parameters
+    ----------
+    model : fdml.models.Model
+        The model fitted, at its true parameter values (``values`` override).
+    inp : DesignInput
+        The input history (:mod:`fdml.design.inputs`).
+    noise : float or mapping, optional
+        White measurement noise: a fraction of each output's RMS in the
+        noise-free response (default 0.05), or ``{"alpha": rad, "q": rad/s,
+        "az": g}``.
+    values : mapping, optional
+        Parameter values overriding the model's.
+    band, outputs, free, fix, boundary, biases :
+        As for :func:`fdml.fit`.
+
+    Returns
+    -------
+    Prediction
+    """
+    if values:
+        model.parameters.check_names(values)
+        model = model.with_values(values)
+    rec = response(model, inp)
+    stds = noise_stds(rec, noise)
+    prob = prepare(rec, model, band=band, outputs=outputs, free=free, fix=fix, boundary=boundary, biases=biases)
+    theta = prob.initial()  # noise-free: the truth, with x(0), x(T) and the biases exact
+    A = prob.sensitivities(theta, tol=_SETTLE_FINAL)
+    R = expected_R(prob, stds)
+    W = np.linalg.inv(R)
+    M = information(A, W)
+    Minv = _inverse(M, prob.names)
+    cov = white_covariance(prob, A, R, Minv, None, W)  # the fit's white bound (Eqs. 23-24 sandwich)
+    return Prediction(
+        names=prob.names,
+        values=dict(zip(prob.names, theta.tolist())),
+        cov=cov,
+        noise=stds,
+        information=2.0 * M,
+        input=inp,
+    )
+
+
+def _inverse(M: np.ndarray, names) -> np.ndarray:
+    """M^-1, or a one-line error naming what this input cannot identify."""
+    d = np.sqrt(np.abs(np.diag(M)))
+    dead = [n for n, x in zip(names, d) if x == 0]
+    if dead:
+        raise FdmlError(f"this input does not excite {', '.join(dead)}: it cannot be identified from it")
+    Mn = M / np.outer(d, d)
+    w, U = np.linalg.eigh(Mn)
+    if w[0] <= 1e-12 * w[-1]:
+        top = [names[j] for j in np.argsort(np.abs(U[:, 0]))[::-1][:3]]
+        raise FdmlError(f"with this input the combination of {', '.join(top)} cannot be identified")
+    return np.linalg.inv(Mn) / np.outer(d, d)
