@@ -10,7 +10,7 @@ For each cell: the expected likelihood-ratio statistic lambda (the
 non-centrality: the steady model's weighted misfit to the noise-free unsteady
 response), the detection probability at level 0.05 with one degree of freedom
 (``P{ncx2(1, lambda) > chi2_1(0.95)}``, the comprehensive-model approximation
-of fdml.design.discriminate), P(unsteady favoured) = Phi(sqrt(lambda)/2) and
+of fdml.design.discrimination), P(unsteady favoured) = Phi(sqrt(lambda)/2) and
 P(Vuong z > z_0.95) = Phi(sqrt(lambda)/2 - 1.645), for both steady models
 (``steady``: the Wells-Keskar quasi-steady limit, same five parameters;
 ``derivatives``: the six conventional derivatives, WK Table 1's steady column).

@@ -27,7 +27,7 @@ import numpy as np
 
 from fdml import maneuvers as mv
 from fdml.design import CLASSIC_KINDS, DesignInput, Limits, classic_input, design, discriminate, predict
-from fdml.design.predict import noise_stds, response
+from fdml.design.prediction import noise_stds, response
 from fdml.models import make_model
 
 SETUPS = {"navion": (12.0, 1.0, (0.5, 10.0)), "sundowner": (20.0, 3.0, (0.5, 15.0))}

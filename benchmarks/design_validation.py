@@ -1,4 +1,4 @@
-"""Predicted standard errors (fdml.design.predict) against Monte Carlo with the time-domain simulator + fdml.fit.
+"""Predicted standard errors (fdml.design.prediction) against Monte Carlo with the time-domain simulator + fdml.fit.
 
 Part 1: Navion (THEORY.md section 10), steady and unsteady models, 3-2-1-1 and
 minimum-crest multisine (12 s, 50 Hz, 1 deg, band 0.5:10 rad/s), noise 5 % of
@@ -29,7 +29,7 @@ import numpy as np
 
 from fdml import fit
 from fdml.design import Limits, classic_input, design, predict
-from fdml.design.predict import response
+from fdml.design.prediction import response
 from fdml.models import make_model
 from fdml.record import add_noise
 

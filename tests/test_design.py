@@ -22,8 +22,8 @@ from fdml.design import (
     predict,
     read_input,
 )
-from fdml.design.discriminate import _best_match, noncentrality, required_noncentrality
-from fdml.design.predict import noise_stds, response
+from fdml.design.discrimination import _best_match, noncentrality, required_noncentrality
+from fdml.design.prediction import noise_stds, response
 from fdml.errors import BandError, FdmlError, ParameterError
 from fdml.estimate import prepare
 from fdml.models import make_model

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import maneuvers as mv
+from ..channels import INPUTS
 from ..errors import BandError, FdmlError, ParameterError
 from ..record import Record, read_csv
 
@@ -254,7 +255,7 @@ def read_input(path) -> DesignInput:
     """An input history from fdml's record CSV (``t``, ``de``[, ``alpha_w``]; other columns ignored)."""
     rec = read_csv(path, require=("de",), check_units=True)
     t = rec.t - rec.t[0]
-    signals = {k: rec[k] for k in ("de", "alpha_w") if rec.has(k)}
+    signals = {k: rec[k] for k in INPUTS if rec.has(k)}
     if not np.any(signals["de"]):
         raise FdmlError(f"input file {path}: de is zero throughout: nothing excites the aircraft")
     lim = Limits(amplitude=float(np.max(np.abs(signals["de"]))), duration=float(t[-1]), dt=rec.dt)

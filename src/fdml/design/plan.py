@@ -14,10 +14,10 @@ import numpy as np
 
 from ..errors import BandError, ParameterError
 from ..models import make_model
-from .discriminate import Discrimination, discriminate, minimum_detectable
+from .discrimination import Discrimination, discriminate, minimum_detectable
 from .inputs import DesignInput, Limits, classic_input
 from .optimize import CRITERIA, optimal_input
-from .predict import Prediction, noise_stds, predict, response
+from .prediction import Prediction, noise_stds, predict, response
 
 __all__ = ["Design", "design", "parse_design_band", "BASELINES"]
 

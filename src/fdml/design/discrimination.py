@@ -44,10 +44,11 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import optimize, stats
 
+from ..channels import OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..estimate import Problem, information, prepare
 from .inputs import DesignInput
-from .predict import noise_stds, predict, response
+from .prediction import noise_stds, predict, response
 
 __all__ = ["Discrimination", "discriminate", "detection_probability", "minimum_detectable", "noncentrality"]
 
@@ -193,7 +194,7 @@ def discriminate(
     rec = response(unsteady, inp)
     stds = noise_stds(rec, noise)
     prob = prepare(rec, steady, band=band, outputs=outputs)
-    sig = np.array([stds[k] for k in ("alpha", "q", "az")])[prob.out_idx]
+    sig = np.array([stds[k] for k in OUTPUTS])[prob.out_idx]
     if np.any(sig <= 0):
         raise ParameterError("the noise of a fitted output is zero: any discrepancy is detected with certainty")
     gains = np.concatenate([d.noise_gain(include_trim=False) for d in prob.data])
