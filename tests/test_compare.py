@@ -159,6 +159,7 @@ def test_comparison_round_trip_summary_and_plot(comparison):
     text = comparison.summary()
     assert "evidence" in text and "ln det R" in text and text == comparison.table()
     assert comparison.evidence.favoured == "unsteady"  # 2 % noise: far beyond the 90 % crossing
+    assert comparison.unsteady.provenance["lag_constants"]["source"] == "aircraft file"  # the navion preset
     fig = comparison.plot()
     assert len(fig.axes) == 7
     import matplotlib.pyplot as plt

@@ -15,11 +15,11 @@ of the concentrated likelihood whose sum is -N ln det R, THEORY.md Eqs. 20-25).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .aircraft import Aircraft, load_aircraft
+from .aircraft import Aircraft, lag_provenance, load_aircraft
 from .errors import FdmlError
 from .estimate import fit
 from .models import make_model
@@ -435,4 +435,5 @@ def compare_steady_unsteady(
     ms = make_model(steady_model, ac, gust=gust, effects=effects)
     ru = fit(data, mu, **fit_kwargs)
     rs = fit(data, ms, **fit_kwargs)
+    ru = replace(ru, provenance={**ru.provenance, "lag_constants": lag_provenance(ac)})  # where the lags came from
     return Comparison(steady=rs, unsteady=ru)
