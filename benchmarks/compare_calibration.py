@@ -14,6 +14,16 @@ Steady truth (WK Table 1 steady column): the fraction of records for which
 WK Table 1 unsteady column): the fraction favouring "unsteady" on the grid
 noise 0.01, 0.02, 0.05, 0.1, 0.2 x input 3211, doublet, multisine.
 
+Result (2026-11-25, 210 steady-truth records per source, 40 per cell): "unsteady" favoured in
+0/420 steady-truth records (95 % upper bound 1.4 %) for 3211, doublet and multisine, and in
+0/420 for the multisine on its harmonics.  Unsteady truth, noise at which 90 % of records favour
+"unsteady": 3211 0.060 (both sources), doublet 0.034-0.037, multisine on its harmonics
+0.062-0.066; the multisine on the default 0.1 rad/s grid stays below 90 % even at 0.01 (periodic
+records: 0 %).  Why: the boundary terms x(0) - x(T) exp(-j w T) cover only alpha and q, not the
+lag states (nor the F term's memory), so a record that does not end at rest is misfit off the
+harmonics by the unsteady model itself; on the harmonics of a periodic record the boundary terms
+vanish.  Fit multisines on their harmonics (``--band w0:HI:w0``, w0 = 2 pi / T).
+
 Run: ``python benchmarks/compare_calibration.py [N_STEADY] [N_CELL] [INPUTS]`` (defaults
 210, 40 and 3211,doublet,multisine; ``multisine-h`` is the multisine fitted on its own
 harmonics); prints Markdown tables and writes compare_calibration*.png.
