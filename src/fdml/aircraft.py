@@ -271,12 +271,12 @@ class Aircraft:
     # --- derived quantities --------------------------------------------------
     @property
     def k_z(self) -> float:
-        """rho U S_w / (2 m), 1/s: the factor of C_z in THEORY.md Eq. 3."""
+        """The factor of C_z in THEORY.md Eq. 3, rho U S_w / (2 m), 1/s."""
         return self.rho * self.U * self.S_w / (2.0 * self.mass)
 
     @property
     def k_m(self) -> float:
-        """rho U^2 S_w c_w / (2 I_y), 1/s^2: the factor of C_m in Eq. 4."""
+        """The factor of C_m in Eq. 4, rho U^2 S_w c_w / (2 I_y), 1/s^2."""
         return self.rho * self.U**2 * self.S_w * self.c_w / (2.0 * self.Iy)
 
     @property

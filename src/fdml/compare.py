@@ -23,6 +23,7 @@ from .aircraft import Aircraft, lag_provenance, load_aircraft
 from .errors import FdmlError
 from .estimate import fit
 from .models import make_model
+from .models.wells_keskar import ALTERNATE_NAMES
 from .results import FitResult
 
 __all__ = [
@@ -35,8 +36,6 @@ __all__ = [
     "COMPARISON_FORMAT",
 ]
 
-#: The six derivatives of WK Tables 1 and 3, in the tables' order.
-ALTERNATE_NAMES = ("Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q", "Cm_de")
 #: JSON format identifier and version of a saved comparison.
 COMPARISON_FORMAT = ("fdml.Comparison", 1)
 #: Two-sided level of the evidence test: below it one model is favoured.
@@ -136,10 +135,25 @@ class Evidence:
     method: str = "Vuong (1989) non-nested test, Newey-West variance over the frequency correlation span"
 
     def to_dict(self) -> dict:
+        """JSON-ready dict of every field."""
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "comparison evidence") -> "Evidence":
+        """Inverse of :meth:`to_dict`; a bad key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Evidence
+            The evidence ``d`` describes.
+        """
         from .jsoncodec import Fields
 
         f = Fields(d, source)
@@ -361,9 +375,17 @@ class Comparison:
     def plot(self, *, record: int = 0, fig=None):
         """Data spectra with both fits (top) and the derivative shifts with +-2 sigma bounds (bottom).
 
+        Parameters
+        ----------
+        record : int, optional
+            Which record's spectra to show.
+        fig : matplotlib.figure.Figure, optional
+            Figure to draw into (default: a new one).
+
         Returns
         -------
-        fig : matplotlib.figure.Figure
+        matplotlib.figure.Figure
+            The figure.
         """
         import matplotlib.pyplot as plt
 

@@ -76,11 +76,11 @@ def _fit_both(args, records, data, kwargs):
 
 
 def run(args) -> int:
+    from .. import spectra  # the Fourier front end (the function; its module's name differs across versions)
     from ..compare import Comparison, check_records_for_compare
     from ..errors import FdmlError
     from ..io import check_same_rate, load_record
     from ..io.cli import record_options
-    from ..spectra import spectra
 
     if args.aircraft is None:
         raise FdmlError("fdml compare needs --aircraft NAME or FILE.json (the unsteady model needs the geometry)")

@@ -18,7 +18,10 @@ from ..errors import AircraftError, ParameterError
 from ..parameters import Parameter, Parameters
 from .base import Model
 
-__all__ = ["UnsteadyModel", "SteadyModel", "alternate_set"]
+__all__ = ["UnsteadyModel", "SteadyModel", "alternate_set", "ALTERNATE_NAMES"]
+
+#: The six derivatives of WK Tables 1 and 3, in the tables' order: the keys of :func:`alternate_set`.
+ALTERNATE_NAMES = ("Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q", "Cm_de")
 
 _THETA = (
     ("CLa_w", "1/rad", "steady wing lift slope (C_La)_ss,w"),
