@@ -24,7 +24,13 @@ __all__ = [
     "MAX_AIRSPEED",
     "CONSTANT_KEYS",
     "GENERIC_CONSTANTS",
+    "LAG_KEYS",
+    "LAG_SOURCES",
     "get_aircraft",
+    "jones_lag_constants",
+    "lag_provenance",
+    "aircraft_for_lags",
+    "missing_lag_message",
     "list_aircraft",
     "load_aircraft",
 ]
@@ -90,6 +96,56 @@ GENERIC_CONSTANTS = {
 }
 
 
+#: The lag constants of the unsteady model (THEORY.md Eqs. 1-2): lift lag of wing
+#: and tail, downwash lag.  An aircraft that gives none of them and names no
+#: source for them cannot make the unsteady model (it would be the steady one).
+LAG_KEYS = ("y_w", "z_w", "y_t", "z_t", "F", "G", "H")
+
+#: Documented sources an aircraft file may name for its lag constants
+#: (``"lag_constants": NAME``), with what each one means.
+LAG_SOURCES = {
+    "jones": "lift lags from R. T. Jones's one-term finite-wing indicial approximation (NACA Rep. 681) "
+    "for the aspect ratio S/c^2 of wing and tail (THEORY.md section 2); downwash lag F, G, H borrowed "
+    "from the Sundowner, WK Table 2",
+    "none": "no lag chosen by the user: the unsteady model is then the quasi-steady model",
+}
+
+#: R. T. Jones's one-term approximation 1 - y exp(-z s) (THEORY.md section 2) at two aspect ratios.
+_JONES_TABLE = {3.0: (0.283, 0.540), 6.0: (0.361, 0.381)}
+#: WK Table 2 (Sundowner) downwash-lag constants, borrowed by the "jones" source.
+_WK_TABLE2_DOWNWASH = {"F": 1.358, "G": 0.513, "H": 0.065}
+
+
+def jones_lag_constants(aspect_ratio: float) -> tuple[float, float, float, float]:
+    """(y, z, sigma_y, sigma_z) of R. T. Jones's one-term lift lag for an aspect ratio.
+
+    Linear in 1/AR between Jones's AR 3 and AR 6 elliptic-wing values
+    (THEORY.md section 2), held at the nearer end outside [3, 6].  The
+    uncertainty is half the AR 3-6 spread (0.039 in y, 0.080 in z), doubled
+    outside [3, 6]: the one-term form and the [MEM] table do not support more.
+    """
+    (a3, (y3, z3)), (a6, (y6, z6)) = sorted(_JONES_TABLE.items())
+    ar = min(max(float(aspect_ratio), a3), a6)
+    w = (1.0 / ar - 1.0 / a6) / (1.0 / a3 - 1.0 / a6)  # 0 at AR 6, 1 at AR 3
+    grow = 1.0 if a3 <= aspect_ratio <= a6 else 2.0
+    return y6 + w * (y3 - y6), z6 + w * (z3 - z6), grow * abs(y3 - y6) / 2, grow * abs(z3 - z6) / 2
+
+
+def _jones_fill(S_w, c_w, S_t, c_t) -> tuple[dict, dict, dict]:
+    """(constants, sources, uncertainty) of the "jones" lag source."""
+    consts, sources, sigma = {}, {}, {}
+    for part, S, c in (("w", S_w, c_w), ("t", S_t, c_t)):
+        ar = S / c**2
+        y, z, sy, sz = jones_lag_constants(ar)
+        for key, v, sv in ((f"y_{part}", y, sy), (f"z_{part}", z, sz)):
+            consts[key], sigma[key] = v, sv
+            sources[key] = f"R. T. Jones one-term lift lag for AR = S/c^2 = {ar:.3g} (THEORY.md 2), +/- {sv:.2g}"
+    for key, v in _WK_TABLE2_DOWNWASH.items():
+        consts[key], sigma[key] = v, abs(v)  # another aircraft's value: of the order of itself
+        sources[key] = "borrowed from the Sundowner, WK Table 2 (THEORY.md 11.2), +/- 100 %"
+    return consts, sources, sigma
+
+
 @dataclass(frozen=True)
 class Aircraft:
     """Geometry, mass properties and flight condition of one aircraft (SI).
@@ -121,6 +177,16 @@ class Aircraft:
     assumed : frozenset of str, optional
         Keys whose values are assumptions rather than data.
     description : str, optional
+    lag_constants : str, optional
+        A documented source for the lag constants the aircraft does not give
+        (a key of :data:`LAG_SOURCES`: ``"jones"`` or ``"none"``); "" for none named.
+
+    Attributes
+    ----------
+    given : frozenset of str
+        The constants the description gave (the rest are :data:`GENERIC_CONSTANTS`).
+    lag_uncertainty : dict
+        Standard uncertainty of each lag constant filled in from ``lag_constants``.
     """
 
     name: str
@@ -137,6 +203,9 @@ class Aircraft:
     sources: Mapping[str, str] = field(default_factory=dict)
     assumed: frozenset = frozenset()
     description: str = ""
+    lag_constants: str = ""
+    given: frozenset = field(default=frozenset(), init=False, compare=False)
+    lag_uncertainty: Mapping[str, float] = field(default_factory=dict, init=False, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
@@ -173,9 +242,31 @@ class Aircraft:
         consts = dict(GENERIC_CONSTANTS)
         for k, v in self.constants.items():
             consts[k] = _real(v, f"aircraft {self.name!r}: constant {k}")
+        given, sources, assumed = frozenset(self.constants), dict(self.sources), set(self.assumed)
+        if self.lag_constants not in ("", *LAG_SOURCES):
+            raise AircraftError(
+                f"aircraft {self.name!r}: lag_constants must be one of {', '.join(LAG_SOURCES)}, "
+                f"got {self.lag_constants!r}"
+            )
+        sigma: dict[str, float] = {}
+        if self.lag_constants == "jones":
+            filled, why, sigma = _jones_fill(self.S_w, self.c_w, self.S_t, self.c_t)
+            sigma = {k: v for k, v in sigma.items() if k not in given}
+            consts.update({k: filled[k] for k in sigma})
+            sources.update({k: why[k] for k in sigma})
+            assumed |= set(sigma)
         object.__setattr__(self, "constants", consts)
-        object.__setattr__(self, "sources", dict(self.sources))
-        object.__setattr__(self, "assumed", frozenset(self.assumed))
+        object.__setattr__(self, "sources", sources)
+        object.__setattr__(self, "assumed", frozenset(assumed))
+        object.__setattr__(self, "given", given)
+        object.__setattr__(self, "lag_uncertainty", sigma)
+
+    @property
+    def lag_status(self) -> str | None:
+        """Where the lag constants come from: "aircraft file", a :data:`LAG_SOURCES` name, or None (nowhere)."""
+        if self.lag_constants:
+            return self.lag_constants
+        return "aircraft file" if self.given & set(LAG_KEYS) else None
 
     # --- derived quantities --------------------------------------------------
     @property
@@ -195,12 +286,12 @@ class Aircraft:
 
     def with_changes(self, **changes) -> "Aircraft":
         """Return a copy with fields (or constants, by name) changed."""
-        consts = dict(self.constants)
+        consts = {k: self.constants[k] for k in self.given}
         fields_ = {}
         for k, v in changes.items():
             if k in CONSTANT_KEYS:
                 consts[k] = v
-            elif k in REQUIRED_KEYS:
+            elif k in REQUIRED_KEYS or k == "lag_constants":
                 fields_[k] = v
             else:
                 raise AircraftError(f"unknown aircraft field or constant {k!r}")
@@ -210,7 +301,9 @@ class Aircraft:
     def to_dict(self) -> dict:
         """JSON-ready dict in the aircraft-file layout."""
         d = {k: getattr(self, k) for k in REQUIRED_KEYS}
-        d.update(self.constants)
+        d.update({k: v for k, v in self.constants.items() if k in self.given})  # generic defaults stay implicit
+        if self.lag_constants:
+            d["lag_constants"] = self.lag_constants
         d["description"] = self.description
         d["sources"] = dict(self.sources)
         d["assumed"] = sorted(self.assumed)
@@ -224,7 +317,9 @@ class Aircraft:
         missing = [k for k in REQUIRED_KEYS if k not in d]
         if missing:
             raise AircraftError(f"{origin}: missing key(s) {', '.join(missing)} (all SI units)")
-        extra = set(d) - set(REQUIRED_KEYS) - set(CONSTANT_KEYS) - {"description", "sources", "assumed"}
+        extra = (
+            set(d) - set(REQUIRED_KEYS) - set(CONSTANT_KEYS) - {"description", "sources", "assumed", "lag_constants"}
+        )
         if extra:
             raise AircraftError(f"{origin}: unknown key(s) {', '.join(sorted(extra))}")
         assumed = d.get("assumed", ())
@@ -242,6 +337,7 @@ class Aircraft:
                 sources=d.get("sources", {}),
                 assumed=frozenset(assumed),
                 description=d.get("description", ""),
+                lag_constants=d.get("lag_constants", ""),
             )
         except AircraftError as exc:
             raise AircraftError(f"{origin}: {exc}") from None  # name the user's file
@@ -259,6 +355,50 @@ class Aircraft:
         flag = " [assumed]" if key in self.assumed else ""
         src = self.sources.get(key, "generic default" if key in CONSTANT_KEYS else "")
         return f"  {key:8s} = {value:12.6g} {unit:8s}{flag}  {src}"
+
+
+def lag_provenance(ac: Aircraft) -> dict:
+    """Where the unsteady model's lag constants come from, for a result's provenance.
+
+    ``{"source", "meaning", "constants": {name: {"value", "uncertainty", "source"}}}``;
+    ``uncertainty`` is None where the aircraft file gave the value.
+    """
+    status = ac.lag_status
+    return {
+        "source": status,
+        "meaning": LAG_SOURCES.get(status or "", "values given in the aircraft description"),
+        "constants": {
+            k: {
+                "value": ac.constants[k],
+                "uncertainty": ac.lag_uncertainty.get(k),
+                "source": ac.sources.get(k, "aircraft description" if k in ac.given else "generic default"),
+            }
+            for k in LAG_KEYS
+        },
+    }
+
+
+def aircraft_for_lags(spec, free=()) -> "Aircraft":
+    """The aircraft ``spec``; without lag constants but with some of them in ``free``, started at Jones's values.
+
+    Freeing an identifiable lag constant is one way out of the missing-constants
+    refusal: the fit estimates it, from the "jones" start values (the rest stay at those).
+    """
+    ac = load_aircraft(spec)
+    if ac.lag_status is None and set(free or ()) & set(LAG_KEYS):
+        return ac.with_changes(lag_constants="jones")
+    return ac
+
+
+def missing_lag_message(ac: Aircraft, kind: str = "unsteady") -> str:
+    """The one-line refusal of the unsteady model for an aircraft without lag constants, with the ways out."""
+    return (
+        f"the {kind} model needs the lag constants {', '.join(LAG_KEYS)} and aircraft {ac.name!r} gives none of "
+        "them (without them it is the steady model); give them in the aircraft file, or name a documented "
+        'source there, "lag_constants": "jones" (R. T. Jones\'s finite-wing lift lag for the aspect ratio, '
+        'THEORY.md section 2; downwash lag from WK Table 2; uncertainty recorded in the result) or "none" '
+        "(no lag, by choice), or free the identifiable ones (fdml fit --free y_w z_w ...)"
+    )
 
 
 def _real(value, what: str) -> float:

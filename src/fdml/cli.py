@@ -23,6 +23,7 @@ EXIT_CLOSED_PIPE = 141
 COMMANDS = (
     "demo",
     "fit",
+    "compare",
     "check",
     "simulate",
     "response",

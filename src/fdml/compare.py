@@ -1,23 +1,45 @@
-"""Steady versus unsteady: one call fits both models and sets the derivatives side by side.
+"""Steady versus unsteady: one call fits both models, sets the derivatives side by side and weighs the evidence.
 
 Wells-Keskar Tables 1 and 3 compare the six derivatives of a quasi-steady fit
 with those implied by the unsteady fit (THEORY.md sections 6, 10, 11).  The
 steady column is, by default, the conventional six-derivative model (THEORY.md
 section 10 shows this is what the paper fitted); ``steady_model="steady"``
 uses the quasi-steady Wells-Keskar parameterisation instead.
+
+The evidence (:func:`vuong_test`): the two models are not nested, so a
+likelihood-ratio test does not apply; Vuong's (1989) test for non-nested
+models compares their per-frequency log-likelihood contributions (the terms
+of the concentrated likelihood whose sum is -N ln det R, THEORY.md Eqs. 20-25).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field, replace
 
-from .aircraft import Aircraft, load_aircraft
+import numpy as np
+
+from .aircraft import Aircraft, lag_provenance, load_aircraft
+from .errors import FdmlError
 from .estimate import fit
 from .models import make_model
 from .models.wells_keskar import ALTERNATE_NAMES
 from .results import FitResult
 
-__all__ = ["Comparison", "compare_steady_unsteady", "ALTERNATE_NAMES"]
+__all__ = [
+    "Comparison",
+    "Evidence",
+    "check_records_for_compare",
+    "compare_steady_unsteady",
+    "vuong_test",
+    "ALTERNATE_NAMES",
+    "COMPARISON_FORMAT",
+]
+
+#: JSON format identifier and version of a saved comparison.
+COMPARISON_FORMAT = ("fdml.Comparison", 1)
+#: Two-sided level of the evidence test: below it one model is favoured.
+EVIDENCE_LEVEL = 0.05
 
 
 def _column(res: FitResult) -> dict[str, tuple[float, float]]:
@@ -31,47 +53,369 @@ def _column(res: FitResult) -> dict[str, tuple[float, float]]:
     return out
 
 
+# --- the evidence ----------------------------------------------------------------------------
+def loglik_contributions(res: FitResult) -> list[np.ndarray]:
+    """Per-frequency log-likelihood contributions of a fit, one array per record.
+
+    The complex-Gaussian density of the residual v_i = z_i - y_i at frequency
+    i with the fit's concentrated covariance R (Eq. 24, over all records):
+    ``l_i = -ln det(pi R) - v_i^H R^-1 v_i``; their sum is the concentrated
+    log-likelihood ``-N ln det(pi R) - N n`` whose maximum is the minimum of
+    ln det R (Eqs. 20-25).
+    """
+    if not res.spectra:
+        raise FdmlError("the fit holds no spectra: the evidence needs the fitted spectra")
+    from .models.base import OUTPUTS
+
+    idx = [OUTPUTS.index(o) for o in res.outputs]
+    V = [np.asarray(s["z"])[:, idx] - res.fitted_spectra(r)[:, idx] for r, s in enumerate(res.spectra)]
+    allv = np.concatenate(V)
+    R = allv.T @ allv.conj() / allv.shape[0]  # Eq. 24
+    Rinv = np.linalg.inv(R)
+    _, ld = np.linalg.slogdet(math.pi * R)
+    return [-ld - np.real(np.einsum("ij,jk,ik->i", v.conj(), Rinv, v)) for v in V]
+
+
+def correlation_span(res: FitResult) -> list[int]:
+    """Frequencies per record that share information: ceil(2 pi / (T d omega)), at least 1.
+
+    The finite Fourier transform of a record of length T correlates
+    frequencies closer than 2 pi / T (the Dirichlet kernel's main lobe), so a
+    grid finer than that has fewer independent frequencies than points.
+    """
+    out = []
+    for s in res.spectra:
+        w = np.asarray(s["omega"], float)
+        dw = float(np.median(np.diff(w))) if w.size > 1 else math.inf
+        out.append(max(1, math.ceil(2 * math.pi / (float(s["T"]) * dw) - 1e-9)))
+    return out
+
+
+def _long_run_variance(d: np.ndarray, span: int) -> float:
+    """N times the Bartlett-weighted (Newey-West) long-run variance of the centred ``d``, lags < ``span``."""
+    n = d.size
+    total = float(d @ d)
+    for k in range(1, min(span, n)):  # a few lags, not a loop over frequencies
+        total += 2.0 * (1.0 - k / span) * float(d[k:] @ d[:-k])
+    return max(total, 0.0)
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """Which model the data favour: Vuong's test on per-frequency log-likelihoods.
+
+    Attributes
+    ----------
+    statistic : float
+        Vuong's z: the summed log-likelihood difference (unsteady minus steady,
+        with Schwarz's correction for unequal parameter counts) over its
+        standard deviation; N(0, 1) when the models fit equally well.
+    p_value : float
+        Two-sided.
+    favoured : {"steady", "unsteady", "neither"}
+        The better-fitting model when ``p_value < level``, else "neither".
+    level : float
+    n_freq : int
+        Frequencies summed over records.
+    span : int
+        Largest correlation span (frequencies) used in the variance.
+    distance : float
+        Largest |shift| of the six derivatives in standard errors: how far a
+        steady fit would be biased if the truth were unsteady.
+    method : str
+    """
+
+    statistic: float
+    p_value: float
+    favoured: str
+    level: float = EVIDENCE_LEVEL
+    n_freq: int = 0
+    span: int = 1
+    distance: float = math.nan
+    method: str = "Vuong (1989) non-nested test, Newey-West variance over the frequency correlation span"
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict of every field."""
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "comparison evidence") -> "Evidence":
+        """Inverse of :meth:`to_dict`; a bad key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Evidence
+            The evidence ``d`` describes.
+        """
+        from .jsoncodec import Fields
+
+        f = Fields(d, source)
+        favoured = f.raw("favoured")
+        if favoured not in ("steady", "unsteady", "neither"):
+            raise f.error("favoured", f"must be steady, unsteady or neither, got {favoured!r}")
+        return cls(
+            statistic=f.number("statistic"),
+            p_value=f.number("p_value"),
+            favoured=favoured,
+            level=f.number("level", EVIDENCE_LEVEL),
+            n_freq=f.integer("n_freq", 0),
+            span=f.integer("span", 1),
+            distance=f.number("distance", math.nan),
+            method=str(f.raw("method", cls.method)),
+        )
+
+    def text(self) -> str:
+        """One paragraph: statistic, p-value, the verdict and, for "neither", the distance."""
+        head = (
+            f"Vuong z = {self.statistic:+.3g} (positive favours unsteady), p = {self.p_value:.3g}, "
+            f"{self.n_freq} frequencies, correlation span {self.span}: "
+        )
+        if self.favoured == "neither":
+            return head + (
+                f"neither favoured at the {100 * self.level:g} % level; the derivative sets are "
+                f"{self.distance:.2g} standard errors apart at most (the bias of a steady fit if the truth is unsteady)"
+            )
+        return head + f"the {self.favoured} model is favoured"
+
+
+def vuong_test(steady: FitResult, unsteady: FitResult, *, level: float = EVIDENCE_LEVEL, distance=math.nan) -> Evidence:
+    """Vuong's non-nested test of two fits of the same spectra.
+
+    Assumption: frequencies more than 2 pi / T apart are independent, and the
+    dependence of nearer ones is captured by a Bartlett (Newey-West) long-run
+    variance over that span (:func:`correlation_span`); records are independent.
+    """
+    from scipy.stats import norm
+
+    lu, ls = loglik_contributions(unsteady), loglik_contributions(steady)
+    if [x.size for x in lu] != [x.size for x in ls]:
+        raise FdmlError("the two fits are not of the same spectra: the evidence needs the same frequencies")
+    d = [a - b for a, b in zip(lu, ls)]
+    n = int(sum(x.size for x in d))
+    spans = correlation_span(unsteady)
+    mean = sum(float(x.sum()) for x in d) / n
+    var = sum(_long_run_variance(x - mean, L) for x, L in zip(d, spans))
+    n_eff = sum(x.size / L for x, L in zip(d, spans))
+    k_u, k_s = len(unsteady.names), len(steady.names)
+    total = n * mean - 0.5 * (k_u - k_s) * math.log(max(n_eff, 1.0))  # Schwarz correction (0 for equal counts)
+    if not var > 1e-12 * max(1.0, abs(n * mean)):
+        z, p = 0.0, 1.0  # identical fits: nothing to tell apart
+    else:
+        z = total / math.sqrt(var)
+        p = float(2 * norm.sf(abs(z)))
+    favoured = "neither" if p >= level else ("unsteady" if z > 0 else "steady")
+    return Evidence(float(z), p, favoured, level, n, max(spans), float(distance))
+
+
+# --- the records ------------------------------------------------------------------------------
+#: Relative difference of geometry (S_w, c_w, b) above which two records are of different aircraft.
+GEOMETRY_TOLERANCE = 0.01
+
+
+def check_records_for_compare(records, *, gust: bool = False) -> None:
+    """Refuse, in one line, records a joint steady/unsteady comparison cannot use.
+
+    ``--gust`` needs alpha_w in every record; a joint fit needs one aircraft
+    (the records' ``meta["aircraft"]`` and their geometry S_w, c_w, b agree
+    within :data:`GEOMETRY_TOLERANCE`).
+    """
+    if gust:
+        lacking = [r.name for r in records if "alpha_w" not in r.signals]
+        if lacking:
+            raise FdmlError(
+                f"--gust needs the gust angle alpha_w in every record; {', '.join(lacking)} has none "
+                "(give a record with an alpha_w column, or drop --gust)"
+            )
+    names = {str(r.meta["aircraft"]) for r in records if r.meta.get("aircraft")}
+    if len(names) > 1:
+        raise FdmlError(
+            f"the records mix aircraft ({', '.join(sorted(names))}): compare one aircraft's records at a time"
+        )
+    for key in ("S_w", "c_w", "b"):
+        vals = [(r.name, float(r.meta[key])) for r in records if isinstance(r.meta.get(key), (int, float))]
+        if vals and max(v for _, v in vals) > (1 + GEOMETRY_TOLERANCE) * min(v for _, v in vals):
+            listed = ", ".join(f"{n} {v:g}" for n, v in vals)
+            raise FdmlError(f"the records mix aircraft: their {key} differ ({listed}); compare one aircraft at a time")
+
+
+# --- the comparison --------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Comparison:
-    """Steady and unsteady fits of the same data, with their derivative sets.
+    """Steady and unsteady fits of the same data, their derivative sets and the evidence.
 
     Attributes
     ----------
     steady, unsteady : FitResult
     steady_set, unsteady_set : dict
         ``{name: (value, stderr)}`` for the six derivatives (alternate set).
+    evidence : Evidence
+        Which model the data favour (computed from the fits when not given).
     """
 
     steady: FitResult
     unsteady: FitResult
-    steady_set: dict
-    unsteady_set: dict
+    steady_set: dict = field(default_factory=dict)
+    unsteady_set: dict = field(default_factory=dict)
+    evidence: Evidence | None = None
+
+    def __post_init__(self) -> None:
+        if not self.steady_set:
+            object.__setattr__(self, "steady_set", _column(self.steady))
+        if not self.unsteady_set:
+            object.__setattr__(self, "unsteady_set", _column(self.unsteady))
+        if self.evidence is None and self.steady.spectra and self.unsteady.spectra:
+            object.__setattr__(self, "evidence", vuong_test(self.steady, self.unsteady, distance=self.distance))
 
     def shift(self, name: str) -> float:
         """Steady minus unsteady value of a derivative."""
         return self.steady_set[name][0] - self.unsteady_set[name][0]
 
-    def table(self, reference: dict | None = None, digits: int = 4):
-        """Side-by-side table; ``reference`` adds columns ``{name: (unsteady, steady)}``.
+    @property
+    def shifts(self) -> dict:
+        """Per derivative: ``value`` (steady - unsteady), ``stderr`` (combined) and ``in_stderr``."""
+        out = {}
+        for n in ALTERNATE_NAMES:
+            if n in self.steady_set and n in self.unsteady_set:
+                sig = math.hypot(self.steady_set[n][1], self.unsteady_set[n][1])
+                z = self.shift(n) / sig if sig > 0 and math.isfinite(sig) else math.nan
+                out[n] = {"value": self.shift(n), "stderr": sig, "in_stderr": z}
+        return out
 
-        Returns a :class:`fdml.summary.Summary`: a ``str`` holding the text
-        table, which also renders as Markdown, HTML, LaTeX and a pandas
-        DataFrame (``as_markdown()``, ``as_html()``, ``as_latex()``, ``to_frame()``).
+    @property
+    def distance(self) -> float:
+        """Largest |shift| in standard errors over the six derivatives."""
+        zs = [abs(v["in_stderr"]) for v in self.shifts.values() if math.isfinite(v["in_stderr"])]
+        return max(zs) if zs else math.nan
+
+    def fit_quality(self) -> dict:
+        """``{model: {"ln_det_R", "rms": {output: residual RMS}}}`` (RMS of |z - y| over frequencies)."""
+        from .models.base import OUTPUTS
+
+        out = {}
+        for key, res in (("steady", self.steady), ("unsteady", self.unsteady)):
+            idx = [OUTPUTS.index(o) for o in res.outputs]
+            V = np.concatenate(
+                [np.asarray(s["z"])[:, idx] - res.fitted_spectra(r)[:, idx] for r, s in enumerate(res.spectra)]
+            )
+            rms = np.sqrt(np.mean(np.abs(V) ** 2, axis=0)) if V.size else np.full(len(idx), math.nan)
+            out[key] = {"ln_det_R": float(np.linalg.slogdet(res.R)[1]), "rms": dict(zip(res.outputs, rms.tolist()))}
+        return out
+
+    def summary(self, reference: dict | None = None, digits: int = 4):
+        """Side-by-side table (WK Tables 1 and 3), fit quality and the evidence.
+
+        ``reference`` adds columns ``{name: (unsteady, steady)}``.  Returns a
+        :class:`fdml.summary.Summary` (text; Markdown, HTML, LaTeX, DataFrame).
         """
-        from .summary import comparison_summary
+        from .summary import Summary, comparison_summary
 
-        return comparison_summary(self, reference, digits=digits)
+        base = comparison_summary(self, reference, digits=digits)
+        extra = []
+        if self.steady.spectra and self.unsteady.spectra:
+            for key, q in self.fit_quality().items():
+                rms = ", ".join(f"{o} {v:.3g}" for o, v in q["rms"].items())
+                extra.append((f"{key} fit", f"ln det R {q['ln_det_R']:.4g}; residual RMS {rms}"))
+        if self.evidence is not None:
+            extra.append(("evidence", self.evidence.text()))
+        return Summary(base.title, base.header + tuple(extra), base.tables, base.notes, digits=digits)
+
+    #: The old name of :meth:`summary`.
+    table = summary
 
     def _repr_html_(self) -> str:
-        return self.table().as_html()
+        return self.summary().as_html()
+
+    def brief(self) -> dict:
+        """The JSON of ``fdml compare --json``.
+
+        ``steady`` and ``unsteady`` (each as ``fdml fit --json``), ``shifts``, ``evidence``, ``fit_quality``.
+        """
+        return {
+            "steady": self.steady.brief(),
+            "unsteady": self.unsteady.brief(),
+            "shifts": self.shifts,
+            "evidence": None if self.evidence is None else self.evidence.to_dict(),
+            "fit_quality": self.fit_quality() if self.steady.spectra else None,
+        }
 
     def to_dict(self) -> dict:
-        """JSON-ready dict of the two derivative sets and both fits."""
+        """JSON-ready dict (format ``fdml.Comparison`` version 1): both full fits, the shifts and the evidence."""
         return {
-            "unsteady": {k: {"value": v, "stderr": s} for k, (v, s) in self.unsteady_set.items()},
-            "steady": {k: {"value": v, "stderr": s} for k, (v, s) in self.steady_set.items()},
-            "fits": {"unsteady": self.unsteady.to_dict(), "steady": self.steady.to_dict()},
+            "format": COMPARISON_FORMAT[0],
+            "version": COMPARISON_FORMAT[1],
+            "steady": self.steady.to_dict(),
+            "unsteady": self.unsteady.to_dict(),
+            "shifts": self.shifts,
+            "evidence": None if self.evidence is None else self.evidence.to_dict(),
         }
+
+    @classmethod
+    def from_dict(cls, d: dict, *, source: str = "fdml comparison") -> "Comparison":
+        """Inverse of :meth:`to_dict` (the shifts are recomputed from the fits)."""
+        from .jsoncodec import Fields
+
+        f = Fields(d, source)
+        if f.raw("format", None) != COMPARISON_FORMAT[0]:
+            raise f.error("format", f"is not {COMPARISON_FORMAT[0]!r}: not an fdml comparison")
+        f.version("version", COMPARISON_FORMAT[1])
+        ev = f.raw("evidence", None)
+        return cls(
+            steady=FitResult.from_dict(f.raw("steady"), source=f"{source}: steady"),
+            unsteady=FitResult.from_dict(f.raw("unsteady"), source=f"{source}: unsteady"),
+            evidence=None if ev is None else Evidence.from_dict(ev, f"{source}: evidence"),
+        )
+
+    def plot(self, *, record: int = 0, fig=None):
+        """Data spectra with both fits (top) and the derivative shifts with +-2 sigma bounds (bottom).
+
+        Parameters
+        ----------
+        record : int, optional
+            Which record's spectra to show.
+        fig : matplotlib.figure.Figure, optional
+            Figure to draw into (default: a new one).
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure.
+        """
+        import matplotlib.pyplot as plt
+
+        from .plotting import plot_spectra
+
+        n_out = len(self.unsteady.outputs)
+        fig = fig or plt.figure(figsize=(4.2 * n_out, 9))
+        grid = fig.add_gridspec(3, n_out, height_ratios=(1.0, 0.7, 0.8), hspace=0.45)
+        axes = np.array([[fig.add_subplot(grid[i, j]) for j in range(n_out)] for i in range(2)])
+        plot_spectra([self.unsteady, self.steady], ["unsteady fit", "steady fit"], record=record, axes=axes)
+        ax = fig.add_subplot(grid[2, :])
+        sh = self.shifts
+        names = list(sh)
+        z = np.array([sh[n]["in_stderr"] for n in names])
+        ax.axhspan(-2, 2, color="0.9", label="+-2 standard errors")
+        ax.bar(range(len(names)), z, color="C3")
+        ax.axhline(0, color="k", lw=0.8)
+        ax.set_xticks(range(len(names)), names)
+        ax.set_ylabel("shift / stderr")
+        ev = self.evidence
+        ax.set_title(
+            "steady - unsteady"
+            + (
+                ""
+                if ev is None
+                else f"; evidence: {ev.favoured} favoured (z = {ev.statistic:+.2f}, p = {ev.p_value:.2g})"
+            )
+        )
+        ax.legend(loc="best", fontsize=8)
+        return fig
 
 
 def compare_steady_unsteady(
@@ -81,9 +425,10 @@ def compare_steady_unsteady(
     gust: bool = False,
     steady_model: str = "derivatives",
     unsteady_options: dict | None = None,
+    effects=(),
     **fit_kwargs,
 ) -> Comparison:
-    """Fit the unsteady and a steady model to the same data; return both derivative sets.
+    """Fit the unsteady and a steady model to the same data; return both derivative sets and the evidence.
 
     Parameters
     ----------
@@ -96,6 +441,8 @@ def compare_steady_unsteady(
     steady_model : {"derivatives", "steady"}, optional
     unsteady_options : dict, optional
         Options for the unsteady model (``tail_lag_chord``, ``gust_lag``, ...).
+    effects : sequence, optional
+        Effects made part of both models (``fdml effects`` lists them).
     **fit_kwargs
         Passed to :func:`fdml.fit` for both fits (band, outputs, boundary, ...).
 
@@ -103,9 +450,12 @@ def compare_steady_unsteady(
     -------
     Comparison
     """
+    if steady_model not in ("derivatives", "steady"):
+        raise FdmlError(f"steady_model must be 'derivatives' or 'steady', got {steady_model!r}")
     ac = load_aircraft(aircraft)
-    mu = make_model("unsteady", ac, gust=gust, **(unsteady_options or {}))
-    ms = make_model(steady_model, ac, gust=gust)
+    mu = make_model("unsteady", ac, gust=gust, effects=effects, **(unsteady_options or {}))
+    ms = make_model(steady_model, ac, gust=gust, effects=effects)
     ru = fit(data, mu, **fit_kwargs)
     rs = fit(data, ms, **fit_kwargs)
-    return Comparison(steady=rs, unsteady=ru, steady_set=_column(rs), unsteady_set=_column(ru))
+    ru = replace(ru, provenance={**ru.provenance, "lag_constants": lag_provenance(ac)})  # where the lags came from
+    return Comparison(steady=rs, unsteady=ru)

@@ -84,6 +84,7 @@ def model_for_records(args, records, values: dict | None = None):
     ``aircraft`` or ``record``) and lists the flight condition the records
     carry (:func:`fdml.conditions.record_conditions`).
     """
+    from ..aircraft import aircraft_for_lags, lag_provenance
     from ..conditions import record_airspeed, record_conditions
     from ..errors import ParameterError
     from ..models import make_model
@@ -109,7 +110,10 @@ def model_for_records(args, records, values: dict | None = None):
                 f"--airspeed applies to the dimensional model; the {kind} model takes the airspeed of --aircraft"
             )
         opts.pop("airspeed", None)
-    model = make_model(kind, args.aircraft, **opts)
+    aircraft = args.aircraft
+    if kind == "unsteady":  # freeing a lag constant is a way out of the missing-lag refusal (fdml.aircraft)
+        aircraft = aircraft_for_lags(aircraft, getattr(args, "free", None))
+    model = make_model(kind, aircraft, **opts)
     effects = list(getattr(args, "effect", None) or ())
     if effects:
         model = model.with_effects(effects)
@@ -120,6 +124,8 @@ def model_for_records(args, records, values: dict | None = None):
         "model": {"kind": kind, "source": "--model" if getattr(args, "model", None) else "model rule"},
         "airspeed": {"value": float(model.U), "unit": "m/s", "source": source},
     }
+    if kind == "unsteady":
+        provenance["lag_constants"] = lag_provenance(aircraft)
     cond = record_conditions(records)
     if cond:
         provenance["record_conditions"] = cond

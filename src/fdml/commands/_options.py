@@ -89,20 +89,22 @@ def accumulating(p, *flags, **kw) -> None:
 
 # --- the model ---------------------------------------------------------------------------------
 def add_model_options(
-    p, *, gust: str = "flag", reads_records: bool = True, what: str = "model", old: tuple = ()
+    p, *, gust: str = "flag", reads_records: bool = True, what: str = "model", old: tuple = (), kinds: bool = True
 ) -> None:
     """--aircraft, --model, --gust, --airspeed, --effect.
 
     ``gust``: ``"flag"`` (the model gets the gust input alpha_w), ``"std"``
     (simulate: fly in turbulence, ``--gust [STD]``) or ``""`` (no option).
     ``old``: hidden aliases of --model (diagnose: ``--base``).
+    ``kinds=False``: no --model and --airspeed (compare: its models are fixed).
     """
     g = p.add_argument_group("model")
     g.add_argument(
         "--aircraft", metavar="NAME|FILE.json", help="preset (navion, sundowner, do128) or an aircraft JSON file"
     )
     rule = MODEL_RULE if reads_records else MODEL_RULE_NO_RECORD
-    g.add_argument("--model", choices=MODEL_CHOICES, default=None, help=f"{what} (default: {rule})")
+    if kinds:
+        g.add_argument("--model", choices=MODEL_CHOICES, default=None, help=f"{what} (default: {rule})")
     for flag in old:
         hidden_alias(g, flag, "model", choices=MODEL_CHOICES)
     if gust == "flag":
@@ -122,6 +124,9 @@ def add_model_options(
             metavar="STD",
             help="fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, recording alpha_w",
         )
+    if not kinds:
+        add_effect_argument(g)
+        return
     g.add_argument(
         "--airspeed",
         type=float,

@@ -46,10 +46,17 @@ def run(args) -> int:
         )
     noise = _default_noise() if noise is None else noise
     res = run_demo(args.output or DEFAULT_OUTPUT, seed=args.seed, noise=noise, figure=not args.no_figure)
+    evidence = res.comparison.evidence
+    assert evidence is not None  # the demo's fits hold their spectra
     if args.json:
         print_json(
             {
-                "comparison": {k: v for k, v in res.comparison.to_dict().items() if k != "fits"},
+                "comparison": {
+                    "unsteady": _set_dict(res.comparison.unsteady_set),
+                    "steady": _set_dict(res.comparison.steady_set),
+                    "shifts": res.comparison.shifts,
+                    "evidence": evidence.to_dict(),
+                },
                 "files": {k: str(v) for k, v in res.files.items()},
             }
         )
@@ -60,6 +67,13 @@ def run(args) -> int:
     )
     print(res.table)
     print()
+    print("evidence: " + evidence.text())
+    print()
     for k, v in res.files.items():
         print(f"wrote {k:9s} {v}")
     return 0
+
+
+def _set_dict(derivatives: dict) -> dict:
+    """``{name: (value, stderr)}`` as ``{name: {"value", "stderr"}}``."""
+    return {k: {"value": v, "stderr": e} for k, (v, e) in derivatives.items()}

@@ -117,7 +117,9 @@ def to_unsteady_equivalent(root: Model) -> Model:
     from .wells_keskar import SteadyModel
 
     assert isinstance(root, SteadyModel)  # the "steady" kind (a root model)
-    u = make_model("unsteady", root.aircraft, gust=root.gust, output_bias=root.output_bias, tail_gust_delay=False)
+    ac = root.aircraft  # its lags are set to zero below: "none" is the source
+    ac = ac if ac.lag_status else ac.with_changes(lag_constants="none")
+    u = make_model("unsteady", ac, gust=root.gust, output_bias=root.output_bias, tail_gust_delay=False)
     vals = {k: v for k, v in root.parameters.values.items() if k in u.parameters}
     vals.update({"y_w": 0.0, "y_t": 0.0, "F": 0.0, "G": 0.0})
     if root.gust:

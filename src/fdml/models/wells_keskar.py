@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..aero import IndicialFunction, downwash, get_indicial, kussner, lift_lag
-from ..aircraft import Aircraft
-from ..errors import ParameterError
+from ..aircraft import Aircraft, missing_lag_message
+from ..errors import AircraftError, ParameterError
 from ..parameters import Parameter, Parameters
 from .base import Model
 
@@ -194,6 +194,9 @@ class UnsteadyModel(_WKBase):
             raise ParameterError(f"tail_lag_chord must be 'c_w' or 'c_t', got {self.tail_lag_chord!r}")
         if self.gust_lag != "bs12":
             get_indicial(self.gust_lag)  # raises on an unknown name
+        if isinstance(self.aircraft, Aircraft) and self.aircraft.lag_status is None:
+            # no lag constants and no source named: the generic "no lag" would make this the steady model
+            raise AircraftError(missing_lag_message(self.aircraft, self.kind))
         super().__post_init__()
 
     def _default_parameters(self) -> Parameters:

@@ -1,0 +1,132 @@
+"""``fdml compare RECORD... --aircraft A``: steady and unsteady fits of the same records, and the evidence."""
+
+from __future__ import annotations
+
+import argparse
+
+from . import _options as O
+from ._common import assignments, check_band_option, model_for_records
+
+#: Files written into the -o folder.
+FILES = {"comparison": "comparison.json", "summary": "summary.txt", "figure": "compare.png"}
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "compare",
+        help="fit steady and unsteady models to the same records: derivative shifts, which model the data favour",
+        description="Fit the unsteady Wells-Keskar model and a steady model to the same records, print the six "
+        "derivatives side by side (WK Tables 1 and 3), each model's ln det R and residual RMS, and the evidence "
+        "(Vuong's non-nested test on the per-frequency log-likelihoods).",
+    )
+    p.add_argument("records", nargs="+", metavar="RECORD", help="record file(s), fitted jointly (as fdml fit)")
+    O.add_model_options(p, kinds=False)
+    p.add_argument(
+        "--steady",
+        choices=("derivatives", "steady"),
+        default="derivatives",
+        help="the steady model: six derivatives (default, as WK fitted) or the quasi-steady Wells-Keskar model",
+    )
+    O.add_record_options(p)
+    O.add_band_option(p)
+    O.add_fit_options(p)
+    O.add_output_option(
+        p, kind="folder", metavar="DIR", help="comparison.json (both fits, shifts, evidence), summary.txt, compare.png"
+    )
+    O.add_json_option(p)
+    p.set_defaults(func=run)
+
+
+def _check_outputs(args) -> None:
+    from ..outputs import check_output, check_output_dir
+
+    if args.output:
+        inputs = [*args.records, args.aircraft]
+        check_output_dir(args.output, inputs, what="compare folder")
+        for key, name in FILES.items():
+            check_output(f"{args.output}/{name}", inputs, what=f"compare {key} file")
+
+
+def _fit_both(args, records, data, kwargs):
+    """(steady, unsteady) FitResults, each with the command's provenance; --fix/--free go to the model that has them."""
+    from ..errors import ParameterError
+    from ..estimate import fit
+    from .fit import _with_conditions
+
+    fixed, free = assignments(args.fix), list(args.free or [])
+    out = {}
+    for kind in ("unsteady", args.steady):
+        ns = argparse.Namespace(**{**vars(args), "model": kind, "airspeed": None})
+        model, prov = model_for_records(ns, records)
+        names = set(model.parameters.names)
+        res = fit(
+            data if len(data) > 1 else data[0],
+            model,
+            fix={k: v for k, v in fixed.items() if k in names},
+            free=[n for n in free if n in names],
+            **kwargs,
+        )
+        out[kind] = _with_conditions(res, model, records, prov)
+        names_seen = out.setdefault("_names", set())
+        names_seen |= names
+    unknown = sorted((set(fixed) | set(free)) - out["_names"])
+    if unknown:
+        raise ParameterError(f"--fix/--free: {', '.join(unknown)} is a parameter of neither model")
+    return out[args.steady], out["unsteady"]
+
+
+def run(args) -> int:
+    from .. import spectra  # the Fourier front end (the function; its module's name differs across versions)
+    from ..compare import Comparison, check_records_for_compare
+    from ..errors import FdmlError
+    from ..io import check_same_rate, load_record
+    from ..io.cli import record_options
+
+    if args.aircraft is None:
+        raise FdmlError("fdml compare needs --aircraft NAME or FILE.json (the unsteady model needs the geometry)")
+    _check_outputs(args)
+    check_band_option(args.band)
+    kwargs = O.fit_kwargs(args)
+    opts = record_options(args)
+    records = [load_record(path, **opts) for path in args.records]
+    check_records_for_compare(records, gust=bool(args.gust))  # one aircraft first: its records' rates may differ too
+    check_same_rate(records, args.records)
+    trim = kwargs.pop("trim", None)
+    data = [spectra(r, band=args.band, **({} if trim is None else {"trim": trim})) for r in records]
+    steady, unsteady = _fit_both(args, records, data, kwargs)
+    cmp = Comparison(steady=steady, unsteady=unsteady)
+    files = _write(cmp, args.output) if args.output else {}
+    if args.json:
+        from ..cli import print_json
+
+        print_json({**cmp.brief(), **({"files": files} if files else {})})
+    else:
+        print(cmp.summary())
+        for k, v in files.items():
+            print(f"wrote {k:10s} {v}")
+    return 0 if steady.converged and unsteady.converged else 1
+
+
+def _write(cmp, folder) -> dict:
+    """Write the comparison, its summary and its figure into ``folder`` (atomic writes); returns the paths."""
+    from pathlib import Path
+
+    from ..jsoncodec import write_json
+    from ..outputs import atomic_savefig, atomic_write_text
+
+    out = Path(folder)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {k: str(out / v) for k, v in FILES.items()}
+    write_json(paths["comparison"], cmp.to_dict(), what="compare comparison file")
+    atomic_write_text(paths["summary"], cmp.summary() + "\n")
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig = cmp.plot()
+    try:
+        atomic_savefig(fig, paths["figure"], dpi=110)
+    finally:
+        plt.close(fig)
+    return paths
