@@ -64,6 +64,7 @@ MEANINGS = {
     "--duration": ("duration", "store", None),
     "--dt": ("dt", "store", None),
     "--amplitude": ("amplitude", "store", None),
+    "--steady": ("steady", "store", None),
     "--gust": ("gust", "store_true", 0),
 }
 #: Shown flags that parse differently on purpose: simulate's --gust takes an optional STD (m/s).

@@ -213,6 +213,17 @@ def add_noise_option(p, *, default: str | None = None) -> None:
     )
 
 
+def add_steady_option(p) -> None:
+    """--steady: the steady model the unsteady one is compared with (fdml compare, fdml design)."""
+    p.add_argument(
+        "--steady",
+        choices=("derivatives", "steady"),
+        default="derivatives",
+        help="the steady model the unsteady one is told from: six derivatives (default, as Wells-Keskar "
+        "fitted them) or the quasi-steady Wells-Keskar model",
+    )
+
+
 # --- fit options -------------------------------------------------------------------------------
 _FIT_CHOICES = {
     "boundary": ("estimated", "measured", "none"),

@@ -21,12 +21,7 @@ def register(sub) -> None:
     )
     p.add_argument("records", nargs="+", metavar="RECORD", help="record file(s), fitted jointly (as fdml fit)")
     O.add_model_options(p, kinds=False)
-    p.add_argument(
-        "--steady",
-        choices=("derivatives", "steady"),
-        default="derivatives",
-        help="the steady model: six derivatives (default, as WK fitted) or the quasi-steady Wells-Keskar model",
-    )
+    O.add_steady_option(p)
     O.add_record_options(p)
     O.add_band_option(p)
     O.add_fit_options(p)

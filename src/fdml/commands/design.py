@@ -54,9 +54,7 @@ def register(sub) -> None:
         p, step=False, help="band of the input and the fit, LO:HI[:STEP] rad/s (default 0.5:10, step 0.1)"
     )
     O.add_noise_option(p, default="0.05, of the 3-2-1-1 response")
-    p.add_argument(
-        "--steady", choices=("steady", "derivatives"), default="steady", help="steady model told from (default steady)"
-    )
+    O.add_steady_option(p)
     p.add_argument("--level", type=float, default=0.05, help="test level of the detection probability (default 0.05)")
     O.accumulating(
         p,

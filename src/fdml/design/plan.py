@@ -150,7 +150,7 @@ def design(
     rate: float = math.inf,
     noise=0.05,
     targets=(),
-    steady: str = "steady",
+    steady: str = "derivatives",
     baselines=BASELINES,
     level: float = 0.05,
     given: DesignInput | None = None,
@@ -173,8 +173,10 @@ def design(
         Fraction of output RMS in the 3-2-1-1 response, or stds.
     targets : sequence of str, optional
         The a-optimal subset.
-    steady : {"steady", "derivatives"}, optional
-        The steady model the unsteady one is told from.
+    steady : {"derivatives", "steady"}, optional
+        The steady model the unsteady one is told from: the six derivatives
+        (default, the model Wells and Keskar fitted, as in ``fdml compare``) or
+        the quasi-steady Wells-Keskar model.
     baselines : sequence of str, optional
         Classic inputs compared (:data:`fdml.design.inputs.CLASSIC_KINDS`).
     level : float, optional
