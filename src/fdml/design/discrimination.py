@@ -21,10 +21,12 @@ Steady against unsteady (Wells-Keskar)
     (to first order: the two models' tangent spaces, which share every
     parameter's role, absorb the same noise).  The detection probability at
     level ``alpha`` is ``P{ncx2(1, lambda) > chi2_1(1 - alpha)}``.  For a
-    Vuong-type comparison of the two fits (sign of the statistic, or its
-    one-sided z at ``alpha``) the same approximation gives ``LR ~ N(lambda,
-    4 lambda)``: P(unsteady favoured) = Phi(sqrt(lambda) / 2) and P(Vuong z >
-    z_(1-alpha)) = Phi(sqrt(lambda) / 2 - z_(1-alpha)); both are reported.
+    Vuong-type comparison of the two fits the same approximation gives
+    ``LR ~ N(lambda, 4 lambda)``, so Vuong's ``z ~ N(sqrt(lambda) / 2, 1)``:
+    P(the unsteady fit is the better one) = Phi(sqrt(lambda) / 2), and
+    P(``fdml compare`` favours the unsteady model) = P(z > z_(1-alpha/2)) =
+    Phi(sqrt(lambda) / 2 - z_(1-alpha/2)), its two-sided test at level alpha
+    (:func:`fdml.compare.vuong_test`); both are reported.
 
 Effects of the library
     A model with an effect is the base model plus the effect's parameters at
@@ -71,7 +73,8 @@ class Discrimination:
     favoured : float
         P(the unsteady model fits better), Phi(sqrt(lambda) / 2).
     vuong : float
-        P(Vuong's one-sided z exceeds z_(1-alpha)), Phi(sqrt(lambda)/2 - z_(1-alpha)).
+        P(``fdml compare`` favours the unsteady model: Vuong's two-sided test
+        at level alpha, z > z_(1-alpha/2)), Phi(sqrt(lambda)/2 - z_(1-alpha/2)).
     steady_values : dict
         The steady model's best match to the unsteady response.
     df : int
@@ -201,7 +204,7 @@ def discriminate(
     S_inv = np.diag(1.0 / (sig**2 * float(np.mean(gains))))  # Eq. 19's R for white noise of these stds
     theta = _best_match(prob, S_inv)
     lam = noncentrality(prob, theta, S_inv)
-    z = stats.norm.isf(level)
+    z = stats.norm.isf(level / 2.0)  # fdml compare's two-sided Vuong test (compare.vuong_test)
     root = math.sqrt(max(lam, 0.0))
     return Discrimination(
         noncentrality=lam,
