@@ -9,7 +9,6 @@ time-domain simulator (not by the frequency-domain model the prediction uses).
 import math
 import warnings
 
-import numpy as np
 import pytest
 
 from fdml import compare_steady_unsteady
@@ -37,7 +36,7 @@ def test_predicted_compare_power_matches_the_comparisons(maneuver, noise):
             unsteady, maneuver, duration=DURATION, dt=DT, amplitude=AMPLITUDE, noise=noise, seed=5000 + seed
         )
         hits += compare_steady_unsteady(rec, "navion", adequacy=False).evidence.favoured == "unsteady"
-    # The cells chosen have a predicted power away from 0 and 1 (0.3-0.6), where a wrong formula
+    # The cells chosen have a predicted power away from 0 and 1 (0.5-0.7), where a wrong formula
     # shows: P(favoured) = Phi(sqrt(lambda)/2), the sign of the statistic alone, is 0.93-0.99
     # there.  A binomial count of n = 24 scatters by sqrt(p(1-p)/n) <= 0.10; 3 of those bound it.
     assert 0.2 < pred.vuong < 0.8, pred

@@ -83,12 +83,14 @@ def correlation_span(res: FitResult) -> list[int]:
     frequencies closer than 2 pi / T (the Dirichlet kernel's main lobe), so a
     grid finer than that has fewer independent frequencies than points.
     """
-    out = []
-    for s in res.spectra:
-        w = np.asarray(s["omega"], float)
-        dw = float(np.median(np.diff(w))) if w.size > 1 else math.inf
-        out.append(max(1, math.ceil(2 * math.pi / (float(s["T"]) * dw) - 1e-9)))
-    return out
+    return [span_of(s["omega"], s["T"]) for s in res.spectra]
+
+
+def span_of(omega, T: float) -> int:
+    """ceil(2 pi / (T d omega)), at least 1: grid frequencies (rad/s) per independent one for a record of T s."""
+    w = np.asarray(omega, float)
+    dw = float(np.median(np.diff(w))) if w.size > 1 else math.inf
+    return max(1, math.ceil(2 * math.pi / (float(T) * dw) - 1e-9))
 
 
 def _long_run_variance(d: np.ndarray, span: int) -> float:

@@ -137,6 +137,40 @@ def noncentrality(prob: Problem, theta: np.ndarray, S_inv: np.ndarray) -> float:
     return float(2.0 * np.sum(_band_weights(prob) * q))
 
 
+def compare_power(lam: float, level: float, extra: int, prob: Problem) -> float:
+    """P(``fdml compare`` favours the unsteady model) under the unsteady truth.
+
+    Vuong's statistic (:func:`fdml.compare.vuong_test`) is the log-likelihood
+    difference, mean ``lambda / 2`` and variance ``lambda`` to first order, plus
+    Schwarz's correction ``extra / 2 * ln(n_eff)`` for the steady model's
+    ``extra`` more free parameters (1 for the six derivatives against the
+    unsteady model's five), over its standard deviation; it favours the
+    unsteady model when above ``z_(1 - level / 2)``.
+
+    Parameters
+    ----------
+    lam : float
+        The non-centrality (expected likelihood-ratio statistic).
+    level : float
+        The comparison's two-sided level.
+    extra : int
+        Free model parameters of the steady model less those of the unsteady one.
+    prob : Problem
+        The steady model's problem (its frequencies and record lengths give n_eff).
+
+    Returns
+    -------
+    float
+        The probability, between 0 and 1.
+    """
+    from ..compare import span_of
+
+    n_eff = sum(d.omega.size / span_of(d.omega, d.T) for d in prob.data)
+    root = math.sqrt(max(lam, 1e-300))
+    mean = root / 2.0 + 0.5 * extra * math.log(max(n_eff, 1.0)) / root
+    return float(stats.norm.cdf(mean - stats.norm.isf(level / 2.0)))
+
+
 def _best_match(prob: Problem, S_inv: np.ndarray) -> np.ndarray:
     """Gauss-Newton (Eq. 23 with R held at the noise covariance) from the model's values, step halving."""
     theta = prob.initial()
@@ -204,14 +238,15 @@ def discriminate(
     S_inv = np.diag(1.0 / (sig**2 * float(np.mean(gains))))  # Eq. 19's R for white noise of these stds
     theta = _best_match(prob, S_inv)
     lam = noncentrality(prob, theta, S_inv)
-    z = stats.norm.isf(level / 2.0)  # fdml compare's two-sided Vuong test (compare.vuong_test)
     root = math.sqrt(max(lam, 0.0))
     return Discrimination(
         noncentrality=lam,
         level=level,
         probability=detection_probability(lam, level),
         favoured=float(stats.norm.cdf(root / 2.0)),
-        vuong=float(stats.norm.cdf(root / 2.0 - z)),
+        vuong=compare_power(
+            lam, level, len(steady.parameters.free_model_names) - len(unsteady.parameters.free_model_names), prob
+        ),
         steady_values={prob.names[i]: float(theta[i]) for i in prob.model_slots},
     )
 

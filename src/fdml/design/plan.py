@@ -85,7 +85,8 @@ class Design:
                 lines.append(f"{e.effect[:22]:<22}{e.parameter:<12}{e.minimum:>16.4g}  ({e.power:g}, {e.level:g})")
         if self.discrimination:
             lines.append("")
-            lines.append(f"{'steady vs unsteady':<22}{'lambda':>10}{'P(detect)':>11}{'P(favoured)':>13}{'P(compare)':>12}")
+            head = f"{'steady vs unsteady':<22}{'lambda':>10}{'P(detect)':>11}{'P(favoured)':>13}{'P(compare)':>12}"
+            lines.append(head)
             for k, d in self.discrimination.items():
                 lines.append(
                     f"{k[:22]:<22}{d.noncentrality:>10.3g}{d.probability:>11.3f}{d.favoured:>13.3f}{d.vuong:>12.3f}"
