@@ -218,27 +218,8 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
     sr = ac.S_t / ac.S_w
     l = p["l_t"]
     a_w, a_t, eps_ss = p["CLa_w"], p["CLa_t"], p["deps_da"]
-    steady = model.kind == "steady"
-    if steady:
-        y_w = y_t = G = F = 0.0
-        lam_w = lam_t = lam_G = 0.0
-        tail_delay = False
-    else:
-        y_w, y_t, G, F = p["y_w"], p["y_t"], p["G"], p["F"]
-        c_tail = c if model.tail_lag_chord == "c_w" else ac.c_t
-        lam_w = 2.0 * p["z_w"] * U / c  # Eq. 17, wing: 2 z_w U / c_w
-        lam_t = 2.0 * p["z_t"] * U / c_tail  # Eq. 17, tail (c_w as printed, or c_t)
-        lam_G = 2.0 * p["H"] * U / c  # Eq. 16: 2 H U / c_w
-        tail_delay = model.tail_gust_delay
-    tail_tau = l / U  # BS-8: tau_t = l/U
-    opts: dict = {}
-    for eff in matrix_effects:  # e.g. gust_lag@tail: {"tail_tau": tau_tail}
-        opts = eff.realize(opts, p, model)
-    if "tail_tau" in opts:
-        tail_delay, tail_tau = True, opts.pop("tail_tau")
-    post = opts.pop("system", ())  # e.g. downwash_lag@tail: callables on the finished system
-    if opts:
-        raise ParameterError(f"the {model.kind} model cannot realise {sorted(opts)}")
+    y_w, y_t, G, F, lam_w, lam_t, lam_G = _lags(model, p)
+    tail_delay, tail_tau, post = _tail_gust_delay(model, p, matrix_effects)
     channels = [("de", p["tau_de"])]
     if model.gust:
         channels.append(("alpha_w", p["tau_alpha_w"]))
@@ -249,43 +230,17 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
     for name, amp in (("x_w", y_w), ("x_t", y_t), ("x_G", G)):
         if amp != 0.0:
             names.append(name)
-    # (feedthrough, [(amplitude, rate)]) of the gust lag K(s); [] without gust input
-    gust_terms: tuple[float, list[tuple[float, float]]] | list = []
+    gust_terms = _gust_terms(model, p) if model.gust else []
     if model.gust:
-        if steady:
-            gust_terms = (1.0, [])
-        elif model.gust_lag == "bs12":
-            if p["b1"] < 0:
-                raise ParameterError(f"Kussner lag length b1 must be >= 0 semichords, got {p['b1']}")
-            Ts = c * p["b1"] / (2.0 * U)  # BS-12: T* = c b1 / (2U)
-            gust_terms = (1.0, []) if Ts == 0.0 else (0.0, [(1.0, 1.0 / Ts)])
-        else:  # K(s) = 1 - sum A_i s/(s + r_i) = (1 - sum A_i) + sum A_i r_i/(s + r_i)
-            fn = get_indicial(model.gust_lag)
-            rates = [2.0 * b * U / c for b in fn.rates]
-            gust_terms = (1.0 - sum(fn.amplitudes), [(A, r) for A, r in zip(fn.amplitudes, rates) if A != 0.0])
-        surfaces = ("w", "t") if tail_delay else ("w",)
-        for s in surfaces:
+        for s in ("w", "t") if tail_delay else ("w",):
             names += [f"g{s}{i}" for i in range(len(gust_terms[1]))]
     ns, nu = len(names), len(channels)
     R = _Rows(ns, nu)
     ix = {n: i for i, n in enumerate(names)}
     X = lambda n: R.x(ix[n]) if n in ix else R.zero()  # noqa: E731
     alpha, q = X("alpha"), X("q")
-    dyn = {}
-    g_rows = {}
-    if model.gust:
-        inputs = {"w": R.u(1), "t": R.u(2) if tail_delay else R.u(1)}
-        ff, terms = gust_terms
-        for s in ("w", "t") if tail_delay else ("w",):
-            g = ff * inputs[s]
-            for i, (A_i, r_i) in enumerate(terms):  # BS-16: Y' = (alpha_w - Y)/T*
-                st = X(f"g{s}{i}")
-                g = g + A_i * st
-                dyn[f"g{s}{i}"] = r_i * (inputs[s] - st)
-            g_rows[s] = g
-        g_rows.setdefault("t", g_rows["w"])
-    g_w = g_rows.get("w", R.zero())
-    g_t = g_rows.get("t", R.zero())
+    dyn: dict = {}
+    g_w, g_t = _gust_rows(R, X, gust_terms, tail_delay, dyn) if model.gust else (R.zero(), R.zero())
     # Eq. 17 / section 4: C_Lw = a_w[(1 - y_w) alpha + y_w x_w] (+ a_w K alpha_g, section 8)
     CLw = a_w * ((1.0 - y_w) * alpha + y_w * X("x_w")) + a_w * g_w
     # Eq. 16 / section 4: eps = eps_ss[(1 - G) alpha + G x_G] + eps_F (+ eps_ss K D alpha_g)
@@ -301,15 +256,7 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
     dyn["x_G"] = lam_G * (alpha - X("x_G"))
     rows = np.array([dyn[n] for n in names])
     out = np.array([alpha, q, (U / G0) * kz * Cz])  # Eq. 5: a_z = (U/g)(alpha_dot - q) = (U/g) k_z C_z
-    kappa = 0.0
-    T = (l - c) / U
-    if F != 0.0:
-        if T <= 0.0:
-            raise ParameterError(
-                f"the downwash pole time T = (l_t - c_w)/U = {T:.4g} s must be positive: "
-                f"tail length l_t = {l} m must exceed the wing chord c_w = {c} m"
-            )
-        kappa = eps_ss * F * c / U  # section 4: eps_F = eps_ss F (c_w/U) PV int alpha_dot/(t - tau - T)
+    T, kappa = _downwash_pole(l, c, U, eps_ss, F)
     sys = _System(
         A=rows[:, :ns],
         B=rows[:, ns : ns + nu],
@@ -328,6 +275,77 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
     for fn in post:
         sys = fn(sys)
     return sys
+
+
+def _lags(model, p) -> tuple[float, ...]:
+    """(y_w, y_t, G, F, lam_w, lam_t, lam_G): the lag amplitudes and rates, all zero for ``steady``."""
+    if model.kind == "steady":
+        return (0.0,) * 7
+    U, c = model.aircraft.U, model.aircraft.c_w
+    c_tail = c if model.tail_lag_chord == "c_w" else model.aircraft.c_t
+    lam_w = 2.0 * p["z_w"] * U / c  # Eq. 17, wing: 2 z_w U / c_w
+    lam_t = 2.0 * p["z_t"] * U / c_tail  # Eq. 17, tail (c_w as printed, or c_t)
+    lam_G = 2.0 * p["H"] * U / c  # Eq. 16: 2 H U / c_w
+    return p["y_w"], p["y_t"], p["G"], p["F"], lam_w, lam_t, lam_G
+
+
+def _tail_gust_delay(model, p, matrix_effects) -> tuple[bool, float, tuple]:
+    """(the tail sees the gust delayed, its delay s, callables on the finished system) after the matrix effects."""
+    tail_delay = model.kind != "steady" and model.tail_gust_delay
+    tail_tau = p["l_t"] / model.aircraft.U  # BS-8: tau_t = l/U
+    opts: dict = {}
+    for eff in matrix_effects:  # e.g. gust_lag@tail: {"tail_tau": tau_tail}
+        opts = eff.realize(opts, p, model)
+    if "tail_tau" in opts:
+        tail_delay, tail_tau = True, opts.pop("tail_tau")
+    post = opts.pop("system", ())  # e.g. downwash_lag@tail: callables on the finished system
+    if opts:
+        raise ParameterError(f"the {model.kind} model cannot realise {sorted(opts)}")
+    return tail_delay, tail_tau, post
+
+
+def _gust_terms(model, p) -> tuple[float, list[tuple[float, float]]]:
+    """(feedthrough, [(amplitude, rate)]) of the gust lag K(s)."""
+    U, c = model.aircraft.U, model.aircraft.c_w
+    if model.kind == "steady":
+        return (1.0, [])
+    if model.gust_lag == "bs12":
+        if p["b1"] < 0:
+            raise ParameterError(f"Kussner lag length b1 must be >= 0 semichords, got {p['b1']}")
+        Ts = c * p["b1"] / (2.0 * U)  # BS-12: T* = c b1 / (2U)
+        return (1.0, []) if Ts == 0.0 else (0.0, [(1.0, 1.0 / Ts)])
+    # K(s) = 1 - sum A_i s/(s + r_i) = (1 - sum A_i) + sum A_i r_i/(s + r_i)
+    fn = get_indicial(model.gust_lag)
+    rates = [2.0 * b * U / c for b in fn.rates]
+    return (1.0 - sum(fn.amplitudes), [(A, r) for A, r in zip(fn.amplitudes, rates) if A != 0.0])
+
+
+def _gust_rows(R, X, gust_terms, tail_delay: bool, dyn: dict) -> tuple:
+    """Rows of K alpha_g at the wing and the tail; the gust lag states' rows go into ``dyn``."""
+    inputs = {"w": R.u(1), "t": R.u(2) if tail_delay else R.u(1)}
+    ff, terms = gust_terms
+    g_rows = {}
+    for s in ("w", "t") if tail_delay else ("w",):
+        g = ff * inputs[s]
+        for i, (A_i, r_i) in enumerate(terms):  # BS-16: Y' = (alpha_w - Y)/T*
+            st = X(f"g{s}{i}")
+            g = g + A_i * st
+            dyn[f"g{s}{i}"] = r_i * (inputs[s] - st)
+        g_rows[s] = g
+    return g_rows["w"], g_rows.get("t", g_rows["w"])
+
+
+def _downwash_pole(l: float, c: float, U: float, eps_ss: float, F: float) -> tuple[float, float]:
+    """(T, kappa) of the downwash pole term eps_F (zero kappa without it)."""
+    T = (l - c) / U
+    if F == 0.0:
+        return T, 0.0
+    if T <= 0.0:
+        raise ParameterError(
+            f"the downwash pole time T = (l_t - c_w)/U = {T:.4g} s must be positive: "
+            f"tail length l_t = {l} m must exceed the wing chord c_w = {c} m"
+        )
+    return T, eps_ss * F * c / U  # section 4: eps_F = eps_ss F (c_w/U) PV int alpha_dot/(t - tau - T)
 
 
 def _system(model, p) -> _System:
