@@ -1004,8 +1004,6 @@ def _finite_or_none(x) -> float | None:
 
 def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Problem]:
     """:func:`fit` after its arguments are checked: the result (without its warnings and options) and the problem."""
-    # Long on purpose (~110 lines): one iteration whose state (theta, V, R, J, the last sensitivities and
-    # step) passes from pass to pass and to the covariance; split, it would be threaded through every piece.
     t_start = time.perf_counter()
     method, stop, tol, cov_type = options["method"], options["stop"], options["tol"], options["cov_type"]
     prob = prepare(
@@ -1057,17 +1055,10 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
             break
         rel_prev = rel_step
         J_old = J
-        # --- take a step -------------------------------------------------------------
-        accepted = False
         if full:
             accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, H, J, active, lo, hi, rows)
         else:
-            step = step_n
-            for _ in range(SETTINGS.gn_max_halvings):
-                accepted, t_new, V_new, R_new, J_new = _try(prob, theta, step, lo, hi, J, rows)
-                if accepted:
-                    break
-                step = 0.5 * step  # step halving when the cost rises
+            accepted, t_new, V_new, R_new, J_new = _halving_step(prob, theta, step_n, lo, hi, J, rows)
         if accepted:
             theta, V, R, J = t_new, V_new, R_new, J_new
         history.append(math.exp(J))
@@ -1078,18 +1069,10 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
             stopped = True
             message = f"stopped by the callback after {it} iterations"
             break
-        if stop == "paper":
-            if abs(math.exp(J_old - J) - 1.0) < SETTINGS.paper_rel_change:  # Eq. 25 rule |J_k-1 - J_k| / J_k
-                converged = True
-                message = (
-                    f"paper's rule: relative change of det R below {SETTINGS.paper_rel_change:g} after {it} iterations"
-                )
-                break
-        else:
-            if not accepted:
-                converged = bool(rel_step < SETTINGS.stall_factor * tol)  # a plain bool: numpy's is not JSON
-                message = "converged: no further decrease of det R" if converged else "stalled: no step decreases det R"
-                break
+        end = _end_of_pass(stop, accepted, J_old, J, rel_step, tol, it)
+        if end is not None:
+            converged, message = end
+            break
     if not converged and not stopped:
         warnings.warn(f"fit did not converge: {message}", ConvergenceWarning, stacklevel=3)
     res = _finish(
@@ -1111,13 +1094,45 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
     )
     res = replace(res, findings=tuple(found)) if found else res
     if options["adequacy"] and converged:
-        from .adequacy import attach
-
-        # fdml.adequacy: checks the fit, warns when it flags anything; analytic sensitivities at the
-        # estimate do not depend on the settling tolerance, so the last ones serve the check too
-        A_est = A_final if prob.sensitivity == "analytic" else None
-        res = attach(prob, res, V, A_est)
+        res = _with_adequacy(prob, res, V, A_final)
     return res, prob
+
+
+def _halving_step(prob, theta, step, lo, hi, J, rows):
+    """A Gauss-Newton step, halved while the cost rises: (accepted, theta, V, R, J) as :func:`_try`."""
+    accepted, t_new, V_new, R_new, J_new = False, theta, None, None, J
+    for _ in range(SETTINGS.gn_max_halvings):
+        accepted, t_new, V_new, R_new, J_new = _try(prob, theta, step, lo, hi, J, rows)
+        if accepted:
+            break
+        step = 0.5 * step  # step halving when the cost rises
+    return accepted, t_new, V_new, R_new, J_new
+
+
+def _end_of_pass(stop: str, accepted: bool, J_old: float, J: float, rel_step: float, tol: float, it: int):
+    """(converged, message) when the iteration ends after this pass's step, else None."""
+    if stop == "paper":
+        if abs(math.exp(J_old - J) - 1.0) < SETTINGS.paper_rel_change:  # Eq. 25 rule |J_k-1 - J_k| / J_k
+            return True, (
+                f"paper's rule: relative change of det R below {SETTINGS.paper_rel_change:g} after {it} iterations"
+            )
+        return None
+    if not accepted:
+        converged = bool(rel_step < SETTINGS.stall_factor * tol)  # a plain bool: numpy's is not JSON
+        return converged, (
+            "converged: no further decrease of det R" if converged else "stalled: no step decreases det R"
+        )
+    return None
+
+
+def _with_adequacy(prob, res, V, A_final):
+    """The result with its adequacy check (:mod:`fdml.adequacy`; it warns when the check flags anything)."""
+    from .adequacy import attach
+
+    # analytic sensitivities at the estimate do not depend on the settling tolerance, so the last ones
+    # serve the check too
+    A_est = A_final if prob.sensitivity == "analytic" else None
+    return attach(prob, res, V, A_est)
 
 
 def _data_findings(prob: Problem, strict: bool) -> list:
