@@ -101,8 +101,26 @@ def _rebuild(cls, kwargs: dict):
     return cls(**kwargs)
 
 
+class ByName:
+    """``params`` and ``errors`` by name, of a result with ``names``, ``values`` and ``stderr``."""
+
+    names: tuple
+    values: np.ndarray
+    stderr: np.ndarray
+
+    @property
+    def params(self) -> dict[str, float]:
+        """Estimates by name."""
+        return dict(zip(self.names, self.values.tolist()))
+
+    @property
+    def errors(self) -> dict[str, float]:
+        """Standard errors by name."""
+        return dict(zip(self.names, self.stderr.tolist()))
+
+
 @dataclass(frozen=True)
-class FitResult:
+class FitResult(ByName):
     """The outcome of :func:`fdml.fit`.
 
     Attributes
@@ -307,15 +325,6 @@ class FitResult:
         )
 
     # --- accessors ----------------------------------------------------------------------
-    @property
-    def params(self) -> dict[str, float]:
-        """Estimates by name."""
-        return dict(zip(self.names, self.values.tolist()))
-
-    @property
-    def errors(self) -> dict[str, float]:
-        """Standard errors by name."""
-        return dict(zip(self.names, self.stderr.tolist()))
 
     @property
     def cost(self) -> float:
