@@ -344,7 +344,7 @@ def _dw_delay_system(p):
     eps += g eps_ss (1 - G)(alpha_d - alpha).
 
     The downwash perturbation enters the Wells-Keskar system exactly as the F-term's eps_F does
-    (columns bF, dF, rF of :class:`fdml.simulate._System`), so it is added along them.
+    (columns bF, dF, rF of :class:`fdml.models.realization._System`), so it is added along them.
     """
 
     def fn(sys):
