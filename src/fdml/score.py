@@ -384,7 +384,10 @@ class ScreenContext:
         return self.white(A), self.floor(A)
 
     def candidate_sensitivities(self, model, names, steps, one_sided) -> np.ndarray:
-        """d(prediction)/d(eta) at the model's values by central (or forward) differences, shape (N, n_out, q)."""
+        """Sensitivities d(prediction)/d(eta) at the model's values, by central (or forward) differences.
+
+        Shape (N, n_out, q).
+        """
         # the fit's own problem sets up the candidate's (fdml.estimate.prepare; this module sits below it)
         prob = self.fit.prob.prepare(self.spectra, model, sensitivity="central", **self.options)
         theta = np.array([self.fit.params.get(n, model.parameters.values.get(n, 0.0)) for n in prob.names])

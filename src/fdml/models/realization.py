@@ -488,6 +488,7 @@ class Realization:
 
     @property
     def states(self) -> int:
+        """Number of states of the realization."""
         return self.A.shape[0]
 
     def frequency_response(self, omega) -> np.ndarray:
