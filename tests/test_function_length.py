@@ -13,9 +13,6 @@ import fdml
 
 SRC = Path(fdml.__file__).parent
 LIMIT = 100
-#: Long functions in modules their owners are reworking in this same round (issue 10: results and
-#: the estimator, the parallel engine); they split them or say why, and then leave this list.
-PENDING = {"estimate.py fit", "results.py build", "simulate.py _wells_keskar_system", "montecarlo.py monte_carlo"}
 
 
 def _length(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
@@ -52,7 +49,7 @@ def long_functions(root: Path = SRC) -> dict[str, int]:
 
 
 def test_no_function_is_long_without_saying_why():
-    assert {k: n for k, n in long_functions().items() if k not in PENDING} == {}
+    assert long_functions() == {}
 
 
 def test_the_length_rule(tmp_path):

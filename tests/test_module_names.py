@@ -63,3 +63,19 @@ def test_load_record_is_exported_at_the_top_level():
 
     assert "load_record" in fdml.__all__
     assert fdml.load_record is load_record
+
+
+def test_the_new_public_types_are_exported_at_the_top_level():
+    from fdml.estimate import EstimatorSettings
+    from fdml.parallel import execute
+    from fdml.parameters import Role, Slot
+    from fdml.warning_log import RecordedWarning
+
+    for name, obj in [
+        ("Role", Role),
+        ("Slot", Slot),
+        ("EstimatorSettings", EstimatorSettings),
+        ("RecordedWarning", RecordedWarning),
+        ("execute", execute),
+    ]:
+        assert name in fdml.__all__ and getattr(fdml, name) is obj, name

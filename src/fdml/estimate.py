@@ -49,6 +49,7 @@ from .errors import (
     ParameterError,
     RecordError,
 )
+from .estimator_settings import SETTINGS, EstimatorSettings
 from .findings import emit, raise_if_strict
 from .models.base import OUTPUTS, Model, ModelResponse
 from .models.measurement import (
@@ -78,96 +79,6 @@ _NUISANCE_BASE = {
     Role.INPUT_BIAS: (INPUT_BIAS_NAME,),
 }
 _BOUNDARY_COLS = [NUISANCE_NAMES.index(n) for n in BOUNDARY_NAMES]
-
-
-@dataclass(frozen=True)
-class EstimatorSettings:
-    """The estimator's thresholds and iteration caps, named and documented in one place.
-
-    :data:`SETTINGS` is the instance every fit uses; each number below is
-    the one the estimator's code reads, none is written twice.
-
-    Attributes
-    ----------
-    settle_tol : float
-        Relative change at which the Eq. 26 sensitivities count as settled
-        while iterating (THEORY.md section 7).
-    settle_tol_final : float
-        The same for the sensitivities behind the final covariance, taken as
-        central differences (error O(h^2)) halved until they settle, so that
-        the bounds agree with the analytic sensitivities to six significant
-        figures.
-    fd_start : float
-        First forward-difference step, as a fraction of ``max(|theta|, 1e-3)``
-        (THEORY.md section 7: 5 %).
-    central_step : float
-        Step of ``sensitivity="central"``, same scale.
-    fd_max_halvings : int
-        Most halvings of a difference step while it settles.
-    tight_below : float
-        Largest step (in standard errors) below which finite-difference fits
-        switch to the tight final sensitivities.
-    gn_max_halvings : int
-        Most step halvings of a Gauss-Newton step (``method="gauss-newton"``)
-        while the cost rises.
-    shift_tries : int
-        Most shifted-Newton trials (growing shift) per Levenberg-Marquardt step.
-    shift_limit : float
-        Shifted Newton only while the most negative curvature of the scaled
-        concentrated Hessian is within this fraction of the largest one.
-    fallback_halvings : int
-        Most halvings of the Gauss-Newton fallback step of the
-        Levenberg-Marquardt iteration.
-    stall_factor : float
-        A fit whose cost no step decreases counts as converged when its last
-        step is below ``stall_factor * tol`` standard errors.
-    paper_rel_change : float
-        The paper's stop rule: relative change of J = det R (Eq. 25).
-    singular_eig : float
-        Eigenvalue of the scaled information matrix, relative to the
-        largest, below which a combination of parameters is not identifiable.
-    correlation_warn : float
-        Correlation magnitude beyond which the fit raises an
-        :class:`~fdml.errors.IdentifiabilityWarning`.
-    correlation_listed : float
-        Correlation magnitude at or above which the summary lists a pair
-        (:func:`fdml.summary.fit_summary`); below ``correlation_warn`` so the
-        table shows the pairs approaching it.
-    gram_max : int
-        Largest frequency count for the O(m^2) Gram-matrix covariance; above
-        it the O(n log m) adjoint transform is cheaper in time and memory.
-    end_offset_warn : float
-        End offset (fraction of the peak) above which a record "ends far from
-        trim" (with ``boundary="none"``).
-    r_floor : float
-        Relative floor added to the diagonal of R: noise-free (simulated) data
-        can make R numerically singular, where the likelihood is unbounded;
-        1e-12 of the largest variance changes nothing at any realistic noise
-        level.
-    """
-
-    settle_tol: float = 1e-4
-    settle_tol_final: float = 1e-10
-    fd_start: float = 0.05
-    central_step: float = 1e-4
-    fd_max_halvings: int = 60
-    tight_below: float = 1e-2
-    gn_max_halvings: int = 30
-    shift_tries: int = 12
-    shift_limit: float = 0.05
-    fallback_halvings: int = 12
-    stall_factor: float = 10.0
-    paper_rel_change: float = 0.01
-    singular_eig: float = 1e-10
-    correlation_warn: float = 0.95
-    correlation_listed: float = 0.9
-    gram_max: int = 1500
-    end_offset_warn: float = 0.1
-    r_floor: float = 1e-12
-
-
-#: The settings every fit uses.
-SETTINGS = EstimatorSettings()
 
 
 @dataclass(frozen=True)
@@ -244,7 +155,17 @@ class Problem:
         self.n_out = len(outputs)
         self._steps: dict = {}
 
+    @staticmethod
+    def prepare(data, model: Model, **options) -> Problem:
+        """:func:`prepare`, reached from a problem.
+
+        How code below this module (the generic candidate sensitivities of
+        :class:`fdml.score.ScreenContext`) sets up a fit of another model.
+        """
+        return prepare(data, model, **options)
+
     # --- parameter vector ------------------------------------------------------------
+
     def initial(self) -> np.ndarray:
         """Start vector: model values, measured boundary values, model biases."""
         p = self.model.parameters.values
@@ -1005,8 +926,6 @@ def _finite_or_none(x) -> float | None:
 
 def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Problem]:
     """:func:`fit` after its arguments are checked: the result (without its warnings and options) and the problem."""
-    # Long on purpose (~110 lines): one iteration whose state (theta, V, R, J, the last sensitivities and
-    # step) passes from pass to pass and to the covariance; split, it would be threaded through every piece.
     t_start = time.perf_counter()
     method, stop, tol, cov_type = options["method"], options["stop"], options["tol"], options["cov_type"]
     prob = prepare(
@@ -1058,17 +977,10 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
             break
         rel_prev = rel_step
         J_old = J
-        # --- take a step -------------------------------------------------------------
-        accepted = False
         if full:
             accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, H, J, active, lo, hi, rows)
         else:
-            step = step_n
-            for _ in range(SETTINGS.gn_max_halvings):
-                accepted, t_new, V_new, R_new, J_new = _try(prob, theta, step, lo, hi, J, rows)
-                if accepted:
-                    break
-                step = 0.5 * step  # step halving when the cost rises
+            accepted, t_new, V_new, R_new, J_new = _halving_step(prob, theta, step_n, lo, hi, J, rows)
         if accepted:
             theta, V, R, J = t_new, V_new, R_new, J_new
         history.append(math.exp(J))
@@ -1079,18 +991,10 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
             stopped = True
             message = f"stopped by the callback after {it} iterations"
             break
-        if stop == "paper":
-            if abs(math.exp(J_old - J) - 1.0) < SETTINGS.paper_rel_change:  # Eq. 25 rule |J_k-1 - J_k| / J_k
-                converged = True
-                message = (
-                    f"paper's rule: relative change of det R below {SETTINGS.paper_rel_change:g} after {it} iterations"
-                )
-                break
-        else:
-            if not accepted:
-                converged = bool(rel_step < SETTINGS.stall_factor * tol)  # a plain bool: numpy's is not JSON
-                message = "converged: no further decrease of det R" if converged else "stalled: no step decreases det R"
-                break
+        end = _end_of_pass(stop, accepted, J_old, J, rel_step, tol, it)
+        if end is not None:
+            converged, message = end
+            break
     if not converged and not stopped:
         warnings.warn(f"fit did not converge: {message}", ConvergenceWarning, stacklevel=3)
     res = _finish(
@@ -1112,13 +1016,45 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
     )
     res = replace(res, findings=tuple(found)) if found else res
     if options["adequacy"] and converged:
-        from .adequacy import attach
-
-        # fdml.adequacy: checks the fit, warns when it flags anything; analytic sensitivities at the
-        # estimate do not depend on the settling tolerance, so the last ones serve the check too
-        A_est = A_final if prob.sensitivity == "analytic" else None
-        res = attach(prob, res, V, A_est)
+        res = _with_adequacy(prob, res, V, A_final)
     return res, prob
+
+
+def _halving_step(prob, theta, step, lo, hi, J, rows):
+    """A Gauss-Newton step, halved while the cost rises: (accepted, theta, V, R, J) as :func:`_try`."""
+    accepted, t_new, V_new, R_new, J_new = False, theta, None, None, J
+    for _ in range(SETTINGS.gn_max_halvings):
+        accepted, t_new, V_new, R_new, J_new = _try(prob, theta, step, lo, hi, J, rows)
+        if accepted:
+            break
+        step = 0.5 * step  # step halving when the cost rises
+    return accepted, t_new, V_new, R_new, J_new
+
+
+def _end_of_pass(stop: str, accepted: bool, J_old: float, J: float, rel_step: float, tol: float, it: int):
+    """(converged, message) when the iteration ends after this pass's step, else None."""
+    if stop == "paper":
+        if abs(math.exp(J_old - J) - 1.0) < SETTINGS.paper_rel_change:  # Eq. 25 rule |J_k-1 - J_k| / J_k
+            return True, (
+                f"paper's rule: relative change of det R below {SETTINGS.paper_rel_change:g} after {it} iterations"
+            )
+        return None
+    if not accepted:
+        converged = bool(rel_step < SETTINGS.stall_factor * tol)  # a plain bool: numpy's is not JSON
+        return converged, (
+            "converged: no further decrease of det R" if converged else "stalled: no step decreases det R"
+        )
+    return None
+
+
+def _with_adequacy(prob, res, V, A_final):
+    """The result with its adequacy check (:mod:`fdml.adequacy`; it warns when the check flags anything)."""
+    from .adequacy import attach
+
+    # analytic sensitivities at the estimate do not depend on the settling tolerance, so the last ones
+    # serve the check too
+    A_est = A_final if prob.sensitivity == "analytic" else None
+    return attach(prob, res, V, A_est)
 
 
 def _data_findings(prob: Problem, strict: bool) -> list:

@@ -25,7 +25,7 @@ import contextlib
 import math
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -63,7 +63,6 @@ def _clean_record(task: Mapping):
 
 def run_trial(task: Mapping) -> dict:
     """One Monte Carlo run: noise draw ``index``, fit, short row (runs in a worker)."""
-    from dataclasses import replace
 
     from .estimate import fit
     from .record import add_noise
@@ -475,44 +474,19 @@ def monte_carlo(
     MonteCarloResult
     """
     t_start = time.perf_counter()
-    if not isinstance(n, (int, np.integer)) or n < 2:
-        raise FdmlError(f"n must be an integer >= 2, got {n!r}")
-    if not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise FdmlError(f"seed must be a non-negative integer, got {seed!r}")
-    if workers is not None and (not isinstance(workers, (int, np.integer)) or workers < 1):
-        raise FdmlError(f"workers must be a positive integer, got {workers!r}")  # as run_batch
-    truth_spec = ModelSpec.coerce(model)
-    if truth_values:
-        from dataclasses import replace
-
-        truth_spec = replace(truth_spec, values={**truth_spec.values, **truth_values})
-    truth_spec = truth_spec.normalized()
+    _check_counts(n, seed, workers)
+    truth_spec = _truth_spec(model, truth_values)
     truth = truth_spec.build()
-    if fit_model is None:
-        fit_spec = ModelSpec.from_model(truth).normalized()
-    else:
-        fit_spec = ModelSpec.coerce(fit_model).normalized()
+    # the fitted model defaults to the truth, started at the truth
+    fit_spec = ModelSpec.from_model(truth) if fit_model is None else ModelSpec.coerce(fit_model)
+    fit_spec = fit_spec.normalized()
     fmodel = fit_spec.build()
     kw = check_fit_kwargs(fit_kwargs)
     noise = _check_noise(noise)
-    # the names the study reports: estimated model parameters, not nuisance terms
-    names = list(fmodel.parameters.free_model_names)
-    for nm in kw.get("fix", {}) or ():
-        if nm in names:
-            names.remove(nm)
-    pars = fmodel.parameters
-    names += [nm for nm in (kw.get("free") or ()) if nm not in names and not (nm in pars and pars[nm].role.nuisance)]
-    if not names:
-        raise FdmlError("the fitted model has no free parameters")
+    names = _reported_names(fmodel, kw)
     tvals = truth.parameters.values
     truth_arr = np.array([tvals.get(nm, math.nan) for nm in names], float)
-    sim: dict[str, Any] = {"maneuver": maneuver, "duration": float(duration), "dt": float(dt)}
-    if amplitude is not None:
-        sim["amplitude"] = float(amplitude)
-    # one clean simulation here: bad settings fail once, not n times
-    from .simulate import simulate_maneuver
-
-    simulate_maneuver(truth, maneuver, **{k: v for k, v in sim.items() if k != "maneuver"})
+    sim = _sim_settings(truth, maneuver, duration, dt, amplitude)
     base = {
         "truth": truth_spec.to_dict(),
         "fit_model": fit_spec.to_dict(),
@@ -523,14 +497,6 @@ def monte_carlo(
         "names": names,
     }
     tasks = ({**base, "index": i} for i in range(n))
-    p = len(names)
-    est = np.full((n, p), math.nan)
-    se = np.full((n, p), math.nan)
-    conv = np.zeros(n, bool)
-    iters = np.zeros(n, int)
-    secs = np.full(n, math.nan)
-    errors: dict[int, str] = {}
-    warned: dict[int, tuple] = {}
     rows = execute(
         run_trial,
         tasks,
@@ -541,19 +507,7 @@ def monte_carlo(
         total=n,
         desc="fdml montecarlo",
     )
-    with contextlib.closing(rows):  # at once on any exception (a signal included): the workers end with the run
-        for row in rows:
-            i = row["index"]
-            if row["ok"]:
-                est[i] = row["values"]
-                se[i] = row["stderr"]
-                conv[i] = row["converged"]
-                iters[i] = row["iterations"]
-                secs[i] = row["elapsed"]
-            else:
-                errors[i] = row["error"]
-            if row.get("warnings"):
-                warned[i] = tuple(row["warnings"])
+    trials = _collect(rows, n, len(names))
     settings = {
         "truth_kind": truth.kind,
         "fit_kind": fmodel.kind,
@@ -572,14 +526,82 @@ def monte_carlo(
     return MonteCarloResult(
         names=tuple(names),
         truth=truth_arr,
-        estimates=est,
-        stderr=se,
-        converged=conv,
-        iterations=iters,
-        fit_seconds=secs,
-        errors=errors,
         settings=settings,
         wall_time=time.perf_counter() - t_start,
         units=units,
-        warnings=warned,
+        **trials,
     )
+
+
+def _check_counts(n, seed, workers) -> None:
+    if not isinstance(n, (int, np.integer)) or n < 2:
+        raise FdmlError(f"n must be an integer >= 2, got {n!r}")
+    if not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise FdmlError(f"seed must be a non-negative integer, got {seed!r}")
+    if workers is not None and (not isinstance(workers, (int, np.integer)) or workers < 1):
+        raise FdmlError(f"workers must be a positive integer, got {workers!r}")  # as run_batch
+
+
+def _truth_spec(model, truth_values) -> ModelSpec:
+    """The truth model's spec with ``truth_values`` over its own, normalised."""
+    spec = ModelSpec.coerce(model)
+    if truth_values:
+        spec = replace(spec, values={**spec.values, **truth_values})
+    return spec.normalized()
+
+
+def _reported_names(fmodel, kw: dict) -> list:
+    """The names the study reports: estimated model parameters, not nuisance terms."""
+    names = list(fmodel.parameters.free_model_names)
+    for nm in kw.get("fix", {}) or ():
+        if nm in names:
+            names.remove(nm)
+    pars = fmodel.parameters
+    names += [nm for nm in (kw.get("free") or ()) if nm not in names and not (nm in pars and pars[nm].role.nuisance)]
+    if not names:
+        raise FdmlError("the fitted model has no free parameters")
+    return names
+
+
+def _sim_settings(truth, maneuver, duration, dt, amplitude) -> dict[str, Any]:
+    """The simulation's settings, checked by one clean simulation here: bad settings fail once, not n times."""
+    sim: dict[str, Any] = {"maneuver": maneuver, "duration": float(duration), "dt": float(dt)}
+    if amplitude is not None:
+        sim["amplitude"] = float(amplitude)
+    from .simulate import simulate_maneuver
+
+    simulate_maneuver(truth, maneuver, **{k: v for k, v in sim.items() if k != "maneuver"})
+    return sim
+
+
+def _collect(rows, n: int, p: int) -> dict:
+    """The trials' rows as the result's arrays (a failed trial leaves NaN and its error)."""
+    est = np.full((n, p), math.nan)
+    se = np.full((n, p), math.nan)
+    conv = np.zeros(n, bool)
+    iters = np.zeros(n, int)
+    secs = np.full(n, math.nan)
+    errors: dict[int, str] = {}
+    warned: dict[int, tuple] = {}
+    with contextlib.closing(rows):  # at once on any exception (a signal included): the workers end with the run
+        for row in rows:
+            i = row["index"]
+            if row["ok"]:
+                est[i] = row["values"]
+                se[i] = row["stderr"]
+                conv[i] = row["converged"]
+                iters[i] = row["iterations"]
+                secs[i] = row["elapsed"]
+            else:
+                errors[i] = row["error"]
+            if row.get("warnings"):
+                warned[i] = tuple(row["warnings"])
+    return {
+        "estimates": est,
+        "stderr": se,
+        "converged": conv,
+        "iterations": iters,
+        "fit_seconds": secs,
+        "errors": errors,
+        "warnings": warned,
+    }

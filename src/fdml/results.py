@@ -101,8 +101,26 @@ def _rebuild(cls, kwargs: dict):
     return cls(**kwargs)
 
 
+class ByName:
+    """``params`` and ``errors`` by name, of a result with ``names``, ``values`` and ``stderr``."""
+
+    names: tuple
+    values: np.ndarray
+    stderr: np.ndarray
+
+    @property
+    def params(self) -> dict[str, float]:
+        """Estimates by name."""
+        return dict(zip(self.names, self.values.tolist()))
+
+    @property
+    def errors(self) -> dict[str, float]:
+        """Standard errors by name."""
+        return dict(zip(self.names, self.stderr.tolist()))
+
+
 @dataclass(frozen=True)
-class FitResult:
+class FitResult(ByName):
     """The outcome of :func:`fdml.fit`.
 
     Attributes
@@ -257,64 +275,15 @@ class FitResult:
     ) -> "FitResult":
         """Assemble the result of a finished fit from the estimator's state (used by :func:`fdml.fit`)."""
         names = prob.names
-        lo, hi = prob.bounds()
-        at_bound = tuple(
-            n
-            for i, n in enumerate(names)
-            if (math.isfinite(lo[i]) and theta[i] <= lo[i]) or (math.isfinite(hi[i]) and theta[i] >= hi[i])
-        )
         slots = tuple(
             Slot(s.name, s.base, s.role, None if s.record < 0 else prob.data[s.record].name) for s in prob.slots
         )
-        mnames = [prob.slots[i].name for i in prob.model_slots]
-        derived = {}
-        dvals = model.derived()
-        if dvals and mnames:
-            keys, J = model.derived_jacobian(model.parameters.values, mnames)
-            idx = np.array(prob.model_slots)
-            C = cov[np.ix_(idx, idx)]
-            with np.errstate(invalid="ignore"):
-                dcov = J @ np.where(np.isfinite(C), C, 0.0) @ J.T  # delta method
-            bad = ~np.all(np.isfinite(C), axis=0)
-            for k, key in enumerate(keys):
-                se = math.sqrt(max(dcov[k, k], 0.0))
-                if np.any(bad & (np.abs(J[k]) > 0)):
-                    se = math.inf
-                derived[key] = (float(dvals[key]), se)
-        elif dvals:
-            derived = {k: (float(v), 0.0) for k, v in dvals.items()}
         fixed = {p.name: p.value for p in model.parameters if not p.free}
         band = None
         if prob.data[0].band is not None:
             band = tuple(prob.data[0].band)
-        spectra = tuple(
-            {
-                "name": d.name,
-                "omega": d.omega,
-                "z": d.z,
-                "u": d.u,
-                "inputs": list(d.inputs),
-                "x0": d.x0,
-                "xT": d.xT,
-                "T": d.T,
-                "dt": d.dt,
-                "n": d.n,
-                "ones": d.ones,
-            }
-            for d in prob.data
-        )
-        time_records = tuple(
-            None
-            if d.record is None
-            else {
-                "name": d.name,
-                "t": d.record.t,
-                "signals": dict(d.record.signals),
-                "meta": dict(d.record.meta),
-                "trim_mode": d.trim_mode,
-            }
-            for d in prob.data
-        )
+        spectra = tuple(_spectrum_fields(d) for d in prob.data)
+        time_records = tuple(_time_record_fields(d) for d in prob.data)
         if all(r is None for r in time_records):
             time_records = ()
         nuisance = {
@@ -340,9 +309,9 @@ class FitResult:
             iterations=iterations,
             converged=converged,
             message=message,
-            derived=derived,
+            derived=_derived(prob, model, cov),
             fixed=fixed,
-            at_bound=at_bound,
+            at_bound=_at_bound(prob, theta),
             outputs=tuple(OUTPUTS[k] for k in prob.out_idx),
             band=band,
             n_freq=prob.N,
@@ -357,15 +326,6 @@ class FitResult:
         )
 
     # --- accessors ----------------------------------------------------------------------
-    @property
-    def params(self) -> dict[str, float]:
-        """Estimates by name."""
-        return dict(zip(self.names, self.values.tolist()))
-
-    @property
-    def errors(self) -> dict[str, float]:
-        """Standard errors by name."""
-        return dict(zip(self.names, self.stderr.tolist()))
 
     @property
     def cost(self) -> float:
@@ -730,6 +690,67 @@ class FitResult:
 
 
 #: Roles of the per-record nuisance terms that are not model parameters, by base name.
+def _at_bound(prob, theta) -> tuple:
+    """The names of the estimates on (or past) a finite bound."""
+    lo, hi = prob.bounds()
+    return tuple(
+        n
+        for i, n in enumerate(prob.names)
+        if (math.isfinite(lo[i]) and theta[i] <= lo[i]) or (math.isfinite(hi[i]) and theta[i] >= hi[i])
+    )
+
+
+def _derived(prob, model, cov) -> dict:
+    """Derived quantities ``{name: (value, standard error)}`` by the delta method (inf where it fails)."""
+    dvals = model.derived()
+    mnames = [prob.slots[i].name for i in prob.model_slots]
+    if not dvals or not mnames:
+        return {k: (float(v), 0.0) for k, v in dvals.items()}
+    keys, J = model.derived_jacobian(model.parameters.values, mnames)
+    idx = np.array(prob.model_slots)
+    C = cov[np.ix_(idx, idx)]
+    with np.errstate(invalid="ignore"):
+        dcov = J @ np.where(np.isfinite(C), C, 0.0) @ J.T  # delta method
+    bad = ~np.all(np.isfinite(C), axis=0)
+    derived = {}
+    for k, key in enumerate(keys):
+        se = math.sqrt(max(dcov[k, k], 0.0))
+        if np.any(bad & (np.abs(J[k]) > 0)):
+            se = math.inf
+        derived[key] = (float(dvals[key]), se)
+    return derived
+
+
+def _spectrum_fields(d) -> dict:
+    """What a result keeps of one record's spectra (to replot and recheck the fit)."""
+    return {
+        "name": d.name,
+        "omega": d.omega,
+        "z": d.z,
+        "u": d.u,
+        "inputs": list(d.inputs),
+        "x0": d.x0,
+        "xT": d.xT,
+        "T": d.T,
+        "dt": d.dt,
+        "n": d.n,
+        "ones": d.ones,
+    }
+
+
+def _time_record_fields(d) -> dict | None:
+    """What a result keeps of one record's time history (None for spectra given without one)."""
+    if d.record is None:
+        return None
+    return {
+        "name": d.name,
+        "t": d.record.t,
+        "signals": dict(d.record.signals),
+        "meta": dict(d.record.meta),
+        "trim_mode": d.trim_mode,
+    }
+
+
 _NUISANCE_ROLE = {
     **dict.fromkeys(BOUNDARY_NAMES, Role.BOUNDARY),
     **dict.fromkeys(STATE_BIAS_NAMES, Role.STATE_BIAS),

@@ -73,7 +73,6 @@ import numpy as np
 from scipy import special
 
 from .errors import FdmlError
-from .estimate import prepare
 from .models.base import Model
 from .models.effects import Effect
 
@@ -391,7 +390,8 @@ class ScreenContext:
 
         Shape (N, n_out, q).
         """
-        prob = prepare(self.spectra, model, sensitivity="central", **self.options)
+        # the fit's own problem sets up the candidate's (fdml.estimate.prepare; this module sits below it)
+        prob = self.fit.prob.prepare(self.spectra, model, sensitivity="central", **self.options)
         theta = np.array([self.fit.params.get(n, model.parameters.values.get(n, 0.0)) for n in prob.names])
         idx = {n: i for i, n in enumerate(prob.names)}
         cols = []

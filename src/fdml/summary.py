@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .estimator_settings import SETTINGS
 from .models.base import OUTPUTS
 from .models.measurement import OUTPUT_BIAS_NAMES
 from .parameters import NUISANCE_ROLES, Role
@@ -504,9 +505,7 @@ def fit_summary(res, digits: int = 6) -> Summary:
         )
         dcols = (Column("quantity", "derived"),) + _PARAM_COLUMNS[1:]
         tables.append(Table("derived", "Derived set (delta method)", dcols, drows))
-    from .estimate import SETTINGS  # the estimator's named thresholds
-
-    listed = SETTINGS.correlation_listed
+    listed = SETTINGS.correlation_listed  # the estimator's named thresholds
     corr = np.asarray(res.corr, float)
     pairs = []
     for i in range(len(res.names)):

@@ -21,13 +21,13 @@ from scipy import optimize
 from .errors import FdmlError, RecordError
 from .models.base import OUTPUTS, Model
 from .record import Record
-from .results import frozen
+from .results import ByName, frozen
 
 __all__ = ["TimeFitResult", "fit_time_domain"]
 
 
 @dataclass(frozen=True)
-class TimeFitResult:
+class TimeFitResult(ByName):
     """Outcome of :func:`fit_time_domain`.
 
     Attributes
@@ -62,16 +62,6 @@ class TimeFitResult:
     def __post_init__(self) -> None:
         for f in fields(self):  # a result is a record: its arrays are read-only
             object.__setattr__(self, f.name, frozen(getattr(self, f.name)))
-
-    @property
-    def params(self) -> dict[str, float]:
-        """Estimates by name."""
-        return dict(zip(self.names, self.values.tolist()))
-
-    @property
-    def errors(self) -> dict[str, float]:
-        """Standard errors by name."""
-        return dict(zip(self.names, self.stderr.tolist()))
 
     def __getitem__(self, name: str) -> float:
         return self.params[name]

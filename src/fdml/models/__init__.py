@@ -12,53 +12,19 @@ dimensional    Z_a, Z_q, Z_de, M_a, M_q, M_de (records without geometry)
 
 from __future__ import annotations
 
-from ..aircraft import Aircraft, load_aircraft
+from ..aircraft import Aircraft
 from ..errors import ParameterError
+from . import base as _base
 from .base import OUTPUTS, Model, ModelResponse, solve_short_period
 from .conventional import DerivativesModel, DimensionalModel, to_dimensional
+from .effects import AugmentedModel, assemble, with_effects
+from .kinds import MODEL_KINDS, make_model
+from .realization import realize
 from .wells_keskar import SteadyModel, UnsteadyModel, alternate_set
 
-MODEL_KINDS = {
-    "unsteady": UnsteadyModel,
-    "steady": SteadyModel,
-    "derivatives": DerivativesModel,
-    "dimensional": DimensionalModel,
-}
-
-
-def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(), **options) -> Model:
-    """Build a model by name.
-
-    Parameters
-    ----------
-    kind : {"unsteady", "steady", "derivatives", "dimensional"}
-    aircraft : Aircraft or str, optional
-        An :class:`~fdml.aircraft.Aircraft`, a preset name or a JSON file path.
-        Required except for ``dimensional`` given ``airspeed=``.
-    effects : sequence, optional
-        Effects made part of the model (``"time_delay:alpha"``,
-        ``"sensor_offset@az"``, ``"actuator_lag"`` or Effect objects), each
-        free at its null value; ``fdml effects`` lists them.
-    **options
-        Model options (``gust``, ``output_bias``, ``adot``, ``airspeed``,
-        ``tail_lag_chord``, ``gust_lag``, ``tail_gust_delay``).
-
-    Returns
-    -------
-    Model
-    """
-    try:
-        cls = MODEL_KINDS[kind]
-    except KeyError:
-        raise ParameterError(f"unknown model {kind!r}; models: {', '.join(MODEL_KINDS)}") from None
-    if aircraft is not None:
-        aircraft = load_aircraft(aircraft)
-    try:
-        model = cls(aircraft=aircraft, **options)
-    except TypeError as exc:
-        raise ParameterError(f"bad option for the {kind} model: {exc}") from None
-    return model.with_effects(effects) if effects else model
-
+# Model.with_effects and Model.realize compose through the layers above the model class; they reach
+# them through these entries, filled here, where every model's package is first imported.
+_base.UPPER.update(with_effects=with_effects, realize=realize)
 
 __all__ = [
     "OUTPUTS",
@@ -84,8 +50,6 @@ def model_to_dict(model: Model) -> dict:
     whole set, the effects' included.
     """
     import dataclasses
-
-    from .effects import AugmentedModel
 
     base = model.root if isinstance(model, AugmentedModel) else model
     if isinstance(model, AugmentedModel) and not model.requested:
@@ -113,7 +77,6 @@ def model_to_dict(model: Model) -> dict:
 def model_from_dict(d: dict) -> Model:
     """Inverse of :func:`model_to_dict`."""
     from ..parameters import Parameters
-    from .effects import assemble
 
     ac = None if d.get("aircraft") is None else Aircraft.from_dict(d["aircraft"], origin="saved model")
     model = assemble(make_model(d["kind"], ac, **d.get("options", {})), d.get("effects") or ())

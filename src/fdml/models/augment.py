@@ -162,13 +162,13 @@ class Effect:
         raise FdmlError(f"effect {self.key} has no time-domain form for validation truths")
 
     def realize(self, target, p: Mapping[str, float], root: Model):
-        """The effect on a time-domain realisation (see :func:`fdml.simulate.realize`).
+        """The effect on a time-domain realisation (see :func:`fdml.models.realization.realize`).
 
         Output-level effects act on the state space of the base model
         (``fdml.simulate`` helpers ``delay_output``, ``scale_output``,
         ``mix_output``, ``add_output_rate``, ``filter_input``, ``add_mode``);
         matrix-level effects on its descriptor form
-        (:class:`fdml.simulate.Descriptor`) or, on a Wells-Keskar base, on the
+        (:class:`fdml.models.realization.Descriptor`) or, on a Wells-Keskar base, on the
         options of its realisation.  An effect without one cannot be simulated.
         """
         raise ParameterError(

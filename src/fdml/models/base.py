@@ -20,7 +20,7 @@ in closed form over all frequencies at once.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
@@ -32,6 +32,13 @@ from ..errors import ParameterError
 from ..parameters import Parameter, Parameters, Role
 
 __all__ = ["Model", "ModelResponse", "OUTPUTS", "solve_short_period"]
+
+#: The model operations that live above this module, by method: ``with_effects``
+#: (:func:`fdml.models.effects.with_effects`) and ``realize``
+#: (:func:`fdml.models.realization.realize`).  :mod:`fdml.models` fills it when it is
+#: imported, which Python does before any of its modules (this one included), so a
+#: model's methods reach up without importing up.
+UPPER: dict[str, Callable] = {}
 
 #: Output channels of every model, in order: alpha (rad), q (rad/s), a_z (g).
 
@@ -396,12 +403,10 @@ class Model:
         model is unchanged); see :func:`fdml.models.effects.with_effects`.
         ``model.with_effects("time_delay:alpha", "sensor_offset:az")``.
         """
-        from .effects import with_effects
-
         flat = [
             e for item in effects for e in ([item] if isinstance(item, str) or not hasattr(item, "__iter__") else item)
         ]
-        return with_effects(self, flat)
+        return UPPER["with_effects"](self, flat)
 
     @property
     def parts(self) -> tuple:
@@ -409,13 +414,11 @@ class Model:
         return ()
 
     def realize(self, values: Mapping[str, float] | None = None):
-        """Finite-state realisation (:class:`fdml.simulate.Realization`), composed through the effects.
+        """Finite-state realisation (:class:`fdml.models.realization.Realization`), composed through the effects.
 
         The one the simulator integrates and :func:`fdml.export.to_statespace` exports.
         """
-        from ..simulate import realize
-
-        return realize(self, values)
+        return UPPER["realize"](self, values)
 
     def describe(self) -> str:
         """One line naming the model and its options."""

@@ -52,6 +52,17 @@ from .augment import (
     scale_rows,
 )
 from .base import Model
+from .kinds import make_model
+from .realization import (
+    _pad_states,
+    add_mode,
+    add_output_rate,
+    delay_output,
+    filter_input,
+    mix_output,
+    scale_output,
+)
+from .wells_keskar import SteadyModel
 
 __all__ = ["Dispatch", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
 
@@ -113,9 +124,6 @@ def to_unsteady_equivalent(root: Model) -> Model:
         return root
     if root.kind != "steady":
         raise ParameterError(f"no unsteady equivalent of the {root.kind} model")
-    from . import make_model
-    from .wells_keskar import SteadyModel
-
     assert isinstance(root, SteadyModel)  # the "steady" kind (a root model)
     ac = root.aircraft  # its lags are set to zero below: "none" is the source
     ac = ac if ac.lag_status else ac.with_changes(lag_constants="none")
@@ -339,12 +347,10 @@ def _dw_delay_system(p):
     eps += g eps_ss (1 - G)(alpha_d - alpha).
 
     The downwash perturbation enters the Wells-Keskar system exactly as the F-term's eps_F does
-    (columns bF, dF, rF of :class:`fdml.simulate._System`), so it is added along them.
+    (columns bF, dF, rF of :class:`fdml.models.realization._System`), so it is added along them.
     """
 
     def fn(sys):
-        from ..simulate import _pad_states
-
         tau, k = p["tau_dw"], _dw_share(p)
         if tau <= 0.0 or k == 0.0:
             return sys
@@ -425,8 +431,6 @@ def _gust_lag_output(s, p, G, H, P, root):
 
 def _filter_realize(signal_name: str, name: str):
     def fn(sys, p, root):
-        from ..simulate import filter_input
-
         return filter_input(sys, signal_name, p[name])
 
     return fn
@@ -574,8 +578,6 @@ def _output_delay(row: int, name: str):
 
 def _delay_realize(row: int, name: str):
     def fn(sys, p, root):
-        from ..simulate import delay_output
-
         return delay_output(sys, row, p[name])
 
     return fn
@@ -658,14 +660,10 @@ def _vane_offset(s, p, G, H, P, root):
 
 
 def _accel_offset_realize(sys, p, root):
-    from ..simulate import add_output_rate
-
     return add_output_rate(sys, 2, 1, -p["x_az"] / G0)  # a_z - x q_dot / g
 
 
 def _vane_offset_realize(sys, p, root):
-    from ..simulate import mix_output
-
     return mix_output(sys, 0, 1, -p["x_alpha"] / root.U)  # alpha - x q / U
 
 
@@ -714,8 +712,6 @@ def _mode(s, p, G, H, P, root):
 
 
 def _mode_realize(sys, p, root):
-    from ..simulate import add_mode
-
     return add_mode(sys, p["r_q"], p["r_az"], p["omega_s"], p["zeta_s"])
 
 
@@ -777,8 +773,6 @@ def _scale(row: int, name: str):
 
 def _scale_realize(row: int, name: str):
     def fn(sys, p, root):
-        from ..simulate import scale_output
-
         return scale_output(sys, row, 1.0 + p[name])
 
     return fn

@@ -63,6 +63,7 @@ from .augment import (
 )
 from .base import Model
 from .effect_library import BUILTINS
+from .kinds import MODEL_KINDS
 
 __all__ = [
     "Param",
@@ -251,8 +252,6 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
 
 def catalogue() -> list[dict]:
     """Every registered effect: key, channel(s), kind, signature and, per base model, its parameters."""
-    from . import MODEL_KINDS
-
     out = []
     for eff in registered_effects():
         impls = getattr(eff, "impls", None)

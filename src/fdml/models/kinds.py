@@ -1,0 +1,56 @@
+"""The model kinds by name (:data:`MODEL_KINDS`) and :func:`make_model`.
+
+Below :mod:`fdml.models.effects` and the effect library, which build models
+by kind; :mod:`fdml.models` exports both.
+"""
+
+from __future__ import annotations
+
+from ..aircraft import Aircraft, load_aircraft
+from ..errors import ParameterError
+from .base import Model
+from .conventional import DerivativesModel, DimensionalModel
+from .wells_keskar import SteadyModel, UnsteadyModel
+
+__all__ = ["MODEL_KINDS", "make_model"]
+
+MODEL_KINDS = {
+    "unsteady": UnsteadyModel,
+    "steady": SteadyModel,
+    "derivatives": DerivativesModel,
+    "dimensional": DimensionalModel,
+}
+
+
+def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(), **options) -> Model:
+    """Build a model by name.
+
+    Parameters
+    ----------
+    kind : {"unsteady", "steady", "derivatives", "dimensional"}
+    aircraft : Aircraft or str, optional
+        An :class:`~fdml.aircraft.Aircraft`, a preset name or a JSON file path.
+        Required except for ``dimensional`` given ``airspeed=``.
+    effects : sequence, optional
+        Effects made part of the model (``"time_delay:alpha"``,
+        ``"sensor_offset@az"``, ``"actuator_lag"`` or Effect objects), each
+        free at its null value; ``fdml effects`` lists them.
+    **options
+        Model options (``gust``, ``output_bias``, ``adot``, ``airspeed``,
+        ``tail_lag_chord``, ``gust_lag``, ``tail_gust_delay``).
+
+    Returns
+    -------
+    Model
+    """
+    try:
+        cls = MODEL_KINDS[kind]
+    except KeyError:
+        raise ParameterError(f"unknown model {kind!r}; models: {', '.join(MODEL_KINDS)}") from None
+    if aircraft is not None:
+        aircraft = load_aircraft(aircraft)
+    try:
+        model = cls(aircraft=aircraft, **options)
+    except TypeError as exc:
+        raise ParameterError(f"bad option for the {kind} model: {exc}") from None
+    return model.with_effects(effects) if effects else model

@@ -1,0 +1,528 @@
+"""Finite-state realisation of a model, composed through its effects.
+
+The state space every model kind and effect builds (:class:`Realization`,
+:func:`realize`): the base model's (the conventional descriptor form, the
+Wells-Keskar finite-state form of THEORY.md section 4 with the gust lags of
+section 8), the matrix-level effects inside it, then the output-level effects
+by the state-space algebra below (THEORY.md Eq. 5 for a_z).  It lives in the
+model layer, below :mod:`fdml.models.effects` and :mod:`fdml.simulate` (the
+time-domain simulator that integrates it), so that the effects and the models
+reach it without importing upward.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..aero import get_indicial
+from ..constants import G0
+from ..errors import ParameterError
+from .augment import MatrixEffect, applied_effects, root_model
+
+__all__ = [
+    "Descriptor",
+    "Realization",
+    "realize",
+    "add_mode",
+    "add_output_rate",
+    "delay_output",
+    "filter_input",
+    "mix_output",
+    "scale_output",
+]
+
+
+# --- the linear system ---------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _System:
+    """``x' = A x + B u + bF eps_F``, ``y = C x + D u + Dd u' + dF eps_F`` (y = alpha, q, a_z).
+
+    ``u`` are the input channels ``(signal name, delay s)``.  When ``kappa`` is
+    nonzero, ``eps_F = kappa PV int alpha_dot(tau)/(t - tau - T) dtau`` with
+    ``alpha_dot = rx x + ru u + rF eps_F``.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    Dd: np.ndarray
+    channels: tuple
+    bF: np.ndarray
+    dF: np.ndarray
+    rx: np.ndarray
+    ru: np.ndarray
+    rF: float = 0.0
+    T: float = 0.0
+    kappa: float = 0.0
+    #: Pure delays of the output channels (alpha, q, a_z), s: y_i(t) = (C x + D u + ...)_i(t - d_i).
+    out_delay: tuple = (0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class Descriptor:
+    """``E x' = A x + B0 u + B1 u'`` with x = [alpha, q, extra states...] and input channels.
+
+    The form of the conventional models (and of the matrix-level effects that
+    act on them, :meth:`fdml.models.effects.MatrixEffect.realize`); the outputs
+    are alpha = x_0, q = x_1 and a_z = (U/g)(alpha' - q) (THEORY.md Eq. 5).
+    """
+
+    E: np.ndarray
+    A: np.ndarray
+    B0: np.ndarray
+    B1: np.ndarray
+    channels: tuple
+
+    def with_state(self, a_row: np.ndarray, a_col: np.ndarray) -> "Descriptor":
+        """One more state ``x_n`` with ``x_n' = a_row . [x, x_n]`` feeding ``A[:, n] = a_col`` (E_nn = 1)."""
+        n = self.A.shape[0]
+        E = np.eye(n + 1)
+        E[:n, :n] = self.E
+        A = np.zeros((n + 1, n + 1))
+        A[:n, :n] = self.A
+        A[:n, n] = a_col
+        A[n] = a_row
+        pad = np.zeros((1, self.B0.shape[1]))
+        return Descriptor(E, A, np.vstack([self.B0, pad]), np.vstack([self.B1, pad]), self.channels)
+
+
+def _from_descriptor(d: Descriptor, U: float) -> _System:
+    """Proper state space of ``E x' = A x + B0 u + B1 u'`` (x_0 = alpha, x_1 = q).
+
+    With ``xi = x - E^-1 B1 u``: ``xi' = E^-1 A xi + E^-1 (B0 + A E^-1 B1) u``,
+    so the states never see u' (and are alpha, q themselves when B1 = 0).
+    Only a_z = (U/g)(alpha' - q) keeps a direct feedthrough
+    ``(U/g) e_alpha^T E^-1 B1 u'`` when B1 has an alpha row.
+    """
+    E, A, B0, B1 = d.E, d.A, d.B0, d.B1
+    Ei = np.linalg.inv(E)
+    n, nu = B0.shape
+    Ax = Ei @ A
+    D12 = Ei @ B1  # x = xi + D12 u
+    Bx = Ei @ (B0 + A @ D12)
+    k = U / G0  # Eq. 5
+    C = np.zeros((3, n))
+    D = np.zeros((3, nu))
+    Dd = np.zeros((3, nu))
+    C[:2] = np.eye(n)[:2]
+    D[:2] = D12[:2]
+    C[2] = k * (Ax[0] - C[1])
+    D[2] = k * (Bx[0] - D[1])
+    Dd[2] = k * D12[0]
+    zeros = np.zeros(n)
+    return _System(Ax, Bx, C, D, Dd, tuple(d.channels), zeros, np.zeros(3), zeros, np.zeros(nu))
+
+
+def _conventional_system(model, p, matrix_effects=()) -> _System:
+    """``dimensional`` and ``derivatives`` models (models/conventional.py), with matrix-level effects."""
+    d = _conventional_descriptor(model, p)
+    for eff in matrix_effects:
+        d = eff.realize(d, p, model)
+    return _from_descriptor(d, model.U)
+
+
+def _conventional_descriptor(model, p) -> Descriptor:
+    """E, A, B0, B1 of the ``dimensional`` and ``derivatives`` models (models/conventional.py)."""
+    gust = model.gust
+    channels = [("de", p["tau_de"])] + ([("alpha_w", p["tau_alpha_w"])] if gust else [])
+    nu = len(channels)
+    B0 = np.zeros((2, nu))
+    B1 = np.zeros((2, nu))
+    if model.kind == "dimensional":
+        E = np.eye(2)
+        A = np.array([[p["Z_a"], 1.0 + p["Z_q"]], [p["M_a"], p["M_q"]]])
+        B0[:, 0] = p["Z_de"], p["M_de"]
+        if gust:
+            B0[:, 1] = p["Z_a"], p["M_a"]
+    else:
+        ac = model.aircraft
+        kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
+        E = np.array([[1.0 - kz * p["Cz_adot"] * cu, 0.0], [-km * p["Cm_adot"] * cu, 1.0]])
+        A = np.array([[kz * p["Cz_a"], 1.0 + kz * p["Cz_q"] * cu], [km * p["Cm_a"], km * p["Cm_q"] * cu]])
+        B0[:, 0] = kz * p["Cz_de"], km * p["Cm_de"]
+        if gust:  # the gust enters as aerodynamic angle of attack, and its rate in the adot terms
+            B0[:, 1] = kz * p["Cz_a"], km * p["Cm_a"]
+            B1[:, 1] = kz * p["Cz_adot"] * cu, km * p["Cm_adot"] * cu
+    return Descriptor(E, A, B0, B1, tuple(channels))
+
+
+class _Rows:
+    """Linear forms over the vector [states | input channels | eps_F]."""
+
+    def __init__(self, ns: int, nu: int):
+        self.ns, self.nu, self.size = ns, nu, ns + nu + 1
+
+    def x(self, i: int) -> np.ndarray:
+        r = np.zeros(self.size)
+        r[i] = 1.0
+        return r
+
+    def u(self, j: int) -> np.ndarray:
+        return self.x(self.ns + j)
+
+    def eps(self) -> np.ndarray:
+        return self.x(self.size - 1)
+
+    def zero(self) -> np.ndarray:
+        return np.zeros(self.size)
+
+
+def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
+    """``unsteady`` (THEORY.md section 4 finite-state form, section 8 gust) and ``steady``.
+
+    Mirrors models/wells_keskar.py term by term:
+    C_Lw = N_w alpha + a_w K alpha_g;  eps = E alpha + eps_ss K D alpha_g;
+    C_Lt = N_t (alpha - eps + (l/U) q) + a_t K D alpha_g,  D = exp(-s l/U).
+    """
+    ac = model.aircraft
+    U, c = ac.U, ac.c_w
+    kz, km = ac.k_z, ac.k_m
+    sr = ac.S_t / ac.S_w
+    l = p["l_t"]
+    a_w, a_t, eps_ss = p["CLa_w"], p["CLa_t"], p["deps_da"]
+    y_w, y_t, G, F, lam_w, lam_t, lam_G = _lags(model, p)
+    tail_delay, tail_tau, post = _tail_gust_delay(model, p, matrix_effects)
+    channels = [("de", p["tau_de"])]
+    if model.gust:
+        channels.append(("alpha_w", p["tau_alpha_w"]))
+        if tail_delay:
+            channels.append(("alpha_w", p["tau_alpha_w"] + tail_tau))
+    # --- states: alpha, q, the lift and downwash lags that are present, gust lags
+    names = ["alpha", "q"]
+    for name, amp in (("x_w", y_w), ("x_t", y_t), ("x_G", G)):
+        if amp != 0.0:
+            names.append(name)
+    gust_terms = _gust_terms(model, p) if model.gust else (1.0, [])  # (unused without gust input)
+    if model.gust:
+        for s in ("w", "t") if tail_delay else ("w",):
+            names += [f"g{s}{i}" for i in range(len(gust_terms[1]))]
+    ns, nu = len(names), len(channels)
+    R = _Rows(ns, nu)
+    ix = {n: i for i, n in enumerate(names)}
+    X = lambda n: R.x(ix[n]) if n in ix else R.zero()  # noqa: E731
+    alpha, q = X("alpha"), X("q")
+    dyn: dict = {}
+    g_w, g_t = _gust_rows(R, X, gust_terms, tail_delay, dyn) if model.gust else (R.zero(), R.zero())
+    # Eq. 17 / section 4: C_Lw = a_w[(1 - y_w) alpha + y_w x_w] (+ a_w K alpha_g, section 8)
+    CLw = a_w * ((1.0 - y_w) * alpha + y_w * X("x_w")) + a_w * g_w
+    # Eq. 16 / section 4: eps = eps_ss[(1 - G) alpha + G x_G] + eps_F (+ eps_ss K D alpha_g)
+    eps = eps_ss * ((1.0 - G) * alpha + G * X("x_G")) + eps_ss * g_t + R.eps()
+    beta = alpha - eps + (l / U) * q  # Eq. 9: tail angle alpha - eps + l q / U
+    CLt = a_t * ((1.0 - y_t) * beta + y_t * X("x_t")) + a_t * g_t
+    Cz = -CLw - sr * CLt + p["Cz_de"] * R.u(0)  # Eq. 6
+    Cm = -(l * sr / c) * CLt + p["Cm_de"] * R.u(0)  # Eq. 7
+    dyn["alpha"] = q + kz * Cz  # Eq. 3
+    dyn["q"] = km * Cm  # Eq. 4
+    dyn["x_w"] = lam_w * (alpha - X("x_w"))
+    dyn["x_t"] = lam_t * (beta - X("x_t"))
+    dyn["x_G"] = lam_G * (alpha - X("x_G"))
+    rows = np.array([dyn[n] for n in names])
+    out = np.array([alpha, q, (U / G0) * kz * Cz])  # Eq. 5: a_z = (U/g)(alpha_dot - q) = (U/g) k_z C_z
+    T, kappa = _downwash_pole(l, c, U, eps_ss, F)
+    sys = _System(
+        A=rows[:, :ns],
+        B=rows[:, ns : ns + nu],
+        C=out[:, :ns],
+        D=out[:, ns : ns + nu],
+        Dd=np.zeros((3, nu)),
+        channels=tuple(channels),
+        bF=rows[:, -1],
+        dF=out[:, -1],
+        rx=dyn["alpha"][:ns],
+        ru=dyn["alpha"][ns : ns + nu],
+        rF=float(dyn["alpha"][-1]),
+        T=T,
+        kappa=kappa,
+    )
+    for fn in post:
+        sys = fn(sys)
+    return sys
+
+
+def _lags(model, p) -> tuple[float, ...]:
+    """(y_w, y_t, G, F, lam_w, lam_t, lam_G): the lag amplitudes and rates, all zero for ``steady``."""
+    if model.kind == "steady":
+        return (0.0,) * 7
+    U, c = model.aircraft.U, model.aircraft.c_w
+    c_tail = c if model.tail_lag_chord == "c_w" else model.aircraft.c_t
+    lam_w = 2.0 * p["z_w"] * U / c  # Eq. 17, wing: 2 z_w U / c_w
+    lam_t = 2.0 * p["z_t"] * U / c_tail  # Eq. 17, tail (c_w as printed, or c_t)
+    lam_G = 2.0 * p["H"] * U / c  # Eq. 16: 2 H U / c_w
+    return p["y_w"], p["y_t"], p["G"], p["F"], lam_w, lam_t, lam_G
+
+
+def _tail_gust_delay(model, p, matrix_effects) -> tuple[bool, float, tuple]:
+    """(the tail sees the gust delayed, its delay s, callables on the finished system) after the matrix effects."""
+    tail_delay = model.kind != "steady" and model.tail_gust_delay
+    tail_tau = p["l_t"] / model.aircraft.U  # BS-8: tau_t = l/U
+    opts: dict = {}
+    for eff in matrix_effects:  # e.g. gust_lag@tail: {"tail_tau": tau_tail}
+        opts = eff.realize(opts, p, model)
+    if "tail_tau" in opts:
+        tail_delay, tail_tau = True, opts.pop("tail_tau")
+    post = opts.pop("system", ())  # e.g. downwash_lag@tail: callables on the finished system
+    if opts:
+        raise ParameterError(f"the {model.kind} model cannot realise {sorted(opts)}")
+    return tail_delay, tail_tau, post
+
+
+def _gust_terms(model, p) -> tuple[float, list[tuple[float, float]]]:
+    """(feedthrough, [(amplitude, rate)]) of the gust lag K(s)."""
+    U, c = model.aircraft.U, model.aircraft.c_w
+    if model.kind == "steady":
+        return (1.0, [])
+    if model.gust_lag == "bs12":
+        if p["b1"] < 0:
+            raise ParameterError(f"Kussner lag length b1 must be >= 0 semichords, got {p['b1']}")
+        Ts = c * p["b1"] / (2.0 * U)  # BS-12: T* = c b1 / (2U)
+        return (1.0, []) if Ts == 0.0 else (0.0, [(1.0, 1.0 / Ts)])
+    # K(s) = 1 - sum A_i s/(s + r_i) = (1 - sum A_i) + sum A_i r_i/(s + r_i)
+    fn = get_indicial(model.gust_lag)
+    rates = [2.0 * b * U / c for b in fn.rates]
+    return (1.0 - sum(fn.amplitudes), [(A, r) for A, r in zip(fn.amplitudes, rates) if A != 0.0])
+
+
+def _gust_rows(R, X, gust_terms, tail_delay: bool, dyn: dict) -> tuple:
+    """Rows of K alpha_g at the wing and the tail; the gust lag states' rows go into ``dyn``."""
+    inputs = {"w": R.u(1), "t": R.u(2) if tail_delay else R.u(1)}
+    ff, terms = gust_terms
+    g_rows = {}
+    for s in ("w", "t") if tail_delay else ("w",):
+        g = ff * inputs[s]
+        for i, (A_i, r_i) in enumerate(terms):  # BS-16: Y' = (alpha_w - Y)/T*
+            st = X(f"g{s}{i}")
+            g = g + A_i * st
+            dyn[f"g{s}{i}"] = r_i * (inputs[s] - st)
+        g_rows[s] = g
+    return g_rows["w"], g_rows.get("t", g_rows["w"])
+
+
+def _downwash_pole(l: float, c: float, U: float, eps_ss: float, F: float) -> tuple[float, float]:
+    """(T, kappa) of the downwash pole term eps_F (zero kappa without it)."""
+    T = (l - c) / U
+    if F == 0.0:
+        return T, 0.0
+    if T <= 0.0:
+        raise ParameterError(
+            f"the downwash pole time T = (l_t - c_w)/U = {T:.4g} s must be positive: "
+            f"tail length l_t = {l} m must exceed the wing chord c_w = {c} m"
+        )
+    return T, eps_ss * F * c / U  # section 4: eps_F = eps_ss F (c_w/U) PV int alpha_dot/(t - tau - T)
+
+
+def _system(model, p) -> _System:
+    """The model's state space, composed through its effects (matrix-level, then output-level, in order)."""
+    root, effects = root_model(model), applied_effects(model)
+    matrix = [e for e in effects if isinstance(e, MatrixEffect)]
+    kind = getattr(root, "kind", None)
+    if kind in ("dimensional", "derivatives"):
+        sys = _conventional_system(root, p, matrix)
+    elif kind in ("unsteady", "steady"):
+        sys = _wells_keskar_system(root, p, matrix)
+    else:
+        raise ParameterError(
+            f"cannot simulate a {kind!r} model; simulate supports dimensional, derivatives, steady and unsteady"
+        )
+    for eff in effects:
+        if not isinstance(eff, MatrixEffect):
+            sys = eff.realize(sys, p, root)
+    return sys
+
+
+# --- state-space algebra of the output-level effects (THEORY.md Eq. 5 for a_z) -------------------
+
+
+def _pad_states(sys: _System, k: int) -> _System:
+    """``sys`` with ``k`` more states, all zero (appended after the existing ones)."""
+    n, nu = sys.B.shape
+    A = np.zeros((n + k, n + k))
+    A[:n, :n] = sys.A
+    z = np.zeros(k)
+    return replace(
+        sys,
+        A=A,
+        B=np.vstack([sys.B, np.zeros((k, nu))]),
+        C=np.hstack([sys.C, np.zeros((3, k))]),
+        bF=np.concatenate([sys.bF, z]),
+        rx=np.concatenate([sys.rx, z]),
+    )
+
+
+def _same_delay(sys: _System, rows, what: str) -> None:
+    if len({sys.out_delay[r] for r in rows}) > 1:
+        raise ParameterError(
+            f"{what}: the channels it combines carry different output delays; list the time_delay effect after it"
+        )
+
+
+def delay_output(sys: _System, row: int, tau: float) -> _System:
+    """Output ``row`` delayed by ``tau`` s: y_row(t - tau) (a negative tau is an advance)."""
+    d = list(sys.out_delay)
+    d[row] += float(tau)
+    return replace(sys, out_delay=tuple(d))
+
+
+def scale_output(sys: _System, row: int, factor: float) -> _System:
+    """Output ``row`` times ``factor``."""
+    C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
+    for a in (C, D, Dd, dF):
+        a[row] = a[row] * factor
+    return replace(sys, C=C, D=D, Dd=Dd, dF=dF)
+
+
+def mix_output(sys: _System, dst: int, src: int, k: float) -> _System:
+    """Output ``dst`` plus ``k`` times output ``src``."""
+    _same_delay(sys, (dst, src), "mixing two outputs")
+    C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
+    for a in (C, D, Dd, dF):
+        a[dst] = a[dst] + k * a[src]
+    return replace(sys, C=C, D=D, Dd=Dd, dF=dF)
+
+
+def add_output_rate(sys: _System, dst: int, src: int, k: float) -> _System:
+    """Output ``dst`` plus ``k`` times the time derivative of output ``src`` (x' = A x + B u + bF eps_F)."""
+    _same_delay(sys, (dst, src), "adding an output rate")
+    if np.any(sys.Dd[src]) or sys.dF[src] != 0.0:
+        raise ParameterError("the rate of this output needs the second derivative of an input: no realisation")
+    C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
+    C[dst] = C[dst] + k * (sys.C[src] @ sys.A)
+    D[dst] = D[dst] + k * (sys.C[src] @ sys.B)
+    Dd[dst] = Dd[dst] + k * sys.D[src]
+    dF[dst] = dF[dst] + k * (sys.C[src] @ sys.bF)
+    return replace(sys, C=C, D=D, Dd=Dd, dF=dF)
+
+
+def filter_input(sys: _System, signal_name: str, T: float) -> _System:
+    """Every channel of ``signal_name`` through ``1/(1 + T s)`` (one state per channel; T = 0: unchanged).
+
+    With the filtered input ``v = x_f``, ``x_f' = (u - x_f)/T``, the old input
+    column moves onto the new state, and a feedthrough of ``v'`` becomes
+    ``(u - x_f)/T``.
+    """
+    if T == 0.0:
+        return sys
+    for j, (nm, _d) in enumerate(sys.channels):
+        if nm != signal_name:
+            continue
+        n = sys.A.shape[0]
+        s2 = _pad_states(sys, 1)
+        A, B, C, D, Dd = s2.A, s2.B.copy(), s2.C.copy(), sys.D.copy(), sys.Dd.copy()
+        rx, ru = s2.rx.copy(), sys.ru.copy()
+        A[:n, n] = sys.B[:, j]
+        A[n, n] = -1.0 / T
+        B[:, j] = 0.0
+        B[n, j] = 1.0 / T
+        C[:, n] = sys.D[:, j] - sys.Dd[:, j] / T
+        D[:, j] = sys.Dd[:, j] / T
+        Dd[:, j] = 0.0
+        rx[n], ru[j] = sys.ru[j], 0.0
+        sys = replace(s2, A=A, B=B, C=C, D=D, Dd=Dd, rx=rx, ru=ru)
+    return sys
+
+
+def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -> _System:
+    """A structural mode driven by the undelayed elevator: q += r_q s w/D, a_z += r_az s^2/D.
+
+    D = s^2 + 2 zeta w s + w^2; states eta and eta' of eta = w^2/D de.
+    """
+    if sys.out_delay[1] or sys.out_delay[2]:
+        raise ParameterError("a structural mode after a q or a_z delay: list the time_delay effect after it")
+    n, nu = sys.B.shape
+    s2 = _pad_states(sys, 2)
+    B = np.hstack([s2.B, np.zeros((n + 2, 1))])
+    A, C = s2.A, s2.C
+    A[n, n + 1] = 1.0
+    A[n + 1, n] = -(omega**2)
+    A[n + 1, n + 1] = -2.0 * zeta * omega
+    B[n + 1, nu] = omega**2
+    C[1, n + 1] += r_q / omega
+    C[2, n] -= r_az
+    C[2, n + 1] -= 2.0 * zeta * r_az / omega
+    D = np.hstack([sys.D, np.zeros((3, 1))])
+    D[2, nu] = r_az
+    return replace(
+        s2,
+        B=B,
+        C=C,
+        D=D,
+        Dd=np.hstack([sys.Dd, np.zeros((3, 1))]),
+        ru=np.concatenate([sys.ru, [0.0]]),
+        channels=sys.channels + (("de", 0.0),),
+    )
+
+
+@dataclass(frozen=True)
+class Realization:
+    """Finite-state realisation of a model: ``x' = A x + B u``, ``y = C x + D u + Dd u'``.
+
+    Outputs y are (alpha rad, q rad/s, a_z g); the inputs u are the delayed
+    input channels ``(signal, delay s)``, u_i(t) = signal(t - delay), so that
+    ``G(s) = [C (sI - A)^-1 B + D + s Dd] diag(exp(-s delay))``.
+
+    Attributes
+    ----------
+    A, B, C, D, Dd : ndarray
+        State-space matrices (Dd is nonzero only for a gust model with
+        alpha-dot derivatives, whose a_z feels alpha_w_dot directly).
+    channels : tuple of (str, float)
+        Input channels: signal name (``de`` or ``alpha_w``) and delay, s.
+    output_delays : tuple of float
+        Pure delays of the outputs (alpha, q, a_z), s (sensor delays):
+        ``G_i(s)`` is multiplied by ``exp(-s d_i)``.
+    states : int
+        Number of states.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    C: np.ndarray
+    D: np.ndarray
+    Dd: np.ndarray
+    channels: tuple
+    output_delays: tuple = (0.0, 0.0, 0.0)
+
+    @property
+    def states(self) -> int:
+        """Number of states of the realization."""
+        return self.A.shape[0]
+
+    def frequency_response(self, omega) -> np.ndarray:
+        """Transfer matrix per model input (de[, alpha_w]), shape (3, n_in, n omega)."""
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        s = 1j * omega
+        I = np.eye(self.states)
+        X = np.linalg.solve(s[:, None, None] * I - self.A, np.broadcast_to(self.B, (s.size,) + self.B.shape))
+        Gc = self.C @ X + self.D + s[:, None, None] * self.Dd  # (n, 3, channels)
+        Gc = Gc * np.exp(-np.outer(s, [d for _, d in self.channels]))[:, None, :]
+        Gc = Gc * np.exp(-np.outer(s, self.output_delays))[:, :, None]
+        names = list(dict.fromkeys(nm for nm, _ in self.channels))
+        G = np.zeros((s.size, 3, len(names)), dtype=complex)
+        for j, (nm, _d) in enumerate(self.channels):
+            G[:, :, names.index(nm)] += Gc[:, :, j]
+        return np.moveaxis(G, 0, -1)
+
+
+def realize(model, values=None) -> Realization:
+    """Finite-state realisation of a model (the one :func:`simulate` integrates).
+
+    Parameters
+    ----------
+    model : fdml.models.Model
+        Any kind except ``unsteady`` with F != 0, whose downwash memory has no
+        finite-state form (THEORY.md section 4).
+    values : mapping, optional
+        Parameter values overriding the model's.
+
+    Returns
+    -------
+    Realization
+    """
+    sys = _system(model, model.values(values))
+    if sys.kappa != 0.0:
+        raise ParameterError("the unsteady model with F != 0 has no finite-state realisation (THEORY.md section 4)")
+    return Realization(sys.A, sys.B, sys.C, sys.D, sys.Dd, sys.channels, tuple(sys.out_delay))
