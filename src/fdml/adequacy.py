@@ -101,7 +101,7 @@ def invocation(fit_argv, diagnose_argv=None):
 class EffectTest:
     """The score screen of one library effect at the base fit.
 
-    Attributes
+    Parameters
     ----------
     key, effect, channel : str
         ``time_delay@alpha``, ``time_delay``, ``alpha``.
@@ -162,7 +162,7 @@ class ResidualCheck:
 class Adequacy:
     """The adequacy check of one fit (:func:`check`).
 
-    Attributes
+    Parameters
     ----------
     alpha : float
         Family-wise level.

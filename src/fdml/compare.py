@@ -35,7 +35,7 @@ def _column(res: FitResult) -> dict[str, tuple[float, float]]:
 class Comparison:
     """Steady and unsteady fits of the same data, with their derivative sets.
 
-    Attributes
+    Parameters
     ----------
     steady, unsteady : FitResult
     steady_set, unsteady_set : dict

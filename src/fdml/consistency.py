@@ -26,7 +26,7 @@ __all__ = ["ConsistencyResult", "consistency"]
 class ConsistencyResult:
     """Per-parameter agreement of several fits.
 
-    Attributes
+    Parameters
     ----------
     names : tuple of str
     estimates, stderr : ndarray, shape (n_fits, n_params)

@@ -84,7 +84,7 @@ _MIN_COHERENT_FRACTION = 0.2
 class KinematicFit:
     """The regression ``j w alpha = a q + b a_z + nuisance`` on a record's spectra.
 
-    Attributes
+    Parameters
     ----------
     order : tuple of str
         Channels used as (alpha, q, a_z), in that role: ``("alpha", "q", "az")``
@@ -122,7 +122,7 @@ class KinematicFit:
 class DataCheck:
     """Outcome of :func:`check_data` for one record.
 
-    Attributes
+    Parameters
     ----------
     record : str
     findings : tuple of Finding

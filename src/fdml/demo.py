@@ -36,7 +36,7 @@ WK_TABLE1 = {
 class DemoResult:
     """What :func:`run_demo` made.
 
-    Attributes
+    Parameters
     ----------
     comparison : Comparison
         Steady and unsteady fits.

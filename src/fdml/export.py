@@ -262,7 +262,7 @@ def _series(first, second, third):
 class ControlExport:
     """A python-control system and how its delays were treated.
 
-    Attributes
+    Parameters
     ----------
     system : control.FrequencyResponseData or control.StateSpace
     form : {"frd", "statespace"}

@@ -141,7 +141,7 @@ class ParameterEstimate:
 class CompatibilityResult:
     """Result of :func:`check_compatibility`.
 
-    Attributes
+    Parameters
     ----------
     name : str
         Record name.

@@ -63,7 +63,7 @@ DEFAULT_N_PARAMS = 13
 class ChannelQuality:
     """Findings for one channel.
 
-    Attributes
+    Parameters
     ----------
     name, unit : str
     resolution : float
@@ -124,7 +124,7 @@ class ChannelQuality:
 class QualityReport:
     """What :func:`check_quality` found.  Frozen; print :meth:`summary`.
 
-    Attributes
+    Parameters
     ----------
     name : str
         Record name.

@@ -481,7 +481,7 @@ class Realization:
     input channels ``(signal, delay s)``, u_i(t) = signal(t - delay), so that
     ``G(s) = [C (sI - A)^-1 B + D + s Dd] diag(exp(-s delay))``.
 
-    Attributes
+    Parameters
     ----------
     A, B, C, D, Dd : ndarray
         State-space matrices (Dd is nonzero only for a gust model with

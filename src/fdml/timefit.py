@@ -30,7 +30,7 @@ __all__ = ["TimeFitResult", "fit_time_domain"]
 class TimeFitResult:
     """Outcome of :func:`fit_time_domain`.
 
-    Attributes
+    Parameters
     ----------
     names : tuple of str
         Estimated parameters (model parameters, then output biases).

@@ -67,7 +67,7 @@ DEFAULT_SMOOTH = 0.4
 class GustEstimate:
     """The vertical wind and gust angle along a record.
 
-    Attributes
+    Parameters
     ----------
     t : ndarray
         Time, s.

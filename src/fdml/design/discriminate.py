@@ -59,7 +59,7 @@ _GN_PASSES = 30
 class Discrimination:
     """Expected steady-versus-unsteady statistic for one input.
 
-    Attributes
+    Parameters
     ----------
     noncentrality : float
         Expected likelihood-ratio statistic lambda under the unsteady truth.

@@ -32,7 +32,7 @@ _START = 1.0
 class Limits:
     """Planning limits of an input.
 
-    Attributes
+    Parameters
     ----------
     amplitude : float
         Largest |de|, rad.
@@ -69,7 +69,7 @@ class Limits:
 class DesignInput:
     """An input history for a manoeuvre.
 
-    Attributes
+    Parameters
     ----------
     name : str
         What it is (``3211``, ``min-crest multisine``, ...).

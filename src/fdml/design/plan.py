@@ -31,7 +31,7 @@ _STEP = 0.1
 class Design:
     """A planned manoeuvre.
 
-    Attributes
+    Parameters
     ----------
     criterion : str
         ``d-optimal``, ``a-optimal``, ``discriminate`` or ``given`` (an input from a file).

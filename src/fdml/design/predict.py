@@ -36,7 +36,7 @@ _SETTLE_FINAL = 1e-10
 class Prediction:
     """Predicted standard errors of one input.
 
-    Attributes
+    Parameters
     ----------
     names : tuple of str
         Estimated quantities, in the fit's order (model parameters, then

@@ -58,7 +58,7 @@ def parse_diag_band(band) -> tuple[float, float]:
 class AnalysisData:
     """Spectra of the records on the analysis grid.
 
-    Attributes
+    Parameters
     ----------
     spectra : tuple of FrequencyData
         One per record, on its K-grid inside the band.

@@ -71,7 +71,7 @@ def band_cost(V: np.ndarray, rows: np.ndarray, nb: int):
 class DiagFit:
     """A model fitted for the diagnosis (fdml.fit under the band-wise noise model).
 
-    Attributes
+    Parameters
     ----------
     model : Model
         With its parameters at the estimates.
