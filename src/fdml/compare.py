@@ -38,6 +38,7 @@ class Comparison:
     Parameters
     ----------
     steady, unsteady : FitResult
+        The fits of the steady and the unsteady model.
     steady_set, unsteady_set : dict
         ``{name: (value, stderr)}`` for the six derivatives (alternate set).
     """
@@ -48,7 +49,18 @@ class Comparison:
     unsteady_set: dict
 
     def shift(self, name: str) -> float:
-        """Steady minus unsteady value of a derivative."""
+        """Steady minus unsteady value of a derivative.
+
+        Parameters
+        ----------
+        name : str
+            A derivative of the alternate set.
+
+        Returns
+        -------
+        float
+            The difference, in the derivative's unit.
+        """
         return self.steady_set[name][0] - self.unsteady_set[name][0]
 
     def table(self, reference: dict | None = None, digits: int = 4):
@@ -57,6 +69,18 @@ class Comparison:
         Returns a :class:`fdml.summary.Summary`: a ``str`` holding the text
         table, which also renders as Markdown, HTML, LaTeX and a pandas
         DataFrame (``as_markdown()``, ``as_html()``, ``as_latex()``, ``to_frame()``).
+
+        Parameters
+        ----------
+        reference : dict, optional
+            Published values ``{name: (unsteady, steady)}``.
+        digits : int, optional
+            Significant digits of values.
+
+        Returns
+        -------
+        fdml.summary.Summary
+            The table.
         """
         from .summary import comparison_summary
 
@@ -66,7 +90,13 @@ class Comparison:
         return self.table().as_html()
 
     def to_dict(self) -> dict:
-        """JSON-ready dict of the two derivative sets and both fits."""
+        """JSON-ready dict of the two derivative sets and both fits.
+
+        Returns
+        -------
+        dict
+            ``unsteady`` and ``steady`` (``{name: {"value", "stderr"}}``) and ``fits``.
+        """
         return {
             "unsteady": {k: {"value": v, "stderr": s} for k, (v, s) in self.unsteady_set.items()},
             "steady": {k: {"value": v, "stderr": s} for k, (v, s) in self.steady_set.items()},
@@ -102,6 +132,7 @@ def compare_steady_unsteady(
     Returns
     -------
     Comparison
+        Both fits and their derivative sets.
     """
     ac = load_aircraft(aircraft)
     mu = make_model("unsteady", ac, gust=gust, **(unsteady_options or {}))

@@ -491,6 +491,9 @@ class Realization:
     output_delays : tuple of float
         Pure delays of the outputs (alpha, q, a_z), s (sensor delays):
         ``G_i(s)`` is multiplied by ``exp(-s d_i)``.
+
+    Attributes
+    ----------
     states : int
         Number of states.
     """
@@ -509,7 +512,19 @@ class Realization:
         return self.A.shape[0]
 
     def frequency_response(self, omega) -> np.ndarray:
-        """Transfer matrix per model input (de[, alpha_w]), shape (3, n_in, n omega)."""
+        """Transfer matrix per model input (de[, alpha_w]), shape (3, n_in, n omega).
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex, shape (3, n_in, n omega): outputs (alpha rad, q rad/s,
+            a_z g) per rad of elevator (or per rad of gust angle alpha_w).
+        """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         s = 1j * omega
         I = np.eye(self.states)
@@ -538,6 +553,7 @@ def realize(model, values=None) -> Realization:
     Returns
     -------
     Realization
+        The state-space matrices, input channels and output delays.
     """
     sys = _system(model, model.values(values))
     if sys.kappa != 0.0:
@@ -585,7 +601,7 @@ def pole_steps_for(T: float, dt: float, substeps: int | None = None) -> int:
     Returns
     -------
     int
-        m >= 2.
+        The number of steps m, at least 2.
     """
     if substeps is None:
         return max(DEFAULT_POLE_STEPS, math.ceil(T / dt * (1.0 - 1e-12)), 2)
@@ -629,7 +645,7 @@ def pv_memory(rate, m: int) -> np.ndarray:
     Parameters
     ----------
     rate : array_like, shape (n,)
-        r(t_n), e.g. alpha_dot in rad/s, on the grid t_n = n h; ``rate[0]`` must
+        The rate r(t_n), e.g. alpha_dot in rad/s, on the grid t_n = n h; ``rate[0]`` must
         be 0 (a step at t = 0 makes the integral infinite at t = T).
     m : int
         Grid steps per pole time (>= 2).
@@ -981,6 +997,7 @@ def simulate_maneuver(
     Parameters
     ----------
     model : fdml.models.Model
+        The model to simulate.
     maneuver : {"doublet", "3211", "multisine"}, optional
         Elevator input (:func:`fdml.maneuvers.make_input`).
     duration : float, optional
