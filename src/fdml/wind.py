@@ -88,6 +88,8 @@ class GustEstimate:
         divided by V it is the noise floor of alpha_w in rad.
     notes : tuple of str
         What the estimate can and cannot be trusted for.
+    _record : Record or None
+        The record the estimate was made from (internal: for :attr:`record`).
     """
 
     t: np.ndarray
@@ -122,7 +124,13 @@ class GustEstimate:
         )
 
     def summary(self) -> str:
-        """A few lines: source channels, gust angle and wind statistics, noise level."""
+        """A few lines: source channels, gust angle and wind statistics, noise level.
+
+        Returns
+        -------
+        str
+            The lines, angles in degrees.
+        """
         lines = [
             f"Vertical gust angle from {self.source} ({', '.join(self.channels)})",
             f"  alpha_w: mean {math.degrees(np.mean(self.alpha_w)):.3g} deg, RMS about the mean "
@@ -134,7 +142,13 @@ class GustEstimate:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """The estimate's time histories and settings as plain JSON data."""
+        """The estimate's time histories and settings as plain JSON data.
+
+        Returns
+        -------
+        dict
+            Every public field by name, arrays as lists.
+        """
         return {
             "t": self.t.tolist(),
             "alpha_w": self.alpha_w.tolist(),
