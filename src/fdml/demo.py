@@ -81,6 +81,7 @@ def run_demo(
     Returns
     -------
     DemoResult
+        The simulated record, the comparison, its table and the files written.
     """
     from .simulate import simulate_maneuver
 
