@@ -878,6 +878,22 @@ def attach(prob, result, V, sensitivities=None):
     (:class:`~fdml.errors.AdequacyWarning`) is kept in ``result.warnings`` by
     :func:`fdml.estimate.fit`, which records every warning of a fit.  A check that cannot run says so in a warning;
     it never fails the fit.
+
+    Parameters
+    ----------
+    prob : fdml.estimate.Problem
+        The fit's problem.
+    result : FitResult
+        The converged fit.
+    V : numpy.ndarray
+        Residuals at the estimate, shape (N, n_out), complex.
+    sensitivities : numpy.ndarray, optional
+        The fit's sensitivities at the estimate.
+
+    Returns
+    -------
+    FitResult
+        ``result`` with ``adequacy`` set (unchanged when the check could not run).
     """
     import warnings
     from dataclasses import replace

@@ -67,7 +67,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def print_json(obj) -> None:
-    """Print ``obj`` as JSON on stdout (inf/nan as strings; :func:`fdml.jsoncodec.dumps`)."""
+    """Print ``obj`` as JSON on stdout (inf/nan as strings; :func:`fdml.jsoncodec.dumps`).
+
+    Parameters
+    ----------
+    obj : object
+        Anything :func:`fdml.jsoncodec.dumps` encodes.
+    """
     from .jsoncodec import dumps
 
     sys.stdout.write(dumps(obj, indent=1) + "\n")

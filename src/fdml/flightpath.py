@@ -827,6 +827,16 @@ def noise_level(x: np.ndarray) -> float:
     variance s^2 gives third differences of variance 20 s^2; the median
     absolute value (divided by 0.6745, the normal MAD) resists the few large
     values at step inputs.  Quantisation noise, step/sqrt(12), is the floor.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The channel's samples, shape (n,).
+
+    Returns
+    -------
+    float
+        The standard deviation, in the channel's unit (0 for fewer than 4 samples).
     """
     d3 = np.diff(np.asarray(x, dtype=float), 3)
     if d3.size == 0:

@@ -517,8 +517,25 @@ def _input_energy(u: np.ndarray, dt: float, omega: np.ndarray):
 
 
 def unexcited(u: np.ndarray, dt: float, omega: np.ndarray) -> bool:
-    """True if an input carries no power in the band: it never moves, or every band frequency
-    is more than :data:`LOW_INPUT_DB` below its peak (the measure of :func:`check_quality`)."""
+    """True if an input carries no power in the band.
+
+    It never moves, or every band frequency is more than :data:`LOW_INPUT_DB`
+    below its peak (the measure of :func:`check_quality`).
+
+    Parameters
+    ----------
+    u : numpy.ndarray
+        The input history, shape (n,) (any unit).
+    dt : float
+        Sample interval, s.
+    omega : numpy.ndarray
+        Band frequencies, rad/s.
+
+    Returns
+    -------
+    bool
+        Whether the input leaves the band unexcited.
+    """
     _, _, input_db, peak = _input_energy(u, dt, omega)
     return peak == 0 or bool(np.all(input_db < -LOW_INPUT_DB))
 

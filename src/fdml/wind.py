@@ -268,7 +268,20 @@ def gust_angle(
 
 
 def savgol_coeffs(n_win: int, dt: float) -> np.ndarray:
-    """Weights of the quadratic Savitzky-Golay first-derivative filter (centre point), 1/s."""
+    """Weights of the quadratic Savitzky-Golay first-derivative filter (centre point), 1/s.
+
+    Parameters
+    ----------
+    n_win : int
+        Window length, samples (odd).
+    dt : float
+        Sample interval, s.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (n_win,): the filter weights, 1/s (:func:`scipy.signal.savgol_coeffs` order).
+    """
     from scipy.signal import savgol_coeffs as sg
 
     return sg(n_win, 2, deriv=1, delta=dt)

@@ -132,7 +132,22 @@ def _check_level(level: float) -> None:
 
 
 def required_noncentrality(power: float = 0.9, level: float = 0.05, df: int = 1) -> float:
-    """The lambda whose detection probability at ``level`` is ``power``."""
+    """The lambda whose detection probability at ``level`` is ``power``.
+
+    Parameters
+    ----------
+    power : float, optional
+        Required detection probability, in (level, 1).
+    level : float, optional
+        Test level alpha.
+    df : int, optional
+        Degrees of freedom.
+
+    Returns
+    -------
+    float
+        The noncentrality lambda.
+    """
     _check_level(level)
     if not (level < power < 1):
         raise ParameterError(f"power must be in (level, 1) = ({level}, 1), got {power!r}")

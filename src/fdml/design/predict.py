@@ -198,6 +198,19 @@ def expected_R(prob: Problem, stds: Mapping[str, float]) -> np.ndarray:
     White noise of per-sample covariance Sigma gives E R = Sigma mean_i ||F_i||^2
     less the fraction the p estimated parameters absorb, (N_real - p) / N_real
     (the inverse of the scaling in :func:`fdml.estimate._white_cov_g`).
+
+    Parameters
+    ----------
+    prob : fdml.estimate.Problem
+        The fit problem on the noise-free response.
+    stds : mapping
+        Noise standard deviation per output (alpha rad, q rad/s, az g).
+
+    Returns
+    -------
+    numpy.ndarray
+        Diagonal, shape (n_out, n_out), for the fitted outputs: the squared
+        units of their transforms.
     """
     sig = np.array([stds[OUTPUTS[k]] for k in prob.out_idx])
     if np.any(sig <= 0):

@@ -332,7 +332,22 @@ def _loglik_terms(fit: DiagFit, rows: np.ndarray) -> np.ndarray:
 
 
 def vuong_z(fa: DiagFit, fb: DiagFit, rows: np.ndarray, dft: np.ndarray) -> float:
-    """Vuong's z for "fit a is better than fit b" on the independent frequencies (0 when they coincide)."""
+    """Vuong's z for "fit a is better than fit b" on the independent frequencies (0 when they coincide).
+
+    Parameters
+    ----------
+    fa, fb : DiagFit
+        The two fits, on the same rows.
+    rows : numpy.ndarray of int
+        Noise band of each stacked row.
+    dft : numpy.ndarray
+        Shape (N,), bool: which rows are DFT points.
+
+    Returns
+    -------
+    float
+        The z statistic, standard normal when the fits are equally good.
+    """
     d = (_loglik_terms(fa, rows) - _loglik_terms(fb, rows))[dft]
     s = float(np.sqrt(np.sum((d - d.mean()) ** 2)))
     if s <= 1e-12 * max(1.0, float(np.sum(np.abs(d)))):

@@ -751,7 +751,23 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink) -> list:
 
 
 def floor_weights(data, gmap, channels) -> np.ndarray:
-    """1/sqrt(noise floor) per stacked analysis row and fitted channel, from the gap map's cells."""
+    """1/sqrt(noise floor) per stacked analysis row and fitted channel, from the gap map's cells.
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    gmap : GapMap
+        A gap map holding every channel's cells.
+    channels : sequence of str
+        The fitted channels.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (N, n_channels): the weights, 1 / unit of the channel's transform
+        (a cell without a floor takes the channel's median floor).
+    """
     om = data.stacked_omega()
     nb = gmap.edges.size - 1
     b = np.clip(np.searchsorted(gmap.edges, om, side="right") - 1, 0, nb - 1)

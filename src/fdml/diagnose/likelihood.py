@@ -243,6 +243,26 @@ def diag_fit(res, data: AnalysisData, bands: NoiseBands, stderr: dict, warned=()
 
     ``warned``: the warnings recorded while ``res`` was fitted; kept in the DiagFit with the
     result's own and those of rebuilding the problem.
+
+    Parameters
+    ----------
+    res : FitResult
+        The fit.
+    data : AnalysisData
+        The records' spectra it was fitted to.
+    bands : NoiseModel
+        The noise bands of the cost.
+    stderr : dict
+        Standard errors by name.
+    warned : iterable, optional
+        Warnings recorded while ``res`` was fitted.
+    **options
+        Fit options (``outputs``, ``boundary``, ``biases``) to rebuild the problem with.
+
+    Returns
+    -------
+    DiagFit
+        The fit with its residuals and band-wise cost.
     """
     items = list(data.spectra)
     with recording(reemit=False) as log:

@@ -292,7 +292,21 @@ def _legendre(x: np.ndarray, order: int) -> np.ndarray:
 
 @dataclass
 class CellDesign:
-    """Rows and regressors of one cell (shared by before/after evaluations)."""
+    """Rows and regressors of one cell (shared by before/after evaluations).
+
+    Parameters
+    ----------
+    rows : numpy.ndarray
+        Indices into the stacked analysis rows.
+    XT : numpy.ndarray
+        Transient regressors, shape (n, kT).
+    XC : numpy.ndarray
+        Coherent regressors, shape (n, kC).
+    weights : list
+        Per input: (column slice, band-average weights over its coefficients).
+    inputs : list of str
+        The inputs with coherent regressors.
+    """
 
     rows: np.ndarray  # indices into the stacked analysis rows
     XT: np.ndarray  # transient regressors (n, kT)
@@ -364,7 +378,26 @@ def _lstsq_rss(X, e):
 
 
 def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, floor: float | None = None):
-    """Regress the residual of one cell; returns a :class:`Cell` (``floor`` fixes the noise floor)."""
+    """Regress the residual of one cell; returns a :class:`Cell` (``floor`` fixes the noise floor).
+
+    Parameters
+    ----------
+    design : CellDesign
+        The cell's rows and regressors.
+    e : numpy.ndarray
+        Residual of the channel on the stacked rows, shape (N,), complex.
+    channel : str
+        The channel.
+    band : tuple
+        ``(lo, hi)``, rad/s.
+    floor : float, optional
+        Noise floor to hold (default: the cell's own).
+
+    Returns
+    -------
+    Cell
+        The cell, not yet corrected for multiple testing.
+    """
     n = design.rows.size
     kT, kC = design.XT.shape[1], design.XC.shape[1]
     dof = n - kT - kC
@@ -449,7 +482,22 @@ def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, 
 
 
 def forced_response(data: AnalysisData, model, values=None) -> np.ndarray:
-    """``G_jc(w) u_j(w)`` on the stacked rows, shape (N, 3, n_in)."""
+    """``G_jc(w) u_j(w)`` on the stacked rows, shape (N, 3, n_in).
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    model : Model
+        The model.
+    values : mapping, optional
+        Parameter values overriding the model's.
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex, shape (N, 3, n_in): alpha (rad s), q (rad), az (g s) per input.
+    """
     out = []
     for d in data.spectra:
         G = model.evaluate(d.omega, values).G[:, :, : d.u.shape[1]]

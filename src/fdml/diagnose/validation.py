@@ -306,6 +306,20 @@ def relabel(row: dict, threshold: float, unexplained: str = UNEXPLAINED_RULE) ->
 
     ``unexplained`` says which remaining flagged cells make the label partial: ``"in-sample"`` (after
     the final fit) or ``"holdout"`` (on the held-out record with the parameters frozen).
+
+    Parameters
+    ----------
+    row : dict
+        A row of :func:`run_scenario`.
+    threshold : float
+        Shrink needed for ``confirmed``.
+    unexplained : {"in-sample", "holdout"}, optional
+        The remaining-gap rule.
+
+    Returns
+    -------
+    str or None
+        The label, or None without a verdict.
     """
     if row.get("verdict") in (None, "none", "error"):
         return None
@@ -533,7 +547,18 @@ class ValidationResult:
 
 
 def format_scores(s: dict) -> str:
-    """The validation table as text."""
+    """The validation table as text.
+
+    Parameters
+    ----------
+    s : dict
+        Scores (:func:`score`).
+
+    Returns
+    -------
+    str
+        The table: per truth, null case and out-of-library case.
+    """
     out = [f"label threshold (shrink for 'confirmed'): {s['threshold']:.2f}", ""]
     out.append(
         f"{'truth':22s} {'n':>4s} {'detect':>7s} {'top-1':>6s} {'[Wilson 95%]':>15s} {'in-set':>7s} "
