@@ -86,6 +86,13 @@ _VECTORISES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 def invocation(fit_argv, diagnose_argv=None):
     """Within the block, warnings quote these commands (argv lists, ``fdml fit ...`` and ``fdml diagnose ...``).
 
+    Parameters
+    ----------
+    fit_argv : sequence of str
+        The running ``fdml fit`` command line.
+    diagnose_argv : sequence of str, optional
+        The matching ``fdml diagnose`` command line.
+
     Yields
     ------
     None
@@ -101,7 +108,7 @@ def invocation(fit_argv, diagnose_argv=None):
 class EffectTest:
     """The score screen of one library effect at the base fit.
 
-    Attributes
+    Parameters
     ----------
     key, effect, channel : str
         ``time_delay@alpha``, ``time_delay``, ``alpha``.
@@ -110,6 +117,7 @@ class EffectTest:
     lm : float
         The score (LM) statistic of the diagnosis's screen.
     df : int
+        Degrees of freedom: the number of tested parameters.
     null : str
         ``chi2``, ``chibar`` or ``davies``.
     p_value, p_holm : float
@@ -117,6 +125,7 @@ class EffectTest:
     expected : dict
         One-step estimate of every tested parameter, ``{name: value}`` (its unit in ``units``).
     units : dict
+        Unit of every tested parameter, ``{name: unit}`` (``""`` when dimensionless).
     """
 
     key: str
@@ -137,7 +146,13 @@ class EffectTest:
         return f"{self.effect}:{self.channel}"
 
     def describe(self) -> str:
-        """One line: the effect, its expected parameter values, LR, p and Holm-corrected p."""
+        """One line: the effect, its expected parameter values, LR, p and Holm-corrected p.
+
+        Returns
+        -------
+        str
+            The line.
+        """
         vals = ", ".join(f"{k} = {_fmt(v, self.units.get(k, ''))}" for k, v in self.expected.items())
         return f"{self.key} ({vals}; LR {self.statistic:.3g}, p {self.p_value:.2g}, Holm p {self.p_holm:.2g})"
 
@@ -148,6 +163,23 @@ class ResidualCheck:
 
     ``worst`` names the cell with the smallest p-value (``record/channel band lo-hi rad/s``);
     ``cells`` is the number of cells (0: not testable, p = 1).
+
+    Parameters
+    ----------
+    name : {"coherence", "whiteness"}
+        Which check.
+    statistic : float
+        Statistic of the worst cell: the multiple coherence of the residual
+        with the inputs (coherence), or Bartlett's statistic of equal power
+        across bands (whiteness).
+    p_value : float
+        Bonferroni-adjusted p-value over the cells.
+    p_holm : float
+        Holm-adjusted p-value over the whole family (effects and both checks).
+    cells : int
+        Number of cells tested.
+    worst : str
+        The cell with the smallest p-value.
     """
 
     name: str
@@ -162,7 +194,7 @@ class ResidualCheck:
 class Adequacy:
     """The adequacy check of one fit (:func:`check`).
 
-    Attributes
+    Parameters
     ----------
     alpha : float
         Family-wise level.
@@ -171,6 +203,7 @@ class Adequacy:
     skipped : tuple of (key, reason)
         Effects that do not apply or that these data cannot test.
     whiteness, coherence : ResidualCheck
+        The two residual checks.
     elapsed : float
         Seconds spent.
     """
@@ -198,7 +231,13 @@ class Adequacy:
         return not self.flagged and not self.residual_flags
 
     def brief(self) -> dict:
-        """The short form of ``fdml fit --json``: flagged effects and residual checks."""
+        """The short form of ``fdml fit --json``: flagged effects and residual checks.
+
+        Returns
+        -------
+        dict
+            ``adequate``, ``alpha``, ``flagged`` (effect dicts), ``whiteness``, ``coherence``.
+        """
         return {
             "adequate": self.adequate,
             "alpha": self.alpha,
@@ -208,7 +247,13 @@ class Adequacy:
         }
 
     def to_dict(self) -> dict:
-        """The adequacy check as plain JSON data."""
+        """The adequacy check as plain JSON data.
+
+        Returns
+        -------
+        dict
+            Every field by name, effects and checks as dicts.
+        """
         return {
             "alpha": self.alpha,
             "effects": [_effect_dict(e) for e in self.effects],
@@ -220,7 +265,18 @@ class Adequacy:
 
     @classmethod
     def from_fields(cls, f: Fields) -> Adequacy:
-        """Inverse of :meth:`to_dict`, every key checked (``f``: :class:`fdml.jsoncodec.Fields` of the object)."""
+        """Inverse of :meth:`to_dict`, every key checked.
+
+        Parameters
+        ----------
+        f : fdml.jsoncodec.Fields
+            The fields of the JSON object.
+
+        Returns
+        -------
+        Adequacy
+            The adequacy check.
+        """
         return cls(
             alpha=f.number("alpha"),
             effects=tuple(_effect_from(e) for e in f.items("effects")),
@@ -231,7 +287,13 @@ class Adequacy:
         )
 
     def lines(self) -> list:
-        """Text lines of the summary's adequacy section."""
+        """Text lines of the summary's adequacy section.
+
+        Returns
+        -------
+        list of str
+            Flagged effects and residual checks, or one line saying nothing is flagged.
+        """
         out = []
         for e in self.flagged:
             out.append(f"FLAGGED {e.describe()}")
@@ -737,6 +799,7 @@ def check(prob, theta, V, R, *, alpha: float = ALPHA, library=None, sensitivitie
     Returns
     -------
     Adequacy
+        The score screen of every applicable library effect and the two residual checks.
     """
     if not 0 < alpha < 1:
         raise FdmlError(f"adequacy level alpha must lie in (0, 1), got {alpha}")
@@ -768,6 +831,16 @@ def advice(adequacy: Adequacy) -> str | None:
     with it (the running ``fdml fit`` command with ``--effect NAME:CHANNEL``
     when the command line set one with :func:`invocation`), or runs the
     diagnosis.
+
+    Parameters
+    ----------
+    adequacy : Adequacy
+        The check of a fit.
+
+    Returns
+    -------
+    str or None
+        The warning text.
     """
     if adequacy.adequate:
         return None
@@ -805,6 +878,22 @@ def attach(prob, result, V, sensitivities=None):
     (:class:`~fdml.errors.AdequacyWarning`) is kept in ``result.warnings`` by
     :func:`fdml.estimate.fit`, which records every warning of a fit.  A check that cannot run says so in a warning;
     it never fails the fit.
+
+    Parameters
+    ----------
+    prob : fdml.estimate.Problem
+        The fit's problem.
+    result : FitResult
+        The converged fit.
+    V : numpy.ndarray
+        Residuals at the estimate, shape (N, n_out), complex.
+    sensitivities : numpy.ndarray, optional
+        The fit's sensitivities at the estimate.
+
+    Returns
+    -------
+    FitResult
+        ``result`` with ``adequacy`` set (unchanged when the check could not run).
     """
     import warnings
     from dataclasses import replace

@@ -177,6 +177,7 @@ class Aircraft:
     assumed : frozenset of str, optional
         Keys whose values are assumptions rather than data.
     description : str, optional
+        One line on the aircraft and the flight condition.
     lag_constants : str, optional
         A documented source for the lag constants the aircraft does not give
         (a key of :data:`LAG_SOURCES`: ``"jones"`` or ``"none"``); "" for none named.
@@ -285,7 +286,18 @@ class Aircraft:
         return 0.5 * self.rho * self.U**2
 
     def with_changes(self, **changes) -> "Aircraft":
-        """Return a copy with fields (or constants, by name) changed."""
+        """Return a copy with fields (or constants, by name) changed.
+
+        Parameters
+        ----------
+        **changes
+            New values by field name (SI) or by constant name (:data:`CONSTANT_KEYS`).
+
+        Returns
+        -------
+        Aircraft
+            The changed copy.
+        """
         consts = {k: self.constants[k] for k in self.given}
         fields_ = {}
         for k, v in changes.items():
@@ -299,7 +311,13 @@ class Aircraft:
 
     # --- serialisation --------------------------------------------------------
     def to_dict(self) -> dict:
-        """JSON-ready dict in the aircraft-file layout."""
+        """JSON-ready dict in the aircraft-file layout.
+
+        Returns
+        -------
+        dict
+            The required keys, the constants, ``description``, ``sources`` and ``assumed``.
+        """
         d = {k: getattr(self, k) for k in REQUIRED_KEYS}
         d.update({k: v for k, v in self.constants.items() if k in self.given})  # generic defaults stay implicit
         if self.lag_constants:
@@ -311,7 +329,20 @@ class Aircraft:
 
     @classmethod
     def from_dict(cls, d: Mapping, origin: str = "aircraft description") -> "Aircraft":
-        """Build from a mapping with the aircraft-file keys."""
+        """Build from a mapping with the aircraft-file keys.
+
+        Parameters
+        ----------
+        d : Mapping
+            The aircraft-file keys (SI values).
+        origin : str, optional
+            What the mapping came from, named in errors.
+
+        Returns
+        -------
+        Aircraft
+            The aircraft.
+        """
         if not isinstance(d, Mapping):
             raise AircraftError(f"{origin}: expected a JSON object, got {type(d).__name__}")
         missing = [k for k in REQUIRED_KEYS if k not in d]
@@ -343,7 +374,13 @@ class Aircraft:
             raise AircraftError(f"{origin}: {exc}") from None  # name the user's file
 
     def describe(self) -> str:
-        """Multi-line text: every value with its unit, source and assumed flag."""
+        """Multi-line text: every value with its unit, source and assumed flag.
+
+        Returns
+        -------
+        str
+            One line per value.
+        """
         lines = [f"{self.name}: {self.description}".rstrip(": ")]
         for k in REQUIRED_KEYS[1:]:
             lines.append(self._line(k, getattr(self, k), _UNITS[k]))
@@ -414,13 +451,30 @@ def _real(value, what: str) -> float:
 
 
 def list_aircraft() -> list[str]:
-    """Names of the bundled presets."""
+    """Names of the bundled presets.
+
+    Returns
+    -------
+    list of str
+        The names, sorted.
+    """
     folder = resources.files("fdml") / "presets"
     return sorted(p.name[:-5] for p in folder.iterdir() if p.name.endswith(".json"))
 
 
 def get_aircraft(name: str) -> Aircraft:
-    """Return a bundled preset by name (``navion``, ``sundowner``, ``do128``)."""
+    """Return a bundled preset by name (``navion``, ``sundowner``, ``do128``).
+
+    Parameters
+    ----------
+    name : str
+        A name of :func:`list_aircraft` (an :class:`Aircraft` is returned as is).
+
+    Returns
+    -------
+    Aircraft
+        The preset.
+    """
     if isinstance(name, Aircraft):
         return name
     names = list_aircraft()
@@ -431,7 +485,18 @@ def get_aircraft(name: str) -> Aircraft:
 
 
 def load_aircraft(spec: str | Path | Aircraft) -> Aircraft:
-    """Resolve a preset name or a JSON file path to an :class:`Aircraft`."""
+    """Resolve a preset name or a JSON file path to an :class:`Aircraft`.
+
+    Parameters
+    ----------
+    spec : str, Path or Aircraft
+        A preset name, the path of an aircraft JSON file, or an aircraft.
+
+    Returns
+    -------
+    Aircraft
+        The aircraft.
+    """
     if isinstance(spec, Aircraft):
         return spec
     spec_s = str(spec)

@@ -45,7 +45,13 @@ class _Parser(argparse.ArgumentParser):
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser with every registered command."""
+    """The argument parser with every registered command.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The ``fdml`` parser, one subcommand per name in :data:`COMMANDS`.
+    """
     from . import __version__
 
     parser = _Parser(
@@ -62,7 +68,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def print_json(obj) -> None:
-    """Print ``obj`` as JSON on stdout (inf/nan as strings; :func:`fdml.jsoncodec.dumps`)."""
+    """Print ``obj`` as JSON on stdout (inf/nan as strings; :func:`fdml.jsoncodec.dumps`).
+
+    Parameters
+    ----------
+    obj : object
+        Anything :func:`fdml.jsoncodec.dumps` encodes.
+    """
     from .jsoncodec import dumps
 
     sys.stdout.write(dumps(obj, indent=1) + "\n")
@@ -106,7 +118,19 @@ def _stdout_closed() -> bool:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the command line; returns the exit code."""
+    """Run the command line; returns the exit code.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The arguments after ``fdml`` (default: ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        The exit code: 0 on success, 1 on a failure, 2 on bad input, 130 on
+        an interrupt, 141 on a closed output pipe.
+    """
     import logging
     import warnings
 

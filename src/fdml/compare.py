@@ -252,9 +252,10 @@ def check_records_for_compare(records, *, gust: bool = False) -> None:
 class Comparison:
     """Steady and unsteady fits of the same data, their derivative sets and the evidence.
 
-    Attributes
+    Parameters
     ----------
     steady, unsteady : FitResult
+        The fits of the steady and the unsteady model.
     steady_set, unsteady_set : dict
         ``{name: (value, stderr)}`` for the six derivatives (alternate set).
     evidence : Evidence
@@ -276,7 +277,18 @@ class Comparison:
             object.__setattr__(self, "evidence", vuong_test(self.steady, self.unsteady, distance=self.distance))
 
     def shift(self, name: str) -> float:
-        """Steady minus unsteady value of a derivative."""
+        """Steady minus unsteady value of a derivative.
+
+        Parameters
+        ----------
+        name : str
+            A derivative of the alternate set.
+
+        Returns
+        -------
+        float
+            The difference, in the derivative's unit.
+        """
         return self.steady_set[name][0] - self.unsteady_set[name][0]
 
     @property
@@ -451,6 +463,7 @@ def compare_steady_unsteady(
     Returns
     -------
     Comparison
+        Both fits and their derivative sets.
     """
     if steady_model not in ("derivatives", "steady"):
         raise FdmlError(f"steady_model must be 'derivatives' or 'steady', got {steady_model!r}")

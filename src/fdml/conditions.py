@@ -43,7 +43,18 @@ def _finite(x) -> float | None:
 
 
 def record_airspeed(records) -> float | None:
-    """The mean of the records' airspeeds (``meta["U"]``, m/s), or None when any record lacks one."""
+    """The mean of the records' airspeeds (``meta["U"]``, m/s), or None when any record lacks one.
+
+    Parameters
+    ----------
+    records : sequence of Record
+        The records.
+
+    Returns
+    -------
+    float or None
+        The mean airspeed, m/s.
+    """
     values = [_finite(r.meta.get("U")) for r in records]
     known = [v for v in values if v is not None]
     if not values or len(known) < len(values):
@@ -52,7 +63,19 @@ def record_airspeed(records) -> float | None:
 
 
 def record_conditions(records) -> dict:
-    """Flight-condition values every record carries (``rho``, ``mass``, ...), averaged over the records."""
+    """Flight-condition values every record carries (``rho``, ``mass``, ...), averaged over the records.
+
+    Parameters
+    ----------
+    records : sequence of Record
+        The records.
+
+    Returns
+    -------
+    dict of str to float
+        Each key of :data:`RECORD_CONDITIONS` that every record carries (finite),
+        with its mean, in the meta data's (SI) unit.
+    """
     out = {}
     for key in RECORD_CONDITIONS:
         values = [_finite(r.meta.get(key)) for r in records]
@@ -73,6 +96,11 @@ def airspeed_findings(model, records, tolerance: float = AIRSPEED_TOLERANCE) -> 
         Records without ``meta["U"]`` are skipped.
     tolerance : float, optional
         Relative difference allowed (default :data:`AIRSPEED_TOLERANCE`).
+
+    Returns
+    -------
+    list of Finding
+        The mismatches (empty when the model has no airspeed).
     """
     U = _finite(getattr(model, "U", None))
     found: list[Finding] = []

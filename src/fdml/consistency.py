@@ -26,24 +26,26 @@ __all__ = ["ConsistencyResult", "consistency"]
 class ConsistencyResult:
     """Per-parameter agreement of several fits.
 
-    Attributes
+    Parameters
     ----------
     names : tuple of str
+        The tested parameters.
+    labels : tuple of str
+        One label per fit (record names).
     estimates, stderr : ndarray, shape (n_fits, n_params)
+        Estimate and standard error of each parameter in each fit, in the parameter's unit.
     mean : ndarray
         Inverse-variance weighted mean per parameter.
     chi2 : ndarray
-        sum ((theta_r - mean) / sigma_r)^2 per parameter.
+        The sum ((theta_r - mean) / sigma_r)^2 per parameter.
     dof : int
-        n_fits - 1.
+        Degrees of freedom, n_fits - 1.
     p_value : ndarray
         Upper-tail chi-square probability per parameter.
     scale : ndarray
-        sqrt(chi2 / dof): the factor the bounds would need to grow by.
+        The factor sqrt(chi2 / dof) the bounds would need to grow by.
     joint_chi2, joint_p : float
         Sum over parameters (treated as independent): an overall verdict.
-    labels : tuple of str
-        One label per fit (record names).
     """
 
     names: tuple
@@ -66,12 +68,30 @@ class ConsistencyResult:
         """True if no parameter's test rejects at level ``alpha`` (Bonferroni over parameters).
 
         With ``joint=True`` the joint chi-square test must not reject either.
+
+        Parameters
+        ----------
+        alpha : float, optional
+            Family-wise level.
+        joint : bool, optional
+            Also require the joint test to accept.
+
+        Returns
+        -------
+        bool
+            Whether the fits agree.
         """
         ok = bool(np.all(self.p_value > alpha / len(self.names)))
         return ok and (self.joint_p > alpha if joint else True)
 
     def summary(self) -> str:
-        """A text table: estimates per fit, weighted mean, chi2, p, scale."""
+        """A text table: estimates per fit, weighted mean, chi2, p, scale.
+
+        Returns
+        -------
+        str
+            The table and a verdict line.
+        """
         w = max(24, max(len(lab) for lab in self.labels) + 2)
         head = f"{'parameter':12s}" + "".join(f"{lab:>{w}s}" for lab in self.labels)
         head += f"{'mean':>12s}{'chi2':>9s}{'p':>9s}{'scale':>8s}"
@@ -108,6 +128,7 @@ def consistency(results: Sequence, names: Sequence[str] | None = None) -> Consis
     Returns
     -------
     ConsistencyResult
+        Per-parameter and joint chi-square tests of agreement.
     """
     results = list(results)
     if len(results) < 2:

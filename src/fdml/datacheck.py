@@ -84,7 +84,7 @@ _MIN_COHERENT_FRACTION = 0.2
 class KinematicFit:
     """The regression ``j w alpha = a q + b a_z + nuisance`` on a record's spectra.
 
-    Attributes
+    Parameters
     ----------
     order : tuple of str
         Channels used as (alpha, q, a_z), in that role: ``("alpha", "q", "az")``
@@ -94,7 +94,7 @@ class KinematicFit:
     slope_az : float
         ``b``, rad/s per g; g/U for a record in fdml's units and signs.
     expected_az : float or None
-        g/U, rad/s per g, when the airspeed is known.
+        The value g/U, rad/s per g, when the airspeed is known.
     fit : float
         Fraction of the weighted variance of ``j w alpha`` explained.
     fit_labelled : float
@@ -122,10 +122,12 @@ class KinematicFit:
 class DataCheck:
     """Outcome of :func:`check_data` for one record.
 
-    Attributes
+    Parameters
     ----------
     record : str
+        Record name.
     findings : tuple of Finding
+        What the check found (units, signs, coherence).
     kinematics : KinematicFit or None
         None when the record is too short for its band, or lacks an output.
     coherent_fraction : dict
@@ -150,7 +152,13 @@ class DataCheck:
         return tuple(f.code for f in self.findings)
 
     def to_dict(self) -> dict:
-        """JSON-ready dict."""
+        """JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            Every field by name; the findings and the kinematic fit as dicts.
+        """
         k = self.kinematics
         kin = (
             None
@@ -176,7 +184,13 @@ class DataCheck:
         }
 
     def summary(self) -> str:
-        """A few lines for the terminal."""
+        """A few lines for the terminal.
+
+        Returns
+        -------
+        str
+            The findings, the kinematic slopes and the coherent fractions.
+        """
         lines = [
             f"data check of {self.record}: "
             + ("no findings" if not self.findings else f"{len(self.findings)} finding(s)")
@@ -220,6 +234,7 @@ def check_data(record: Record, *, band=None, airspeed: float | None = None, data
     Returns
     -------
     DataCheck
+        The findings, the kinematic fit and the coherent fractions of the record.
     """
     t0 = time.perf_counter()
     findings = []

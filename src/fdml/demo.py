@@ -36,7 +36,7 @@ WK_TABLE1 = {
 class DemoResult:
     """What :func:`run_demo` made.
 
-    Attributes
+    Parameters
     ----------
     comparison : Comparison
         Steady and unsteady fits.
@@ -81,6 +81,7 @@ def run_demo(
     Returns
     -------
     DemoResult
+        The simulated record, the comparison, its table and the files written.
     """
     from .simulate import simulate_maneuver
 

@@ -262,14 +262,17 @@ def _series(first, second, third):
 class ControlExport:
     """A python-control system and how its delays were treated.
 
-    Attributes
+    Parameters
     ----------
     system : control.FrequencyResponseData or control.StateSpace
+        The exported system (input de rad; outputs alpha rad, q rad/s, a_z g).
     form : {"frd", "statespace"}
+        Which of the two it is.
     delays : {"none", "exact", "pade"}
         ``"exact"``: a frequency response holds every delay exactly;
         ``"pade"``: the state space approximates them (order ``pade_order``).
     pade_order : int or None
+        Order of the Pade approximation, when one was used.
     """
 
     system: object
@@ -285,9 +288,23 @@ def to_control(
 
     Parameters
     ----------
+    result_or_model : FitResult or Model
+        A fit's model is taken at the estimate.
     form : {"frd", "statespace"}
         A frequency response (delays exact; needs ``omega`` for a model) or a
         state space (delays by a Pade approximation of order ``pade``).
+    omega : array_like, optional
+        Frequencies of the frequency response, rad/s (as :func:`to_frd`).
+    pade : int, optional
+        Order of the Pade approximation of the delays of a state space (as
+        :func:`to_statespace`); required when the model has delays.
+    name : str, optional
+        System name (default ``"fdml <kind>"``).
+
+    Returns
+    -------
+    ControlExport
+        The system, its form and how its delays were treated.
     """
     model = _model_of(result_or_model)
     if form == "frd":

@@ -29,13 +29,14 @@ KINDS = ("data", "estimation")
 class Finding:
     """One finding of a check.
 
-    Attributes
+    Parameters
     ----------
     code : str
         Stable short code, ``area.item`` (for example ``units.elevator``).
     message : str
         One sentence that names the quantity, its value and the likely cause.
     kind : {"data", "estimation"}
+        What the finding is about: the record's data or the estimation.
     record : str or None
         Name of the record concerned, if one.
     value : float or None
@@ -60,7 +61,14 @@ class Finding:
         return f"[{self.code}] {where}{self.message}"
 
     def to_dict(self) -> dict:
-        """JSON-ready dict (non-finite numbers as strings)."""
+        """JSON-ready dict (non-finite numbers as strings).
+
+        Returns
+        -------
+        dict
+            The fields by name; ``value`` and ``expected`` as float, ``None``
+            or the string of a non-finite number.
+        """
         import math
 
         def num(x):
@@ -80,7 +88,18 @@ class Finding:
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "Finding":
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        d : Mapping
+            A dict as :meth:`to_dict` writes it (``kind`` defaults to ``"data"``).
+
+        Returns
+        -------
+        Finding
+            The finding.
+        """
 
         def num(x):
             return None if x is None else float(x)
@@ -96,13 +115,29 @@ class Finding:
 
 
 def emit(findings: Iterable[Finding], stacklevel: int = 2) -> None:
-    """Issue every finding as a :class:`~fdml.errors.DataWarning` (text ``[code] message``)."""
+    """Issue every finding as a :class:`~fdml.errors.DataWarning` (text ``[code] message``).
+
+    Parameters
+    ----------
+    findings : iterable of Finding
+        The findings to issue.
+    stacklevel : int
+        Stack level of the warning, counted from the caller of :func:`emit`.
+    """
     for f in findings:
         warnings.warn(str(f), DataWarning, stacklevel=stacklevel + 1)
 
 
 def raise_if_strict(findings: Iterable[Finding], strict: bool) -> None:
-    """With ``strict``, raise :class:`~fdml.errors.DataCheckError` listing every data finding."""
+    """With ``strict``, raise :class:`~fdml.errors.DataCheckError` listing every data finding.
+
+    Parameters
+    ----------
+    findings : iterable of Finding
+        The findings of a check; only those of kind ``"data"`` count.
+    strict : bool
+        Whether to raise (``--strict``); without it this does nothing.
+    """
     if not strict:
         return
     bad = [f for f in findings if f.kind == "data"]

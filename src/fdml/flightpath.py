@@ -110,7 +110,25 @@ RESIDUAL_FACTOR = 10.0
 
 @dataclass(frozen=True)
 class ParameterEstimate:
-    """One estimated quantity: value, colour-corrected and white standard errors."""
+    """One estimated quantity: value, colour-corrected and white standard errors.
+
+    Parameters
+    ----------
+    name : str
+        Parameter or initial state name (``b_q``, ``K_az``, ``alpha0``, ...).
+    value : float
+        The estimate, in ``unit``.
+    stderr : float
+        Standard error corrected for coloured residuals, in ``unit``.
+    stderr_white : float
+        Standard error assuming white residuals, in ``unit``.
+    unit : str
+        SI unit (``"rad/s"``, ``"s"``, ``""`` for a scale factor, ...).
+    description : str
+        What the quantity is (``"initial state"`` for a state).
+    nominal : float
+        Value of an error-free sensor (or the start value of a state), in ``unit``.
+    """
 
     name: str
     value: float
@@ -126,7 +144,13 @@ class ParameterEstimate:
         return abs(self.value - self.nominal) / self.stderr if self.stderr > 0 else math.inf
 
     def to_dict(self) -> dict:
-        """The estimate, its standard errors, unit and description as plain JSON data."""
+        """The estimate, its standard errors, unit and description as plain JSON data.
+
+        Returns
+        -------
+        dict
+            Every field but ``name``.
+        """
         return {
             "value": self.value,
             "stderr": self.stderr,
@@ -141,7 +165,7 @@ class ParameterEstimate:
 class CompatibilityResult:
     """Result of :func:`check_compatibility`.
 
-    Attributes
+    Parameters
     ----------
     name : str
         Record name.
@@ -154,6 +178,7 @@ class CompatibilityResult:
     corr : ndarray
         Correlation matrix of all estimated quantities, in ``names`` order.
     names : tuple of str
+        Estimated quantities (parameters then states), the order of ``corr``.
     outputs : tuple of str
         Outputs compared (alpha, theta, V, h as present).
     residual_rms : dict
@@ -163,10 +188,14 @@ class CompatibilityResult:
     n_used : int
         Samples per output in the fit (ends excluded by the time-shift margin).
     converged : bool
+        Whether the optimiser converged.
     message : str
+        The optimiser's message.
     record : Record or None
         The corrected record, when asked for (``correct=True``).
     findings : tuple of str
+        Sentences on significant sensor errors, estimates at a bound and
+        outputs whose residual exceeds the noise.
     """
 
     name: str
@@ -185,17 +214,40 @@ class CompatibilityResult:
     findings: tuple = ()
 
     def values(self) -> dict:
-        """All sensor parameters (estimated and fixed) by name."""
+        """All sensor parameters (estimated and fixed) by name.
+
+        Returns
+        -------
+        dict of str to float
+            The values, SI units.
+        """
         out = {k: v[0] for k, v in self.fixed.items()}
         out.update({k: p.value for k, p in self.params.items()})
         return out
 
     def apply(self, record: Record) -> Record:
-        """The record corrected with these estimates (see :func:`apply_corrections`)."""
+        """The record corrected with these estimates (see :func:`apply_corrections`).
+
+        Parameters
+        ----------
+        record : Record
+            The record as measured.
+
+        Returns
+        -------
+        Record
+            The corrected copy.
+        """
         return apply_corrections(record, self.values())
 
     def summary(self) -> str:
-        """Plain-text table of the estimates."""
+        """Plain-text table of the estimates.
+
+        Returns
+        -------
+        str
+            The estimates, fixed parameters, residual RMS and findings.
+        """
         lines = [
             f"Data compatibility: {self.name}",
             f"  outputs {', '.join(self.outputs)}; {self.n_used} samples each; "
@@ -244,7 +296,13 @@ class CompatibilityResult:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """JSON-safe dictionary."""
+        """JSON-safe dictionary.
+
+        Returns
+        -------
+        dict
+            Every field but the record; estimates as dicts, ``corr`` as nested lists.
+        """
         return {
             "name": self.name,
             "params": {k: p.to_dict() for k, p in self.params.items()},
@@ -271,6 +329,19 @@ def apply_corrections(record: Record, values: dict) -> Record:
     ``theta(t) = theta_m(t + tau_theta)``, ``V = V_m/K_V``.  Shifted signals
     are interpolated with cubic splines; beyond the record's ends the end
     values are held.  ``meta["compatibility"]`` records the values applied.
+
+    Parameters
+    ----------
+    record : Record
+        The record as measured.
+    values : dict
+        Sensor parameters by name (:data:`PARAMETERS`), SI units; the others
+        keep their nominal (error-free) values.
+
+    Returns
+    -------
+    Record
+        The corrected copy.
     """
     from scipy.interpolate import CubicSpline
 
@@ -697,6 +768,7 @@ def check_compatibility(
     Returns
     -------
     CompatibilityResult
+        The sensor-error estimates, their uncertainty and the fit's residuals.
 
     Raises
     ------
@@ -755,6 +827,16 @@ def noise_level(x: np.ndarray) -> float:
     variance s^2 gives third differences of variance 20 s^2; the median
     absolute value (divided by 0.6745, the normal MAD) resists the few large
     values at step inputs.  Quantisation noise, step/sqrt(12), is the floor.
+
+    Parameters
+    ----------
+    x : numpy.ndarray
+        The channel's samples, shape (n,).
+
+    Returns
+    -------
+    float
+        The standard deviation, in the channel's unit (0 for fewer than 4 samples).
     """
     d3 = np.diff(np.asarray(x, dtype=float), 3)
     if d3.size == 0:

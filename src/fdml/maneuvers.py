@@ -143,7 +143,7 @@ def doublet(
     Returns
     -------
     ndarray
-        de(t), rad, shaped like t.
+        The elevator deflection de(t), rad, shaped like t.
     """
     width = _positive(width, "width (s)")
     return _pulse_train(t, amplitude, start, [width, width], [1.0, -1.0], rise)
@@ -170,7 +170,7 @@ def three_two_one_one(
     Returns
     -------
     ndarray
-        de(t), rad, shaped like t.
+        The elevator deflection de(t), rad, shaped like t.
     """
     unit = _positive(unit, "unit (s)")
     return _pulse_train(t, amplitude, start, [3 * unit, 2 * unit, unit, unit], [1.0, -1.0, 1.0, -1.0], rise)
@@ -234,7 +234,7 @@ def multisine(
     Returns
     -------
     ndarray, shape (n,)
-        u(t), rad.
+        The input u(t), rad.
     """
     t = _time(t)
     amplitude = _finite(amplitude, "amplitude (rad)")
@@ -319,6 +319,16 @@ def schroeder_phases(amplitudes) -> np.ndarray:
 
     ``phi_k = phi_1 - 2 pi sum_{l<k} (k - l) p_l`` with power fractions
     ``p_l = a_l^2 / sum a^2``; for a flat spectrum this is ``-pi k (k - 1) / K``.
+
+    Parameters
+    ----------
+    amplitudes : array_like, shape (K,)
+        Relative amplitudes a_k of the harmonics.
+
+    Returns
+    -------
+    numpy.ndarray, shape (K,)
+        The phases phi_k, rad (phi_1 = 0).
     """
     a = np.asarray(amplitudes, dtype=float)
     p = a**2 / np.sum(a**2)
@@ -329,13 +339,35 @@ def schroeder_phases(amplitudes) -> np.ndarray:
 
 
 def crest_factor(u) -> float:
-    """Crest factor max|u| / rms(u) (sqrt 2 for one sinusoid)."""
+    """Crest factor max|u| / rms(u) (sqrt 2 for one sinusoid).
+
+    Parameters
+    ----------
+    u : array_like
+        A signal (any unit).
+
+    Returns
+    -------
+    float
+        The crest factor, dimensionless.
+    """
     u = np.asarray(u, dtype=float)
     return float(np.max(np.abs(u)) / np.sqrt(np.mean(u**2)))
 
 
 def relative_peak_factor(u) -> float:
-    """Morelli's relative peak factor (max u - min u) / (2 sqrt(2) rms(u)): 1 for one sinusoid."""
+    """Morelli's relative peak factor (max u - min u) / (2 sqrt(2) rms(u)): 1 for one sinusoid.
+
+    Parameters
+    ----------
+    u : array_like
+        A signal (any unit).
+
+    Returns
+    -------
+    float
+        The relative peak factor, dimensionless.
+    """
     u = np.asarray(u, dtype=float)
     return float((np.max(u) - np.min(u)) / (2.0 * math.sqrt(2.0) * np.sqrt(np.mean(u**2))))
 
@@ -369,6 +401,7 @@ def min_crest_phases(omega, amplitudes, tau, phases=None, iterations: int = _CLI
     phases : ndarray, optional
         Start phases (default Schroeder's).
     iterations : int, optional
+        Clipping passes.
 
     Returns
     -------
@@ -427,7 +460,7 @@ def sweep(
     Returns
     -------
     ndarray, shape (n,)
-        u(t), rad.
+        The input u(t), rad.
     """
     t = _time(t)
     amplitude = _finite(amplitude, "amplitude (rad)")
@@ -544,7 +577,7 @@ def dryden_gust(
     Returns
     -------
     ndarray, shape (n,)
-        alpha_w(t) = w_g(t) / U, rad.
+        The gust angle alpha_w(t) = w_g(t) / U, rad.
     """
     t = _time(t)
     sigma = _finite(sigma, "sigma (m/s)")
@@ -622,7 +655,7 @@ def make_input(kind: str, t, amplitude: float = DEFAULT_AMPLITUDE, **kw) -> np.n
     Returns
     -------
     ndarray, shape (n,)
-        de(t), rad.
+        The elevator deflection de(t), rad.
     """
     funcs: dict[str, Callable[..., np.ndarray]] = {
         "doublet": doublet,

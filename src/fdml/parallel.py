@@ -55,7 +55,18 @@ _PRELOAD = ["fdml.parallel", "fdml.batch", "fdml.montecarlo", "fdml.estimate", "
 
 
 def one_line(exc: BaseException) -> str:
-    """``"Type: first line of the message"`` of an exception (a task's error in a table row)."""
+    """``"Type: first line of the message"`` of an exception (a task's error in a table row).
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception.
+
+    Returns
+    -------
+    str
+        Its class name, and the first line of its message if it has one.
+    """
     text = str(exc).strip()
     first = text.splitlines()[0] if text else ""
     return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
@@ -174,7 +185,18 @@ def _dask_missing() -> FdmlError:
 
 
 def engine_name(engine) -> str:
-    """``"process"``, ``"serial"`` or ``"dask"`` for an ``engine`` argument (as results record it)."""
+    """``"process"``, ``"serial"`` or ``"dask"`` for an ``engine`` argument (as results record it).
+
+    Parameters
+    ----------
+    engine : None, str or dask.distributed.Client
+        The ``engine`` argument of a run (None is the local process pool).
+
+    Returns
+    -------
+    str
+        The engine's name (another object's class name).
+    """
     if engine in (None, "process"):
         return "process"
     if engine == "serial":
@@ -217,6 +239,11 @@ def pool_context():
     other threads alive (a Dask client, a progress bar's monitor) forking is
     unsafe, so ``forkserver`` (fdml preloaded once, cheap forks after); ``spawn``
     where neither exists.
+
+    Returns
+    -------
+    multiprocessing.context.BaseContext
+        The context to make the pool with.
     """
     import multiprocessing as mp
     import threading
@@ -247,6 +274,11 @@ def signals_end_the_run() -> Iterator[None]:
     handlers back: a second one during the clean-up kills at once (the workers
     then end by :func:`_die_with_parent`).  Handlers can only be installed from
     the main thread; in any other thread this does nothing.
+
+    Yields
+    ------
+    None
+        Control to the block, with the handlers installed.
     """
     import signal
     import threading

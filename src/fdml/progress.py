@@ -38,7 +38,13 @@ __all__ = ["TqdmProgress", "PrintProgress", "HistoryRecorder", "StopAfter", "cha
 
 
 def tqdm_available() -> bool:
-    """True if tqdm (the ``progress`` extra) can be imported."""
+    """True if tqdm (the ``progress`` extra) can be imported.
+
+    Returns
+    -------
+    bool
+        Whether ``import tqdm`` works.
+    """
     try:
         import tqdm  # noqa: F401
     except ImportError:
@@ -59,6 +65,14 @@ def task_progress(progress, total: int | None, desc: str):
         Number of tasks.
     desc : str
         Label of the bar.
+
+    Returns
+    -------
+    update : callable
+        ``update(result, done)``, to call after each task with its result and
+        the number of tasks done.
+    close : callable
+        ``close()``, to call once at the end.
 
     Raises
     ------
@@ -218,7 +232,19 @@ class HistoryRecorder:
         return np.array([h.step_in_stderr for h in self.history], float)
 
     def path(self, name: str) -> np.ndarray:
-        """Estimate of ``name`` after each iteration of the last fit."""
+        """Estimate of ``name`` after each iteration of the last fit.
+
+        Parameters
+        ----------
+        name : str
+            A parameter estimated in the recorded fit.
+
+        Returns
+        -------
+        numpy.ndarray
+            Its value after each iteration, shape ``(n_iterations,)``, in the
+            parameter's own units.
+        """
         try:
             return np.array([h.params[name] for h in self.history], float)
         except KeyError:
@@ -286,6 +312,17 @@ def chain(*callbacks):
     """Combine callbacks: each is called every iteration; the fit stops if any returns True.
 
     None entries are skipped, so ``chain(bar if show else None, stopper)`` works.
+
+    Parameters
+    ----------
+    *callbacks : callable or None
+        Iteration callbacks ``callback(info) -> bool or None``.
+
+    Returns
+    -------
+    callable
+        ``combined(info) -> bool``, which calls them all; its ``callbacks``
+        attribute holds them.
     """
     cbs = [c for c in callbacks if c is not None]
     for c in cbs:

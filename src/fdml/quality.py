@@ -63,9 +63,10 @@ DEFAULT_N_PARAMS = 13
 class ChannelQuality:
     """Findings for one channel.
 
-    Attributes
+    Parameters
     ----------
     name, unit : str
+        Channel name and its SI unit.
     resolution : float
         Smallest non-zero step between samples (the quantisation, at most), SI.
     n_levels : int
@@ -104,7 +105,13 @@ class ChannelQuality:
     flags: tuple = ()
 
     def to_dict(self) -> dict:
-        """The channel's quality figures as plain JSON data."""
+        """The channel's quality figures as plain JSON data.
+
+        Returns
+        -------
+        dict
+            Every field by name, tuples as lists.
+        """
         return {
             "name": self.name,
             "unit": self.unit,
@@ -124,7 +131,7 @@ class ChannelQuality:
 class QualityReport:
     """What :func:`check_quality` found.  Frozen; print :meth:`summary`.
 
-    Attributes
+    Parameters
     ----------
     name : str
         Record name.
@@ -133,6 +140,7 @@ class QualityReport:
     jitter : float
         Largest deviation of a sample interval from the mean, as a fraction of it.
     channels : tuple of ChannelQuality
+        One report per channel.
     band : tuple
         (lo, hi, step) rad/s.
     omega : ndarray
@@ -160,8 +168,10 @@ class QualityReport:
         peak and at least one output is coherent (above both the significance
         threshold and GOOD_COHERENCE).
     required_frequencies : int
-        ceil(n_params / (2 n_outputs)): each independent frequency gives 2
-        real equations per output.
+        The number ceil(n_params / (2 n_outputs)): each independent frequency
+        gives 2 real equations per output.
+    n_params : int
+        Number of quantities the fit will estimate.
     sufficient : bool
         ``useful_frequencies >= required_frequencies``.
     findings : tuple of str
@@ -191,14 +201,31 @@ class QualityReport:
     findings: tuple = field(default=())
 
     def channel(self, name: str) -> ChannelQuality:
-        """The report of channel ``name`` (KeyError if there is none)."""
+        """The report of channel ``name`` (KeyError if there is none).
+
+        Parameters
+        ----------
+        name : str
+            A channel of the record.
+
+        Returns
+        -------
+        ChannelQuality
+            Its report.
+        """
         for c in self.channels:
             if c.name == name:
                 return c
         raise KeyError(name)
 
     def summary(self) -> str:
-        """Plain-text report."""
+        """Plain-text report.
+
+        Returns
+        -------
+        str
+            Sampling, channel table, excitation, coherence and findings.
+        """
         lo, hi, step = self.band
         out = [
             f"Data quality: {self.name}",
@@ -234,7 +261,13 @@ class QualityReport:
         return "\n".join(out)
 
     def to_dict(self) -> dict:
-        """JSON-safe dictionary of everything in the report."""
+        """JSON-safe dictionary of everything in the report.
+
+        Returns
+        -------
+        dict
+            Every field by name; arrays as lists.
+        """
         return {
             "name": self.name,
             "n": self.n,
@@ -270,6 +303,7 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
     Parameters
     ----------
     record : Record
+        The record to check.
     band : tuple or str, optional
         ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``; default 0.1:10:0.1 as
         :func:`fdml.fit`.  Must lie below the Nyquist frequency.
@@ -283,6 +317,7 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
     Returns
     -------
     QualityReport
+        The findings on sampling, channels and excitation.
 
     Notes
     -----
@@ -482,8 +517,25 @@ def _input_energy(u: np.ndarray, dt: float, omega: np.ndarray):
 
 
 def unexcited(u: np.ndarray, dt: float, omega: np.ndarray) -> bool:
-    """True if an input carries no power in the band: it never moves, or every band frequency
-    is more than :data:`LOW_INPUT_DB` below its peak (the measure of :func:`check_quality`)."""
+    """True if an input carries no power in the band.
+
+    It never moves, or every band frequency is more than :data:`LOW_INPUT_DB`
+    below its peak (the measure of :func:`check_quality`).
+
+    Parameters
+    ----------
+    u : numpy.ndarray
+        The input history, shape (n,) (any unit).
+    dt : float
+        Sample interval, s.
+    omega : numpy.ndarray
+        Band frequencies, rad/s.
+
+    Returns
+    -------
+    bool
+        Whether the input leaves the band unexcited.
+    """
     _, _, input_db, peak = _input_energy(u, dt, omega)
     return peak == 0 or bool(np.all(input_db < -LOW_INPUT_DB))
 

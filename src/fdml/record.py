@@ -135,7 +135,18 @@ class Record:
             raise RecordError(f"record {self.name!r} has no signal {name!r}") from None
 
     def has(self, name: str) -> bool:
-        """True if the record carries signal ``name``."""
+        """True if the record carries signal ``name``.
+
+        Parameters
+        ----------
+        name : str
+            An fdml signal name (``"alpha_w"``, ``"theta"``, ...).
+
+        Returns
+        -------
+        bool
+            Whether the signal is present.
+        """
         return name in self.signals
 
     @property
@@ -160,7 +171,18 @@ class Record:
 
     # --- transformations -------------------------------------------------------------
     def window(self, t0: float | None = None, t1: float | None = None) -> "Record":
-        """The samples with ``t0 <= t <= t1`` (s), time kept as recorded."""
+        """The samples with ``t0 <= t <= t1`` (s), time kept as recorded.
+
+        Parameters
+        ----------
+        t0, t1 : float, optional
+            Window start and end, s (default: the record's first and last sample).
+
+        Returns
+        -------
+        Record
+            A copy holding the samples in the window.
+        """
         lo = self.t[0] if t0 is None else float(t0)
         hi = self.t[-1] if t1 is None else float(t1)
         if not lo < hi:
@@ -219,12 +241,29 @@ class Record:
         )
 
     def with_signals(self, **signals: np.ndarray) -> "Record":
-        """Return a copy with signals added or replaced."""
+        """Return a copy with signals added or replaced.
+
+        Parameters
+        ----------
+        **signals : numpy.ndarray
+            Signals by name, each shape ``(n,)``, in fdml's units.
+
+        Returns
+        -------
+        Record
+            The copy.
+        """
         return replace(self, signals={**self.signals, **signals})
 
     # --- CSV ---------------------------------------------------------------------
     def to_csv_text(self) -> str:
-        """CSV text with a header row ``t,de,alpha,q,az[,alpha_w]``."""
+        """CSV text with a header row ``t,de,alpha,q,az[,alpha_w]``.
+
+        Returns
+        -------
+        str
+            The header and one row per sample (full float precision).
+        """
         cols = ["t"] + [k for k in SIGNALS if k in self.signals]
         data = np.column_stack([self.t] + [self.signals[k] for k in cols[1:]])
         buf = io.StringIO()
@@ -233,7 +272,18 @@ class Record:
         return buf.getvalue()
 
     def to_csv(self, path: str | Path) -> Path:
-        """Write the record as CSV (atomically: never a half-written file)."""
+        """Write the record as CSV (atomically: never a half-written file).
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+
+        Returns
+        -------
+        pathlib.Path
+            The file written.
+        """
         atomic_write_text(path, self.to_csv_text())
         return Path(path)
 
@@ -251,6 +301,11 @@ def uniform_interval(t: np.ndarray, tol: float, where: str, advice: str) -> floa
         What the time vector belongs to, for messages (``"record 'x'"``, ``"simulate"``).
     advice : str
         What to do about uneven sampling, appended to its message.
+
+    Returns
+    -------
+    float
+        The mean sample interval, s.
 
     Raises
     ------
@@ -281,6 +336,7 @@ def add_noise(record: Record, noise, rng: np.random.Generator, *, relative: bool
     Parameters
     ----------
     record : Record
+        The noise-free record.
     noise : float or mapping
         Standard deviation per output (``{"alpha": rad, "q": rad/s, "az": g}``),
         or one number for all outputs.
@@ -360,6 +416,23 @@ def read_csv(
     The file is UTF-8 (a byte-order mark, as spreadsheet programs write, is
     accepted); a column fdml reads that appears twice in the header is an error.
     ``require`` names the signals that must be present (an input history: ``("de",)``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    name : str, optional
+        Record name (default: the file stem).
+    check_units : bool, optional
+        Passed to :class:`Record` (rejects angles that look like degrees).
+    require : tuple of str, optional
+        Signals that must be present besides ``t`` (default: the channel
+        registry's required signals).
+
+    Returns
+    -------
+    Record
+        The record as recorded (trim not removed).
     """
     path = Path(path)
     if not path.exists():

@@ -105,7 +105,7 @@ def pole_steps_for(T: float, dt: float, substeps: int | None = None) -> int:
     Returns
     -------
     int
-        m >= 2.
+        The number of steps m, at least 2.
     """
     if substeps is None:
         return max(DEFAULT_POLE_STEPS, math.ceil(T / dt * (1.0 - 1e-12)), 2)
@@ -149,7 +149,7 @@ def pv_memory(rate, m: int) -> np.ndarray:
     Parameters
     ----------
     rate : array_like, shape (n,)
-        r(t_n), e.g. alpha_dot in rad/s, on the grid t_n = n h; ``rate[0]`` must
+        The rate r(t_n), e.g. alpha_dot in rad/s, on the grid t_n = n h; ``rate[0]`` must
         be 0 (a step at t = 0 makes the integral infinite at t = T).
     m : int
         Grid steps per pole time (>= 2).
@@ -501,6 +501,7 @@ def simulate_maneuver(
     Parameters
     ----------
     model : fdml.models.Model
+        The model to simulate.
     maneuver : {"doublet", "3211", "multisine"}, optional
         Elevator input (:func:`fdml.maneuvers.make_input`).
     duration : float, optional

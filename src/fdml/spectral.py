@@ -40,6 +40,15 @@ def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[floa
         Require ``lo > 0`` (default: a fit band; the output-bias regressor is
         singular at 0 rad/s).  ``fdml response`` accepts 0.
 
+    Returns
+    -------
+    lo : float
+        Lowest frequency, rad/s.
+    hi : float
+        Highest frequency, rad/s.
+    step : float
+        Frequency step, rad/s.
+
     Raises
     ------
     BandError
@@ -68,6 +77,11 @@ def band_numbers(band, sizes: tuple[int, ...], *, what: str = "band", example: s
     example : str
         A valid band, shown in the message for a malformed string.
 
+    Returns
+    -------
+    list of float
+        The numbers, rad/s, as many as given.
+
     Raises
     ------
     BandError
@@ -95,7 +109,7 @@ def band_numbers(band, sizes: tuple[int, ...], *, what: str = "band", example: s
 class FrequencyData:
     """Spectra of one record at a set of frequencies.
 
-    Attributes
+    Parameters
     ----------
     name : str
         Record name.
@@ -162,18 +176,36 @@ class FrequencyData:
         return self.omega.size
 
     def boundary(self) -> np.ndarray:
-        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, 2) (THEORY.md section 7)."""
+        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, 2) (THEORY.md section 7).
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex, shape (m, 2): the alpha (rad s) and q (rad) columns.
+        """
         from .models.measurement import boundary_vector, end_shift
 
         return boundary_vector(self.x0, self.xT, end_shift(self.omega, self.T))
 
     def independent_frequencies(self) -> float:
-        """Approximate number of independent frequencies, (band width) T / (2 pi) + 1."""
+        """Approximate number of independent frequencies, (band width) T / (2 pi) + 1.
+
+        Returns
+        -------
+        float
+            The number (not rounded).
+        """
         return (self.omega.max() - self.omega.min()) * self.T / (2 * math.pi) + 1.0
 
     # --- noise propagation ------------------------------------------------------------
     def trim_vector(self) -> np.ndarray | None:
-        """Weights l with trimmed x = x - (l . x) 1, or None when no trim was removed."""
+        """Weights l with trimmed x = x - (l . x) 1, or None when no trim was removed.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            Shape (n,): ``1 / trim_samples`` on the leading ``trim_samples`` samples, 0 elsewhere.
+        """
         if self.trim_mode == "none" or self.trim_samples == 0:
             return None
         ell = np.zeros(self.n)
@@ -190,6 +222,16 @@ class FrequencyData:
         samples are taken from a short record.  With ``include_trim=False``
         only ``||F_i||^2`` is returned: the trim error is a constant offset, so
         a fit with output biases absorbs it completely.
+
+        Parameters
+        ----------
+        include_trim : bool, optional
+            Include the error of the trim removal.
+
+        Returns
+        -------
+        numpy.ndarray
+            The expected power ``s_i``, shape (m,), in s^2 per unit noise variance.
         """
         if self.n >= 16 and self.end_correction in ("cubic", "trapezoid", "none"):
             # interior weights dt W e^{-j theta n}; the first K samples carry dt (W e^{-j theta k} + a_k)
@@ -218,6 +260,13 @@ class FrequencyData:
         ``E{v v^T} = Phi``.  ``P = I - 1 l^T`` removes the trim, so
         ``F P (F P)^H = F F^H - f b^H - b f^H + |l|^2 b b^H`` with ``b = F 1``
         and ``f = F l`` (:func:`fdml.fourier.gram`, ``leading_transform``).
+
+        Returns
+        -------
+        Psi : numpy.ndarray
+            ``E{v v^H}``, complex, shape (m, m), s^2 per unit noise variance.
+        Phi : numpy.ndarray
+            ``E{v v^T}``, complex, shape (m, m), s^2 per unit noise variance.
         """
         GH, GT = fourier.gram(self.n, self.dt, self.omega, end_correction=self.end_correction)
         ell = self.trim_vector()
@@ -237,6 +286,7 @@ class FrequencyData:
         Parameters
         ----------
         y : ndarray, shape (m, k)
+            Complex weights, one column per combination of the frequencies.
 
         Returns
         -------
@@ -286,6 +336,7 @@ def spectra(
     Returns
     -------
     FrequencyData
+        The spectra of the record's outputs and inputs at the frequencies.
     """
     if not isinstance(record, Record):
         raise RecordError(f"expected an fdml Record, got {type(record).__name__}")

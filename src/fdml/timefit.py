@@ -30,18 +30,22 @@ __all__ = ["TimeFitResult", "fit_time_domain"]
 class TimeFitResult(ByName):
     """Outcome of :func:`fit_time_domain`.
 
-    Attributes
+    Parameters
     ----------
     names : tuple of str
         Estimated parameters (model parameters, then output biases).
     values, stderr : ndarray
+        Estimates and their standard errors, in ``names`` order, each in the parameter's unit.
     sigma : ndarray
         Estimated noise standard deviation per fitted output.
     outputs : tuple of str
+        The fitted outputs.
     nfev : int
         Model simulations used.
     converged : bool
+        Whether the last pass converged.
     message : str
+        The optimiser's message.
     elapsed : float
         Wall-clock seconds.
     model : Model
@@ -67,7 +71,13 @@ class TimeFitResult(ByName):
         return self.params[name]
 
     def summary(self) -> str:
-        """Text table of the estimates."""
+        """Text table of the estimates.
+
+        Returns
+        -------
+        str
+            A header line and one line per estimate with its standard error.
+        """
         lines = [
             f"time-domain output-error fit: {self.model.describe()}; outputs {', '.join(self.outputs)}",
             f"{'converged' if self.converged else 'NOT converged'} ({self.message}); {self.nfev} simulations",
@@ -94,6 +104,7 @@ def fit_time_domain(
     Parameters
     ----------
     record : Record
+        The flight record.
     model : Model
         Starting values and free parameters (as for :func:`fdml.fit`).
     outputs : sequence of str or str, optional
@@ -113,6 +124,7 @@ def fit_time_domain(
     Returns
     -------
     TimeFitResult
+        The estimates, standard errors and noise levels.
     """
     from .simulate import simulate
 

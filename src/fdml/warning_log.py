@@ -23,7 +23,7 @@ __all__ = ["RecordedWarning", "recording", "as_recorded", "merged"]
 class RecordedWarning:
     """One warning, as kept in a result.
 
-    Attributes
+    Parameters
     ----------
     category : str
         The warning class's name, e.g. ``"DataWarning"``.
@@ -38,12 +38,30 @@ class RecordedWarning:
         return f"{self.category}: {self.message}"
 
     def to_dict(self) -> dict[str, str]:
-        """``{"category": ..., "message": ...}`` for JSON."""
+        """The warning as a JSON-ready dict.
+
+        Returns
+        -------
+        dict of str to str
+            ``{"category": ..., "message": ...}``.
+        """
         return {"category": self.category, "message": self.message}
 
     @classmethod
     def from_value(cls, value) -> RecordedWarning:
-        """A recorded warning from its dict, its ``"Category: message"`` string or itself."""
+        """A recorded warning from its dict, its ``"Category: message"`` string or itself.
+
+        Parameters
+        ----------
+        value : RecordedWarning, dict or str
+            A recorded warning, a dict with ``"category"`` and ``"message"``, or
+            text; text without a ``"SomeWarning: "`` head is a ``UserWarning``.
+
+        Returns
+        -------
+        RecordedWarning
+            The warning.
+        """
         if isinstance(value, RecordedWarning):
             return value
         if isinstance(value, dict):
@@ -56,7 +74,18 @@ class RecordedWarning:
 
 
 def as_recorded(values: Iterable) -> tuple[RecordedWarning, ...]:
-    """Recorded warnings from dicts, strings or recorded warnings, first occurrence of each kept."""
+    """Recorded warnings from dicts, strings or recorded warnings, first occurrence of each kept.
+
+    Parameters
+    ----------
+    values : iterable
+        Warnings in any form :meth:`RecordedWarning.from_value` accepts.
+
+    Returns
+    -------
+    tuple of RecordedWarning
+        The distinct warnings, in order of first occurrence.
+    """
     out: dict[RecordedWarning, None] = {}
     for v in values:
         out.setdefault(RecordedWarning.from_value(v), None)
@@ -110,6 +139,16 @@ def merged(*groups: Iterable) -> tuple[RecordedWarning, ...]:
     For a fit run under :func:`recording`: ``merged(log, result.warnings)``
     keeps what was caught with its category, and adds what the result holds
     only as text (a result that keeps messages without their category).
+
+    Parameters
+    ----------
+    *groups : iterable
+        Groups of warnings in any form :meth:`RecordedWarning.from_value` accepts.
+
+    Returns
+    -------
+    tuple of RecordedWarning
+        One warning per distinct message, in order of first occurrence.
     """
     out: dict[str, RecordedWarning] = {}
     for group in groups:

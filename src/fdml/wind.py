@@ -67,7 +67,7 @@ DEFAULT_SMOOTH = 0.4
 class GustEstimate:
     """The vertical wind and gust angle along a record.
 
-    Attributes
+    Parameters
     ----------
     t : ndarray
         Time, s.
@@ -88,6 +88,8 @@ class GustEstimate:
         divided by V it is the noise floor of alpha_w in rad.
     notes : tuple of str
         What the estimate can and cannot be trusted for.
+    _record : Record or None
+        The record the estimate was made from (internal: for :attr:`record`).
     """
 
     t: np.ndarray
@@ -122,7 +124,13 @@ class GustEstimate:
         )
 
     def summary(self) -> str:
-        """A few lines: source channels, gust angle and wind statistics, noise level."""
+        """A few lines: source channels, gust angle and wind statistics, noise level.
+
+        Returns
+        -------
+        str
+            The lines, angles in degrees.
+        """
         lines = [
             f"Vertical gust angle from {self.source} ({', '.join(self.channels)})",
             f"  alpha_w: mean {math.degrees(np.mean(self.alpha_w)):.3g} deg, RMS about the mean "
@@ -134,7 +142,13 @@ class GustEstimate:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """The estimate's time histories and settings as plain JSON data."""
+        """The estimate's time histories and settings as plain JSON data.
+
+        Returns
+        -------
+        dict
+            Every public field by name, arrays as lists.
+        """
         return {
             "t": self.t.tolist(),
             "alpha_w": self.alpha_w.tolist(),
@@ -254,7 +268,20 @@ def gust_angle(
 
 
 def savgol_coeffs(n_win: int, dt: float) -> np.ndarray:
-    """Weights of the quadratic Savitzky-Golay first-derivative filter (centre point), 1/s."""
+    """Weights of the quadratic Savitzky-Golay first-derivative filter (centre point), 1/s.
+
+    Parameters
+    ----------
+    n_win : int
+        Window length, samples (odd).
+    dt : float
+        Sample interval, s.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (n_win,): the filter weights, 1/s (:func:`scipy.signal.savgol_coeffs` order).
+    """
     from scipy.signal import savgol_coeffs as sg
 
     return sg(n_win, 2, deriv=1, delta=dt)

@@ -62,7 +62,7 @@ _GN_PASSES = 30
 class Discrimination:
     """Expected steady-versus-unsteady statistic for one input.
 
-    Attributes
+    Parameters
     ----------
     noncentrality : float
         Expected likelihood-ratio statistic lambda under the unsteady truth.
@@ -90,6 +90,13 @@ class Discrimination:
     df: int = 1
 
     def to_dict(self) -> dict:
+        """JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            Every field by name.
+        """
         return {
             "noncentrality": self.noncentrality,
             "df": self.df,
@@ -102,7 +109,22 @@ class Discrimination:
 
 
 def detection_probability(lam: float, level: float = 0.05, df: int = 1) -> float:
-    """P{ncx2(df, lam) > chi2_df(1 - level)} (scipy.stats.ncx2)."""
+    """P{ncx2(df, lam) > chi2_df(1 - level)} (scipy.stats.ncx2).
+
+    Parameters
+    ----------
+    lam : float
+        Noncentrality lambda (the expected likelihood-ratio statistic).
+    level : float, optional
+        Test level alpha.
+    df : int, optional
+        Degrees of freedom.
+
+    Returns
+    -------
+    float
+        The detection probability.
+    """
     _check_level(level)
     crit = stats.chi2.isf(level, df)
     return float(stats.ncx2.sf(crit, df, max(lam, 1e-300)))
@@ -114,7 +136,22 @@ def _check_level(level: float) -> None:
 
 
 def required_noncentrality(power: float = 0.9, level: float = 0.05, df: int = 1) -> float:
-    """The lambda whose detection probability at ``level`` is ``power``."""
+    """The lambda whose detection probability at ``level`` is ``power``.
+
+    Parameters
+    ----------
+    power : float, optional
+        Required detection probability, in (level, 1).
+    level : float, optional
+        Test level alpha.
+    df : int, optional
+        Degrees of freedom.
+
+    Returns
+    -------
+    float
+        The noncentrality lambda.
+    """
     _check_level(level)
     if not (level < power < 1):
         raise ParameterError(f"power must be in (level, 1) = ({level}, 1), got {power!r}")
@@ -131,7 +168,22 @@ def _band_weights(prob: Problem) -> np.ndarray:
 
 
 def noncentrality(prob: Problem, theta: np.ndarray, S_inv: np.ndarray) -> float:
-    """2 sum_i kappa_i v_i^H S^-1 v_i of the residuals at theta (S: per-frequency noise covariance)."""
+    """2 sum_i kappa_i v_i^H S^-1 v_i of the residuals at theta (S: per-frequency noise covariance).
+
+    Parameters
+    ----------
+    prob : fdml.estimate.Problem
+        The fit problem set up on the noise-free response.
+    theta : numpy.ndarray
+        Estimate vector of the problem.
+    S_inv : numpy.ndarray
+        Inverse noise covariance per frequency, shape (n_out, n_out).
+
+    Returns
+    -------
+    float
+        The noncentrality lambda.
+    """
     V = prob.residuals(theta)
     q = np.real(np.einsum("ij,jk,ik->i", V.conj(), S_inv, V))
     return float(2.0 * np.sum(_band_weights(prob) * q))
@@ -216,16 +268,20 @@ def discriminate(
     steady : Model
         The steady model fitted to it (``steady`` or ``derivatives``).
     inp : DesignInput
+        The input history.
     noise : float or mapping, optional
         A fraction of each output's RMS in the unsteady response, or stds.
     level : float, optional
         Test level alpha (default 0.05).
-    band, outputs :
-        As for :func:`fdml.fit`.
+    band : tuple or str, optional
+        Fit band ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``, as for :func:`fdml.fit`.
+    outputs : sequence of str or str, optional
+        Outputs that enter the fit (default ``alpha, q, az``).
 
     Returns
     -------
     Discrimination
+        The expected statistic and the probabilities of telling the models apart.
     """
     _check_level(level)
     rec = response(unsteady, inp)
@@ -253,7 +309,23 @@ def discriminate(
 
 @dataclass(frozen=True)
 class Detectable:
-    """Smallest value of an effect parameter this input detects."""
+    """Smallest value of an effect parameter this input detects.
+
+    Parameters
+    ----------
+    effect : str
+        The library effect.
+    parameter : str
+        The parameter it adds.
+    stderr : float
+        Predicted standard error of the parameter at its null, in its unit.
+    minimum : float
+        The value detected with probability ``power`` at ``level``, in its unit.
+    power : float
+        Detection probability.
+    level : float
+        Test level alpha.
+    """
 
     effect: str
     parameter: str
@@ -263,6 +335,13 @@ class Detectable:
     level: float
 
     def to_dict(self) -> dict:
+        """JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            Every field by name.
+        """
         return dict(self.__dict__)
 
 
@@ -276,6 +355,28 @@ def minimum_detectable(
     The effect's parameters sit at their null; each one's predicted standard
     error (with all other parameters estimated) times ``sqrt(lambda_req)``
     is the value detected with probability ``power`` at ``level``.
+
+    Parameters
+    ----------
+    model : fdml.models.Model
+        The base model, at its true values.
+    effect : str
+        A library effect (``name[:channel]``).
+    inp : DesignInput
+        The input history.
+    noise : float or mapping, optional
+        As for :func:`fdml.design.predict.predict`.
+    power : float, optional
+        Required detection probability.
+    level : float, optional
+        Test level alpha.
+    **kw
+        Further options of :func:`fdml.design.predict.predict`.
+
+    Returns
+    -------
+    list of Detectable
+        One per parameter the effect adds, its minimum detectable value in the parameter's unit.
     """
     with_effect = model.with_effects([effect])
     new = [n for n in with_effect.parameters.free_names if n not in model.parameters.free_names]

@@ -33,16 +33,16 @@ _START = 1.0
 class Limits:
     """Planning limits of an input.
 
-    Attributes
+    Parameters
     ----------
     amplitude : float
         Largest |de|, rad.
-    rate : float
-        Largest |d de/dt|, rad/s (inf: none).
     duration : float
         Record length, s.
     dt : float
         Sample interval, s.
+    rate : float
+        Largest |d de/dt|, rad/s (inf: none).
     """
 
     amplitude: float
@@ -62,7 +62,7 @@ class Limits:
 
     @property
     def nyquist(self) -> float:
-        """pi / dt, rad/s."""
+        """Nyquist frequency pi / dt, rad/s."""
         return math.pi / self.dt
 
 
@@ -70,7 +70,7 @@ class Limits:
 class DesignInput:
     """An input history for a manoeuvre.
 
-    Attributes
+    Parameters
     ----------
     name : str
         What it is (``3211``, ``min-crest multisine``, ...).
@@ -92,10 +92,18 @@ class DesignInput:
 
     @property
     def de(self) -> np.ndarray:
+        """Elevator history, rad, shape (n,)."""
         return self.signals["de"]
 
     def report(self) -> dict:
-        """Peak (rad), largest rate (rad/s), RMS (rad), crest factor, relative peak factor, duration (s)."""
+        """Peak (rad), largest rate (rad/s), RMS (rad), crest factor, relative peak factor, duration (s).
+
+        Returns
+        -------
+        dict
+            ``peak``, ``rate``, ``rms``, ``crest_factor``, ``relative_peak_factor``,
+            ``duration`` and, with limits, ``within_limits``.
+        """
         u = self.de
         rate = np.max(np.abs(np.diff(u))) / (self.t[1] - self.t[0])
         out = {
@@ -114,11 +122,23 @@ class DesignInput:
         return out
 
     def to_record(self) -> Record:
-        """A Record holding the input history only (``t``, ``de``[, ``alpha_w``])."""
+        """A Record holding the input history only (``t``, ``de``[, ``alpha_w``]).
+
+        Returns
+        -------
+        Record
+            The input history, named after the input.
+        """
         return Record(self.t, self.signals, name=self.name, require=("de",), check_units=False)
 
     def to_csv(self, path) -> None:
-        """Write fdml's record CSV (``t,de``[,``alpha_w``]) atomically, for a flight-test card."""
+        """Write fdml's record CSV (``t,de``[,``alpha_w``]) atomically, for a flight-test card.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+        """
         self.to_record().to_csv(path)
 
 
@@ -190,6 +210,7 @@ def classic_input(kind: str, lim: Limits, band=(0.5, 10.0), *, unit: float | Non
         fits the record), linear and logarithmic sweeps over the band, and flat
         multisines over the band with Schroeder or minimum-crest-factor phases.
     lim : Limits
+        Amplitude, rate, duration and sample interval.
     band : (lo, hi), optional
         Band of the sweeps and multisines, rad/s.
     unit : float, optional
@@ -232,6 +253,29 @@ def multisine_input(
     ``amplitudes`` (relative, one per harmonic) shape the spectrum; with
     ``second`` (``"alpha_w"``) a second input gets the interleaved harmonics
     (stride 2, offsets 0 and 1), mutually orthogonal over the record.
+
+    Parameters
+    ----------
+    lim : Limits
+        Amplitude, rate, duration and sample interval.
+    band : (lo, hi)
+        Band, rad/s, below the Nyquist frequency.
+    amplitudes : array_like, optional
+        Relative amplitude of each harmonic (default flat).
+    phases : {"min-crest", "schroeder", "random"} or array_like, optional
+        Phases, as for :func:`fdml.maneuvers.multisine`.
+    stride, offset : int, optional
+        Keep the harmonics whose index in the band is ``offset`` modulo ``stride``.
+    second : {"alpha_w"}, optional
+        A second input on the interleaved harmonics (a gust-like input for simulation).
+    name : str, optional
+        Name of the input.
+
+    Returns
+    -------
+    DesignInput
+        The multisine; its ``options`` hold the band, the harmonics (rad/s)
+        and ``amplitude_fraction`` (< 1 when the rate limit lowered the amplitude).
     """
     lo, hi = _check_band(band, lim)
     t = _time(lim)
@@ -252,7 +296,18 @@ def multisine_input(
 
 
 def read_input(path) -> DesignInput:
-    """An input history from fdml's record CSV (``t``, ``de``[, ``alpha_w``]; other columns ignored)."""
+    """An input history from fdml's record CSV (``t``, ``de``[, ``alpha_w``]; other columns ignored).
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+
+    Returns
+    -------
+    DesignInput
+        The history, time from 0, with limits taken from it (peak |de|, length, dt).
+    """
     rec = read_csv(path, require=("de",), check_units=True)
     t = rec.t - rec.t[0]
     signals = {k: rec[k] for k in INPUTS if rec.has(k)}
@@ -263,7 +318,20 @@ def read_input(path) -> DesignInput:
 
 
 def spectrum(inp: DesignInput, omega) -> np.ndarray:
-    """|finite Fourier transform| of de at omega (rad/s), rad s (fdml.fourier's end-corrected quadrature)."""
+    """|finite Fourier transform| of de at omega (rad/s), rad s (fdml.fourier's end-corrected quadrature).
+
+    Parameters
+    ----------
+    inp : DesignInput
+        The input history.
+    omega : array_like
+        Frequencies, rad/s.
+
+    Returns
+    -------
+    numpy.ndarray
+        The magnitude, rad s, shaped like ``omega``.
+    """
     from ..fourier import finite_fourier_transform
 
     return np.abs(finite_fourier_transform(inp.de, float(inp.t[1] - inp.t[0]), np.asarray(omega, float)))

@@ -45,7 +45,18 @@ _GROUPS = 6
 
 
 def model_parameters(model) -> list[str]:
-    """The free model parameters (output biases excluded)."""
+    """The free model parameters (output biases excluded).
+
+    Parameters
+    ----------
+    model : fdml.models.Model
+        The model.
+
+    Returns
+    -------
+    list of str
+        The names, in the model's order.
+    """
     return [n for n in model.parameters.free_names if not n.startswith("bias_")]
 
 
@@ -56,7 +67,26 @@ def _weights(stds, outputs) -> tuple[np.ndarray, np.ndarray]:
 
 
 def harmonic_information(model, omega, names, stds, outputs=OUTPUTS) -> np.ndarray:
-    """M_k = Re dG_k^H S^-1 dG_k per harmonic for a unit elevator amplitude, shape (K, p, p)."""
+    """M_k = Re dG_k^H S^-1 dG_k per harmonic for a unit elevator amplitude, shape (K, p, p).
+
+    Parameters
+    ----------
+    model : fdml.models.Model
+        The model, at its parameter values.
+    omega : numpy.ndarray, shape (K,)
+        Harmonic frequencies, rad/s.
+    names : sequence of str
+        The p parameters.
+    stds : mapping
+        Noise standard deviation per output (alpha rad, q rad/s, az g).
+    outputs : sequence of str, optional
+        The outputs observed.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (K, p, p), real: the information of each harmonic per unit power.
+    """
     idx, S_inv = _weights(stds, outputs)
     _, dG, _, _ = model.sensitivity(omega, model.parameters.values, names, ("G",))
     a = np.transpose(dG[:, :, idx, 0], (1, 2, 0))  # (K, n_out, p)
@@ -113,7 +143,30 @@ def _discriminate(unsteady, steady, omega, stds, outputs) -> np.ndarray:
 
 
 def allocate(criterion: str, model, omega, stds, *, targets=(), steady=None, outputs=OUTPUTS) -> np.ndarray:
-    """Power fractions per harmonic for the criterion (sum 1)."""
+    """Power fractions per harmonic for the criterion (sum 1).
+
+    Parameters
+    ----------
+    criterion : {"d-optimal", "a-optimal", "discriminate"}
+        The design criterion (module docstring).
+    model : fdml.models.Model
+        The model, at its true values (the unsteady truth for ``discriminate``).
+    omega : numpy.ndarray, shape (K,)
+        Harmonic frequencies, rad/s.
+    stds : mapping
+        Noise standard deviation per output (alpha rad, q rad/s, az g).
+    targets : sequence of str, optional
+        Parameters whose summed variance ``a-optimal`` minimises.
+    steady : fdml.models.Model, optional
+        The steady model ``discriminate`` tells the truth from.
+    outputs : sequence of str, optional
+        The outputs observed.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (K,): the power fraction of each harmonic.
+    """
     names = model_parameters(model)
     if criterion == "d-optimal":
         return _d_optimal(harmonic_information(model, omega, names, stds, outputs))
@@ -166,6 +219,34 @@ def optimal_input(
     the optimal allocation with a flat spectrum by the full prediction, and
     ``refine`` full evaluations then adjust the power of a few harmonic groups
     (:func:`_refine`); without ``score`` the optimal allocation itself is returned.
+
+    Parameters
+    ----------
+    criterion : {"d-optimal", "a-optimal", "discriminate"}
+        The design criterion.
+    model : fdml.models.Model
+        The model, at its true values.
+    lim : Limits
+        Amplitude, rate, duration and sample interval.
+    band : (lo, hi)
+        Band of the harmonics, rad/s.
+    stds : mapping
+        Noise standard deviation per output (alpha rad, q rad/s, az g).
+    targets : sequence of str, optional
+        Parameters of the ``a-optimal`` criterion.
+    steady : fdml.models.Model, optional
+        The steady model of the ``discriminate`` criterion.
+    outputs : sequence of str, optional
+        The outputs observed.
+    score : callable, optional
+        ``score(input) -> float``, larger is better.
+    refine : int, optional
+        Full evaluations of the refinement (0: none).
+
+    Returns
+    -------
+    DesignInput
+        The multisine; its ``options["power"]`` holds the power fractions.
     """
     t = mv.time_vector(lim.duration, lim.dt)
     omega = mv.multisine_frequencies(t, *band)

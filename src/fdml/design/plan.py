@@ -31,7 +31,7 @@ _STEP = 0.1
 class Design:
     """A planned manoeuvre.
 
-    Attributes
+    Parameters
     ----------
     criterion : str
         ``d-optimal``, ``a-optimal``, ``discriminate`` or ``given`` (an input from a file).
@@ -61,7 +61,13 @@ class Design:
     detectable: tuple = ()
 
     def gains(self) -> dict[str, dict[str, float]]:
-        """Ratio of each baseline's predicted stderr to the input's, per model parameter (> 1: a gain)."""
+        """Ratio of each baseline's predicted stderr to the input's, per model parameter (> 1: a gain).
+
+        Returns
+        -------
+        dict
+            ``{baseline: {parameter: ratio}}``.
+        """
         se = self.predicted.to_dict()
         return {
             b: {n: p.to_dict()[n]["stderr"] / se[n]["stderr"] for n in se if n in p.to_dict()}
@@ -69,7 +75,13 @@ class Design:
         }
 
     def table(self) -> str:
-        """Plain-text table: value and predicted stderr per parameter, input and baselines; discrimination."""
+        """Plain-text table: value and predicted stderr per parameter, input and baselines; discrimination.
+
+        Returns
+        -------
+        str
+            The table, with minimum detectable values and discrimination where present.
+        """
         names = list(self.predicted.to_dict())
         cols = {self.input.name: self.predicted, **self.baselines}
         head = f"{'parameter':<12}{'value':>10}" + "".join(f"{c[:18]:>20}" for c in cols)
@@ -94,7 +106,18 @@ class Design:
         return "\n".join(lines)
 
     def to_dict(self, csv_path=None) -> dict:
-        """JSON-ready: ``input`` (the CSV path), ``predicted`` (with ``baselines``), ``discrimination``."""
+        """JSON-ready: ``input`` (the CSV path), ``predicted`` (with ``baselines``), ``discrimination``.
+
+        Parameters
+        ----------
+        csv_path : str or Path, optional
+            Where the input's CSV was written (``input`` is None without it).
+
+        Returns
+        -------
+        dict
+            The plan as plain JSON data.
+        """
         predicted = {
             "input": self.input.name,
             "parameters": self.predicted.to_dict(),
@@ -114,7 +137,24 @@ class Design:
 
 
 def parse_design_band(band, dt: float) -> tuple[float, float, float]:
-    """``"LO:HI[:STEP]"`` or a tuple, rad/s; HI must lie below the Nyquist frequency pi/dt."""
+    """``"LO:HI[:STEP]"`` or a tuple, rad/s; HI must lie below the Nyquist frequency pi/dt.
+
+    Parameters
+    ----------
+    band : str, tuple or None
+        The band (None: 0.5 to 10 rad/s).
+    dt : float
+        Sample interval, s.
+
+    Returns
+    -------
+    lo : float
+        Lowest frequency, rad/s.
+    hi : float
+        Highest frequency, rad/s.
+    step : float
+        Frequency step of the fit, rad/s.
+    """
     if band is None:
         band = (0.5, 10.0)
     if isinstance(band, str):
@@ -168,10 +208,13 @@ def design(
     model : Model
         The truth, at its parameter values (``unsteady`` for discrimination).
     criterion : {"d-optimal", "a-optimal", "discriminate"}, optional
-    duration, amplitude, dt, rate : float, optional
-        Record length (s), peak elevator (rad), sample interval (s), rate limit (rad/s).
+        What the input is optimised for (:mod:`fdml.design.optimize`).
+    duration, amplitude : float, optional
+        Record length (s) and peak elevator (rad).
     band : str or tuple, optional
         ``LO:HI[:STEP]`` rad/s: the input's band and the fit's (step default 0.1).
+    dt, rate : float, optional
+        Sample interval (s) and elevator rate limit (rad/s).
     noise : float or mapping, optional
         Fraction of output RMS in the 3-2-1-1 response, or stds.
     targets : sequence of str, optional
@@ -197,6 +240,7 @@ def design(
     Returns
     -------
     Design
+        The input, its predicted bounds and those of the baselines.
     """
     if criterion not in CRITERIA:
         raise ParameterError(f"unknown criterion {criterion!r}; criteria: {', '.join(CRITERIA)}")
@@ -243,7 +287,20 @@ def _scorer(criterion: str, model, steady, stds, band, targets):
 
 
 def plot_design(d: Design, fig=None):
-    """Input history and its spectrum (with the baselines'), and predicted stderr ratios."""
+    """Input history and its spectrum (with the baselines'), and predicted stderr ratios.
+
+    Parameters
+    ----------
+    d : Design
+        The plan.
+    fig : matplotlib.figure.Figure, optional
+        Figure to draw in (default: a new 10 x 7 in figure).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure, three axes.
+    """
     import matplotlib.pyplot as plt
 
     from .inputs import spectrum

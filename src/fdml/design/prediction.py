@@ -36,7 +36,7 @@ _SETTLE_FINAL = 1e-10
 class Prediction:
     """Predicted standard errors of one input.
 
-    Attributes
+    Parameters
     ----------
     names : tuple of str
         Estimated quantities, in the fit's order (model parameters, then
@@ -66,21 +66,60 @@ class Prediction:
         return dict(zip(self.names, np.sqrt(np.diag(self.cov)).tolist()))
 
     def relative(self, name: str) -> float:
-        """Predicted standard error of ``name`` over |its value|."""
+        """Predicted standard error of ``name`` over |its value|.
+
+        Parameters
+        ----------
+        name : str
+            An estimated quantity.
+
+        Returns
+        -------
+        float
+            The relative standard error (inf when the true value is 0).
+        """
         return self.stderr[name] / abs(self.values[name]) if self.values[name] else math.inf
 
     def model_cov(self) -> np.ndarray:
-        """Predicted covariance of the model parameters (nuisance terms left out)."""
+        """Predicted covariance of the model parameters (nuisance terms left out).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (p_model, p_model), in the order of the model parameters in ``names``.
+        """
         idx = [i for i, n in enumerate(self.names) if not _nuisance(n)]
         return self.cov[np.ix_(idx, idx)]
 
     def cov_of(self, names) -> list[float]:
-        """Predicted variances of the named estimates."""
+        """Predicted variances of the named estimates.
+
+        Parameters
+        ----------
+        names : sequence of str
+            Estimated quantities.
+
+        Returns
+        -------
+        list of float
+            Their variances, in the square of each quantity's unit.
+        """
         se = self.stderr
         return [se[n] ** 2 for n in names]
 
     def to_dict(self, model_only: bool = True) -> dict:
-        """``{name: {"value": v, "stderr": s}}`` (model parameters only by default)."""
+        """``{name: {"value": v, "stderr": s}}`` (model parameters only by default).
+
+        Parameters
+        ----------
+        model_only : bool, optional
+            Leave out the output biases and boundary values.
+
+        Returns
+        -------
+        dict
+            True value and predicted standard error per quantity.
+        """
         se = self.stderr
         keep = [n for n in self.names if not model_only or not _nuisance(n)]
         return {n: {"value": self.values[n], "stderr": se[n]} for n in keep}
@@ -91,7 +130,22 @@ def _nuisance(name: str) -> bool:
 
 
 def response(model, inp: DesignInput, values: Mapping | None = None) -> Record:
-    """The noise-free response of ``model`` to the input (:func:`fdml.simulate.simulate`)."""
+    """The noise-free response of ``model`` to the input (:func:`fdml.simulate.simulate`).
+
+    Parameters
+    ----------
+    model : fdml.models.Model
+        The model (a gust model gets alpha_w = 0 when the input has none).
+    inp : DesignInput
+        The input history.
+    values : mapping, optional
+        Parameter values overriding the model's.
+
+    Returns
+    -------
+    Record
+        The simulated record, named after the input.
+    """
     signals = dict(inp.signals)
     if model.gust and "alpha_w" not in signals:
         signals["alpha_w"] = np.zeros_like(inp.t)
@@ -106,6 +160,19 @@ def noise_stds(rec: Record, noise) -> dict[str, float]:
     A number is a fraction of each output's RMS about its mean in the
     noise-free record, as :func:`fdml.record.add_noise` with ``relative=True``
     (``fdml simulate --noise``).
+
+    Parameters
+    ----------
+    rec : Record
+        The noise-free response.
+    noise : float or mapping
+        A fraction of each output's RMS, or ``{"alpha": rad, "q": rad/s, "az": g}``
+        (missing outputs get 0).
+
+    Returns
+    -------
+    dict of str to float
+        Standard deviation per output: alpha rad, q rad/s, az g.
     """
     if isinstance(noise, Mapping):
         bad = sorted(set(noise) - set(OUTPUTS))
@@ -131,6 +198,19 @@ def expected_R(prob: Problem, stds: Mapping[str, float]) -> np.ndarray:
     White noise of per-sample covariance Sigma gives E R = Sigma mean_i ||F_i||^2
     less the fraction the p estimated parameters absorb, (N_real - p) / N_real
     (the inverse of the scaling in :func:`fdml.estimate._white_cov_g`).
+
+    Parameters
+    ----------
+    prob : fdml.estimate.Problem
+        The fit problem on the noise-free response.
+    stds : mapping
+        Noise standard deviation per output (alpha rad, q rad/s, az g).
+
+    Returns
+    -------
+    numpy.ndarray
+        Diagonal, shape (n_out, n_out), for the fitted outputs: the squared
+        units of their transforms.
     """
     sig = np.array([stds[OUTPUTS[k]] for k in prob.out_idx])
     if np.any(sig <= 0):
@@ -169,12 +249,21 @@ def predict(
         "az": g}``.
     values : mapping, optional
         Parameter values overriding the model's.
-    band, outputs, free, fix, boundary, biases :
-        As for :func:`fdml.fit`.
+    band : tuple or str, optional
+        Fit band ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``, as for :func:`fdml.fit`.
+    outputs : sequence of str or str, optional
+        Outputs that enter the fit (default ``alpha, q, az``).
+    free, fix : sequence of str, optional
+        Names to free and to fix (``fix`` may be a ``{name: value}`` mapping), as for :func:`fdml.fit`.
+    boundary : {"estimated", "measured", "none"}, optional
+        Boundary terms, as for :func:`fdml.fit`.
+    biases : {"auto", True, False}, optional
+        Output biases, as for :func:`fdml.fit`.
 
     Returns
     -------
     Prediction
+        The predicted covariance of every estimated quantity.
     """
     if values:
         model.parameters.check_names(values)

@@ -53,7 +53,18 @@ from .report import JSON_KEYS, DiagnosisReport
 
 
 def validate(*args, **kwargs):
-    """Run the validation harness (see :func:`fdml.diagnose.validation.validate`)."""
+    """Run the validation harness (see :func:`fdml.diagnose.validation.validate`).
+
+    Parameters
+    ----------
+    *args, **kwargs
+        Arguments of :func:`fdml.diagnose.validation.validate`.
+
+    Returns
+    -------
+    ValidationResult
+        The scored scenarios.
+    """
     from .validation import validate as _v
 
     return _v(*args, **kwargs)

@@ -58,7 +58,47 @@ AMBIGUITY_AIC = 2.0
 
 @dataclass
 class Candidate:
-    """One tested candidate effect at one attribution step."""
+    """One tested candidate effect at one attribution step.
+
+    Parameters
+    ----------
+    effect : Effect
+        The candidate effect.
+    key : str
+        Its key (``time_delay@alpha``).
+    screen : ScreenResult or None
+        Its score screen at the current fit.
+    fit : DiagFit or None
+        The refit with the effect, when refitted.
+    lr : float
+        Likelihood-ratio statistic of the refit (the screen's LM before a refit).
+    lr_test : float or None
+        The statistic tested (the grid LR for a nuisance-grid effect).
+    df : int
+        Degrees of freedom: the effect's tested parameters.
+    q_eff : int
+        Parameters the effect adds, nuisance parameters included (for BIC).
+    null : str
+        Null distribution: ``chi2``, ``chibar`` or ``davies``.
+    p : float
+        Unadjusted p-value.
+    logp : float
+        Natural log of ``p`` (kept where ``p`` underflows).
+    p_holm : float or None
+        Holm-adjusted p-value over the tested family.
+    identifiable : bool
+        Whether these data can test the effect.
+    reason : str or None
+        Why it was skipped, or why its refit failed.
+    refitted : bool
+        Whether it was refitted by maximum likelihood.
+    params : dict
+        ``{name: (value, stderr)}`` of the effect's parameters, each in its unit.
+    plausible : bool
+        Whether every estimate lies in its plausible range.
+    step : int
+        The attribution step.
+    """
 
     effect: Effect
     key: str
@@ -90,7 +130,18 @@ class Candidate:
         return self.effect.channel
 
     def significant(self, alpha: float) -> bool:
-        """Whether the Holm-corrected p-value is below ``alpha``."""
+        """Whether the Holm-corrected p-value is below ``alpha``.
+
+        Parameters
+        ----------
+        alpha : float
+            Family-wise level.
+
+        Returns
+        -------
+        bool
+            False when the candidate was not tested.
+        """
         return self.p_holm is not None and self.p_holm < alpha
 
 
@@ -165,6 +216,31 @@ def attribute_step(
     floor_weights: np.ndarray | None = None,
 ) -> tuple[list, list]:
     """One attribution step from ``cur``.
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra and band.
+    cur : DiagFit
+        The current fit.
+    effects : sequence of Effect
+        The candidate library (only deterministic effects are tested).
+    bands : NoiseBands
+        Noise bands of the likelihood.
+    rows : numpy.ndarray of int
+        Noise band of each stacked analysis row.
+    options : dict
+        Fit options (``outputs``, ``boundary``, ``biases``) of the refits.
+    alpha : float, optional
+        Family-wise level.
+    refit_top : int, optional
+        Candidates refitted by maximum likelihood regardless of their LM.
+    step : int, optional
+        Number of this step (recorded in each candidate).
+    n_obs : int, optional
+        Real independent observations, n of BIC.
+    floor_weights : numpy.ndarray, optional
+        Shape (N, n_out): diagonal noise-floor whitening for aliasing and the MDE.
 
     Returns
     -------
@@ -256,7 +332,22 @@ def _loglik_terms(fit: DiagFit, rows: np.ndarray) -> np.ndarray:
 
 
 def vuong_z(fa: DiagFit, fb: DiagFit, rows: np.ndarray, dft: np.ndarray) -> float:
-    """Vuong's z for "fit a is better than fit b" on the independent frequencies (0 when they coincide)."""
+    """Vuong's z for "fit a is better than fit b" on the independent frequencies (0 when they coincide).
+
+    Parameters
+    ----------
+    fa, fb : DiagFit
+        The two fits, on the same rows.
+    rows : numpy.ndarray of int
+        Noise band of each stacked row.
+    dft : numpy.ndarray
+        Shape (N,), bool: which rows are DFT points.
+
+    Returns
+    -------
+    float
+        The z statistic, standard normal when the fits are equally good.
+    """
     d = (_loglik_terms(fa, rows) - _loglik_terms(fb, rows))[dft]
     s = float(np.sqrt(np.sum((d - d.mean()) ** 2)))
     if s <= 1e-12 * max(1.0, float(np.sum(np.abs(d)))):
@@ -267,7 +358,28 @@ def vuong_z(fa: DiagFit, fb: DiagFit, rows: np.ndarray, dft: np.ndarray) -> floa
 def choose(
     tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = None, dft: np.ndarray | None = None
 ) -> tuple:
-    """(best, ambiguity set) among the significant refitted candidates, or (None, [])."""
+    """(best, ambiguity set) among the significant refitted candidates, or (None, []).
+
+    Parameters
+    ----------
+    tested : list of Candidate
+        The tested candidates of a step.
+    alpha : float
+        Family-wise level.
+    n_obs : int
+        Real independent observations, n of BIC.
+    rows : numpy.ndarray of int, optional
+        Noise band of each stacked row (with ``dft``, enables Vuong's test).
+    dft : numpy.ndarray, optional
+        Shape (N,), bool: which stacked rows are DFT points (independent frequencies).
+
+    Returns
+    -------
+    best : Candidate or None
+        The significant candidate of lowest BIC.
+    ambiguous : list of Candidate
+        The significant candidates these data do not tell apart from it (``best`` included).
+    """
     sig = [c for c in tested if c.refitted and c.significant(alpha)]
     if not sig:
         return None, []

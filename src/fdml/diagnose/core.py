@@ -221,8 +221,14 @@ def diagnose(
     refit_top : int, optional
         Candidates refitted after the score screen (plus any whose score test
         is significant on its own).
-    outputs, boundary, biases, trim :
-        As in :func:`fdml.fit`.
+    outputs : sequence of str or str, optional
+        Outputs that enter the fits (default ``alpha, q, az``), as in :func:`fdml.fit`.
+    boundary : {"estimated", "measured", "none"}, optional
+        Boundary terms, as in :func:`fdml.fit`.
+    biases : {"auto", True, False}, optional
+        Output biases, as in :func:`fdml.fit`.
+    trim : {"first", "mean", "none"}, optional
+        Trim removal, as in :func:`fdml.spectral.spectra`.
     shrink_threshold : float, optional
         Shrink needed for the label "confirmed".
     check, strict : bool, optional
@@ -569,14 +575,19 @@ def recommended_fit(
     Parameters
     ----------
     data : AnalysisData
+        The records' spectra on the analysis grid.
     base_model : Model
         The base model (values: the base fit's estimates).
     effects : sequence of Effect
         The accepted effects, in order.
     start : Model, optional
         A model whose parameter values (shared names) start the fit.
-    outputs, boundary, biases :
-        As in :func:`fdml.fit`.
+    outputs : sequence of str or str, optional
+        Outputs that enter the fit (default ``alpha, q, az``), as in :func:`fdml.fit`.
+    boundary : {"estimated", "measured", "none"}, optional
+        Boundary terms, as in :func:`fdml.fit`.
+    biases : {"auto", True, False}, optional
+        Output biases, as in :func:`fdml.fit`.
 
     Returns
     -------
@@ -740,7 +751,23 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink) -> list:
 
 
 def floor_weights(data, gmap, channels) -> np.ndarray:
-    """1/sqrt(noise floor) per stacked analysis row and fitted channel, from the gap map's cells."""
+    """1/sqrt(noise floor) per stacked analysis row and fitted channel, from the gap map's cells.
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    gmap : GapMap
+        A gap map holding every channel's cells.
+    channels : sequence of str
+        The fitted channels.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (N, n_channels): the weights, 1 / unit of the channel's transform
+        (a cell without a floor takes the channel's median floor).
+    """
     om = data.stacked_omega()
     nb = gmap.edges.size - 1
     b = np.clip(np.searchsorted(gmap.edges, om, side="right") - 1, 0, nb - 1)

@@ -44,6 +44,18 @@ def parse_diag_band(band) -> tuple[float, float]:
 
     A step is accepted for compatibility with ``fdml fit --band`` and ignored:
     the diagnosis uses the spacing 2 pi/(K T) of each record (see module doc).
+
+    Parameters
+    ----------
+    band : tuple, str or None
+        The band (None: :data:`DEFAULT_DIAG_BAND`).
+
+    Returns
+    -------
+    lo : float
+        Lowest frequency, rad/s.
+    hi : float
+        Highest frequency, rad/s.
     """
     if band is None:
         return DEFAULT_DIAG_BAND
@@ -58,14 +70,14 @@ def parse_diag_band(band) -> tuple[float, float]:
 class AnalysisData:
     """Spectra of the records on the analysis grid.
 
-    Attributes
+    Parameters
     ----------
     spectra : tuple of FrequencyData
         One per record, on its K-grid inside the band.
     dft : tuple of ndarray of bool
         Per record, which grid points are DFT points (independent spacing).
     oversample : int
-        K.
+        Grid points K per independent frequency spacing 2 pi/T.
     band : (float, float)
         Analysis band, rad/s.
     inputs : tuple of str
@@ -89,19 +101,43 @@ class AnalysisData:
         return int(sum(int(m.sum()) for m in self.dft))
 
     def stacked_omega(self) -> np.ndarray:
-        """Frequencies of the stacked residual rows (records in order)."""
+        """Frequencies of the stacked residual rows (records in order).
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (N,), rad/s.
+        """
         return np.concatenate([d.omega for d in self.spectra])
 
     def stacked_dft(self) -> np.ndarray:
-        """The records' transforms on the analysis grid, stacked along frequency."""
+        """Which stacked rows are DFT points (independent frequencies), records in order.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (N,), bool.
+        """
         return np.concatenate(self.dft)
 
     def stacked_record(self) -> np.ndarray:
-        """For each stacked frequency, the index of its record."""
+        """For each stacked frequency, the index of its record.
+
+        Returns
+        -------
+        numpy.ndarray
+            Shape (N,), int.
+        """
         return np.concatenate([np.full(d.m, i) for i, d in enumerate(self.spectra)])
 
     def names(self) -> list[str]:
-        """The records' names, in order."""
+        """The records' names, in order.
+
+        Returns
+        -------
+        list of str
+            One name per record.
+        """
         return [d.name for d in self.spectra]
 
 
@@ -121,6 +157,7 @@ def analysis_data(
     Parameters
     ----------
     records : Record or sequence of Record
+        The flight records.
     band : tuple or str, optional
         ``(lo, hi)`` rad/s (default 0.1-10); see :func:`parse_diag_band`.
     oversample : int, optional
@@ -133,6 +170,7 @@ def analysis_data(
     Returns
     -------
     AnalysisData
+        The spectra on each record's K-grid and the masks of its DFT points.
     """
     items = [records] if isinstance(records, Record) else list(records or [])
     if not items:

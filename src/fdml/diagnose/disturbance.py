@@ -54,7 +54,25 @@ __all__ = ["GustTest", "gust_test"]
 
 @dataclass
 class GustTest:
-    """Result of the unmeasured-turbulence test."""
+    """Result of the unmeasured-turbulence test.
+
+    Parameters
+    ----------
+    lr : float
+        Rao's score statistic (asymptotically 0.5 chi2_0 + 0.5 chi2_1 under no turbulence).
+    p : float
+        Its p-value.
+    sigma_w : float
+        Estimated RMS of the vertical gust velocity, m/s.
+    sigma_w_se : float
+        Standard error of ``sigma_w``, m/s.
+    share : float
+        Share of the incoherent residual power the gust term explains, 0 to 1.
+    n_samples : int
+        Independent complex samples the test used.
+    note : str
+        A remark on the result (empty by default).
+    """
 
     lr: float
     p: float
@@ -203,7 +221,24 @@ def _size(E, G, phi, bidx):
 
 
 def gust_test(data: AnalysisData, fit, edges: np.ndarray, *, length: float = DRYDEN_L) -> GustTest | None:
-    """Likelihood-ratio test for turbulence along the model's gust column (see module doc)."""
+    """Likelihood-ratio test for turbulence along the model's gust column (see module doc).
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    fit : DiagFit
+        The final deterministic fit.
+    edges : numpy.ndarray
+        Band edges, rad/s.
+    length : float, optional
+        Dryden scale length L, m.
+
+    Returns
+    -------
+    GustTest or None
+        None when fewer than two outputs are fitted or no band holds two samples.
+    """
     model = fit.model
     out_idx = list(fit.prob.out_idx)
     n = len(out_idx)

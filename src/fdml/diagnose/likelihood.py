@@ -46,6 +46,22 @@ def noise_bands(data: AnalysisData, *, mode: str = "band", min_independent: int 
     """Equal-count noise bands over the stacked analysis frequencies.
 
     ``mode="white"`` gives one band (fdml's own white-noise likelihood).
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    mode : {"band", "white"}, optional
+        Band-wise or one band.
+    min_independent : int, optional
+        Fewest independent frequencies per band.
+    max_bands : int, optional
+        Most bands.
+
+    Returns
+    -------
+    NoiseModel
+        The band edges, rad/s.
     """
     om = np.sort(data.stacked_omega())
     lo, hi = om[0] * (1 - 1e-9), om[-1] * (1 + 1e-9)
@@ -61,7 +77,24 @@ def noise_bands(data: AnalysisData, *, mode: str = "band", min_independent: int 
 
 
 def band_cost(V: np.ndarray, rows: np.ndarray, nb: int):
-    """``sum_b N_b ln det R_b`` and the R_b (Eq. 24 per band, fdml.estimate's floor), as a list of nb."""
+    """``sum_b N_b ln det R_b`` and the R_b (Eq. 24 per band, fdml.estimate's floor), as a list of nb.
+
+    Parameters
+    ----------
+    V : numpy.ndarray
+        Residuals, shape (N, n_out), complex.
+    rows : numpy.ndarray of int
+        Noise band of each row, shape (N,).
+    nb : int
+        Number of bands (a band without rows gets R = I).
+
+    Returns
+    -------
+    cost : float
+        The cost ``sum_b N_b ln det R_b``.
+    Rs : list of numpy.ndarray
+        The nb band covariances, shape (n_out, n_out) each.
+    """
     Rs = list(_cov_R(V, rows))
     Rs += [np.eye(V.shape[1])] * (nb - len(Rs))  # trailing bands without rows
     return float(V.shape[0] * _logdet(np.stack(Rs), rows)), Rs
@@ -71,13 +104,14 @@ def band_cost(V: np.ndarray, rows: np.ndarray, nb: int):
 class DiagFit:
     """A model fitted for the diagnosis (fdml.fit under the band-wise noise model).
 
-    Attributes
+    Parameters
     ----------
     model : Model
         With its parameters at the estimates.
     names : tuple of str
         Estimated quantities (model parameters then nuisance terms).
     theta : ndarray
+        The estimates, in ``names`` order.
     stderr : dict
         Standard errors (fdml's coloured-residual covariance at ``theta``) by name.
     V : ndarray, shape (N, n_out)
@@ -87,12 +121,13 @@ class DiagFit:
     Rs : list of ndarray
         Band residual covariances.
     converged : bool
-        fdml's fit converged.
+        Whether fdml's fit converged.
     message : str
+        The optimiser's message.
     prob : Problem
-        fdml's problem for this model and data.
+        The fdml problem for this model and data.
     result : FitResult
-        fdml's result (derived values and their standard errors at ``theta``).
+        The fdml result (derived values and their standard errors at ``theta``).
     warnings : tuple of RecordedWarning
         Every warning raised while fitting it (the diagnosis shows none on the
         screen: they are kept here and in the report).
@@ -117,11 +152,23 @@ class DiagFit:
         return dict(zip(self.names, self.theta.tolist()))
 
     def model_values(self) -> dict:
-        """All model parameter values with the estimates in place."""
+        """All model parameter values with the estimates in place.
+
+        Returns
+        -------
+        dict of str to float
+            Values by parameter name, each in its unit.
+        """
         return self.prob.model_values(self.theta)
 
     def full_residual(self) -> np.ndarray:
-        """Residuals of all three outputs on the stacked analysis rows, shape (N, 3)."""
+        """Residuals of all three outputs on the stacked analysis rows, shape (N, 3).
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex: alpha (rad s), q (rad), az (g s), fitted or not.
+        """
         ys = self.prob.predict(self.theta)
         return np.concatenate([d.z - y for d, y in zip(self.prob.data, ys)])
 
@@ -140,6 +187,28 @@ def fit_model(
 
     ``start`` overrides start values by name (model parameters only).  Estimates, standard errors
     (coloured-residual sandwich) and derived values all belong to the same, final estimate.
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    model : Model
+        The model, with its start values and free parameters.
+    bands : NoiseModel
+        The noise bands.
+    outputs : sequence of str or str, optional
+        Outputs that enter the fit (default ``alpha, q, az``).
+    boundary : {"estimated", "measured", "none"}, optional
+        Boundary terms, as for :func:`fdml.fit`.
+    biases : {"auto", True, False}, optional
+        Output biases, as for :func:`fdml.fit`.
+    start : dict, optional
+        Start values by parameter name (clipped to the bounds).
+
+    Returns
+    -------
+    DiagFit
+        The fit, its band-wise cost and the warnings it raised.
     """
     if start:
         vals = {}
@@ -174,6 +243,26 @@ def diag_fit(res, data: AnalysisData, bands: NoiseBands, stderr: dict, warned=()
 
     ``warned``: the warnings recorded while ``res`` was fitted; kept in the DiagFit with the
     result's own and those of rebuilding the problem.
+
+    Parameters
+    ----------
+    res : FitResult
+        The fit.
+    data : AnalysisData
+        The records' spectra it was fitted to.
+    bands : NoiseModel
+        The noise bands of the cost.
+    stderr : dict
+        Standard errors by name.
+    warned : iterable, optional
+        Warnings recorded while ``res`` was fitted.
+    **options
+        Fit options (``outputs``, ``boundary``, ``biases``) to rebuild the problem with.
+
+    Returns
+    -------
+    DiagFit
+        The fit with its residuals and band-wise cost.
     """
     items = list(data.spectra)
     with recording(reemit=False) as log:
@@ -198,5 +287,18 @@ def diag_fit(res, data: AnalysisData, bands: NoiseBands, stderr: dict, warned=()
 
 
 def likelihood_ratio(c0: float, c1: float, oversample: int) -> float:
-    """``2 (C0 - C1) / K`` (>= 0 up to optimiser noise; clipped at 0)."""
+    """``2 (C0 - C1) / K`` (>= 0 up to optimiser noise; clipped at 0).
+
+    Parameters
+    ----------
+    c0, c1 : float
+        Costs of the null and the alternative fit.
+    oversample : int
+        K, the analysis grid's oversampling.
+
+    Returns
+    -------
+    float
+        The likelihood-ratio statistic.
+    """
     return max(2.0 * (c0 - c1) / oversample, 0.0)

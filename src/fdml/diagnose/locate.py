@@ -62,6 +62,20 @@ def default_bands(data: AnalysisData, n_target: int = 5, min_bins: int | None = 
     ``min_bins`` defaults to ``max(10, 3 * regressors)``: at least three
     independent frequencies per regression coefficient, so that the floor has
     two thirds of the cell's degrees of freedom.
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra and analysis band.
+    n_target : int, optional
+        Bands before merging.
+    min_bins : int, optional
+        Fewest DFT points per band.
+
+    Returns
+    -------
+    numpy.ndarray
+        The band edges, rad/s.
     """
     lo, hi = data.band
     om = np.concatenate([d.omega[m] for d, m in zip(data.spectra, data.dft)])
@@ -93,7 +107,58 @@ def default_bands(data: AnalysisData, n_target: int = 5, min_bins: int | None = 
 
 @dataclass
 class Cell:
-    """One channel x band cell of the gap map."""
+    """One channel x band cell of the gap map.
+
+    Energies and the floor are in the squared unit of the channel's transform
+    (alpha rad s, q rad, az g s).
+
+    Parameters
+    ----------
+    channel : str
+        Output channel.
+    band : tuple
+        ``(lo, hi)``, rad/s.
+    n : int
+        DFT points in the cell.
+    residual_power : float
+        Mean |e|^2 per DFT point.
+    coherent : float
+        Coherent energy (sum over the points).
+    incoherent : float
+        Incoherent energy (sum over the points).
+    floor : float
+        Noise floor per point (incoherent energy / dof).
+    dof : int
+        Complex degrees of freedom of the floor.
+    k : int
+        Complex coherent coefficients.
+    F : float
+        F statistic of the coherent part, F(2 k, 2 dof) under no model error.
+    p : float or None
+        Its p-value (None when the cell is not testable).
+    excess : float
+        Coherent energy in floor units minus its noise-only expectation (0 under no error).
+    gain_db : float or None
+        Gain error of the model against the data, dB, input ``de``.
+    gain_db_ci : tuple or None
+        Its 95 % confidence bounds, dB.
+    phase_deg : float or None
+        Phase error, deg.
+    phase_deg_ci : tuple or None
+        Its 95 % confidence bounds, deg.
+    gain_se_db : float or None
+        Standard error of the gain error, dB.
+    excitation : str
+        ``"ok"``, ``"insufficient excitation"`` or ``"too few frequencies"``.
+    p_holm : float or None
+        Holm-adjusted p-value across the cells.
+    q_bh : float or None
+        Benjamini-Hochberg q-value across the cells.
+    significant : bool
+        Whether ``p_holm`` is below the map's alpha.
+    extra : dict
+        Gain (dB) and phase (deg) errors of the other inputs, ``gain_db_<input>``, ``phase_deg_<input>``.
+    """
 
     channel: str
     band: tuple
@@ -119,7 +184,13 @@ class Cell:
     extra: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
-        """The cell as plain JSON data (non-finite numbers as None)."""
+        """The cell as plain JSON data (non-finite numbers as None).
+
+        Returns
+        -------
+        dict
+            The cell's figures, with ``coherent_fraction``, ``noise_floor`` and ``floor_dof`` (real).
+        """
 
         def num(x):
             if x is None:
@@ -152,7 +223,21 @@ class Cell:
 
 @dataclass
 class GapMap:
-    """All cells, with the multiple-testing correction applied."""
+    """All cells, with the multiple-testing correction applied.
+
+    Parameters
+    ----------
+    cells : list of Cell
+        Channel by channel, bands in order within each.
+    edges : numpy.ndarray
+        Band edges, rad/s.
+    channels : tuple of str
+        The channels mapped.
+    alpha : float
+        Family-wise level of the Holm correction.
+    method : str
+        How the noise floor was estimated (for reports).
+    """
 
     cells: list
     edges: np.ndarray
@@ -164,15 +249,40 @@ class GapMap:
     )
 
     def cell(self, channel: str, b: int) -> Cell:
-        """The cell of ``channel`` in band number ``b``."""
+        """The cell of ``channel`` in band number ``b``.
+
+        Parameters
+        ----------
+        channel : str
+            A channel of the map.
+        b : int
+            Band index, from 0.
+
+        Returns
+        -------
+        Cell
+            The cell.
+        """
         return self.cells[self.channels.index(channel) * (self.edges.size - 1) + b]
 
     def flagged(self) -> list:
-        """The cells whose gap is significant."""
+        """The cells whose gap is significant.
+
+        Returns
+        -------
+        list of Cell
+            In map order.
+        """
         return [c for c in self.cells if c.significant]
 
     def to_list(self) -> list:
-        """Every cell as plain JSON data, channel by channel."""
+        """Every cell as plain JSON data, channel by channel.
+
+        Returns
+        -------
+        list of dict
+            One :meth:`Cell.to_dict` per cell.
+        """
         return [c.to_dict() for c in self.cells]
 
 
@@ -182,7 +292,21 @@ def _legendre(x: np.ndarray, order: int) -> np.ndarray:
 
 @dataclass
 class CellDesign:
-    """Rows and regressors of one cell (shared by before/after evaluations)."""
+    """Rows and regressors of one cell (shared by before/after evaluations).
+
+    Parameters
+    ----------
+    rows : numpy.ndarray
+        Indices into the stacked analysis rows.
+    XT : numpy.ndarray
+        Transient regressors, shape (n, kT).
+    XC : numpy.ndarray
+        Coherent regressors, shape (n, kC).
+    weights : list
+        Per input: (column slice, band-average weights over its coefficients).
+    inputs : list of str
+        The inputs with coherent regressors.
+    """
 
     rows: np.ndarray  # indices into the stacked analysis rows
     XT: np.ndarray  # transient regressors (n, kT)
@@ -195,6 +319,24 @@ def cell_design(data: AnalysisData, forced: np.ndarray, c: int, lo: float, hi: f
     """Regressors of cell (channel c, band [lo, hi)) on the stacked DFT rows.
 
     ``forced`` has shape (N, 3, n_in): the model's forced response y_jc per row.
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    forced : numpy.ndarray
+        The model's forced response, shape (N, 3, n_in) (:func:`forced_response`).
+    c : int
+        Output index (0 alpha, 1 q, 2 az).
+    lo, hi : float
+        Band edges, rad/s.
+    last : bool
+        Whether this is the last band (closed at ``hi``).
+
+    Returns
+    -------
+    CellDesign
+        The cell's rows and its transient and coherent regressors.
     """
     om = data.stacked_omega()
     rec = data.stacked_record()
@@ -236,7 +378,26 @@ def _lstsq_rss(X, e):
 
 
 def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, floor: float | None = None):
-    """Regress the residual of one cell; returns a :class:`Cell` (``floor`` fixes the noise floor)."""
+    """Regress the residual of one cell; returns a :class:`Cell` (``floor`` fixes the noise floor).
+
+    Parameters
+    ----------
+    design : CellDesign
+        The cell's rows and regressors.
+    e : numpy.ndarray
+        Residual of the channel on the stacked rows, shape (N,), complex.
+    channel : str
+        The channel.
+    band : tuple
+        ``(lo, hi)``, rad/s.
+    floor : float, optional
+        Noise floor to hold (default: the cell's own).
+
+    Returns
+    -------
+    Cell
+        The cell, not yet corrected for multiple testing.
+    """
     n = design.rows.size
     kT, kC = design.XT.shape[1], design.XC.shape[1]
     dof = n - kT - kC
@@ -321,7 +482,22 @@ def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, 
 
 
 def forced_response(data: AnalysisData, model, values=None) -> np.ndarray:
-    """``G_jc(w) u_j(w)`` on the stacked rows, shape (N, 3, n_in)."""
+    """``G_jc(w) u_j(w)`` on the stacked rows, shape (N, 3, n_in).
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    model : Model
+        The model.
+    values : mapping, optional
+        Parameter values overriding the model's.
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex, shape (N, 3, n_in): alpha (rad s), q (rad), az (g s) per input.
+    """
     out = []
     for d in data.spectra:
         G = model.evaluate(d.omega, values).G[:, :, : d.u.shape[1]]
@@ -344,6 +520,8 @@ def gap_map(
 
     Parameters
     ----------
+    data : AnalysisData
+        The records' spectra.
     residual : ndarray, shape (N, 3)
         Residuals z - y on the stacked analysis rows (all three outputs;
         columns of outputs that were not fitted are ignored via ``channels``).
@@ -351,9 +529,20 @@ def gap_map(
         The model's forced response (see :func:`forced_response`).
     edges : ndarray
         Band edges, rad/s.
+    channels : sequence of str, optional
+        Channels mapped (default alpha, q, az).
+    alpha : float, optional
+        Family-wise level of the Holm correction.
     floors : dict, optional
         ``{(channel, band index): floor}`` to hold the noise floors of another
         map (for before/after comparisons).
+    designs : dict, optional
+        ``{(channel, band index): CellDesign}``, reused and filled in place.
+
+    Returns
+    -------
+    GapMap
+        Every cell, tested and corrected.
     """
 
     cells = []

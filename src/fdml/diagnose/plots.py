@@ -61,6 +61,18 @@ def plot_report(rep, path=None):
     the final model.  Below: magnitude and phase of the elevator frequency
     response per output, the data (model plus residual over input at the
     independent frequencies) against the base and the final models.
+
+    Parameters
+    ----------
+    rep : DiagnosisReport
+        A diagnosis with its ``details`` (a fresh one, not one read from JSON).
+    path : str or Path, optional
+        Image file to write (atomically; the figure is then closed).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The figure.
     """
     import matplotlib
 

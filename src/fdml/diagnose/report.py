@@ -63,7 +63,32 @@ def label_for(
     n_unexplained: int,
     threshold: float = SHRINK_CONFIRM,
 ) -> str | None:
-    """The confidence label of one candidate (see module doc)."""
+    """The confidence label of one candidate (see module doc).
+
+    Parameters
+    ----------
+    significant : bool
+        Whether the candidate is significant (Holm, family level alpha) and refitted.
+    accepted : bool
+        Whether it is an accepted effect.
+    ambiguous : bool
+        Whether other effects fit these data as well (ambiguity set of more than one).
+    plausible : bool
+        Whether its fitted parameters lie in their plausible ranges.
+    shrink : float or None
+        Shrink of the coherent gap over the flagged cells (None: not judged).
+    n_flagged : int
+        Cells the base map flagged.
+    n_unexplained : int
+        Flagged cells left after the final fit.
+    threshold : float, optional
+        Shrink needed for ``confirmed``.
+
+    Returns
+    -------
+    str or None
+        ``"confirmed"``, ``"tentative"``, ``"partial"``, or None when not significant.
+    """
     if not significant:
         return None
     if not plausible:
@@ -103,6 +128,55 @@ class DiagnosisReport:
     :meth:`from_dict` reads the JSON back; ``details`` (the fitted objects)
     are not in the JSON, and ``recommended`` comes back as None (its brief is
     in :attr:`recommended_brief`).
+
+    Parameters
+    ----------
+    verdict : str
+        The accepted effect's name, ``"unmeasured_gust"``, or ``"none"``.
+    status : str
+        ``"ok"``, or why there is no verdict (``"base_fit_failed"``,
+        ``"base_not_converged"``, ``"insufficient_excitation"``).
+    problems : list of str
+        What limited the diagnosis (thinly excited cells, ...).
+    ranking : list of dict
+        One entry per tested candidate (and the turbulence test): statistics,
+        p-values, shrink and label.
+    ambiguous : list of str
+        Keys of the effects these data do not tell apart from the accepted one.
+    not_identifiable : list of dict
+        Candidates not applicable or not testable here, with the reason.
+    location : list of dict
+        The base fit's gap map, one dict per cell (:meth:`fdml.diagnose.locate.Cell.to_dict`).
+    footprint : list of dict
+        Per accepted effect and cell: the effect's own energy (floor units) and share.
+    unexplained : list of dict
+        Flagged cells left after the final fit (in-sample and held out).
+    selected : list of dict
+        The accepted effects' ranking entries, with their parameter shifts.
+    location_after : list of dict
+        The final fit's gap map.
+    compensation : list of dict
+        Per cell: how the base parameters had bent to imitate the first accepted effect.
+    parameter_shifts : dict
+        Base against final estimates of the shared parameters, in base standard errors.
+    holdout : dict or None
+        The held-out judgement, when held-out records were given.
+    noise : dict
+        The noise model: bands (rad/s), floor method and the turbulence test.
+    settings : dict
+        The options and figures of the run (band, records, elapsed time, ...).
+    text : str
+        The plain-language paragraph.
+    details : dict
+        The fitted objects (not in the JSON).
+    findings : tuple of Finding
+        The data check's findings.
+    recommended : FitResult or None
+        The fit of the base model plus the accepted effects.
+    warnings : tuple of RecordedWarning
+        Warnings of the fits the report keeps.
+    recommended_brief : dict or None
+        The recommended fit's ``brief()`` as read back from JSON.
     """
 
     verdict: str
@@ -129,7 +203,13 @@ class DiagnosisReport:
     recommended_brief: dict | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict:
-        """JSON-ready dict: the issue's keys first, then the supporting detail."""
+        """JSON-ready dict: the issue's keys first, then the supporting detail.
+
+        Returns
+        -------
+        dict
+            Plain JSON data (non-finite numbers as None).
+        """
         d = {
             "verdict": self.verdict,
             "ranking": self.ranking,
@@ -156,8 +236,23 @@ class DiagnosisReport:
 
     @classmethod
     def from_dict(cls, d, *, source: str = "fdml diagnosis report") -> DiagnosisReport:
-        """Inverse of :meth:`to_dict` (see the class notes); a key missing or of the wrong type
-        raises :class:`~fdml.errors.FdmlError` ``"<source>: key '<key>' ..."``."""
+        """Inverse of :meth:`to_dict` (see the class notes).
+
+        A key missing or of the wrong type raises :class:`~fdml.errors.FdmlError`
+        ``"<source>: key '<key>' ..."``.
+
+        Parameters
+        ----------
+        d : dict
+            The JSON data.
+        source : str, optional
+            What the data came from, named in errors.
+
+        Returns
+        -------
+        DiagnosisReport
+            The report, without ``details`` and ``recommended``.
+        """
         from ..findings import Finding
         from ..jsoncodec import Fields
 
@@ -195,7 +290,22 @@ class DiagnosisReport:
         )
 
     def to_json(self, path=None, indent: int = 1, *, inputs=()) -> str:
-        """JSON text; written atomically to ``path`` when given (never over ``inputs``)."""
+        """JSON text; written atomically to ``path`` when given (never over ``inputs``).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            File to write.
+        indent : int, optional
+            JSON indentation.
+        inputs : sequence of str or Path, optional
+            Input files the output must not overwrite.
+
+        Returns
+        -------
+        str
+            The JSON text.
+        """
         from ..jsoncodec import dumps, write_json
 
         d = self.to_dict()
@@ -204,7 +314,13 @@ class DiagnosisReport:
         return dumps(d, indent=indent)
 
     def summary(self) -> str:
-        """The plain-language paragraph and a ranking table."""
+        """The plain-language paragraph and a ranking table.
+
+        Returns
+        -------
+        str
+            The paragraph, the data check's findings and the table.
+        """
         lines = [self.text, ""]
         if self.findings:
             lines[1:1] = ["", "data check:"] + [f"  {f}" for f in self.findings]
@@ -245,7 +361,18 @@ class DiagnosisReport:
         return self.summary()
 
     def plot(self, path=None):
-        """The figure: gap map before/after and Bode overlays (see :mod:`fdml.diagnose.plots`)."""
+        """The figure: gap map before/after and Bode overlays (see :mod:`fdml.diagnose.plots`).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Image file to write.
+
+        Returns
+        -------
+        matplotlib.figure.Figure
+            The figure.
+        """
         from .plots import plot_report
 
         return plot_report(self, path)

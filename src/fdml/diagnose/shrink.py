@@ -34,7 +34,30 @@ __all__ = ["fit_map", "shrink", "footprint", "compensation", "parameter_shifts",
 def fit_map(
     data: AnalysisData, fit, edges, *, alpha: float, channels, before: GapMap | None = None, designs: dict | None = None
 ) -> GapMap:
-    """Gap map of a fit; with ``before``, the noise floors of that map are held (for shrink)."""
+    """Gap map of a fit; with ``before``, the noise floors of that map are held (for shrink).
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    fit : DiagFit
+        The fit.
+    edges : numpy.ndarray
+        Band edges, rad/s.
+    alpha : float
+        Family-wise level of the map.
+    channels : sequence of str
+        Channels mapped.
+    before : GapMap, optional
+        A map whose noise floors are held.
+    designs : dict, optional
+        Cell regressors to reuse (:func:`fdml.diagnose.locate.gap_map`).
+
+    Returns
+    -------
+    GapMap
+        The fit's map.
+    """
     e = fit.full_residual()
     forced = forced_response(data, fit.model)
     floors = None
@@ -49,6 +72,20 @@ def shrink(before: GapMap, after: GapMap, cells: list | None = None) -> tuple[fl
 
     ``cells`` (indices) defaults to the cells ``before`` flags.  None when no cell was flagged
     (the gap is too small to judge) or no excess is left in them.
+
+    Parameters
+    ----------
+    before, after : GapMap
+        Maps of the same cells before and after the effect is added.
+    cells : list of int, optional
+        Indices of the cells judged.
+
+    Returns
+    -------
+    shrink : float or None
+        The shrink, 0 to 1.
+    n_flagged : int
+        Number of cells judged.
     """
     idx = [i for i, c in enumerate(before.cells) if c.significant] if cells is None else list(cells)
     if not idx:
@@ -84,7 +121,24 @@ def _cell_energy(data: AnalysisData, delta: np.ndarray, before: GapMap) -> list:
 
 
 def footprint(data: AnalysisData, fit: DiagFit, nulls: dict, before: GapMap) -> list:
-    """Energy of the effect itself per cell (in noise-floor units) and its share."""
+    """Energy of the effect itself per cell (in noise-floor units) and its share.
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    fit : DiagFit
+        The fit with the effect.
+    nulls : dict
+        The effect's parameters at their null (effect off), by name.
+    before : GapMap
+        The base map: its cells and noise floors.
+
+    Returns
+    -------
+    list of dict
+        Per cell: ``channel``, ``band`` (rad/s), ``energy`` (floor units) and ``share``.
+    """
     theta0 = fit.theta.copy()
     for n, v in nulls.items():
         if n in fit.names:
@@ -109,7 +163,26 @@ def _predict_null(fit: DiagFit, theta0: np.ndarray, nulls: dict) -> np.ndarray:
 
 
 def compensation(data: AnalysisData, fit: DiagFit, base: DiagFit, nulls: dict, before: GapMap) -> list:
-    """How the base parameters moved to imitate the effect: per-cell energy of y(aug, eta0) - y(base)."""
+    """How the base parameters moved to imitate the effect: per-cell energy of y(aug, eta0) - y(base).
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    fit : DiagFit
+        The fit with the effect.
+    base : DiagFit
+        The base fit.
+    nulls : dict
+        The effect's parameters at their null, by name.
+    before : GapMap
+        The base map: its cells and noise floors.
+
+    Returns
+    -------
+    list of dict
+        Per cell: ``channel``, ``band`` (rad/s), ``energy`` (floor units) and ``share``.
+    """
     theta0 = fit.theta.copy()
     for n, v in nulls.items():
         if n in fit.names:
@@ -119,7 +192,21 @@ def compensation(data: AnalysisData, fit: DiagFit, base: DiagFit, nulls: dict, b
 
 
 def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
-    """``{name: {base, base_stderr, augmented, augmented_stderr, shift_in_stderr}}`` for shared model parameters."""
+    """``{name: {base, base_stderr, augmented, augmented_stderr, shift_in_stderr}}`` for shared model parameters.
+
+    Parameters
+    ----------
+    base : DiagFit
+        The base fit.
+    fit : DiagFit
+        The fit with the effect(s).
+
+    Returns
+    -------
+    dict
+        Per shared model parameter and derived value (``derived: True``), values
+        in its unit and the shift in base standard errors.
+    """
     out = {}
     bp, fp = base.params, fit.params
     slots = base.prob.slots
@@ -160,7 +247,24 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
 
 
 def frozen_fit(data: AnalysisData, model, bands: NoiseBands, options: dict) -> DiagFit:
-    """The model with every model parameter frozen; only each record's nuisance terms are fitted (hold-out)."""
+    """The model with every model parameter frozen; only each record's nuisance terms are fitted (hold-out).
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The held-out records' spectra.
+    model : Model
+        The model, at the estimates.
+    bands : NoiseModel
+        The noise bands of the cost.
+    options : dict
+        Fit options (``outputs``, ``boundary``, ``biases``).
+
+    Returns
+    -------
+    DiagFit
+        The frozen fit.
+    """
     frozen = model.with_parameters(model.parameters.only_free([]))
     with recording(reemit=False) as log:  # kept in the DiagFit
         # the records were checked once (core._data_findings); a frozen model needs no adequacy check

@@ -42,7 +42,18 @@ def _p(p) -> str:
 
 
 def paragraph(rep) -> str:
-    """A short paragraph: where the model misses, what explains it, how much, and what is left."""
+    """A short paragraph: where the model misses, what explains it, how much, and what is left.
+
+    Parameters
+    ----------
+    rep : DiagnosisReport
+        The diagnosis.
+
+    Returns
+    -------
+    str
+        The paragraph, plain text.
+    """
     st = rep.settings
     out = [
         f"Base: {st.get('base_model')}, {len(st.get('records', []))} record(s), "

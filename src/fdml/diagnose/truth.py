@@ -76,7 +76,23 @@ _TIME_DOMAIN = (
 
 
 def truth_model(base, key: str, values: dict):
-    """The plain fdml model that is the truth for a free-parameter effect (else the base)."""
+    """The plain fdml model that is the truth for a free-parameter effect (else the base).
+
+    Parameters
+    ----------
+    base : Model
+        The base model.
+    key : str
+        Effect key (``"time_delay@q"``).
+    values : dict
+        Effect parameter values by name, each in its unit.
+
+    Returns
+    -------
+    Model
+        The base model with the effect where it is a plain fdml model, else
+        ``base`` (the effect is then simulated in the time domain).
+    """
     eff = get_effect(key)
     aug = eff.augment(base).with_values(values)
     if root_model(aug) is aug:
@@ -160,7 +176,25 @@ def _qdot(model, values, t, inputs) -> np.ndarray:
 
 
 def sensor_noise(rng: np.random.Generator, n: int, dt: float, kind: str = "white") -> np.ndarray:
-    """Unit-variance-white-part sensor noise of ``n`` samples (white or coloured)."""
+    """Unit-variance-white-part sensor noise of ``n`` samples (white or coloured).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the noise.
+    n : int
+        Number of samples.
+    dt : float
+        Sample interval, s.
+    kind : {"white", "coloured"}, optional
+        White, or white plus an AR(1) part with corner :data:`COLOURED_CORNER`
+        rad/s whose low-frequency density is :data:`COLOURED_LF_RATIO` times the white one.
+
+    Returns
+    -------
+    numpy.ndarray
+        Shape (n,), dimensionless (scaled by the caller).
+    """
     w = rng.standard_normal(n)
     if kind == "white":
         return w
@@ -220,12 +254,29 @@ def simulate_truth(
         Effect parameter values (e.g. ``{"tau_q": 0.03}``; ``vane_filter``:
         ``{"omega_f": rad/s, "zeta_f": -}``; ``unmeasured_gust``: ``{"sigma_w": m/s}``).
     maneuver : {"3211", "doublet", "multisine"}
+        The elevator input.
+    duration : float
+        Record length, s.
+    dt : float
+        Sample interval, s.
     noise : float
         Sensor noise standard deviation as a fraction of each clean channel's RMS.
-    gust_std : float
-        Measured Dryden gust (m/s) driving a gust model (``base.gust``).
+    noise_kind : {"white", "coloured"}
+        Kind of sensor noise (:func:`sensor_noise`).
     seed : int
         Seeds the input phases (multisine), the gust and the noise.
+    gust_std : float
+        Measured Dryden gust (m/s) driving a gust model (``base.gust``).
+    amplitude : float, optional
+        Elevator amplitude, rad (default 1 deg).
+    name : str, optional
+        Record name (default ``"<key>-<maneuver>-<seed>"``).
+
+    Returns
+    -------
+    Record
+        The noisy record; ``meta`` holds the truth, its values, the manoeuvre,
+        the noise and the seed.
     """
     values = dict(values or {})
     rng = np.random.default_rng(seed)

@@ -91,7 +91,27 @@ NULLS = {"none-white": "white", "none-coloured": "coloured"}
 
 @dataclass(frozen=True)
 class Scenario:
-    """One validation run."""
+    """One validation run.
+
+    Parameters
+    ----------
+    truth : str or None
+        Key of the withheld effect (None for a null case).
+    values : dict
+        Its parameter values by name, each in its unit.
+    size : str
+        ``"small"`` or ``"large"`` (``"-"`` for a null case).
+    maneuver : str
+        ``"3211"``, ``"doublet"`` or ``"multisine"``.
+    noise : float
+        Sensor noise standard deviation as a fraction of each channel's RMS.
+    noise_kind : str
+        ``"white"`` or ``"coloured"``.
+    seed : int
+        Seed of the record (the hold-out record's is derived from it).
+    case : str
+        The case it is scored under (the truth key, or the null's name).
+    """
 
     truth: str | None
     values: dict
@@ -117,6 +137,24 @@ def scenarios(
 
     Every truth x size x manoeuvre x noise level x ``n_effect`` seeds, and every null x
     manoeuvre x noise level x ``n_null`` seeds.
+
+    Parameters
+    ----------
+    n_effect : int, optional
+        Seeds per truth, size, manoeuvre and noise level.
+    n_null : int, optional
+        Seeds per null case, manoeuvre and noise level.
+    seed_base : int, optional
+        First seed; each scenario takes the next.
+    truths : sequence of str, optional
+        Keys of :data:`TRUTHS` (default all).
+    nulls : sequence of str, optional
+        Names of :data:`NULLS` (default all).
+
+    Returns
+    -------
+    list of Scenario
+        The scenarios, seeds distinct.
     """
     out = []
     seed = seed_base
@@ -148,6 +186,19 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
 
     The row's ``warnings`` (JSON text of ``"Category: message"`` strings) are
     every warning the diagnosis raised or kept; ``n_warnings`` counts them.
+
+    Parameters
+    ----------
+    sc : Scenario
+        The run.
+    diagnose_options : dict, optional
+        Keyword arguments of :func:`fdml.diagnose.diagnose`.
+
+    Returns
+    -------
+    dict
+        The scenario, the verdict, label, shrink and test figures, the elapsed
+        time (s) and the warnings.
     """
     from .core import diagnose
     from .truth import simulate_truth
@@ -225,7 +276,22 @@ def _failed(task: dict, exc) -> dict:
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple:
-    """Wilson score interval of a proportion k/n."""
+    """Wilson score interval of a proportion k/n.
+
+    Parameters
+    ----------
+    k : int
+        Successes.
+    n : int
+        Trials.
+    z : float, optional
+        Standard normal quantile of the confidence level (1.96: 95 %).
+
+    Returns
+    -------
+    tuple of float
+        ``(lower, upper)``, within [0, 1]; NaN for n = 0.
+    """
     if n == 0:
         return (math.nan, math.nan)
     p = k / n
@@ -240,6 +306,20 @@ def relabel(row: dict, threshold: float, unexplained: str = UNEXPLAINED_RULE) ->
 
     ``unexplained`` says which remaining flagged cells make the label partial: ``"in-sample"`` (after
     the final fit) or ``"holdout"`` (on the held-out record with the parameters frozen).
+
+    Parameters
+    ----------
+    row : dict
+        A row of :func:`run_scenario`.
+    threshold : float
+        Shrink needed for ``confirmed``.
+    unexplained : {"in-sample", "holdout"}, optional
+        The remaining-gap rule.
+
+    Returns
+    -------
+    str or None
+        The label, or None without a verdict.
     """
     if row.get("verdict") in (None, "none", "error"):
         return None
@@ -262,7 +342,21 @@ def relabel(row: dict, threshold: float, unexplained: str = UNEXPLAINED_RULE) ->
 
 
 def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
-    """Scores of a set of runs (see module doc)."""
+    """Scores of a set of runs (see module doc).
+
+    Parameters
+    ----------
+    rows : list of dict
+        Rows of :func:`run_scenario`.
+    threshold : float, optional
+        Shrink needed for the label ``confirmed``.
+
+    Returns
+    -------
+    dict
+        ``threshold``, ``effects``, ``nulls``, ``out_of_library``, ``confusion``,
+        ``top1_overall`` and ``median_time_s``.
+    """
     by = defaultdict(list)
     for r in rows:
         by[r["case"]].append(r)
@@ -363,7 +457,23 @@ def tune_threshold(
     counts ``cost`` (2) times a correct one left tentative or partial; ties go to the more
     conservative choice (higher threshold; the hold-out rule).
 
-    Returns the threshold, or ``(threshold, rule)`` with ``return_rule``.
+    Parameters
+    ----------
+    rows : list of dict
+        Rows of :func:`run_scenario` on the tuning range.
+    grid : sequence of float, optional
+        Shrink thresholds tried.
+    cost : float, optional
+        Weight of a confident wrong answer against a confident right one.
+    rules : sequence of str, optional
+        Which remaining cells count (``"holdout"``, ``"in-sample"``).
+    return_rule : bool, optional
+        Also return the rule.
+
+    Returns
+    -------
+    float or tuple
+        The threshold, or ``(threshold, rule)`` with ``return_rule``.
     """
     best, best_rule, best_j = SHRINK_CONFIRM, UNEXPLAINED_RULE, -math.inf
     for rule in rules:
@@ -387,18 +497,47 @@ def tune_threshold(
 
 @dataclass
 class ValidationResult:
-    """Rows of every run and their scores."""
+    """Rows of every run and their scores.
+
+    Parameters
+    ----------
+    rows : list of dict
+        One row per run (:func:`run_scenario`).
+    scores : dict
+        Their scores (:func:`score`).
+    settings : dict
+        The harness's settings (seeds, band, manoeuvres, noise levels).
+    """
 
     rows: list
     scores: dict
     settings: dict = field(default_factory=dict)
 
     def table(self) -> str:
-        """The scores as a text table (:func:`format_scores`)."""
+        """The scores as a text table (:func:`format_scores`).
+
+        Returns
+        -------
+        str
+            The table.
+        """
         return format_scores(self.scores)
 
     def to_json(self, path=None, *, inputs=()) -> str:
-        """JSON text; written atomically to ``path`` when given (never over ``inputs``)."""
+        """JSON text; written atomically to ``path`` when given (never over ``inputs``).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            File to write.
+        inputs : sequence of str or Path, optional
+            Input files the output must not overwrite.
+
+        Returns
+        -------
+        str
+            The settings, scores and rows as JSON.
+        """
         d = {"settings": self.settings, "scores": self.scores, "rows": self.rows}
         if path is not None:
             from ..jsoncodec import write_json
@@ -408,7 +547,18 @@ class ValidationResult:
 
 
 def format_scores(s: dict) -> str:
-    """The validation table as text."""
+    """The validation table as text.
+
+    Parameters
+    ----------
+    s : dict
+        Scores (:func:`score`).
+
+    Returns
+    -------
+    str
+        The table: per truth, null case and out-of-library case.
+    """
     out = [f"label threshold (shrink for 'confirmed'): {s['threshold']:.2f}", ""]
     out.append(
         f"{'truth':22s} {'n':>4s} {'detect':>7s} {'top-1':>6s} {'[Wilson 95%]':>15s} {'in-set':>7s} "
@@ -481,6 +631,13 @@ def validate(
         Append every finished row as one JSON line (a long run can be resumed/inspected).
     progress : callable, optional
         ``progress(done, total)`` after every run.
+    diagnose_options : dict, optional
+        Keyword arguments of :func:`fdml.diagnose.diagnose` for every run.
+
+    Returns
+    -------
+    ValidationResult
+        The rows, their scores and the settings.
     """
     scs = scenarios(n_effect=n_effect, n_null=n_null, seed_base=seed_base, truths=truths, nulls=nulls)
     tasks = [{"index": i, "scenario": sc, "options": diagnose_options} for i, sc in enumerate(scs)]

@@ -70,7 +70,26 @@ def read_fdml_csv(
     name: str | None = None,
     check_units: bool = True,
 ) -> Record:
-    """Read fdml's own CSV (:func:`fdml.record.read_csv`) with a window and trim options."""
+    """Read fdml's own CSV (:func:`fdml.record.read_csv`) with a window and trim options.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+    t0, t1 : float, optional
+        Time window, s.
+    trim : {None, "none", "first", "mean"}, optional
+        Trim is kept by default; see :func:`fdml.io.read_sidpac`.
+    name : str, optional
+        Record name (default: file stem).
+    check_units : bool, optional
+        Passed to :class:`~fdml.record.Record` (rejects angles that look like degrees).
+
+    Returns
+    -------
+    Record
+        The record, with ``meta["format"] == "csv"`` and its trim values.
+    """
     p = check_path(path)
     check_trim(trim)
     rec = read_csv(p, name=name, check_units=check_units)
@@ -94,6 +113,21 @@ def detect_format(path, **kw) -> tuple[str, dict]:
     the layout whose column count matches.  ``.asc``/``.dat``/``.txt``:
     ``dlr-asc`` by column count.  ``.csv``: ``csv-map`` when ``columns`` is
     given, else fdml's own ``csv``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The record file.
+    **kw
+        Loader options given so far: ``layout`` (the DLR layout is then not
+        guessed) and ``columns`` (a ``.csv`` is then ``csv-map``).
+
+    Returns
+    -------
+    format : str
+        One of ``"sidpac"``, ``"dlr-asc"``, ``"dlr-mat"``, ``"csv"``, ``"csv-map"``.
+    options : dict
+        Options the file implies, e.g. ``{"layout": "attas"}``.
     """
     p = check_path(path)
     suffix = p.suffix.lower()
@@ -138,6 +172,7 @@ def load_record(path, format: str = "auto", t0: float | None = None, t1: float |
     Parameters
     ----------
     path : str or Path
+        The record file.
     format : {"auto", "sidpac", "dlr-asc", "dlr-mat", "csv", "csv-map"}
         ``auto`` inspects the file (:func:`detect_format`).
     t0, t1 : float, optional
@@ -150,6 +185,7 @@ def load_record(path, format: str = "auto", t0: float | None = None, t1: float |
     Returns
     -------
     Record
+        The record in fdml's units and signs.
     """
     if format not in FORMATS:
         raise RecordError(f"unknown record format {format!r}; use one of {', '.join(FORMATS)}")
@@ -170,6 +206,22 @@ def load_record(path, format: str = "auto", t0: float | None = None, t1: float |
 def load_records(paths, format: str = "auto", t0: float | None = None, t1: float | None = None, **kw) -> list[Record]:
     """Read several records that are to be used together (e.g. a joint fit).
 
+    Parameters
+    ----------
+    paths : str, Path or sequence of them
+        The record files.
+    format : str
+        As :func:`load_record`, for every file.
+    t0, t1 : float, optional
+        Time window, s, for every file.
+    **kw
+        Loader options, as :func:`load_record`, for every file.
+
+    Returns
+    -------
+    list of Record
+        The records, in the order of ``paths``.
+
     Raises
     ------
     RecordError
@@ -185,7 +237,15 @@ def load_records(paths, format: str = "auto", t0: float | None = None, t1: float
 
 
 def check_same_rate(records, paths=None) -> None:
-    """Raise a RecordError naming the files if the records' sample intervals differ."""
+    """Raise a RecordError naming the files if the records' sample intervals differ.
+
+    Parameters
+    ----------
+    records : sequence of Record
+        The records to be used together.
+    paths : sequence of str or Path, optional
+        Their files, named in the error (default: each record's source or name).
+    """
     if len(records) < 2:
         return
     dts = np.array([r.dt for r in records])

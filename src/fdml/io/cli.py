@@ -13,7 +13,13 @@ __all__ = ["add_record_arguments", "record_options", "parse_mapping"]
 
 
 def add_record_arguments(p: argparse.ArgumentParser) -> None:
-    """--format, --t0, --t1, --columns, --units, --sign, --layout."""
+    """Add --format, --t0, --t1, --columns, --units, --sign and --layout to a parser.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser; the options go in a group "reading records".
+    """
     g = p.add_argument_group("reading records")
     g.add_argument(
         "--format", default=None, choices=FORMATS, help="record format (default auto: by extension and content)"
@@ -33,7 +39,20 @@ def add_record_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def parse_mapping(text: str | None, what: str) -> dict[str, str]:
-    """``"a=b,c=d"`` -> ``{"a": "b", "c": "d"}``; a RecordError names a malformed item."""
+    """``"a=b,c=d"`` -> ``{"a": "b", "c": "d"}``; a RecordError names a malformed item.
+
+    Parameters
+    ----------
+    text : str or None
+        The option's value; None or empty gives an empty dict.
+    what : str
+        The option's name without dashes, for the error message.
+
+    Returns
+    -------
+    dict of str to str
+        The items, names and values stripped.
+    """
     from ..errors import RecordError
 
     out: dict[str, str] = {}
@@ -63,7 +82,19 @@ def _sign(signal: str, text: str) -> int:
 
 
 def record_options(args) -> dict:
-    """Keyword arguments for :func:`fdml.io.load_record` from parsed arguments."""
+    """Keyword arguments for :func:`fdml.io.load_record` from parsed arguments.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments of a command with :func:`add_record_arguments`.
+
+    Returns
+    -------
+    dict
+        ``format``, ``t0``, ``t1`` and, where given, ``columns``, ``units``,
+        ``sign`` and ``layout``.
+    """
     from ..errors import RecordError
 
     opts: dict = {

@@ -20,7 +20,20 @@ _HEADER_UNIT = re.compile(r"^\s*(?P<name>.*?)\s*[\[(](?P<unit>[^\])]*)[\])]\s*$"
 
 
 def split_header_unit(cell: str) -> tuple[str, str | None]:
-    """``"alpha (deg)"`` or ``"alpha [deg]"`` -> ``("alpha", "deg")``; ``"alpha"`` -> ``("alpha", None)``."""
+    """``"alpha (deg)"`` or ``"alpha [deg]"`` -> ``("alpha", "deg")``; ``"alpha"`` -> ``("alpha", None)``.
+
+    Parameters
+    ----------
+    cell : str
+        A header cell.
+
+    Returns
+    -------
+    name : str
+        The column name, stripped.
+    unit : str or None
+        The unit in brackets or parentheses, or None.
+    """
     m = _HEADER_UNIT.match(cell)
     if m and m.group("name"):
         return m.group("name").strip(), m.group("unit").strip() or None
@@ -50,20 +63,20 @@ def read_csv_mapped(
         per row.  Header cells may carry a unit, ``"AOA (deg)"`` or
         ``"AOA [deg]"``; the column is then matched by ``AOA`` or the full cell.
     columns : mapping
-        fdml signal -> column name, e.g. ``{"t": "time", "de": "elev",
+        A mapping fdml signal -> column name, e.g. ``{"t": "time", "de": "elev",
         "alpha": "AOA", "q": "pitch_rate", "az": "nz"}``.  ``t``, ``de``,
         ``alpha``, ``q`` and ``az`` are required; any other fdml signal
         (``theta``, ``V``, ``h``, ``qdot``, ``ax``, ``qbar``, ``alpha_w``,
         ``hdot``) may be mapped too.
     units : mapping, optional
-        fdml signal -> unit of its column, e.g. ``{"alpha": "deg", "q":
+        A mapping fdml signal -> unit of its column, e.g. ``{"alpha": "deg", "q":
         "deg/s", "az": "m/s^2"}``.  Needed for every mapped signal whose
         header carries no unit (``t`` defaults to s).  Accepted units (see
         :data:`fdml.io.units.UNITS`): angles rad, deg, mrad; rates rad/s, deg/s;
         specific force g, m/s^2, ft/s^2; speed m/s, ft/s, kt, km/h; length
         m, ft; time s, ms; pressure Pa, hPa, kPa, lbf/ft^2.
     sign : mapping, optional
-        fdml signal -> +1 or -1, applied after unit conversion.  fdml wants
+        A mapping fdml signal -> +1 or -1, applied after unit conversion.  fdml wants
         ``az`` positive **down** (body-z specific force, about -1 g in level
         flight, THEORY.md Eq. 5): a normal load factor n_z (+1 g in level
         flight, positive up) needs ``units={"az": "g"}, sign={"az": -1}``.
@@ -86,6 +99,7 @@ def read_csv_mapped(
     Returns
     -------
     Record
+        The record in fdml's units and signs (SI, ``az`` in g positive down).
 
     Raises
     ------

@@ -121,6 +121,7 @@ def read_dlr_asc(
     Returns
     -------
     Record
+        The record in fdml's units and signs (SI, ``az`` in g positive down).
 
     Notes
     -----
@@ -178,6 +179,7 @@ def read_dlr_mat(
     Returns
     -------
     Record
+        The record in fdml's units and signs (SI, ``az`` in g positive down).
 
     Notes
     -----

@@ -24,6 +24,11 @@ DATA_ENV = "FDML_DATA"
 def data_dir() -> Path:
     """The shared data folder: ``$FDML_DATA``, which must be a directory.
 
+    Returns
+    -------
+    pathlib.Path
+        The folder, with ``~`` expanded.
+
     Raises
     ------
     RecordError
@@ -48,6 +53,11 @@ def data_path(relative: str) -> Path:
     ----------
     relative : str
         Path inside the data folder, e.g. ``"twin_otter/totter_lon_020213f1_017.mat"``.
+
+    Returns
+    -------
+    pathlib.Path
+        The file's path.
 
     Raises
     ------

@@ -107,7 +107,18 @@ _ALIASES = {
 
 
 def normalise_unit(unit: str) -> str:
-    """Canonical spelling of a unit string (``"deg/sec"`` -> ``"deg/s"``, ``"m/s2"`` -> ``"m/s^2"``)."""
+    """Canonical spelling of a unit string (``"deg/sec"`` -> ``"deg/s"``, ``"m/s2"`` -> ``"m/s^2"``).
+
+    Parameters
+    ----------
+    unit : str
+        A unit as written in a file or on the command line.
+
+    Returns
+    -------
+    str
+        The spelling used as key of :data:`UNITS` (lower case).
+    """
     if not isinstance(unit, str):
         raise RecordError(f"a unit must be a string such as 'deg' or 'm/s^2', got {unit!r}")
     u = unit.strip().lower().replace("**", "^").replace("²", "^2").replace("³", "^3")
@@ -124,6 +135,20 @@ def unit_factor(unit: str, quantity: str, *, what: str = "") -> float:
 
     Raises :class:`RecordError` naming ``what`` when the unit is unknown or
     measures another quantity (e.g. ``deg`` for an acceleration).
+
+    Parameters
+    ----------
+    unit : str
+        The unit, in any spelling :func:`normalise_unit` accepts.
+    quantity : str
+        A quantity of :data:`UNITS` (``"angle"``, ``"angular rate"``, ...).
+    what : str, optional
+        What carries the unit (a channel or option), for the error message.
+
+    Returns
+    -------
+    float
+        The factor: value in fdml's unit = value in ``unit`` * factor.
     """
     u = normalise_unit(unit)
     table = UNITS[quantity]
@@ -143,14 +168,37 @@ def unit_factor(unit: str, quantity: str, *, what: str = "") -> float:
 
 
 def to_si(values, unit: str, signal: str, *, what: str = "") -> np.ndarray:
-    """Convert a recorded channel of fdml signal ``signal`` from ``unit`` to fdml's unit."""
+    """Convert a recorded channel of fdml signal ``signal`` from ``unit`` to fdml's unit.
+
+    Parameters
+    ----------
+    values : array_like
+        The recorded samples, in ``unit``.
+    unit : str
+        Their unit.
+    signal : str
+        The fdml signal (a key of :data:`QUANTITY`, e.g. ``"alpha"``).
+    what : str, optional
+        What to name in an error (default: ``signal``).
+
+    Returns
+    -------
+    numpy.ndarray
+        The samples in fdml's unit of the signal, float.
+    """
     if signal not in QUANTITY:
         raise RecordError(f"{what + ': ' if what else ''}unknown signal {signal!r}; known: {', '.join(QUANTITY)}")
     return np.asarray(values, dtype=float) * unit_factor(unit, QUANTITY[signal], what=what or signal)
 
 
 def units_text() -> str:
-    """One line per quantity listing the accepted units (for help texts)."""
+    """One line per quantity listing the accepted units (for help texts).
+
+    Returns
+    -------
+    str
+        Lines ``"quantity: unit, unit, ..."``.
+    """
     return "\n".join(f"{q}: {', '.join(_display(k) for k in tab)}" for q, tab in UNITS.items())
 
 
