@@ -123,6 +123,17 @@ def jones_lag_constants(aspect_ratio: float) -> tuple[float, float, float, float
     (THEORY.md section 2), held at the nearer end outside [3, 6].  The
     uncertainty is half the AR 3-6 spread (0.039 in y, 0.080 in z), doubled
     outside [3, 6]: the one-term form and the [MEM] table do not support more.
+
+    Parameters
+    ----------
+    aspect_ratio : float
+        Wing aspect ratio S/c^2 (or b^2/S), dimensionless.
+
+    Returns
+    -------
+    tuple of float
+        ``(y, z, sigma_y, sigma_z)``: lift-lag amplitude and rate (dimensionless,
+        per semichord travelled) and their standard uncertainties.
     """
     (a3, (y3, z3)), (a6, (y6, z6)) = sorted(_JONES_TABLE.items())
     ar = min(max(float(aspect_ratio), a3), a6)
@@ -399,6 +410,16 @@ def lag_provenance(ac: Aircraft) -> dict:
 
     ``{"source", "meaning", "constants": {name: {"value", "uncertainty", "source"}}}``;
     ``uncertainty`` is None where the aircraft file gave the value.
+
+    Parameters
+    ----------
+    ac : Aircraft
+        The aircraft whose lag constants are described.
+
+    Returns
+    -------
+    dict
+        ``{"source", "meaning", "constants": {name: {"value", "uncertainty", "source"}}}``.
     """
     status = ac.lag_status
     return {
@@ -420,6 +441,18 @@ def aircraft_for_lags(spec, free=()) -> "Aircraft":
 
     Freeing an identifiable lag constant is one way out of the missing-constants
     refusal: the fit estimates it, from the "jones" start values (the rest stay at those).
+
+    Parameters
+    ----------
+    spec : str, Aircraft or mapping
+        A preset name, an aircraft file or an :class:`Aircraft`.
+    free : sequence of str, optional
+        Parameters the fit frees (lag constants among them start at Jones's values).
+
+    Returns
+    -------
+    Aircraft
+        The aircraft, with Jones's lag constants filled in where a freed one needs a start.
     """
     ac = load_aircraft(spec)
     if ac.lag_status is None and set(free or ()) & set(LAG_KEYS):
@@ -428,7 +461,20 @@ def aircraft_for_lags(spec, free=()) -> "Aircraft":
 
 
 def missing_lag_message(ac: Aircraft, kind: str = "unsteady") -> str:
-    """The one-line refusal of the unsteady model for an aircraft without lag constants, with the ways out."""
+    """The one-line refusal of the unsteady model for an aircraft without lag constants, with the ways out.
+
+    Parameters
+    ----------
+    ac : Aircraft
+        The aircraft that gives none of the lag constants.
+    kind : str, optional
+        The model kind asked for (``"unsteady"``).
+
+    Returns
+    -------
+    str
+        The message, naming the missing constants and the three ways out.
+    """
     return (
         f"the {kind} model needs the lag constants {', '.join(LAG_KEYS)} and aircraft {ac.name!r} gives none of "
         "them (without them it is the steady model); give them in the aircraft file, or name a documented "

@@ -106,17 +106,18 @@ def _long_run_variance(d: np.ndarray, span: int) -> float:
 class Evidence:
     """Which model the data favour: Vuong's test on per-frequency log-likelihoods.
 
-    Attributes
+    Parameters
     ----------
     statistic : float
         Vuong's z: the summed log-likelihood difference (unsteady minus steady,
         with Schwarz's correction for unequal parameter counts) over its
         standard deviation; N(0, 1) when the models fit equally well.
     p_value : float
-        Two-sided.
+        Two-sided p-value of the statistic.
     favoured : {"steady", "unsteady", "neither"}
         The better-fitting model when ``p_value < level``, else "neither".
     level : float
+        Two-sided level of the test (default 0.05).
     n_freq : int
         Frequencies summed over records.
     span : int
@@ -125,6 +126,7 @@ class Evidence:
         Largest |shift| of the six derivatives in standard errors: how far a
         steady fit would be biased if the truth were unsteady.
     method : str
+        The test's name and variance estimator, for reports.
     """
 
     statistic: float
@@ -137,7 +139,13 @@ class Evidence:
     method: str = "Vuong (1989) non-nested test, Newey-West variance over the frequency correlation span"
 
     def to_dict(self) -> dict:
-        """JSON-ready dict of every field."""
+        """JSON-ready dict of every field.
+
+        Returns
+        -------
+        dict
+            ``{field name: value}``.
+        """
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
     @classmethod
@@ -174,7 +182,13 @@ class Evidence:
         )
 
     def text(self) -> str:
-        """One paragraph: statistic, p-value, the verdict and, for "neither", the distance."""
+        """One paragraph: statistic, p-value, the verdict and, for "neither", the distance.
+
+        Returns
+        -------
+        str
+            The paragraph.
+        """
         head = (
             f"Vuong z = {self.statistic:+.3g} (positive favours unsteady), p = {self.p_value:.3g}, "
             f"{self.n_freq} frequencies, correlation span {self.span}: "
@@ -193,6 +207,20 @@ def vuong_test(steady: FitResult, unsteady: FitResult, *, level: float = EVIDENC
     Assumption: frequencies more than 2 pi / T apart are independent, and the
     dependence of nearer ones is captured by a Bartlett (Newey-West) long-run
     variance over that span (:func:`correlation_span`); records are independent.
+
+    Parameters
+    ----------
+    steady, unsteady : FitResult
+        The two fits, of the same spectra (same records, band and outputs).
+    level : float, optional
+        Two-sided level below which one model is favoured (default 0.05).
+    distance : float, optional
+        Largest derivative shift in standard errors, kept for the report.
+
+    Returns
+    -------
+    Evidence
+        The statistic, its p-value and the verdict.
     """
     from scipy.stats import norm
 
@@ -227,6 +255,13 @@ def check_records_for_compare(records, *, gust: bool = False) -> None:
     ``--gust`` needs alpha_w in every record; a joint fit needs one aircraft
     (the records' ``meta["aircraft"]`` and their geometry S_w, c_w, b agree
     within :data:`GEOMETRY_TOLERANCE`).
+
+    Parameters
+    ----------
+    records : sequence of Record
+        The records to be fitted together.
+    gust : bool, optional
+        Whether the gust input alpha_w is to be used.
     """
     if gust:
         lacking = [r.name for r in records if "alpha_w" not in r.signals]
@@ -309,8 +344,16 @@ class Comparison:
         return max(zs) if zs else math.nan
 
     def fit_quality(self) -> dict:
-        """``{model: {"ln_det_R", "rms": {output: residual RMS}}}`` (RMS of |z - y| over frequencies)."""
-        from .models.base import OUTPUTS
+        """Each fit's ln det R and residual RMS per output.
+
+        Returns
+        -------
+        dict
+            ``{model: {"ln_det_R", "rms": {output: residual RMS}}}``, the RMS of
+            ``|z - y|`` over the frequencies, in the output's spectral units
+            (rad s, rad, g s).
+        """
+        from .channels import OUTPUTS
 
         out = {}
         for key, res in (("steady", self.steady), ("unsteady", self.unsteady)):
@@ -325,8 +368,17 @@ class Comparison:
     def summary(self, reference: dict | None = None, digits: int = 4):
         """Side-by-side table (WK Tables 1 and 3), fit quality and the evidence.
 
-        ``reference`` adds columns ``{name: (unsteady, steady)}``.  Returns a
-        :class:`fdml.summary.Summary` (text; Markdown, HTML, LaTeX, DataFrame).
+        Parameters
+        ----------
+        reference : dict, optional
+            Published values ``{name: (unsteady, steady)}``, shown as extra columns.
+        digits : int, optional
+            Significant digits of values.
+
+        Returns
+        -------
+        fdml.summary.Summary
+            The table as text, also rendered as Markdown, HTML, LaTeX or a DataFrame.
         """
         from .summary import Summary, comparison_summary
 
@@ -349,7 +401,11 @@ class Comparison:
     def brief(self) -> dict:
         """The JSON of ``fdml compare --json``.
 
-        ``steady`` and ``unsteady`` (each as ``fdml fit --json``), ``shifts``, ``evidence``, ``fit_quality``.
+        Returns
+        -------
+        dict
+            ``steady`` and ``unsteady`` (each as ``fdml fit --json``), ``shifts``,
+            ``evidence`` and ``fit_quality``.
         """
         return {
             "steady": self.steady.brief(),
@@ -360,7 +416,13 @@ class Comparison:
         }
 
     def to_dict(self) -> dict:
-        """JSON-ready dict (format ``fdml.Comparison`` version 1): both full fits, the shifts and the evidence."""
+        """JSON-ready dict (format ``fdml.Comparison`` version 1).
+
+        Returns
+        -------
+        dict
+            Both full fits, the shifts and the evidence.
+        """
         return {
             "format": COMPARISON_FORMAT[0],
             "version": COMPARISON_FORMAT[1],
@@ -372,7 +434,20 @@ class Comparison:
 
     @classmethod
     def from_dict(cls, d: dict, *, source: str = "fdml comparison") -> "Comparison":
-        """Inverse of :meth:`to_dict` (the shifts are recomputed from the fits)."""
+        """Inverse of :meth:`to_dict` (the shifts are recomputed from the fits).
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, named in a one-line error.
+
+        Returns
+        -------
+        Comparison
+            The comparison ``d`` describes.
+        """
         from .jsoncodec import Fields
 
         f = Fields(d, source)

@@ -18,7 +18,7 @@ class EstimatorSettings:
     :data:`SETTINGS` is the instance every fit uses; each number below is
     the one the estimator's code reads, none is written twice.
 
-    Attributes
+    Parameters
     ----------
     settle_tol : float
         Relative change at which the Eq. 26 sensitivities count as settled
