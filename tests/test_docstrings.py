@@ -7,9 +7,7 @@ define. Each object is checked with :func:`numpydoc.validate.validate` for the c
 :data:`CHECKS`, the way python-control checks its own docstrings. A method that overrides a
 documented method of a base class inherits its docstring (as Sphinx shows it), so it passes GL08.
 
-The checks are the ones the code base passes today; the lead schedules the rest (PR01 every
-parameter documented, RT01 a Returns section, ...) in later passes: add a code to :data:`CHECKS`
-once it passes.
+SS05 (a summary starting with an infinitive verb) and the ES01/SA01/EX01 sections are not required.
 """
 
 from __future__ import annotations
@@ -34,6 +32,13 @@ CHECKS = {
     "GL07",  # sections in numpydoc's order
     "GL08",  # a docstring at all
     "GL10",  # reST directives followed by two colons
+    "PR01",  # every parameter documented
+    "PR04",  # every parameter has a type
+    "PR07",  # every parameter has a description
+    "PR08",  # a parameter description starts with a capital letter
+    "RT01",  # a Returns section (for a function that returns something)
+    "RT03",  # the returned value has a description
+    "RT04",  # a return description starts with a capital letter
     "SS01",  # a summary
     "SS02",  # the summary starts with a capital letter
     "SS03",  # the summary ends with a period
