@@ -830,7 +830,7 @@ def screen(ctx: ScreenContext, effect: Effect, *, level: float, band: tuple) -> 
     level : float
         Test level (the MDE is at this level and 80 % power).
     band : tuple of float
-        (lowest, highest) frequency of the fit, rad/s (the nuisance grid spans it).
+        The fit's band, ``(lo, hi, ...)`` rad/s (the nuisance grid spans lo to hi).
 
     Returns
     -------
@@ -859,7 +859,7 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
     level : float
         Test level (the MDE is at this level and 80 % power).
     band : tuple of float
-        (lowest, highest) frequency of the fit, rad/s (the nuisance grid spans it).
+        The fit's band, ``(lo, hi, ...)`` rad/s (the nuisance grid spans lo to hi).
 
     Returns
     -------
