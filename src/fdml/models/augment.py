@@ -578,11 +578,11 @@ class OutputEffect(Effect):
         Returns
         -------
         G : numpy.ndarray
-            Outputs per input with the effect applied, same shapes.
+            Outputs per input with the effect applied, same shape.
         H : numpy.ndarray
-            Outputs per boundary term with the effect applied, same shapes.
+            Outputs per boundary term with the effect applied, same shape.
         P : numpy.ndarray
-            Outputs per state-equation forcing with the effect applied, same shapes.
+            Outputs per state-equation forcing with the effect applied, same shape.
         """
         return self._fn(s, p, G, H, P, root)
 
