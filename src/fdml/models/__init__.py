@@ -32,6 +32,8 @@ def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(),
     Parameters
     ----------
     kind : {"unsteady", "steady", "derivatives", "dimensional"}
+        The model: Wells-Keskar unsteady or steady, non-dimensional
+        derivatives, or dimensional derivatives.
     aircraft : Aircraft or str, optional
         An :class:`~fdml.aircraft.Aircraft`, a preset name or a JSON file path.
         Required except for ``dimensional`` given ``airspeed=``.
@@ -46,6 +48,7 @@ def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(),
     Returns
     -------
     Model
+        The model, with its default parameter set and the effects free at their nulls.
     """
     try:
         cls = MODEL_KINDS[kind]
@@ -82,6 +85,16 @@ def model_to_dict(model: Model) -> dict:
     A model with effects is saved as its base model's kind and options plus
     the effect keys (``"time_delay@alpha"``) in order; the parameters are the
     whole set, the effects' included.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+
+    Returns
+    -------
+    dict
+        JSON-ready.
     """
     import dataclasses
 
@@ -111,7 +124,18 @@ def model_to_dict(model: Model) -> dict:
 
 
 def model_from_dict(d: dict) -> Model:
-    """Inverse of :func:`model_to_dict`."""
+    """Inverse of :func:`model_to_dict`.
+
+    Parameters
+    ----------
+    d : dict
+        A dict as written by :func:`model_to_dict`.
+
+    Returns
+    -------
+    Model
+        The model, its parameters and effects as saved.
+    """
     from ..parameters import Parameters
     from .effects import assemble
 
