@@ -140,7 +140,8 @@ def to_unsteady_equivalent(root: Model) -> Model:
     Returns
     -------
     Model
-        The unsteady model with the same values, the lags off and the same free parameters (``root`` itself when unsteady).
+        The unsteady model with the same values, the lags off and the same
+        free parameters (``root`` itself when unsteady).
     """
     if root.kind == "unsteady":
         return root
