@@ -246,11 +246,17 @@ class Effect:
         Parameters
         ----------
         target : object
-            The realisation being built (a state space, a :class:`fdml.simulate.Descriptor` or realisation options).
+            The realisation being built: a state space, a
+            :class:`fdml.simulate.Descriptor` or realisation options.
         p : mapping of str to float
             All parameter values by name.
         root : Model
             The plain base model.
+
+        Returns
+        -------
+        object
+            ``target`` (or a new one of its kind) with the effect applied.
         """
         raise ParameterError(
             f"effect {self.key} has no time-domain realisation: it can be fitted, "
