@@ -411,7 +411,8 @@ class ScreenResult:
     aliasing : dict
         Parameter name -> share (0 to 1) of its signature the base parameters can mimic.
     mde : dict
-        Parameter name -> minimum detectable value change at the screen's level and 80 % power, in its unit.
+        Parameter name -> minimum detectable effect (80 % power at the level divided by
+        ``ctx.family_size``), in its unit.
     identifiable : bool
         Whether the data can test the candidate.
     reason : str or None, optional
@@ -828,7 +829,7 @@ def screen(ctx: ScreenContext, effect: Effect, *, level: float, band: tuple) -> 
     effect : Effect
         The candidate.
     level : float
-        Test level (the MDE is at this level and 80 % power).
+        Test level (the MDE has 80 % power at level / ``ctx.family_size``).
     band : tuple of float
         The fit's band, ``(lo, hi, ...)`` rad/s (the nuisance grid spans lo to hi).
 
@@ -857,7 +858,7 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
     effects : sequence of Effect
         The candidates.
     level : float
-        Test level (the MDE is at this level and 80 % power).
+        Test level (the MDE has 80 % power at level / ``ctx.family_size``).
     band : tuple of float
         The fit's band, ``(lo, hi, ...)`` rad/s (the nuisance grid spans lo to hi).
 
