@@ -64,7 +64,22 @@ def lift_lag(s, a: float, y: float, z: float, U: float, c: float):
 
 
 def downwash_pole_time(l: float, U: float, c: float) -> float:
-    """Time T = (l - c)/U of the starting-vortex pole of Eq. 2, s."""
+    """Time T = (l - c)/U of the starting-vortex pole of Eq. 2, s.
+
+    Parameters
+    ----------
+    l : float
+        Tail length, m.
+    U : float
+        Airspeed, m/s.
+    c : float
+        Wing reference chord, m.
+
+    Returns
+    -------
+    float
+        The pole time T, s (positive when the tail is longer than the chord).
+    """
     return (l - c) / U
 
 
@@ -162,7 +177,24 @@ def kussner(s, b, U: float, c: float, weights=None):
 
 
 def lift_indicial(t, y: float, z: float, U: float, c: float):
-    """Normalised indicial lift of Eq. 1, ``1 - y exp(-2 z U t / c)`` for t >= 0."""
+    """Normalised indicial lift of Eq. 1, ``1 - y exp(-2 z U t / c)`` for t >= 0.
+
+    Parameters
+    ----------
+    t : array_like
+        Time since the step, s.
+    y, z : float
+        Lag amplitude (-) and rate per semichord travelled (-).
+    U : float
+        Airspeed, m/s.
+    c : float
+        Reference chord, m.
+
+    Returns
+    -------
+    numpy.ndarray
+        The indicial lift C_La(t)/(C_La)_ss, -, same shape as ``t`` (0 for t < 0).
+    """
     t = np.asarray(t, dtype=float)
     return np.where(t >= 0, 1.0 - y * np.exp(-2.0 * z * U * np.maximum(t, 0.0) / c), 0.0)
 
@@ -174,6 +206,24 @@ def downwash_indicial(t, F: float, G: float, H: float, l: float, U: float, c: fl
     equals ``F c / (U (t - T))`` and has a simple pole at ``T = (l - c)/U``,
     where this function returns ``inf`` (the Duhamel integral of Eq. 10 is a
     Cauchy principal value there).
+
+    Parameters
+    ----------
+    t : array_like
+        Time since the step, s.
+    F, G, H : float
+        Eq. 2 constants (starting-vortex pole strength, lag amplitude, lag rate).
+    l : float
+        Tail length, m.
+    U : float
+        Airspeed, m/s.
+    c : float
+        Wing reference chord, m.
+
+    Returns
+    -------
+    numpy.ndarray
+        The normalised indicial downwash, -, same shape as ``t`` (0 for t < 0).
     """
     t = np.asarray(t, dtype=float)
     T = downwash_pole_time(l, U, c)
@@ -184,7 +234,22 @@ def downwash_indicial(t, F: float, G: float, H: float, l: float, U: float, c: fl
 
 
 def kussner_indicial(tau, b, weights=None):
-    """Indicial gust lift of BS-17 in semichords tau: ``1 - sum a_i exp(-tau / b_i)``."""
+    """Indicial gust lift of BS-17 in semichords tau: ``1 - sum a_i exp(-tau / b_i)``.
+
+    Parameters
+    ----------
+    tau : array_like
+        Distance travelled since the gust front, semichords.
+    b : float or sequence of float
+        Lag lengths b_i, semichords.
+    weights : sequence of float, optional
+        Weights a_i (default equal).
+
+    Returns
+    -------
+    numpy.ndarray
+        The normalised indicial gust lift, -, same shape as ``tau`` (0 for tau < 0).
+    """
     tau = np.asarray(tau, dtype=float)
     b = np.atleast_1d(np.asarray(b, dtype=float))
     w = np.full(b.shape, 1.0 / b.size) if weights is None else np.asarray(weights, float)
@@ -203,10 +268,11 @@ class IndicialFunction:
     Parameters
     ----------
     name : str
+        The preset's name.
     amplitudes : tuple of float
-        A_i, -.
+        Amplitudes A_i, -.
     rates : tuple of float
-        beta_i, per semichord.
+        Rates beta_i, per semichord.
     source : str
         Citation, with [MEM] where it is quoted from memory.
     """
@@ -217,7 +283,18 @@ class IndicialFunction:
     source: str = ""
 
     def step(self, tau):
-        """The normalised indicial response phi(tau), tau in semichords."""
+        """The normalised indicial response phi(tau), tau in semichords.
+
+        Parameters
+        ----------
+        tau : array_like
+            Distance travelled, semichords.
+
+        Returns
+        -------
+        numpy.ndarray
+            The response phi, -, same shape as ``tau`` (0 for tau < 0).
+        """
         tau = np.asarray(tau, dtype=float)
         A = np.asarray(self.amplitudes)[:, None]
         b = np.asarray(self.rates)[:, None]
@@ -225,7 +302,22 @@ class IndicialFunction:
         return np.where(tau >= 0, val.reshape(tau.shape), 0.0)
 
     def transfer(self, s, U: float, c: float):
-        """Transfer function ``1 - sum A_i s/(s + 2 beta_i U/c)`` at s (rad/s)."""
+        """Transfer function ``1 - sum A_i s/(s + 2 beta_i U/c)`` at s (rad/s).
+
+        Parameters
+        ----------
+        s : array_like of complex
+            Laplace variable, rad/s.
+        U : float
+            Airspeed, m/s.
+        c : float
+            Reference chord, m.
+
+        Returns
+        -------
+        numpy.ndarray
+            The transfer function, complex, -, same shape as ``s``.
+        """
         s = np.asarray(s, dtype=complex)
         out = np.ones_like(s)
         for A, b in zip(self.amplitudes, self.rates):  # a few terms, not frequencies
@@ -268,7 +360,18 @@ INDICIAL_PRESETS = {
 
 
 def get_indicial(name: str) -> IndicialFunction:
-    """Return a named :class:`IndicialFunction` preset."""
+    """Return a named :class:`IndicialFunction` preset.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`INDICIAL_PRESETS`.
+
+    Returns
+    -------
+    IndicialFunction
+        The preset.
+    """
     try:
         return INDICIAL_PRESETS[name]
     except KeyError:

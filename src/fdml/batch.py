@@ -90,6 +90,7 @@ class ModelSpec:
     Parameters
     ----------
     kind : {"unsteady", "steady", "derivatives", "dimensional"}
+        The model kind (:func:`fdml.make_model`).
     aircraft : str or mapping, optional
         Preset name, aircraft JSON file or aircraft dict (as
         :meth:`fdml.Aircraft.to_dict`).  :meth:`normalized` turns names and
@@ -122,7 +123,18 @@ class ModelSpec:
 
     @classmethod
     def from_model(cls, model) -> "ModelSpec":
-        """The specification of an existing :class:`~fdml.models.Model` (parameters included)."""
+        """The specification of an existing :class:`~fdml.models.Model` (parameters included).
+
+        Parameters
+        ----------
+        model : Model
+            The model.
+
+        Returns
+        -------
+        ModelSpec
+            Its specification.
+        """
         from .models import model_to_dict
 
         d = model_to_dict(model)
@@ -136,7 +148,18 @@ class ModelSpec:
 
     @classmethod
     def coerce(cls, spec) -> "ModelSpec":
-        """A ModelSpec from a ModelSpec, a mapping with its fields, or a Model."""
+        """A ModelSpec from a ModelSpec, a mapping with its fields, or a Model.
+
+        Parameters
+        ----------
+        spec : ModelSpec, mapping or Model
+            The specification.
+
+        Returns
+        -------
+        ModelSpec
+            The specification (``spec`` itself when it is one).
+        """
         if isinstance(spec, cls):
             return spec
         if isinstance(spec, Mapping):
@@ -156,7 +179,13 @@ class ModelSpec:
         raise FdmlError(f"model spec must be a ModelSpec, a mapping or a Model, got {type(spec).__name__}")
 
     def normalized(self) -> "ModelSpec":
-        """Aircraft resolved to its dict, containers made plain (JSON-ready, stable hash)."""
+        """Aircraft resolved to its dict, containers made plain (JSON-ready, stable hash).
+
+        Returns
+        -------
+        ModelSpec
+            The normalised copy.
+        """
         ac = self.aircraft
         if ac is not None:
             from .aircraft import Aircraft, load_aircraft
@@ -182,7 +211,13 @@ class ModelSpec:
         )
 
     def to_dict(self) -> dict:
-        """JSON-ready dict (call on a :meth:`normalized` spec)."""
+        """JSON-ready dict (call on a :meth:`normalized` spec).
+
+        Returns
+        -------
+        dict
+            The fields by name.
+        """
         return {
             "kind": self.kind,
             "aircraft": self.aircraft,
@@ -195,7 +230,13 @@ class ModelSpec:
         }
 
     def build(self):
-        """The :class:`~fdml.models.Model` described."""
+        """The :class:`~fdml.models.Model` described.
+
+        Returns
+        -------
+        Model
+            The model, its values, fixed and free parameters applied.
+        """
         from .aircraft import Aircraft
         from .models import make_model
         from .parameters import Parameters
@@ -244,6 +285,15 @@ class BatchItem:
     """One unit of work: a record file, optionally a window [t0, t1] s within it.
 
     ``key`` names its result file and its table row; it is unique in a batch.
+
+    Parameters
+    ----------
+    path : str
+        The record file.
+    t0, t1 : float or None, optional
+        Start and end of the window, s; None for the record's own.
+    key : str, optional
+        The item's unique name in the batch.
     """
 
     path: str
@@ -342,6 +392,22 @@ def load_source(path, t0: float | None = None, t1: float | None = None, *, name:
 
     Uses :func:`fdml.io.load_record` (any supported format; ``read`` are its
     options: ``format``, ``columns``, ``units``, ``sign``, ``layout``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The record file.
+    t0, t1 : float, optional
+        Start and end of the window, s.
+    name : str, optional
+        The record's name (default the loader's).
+    **read
+        Options of :func:`fdml.io.load_record`.
+
+    Returns
+    -------
+    Record
+        The record (cut to the window).
     """
     from dataclasses import replace
 
@@ -354,6 +420,16 @@ def load_source(path, t0: float | None = None, t1: float | None = None, *, name:
 # --- hashing --------------------------------------------------------------------------------
 def canonical_json(obj) -> str:
     """Stable JSON text of plain data (numbers, strings, lists, dicts): what input hashes are of.
+
+    Parameters
+    ----------
+    obj : object
+        Plain data.
+
+    Returns
+    -------
+    str
+        Compact JSON with sorted keys.
 
     Raises
     ------
@@ -376,6 +452,16 @@ def _file_hash(path: str) -> str:
 
 def check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
     """``fit_kwargs`` as a dict of :func:`fdml.fit` options, checked once before any task runs.
+
+    Parameters
+    ----------
+    fit_kwargs : mapping or None
+        Options of :func:`fdml.fit` (not ``data``, ``model``, ``callback``).
+
+    Returns
+    -------
+    dict
+        The options (empty for None).
 
     Raises
     ------
@@ -577,27 +663,31 @@ def _write_error(task, row, exc, err_path: Path, res_path: Path, input_hash, t_s
 class BatchSummary:
     """What :func:`run_batch` did.
 
-    Attributes
+    The rows themselves stay on disk (memory flat in the number of records);
+    :attr:`rows` reads them from ``table.json``.  Each parameter is the
+    attribute of the same name.
+
+    Parameters
     ----------
     out_dir : Path
+        The output folder.
     table_csv, table_json : Path
+        The table of every record, as CSV and JSON.
     n_total, n_fitted, n_reused, n_failed : int
         Records in the batch; fitted now, reused from an earlier run, failed.
     errors : dict
         Key -> error (type: one-line message) of every record that failed.
-    findings : dict
+    wall_time : float
+        Wall-clock time of the batch, s.
+    engine : str
+        The engine that ran the tasks (``"process"``, ``"serial"``, ``"dask"``).
+    findings : dict, optional
         Key -> the codes (space-separated) of the data check's findings, for
         every record fitted with findings (:mod:`fdml.datacheck`).
-    wall_time : float
-        Seconds.
-    engine : str
-    warnings : dict
+    warnings : dict, optional
         Category (``"DataWarning"``, ...) -> number of warnings of that
         category over every record; each row's own are in its ``warnings``
         column (``"Category: message"``, joined by ``"; "``).
-
-    The rows themselves stay on disk (memory flat in the number of records);
-    :attr:`rows` reads them from ``table.json``.
     """
 
     out_dir: Path
@@ -629,7 +719,13 @@ class BatchSummary:
         return [r for r in self.rows if r["status"] != "ok"]
 
     def to_dict(self) -> dict:
-        """Short JSON form (``fdml batch --json``)."""
+        """Short JSON form (``fdml batch --json``).
+
+        Returns
+        -------
+        dict
+            Counts, wall time, engine, table paths, errors, findings and warnings.
+        """
         return {
             "out_dir": str(self.out_dir),
             "records": self.n_total,
@@ -647,7 +743,20 @@ class BatchSummary:
 
     @classmethod
     def from_dict(cls, d: Mapping, *, source: str = "fdml batch summary") -> "BatchSummary":
-        """Inverse of :meth:`to_dict`; a key missing or of the wrong type raises :class:`FdmlError`."""
+        """Inverse of :meth:`to_dict`; a key missing or of the wrong type raises :class:`FdmlError`.
+
+        Parameters
+        ----------
+        d : mapping
+            A dict as written by :meth:`to_dict`.
+        source : str, optional
+            What and where, for the messages.
+
+        Returns
+        -------
+        BatchSummary
+            The summary.
+        """
         from .jsoncodec import Fields
 
         f = Fields(d, source)
@@ -668,7 +777,13 @@ class BatchSummary:
         )
 
     def to_frame(self):
-        """The table as a pandas DataFrame (pandas is optional)."""
+        """The table as a pandas DataFrame (pandas is optional).
+
+        Returns
+        -------
+        pandas.DataFrame
+            One row per record, read from ``table.csv``.
+        """
         try:
             import pandas as pd
         except ImportError:

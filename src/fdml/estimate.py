@@ -105,6 +105,23 @@ class Problem:
     Built by :func:`prepare`; :func:`fit` iterates on it.  It evaluates
     predictions, residuals and sensitivities as array operations over all
     frequencies, outputs and (for nuisance terms) parameters at once.
+
+    Parameters
+    ----------
+    data : list of FrequencyData
+        The records' spectra.
+    model : Model
+        The model, its free parameters set.
+    outputs : tuple of int
+        Indices of the fitted outputs in :data:`~fdml.models.base.OUTPUTS`.
+    boundary : {"estimated", "measured", "none"}
+        The boundary terms (see :func:`fit`).
+    sensitivity : {"analytic", "fd", "central"}
+        How the sensitivities are computed (see :func:`fit`).
+    state_biases : bool, optional
+        Estimate the state-equation biases per record.
+    input_bias : bool, optional
+        Estimate the elevator offset per record.
     """
 
     def __init__(
@@ -167,7 +184,13 @@ class Problem:
     # --- parameter vector ------------------------------------------------------------
 
     def initial(self) -> np.ndarray:
-        """Start vector: model values, measured boundary values, model biases."""
+        """Start vector: model values, measured boundary values, model biases.
+
+        Returns
+        -------
+        numpy.ndarray
+            One value per slot, in its unit, shape (p,).
+        """
         p = self.model.parameters.values
         out = []
         for s in self.slots:
@@ -181,7 +204,15 @@ class Problem:
         return np.array(out, dtype=float)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper bounds per slot."""
+        """Lower and upper bounds per slot.
+
+        Returns
+        -------
+        lower : numpy.ndarray
+            Lower bounds, shape (p,); -inf for none.
+        upper : numpy.ndarray
+            Upper bounds, shape (p,); inf for none.
+        """
         lo, hi = [], []
         for s in self.slots:
             if not s.role.nuisance:
@@ -194,7 +225,18 @@ class Problem:
         return np.array(lo), np.array(hi)
 
     def model_values(self, theta: np.ndarray) -> dict[str, float]:
-        """The model's parameter values with the model entries of ``theta`` in place."""
+        """The model's parameter values with the model entries of ``theta`` in place.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            Values of every slot (:attr:`names`), each in its unit, shape (p,).
+
+        Returns
+        -------
+        dict of str to float
+            Every model parameter's value, by name.
+        """
         vals = self.model.parameters.values
         for i in self.model_slots:
             vals[self.slots[i].name] = float(theta[i])
@@ -217,7 +259,20 @@ class Problem:
         return [self.model.evaluate(d.omega, vals) for d in self.data]
 
     def predict(self, theta: np.ndarray, responses=None) -> list[np.ndarray]:
-        """Predicted output spectra per record, shape (m_r, 3) (all outputs)."""
+        """Predicted output spectra per record, shape (m_r, 3) (all outputs).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            Values of every slot (:attr:`names`), each in its unit, shape (p,).
+        responses : list of ModelResponse, optional
+            The model's response per record at ``theta`` when already computed.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            Complex spectra of alpha (rad s), q (rad), a_z (g s) per record, shape (m_r, 3).
+        """
         if responses is None:
             responses = self._responses(self.model_values(theta))
         out = []
@@ -235,20 +290,62 @@ class Problem:
         boundary terms at ``theta``), so this is ``dy`` for ``change`` = (dG, dH, dP), any
         object with ``G``, ``H``, ``P`` whose leading axes (one per parameter, say)
         broadcast; shape (..., m_r, 3), all outputs.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            Values of every slot (:attr:`names`), each in its unit, shape (p,).
+        r : int
+            The record.
+        change : object
+            The change (dG, dH, dP) as attributes ``G``, ``H``, ``P`` (e.g. a :class:`ModelResponse`).
+
+        Returns
+        -------
+        numpy.ndarray
+            The change of the predicted outputs, complex, shape (..., m_r, 3).
         """
         d = self.data[r]
         nu = self._nuisance(theta, r)
         return _measure(change, d.u, d.ones, nu.boundary(self._shift[r]), None, nu.state_biases, nu.input_bias)
 
     def residuals(self, theta: np.ndarray, responses=None) -> np.ndarray:
-        """Stacked residuals v = z - y over records, selected outputs, shape (N, n_out)."""
+        """Stacked residuals v = z - y over records, selected outputs, shape (N, n_out).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            Values of every slot (:attr:`names`), each in its unit, shape (p,).
+        responses : list of ModelResponse, optional
+            The model's response per record at ``theta`` when already computed.
+
+        Returns
+        -------
+        numpy.ndarray
+            The residuals, complex, shape (N, n_out).
+        """
         ys = self.predict(theta, responses)
         return np.concatenate([(d.z - y)[:, self.out_idx] for d, y in zip(self.data, ys)])
 
     def sensitivities(
         self, theta: np.ndarray, y0: list[np.ndarray] | None = None, tol: float = SETTINGS.settle_tol
     ) -> np.ndarray:
-        """The sensitivities dy/dtheta, shape (N, n_out, p): Eq. 26 for model parameters, exact for nuisances."""
+        """The sensitivities dy/dtheta, shape (N, n_out, p): Eq. 26 for model parameters, exact for nuisances.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            Values of every slot (:attr:`names`), each in its unit, shape (p,).
+        y0 : list of numpy.ndarray, optional
+            Predictions at ``theta`` (:meth:`predict`) when already computed.
+        tol : float, optional
+            Relative change at which finite-difference columns count as settled.
+
+        Returns
+        -------
+        numpy.ndarray
+            The sensitivities, complex, shape (N, n_out, p).
+        """
         p = len(self.slots)
         A = np.zeros((self.N, self.n_out, p), complex)
         offs = np.cumsum([0] + [d.m for d in self.data])
@@ -436,6 +533,18 @@ def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
     None gives all of :data:`~fdml.models.base.OUTPUTS`.  An unknown name, a
     name given twice (``alpha,alpha``) or an empty list is an
     :class:`~fdml.errors.FdmlError` naming it (``what`` names the option).
+
+    Parameters
+    ----------
+    outputs : None, str or sequence of str
+        The outputs; None for all.
+    what : str, optional
+        The option's name, for messages.
+
+    Returns
+    -------
+    tuple of str
+        The output names, in the order given.
     """
     if outputs is None:
         return tuple(OUTPUTS)
@@ -475,7 +584,46 @@ def prepare(
     trim_window=0.5,
     end_correction="cubic",
 ) -> Problem:
-    """Set up a fit without running it (see :func:`fit` for the arguments)."""
+    """Set up a fit without running it (see :func:`fit` for the arguments).
+
+    Parameters
+    ----------
+    data : Record, FrequencyData or list of them
+        The records.
+    model : Model
+        The model; its free parameters are estimated.
+    omega : array_like, optional
+        Frequencies, rad/s.
+    band : tuple or str, optional
+        ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``.
+    outputs : sequence of str or str, optional
+        Outputs that enter the fit.
+    boundary : {"estimated", "measured", "none"}, optional
+        Klein's boundary terms.
+    biases : {"auto", True, False}, optional
+        Estimate an output bias for every fitted output.
+    state_biases : bool, optional
+        Estimate state-equation biases.
+    input_bias : bool, optional
+        Estimate an elevator offset, rad.
+    free, fix : optional
+        Names to free; names (or a ``{name: value}`` mapping) to fix.
+    bounds : mapping, optional
+        ``{name: (lower, upper)}``.
+    sensitivity : {"auto", "analytic", "fd", "central"}, optional
+        How the sensitivities are computed.
+    trim : {"first", "mean", "none"}, optional
+        Trim removal of time-domain records.
+    trim_window : float, optional
+        Leading window for ``trim="mean"``, s.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        End correction of the finite Fourier integral.
+
+    Returns
+    -------
+    Problem
+        The fit, set up.
+    """
     if not isinstance(model, Model):
         raise ParameterError(f"model must be an fdml Model, got {type(model).__name__}")
     if boundary not in ("estimated", "measured", "none"):
@@ -606,7 +754,7 @@ class NoiseModel:
     each band), cost (1/N) sum_b N_b ln det R_b: the likelihood of noise whose spectrum is flat within
     each band but not across them (coloured sensor noise, turbulence; fdml.diagnose uses it).
 
-    Attributes
+    Parameters
     ----------
     edges : tuple of float
         Band edges, rad/s, increasing; empty (or two edges, one band) is white.
@@ -629,14 +777,36 @@ class NoiseModel:
         return max(len(self.edges) - 1, 1)
 
     def assign(self, omega) -> np.ndarray:
-        """Band index of each frequency (rad/s); frequencies beyond the edges join the outer bands."""
+        """Band index of each frequency (rad/s); frequencies beyond the edges join the outer bands.
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            Band index (int) of each frequency, same shape.
+        """
         if self.n == 1:
             return np.zeros(np.shape(omega), int)
         idx = np.searchsorted(np.asarray(self.edges), omega, side="right") - 1
         return np.clip(idx, 0, self.n - 1)
 
     def rows(self, prob: Problem) -> np.ndarray | None:
-        """Band of each stacked residual row of ``prob`` (records in order); None when white."""
+        """Band of each stacked residual row of ``prob`` (records in order); None when white.
+
+        Parameters
+        ----------
+        prob : Problem
+            The fit.
+
+        Returns
+        -------
+        numpy.ndarray or None
+            Band index of each row, shape (N,).
+        """
         return None if self.n == 1 else self.assign(np.concatenate([d.omega for d in prob.data]))
 
 
@@ -796,6 +966,7 @@ def fit(
     tol : float, optional
         Convergence: every parameter step below ``tol`` standard errors.
     max_iter : int, optional
+        Most iterations (default 200).
     sensitivity : {"auto", "analytic", "fd", "central"}, optional
         ``analytic``: derivatives of the model matrices propagated exactly
         through the solve (closed forms for every model's theta; central
@@ -821,8 +992,12 @@ def fit(
         (edges in rad/s).  With band-wise noise, ``R`` in the result is still
         Eq. 24 over the whole band, ``cost`` is exp((1/N) sum_b N_b ln det R_b),
         and the ``white`` covariance scales the noise to each band's level.
-    trim, trim_window, end_correction :
-        Passed to :func:`fdml.spectral.spectra` for records.
+    trim : {"first", "mean", "none"}, optional
+        Trim removal of time-domain records (:func:`fdml.spectral.spectra`).
+    trim_window : float, optional
+        Leading window for ``trim="mean"``, s.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        End correction of the finite Fourier integral.
     callback : callable, optional
         Called after every iteration with an :class:`IterationInfo`; return
         True to stop the fit cleanly (the result says so).

@@ -528,9 +528,12 @@ def transform_weights(n, dt, omega, *, end_correction="cubic"):
     ----------
     n : int
         Number of samples.
-    dt, omega, end_correction
-        Sample interval (s), frequencies (rad/s) and quadrature, as in
-        :func:`finite_fourier_transform`.
+    dt : float
+        Sample interval, s (> 0).
+    omega : array_like, shape (m,)
+        Angular frequencies, rad/s, ``|omega| <= pi/dt``.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        Quadrature, as in :func:`finite_fourier_transform`.
 
     Returns
     -------
@@ -567,8 +570,14 @@ def gram(n, dt, omega, *, end_correction="cubic"):
 
     Parameters
     ----------
-    n, dt, omega, end_correction
-        As in :func:`transform_weights`.
+    n : int
+        Number of samples.
+    dt : float
+        Sample interval, s (> 0).
+    omega : array_like, shape (m,)
+        Angular frequencies, rad/s, ``|omega| <= pi/dt``.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        Quadrature, as in :func:`finite_fourier_transform`.
 
     Returns
     -------
@@ -611,12 +620,19 @@ def leading_transform(weights, n, dt, omega, *, end_correction="cubic"):
     ----------
     weights : array_like, shape (L,)
         The leading samples (the rest of the n-sample record is zero).
-    n, dt, omega, end_correction
-        As in :func:`finite_fourier_transform`.
+    n : int
+        Number of samples.
+    dt : float
+        Sample interval, s (> 0).
+    omega : array_like, shape (m,)
+        Angular frequencies, rad/s, ``|omega| <= pi/dt``.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        Quadrature, as in :func:`finite_fourier_transform`.
 
     Returns
     -------
     numpy.ndarray, complex, shape (m,)
+        The transform, in the unit of ``weights`` times s.
     """
     w = np.asarray(weights, dtype=float)
     _, n, dt, omega = _check(dt, omega, end_correction, "direct", n=n)
@@ -642,15 +658,21 @@ def fourier_adjoint(y, n, dt, omega, *, method="auto", end_correction="cubic"):
         Values on the frequency grid, any unit v.
     n : int
         Number of time samples of the result.
-    dt, omega, method, end_correction
+    dt : float
+        Sample interval, s (> 0).
+    omega : array_like, shape (m,)
+        Angular frequencies, rad/s, ``|omega| <= pi/dt``.
+    method : {"auto", "czt", "direct"}, optional
         As in :func:`finite_fourier_transform`.  "czt" runs an inverse-direction
         blocked chirp-z over the time samples: O(n log m) time, O(n) memory;
         "direct" uses chunks of at most 32 MB.  F is never formed.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        Quadrature, as in :func:`finite_fourier_transform`.
 
     Returns
     -------
     numpy.ndarray, complex, shape (n,) or (n, k)
-        conj(F).T @ y, in v * s, such that vdot(F x, y) == vdot(x, F^H y).
+        The product conj(F).T @ y, in v * s, such that vdot(F x, y) == vdot(x, F^H y).
     """
     _, n, dt, omega = _check(dt, omega, end_correction, method, n=n)
     y = np.asarray(y)

@@ -161,6 +161,26 @@ def dumps(
 
     ``compact=True`` writes one line without spaces (``indent`` ignored);
     ``indent=None`` one line with the usual spaces.
+
+    Parameters
+    ----------
+    obj : object
+        What to encode (see :func:`to_jsonable`).
+    indent : int or None, optional
+        Spaces per nesting level (default 1); None writes one line.
+    compact : bool, optional
+        One line without spaces after separators.
+    sort_keys : bool, optional
+        Sort the keys of every object.
+    default : callable or None, optional
+        Applied to objects of no JSON type (see :func:`to_jsonable`).
+    nonfinite : {"string", "null"}, optional
+        How NaN and infinities are written.
+
+    Returns
+    -------
+    str
+        The JSON text.
     """
     data = to_jsonable(obj, default=default, nonfinite=nonfinite)
     if compact:
@@ -174,6 +194,24 @@ def write_json(path, obj, *, inputs=(), indent: int | None = 1, what: str = "out
     Goes through :func:`fdml.outputs.atomic_write_text`, which refuses to
     replace any of ``inputs`` or anything that is not a regular file
     (``what`` names the file in its messages).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file to write.
+    obj : object
+        What to encode (see :func:`to_jsonable`).
+    inputs : iterable of str or Path, optional
+        Files the output must not replace.
+    indent : int or None, optional
+        Spaces per nesting level (default 1); None writes one line.
+    what : str, optional
+        What the file is, for the messages.
+
+    Returns
+    -------
+    Path
+        The path written.
     """
     from .outputs import atomic_write_text
 
@@ -187,6 +225,16 @@ def loads(text: str | bytes):
 
     Raises :class:`json.JSONDecodeError` (a ``ValueError``) on invalid JSON and
     :class:`UnicodeDecodeError` on bytes that are not UTF-8.
+
+    Parameters
+    ----------
+    text : str or bytes
+        The JSON text.
+
+    Returns
+    -------
+    object
+        The decoded value (dict, list, str, int, float, bool or None).
     """
     if isinstance(text, (bytes, bytearray)):
         text = bytes(text).decode("utf-8-sig")
@@ -201,9 +249,15 @@ def read_json(path, *, what: str = "result file"):
     Parameters
     ----------
     path : str or Path
+        The JSON file to read.
     what : str, optional
         What the file is, for the messages (``"result file"``,
         ``"Monte Carlo file"``, ``"aircraft file"``).
+
+    Returns
+    -------
+    object
+        The decoded value (dict, list, str, int, float, bool or None).
 
     Raises
     ------
@@ -259,6 +313,16 @@ def float_value(x) -> float:
 
     Raises :class:`TypeError` or :class:`ValueError` for anything else
     (booleans and other strings included).
+
+    Parameters
+    ----------
+    x : object
+        The decoded JSON value.
+
+    Returns
+    -------
+    float
+        The number (NaN or an infinity for the strings).
     """
     if isinstance(x, bool):
         raise TypeError("must be a number, got bool")
@@ -326,6 +390,20 @@ def float_array(v, shape=None, *, nulls: bool = False) -> np.ndarray:
     ``shape`` (a tuple, None for any length of that axis) is checked when
     given; ``nulls=True`` reads ``null`` as NaN.  Raises :class:`TypeError` or :class:`ValueError` with a message that
     completes "key 'x' ...".
+
+    Parameters
+    ----------
+    v : object
+        The decoded JSON value: a number or nested lists of numbers.
+    shape : tuple of (int or None), optional
+        The expected shape; None for any shape.
+    nulls : bool, optional
+        Read ``null`` as NaN instead of refusing it.
+
+    Returns
+    -------
+    numpy.ndarray
+        The float array.
     """
     if shape is not None and len(shape) > 0 and not isinstance(v, list):
         raise TypeError(f"must be a list of numbers, got {_kind(v)}")
@@ -343,7 +421,20 @@ def float_array(v, shape=None, *, nulls: bool = False) -> np.ndarray:
 
 
 def complex_array(v, shape=None) -> np.ndarray:
-    """A complex array from ``{"re": ..., "im": ...}`` (see :func:`float_array`)."""
+    """A complex array from ``{"re": ..., "im": ...}`` (see :func:`float_array`).
+
+    Parameters
+    ----------
+    v : object
+        The decoded JSON value, an object with the keys ``"re"`` and ``"im"``.
+    shape : tuple of (int or None), optional
+        The expected shape; None for any shape.
+
+    Returns
+    -------
+    numpy.ndarray
+        The complex array.
+    """
     if not isinstance(v, Mapping):
         raise TypeError(f"must be an object with keys 're' and 'im', got {_kind(v)}")
     missing = [k for k in ("re", "im") if k not in v]
@@ -400,18 +491,55 @@ class Fields:
         self.doc = doc
 
     def name(self, key: str) -> str:
-        """The key's full path in the file (prefix and key)."""
+        """The key's full path in the file (prefix and key).
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+
+        Returns
+        -------
+        str
+            The prefix followed by the key.
+        """
         return f"{self.prefix}{key}"
 
     def error(self, key: str, text: str) -> FdmlError:
-        """The error for ``key``: ``"<source>: key '<key>' <text>"``."""
+        """The error for ``key``: ``"<source>: key '<key>' <text>"``.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        text : str
+            What is wrong with the key's value.
+
+        Returns
+        -------
+        FdmlError
+            The error (not raised).
+        """
         return FdmlError(f"{self.source}: key '{self.name(key)}' {text}")
 
     def __contains__(self, key) -> bool:
         return key in self.doc
 
     def raw(self, key: str, default=_MISSING):
-        """The value of ``key`` as decoded, or ``default``; a missing key without default is an error."""
+        """The value of ``key`` as decoded, or ``default``; a missing key without default is an error.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+
+        Returns
+        -------
+        object
+            The decoded value, unchecked.
+        """
         if key not in self.doc:
             if default is _MISSING:
                 raise self.error(key, "is missing")
@@ -428,7 +556,20 @@ class Fields:
             raise self.error(key, str(exc)) from None
 
     def version(self, key: str, expected: int) -> int:
-        """An integer version equal to ``expected``; a string '1' is named as such."""
+        """An integer version equal to ``expected``; a string '1' is named as such.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        expected : int
+            The only version this code reads.
+
+        Returns
+        -------
+        int
+            The version, equal to ``expected``.
+        """
         v = self.raw(key)
         if isinstance(v, str):
             if v.strip() == str(expected):
@@ -441,7 +582,22 @@ class Fields:
         return v
 
     def integer(self, key: str, default=_MISSING, minimum: int | None = None) -> int:
-        """The integer at ``key`` (not a bool), at least ``minimum`` when given."""
+        """The integer at ``key`` (not a bool), at least ``minimum`` when given.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+        minimum : int, optional
+            The smallest value allowed.
+
+        Returns
+        -------
+        int
+            The integer (or ``default``).
+        """
 
         def conv(v):
             if isinstance(v, bool) or not isinstance(v, int):
@@ -458,7 +614,22 @@ class Fields:
     def number(self, key: str, default: float | None = ..., allow_none: bool = False) -> float | None: ...
 
     def number(self, key: str, default: Any = _MISSING, allow_none: bool = False) -> float | None:
-        """The finite number at ``key`` as a float (None allowed with ``allow_none``)."""
+        """The finite number at ``key`` as a float (None allowed with ``allow_none``).
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+        allow_none : bool, optional
+            Accept ``null``, returned as None.
+
+        Returns
+        -------
+        float or None
+            The number (or ``default``).
+        """
 
         def conv(v):
             if v is None and allow_none:
@@ -468,7 +639,20 @@ class Fields:
         return self._get(key, default, conv)
 
     def boolean(self, key: str, default=_MISSING) -> bool:
-        """The boolean at ``key``."""
+        """The boolean at ``key``.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+
+        Returns
+        -------
+        bool
+            The value (or ``default``).
+        """
 
         def conv(v):
             if not isinstance(v, bool):
@@ -485,7 +669,24 @@ class Fields:
     ) -> str | None: ...
 
     def string(self, key: str, default: Any = _MISSING, choices: Any = None, allow_none: bool = False) -> str | None:
-        """The string at ``key``, one of ``choices`` when given (None allowed with ``allow_none``)."""
+        """The string at ``key``, one of ``choices`` when given (None allowed with ``allow_none``).
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+        choices : collection of str, optional
+            The allowed values.
+        allow_none : bool, optional
+            Accept ``null``, returned as None.
+
+        Returns
+        -------
+        str or None
+            The string (or ``default``).
+        """
 
         def conv(v):
             if v is None and allow_none:
@@ -499,7 +700,24 @@ class Fields:
         return self._get(key, default, conv)
 
     def strings(self, key: str, default=_MISSING, length: int | None = None, choices=None) -> tuple:
-        """The list of strings at ``key`` as a tuple, of ``length`` and from ``choices`` when given."""
+        """The list of strings at ``key`` as a tuple, of ``length`` and from ``choices`` when given.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+        length : int, optional
+            The required number of entries.
+        choices : collection of str, optional
+            The allowed values.
+
+        Returns
+        -------
+        tuple of str
+            The strings (or ``default``).
+        """
 
         def conv(v):
             if not isinstance(v, list):
@@ -518,7 +736,24 @@ class Fields:
         return self._get(key, default, conv)
 
     def numbers(self, key: str, default=_MISSING, length: int | None = None, min_length: int = 0) -> tuple:
-        """The list of finite numbers at ``key`` as a tuple of floats."""
+        """The list of finite numbers at ``key`` as a tuple of floats.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+        length : int, optional
+            The required number of entries.
+        min_length : int, optional
+            The smallest number of entries allowed.
+
+        Returns
+        -------
+        tuple of float
+            The numbers (or ``default``).
+        """
 
         def conv(v):
             a = float_array(v, (length,))
@@ -529,23 +764,98 @@ class Fields:
         return self._get(key, default, conv)
 
     def floats(self, key: str, shape=None, default=_MISSING, nulls: bool = False) -> np.ndarray:
-        """The float array at ``key``, of ``shape`` when given (NaN for null with ``nulls``)."""
+        """The float array at ``key``, of ``shape`` when given (NaN for null with ``nulls``).
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        shape : tuple of (int or None), optional
+            The expected shape (None for any length of an axis).
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+        nulls : bool, optional
+            Read ``null`` as NaN.
+
+        Returns
+        -------
+        numpy.ndarray
+            The float array (or ``default``).
+        """
         return self._get(key, default, lambda v: float_array(v, shape, nulls=nulls))
 
     def flags(self, key: str, length: int | None = None, default=_MISSING) -> np.ndarray:
-        """A list of true/false as a bool array."""
+        """A list of true/false as a bool array.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        length : int, optional
+            The required number of entries.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+
+        Returns
+        -------
+        numpy.ndarray
+            The bool array (or ``default``).
+        """
         return self._get(key, default, lambda v: np.array(_typed_list(v, bool, "true or false", length), bool))
 
     def integers(self, key: str, length: int | None = None, default=_MISSING) -> np.ndarray:
-        """A list of integers as an int array."""
+        """A list of integers as an int array.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        length : int, optional
+            The required number of entries.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+
+        Returns
+        -------
+        numpy.ndarray
+            The int array (or ``default``).
+        """
         return self._get(key, default, lambda v: np.array(_typed_list(v, int, "integers", length), int))
 
     def complexes(self, key: str, shape=None, default=_MISSING) -> np.ndarray:
-        """The complex array at ``key`` (stored as real and imaginary parts), of ``shape`` when given."""
+        """The complex array at ``key`` (stored as real and imaginary parts), of ``shape`` when given.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        shape : tuple of (int or None), optional
+            The expected shape (None for any length of an axis).
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+
+        Returns
+        -------
+        numpy.ndarray
+            The complex array (or ``default``).
+        """
         return self._get(key, default, lambda v: complex_array(v, shape))
 
     def mapping(self, key: str, default=_MISSING) -> dict:
-        """The JSON object at ``key`` as a dict."""
+        """The JSON object at ``key`` as a dict.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+
+        Returns
+        -------
+        dict
+            A copy of the object (or ``default``).
+        """
 
         def conv(v):
             if not isinstance(v, Mapping):
@@ -560,13 +870,41 @@ class Fields:
     def sub(self, key: str, default: Any) -> Any: ...
 
     def sub(self, key: str, default: Any = _MISSING) -> Any:
-        """The nested object at ``key`` as :class:`Fields` (``default`` when absent)."""
+        """The nested object at ``key`` as :class:`Fields` (``default`` when absent).
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+
+        Returns
+        -------
+        Fields
+            Access to the nested object (or ``default``).
+        """
         if key not in self.doc and default is not _MISSING:
             return default
         return Fields(self.raw(key), self.source, f"{self.name(key)}.")
 
     def items(self, key: str, default=_MISSING, allow_none: bool = False) -> list:
-        """A list of objects at ``key``, each as :class:`Fields` (None entries kept with ``allow_none``)."""
+        """A list of objects at ``key``, each as :class:`Fields` (None entries kept with ``allow_none``).
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+        allow_none : bool, optional
+            Keep ``null`` entries as None.
+
+        Returns
+        -------
+        list of Fields
+            One entry per object (or ``default``).
+        """
         if key not in self.doc and default is not _MISSING:
             return default
         v = self.raw(key)

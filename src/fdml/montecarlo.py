@@ -111,7 +111,9 @@ def _trial_error(task, exc) -> dict:
 class MonteCarloResult:
     """Estimates of N seeded runs and their statistics per parameter.
 
-    Attributes
+    Each parameter is the attribute of the same name.
+
+    Parameters
     ----------
     names : tuple of str
         Estimated model parameters.
@@ -121,7 +123,9 @@ class MonteCarloResult:
     estimates, stderr : ndarray (n, p)
         Per run; nan rows for runs that failed.
     converged : ndarray of bool (n,)
+        Whether each run's fit converged.
     iterations : ndarray of int (n,)
+        Iterations of each run's fit.
     fit_seconds : ndarray (n,)
         In-process time of each fit, s.
     errors : dict
@@ -130,12 +134,12 @@ class MonteCarloResult:
         Models, manoeuvre, noise, seed, fit options, engine.
     wall_time : float
         Seconds for the whole study.
-    use_converged_only : bool
+    use_converged_only : bool, optional
         Statistics over converged runs only (default) or over every run that
         returned an estimate.
-    units : dict
+    units : dict, optional
         Parameter -> unit.
-    warnings : dict
+    warnings : dict, optional
         Run index -> the warnings of its fit (``"Category: message"``), for
         every run that warned; :attr:`warning_counts` counts them by category.
     """
@@ -215,14 +219,31 @@ class MonteCarloResult:
         return dict(sorted(counts.items()))
 
     def stats(self) -> list[dict]:
-        """Per parameter: name, truth, mean, bias, scatter, mean_crb, efficiency, bias_z."""
+        """Per parameter: name, truth, mean, bias, scatter, mean_crb, efficiency, bias_z.
+
+        Returns
+        -------
+        list of dict
+            One dict per parameter, in the order of :attr:`names`; values in the parameter's unit.
+        """
         cols = (self.truth, self.mean, self.bias, self.scatter, self.mean_crb, self.efficiency, self.bias_z)
         keys = ("truth", "mean", "bias", "scatter", "mean_crb", "efficiency", "bias_z")
         return [{"name": n, **{k: float(c[j]) for k, c in zip(keys, cols)}} for j, n in enumerate(self.names)]
 
     # --- presentation -------------------------------------------------------------------------
     def table(self, digits: int = 4) -> str:
-        """The statistics as a text table."""
+        """The statistics as a text table.
+
+        Parameters
+        ----------
+        digits : int, optional
+            Significant digits of the values.
+
+        Returns
+        -------
+        str
+            A heading on the study and one line per parameter.
+        """
         s = self.settings
         head = (
             f"Monte Carlo: {s.get('truth_kind')} truth, {s.get('fit_kind')} fit, {s.get('maneuver')} "
@@ -249,7 +270,13 @@ class MonteCarloResult:
         return self.table()
 
     def to_frame(self):
-        """The statistics as a pandas DataFrame indexed by parameter (pandas is optional)."""
+        """The statistics as a pandas DataFrame indexed by parameter (pandas is optional).
+
+        Returns
+        -------
+        pandas.DataFrame
+            :meth:`stats`, one row per parameter.
+        """
         try:
             import pandas as pd
         except ImportError:
@@ -264,6 +291,18 @@ class MonteCarloResult:
         scatter; the title gives scatter/CRB.  ``ax``: a sequence of at least
         as many axes as parameters (or one Axes for one parameter); default a
         new figure.  Returns ``(figure, axes)``; never calls ``show()``.
+
+        Parameters
+        ----------
+        ax : matplotlib.axes.Axes or sequence of Axes, optional
+            Where to draw, one panel per parameter; default a new figure.
+
+        Returns
+        -------
+        figure : matplotlib.figure.Figure
+            The figure drawn on.
+        axes : list of matplotlib.axes.Axes
+            One panel per parameter.
         """
         p = len(self.names)
         created = ax is None
@@ -315,7 +354,13 @@ class MonteCarloResult:
 
     # --- JSON -----------------------------------------------------------------------------------
     def to_dict(self) -> dict:
-        """JSON-ready dict; the per-run arrays write a missing value (nan) as null."""
+        """JSON-ready dict; the per-run arrays write a missing value (nan) as null.
+
+        Returns
+        -------
+        dict
+            Every field, per-run arrays as lists.
+        """
         from .jsoncodec import to_jsonable
 
         def arr(a):
@@ -341,7 +386,20 @@ class MonteCarloResult:
         }
 
     def to_json(self, path: str | Path | None = None, *, inputs=()) -> str:
-        """Serialise to JSON text; write it atomically to ``path`` when given (never over ``inputs``)."""
+        """Serialise to JSON text; write it atomically to ``path`` when given (never over ``inputs``).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Where to write; None only returns the text.
+        inputs : iterable of str or Path, optional
+            Files the output must not replace.
+
+        Returns
+        -------
+        str
+            The JSON text.
+        """
         from .jsoncodec import dumps, write_json
 
         d = self.to_dict()
@@ -355,6 +413,18 @@ class MonteCarloResult:
 
         A key missing or of the wrong type or shape raises :class:`FdmlError`
         ``"<source>: key '<key>' ..."``.
+
+        Parameters
+        ----------
+        d : mapping
+            A dict as written by :meth:`to_dict`.
+        source : str, optional
+            What and where, for the messages.
+
+        Returns
+        -------
+        MonteCarloResult
+            The study.
         """
         from .jsoncodec import Fields
 
@@ -400,7 +470,18 @@ def _by_run(f, key: str, **default) -> dict:
 
 
 def load_monte_carlo(path: str | Path) -> MonteCarloResult:
-    """Read a study saved by :meth:`MonteCarloResult.to_json`."""
+    """Read a study saved by :meth:`MonteCarloResult.to_json`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The JSON file.
+
+    Returns
+    -------
+    MonteCarloResult
+        The study.
+    """
     from .jsoncodec import read_json
 
     path = Path(path)
@@ -453,6 +534,7 @@ def monte_carlo(
     n : int, optional
         Runs (default 1000).
     maneuver : {"3211", "doublet", "multisine"}, optional
+        The elevator manoeuvre (default 3-2-1-1).
     duration, dt : float, optional
         Record length and sample interval, s.
     amplitude : float, optional
@@ -466,12 +548,17 @@ def monte_carlo(
         The model fitted (default the truth model, started at the truth).
     fit_kwargs : mapping, optional
         Options of :func:`fdml.fit` (plain data).
-    engine, workers, progress :
-        As :func:`fdml.batch.run_batch`.
+    engine : {"process", "serial", "dask"}, scheduler address or dask.distributed.Client, optional
+        Where the runs go, as in :func:`fdml.batch.run_batch`.
+    workers : int, optional
+        Local worker processes, as in :func:`fdml.batch.run_batch`.
+    progress : None, True or callable, optional
+        Progress report, as in :func:`fdml.batch.run_batch`.
 
     Returns
     -------
     MonteCarloResult
+        The estimates of every run and their statistics.
     """
     t_start = time.perf_counter()
     _check_counts(n, seed, workers)

@@ -103,7 +103,18 @@ class Inputs:
         self.ids = ids
 
     def match(self, path) -> str | None:
-        """The input (as given) that is the same file or folder as ``path`` (links followed), else None."""
+        """The input (as given) that is the same file or folder as ``path`` (links followed), else None.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file or folder to look up.
+
+        Returns
+        -------
+        str or None
+            The matching input as given, or None.
+        """
         try:
             st = os.stat(path)
         except (OSError, ValueError):
@@ -200,7 +211,22 @@ def check_output(path, inputs: Iterable | Inputs = (), *, what: str = "output fi
 
 
 def check_output_dir(path, inputs: Iterable | Inputs = (), *, what: str = "output folder") -> Path:
-    """:func:`check_output` for a folder output (``folder=True``); returns ``Path(path)``."""
+    """:func:`check_output` for a folder output (``folder=True``); returns ``Path(path)``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output folder as the user gave it.
+    inputs : iterable of str or Path, or Inputs, optional
+        The command's inputs, which the output may not replace (see :func:`check_output`).
+    what : str, optional
+        What the output is, for the message.
+
+    Returns
+    -------
+    Path
+        ``Path(path)``.
+    """
     return check_output(path, inputs, what=what, folder=True)
 
 
@@ -291,6 +317,17 @@ class StagedOutputs:
     def open(self, path, mode: str = "w", *, encoding: str = "utf-8", what: str = "output file") -> Iterator:
         """A file handle (``"w"`` text, ``"wb"`` binary) whose content is staged for ``path``.
 
+        Parameters
+        ----------
+        path : str or Path
+            Where the output goes.
+        mode : {"w", "wt", "wb"}, optional
+            Text (no newline translation) or binary.
+        encoding : str, optional
+            The text encoding (default UTF-8); unused for binary.
+        what : str, optional
+            What the output is, for the messages.
+
         Yields
         ------
         file object
@@ -317,19 +354,68 @@ class StagedOutputs:
         self._pending.append(pending)
 
     def write_bytes(self, path, data: bytes, *, what: str = "output file") -> Path:
-        """Stage ``data`` for ``path``; returns ``Path(path)``."""
+        """Stage ``data`` for ``path``; returns ``Path(path)``.
+
+        Parameters
+        ----------
+        path : str or Path
+            Where the output goes.
+        data : bytes
+            The content.
+        what : str, optional
+            What the output is, for the messages.
+
+        Returns
+        -------
+        Path
+            ``Path(path)``.
+        """
         with self.open(path, "wb", what=what) as fh:
             fh.write(data)
         return Path(path)
 
     def write_text(self, path, text: str, *, encoding: str = "utf-8", what: str = "output file") -> Path:
-        """Stage ``text`` for ``path`` (no newline translation); returns ``Path(path)``."""
+        """Stage ``text`` for ``path`` (no newline translation); returns ``Path(path)``.
+
+        Parameters
+        ----------
+        path : str or Path
+            Where the output goes.
+        text : str
+            The content.
+        encoding : str, optional
+            The text encoding (default UTF-8).
+        what : str, optional
+            What the output is, for the messages.
+
+        Returns
+        -------
+        Path
+            ``Path(path)``.
+        """
         with self.open(path, "w", encoding=encoding, what=what) as fh:
             fh.write(text)
         return Path(path)
 
     def savefig(self, fig, path, *, what: str = "figure", **savefig_kwargs) -> Path:
-        """Stage ``fig.savefig`` for ``path``; the format comes from ``path``'s suffix unless given."""
+        """Stage ``fig.savefig`` for ``path``; the format comes from ``path``'s suffix unless given.
+
+        Parameters
+        ----------
+        fig : matplotlib.figure.Figure
+            The figure to save.
+        path : str or Path
+            Where the output goes.
+        what : str, optional
+            What the output is, for the messages.
+        **savefig_kwargs
+            Passed to :meth:`matplotlib.figure.Figure.savefig` (``dpi``, ``format``, ...).
+
+        Returns
+        -------
+        Path
+            ``Path(path)``.
+        """
         fmt = savefig_kwargs.pop("format", None) or Path(path).suffix[1:].lower() or None
         with self.open(path, "wb", what=what) as fh:
             fig.savefig(fh, format=fmt, **savefig_kwargs)
@@ -410,13 +496,49 @@ def atomic_open(
 def atomic_write_text(
     path, text: str, *, inputs: Iterable | Inputs = (), encoding: str = "utf-8", what: str = "output file"
 ) -> Path:
-    """Write ``text`` to ``path`` atomically (see :func:`atomic_open`); returns ``Path(path)``."""
+    """Write ``text`` to ``path`` atomically (see :func:`atomic_open`); returns ``Path(path)``.
+
+    Parameters
+    ----------
+    path : str or Path
+        Where the output goes.
+    text : str
+        The content (no newline translation).
+    inputs : iterable of str or Path, or Inputs, optional
+        The command's inputs, which the output may not replace (see :func:`check_output`).
+    encoding : str, optional
+        The text encoding (default UTF-8).
+    what : str, optional
+        What the output is, for the messages.
+
+    Returns
+    -------
+    Path
+        ``Path(path)``.
+    """
     with StagedOutputs(inputs) as out:
         return out.write_text(path, text, encoding=encoding, what=what)
 
 
 def atomic_write_bytes(path, data: bytes, *, inputs: Iterable | Inputs = (), what: str = "output file") -> Path:
-    """Write ``data`` to ``path`` atomically (see :func:`atomic_open`); returns ``Path(path)``."""
+    """Write ``data`` to ``path`` atomically (see :func:`atomic_open`); returns ``Path(path)``.
+
+    Parameters
+    ----------
+    path : str or Path
+        Where the output goes.
+    data : bytes
+        The content.
+    inputs : iterable of str or Path, or Inputs, optional
+        The command's inputs, which the output may not replace (see :func:`check_output`).
+    what : str, optional
+        What the output is, for the messages.
+
+    Returns
+    -------
+    Path
+        ``Path(path)``.
+    """
     with StagedOutputs(inputs) as out:
         return out.write_bytes(path, data, what=what)
 
@@ -426,6 +548,24 @@ def atomic_savefig(fig, path, *, inputs: Iterable | Inputs = (), what: str = "fi
 
     The format comes from ``path``'s suffix unless ``format=`` is given (the
     temporary file's own suffix is never consulted).
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure to save.
+    path : str or Path
+        Where the output goes.
+    inputs : iterable of str or Path, or Inputs, optional
+        The command's inputs, which the output may not replace (see :func:`check_output`).
+    what : str, optional
+        What the output is, for the messages.
+    **savefig_kwargs
+        Passed to :meth:`matplotlib.figure.Figure.savefig` (``dpi``, ``format``, ...).
+
+    Returns
+    -------
+    Path
+        ``Path(path)``.
     """
     with StagedOutputs(inputs) as out:
         return out.savefig(fig, path, what=what, **savefig_kwargs)

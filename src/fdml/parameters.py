@@ -29,6 +29,13 @@ class Role(str, Enum):
     equation (``bias_q_dot``); ``INPUT_BIAS``: an elevator offset
     (``bias_de``); ``BOUNDARY``: a boundary value x(0) or x(T) of the finite
     transform (``x0_alpha``, THEORY.md section 7).  The value is the JSON form.
+
+    Parameters
+    ----------
+    value : str or Role
+        The JSON form (``"aero"``, ``"delay"``, ...): ``Role("delay")`` is :attr:`Role.DELAY`.
+    names, module, qualname, type, start, boundary : optional
+        The :class:`enum.Enum` functional API (making a new enumeration); not used with Role.
     """
 
     AERO = "aero"
@@ -53,7 +60,7 @@ NUISANCE_ROLES = frozenset({Role.OUTPUT_BIAS, Role.STATE_BIAS, Role.INPUT_BIAS, 
 class Slot:
     """One estimated quantity of a fit, typed: what it is and which record it belongs to.
 
-    Attributes
+    Parameters
     ----------
     name : str
         The estimate's name in the result (``"bias_q[rec]"`` for a record's
@@ -61,6 +68,7 @@ class Slot:
     base : str
         The quantity's own name (``"bias_q"``, ``"Cm_a"``).
     role : Role
+        What the quantity is.
     record : str or None
         The record a nuisance term belongs to; None for the model's
         parameters, which every record shares.
@@ -72,7 +80,13 @@ class Slot:
     record: str | None = None
 
     def to_dict(self) -> dict:
-        """``{"base", "role", "record"}`` for JSON (the name is the result's)."""
+        """``{"base", "role", "record"}`` for JSON (the name is the result's).
+
+        Returns
+        -------
+        dict
+            The base name, the role's JSON form and the record.
+        """
         return {"base": self.base, "role": self.role.value, "record": self.record}
 
 
@@ -123,7 +137,13 @@ class Parameter:
         object.__setattr__(self, "role", _role(self.role, self.name))
 
     def to_dict(self) -> dict:
-        """Return a JSON-ready dict (infinite bounds as None)."""
+        """Return a JSON-ready dict (infinite bounds as None).
+
+        Returns
+        -------
+        dict
+            Every field; the role as its JSON form.
+        """
         return {
             "name": self.name,
             "value": self.value,
@@ -137,7 +157,18 @@ class Parameter:
 
     @classmethod
     def from_dict(cls, d: Mapping) -> "Parameter":
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        d : mapping
+            A dict as written by :meth:`to_dict` (missing optional keys take their defaults).
+
+        Returns
+        -------
+        Parameter
+            The parameter.
+        """
         lo = d.get("lower")
         hi = d.get("upper")
         return cls(
@@ -168,6 +199,11 @@ class Parameters:
 
     Indexing by name returns the :class:`Parameter`; :attr:`values` is a plain
     ``{name: value}`` dict.  Methods that change something return a new set.
+
+    Parameters
+    ----------
+    items : tuple of Parameter, optional
+        The parameters, in order; their names must be unique.
     """
 
     items: tuple[Parameter, ...] = field(default_factory=tuple)
@@ -204,7 +240,13 @@ class Parameters:
         return f"unknown parameter {name!r}; known parameters: {', '.join(self.names)}"
 
     def check_names(self, names: Iterable[str]) -> None:
-        """Raise :class:`ParameterError` naming any name not in this set."""
+        """Raise :class:`ParameterError` naming any name not in this set.
+
+        Parameters
+        ----------
+        names : iterable of str
+            Names to check.
+        """
         known = set(self.names)
         for n in names:
             if not isinstance(n, str) or n not in known:
@@ -231,7 +273,18 @@ class Parameters:
         return {p.name: p.value for p in self.items}
 
     def array(self, names: Iterable[str] | None = None) -> np.ndarray:
-        """Values of ``names`` (default: the free ones) as a float array."""
+        """Values of ``names`` (default: the free ones) as a float array.
+
+        Parameters
+        ----------
+        names : iterable of str, optional
+            Parameters, in the order wanted; default the free ones.
+
+        Returns
+        -------
+        numpy.ndarray
+            The values, each in its parameter's unit.
+        """
         names = self.free_names if names is None else tuple(names)
         return np.array([self[n].value for n in names], dtype=float)
 
@@ -241,44 +294,131 @@ class Parameters:
         return Parameters(tuple(replace(p, **changes[p.name]) if p.name in changes else p for p in self.items))
 
     def with_values(self, values: Mapping[str, float] | None = None, **kw: float) -> "Parameters":
-        """Return a copy with new values (free/fixed status unchanged)."""
+        """Return a copy with new values (free/fixed status unchanged).
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            New values by name.
+        **kw : float
+            More new values by name.
+
+        Returns
+        -------
+        Parameters
+            The copy.
+        """
         vals = dict(values or {}, **kw)
         return self._update({k: {"value": float(v)} for k, v in vals.items()})
 
     def fix(self, names: Iterable[str] | Mapping[str, float]) -> "Parameters":
-        """Return a copy with ``names`` fixed (a mapping also sets their values)."""
+        """Return a copy with ``names`` fixed (a mapping also sets their values).
+
+        Parameters
+        ----------
+        names : iterable of str or mapping of str to float
+            Parameters to fix (with their values for a mapping).
+
+        Returns
+        -------
+        Parameters
+            The copy.
+        """
         if isinstance(names, Mapping):
             return self._update({k: {"value": float(v), "free": False} for k, v in names.items()})
         return self._update({k: {"free": False} for k in names})
 
     def free(self, names: Iterable[str]) -> "Parameters":
-        """Return a copy with ``names`` freed."""
+        """Return a copy with ``names`` freed.
+
+        Parameters
+        ----------
+        names : iterable of str
+            Parameters to free.
+
+        Returns
+        -------
+        Parameters
+            The copy.
+        """
         return self._update({k: {"free": True} for k in names})
 
     def bound(self, name: str, lower: float = -math.inf, upper: float = math.inf) -> "Parameters":
-        """Return a copy with bounds on ``name`` (its value is moved inside them)."""
+        """Return a copy with bounds on ``name`` (its value is moved inside them).
+
+        Parameters
+        ----------
+        name : str
+            The parameter.
+        lower, upper : float, optional
+            The bounds, in the parameter's unit (default unbounded).
+
+        Returns
+        -------
+        Parameters
+            The copy.
+        """
         if not lower <= upper:
             raise ParameterError(f"parameter {name!r}: lower bound {lower} exceeds upper bound {upper}")
         v = min(max(self[name].value, float(lower)), float(upper))
         return self._update({name: {"lower": float(lower), "upper": float(upper), "value": v}})
 
     def only_free(self, names: Iterable[str]) -> "Parameters":
-        """Return a copy in which exactly ``names`` are free."""
+        """Return a copy in which exactly ``names`` are free.
+
+        Parameters
+        ----------
+        names : iterable of str
+            The parameters to free; all others are fixed.
+
+        Returns
+        -------
+        Parameters
+            The copy.
+        """
         names = set(names)
         self.check_names(names)
         return Parameters(tuple(replace(p, free=p.name in names) for p in self.items))
 
     def extended(self, extra: Iterable[Parameter]) -> "Parameters":
-        """Return a copy with ``extra`` parameters appended."""
+        """Return a copy with ``extra`` parameters appended.
+
+        Parameters
+        ----------
+        extra : iterable of Parameter
+            Parameters to append (names not yet in the set).
+
+        Returns
+        -------
+        Parameters
+            The copy.
+        """
         return Parameters(self.items + tuple(extra))
 
     def to_list(self) -> list[dict]:
-        """JSON-ready list of dicts."""
+        """JSON-ready list of dicts.
+
+        Returns
+        -------
+        list of dict
+            :meth:`Parameter.to_dict` of each parameter, in order.
+        """
         return [p.to_dict() for p in self.items]
 
     @classmethod
     def from_list(cls, items: Iterable[Mapping]) -> "Parameters":
-        """Inverse of :meth:`to_list`."""
+        """Inverse of :meth:`to_list`.
+
+        Parameters
+        ----------
+        items : iterable of mapping
+            Dicts as written by :meth:`Parameter.to_dict`.
+
+        Returns
+        -------
+        Parameters
+            The set.
+        """
         return cls(tuple(Parameter.from_dict(d) for d in items))
 
 
@@ -291,12 +431,14 @@ def as_names(value, what: str) -> list[str]:
     Parameters
     ----------
     value : None, str or iterable of str
+        The names; a mapping gives its keys.
     what : str
         The argument's name, for messages (``"fix"``, ``"free"``).
 
     Returns
     -------
     list of str
+        The names, in order (empty for None).
     """
     if value is None:
         return []
@@ -318,6 +460,11 @@ def check_fix_free(fix, free) -> None:
     """Refuse a parameter named both in ``fix`` and in ``free`` (``--fix`` and ``--free``).
 
     Which one should win is not knowable, so neither does: the user decides.
+
+    Parameters
+    ----------
+    fix, free : None, str or iterable of str
+        The names to fix and to free (see :func:`as_names`).
     """
     both = [n for n in as_names(fix, "fix") if n in set(as_names(free, "free"))]
     if both:

@@ -118,6 +118,7 @@ def spectra_uncertainty(result, record: int = 0, *, rel_step: float = 1e-6):
     Parameters
     ----------
     result : FitResult
+        The fit.
     record : int, optional
         Record of a multi-record fit.
     rel_step : float, optional
@@ -199,6 +200,7 @@ def plot_spectra(
     outputs : sequence of str, optional
         Outputs to show (default: those of the first fit).
     freq_unit : {"rad/s", "Hz"}, optional
+        Unit of the frequency axis.
     mag_unit : {"abs", "dB"}, optional
         Magnitude on a log axis, or in dB (20 log10).
     crb : bool, optional
@@ -208,11 +210,14 @@ def plot_spectra(
     axes, ax : array of Axes, shape (2, n_outputs), optional
         Magnitude row and phase row; made if not given (either name).
     title : str, optional
+        Figure title.
 
     Returns
     -------
     fig : matplotlib.figure.Figure
+        The figure drawn on.
     axes : ndarray of Axes, shape (2, n_outputs)
+        Magnitude row and phase row.
     """
     if mag_unit not in ("abs", "dB"):
         raise ValueError(f"mag_unit must be 'abs' or 'dB', got {mag_unit!r}")
@@ -320,6 +325,7 @@ def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
     result : FitResult
         A fit made from time-domain records (it keeps them).
     record : int, optional
+        Which record of a multi-record fit (default the first).
     trim_window : float, optional
         Leading window of ``trim="mean"``, s; default the fit's (0.5 s for a
         result saved before fits kept their options).
@@ -433,6 +439,7 @@ def plot_time_histories(
     result : FitResult
         A fit made from time-domain records.
     record : int, optional
+        Which record of a multi-record fit (default the first).
     outputs : sequence of str, optional
         Outputs to show (default alpha, q, az).
     inputs : bool, optional
@@ -444,11 +451,14 @@ def plot_time_histories(
     axes, ax : array of Axes, optional
         One per panel (inputs first), in a column; made if not given.
     title : str, optional
+        Figure title.
 
     Returns
     -------
     fig : matplotlib.figure.Figure
+        The figure drawn on.
     axes : ndarray of Axes, shape (n_panels,)
+        The panels, inputs first.
     """
     if angle_unit not in ("deg", "rad"):
         raise ValueError(f"angle_unit must be 'deg' or 'rad', got {angle_unit!r}")
@@ -515,17 +525,24 @@ def plot_residual_spectra(
     Parameters
     ----------
     result : FitResult
+        The fit.
     record : int, optional
+        Which record of a multi-record fit (default the first).
     outputs : sequence of str, optional
         Default: the fitted outputs.
     freq_unit : {"rad/s", "Hz"}, optional
+        Unit of the frequency axis.
     axes, ax : array of Axes, shape (n_outputs,), optional
+        One panel per output; made if not given (either name).
     title : str, optional
+        Figure title.
 
     Returns
     -------
     fig : matplotlib.figure.Figure
+        The figure drawn on.
     axes : ndarray of Axes, shape (n_outputs,)
+        One panel per output.
     """
     outputs = _check_outputs(outputs or result.outputs)
     spec = result.spectra[record]
@@ -575,6 +592,7 @@ def plot_correlation(
     Parameters
     ----------
     result : FitResult
+        The fit.
     names : sequence of str, optional
         Parameters to show, in order (default all estimated ones).
     nuisance : bool, optional
@@ -585,13 +603,18 @@ def plot_correlation(
     cmap : str, optional
         Diverging colour map, fixed to [-1, 1].
     colorbar : bool, optional
+        Draw a colour bar.
     ax : Axes, optional
+        Where to draw; default a new figure.
     title : str, optional
+        Axes title.
 
     Returns
     -------
     fig : matplotlib.figure.Figure
+        The figure drawn on.
     ax : Axes
+        The heat map's axes.
     """
     all_names = list(result.names)
     if names is None:

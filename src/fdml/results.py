@@ -42,9 +42,10 @@ RESULT_FORMAT = ("fdml.FitResult", 1)
 class IterationInfo:
     """What a progress callback receives after each iteration.
 
-    Attributes
+    Parameters
     ----------
     iteration : int
+        The iteration just finished (1 for the first).
     cost : float
         J = det R (Eq. 25) after the iteration.
     params : dict
@@ -70,6 +71,16 @@ def frozen(value):
 
     An array that is already read-only is kept (no copy); a writable one is
     copied first, so the caller's array stays writable.
+
+    Parameters
+    ----------
+    value : object
+        Any value; arrays, mappings, lists and tuples are frozen, nested.
+
+    Returns
+    -------
+    object
+        The frozen value (read-only array, mapping proxy, tuple or ``value`` itself).
     """
     if isinstance(value, np.ndarray):
         if value.flags.writeable:
@@ -123,7 +134,12 @@ class ByName:
 class FitResult(ByName):
     """The outcome of :func:`fdml.fit`.
 
-    Attributes
+    Each parameter is the attribute of the same name.
+    Every array is read-only and every mapping immutable (lists become
+    tuples): a result is a record of a fit, and ``res.values[0] = 99``
+    raises.  :func:`dataclasses.replace` gives a changed copy.
+
+    Parameters
     ----------
     model : Model
         The model with its parameters set to the estimates.
@@ -144,8 +160,11 @@ class FitResult(ByName):
     cost_history : tuple of float
         J = det R (Eq. 25) at the start and after every iteration.
     iterations : int
+        Gauss-Newton iterations taken.
     converged : bool
+        Whether the stopping rule (``stop``) was met.
     message : str
+        How the fit ended, in words.
     derived : dict
         Alternate set, ``{name: (value, stderr)}``, delta method.
     fixed : dict
@@ -159,8 +178,11 @@ class FitResult(ByName):
     n_freq : int
         Frequencies used (summed over records).
     records : tuple of str
+        Names of the records fitted.
     boundary, cov_type, method, stop : str
         Options used.
+    stopped : bool
+        Whether a progress callback stopped the fit.
     warnings : tuple of RecordedWarning
         Every warning raised during the fit, with its category
         (:mod:`fdml.warning_log`), in the order first raised.
@@ -180,15 +202,6 @@ class FitResult(ByName):
     findings : tuple of Finding
         What the data check (:func:`fdml.datacheck.check_data`) found in the
         records, each with a stable code; see :mod:`fdml.findings`.
-    slots : tuple of Slot
-        What each estimate is (:class:`~fdml.parameters.Role`) and, for a
-        nuisance term, which record it belongs to; in the order of ``names``.
-    options : mapping
-        Every option the fit was run with (``trim``, ``trim_window``,
-        ``end_correction``, ``sensitivity`` as resolved, ``tol``,
-        ``max_iter``, ``bounds``, ``noise`` band edges, ``band``, ``free``,
-        ``fix``, ...), so that :func:`fdml.plotting.simulate_fit` and
-        :func:`fdml.report.write_report` need nothing supplied again.
     adequacy : fdml.adequacy.Adequacy or None
         The fit's adequacy check (score tests of the effect library,
         residual coherence and whiteness; :mod:`fdml.adequacy`), None when
@@ -198,10 +211,15 @@ class FitResult(ByName):
         (``fdml fit``): ``airspeed`` ``{"value", "source"}`` (``record``,
         ``--airspeed`` or ``aircraft``) and ``record_conditions`` (what the
         records carry); see :mod:`fdml.conditions`.
-
-    Every array is read-only and every mapping immutable (lists become
-    tuples): a result is a record of a fit, and ``res.values[0] = 99``
-    raises.  :func:`dataclasses.replace` gives a changed copy.
+    slots : tuple of Slot
+        What each estimate is (:class:`~fdml.parameters.Role`) and, for a
+        nuisance term, which record it belongs to; in the order of ``names``.
+    options : mapping
+        Every option the fit was run with (``trim``, ``trim_window``,
+        ``end_correction``, ``sensitivity`` as resolved, ``tol``,
+        ``max_iter``, ``bounds``, ``noise`` band edges, ``band``, ``free``,
+        ``fix``, ...), so that :func:`fdml.plotting.simulate_fit` and
+        :func:`fdml.report.write_report` need nothing supplied again.
     """
 
     model: Model
@@ -273,7 +291,46 @@ class FitResult(ByName):
         method,
         stop,
     ) -> "FitResult":
-        """Assemble the result of a finished fit from the estimator's state (used by :func:`fdml.fit`)."""
+        """Assemble the result of a finished fit from the estimator's state (used by :func:`fdml.fit`).
+
+        Parameters
+        ----------
+        prob : Problem
+            The estimation problem (:func:`fdml.estimate.prepare`).
+        model : Model
+            The model with its parameters set to the estimates.
+        theta : numpy.ndarray
+            The estimates, in the order of ``prob.names``.
+        cov, cov_naive : numpy.ndarray
+            Covariance of the estimates (``cov_type``) and the naive Cramer-Rao bound.
+        stderr : numpy.ndarray
+            Standard errors of the estimates.
+        corr : numpy.ndarray
+            Correlation of the estimates.
+        R : numpy.ndarray
+            Residual covariance (Eq. 24), complex.
+        history : sequence of float
+            J = det R (Eq. 25) at the start and after every iteration.
+        iterations : int
+            Iterations taken.
+        converged : bool
+            Whether the stopping rule was met.
+        message : str
+            How the fit ended.
+        cov_type : str
+            The covariance used for ``cov``.
+        elapsed : float
+            Wall-clock time of the fit, s.
+        stopped : bool
+            Whether a progress callback stopped the fit.
+        method, stop : str
+            The optimiser and the stopping rule used.
+
+        Returns
+        -------
+        FitResult
+            The result.
+        """
         names = prob.names
         slots = tuple(
             Slot(s.name, s.base, s.role, None if s.record < 0 else prob.data[s.record].name) for s in prob.slots
@@ -338,7 +395,18 @@ class FitResult(ByName):
         return self.model.kind
 
     def slot(self, name: str) -> Slot | None:
-        """What the estimate ``name`` is (its :class:`~fdml.parameters.Slot`); None if not estimated."""
+        """What the estimate ``name`` is (its :class:`~fdml.parameters.Slot`); None if not estimated.
+
+        Parameters
+        ----------
+        name : str
+            The estimate's name (as in :attr:`names`).
+
+        Returns
+        -------
+        Slot or None
+            Its slot.
+        """
         return self.slots[self.names.index(name)] if name in self.names else None
 
     @property
@@ -353,6 +421,16 @@ class FitResult(ByName):
         ``1 - alpha/2`` (1.96 for 95 %): the estimates are asymptotically
         normal with the Cramer-Rao covariance (``cov_type``).  Rows follow
         :attr:`names`; an unidentifiable parameter has (-inf, inf).
+
+        Parameters
+        ----------
+        alpha : float, optional
+            One minus the confidence level (default 0.05 for 95 %).
+
+        Returns
+        -------
+        numpy.ndarray
+            Lower and upper limits, shape (n, 2), in each parameter's unit; read-only.
         """
         from scipy.stats import norm
 
@@ -394,13 +472,34 @@ class FitResult(ByName):
         table that also renders as Markdown, HTML (a notebook shows it),
         LaTeX and a pandas DataFrame (``as_markdown()``, ``as_html()``,
         ``as_latex()``, ``to_frame()``).
+
+        Parameters
+        ----------
+        digits : int, optional
+            Significant digits of the values.
+
+        Returns
+        -------
+        Summary
+            The tables.
         """
         from .summary import fit_summary
 
         return fit_summary(self, digits=digits)
 
     def to_frame(self, table: str | None = None):
-        """The summary's ``parameters`` (or ``derived``, ``correlations``) table as a pandas DataFrame."""
+        """The summary's ``parameters`` (or ``derived``, ``correlations``) table as a pandas DataFrame.
+
+        Parameters
+        ----------
+        table : str, optional
+            The table's key; default ``parameters``.
+
+        Returns
+        -------
+        pandas.DataFrame
+            The table.
+        """
         return self.summary().to_frame(table)
 
     def _repr_html_(self) -> str:
@@ -426,6 +525,11 @@ class FitResult(ByName):
         each with its ``code``), adequacy (flagged effects and residual
         checks, :meth:`fdml.adequacy.Adequacy.brief`), provenance.  Infinite standard errors are
         written as the string "inf".
+
+        Returns
+        -------
+        dict
+            JSON-ready.
         """
 
         def num(x):
@@ -460,6 +564,11 @@ class FitResult(ByName):
 
         ``stderr`` is None for a parameter the fit held fixed (the string "inf" when
         infinite); a plain model has none (``[]``).
+
+        Returns
+        -------
+        list of dict
+            One entry per effect, in order.
         """
         from .models.effects import root_model
 
@@ -487,6 +596,16 @@ class FitResult(ByName):
         a result's size; :meth:`record` and :func:`fdml.plotting.simulate_fit`
         need them); the spectra stay, so :attr:`resid` and the plots of the
         fit still work.
+
+        Parameters
+        ----------
+        include_data : bool, optional
+            Keep the time-domain records.
+
+        Returns
+        -------
+        dict
+            JSON-ready.
         """
         from .models import model_to_dict
 
@@ -569,6 +688,22 @@ class FitResult(ByName):
         ``inputs`` (paths) are files the result must not replace (see
         :func:`fdml.outputs.atomic_write_text`); ``include_data=False``
         leaves the time-domain records out (:meth:`to_dict`).
+
+        Parameters
+        ----------
+        path : str or Path, optional
+            Where to write; None returns the text.
+        indent : int, optional
+            Spaces per nesting level.
+        inputs : iterable of str or Path, optional
+            Files the result must not replace.
+        include_data : bool, optional
+            Keep the time-domain records.
+
+        Returns
+        -------
+        str or Path
+            The JSON text, or the path written.
         """
         doc = self.to_dict(include_data=include_data)
         if path is None:
@@ -582,6 +717,18 @@ class FitResult(ByName):
         Every key is checked for presence, type and shape; a problem raises
         :class:`~fdml.errors.FdmlError` ``"<source>: key '<key>' ..."``
         (``source`` names the file, e.g. ``"result file run.json"``).
+
+        Parameters
+        ----------
+        d : dict
+            A dict as written by :meth:`to_dict`.
+        source : str, optional
+            What and where, for the messages.
+
+        Returns
+        -------
+        FitResult
+            The result.
         """
         f = Fields(d, source)
         fmt = f.raw("format", None)
@@ -637,7 +784,18 @@ class FitResult(ByName):
         )
 
     def record(self, index: int = 0):
-        """The time-domain record ``index`` as given to the fit (a :class:`~fdml.record.Record`)."""
+        """The time-domain record ``index`` as given to the fit (a :class:`~fdml.record.Record`).
+
+        Parameters
+        ----------
+        index : int, optional
+            Which record (default the first).
+
+        Returns
+        -------
+        Record
+            The record.
+        """
         from .record import Record
 
         if not self.time_records or self.time_records[index] is None:
@@ -657,6 +815,16 @@ class FitResult(ByName):
         Estimated values where the fit estimated them, else the model's
         (fixed) output biases and the measured boundary values; no boundary
         terms for ``boundary="none"``.
+
+        Parameters
+        ----------
+        record : int, optional
+            Which record (default the first).
+
+        Returns
+        -------
+        Nuisance
+            The record's nuisance terms.
         """
         s = self.spectra[record]
         eta = np.concatenate([self.model.biases(), s["x0"], s["xT"], np.zeros(3)])  # NUISANCE_NAMES order
@@ -677,6 +845,16 @@ class FitResult(ByName):
         Includes the estimated (or measured) boundary terms and biases, so that
         it is directly comparable with the measured ``spectra[record]["z"]``:
         :func:`fdml.models.measurement.predict`, as in the fit.
+
+        Parameters
+        ----------
+        record : int, optional
+            Which record (default the first).
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex spectra of alpha (rad s), q (rad), a_z (g s), shape (m, 3).
         """
         from .models.measurement import end_shift, predict
 
@@ -905,6 +1083,16 @@ def _adequacy_from_fields(f: Fields):
 
 def load_result(path: str | Path) -> FitResult:
     """Read a result saved by :meth:`FitResult.to_json`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The JSON file.
+
+    Returns
+    -------
+    FitResult
+        The result.
 
     Raises
     ------

@@ -103,7 +103,20 @@ ALIAS_LIMIT = 0.99
 
 
 def chi2_sf(x: float, df: float) -> float:
-    """P(chi2_df > x) (``scipy.stats.chi2.sf``)."""
+    """P(chi2_df > x) (``scipy.stats.chi2.sf``).
+
+    Parameters
+    ----------
+    x : float
+        The value of the statistic.
+    df : float
+        Degrees of freedom.
+
+    Returns
+    -------
+    float
+        The tail probability, 1 for x <= 0.
+    """
     return 1.0 if x <= 0 else float(special.chdtrc(df, x))
 
 
@@ -112,6 +125,18 @@ def chi2_logsf(x: float, df: float) -> float:
 
     Above the median ``log(sf)``, below it ``log1p(-cdf)`` (accurate where the
     tail probability is close to 1); -inf where the tail underflows.
+
+    Parameters
+    ----------
+    x : float
+        The value of the statistic.
+    df : float
+        Degrees of freedom.
+
+    Returns
+    -------
+    float
+        The log tail probability, 0 for x <= 0.
     """
     if x <= 0:
         return 0.0
@@ -122,7 +147,20 @@ def chi2_logsf(x: float, df: float) -> float:
 
 
 def f_sf(x: float, dfn: float, dfd: float) -> float:
-    """P(F(dfn, dfd) > x) (``scipy.stats.f.sf``)."""
+    """P(F(dfn, dfd) > x) (``scipy.stats.f.sf``).
+
+    Parameters
+    ----------
+    x : float
+        The value of the statistic.
+    dfn, dfd : float
+        Degrees of freedom of the numerator and the denominator.
+
+    Returns
+    -------
+    float
+        The tail probability, 1 for x <= 0.
+    """
     return 1.0 if x <= 0 else float(special.fdtrc(dfn, dfd, x))
 
 
@@ -140,7 +178,22 @@ def power_noncentrality(level: float, df: int = 1, power: float = 0.8) -> float:
 
 
 def davies_bound(u: float, q: int, V: float) -> float:
-    """Davies (1987): P(sup of a chi2(q) process > u) <= P(chi2_q > u) + V u^((q-1)/2) e^(-u/2) 2^(-q/2)/Gamma(q/2)."""
+    """Davies (1987): P(sup of a chi2(q) process > u) <= P(chi2_q > u) + V u^((q-1)/2) e^(-u/2) 2^(-q/2)/Gamma(q/2).
+
+    Parameters
+    ----------
+    u : float
+        The supremum of the likelihood-ratio statistic over the nuisance grid.
+    q : int
+        Degrees of freedom (parameters tested).
+    V : float
+        Total variation of sqrt(LR) along the grid (:func:`grid_variation`).
+
+    Returns
+    -------
+    float
+        The upper bound of the tail probability (may exceed 1); 1 for u <= 0.
+    """
     if u <= 0:
         return 1.0
     log_term = (
@@ -154,7 +207,28 @@ def davies_bound(u: float, q: int, V: float) -> float:
 
 
 def p_value(lr: float, q: int, null: str, *, V: float = 0.0, n_grid: int = 1) -> tuple[float, float]:
-    """(p, log p) of a likelihood-ratio statistic under the named null distribution (module doc)."""
+    """(p, log p) of a likelihood-ratio statistic under the named null distribution (module doc).
+
+    Parameters
+    ----------
+    lr : float
+        The likelihood-ratio statistic (negative values count as 0).
+    q : int
+        Degrees of freedom (parameters tested).
+    null : {"chi2", "chibar", "davies"}
+        The null distribution (:func:`null_kind`).
+    V : float, optional
+        Total variation of sqrt(LR) along the nuisance grid, for ``"davies"``.
+    n_grid : int, optional
+        Number of grid values, for the Bonferroni bound of ``"davies"``.
+
+    Returns
+    -------
+    p : float
+        The p-value.
+    log_p : float
+        Its natural logarithm (finite where p underflows).
+    """
     lr = max(float(lr), 0.0)
     if null == "chibar":
         if lr <= 0:
@@ -177,6 +251,22 @@ def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> 
 
     The bounds of a single parameter come from the augmented model (the
     screen's, ``screen_res.model``, when given).
+
+    Parameters
+    ----------
+    effect : Effect
+        The candidate effect.
+    model : Model
+        The model it augments.
+    screen_res : ScreenResult, optional
+        The effect's screen, whose augmented model gives the bounds.
+
+    Returns
+    -------
+    null : str
+        ``"davies"`` (nuisance grid), ``"chibar"`` (one parameter whose null is at a bound) or ``"chi2"``.
+    q : int
+        Degrees of freedom (parameters tested).
     """
     plist = [p for p in effect.param_list(model) if not p.nuisance]
     q = len(plist)
@@ -198,7 +288,20 @@ def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> 
 
 
 def grid_variation(scr: ScreenResult | None) -> tuple[float, int]:
-    """(total variation of sqrt(LM) along the nuisance grid, grid size) for Davies' bound; (0, 1) without a grid."""
+    """(total variation of sqrt(LM) along the nuisance grid, grid size) for Davies' bound; (0, 1) without a grid.
+
+    Parameters
+    ----------
+    scr : ScreenResult or None
+        The screen of a nuisance-grid effect.
+
+    Returns
+    -------
+    V : float
+        Total variation of sqrt(LM) along the grid.
+    n_grid : int
+        Number of grid values.
+    """
     if scr is None or not scr.grid:
         return 0.0, 1
     ((_, (grid, prof)),) = scr.grid.items()
@@ -210,7 +313,18 @@ def grid_variation(scr: ScreenResult | None) -> tuple[float, int]:
 
 
 def holm(p: np.ndarray) -> np.ndarray:
-    """Holm's step-down adjusted p-values (NaN stays NaN)."""
+    """Holm's step-down adjusted p-values (NaN stays NaN).
+
+    Parameters
+    ----------
+    p : numpy.ndarray
+        The p-values.
+
+    Returns
+    -------
+    numpy.ndarray
+        Adjusted p-values, same shape.
+    """
     p = np.asarray(p, float)
     out = np.full_like(p, np.nan)
     ok = np.flatnonzero(np.isfinite(p))
@@ -226,7 +340,18 @@ def holm(p: np.ndarray) -> np.ndarray:
 
 
 def bh(p: np.ndarray) -> np.ndarray:
-    """Benjamini-Hochberg q-values (NaN stays NaN)."""
+    """Benjamini-Hochberg q-values (NaN stays NaN).
+
+    Parameters
+    ----------
+    p : numpy.ndarray
+        The p-values.
+
+    Returns
+    -------
+    numpy.ndarray
+        The q-values, same shape.
+    """
     p = np.asarray(p, float)
     out = np.full_like(p, np.nan)
     ok = np.flatnonzero(np.isfinite(p))
@@ -241,7 +366,18 @@ def bh(p: np.ndarray) -> np.ndarray:
 
 
 def whitener(Rs) -> list[np.ndarray]:
-    """Per band, ``L`` with ``v^H R^-1 v = ||L v||^2`` (L = C^H, C C^H = R^-1)."""
+    """Per band, ``L`` with ``v^H R^-1 v = ||L v||^2`` (L = C^H, C C^H = R^-1).
+
+    Parameters
+    ----------
+    Rs : sequence of numpy.ndarray
+        Residual covariance of each band, complex (n_out, n_out).
+
+    Returns
+    -------
+    list of numpy.ndarray
+        The whitening matrix L of each band, (n_out, n_out).
+    """
     out = []
     for R in Rs:
         W = np.linalg.inv(R)
@@ -262,6 +398,32 @@ class ScreenResult:
     its parameters); ``jacobian`` the (likelihood-whitened, floor-whitened)
     candidate sensitivities the statistic used (at the best grid value of a
     nuisance-grid effect).
+
+    Parameters
+    ----------
+    key : str
+        The effect's key.
+    lm : float
+        The score (LM) statistic, in likelihood-ratio units.
+    eta_lin : dict
+        Parameter name -> linearised estimate (null value plus one Gauss-Newton step), in its unit.
+    aliasing : dict
+        Parameter name -> share (0 to 1) of its signature the base parameters can mimic.
+    mde : dict
+        Parameter name -> minimum detectable effect (80 % power at the level divided by
+        ``ctx.family_size``), in its unit.
+    identifiable : bool
+        Whether the data can test the candidate.
+    reason : str or None, optional
+        Why not, when not identifiable.
+    grid : dict or None, optional
+        Nuisance name -> (grid, LM profile) for a nuisance-grid effect.
+    nuisance : dict, optional
+        Nuisance name -> the grid value with the largest LM.
+    model : Model or None, optional
+        The augmented model at the null values.
+    jacobian : tuple or None, optional
+        (likelihood-whitened, floor-whitened) candidate sensitivities, each (M, q).
     """
 
     key: str
@@ -359,11 +521,33 @@ class ScreenContext:
         return np.vstack([M.real, M.imag])
 
     def perp(self, X):
-        """The part of ``X`` orthogonal to the base model's sensitivities (whitened)."""
+        """The part of ``X`` orthogonal to the base model's sensitivities (whitened).
+
+        Parameters
+        ----------
+        X : numpy.ndarray
+            Whitened, real-stacked columns, shape (M,) or (M, q).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``X`` with the base sensitivities projected out, same shape.
+        """
         return X - self.Q @ (self.Q.T @ X)
 
     def perp_floor(self, X):
-        """The part of ``X`` orthogonal to the base sensitivities weighted by the noise floors."""
+        """The part of ``X`` orthogonal to the base sensitivities weighted by the noise floors.
+
+        Parameters
+        ----------
+        X : numpy.ndarray
+            Floor-whitened, real-stacked columns, shape (M,) or (M, q).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``X`` with the base sensitivities projected out, same shape.
+        """
         return X - self.Qf @ (self.Qf.T @ X)
 
     @property
@@ -374,21 +558,72 @@ class ScreenContext:
         return self._rp
 
     def white(self, A: np.ndarray) -> np.ndarray:
-        """Likelihood-whitened, real-stacked columns of dy/d eta, A of shape (N, n_out, q): (M, q)."""
+        """Likelihood-whitened, real-stacked columns of dy/d eta, A of shape (N, n_out, q): (M, q).
+
+        Parameters
+        ----------
+        A : numpy.ndarray
+            Sensitivities d(prediction)/d(eta), shape (N, n_out, q).
+
+        Returns
+        -------
+        numpy.ndarray
+            The columns, shape (M, q) with M = 2 N n_out.
+        """
         return self._real_cols(self._white_cols(A))
 
     def floor(self, A: np.ndarray) -> np.ndarray:
-        """Floor-whitened, real-stacked columns of dy/d eta (for aliasing and the MDE): (M, q)."""
+        """Floor-whitened, real-stacked columns of dy/d eta (for aliasing and the MDE): (M, q).
+
+        Parameters
+        ----------
+        A : numpy.ndarray
+            Sensitivities d(prediction)/d(eta), shape (N, n_out, q).
+
+        Returns
+        -------
+        numpy.ndarray
+            The columns, shape (M, q) with M = 2 N n_out.
+        """
         return self._real_cols(self._floor_cols(A))
 
     def pair(self, A: np.ndarray) -> tuple:
-        """(:meth:`white`, :meth:`floor`) of A."""
+        """(:meth:`white`, :meth:`floor`) of A.
+
+        Parameters
+        ----------
+        A : numpy.ndarray
+            Sensitivities d(prediction)/d(eta), shape (N, n_out, q).
+
+        Returns
+        -------
+        white : numpy.ndarray
+            Likelihood-whitened columns, (M, q).
+        floor : numpy.ndarray
+            Floor-whitened columns, (M, q).
+        """
         return self.white(A), self.floor(A)
 
     def candidate_sensitivities(self, model, names, steps, one_sided) -> np.ndarray:
         """Sensitivities d(prediction)/d(eta) at the model's values, by central (or forward) differences.
 
         Shape (N, n_out, q).
+
+        Parameters
+        ----------
+        model : Model
+            The augmented model at the candidate's null values.
+        names : list of str
+            The candidate parameters eta.
+        steps : sequence of float
+            Difference step of each parameter, in its unit.
+        one_sided : sequence of bool
+            Forward differences for each parameter whose null is at a bound.
+
+        Returns
+        -------
+        numpy.ndarray
+            The sensitivities, complex, shape (N, n_out, q).
         """
         # the fit's own problem sets up the candidate's (fdml.estimate.prepare; this module sits below it)
         prob = self.fit.prob.prepare(self.spectra, model, sensitivity="central", **self.options)
@@ -410,7 +645,26 @@ class ScreenContext:
         return np.stack(cols, axis=-1)
 
     def candidate_jacobian(self, model, names, steps, one_sided) -> tuple:
-        """(likelihood-whitened, floor-whitened) real-stacked d(prediction)/d(eta) at the model's values."""
+        """(likelihood-whitened, floor-whitened) real-stacked d(prediction)/d(eta) at the model's values.
+
+        Parameters
+        ----------
+        model : Model
+            The augmented model at the candidate's null values.
+        names : list of str
+            The candidate parameters eta.
+        steps : sequence of float
+            Difference step of each parameter, in its unit.
+        one_sided : sequence of bool
+            Forward differences for each parameter whose null is at a bound.
+
+        Returns
+        -------
+        white : numpy.ndarray
+            Likelihood-whitened columns, (M, q).
+        floor : numpy.ndarray
+            Floor-whitened columns, (M, q).
+        """
         return self.pair(self.candidate_sensitivities(model, names, steps, one_sided))
 
     def candidate_sensitivities_many(self, cands) -> list:
@@ -418,6 +672,16 @@ class ScreenContext:
 
         An exception stands in place of a candidate that cannot be evaluated.  A subclass may
         take them together.
+
+        Parameters
+        ----------
+        cands : sequence of tuple
+            ``(model, names, steps, one_sided)`` of each candidate.
+
+        Returns
+        -------
+        list
+            Per candidate, its sensitivities (N, n_out, q) or the exception raised.
         """
         out: list[np.ndarray | Exception] = []
         for args in cands:
@@ -432,6 +696,26 @@ class ScreenContext:
 
         Returns shape (N, n_out, len(grid), q).  This one evaluates the grid
         values one by one; a subclass may evaluate them at once.
+
+        Parameters
+        ----------
+        model : Model
+            The augmented model at the candidate's null values.
+        names : list of str
+            The candidate parameters eta.
+        steps : sequence of float
+            Difference step of each parameter, in its unit.
+        one_sided : sequence of bool
+            Forward differences for each parameter whose null is at a bound.
+        gname : str
+            The nuisance parameter.
+        grid : numpy.ndarray
+            Its values, in its unit.
+
+        Returns
+        -------
+        numpy.ndarray
+            The sensitivities, complex, shape (N, n_out, len(grid), q).
         """
         return np.stack(
             [self.candidate_sensitivities(model.with_values({gname: float(w)}), names, steps, one_sided) for w in grid],
@@ -536,7 +820,24 @@ def _candidate(ctx: ScreenContext, effect: Effect) -> _Candidate:
 
 
 def screen(ctx: ScreenContext, effect: Effect, *, level: float, band: tuple) -> ScreenResult:
-    """Screen one candidate effect at the current fit (:func:`screen_all` of one)."""
+    """Screen one candidate effect at the current fit (:func:`screen_all` of one).
+
+    Parameters
+    ----------
+    ctx : ScreenContext
+        The current fit's whitened residual and sensitivities.
+    effect : Effect
+        The candidate.
+    level : float
+        Test level (the MDE has 80 % power at level / ``ctx.family_size``).
+    band : tuple of float
+        The fit's band, ``(lo, hi, ...)`` rad/s (the nuisance grid spans lo to hi).
+
+    Returns
+    -------
+    ScreenResult
+        The screen of the candidate.
+    """
     (res,) = screen_all(ctx, [effect], level=level, band=band)
     if isinstance(res, Exception):
         raise res
@@ -549,6 +850,22 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
     The candidates without a nuisance grid are taken together: their
     sensitivities from :meth:`ScreenContext.candidate_sensitivities_many`,
     their statistics as one array operation per number of parameters.
+
+    Parameters
+    ----------
+    ctx : ScreenContext
+        The current fit's whitened residual and sensitivities.
+    effects : sequence of Effect
+        The candidates.
+    level : float
+        Test level (the MDE has 80 % power at level / ``ctx.family_size``).
+    band : tuple of float
+        The fit's band, ``(lo, hi, ...)`` rad/s (the nuisance grid spans lo to hi).
+
+    Returns
+    -------
+    list
+        Per effect, its :class:`ScreenResult` or the exception raised.
     """
     out: list[ScreenResult | Exception | None] = [None] * len(effects)
     cands: dict[int, _Candidate] = {}

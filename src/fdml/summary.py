@@ -71,7 +71,20 @@ _COV_TYPES = {
 
 
 def parameter_unit(result, name: str) -> str:
-    """Unit of an estimated, fixed or derived quantity of ``result`` ('' if unknown)."""
+    """Unit of an estimated, fixed or derived quantity of ``result`` ('' if unknown).
+
+    Parameters
+    ----------
+    result : FitResult
+        The fit.
+    name : str
+        The quantity's name (an estimate's, with its record suffix, a fixed parameter's or a derived one's).
+
+    Returns
+    -------
+    str
+        The unit (``"1/rad"``, ``"s"``, ...), or ``''``.
+    """
     slot = result.slot(name) if hasattr(result, "slot") else None
     base = name if slot is None else slot.base
     params = result.model.parameters
@@ -89,13 +102,13 @@ def parameter_unit(result, name: str) -> str:
 class Column:
     """One column of a :class:`Table`.
 
-    Attributes
+    Parameters
     ----------
     key : str
         Column name in :meth:`Summary.to_frame`.
     label : str
         Heading in the rendered formats.
-    kind : {"text", "num", "err", "pct", "z"}
+    kind : {"text", "num", "err", "pct", "z"}, optional
         How cells are formatted: text as is; ``num`` with the summary's
         significant digits; ``err`` (standard errors) with 4 significant
         digits; ``pct`` and ``z`` with two decimals.  Missing numbers (None,
@@ -111,14 +124,16 @@ class Column:
 class Table:
     """A titled table of raw values (numbers stay numbers until rendered).
 
-    Attributes
+    Parameters
     ----------
     key : str
         Name used by :meth:`Summary.to_frame` (``"parameters"``, ``"derived"``, ...).
     title : str
+        Heading in the rendered formats.
     columns : tuple of Column
         The first column is the row label (the DataFrame index).
     rows : tuple of tuple
+        The cells, one tuple per row in the order of ``columns``.
     """
 
     key: str
@@ -170,9 +185,11 @@ class Summary(str):
     Parameters
     ----------
     title : str
+        Heading of the summary.
     header : sequence of (str, str)
         Label/value pairs describing the fit.
     tables : sequence of Table
+        The tables, in order.
     notes : sequence of (str, sequence of str)
         Titled lists of remarks (warnings, fixed values, ...), rendered after
         the tables.
@@ -208,18 +225,41 @@ class Summary(str):
 
     # --- formats -------------------------------------------------------------------------
     def as_text(self) -> str:
-        """The plain-text table (the summary's ``str`` value)."""
+        """The plain-text table (the summary's ``str`` value).
+
+        Returns
+        -------
+        str
+            The text.
+        """
         return str.__str__(self)
 
     def table(self, key: str) -> Table:
-        """The table named ``key`` (``"parameters"``, ``"derived"``, ``"correlations"``, ...)."""
+        """The table named ``key`` (``"parameters"``, ``"derived"``, ``"correlations"``, ...).
+
+        Parameters
+        ----------
+        key : str
+            The table's key.
+
+        Returns
+        -------
+        Table
+            The table.
+        """
         for t in self.tables:
             if t.key == key:
                 return t
         raise KeyError(f"no table {key!r} in this summary; tables: {', '.join(t.key for t in self.tables)}")
 
     def as_markdown(self) -> str:
-        """GitHub-flavoured Markdown: a heading, a bullet list of the header, pipe tables."""
+        """GitHub-flavoured Markdown: a heading, a bullet list of the header, pipe tables.
+
+        Returns
+        -------
+        str
+            The Markdown text.
+        """
         lines = [f"### {_md_escape(self.title)}", ""]
         for k, v in self.header:
             lines.append(f"- **{_md_escape(k)}**: {_md_escape(v)}")
@@ -236,7 +276,13 @@ class Summary(str):
         return "\n".join(lines) + "\n"
 
     def as_html(self) -> str:
-        """An HTML fragment (well-formed XHTML: every tag closed, text escaped)."""
+        """An HTML fragment (well-formed XHTML: every tag closed, text escaped).
+
+        Returns
+        -------
+        str
+            The HTML fragment.
+        """
         e = html.escape
         out = ['<div class="fdml-summary">', f"<h4>{e(self.title)}</h4>"]
         if self.header:
@@ -262,7 +308,13 @@ class Summary(str):
         return "\n".join(out)
 
     def as_latex(self) -> str:
-        """LaTeX: a ``center`` block of ``tabular`` environments (no packages needed)."""
+        """LaTeX: a ``center`` block of ``tabular`` environments (no packages needed).
+
+        Returns
+        -------
+        str
+            The LaTeX source.
+        """
         x = _latex_escape
         out = [r"\begin{center}", r"\textbf{" + x(self.title) + r"}\\[4pt]"]
         if self.header:
@@ -478,12 +530,14 @@ def fit_summary(res, digits: int = 6) -> Summary:
     Parameters
     ----------
     res : FitResult
+        The fit.
     digits : int, optional
         Significant digits of values.
 
     Returns
     -------
     Summary
+        The tables and notes.
     """
     rows: list[tuple] = []
     for n, v, s in zip(res.names, np.asarray(res.values, float), np.asarray(res.stderr, float)):
@@ -537,6 +591,7 @@ def comparison_summary(cmp, reference: Mapping | None = None, digits: int = 4) -
     Parameters
     ----------
     cmp : Comparison
+        The steady and unsteady fits of one record.
     reference : mapping, optional
         ``{name: (unsteady, steady)}``, e.g. a paper's columns.
     digits : int, optional

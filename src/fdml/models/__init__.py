@@ -48,6 +48,16 @@ def model_to_dict(model: Model) -> dict:
     A model with effects is saved as its base model's kind and options plus
     the effect keys (``"time_delay@alpha"``) in order; the parameters are the
     whole set, the effects' included.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+
+    Returns
+    -------
+    dict
+        JSON-ready.
     """
     import dataclasses
 
@@ -75,7 +85,18 @@ def model_to_dict(model: Model) -> dict:
 
 
 def model_from_dict(d: dict) -> Model:
-    """Inverse of :func:`model_to_dict`."""
+    """Inverse of :func:`model_to_dict`.
+
+    Parameters
+    ----------
+    d : dict
+        A dict as written by :func:`model_to_dict`.
+
+    Returns
+    -------
+    Model
+        The model, its parameters and effects as saved.
+    """
     from ..parameters import Parameters
 
     ac = None if d.get("aircraft") is None else Aircraft.from_dict(d["aircraft"], origin="saved model")

@@ -55,6 +55,7 @@ class Param:
         Physical range; a fitted value outside it means the effect is
         absorbing something else, and the MDE screen compares against it.
     unit, description : str
+        The parameter's unit and a one-line description.
     start : float, optional
         A typical non-null size (used for start values and finite-difference
         steps); default 1 % of the plausible range, else 1e-3.
@@ -75,7 +76,13 @@ class Param:
     nuisance: bool = False
 
     def typical(self) -> float:
-        """A small, typical non-null size (for finite differences and MDE units)."""
+        """A small, typical non-null size (for finite differences and MDE units).
+
+        Returns
+        -------
+        float
+            The size, in the parameter's unit (positive).
+        """
         if self.start is not None:
             return abs(float(self.start))
         if self.plausible is not None:
@@ -98,6 +105,7 @@ class Effect:
     channel : str
         Where it applies.
     params : tuple of Param
+        The parameters the effect adds or frees.
     kind : {"deterministic", "noise"}
         Noise-kind effects change the residual's covariance, not the
         model's response; they are tested separately (after the
@@ -128,7 +136,22 @@ class Effect:
     def applicable(
         self, model: Model, inputs: Sequence[str] = (INPUT,), outputs: Sequence[str] = OUTPUTS
     ) -> str | None:
-        """None if the effect can be tested on ``model`` with these channels, else the reason."""
+        """None if the effect can be tested on ``model`` with these channels, else the reason.
+
+        Parameters
+        ----------
+        model : Model
+            The base model.
+        inputs : sequence of str, optional
+            Input channels of the record(s).
+        outputs : sequence of str, optional
+            Fitted output channels.
+
+        Returns
+        -------
+        str or None
+            Why the effect cannot be tested, or None.
+        """
         for need in self.needs:
             if need not in inputs and need not in outputs:
                 return f"needs the {need} channel, which the record(s) lack"
@@ -138,15 +161,48 @@ class Effect:
         return None
 
     def param_list(self, model: Model) -> tuple:
-        """The :class:`Param` list for this base model (most effects: :attr:`params`)."""
+        """The :class:`Param` list for this base model (most effects: :attr:`params`).
+
+        Parameters
+        ----------
+        model : Model
+            The base model.
+
+        Returns
+        -------
+        tuple of Param
+            The effect's parameters on ``model``.
+        """
         return tuple(self.params)
 
     def augment(self, model: Model) -> Model:  # pragma: no cover - abstract
-        """The augmented model, with the new parameters free and at their null."""
+        """The augmented model, with the new parameters free and at their null.
+
+        Parameters
+        ----------
+        model : Model
+            The base model.
+
+        Returns
+        -------
+        Model
+            The augmented model.
+        """
         raise NotImplementedError
 
     def nulls(self, model: Model) -> dict[str, float]:
-        """Null values of the effect's parameters on ``model``."""
+        """Null values of the effect's parameters on ``model``.
+
+        Parameters
+        ----------
+        model : Model
+            The base model.
+
+        Returns
+        -------
+        dict of str to float
+            Parameter name -> null value, in its unit.
+        """
         out = {}
         vals = model.parameters.values
         for p in self.param_list(model):
@@ -158,6 +214,22 @@ class Effect:
 
         Built-in effects implement it in :mod:`fdml.diagnose.truth`; a user
         effect without a time-domain form cannot be used as a validation truth.
+
+        Parameters
+        ----------
+        t : numpy.ndarray
+            Time, s, shape (N,).
+        signals : dict
+            Channel name -> noise-free time history, shape (N,).
+        values : mapping of str to float
+            Parameter values by name.
+        model : Model
+            The augmented model.
+
+        Returns
+        -------
+        dict
+            The signals with the effect applied.
         """
         raise FdmlError(f"effect {self.key} has no time-domain form for validation truths")
 
@@ -170,6 +242,21 @@ class Effect:
         matrix-level effects on its descriptor form
         (:class:`fdml.models.realization.Descriptor`) or, on a Wells-Keskar base, on the
         options of its realisation.  An effect without one cannot be simulated.
+
+        Parameters
+        ----------
+        target : object
+            The realisation being built: a state space, a
+            :class:`fdml.simulate.Descriptor` or realisation options.
+        p : mapping of str to float
+            All parameter values by name.
+        root : Model
+            The plain base model.
+
+        Returns
+        -------
+        object
+            ``target`` (or a new one of its kind) with the effect applied.
         """
         raise ParameterError(
             f"effect {self.key} has no time-domain realisation: it can be fitted, "
@@ -177,11 +264,23 @@ class Effect:
         )
 
     def describe(self) -> str:
-        """A short description of the effect: its signature, else its key."""
+        """A short description of the effect: its signature, else its key.
+
+        Returns
+        -------
+        str
+            The description.
+        """
         return self.signature or self.key
 
     def label(self) -> str:
-        """Short name for a model's description: ``alpha time delay (tau_alpha, s)``."""
+        """Short name for a model's description: ``alpha time delay (tau_alpha, s)``.
+
+        Returns
+        -------
+        str
+            The name, with the parameters and their units.
+        """
         where = "" if not self.channel else f"{self.channel} "
         pars = ", ".join(f"{p.name}, {p.unit}" if p.unit else p.name for p in self.params if not p.nuisance)
         return f"{where}{self.name.replace('_', ' ')}" + (f" ({pars})" if pars else "")
@@ -198,6 +297,19 @@ class AugmentedModel(Model):
     parameters; ``evaluate`` applies the matrix-level effects before the
     short-period solve and the output-level effects after it, in order.  The
     estimator sees an ordinary :class:`~fdml.models.base.Model`.
+
+    Parameters
+    ----------
+    gust, output_bias : bool, optional
+        Taken from ``root`` (the values given are replaced).
+    parameters : Parameters, optional
+        The parameter set; default the root's followed by the effects' (fixed at their nulls).
+    root : Model
+        The plain base model.
+    effects : tuple of Effect, optional
+        The output- and matrix-level effects, in the order they apply.
+    requested : tuple of Effect, optional
+        The effects as requested, free-parameter ones included (they describe and serialise the model).
     """
 
     root: Model = field(default=None)  # type: ignore[assignment]
@@ -264,7 +376,20 @@ class AugmentedModel(Model):
         return M, B, E
 
     def evaluate(self, omega, values: Mapping[str, float] | None = None) -> ModelResponse:
-        """:meth:`Model.evaluate` (its ``_matrices`` apply the matrix-level effects), then the output-level ones."""
+        """:meth:`Model.evaluate` (its ``_matrices`` apply the matrix-level effects), then the output-level ones.
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s.
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        ModelResponse
+            The response at ``omega``.
+        """
         r = Model.evaluate(self, omega, values)  # input delays and the solve: written once, in Model
         p = self.values(values)
         s = 1j * r.omega
@@ -278,7 +403,13 @@ class AugmentedModel(Model):
         return self.root.derived(self._root_values(self.values(values)))
 
     def describe(self) -> str:
-        """The model by its parts: ``dimensional model (...) + alpha time delay (tau_alpha, s) + ...``."""
+        """The model by its parts: ``dimensional model (...) + alpha time delay (tau_alpha, s) + ...``.
+
+        Returns
+        -------
+        str
+            One line.
+        """
         return " + ".join([self.root.describe()] + [e.label() for e in self.parts])
 
     def __repr__(self) -> str:
@@ -286,12 +417,34 @@ class AugmentedModel(Model):
 
 
 def root_model(model: Model) -> Model:
-    """The plain fdml model under any augmentation."""
+    """The plain fdml model under any augmentation.
+
+    Parameters
+    ----------
+    model : Model
+        A plain or augmented model.
+
+    Returns
+    -------
+    Model
+        ``model.root`` for an augmented model, else ``model``.
+    """
     return model.root if isinstance(model, AugmentedModel) else model
 
 
 def applied_effects(model: Model) -> tuple:
-    """Output/matrix effects applied to ``model`` (empty for a plain model)."""
+    """Output/matrix effects applied to ``model`` (empty for a plain model).
+
+    Parameters
+    ----------
+    model : Model
+        A plain or augmented model.
+
+    Returns
+    -------
+    tuple of Effect
+        The applied effects, in order.
+    """
     return model.effects if isinstance(model, AugmentedModel) else ()
 
 
@@ -329,6 +482,16 @@ def with_gust(model: Model) -> Model:
 
     Used for the direction of unmeasured turbulence in output space; returns
     ``model`` itself when it already has a gust input.
+
+    Parameters
+    ----------
+    model : Model
+        A plain or augmented model.
+
+    Returns
+    -------
+    Model
+        The model with the inputs de and alpha_w.
     """
     if model.gust:
         return model
@@ -353,7 +516,9 @@ class OutputEffect(Effect):
     Parameters
     ----------
     name, channel : str
+        Library name and the channel it applies to.
     params : tuple of Param
+        The parameters the effect adds.
     fn : callable
         ``fn(s, p, G, H, P, root) -> (G, H, P)``: ``s`` = j omega (n,), ``p``
         all parameter values by name, ``G`` (n, 3, n_in), ``H`` and ``P``
@@ -361,11 +526,18 @@ class OutputEffect(Effect):
         Must return the inputs unchanged when the effect's parameters are at
         their nulls.
     needs : tuple of str, optional
+        Record channels required.
     signature : str, optional
+        One line on where the effect shows, for reports.
     nuisance_grid : dict, optional
+        ``{param name: grid function}`` for parameters not identified under the null.
     applies : callable, optional
         ``applies(model) -> str | None``: a reason the effect cannot be tested
         on this base model (e.g. no chord for a lift lag), or None.
+    simulate : callable, optional
+        The time-domain form, with the signature of :meth:`Effect.simulate` (without ``self``).
+    realize : callable, optional
+        The effect on a realisation, with the signature of :meth:`Effect.realize` (without ``self``).
     """
 
     def __init__(
@@ -394,7 +566,30 @@ class OutputEffect(Effect):
         self._simulate = simulate
 
     def output(self, s, p, G, H, P, root):
-        """Apply the effect to the output matrices at ``s = j omega``; returns ``(G, H, P)``."""
+        """Apply the effect to the output matrices at ``s = j omega``; returns ``(G, H, P)``.
+
+        Parameters
+        ----------
+        s : numpy.ndarray
+            The Laplace variable j omega, rad/s, shape (n,).
+        p : mapping of str to float
+            All parameter values by name.
+        G : numpy.ndarray
+            Outputs per input, shape (n, 3, n_in).
+        H, P : numpy.ndarray
+            Outputs per boundary term and per state-equation forcing, shape (n, 3, 2).
+        root : Model
+            The plain base model.
+
+        Returns
+        -------
+        G : numpy.ndarray
+            Outputs per input with the effect applied, same shape.
+        H : numpy.ndarray
+            Outputs per boundary term with the effect applied, same shape.
+        P : numpy.ndarray
+            Outputs per state-equation forcing with the effect applied, same shape.
+        """
         return self._fn(s, p, G, H, P, root)
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
@@ -422,14 +617,84 @@ class MatrixEffect(OutputEffect):
 
     ``fn(s, p, M, B, E, root) -> (M, B, E)`` with ``M`` (n, 2, 2) = sE - A(s),
     ``B`` (n, 2, n_in) without input delays, ``E`` (2, 2) or (n, 2, 2).
+
+    Parameters
+    ----------
+    name, channel : str
+        Library name and the channel it applies to.
+    params : tuple of Param
+        The parameters the effect adds.
+    fn : callable
+        ``fn(s, p, M, B, E, root) -> (M, B, E)``; must return the inputs
+        unchanged when the effect's parameters are at their nulls.
+    needs : tuple of str, optional
+        Record channels required.
+    signature : str, optional
+        One line on where the effect shows, for reports.
+    nuisance_grid : dict, optional
+        ``{param name: grid function}`` for parameters not identified under the null.
+    applies : callable, optional
+        ``applies(model) -> str | None``: a reason the effect cannot be tested, or None.
+    simulate : callable, optional
+        The time-domain form, with the signature of :meth:`Effect.simulate` (without ``self``).
+    realize : callable, optional
+        The effect on a realisation, with the signature of :meth:`Effect.realize` (without ``self``).
     """
 
     def matrices(self, s, p, M, B, E, root):
-        """Apply the effect to the short-period matrices; returns ``(M, B, E)``."""
+        """Apply the effect to the short-period matrices; returns ``(M, B, E)``.
+
+        Parameters
+        ----------
+        s : numpy.ndarray
+            The Laplace variable j omega, rad/s, shape (n,).
+        p : mapping of str to float
+            All parameter values by name.
+        M : numpy.ndarray
+            ``s E - A(s)``, shape (n, 2, 2).
+        B : numpy.ndarray
+            Input matrix without input delays, shape (n, 2, n_in).
+        E : numpy.ndarray
+            Matrix multiplying the state derivative, shape (2, 2) or (n, 2, 2).
+        root : Model
+            The plain base model.
+
+        Returns
+        -------
+        M : numpy.ndarray
+            ``s E - A(s)`` with the effect applied.
+        B : numpy.ndarray
+            The input matrix with the effect applied.
+        E : numpy.ndarray
+            The derivative matrix with the effect applied.
+        """
         return self._fn(s, p, M, B, E, root)
 
     def output(self, s, p, G, H, P, root):  # pragma: no cover - never called for matrix effects
-        """Leave the outputs unchanged: a matrix effect acts through :meth:`matrices`."""
+        """Leave the outputs unchanged: a matrix effect acts through :meth:`matrices`.
+
+        Parameters
+        ----------
+        s : numpy.ndarray
+            The Laplace variable j omega, rad/s, shape (n,).
+        p : mapping of str to float
+            All parameter values by name.
+        G : numpy.ndarray
+            Outputs per input, shape (n, 3, n_in).
+        H, P : numpy.ndarray
+            Outputs per boundary term and per state-equation forcing, shape (n, 3, 2).
+        root : Model
+            The plain base model.
+
+        Returns
+        -------
+        G : numpy.ndarray
+            Outputs per input, unchanged.
+        H : numpy.ndarray
+            Outputs per boundary term, unchanged.
+        P : numpy.ndarray
+            Outputs per state-equation forcing, unchanged.
+        """
         return G, H, P
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
@@ -445,6 +710,7 @@ class FreeParameterEffect(Effect):
     Parameters
     ----------
     name, channel : str
+        Library name and the channel it applies to.
     param : Param
         ``null=None`` takes the null from the base model's value; a number
         sets the parameter to it first (e.g. y_w = 0 on a steady model).
@@ -453,6 +719,14 @@ class FreeParameterEffect(Effect):
     convert : callable, optional
         ``convert(root) -> root'``: rewrite the base model first (e.g. steady
         to the unsteady model with every lag off); must be the same model.
+    needs : tuple of str, optional
+        Record channels required.
+    signature : str, optional
+        One line on where the effect shows, for reports.
+    simulate : callable, optional
+        The time-domain form, with the signature of :meth:`Effect.simulate` (without ``self``).
+    bounds : tuple of float, optional
+        (lower, upper) bounds of the freed parameter, widened to include its null; default the Param's.
     """
 
     def __init__(
@@ -530,7 +804,28 @@ class FreeParameterEffect(Effect):
 
 
 def scale_rows(G, H, P, row: int, factor):
-    """Multiply output row ``row`` of G, H and P by ``factor`` (scalar or (n,) array)."""
+    """Multiply output row ``row`` of G, H and P by ``factor`` (scalar or (n,) array).
+
+    Parameters
+    ----------
+    G : numpy.ndarray
+        Outputs per input, shape (n, 3, n_in).
+    H, P : numpy.ndarray
+        Outputs per boundary term and per state-equation forcing, shape (n, 3, 2).
+    row : int
+        The output: 0 alpha, 1 q, 2 a_z.
+    factor : float or numpy.ndarray
+        The factor, a scalar or one per frequency (n,).
+
+    Returns
+    -------
+    G : numpy.ndarray
+        A copy of ``G`` with the row scaled.
+    H : numpy.ndarray
+        A copy of ``H`` with the row scaled.
+    P : numpy.ndarray
+        A copy of ``P`` with the row scaled.
+    """
     f = np.asarray(factor)
     f = f[:, None] if f.ndim == 1 else f
     G = G.copy()

@@ -47,7 +47,7 @@ UPPER: dict[str, Callable] = {}
 class ModelResponse:
     """Frequency response of a model, frequency first (for array work).
 
-    Attributes
+    Parameters
     ----------
     omega : ndarray, shape (n,)
         Frequencies, rad/s.
@@ -71,7 +71,7 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
     Parameters
     ----------
     s : ndarray, shape (n,)
-        j omega, rad/s.
+        The Laplace variable j omega, rad/s.
     M : ndarray, shape (n, 2, 2)
         ``s E - A(s)``.
     B : ndarray, shape (n, 2, n_in)
@@ -84,8 +84,11 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
     Returns
     -------
     G : ndarray, shape (n, 3, n_in)
+        Outputs (alpha rad, q rad/s, a_z g) per unit input.
     H : ndarray, shape (n, 3, 2)
+        Outputs per boundary term d = x(0) - x(T) e^{-sT}, x = [alpha, q].
     P : ndarray, shape (n, 3, 2)
+        Outputs per unit forcing of each state equation.
     """
     m00, m01, m10, m11 = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
     det = m00 * m11 - m01 * m10
@@ -169,6 +172,22 @@ class Model:
 
         ``M`` has shape (n, 2, 2), ``B`` (n, 2, n_in) without the input delays,
         ``E`` (2, 2) or (n, 2, 2); the state is x = [alpha, q].
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s.
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        M : numpy.ndarray
+            ``s E - A(s)``, complex, shape (n, 2, 2).
+        B : numpy.ndarray
+            Input matrix without the input delays, complex, shape (n, 2, n_in).
+        E : numpy.ndarray
+            Matrix multiplying the state derivative, shape (2, 2) or (n, 2, 2).
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         return self._matrices(1j * omega, self.values(values))
@@ -179,7 +198,18 @@ class Model:
         raise NotImplementedError
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
-        """Derived quantities (the alternate set); empty by default."""
+        """Derived quantities (the alternate set); empty by default.
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        dict of str to float
+            Derived quantity name -> value (in its unit).
+        """
         return {}
 
     # --- common machinery --------------------------------------------------------
@@ -212,7 +242,18 @@ class Model:
         return ("tau_de", "tau_alpha_w") if self.gust else ("tau_de",)
 
     def values(self, values: Mapping[str, float] | Parameters | None = None) -> dict[str, float]:
-        """All parameter values, with ``values`` (by name) overriding the defaults."""
+        """All parameter values, with ``values`` (by name) overriding the defaults.
+
+        Parameters
+        ----------
+        values : mapping of str to float, or Parameters, optional
+            Values by name overriding the model's own.
+
+        Returns
+        -------
+        dict of str to float
+            Every parameter's value, by name.
+        """
         p = self.parameters.values
         if values is None:
             return p
@@ -227,7 +268,20 @@ class Model:
         return p
 
     def evaluate(self, omega, values: Mapping[str, float] | None = None) -> ModelResponse:
-        """G and H at ``omega`` (rad/s), frequency first; see :class:`ModelResponse`."""
+        """G and H at ``omega`` (rad/s), frequency first; see :class:`ModelResponse`.
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s.
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        ModelResponse
+            The response at ``omega``.
+        """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         p = self.values(values)
         s = 1j * omega
@@ -259,6 +313,26 @@ class Model:
         :meth:`evaluate` without providing matrices gets central differences
         of :meth:`evaluate` instead.  ``parts`` limits which derivatives are
         computed (the others are returned as None).
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s.
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+        names : sequence of str, optional
+            Parameters to differentiate with respect to.
+        parts : sequence of {"G", "H", "P"}, optional
+            Which derivatives to compute (``dG`` always is).
+
+        Returns
+        -------
+        resp : ModelResponse
+            The response at ``omega``.
+        dG : numpy.ndarray
+            Derivatives dG/d(name), shape (len(names), n, 3, n_in).
+        dH, dP : numpy.ndarray or None
+            Derivatives dH/d(name) and dP/d(name), shape (len(names), n, 3, 2), or None when not in ``parts``.
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         p = self.values(values)
@@ -340,6 +414,18 @@ class Model:
         Outputs are alpha (rad), q (rad/s), a_z (g); inputs de (rad) and, for a
         gust model, alpha_w (rad).  The layout follows python-control.
 
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s.
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex response, shape (3, n_in, n).
+
         Raises
         ------
         ParameterError
@@ -356,25 +442,82 @@ class Model:
         return G
 
     def biases(self, values: Mapping[str, float] | None = None) -> np.ndarray:
-        """Output biases (alpha rad, q rad/s, az g)."""
+        """Output biases (alpha rad, q rad/s, az g).
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        numpy.ndarray
+            The three biases, shape (3,).
+        """
         p = self.values(values)
         return np.array([p[f"bias_{n}"] for n in OUTPUTS])
 
     # --- functional updates --------------------------------------------------------
     def with_parameters(self, parameters: Parameters) -> "Model":
-        """Return a copy with a new parameter set."""
+        """Return a copy with a new parameter set.
+
+        Parameters
+        ----------
+        parameters : Parameters
+            The new parameter set.
+
+        Returns
+        -------
+        Model
+            The copy.
+        """
         return replace(self, parameters=parameters)
 
     def with_values(self, values: Mapping[str, float] | None = None, **kw: float) -> "Model":
-        """Return a copy with new parameter values."""
+        """Return a copy with new parameter values.
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            New values by name.
+        **kw : float
+            More new values by name.
+
+        Returns
+        -------
+        Model
+            The copy.
+        """
         return self.with_parameters(self.parameters.with_values(values, **kw))
 
     def fix(self, names: Sequence[str] | Mapping[str, float]) -> "Model":
-        """Return a copy with ``names`` fixed (a mapping also sets values)."""
+        """Return a copy with ``names`` fixed (a mapping also sets values).
+
+        Parameters
+        ----------
+        names : sequence of str or mapping of str to float
+            Parameters to fix (with their values for a mapping).
+
+        Returns
+        -------
+        Model
+            The copy.
+        """
         return self.with_parameters(self.parameters.fix(names))
 
     def free(self, names: Sequence[str]) -> "Model":
-        """Return a copy with ``names`` freed."""
+        """Return a copy with ``names`` freed.
+
+        Parameters
+        ----------
+        names : sequence of str
+            Parameters to free.
+
+        Returns
+        -------
+        Model
+            The copy.
+        """
         return self.with_parameters(self.parameters.free(names))
 
     def derived_jacobian(self, values: Mapping[str, float], names: Sequence[str]):
@@ -384,6 +527,20 @@ class Model:
         a central difference with relative step 1e-6 has truncation error near
         1e-12 and rounding error near 1e-10 relative; ample for a delta-method
         covariance.
+
+        Parameters
+        ----------
+        values : mapping of str to float
+            Parameter values by name (the point of the derivatives).
+        names : sequence of str
+            Parameters to differentiate with respect to.
+
+        Returns
+        -------
+        keys : list of str
+            The derived quantities, in :meth:`derived`'s order.
+        J : numpy.ndarray
+            Derivatives d(derived)/d(names), shape (len(keys), len(names)).
         """
         base = self.values(values)
         keys = list(self.derived(base))
@@ -402,6 +559,16 @@ class Model:
         Each effect's parameters are free at their null values (where the
         model is unchanged); see :func:`fdml.models.effects.with_effects`.
         ``model.with_effects("time_delay:alpha", "sensor_offset:az")``.
+
+        Parameters
+        ----------
+        *effects : str or Effect
+            Effect keys or objects (iterables of them are flattened).
+
+        Returns
+        -------
+        Model
+            The augmented model.
         """
         flat = [
             e for item in effects for e in ([item] if isinstance(item, str) or not hasattr(item, "__iter__") else item)
@@ -417,11 +584,27 @@ class Model:
         """Finite-state realisation (:class:`fdml.models.realization.Realization`), composed through the effects.
 
         The one the simulator integrates and :func:`fdml.export.to_statespace` exports.
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        Realization
+            The finite-state realisation.
         """
         return UPPER["realize"](self, values)
 
     def describe(self) -> str:
-        """One line naming the model and its options."""
+        """One line naming the model and its options.
+
+        Returns
+        -------
+        str
+            E.g. ``"unsteady model (gust, output biases)"``.
+        """
         opts = ["gust" if self.gust else "elevator only"]
         if self.output_bias:
             opts.append("output biases")

@@ -31,7 +31,20 @@ _GENERIC_DIMENSIONAL = {"Z_a": -1.0, "Z_q": 0.0, "Z_de": -0.1, "M_a": -8.0, "M_q
 
 
 def to_dimensional(d: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
-    """Dimensional derivatives from non-dimensional ones (per q c/(2U))."""
+    """Dimensional derivatives from non-dimensional ones (per q c/(2U)).
+
+    Parameters
+    ----------
+    d : mapping of str to float
+        Cz_a, Cz_q, Cz_de, Cm_a, Cm_q, Cm_de (1/rad; q-derivatives per q c/(2U)).
+    ac : Aircraft
+        The aircraft (k_z, k_m, chord c_w m, airspeed U m/s).
+
+    Returns
+    -------
+    dict of str to float
+        Z_a (1/s), Z_q (-), Z_de (1/s), M_a (1/s^2), M_q (1/s), M_de (1/s^2).
+    """
     kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
     return {
         "Z_a": kz * d["Cz_a"],
@@ -58,8 +71,12 @@ class DerivativesModel(Model):
 
     Parameters
     ----------
-    aircraft : Aircraft
     gust, output_bias : bool, optional
+        Add the vertical-gust input alpha_w; free the output biases.
+    parameters : Parameters, optional
+        Overrides the default parameter set.
+    aircraft : Aircraft
+        Geometry, mass and flight condition (k_z, k_m, chord, airspeed).
     adot : bool, optional
         Free Cz_adot and Cm_adot (present and fixed at zero otherwise).
     """
@@ -155,7 +172,18 @@ class DerivativesModel(Model):
         return out
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
-        """Dimensional equivalents Z_a, Z_q, Z_de, M_a, M_q, M_de."""
+        """Dimensional equivalents Z_a, Z_q, Z_de, M_a, M_q, M_de.
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        dict of str to float
+            Z_a (1/s), Z_q (-), Z_de (1/s), M_a (1/s^2), M_q (1/s), M_de (1/s^2).
+        """
         return to_dimensional(self.values(values), self.aircraft)
 
 
@@ -165,13 +193,16 @@ class DimensionalModel(Model):
 
     Parameters
     ----------
+    gust, output_bias : bool, optional
+        Add the vertical-gust input alpha_w; free the output biases.
+    parameters : Parameters, optional
+        Overrides the default parameter set.
     airspeed : float, optional
         Airspeed U, m/s (needed for a_z, Eq. 5); without it, the
         ``aircraft``'s U.
     aircraft : Aircraft, optional
         When given, supplies U, start values from its constants and the
         non-dimensional derived set.
-    gust, output_bias : bool, optional
     """
 
     kind = "dimensional"
@@ -247,7 +278,18 @@ class DimensionalModel(Model):
         return out
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
-        """Non-dimensional derivatives when an aircraft is attached, else empty."""
+        """Non-dimensional derivatives when an aircraft is attached, else empty.
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        dict of str to float
+            Cz_a, Cz_q, Cz_de, Cm_a, Cm_q, Cm_de (1/rad), or empty.
+        """
         if self.aircraft is None:
             return {}
         p = self.values(values)

@@ -74,7 +74,19 @@ MODE_ZETA = 0.05
 
 
 class Dispatch(Effect):
-    """One library effect implemented differently per base-model kind."""
+    """One library effect implemented differently per base-model kind.
+
+    Parameters
+    ----------
+    name, channel : str
+        Library name and the channel it applies to.
+    impls : dict
+        Base-model kind (``"unsteady"``, ``"steady"``, ...) -> the :class:`Effect` implementing it there.
+    signature : str, optional
+        One line on where the effect shows, for reports.
+    needs : tuple of str, optional
+        Record channels required.
+    """
 
     def __init__(self, name: str, channel: str, impls: dict, *, signature: str = "", needs=()):
         self.name = name
@@ -87,7 +99,18 @@ class Dispatch(Effect):
         self.nuisance_grid = first.nuisance_grid
 
     def impl(self, model: Model):
-        """The implementation for ``model``'s base kind (None if the effect does not apply)."""
+        """The implementation for ``model``'s base kind (None if the effect does not apply).
+
+        Parameters
+        ----------
+        model : Model
+            A plain or augmented model.
+
+        Returns
+        -------
+        Effect or None
+            The implementation.
+        """
         return self.impls.get(root_model(model).kind)
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
@@ -119,6 +142,17 @@ def to_unsteady_equivalent(root: Model) -> Model:
     With y_w = y_t = F = G = 0, b1 = 0 (K = 1) and no tail gust delay, Eqs. 13-17
     reduce exactly to the quasi-steady model (THEORY.md section 6); so the
     lag parameters can be freed one at a time as nested augmentations.
+
+    Parameters
+    ----------
+    root : Model
+        A plain steady or unsteady model.
+
+    Returns
+    -------
+    Model
+        The unsteady model with the same values, the lags off and the same
+        free parameters (``root`` itself when unsteady).
     """
     if root.kind == "unsteady":
         return root

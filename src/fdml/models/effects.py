@@ -102,6 +102,18 @@ def resolve_effect(spec, model: Model | None = None) -> Effect:
     ``NAME`` alone is enough when the effect has one variant (``actuator_lag``)
     or, given ``model``, one variant defined for it.
 
+    Parameters
+    ----------
+    spec : Effect or str
+        The effect or its name/key.
+    model : Model, optional
+        The model, to choose among the variants of a bare ``NAME``.
+
+    Returns
+    -------
+    Effect
+        The registered effect (``spec`` itself when it is one).
+
     Raises
     ------
     ParameterError
@@ -142,6 +154,18 @@ def with_effects(model: Model, effects) -> Model:
     The result describes itself by its parts and serialises as its base kind
     plus its effects (:func:`fdml.models.model_to_dict`).
 
+    Parameters
+    ----------
+    model : Model
+        The base model (plain or already augmented).
+    effects : sequence of str or Effect
+        Effect keys (``NAME``, ``NAME:CHANNEL``, ``NAME@CHANNEL``) or objects, in order.
+
+    Returns
+    -------
+    Model
+        The augmented model.
+
     Raises
     ------
     ParameterError
@@ -179,6 +203,18 @@ def assemble(root: Model, keys: Sequence[str]) -> Model:
     ``root`` is the saved base model (already converted, e.g. steady to
     unsteady, by any free-parameter effect), so free-parameter effects are
     only recorded here and output/matrix effects are applied in order.
+
+    Parameters
+    ----------
+    root : Model
+        The saved base model.
+    keys : sequence of str
+        The saved effect keys, in order.
+
+    Returns
+    -------
+    Model
+        The model with the effects (``root`` itself without any).
     """
     parts, applied = [], []
     for key in keys:
@@ -196,6 +232,15 @@ def assemble(root: Model, keys: Sequence[str]) -> Model:
 
 def check_effects(model: Model, outputs: Sequence[str], inputs: Sequence[str] | None = None) -> None:
     """Refuse a model whose requested effects act on channels the fit does not have.
+
+    Parameters
+    ----------
+    model : Model
+        The model to fit.
+    outputs : sequence of str
+        The fitted outputs.
+    inputs : sequence of str, optional
+        The records' inputs (default the model's).
 
     Raises
     ------
@@ -220,6 +265,17 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
     q alone is a change of state coordinates that the derivatives absorb).  At
     exact confounding the normalised residual is the finite-difference error of
     the sensitivities (about 1e-9); an identifiable effect leaves O(0.1).
+
+    Parameters
+    ----------
+    model : Model
+        The model (a plain one has no effect parameters: ``[]``).
+    omega : array_like
+        Frequencies, rad/s.
+    outputs : sequence of str
+        The fitted outputs.
+    tol : float, optional
+        Normalised residual below which a parameter counts as confounded.
 
     Returns
     -------
@@ -251,7 +307,13 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
 
 
 def catalogue() -> list[dict]:
-    """Every registered effect: key, channel(s), kind, signature and, per base model, its parameters."""
+    """Every registered effect: key, channel(s), kind, signature and, per base model, its parameters.
+
+    Returns
+    -------
+    list of dict
+        One dict per registered effect, in registration order.
+    """
     out = []
     for eff in registered_effects():
         impls = getattr(eff, "impls", None)
@@ -325,12 +387,29 @@ def register_effect(effect: Effect, *, replace_existing: bool = False) -> Effect
 
 
 def unregister_effect(key: str) -> None:
-    """Remove a registered effect by its ``name@channel`` key."""
+    """Remove a registered effect by its ``name@channel`` key.
+
+    Parameters
+    ----------
+    key : str
+        The effect's key.
+    """
     _REGISTRY.pop(key, None)
 
 
 def get_effect(key: str) -> Effect:
-    """A registered effect by ``name@channel`` key."""
+    """A registered effect by ``name@channel`` key.
+
+    Parameters
+    ----------
+    key : str
+        The effect's key.
+
+    Returns
+    -------
+    Effect
+        The effect.
+    """
     try:
         return _REGISTRY[key]
     except KeyError:
@@ -338,12 +417,29 @@ def get_effect(key: str) -> Effect:
 
 
 def registered_effects() -> tuple:
-    """Every registered effect, in registration order."""
+    """Every registered effect, in registration order.
+
+    Returns
+    -------
+    tuple of Effect
+        The effects.
+    """
     return tuple(_REGISTRY.values())
 
 
 def default_library(names: Sequence[str] | None = None) -> tuple:
-    """The registered effects, optionally only those whose name or key is in ``names``."""
+    """The registered effects, optionally only those whose name or key is in ``names``.
+
+    Parameters
+    ----------
+    names : sequence of str, optional
+        Effect names or keys; default all.
+
+    Returns
+    -------
+    tuple of Effect
+        The effects, in registration order.
+    """
     effs = registered_effects()
     if names is None:
         return effs

@@ -58,16 +58,16 @@ NUISANCE_NAMES = OUTPUT_BIAS_NAMES + BOUNDARY_NAMES + STATE_BIAS_NAMES + (INPUT_
 class Nuisance(NamedTuple):
     """The nuisance values of one record, as arrays (immutable; a tuple, cheap in the fit's inner loop).
 
-    Attributes
+    Parameters
     ----------
     biases : ndarray, shape (3,)
         Output biases b (alpha rad, q rad/s, a_z g).
-    x0, xT : ndarray, shape (2,), or None
+    x0, xT : ndarray, shape (2,), or None, optional
         Boundary values x(0), x(T) of [alpha rad, q rad/s]; None without
         boundary terms (``boundary="none"``).
-    state_biases : ndarray, shape (2,), or None
+    state_biases : ndarray, shape (2,), or None, optional
         State-equation biases f (rad/s, rad/s^2); None when not in the model.
-    input_bias : float or None
+    input_bias : float or None, optional
         Elevator offset b_de (rad); None when not in the model.
     """
 
@@ -79,7 +79,24 @@ class Nuisance(NamedTuple):
 
     @classmethod
     def from_vector(cls, eta: np.ndarray, *, boundary: bool, state_biases: bool, input_bias: bool) -> Nuisance:
-        """From the ten values ``eta`` in :data:`NUISANCE_NAMES` order; flags say which terms are on."""
+        """From the ten values ``eta`` in :data:`NUISANCE_NAMES` order; flags say which terms are on.
+
+        Parameters
+        ----------
+        eta : numpy.ndarray
+            The ten nuisance values, shape (10,), each in its unit.
+        boundary : bool
+            Keep the boundary values x(0), x(T).
+        state_biases : bool
+            Keep the state-equation biases.
+        input_bias : bool
+            Keep the elevator offset.
+
+        Returns
+        -------
+        Nuisance
+            The values, None for the terms that are off.
+        """
         eta = np.asarray(eta, float)
         return cls(
             biases=eta[0:3],
@@ -90,12 +107,36 @@ class Nuisance(NamedTuple):
         )
 
     def boundary(self, shift: np.ndarray) -> np.ndarray | None:
-        """The boundary vector d(w) (:func:`boundary_vector`), or None without boundary terms."""
+        """The boundary vector d(w) (:func:`boundary_vector`), or None without boundary terms.
+
+        Parameters
+        ----------
+        shift : numpy.ndarray
+            ``exp(-j w T)``, complex, shape (m,) (:func:`end_shift`).
+
+        Returns
+        -------
+        numpy.ndarray or None
+            The boundary vector, complex, shape (m, 2).
+        """
         return None if self.x0 is None or self.xT is None else boundary_vector(self.x0, self.xT, shift)
 
 
 def end_shift(omega: np.ndarray, T: float) -> np.ndarray:
-    """``exp(-j w T)``, shape (m,): the factor of x(T) in the transform of a record of length T, s."""
+    """``exp(-j w T)``, shape (m,): the factor of x(T) in the transform of a record of length T, s.
+
+    Parameters
+    ----------
+    omega : numpy.ndarray
+        Frequencies, rad/s, shape (m,).
+    T : float
+        Record length, s.
+
+    Returns
+    -------
+    numpy.ndarray
+        The complex factors, shape (m,).
+    """
     return np.exp(-1j * np.asarray(omega, float) * T)
 
 
@@ -105,13 +146,14 @@ def boundary_vector(x0: np.ndarray, xT: np.ndarray, shift: np.ndarray) -> np.nda
     Parameters
     ----------
     x0, xT : ndarray, shape (2,)
-        alpha (rad) and q (rad/s) at t = 0 and t = T.
+        The states alpha (rad) and q (rad/s) at t = 0 and t = T.
     shift : ndarray, complex, shape (m,)
         ``exp(-j w T)`` (:func:`end_shift`).
 
     Returns
     -------
     ndarray, complex, shape (m, 2)
+        The boundary vector, alpha (rad) and q (rad/s) per frequency.
     """
     return x0[None, :] - xT[None, :] * shift[:, None]
 
@@ -153,7 +195,7 @@ def predict(
     Returns
     -------
     ndarray, complex, shape (..., m, 3)
-        alpha (rad s), q (rad), a_z (g s).
+        The output spectra alpha (rad s), q (rad), a_z (g s).
     """
     G = response.G
     y = (G @ u[:, :, None])[..., 0]
@@ -189,6 +231,7 @@ def nuisance_columns(response, shift: np.ndarray, ones: np.ndarray) -> np.ndarra
     Returns
     -------
     ndarray, complex, shape (m, 3, 10)
+        Per frequency and output, the derivative with respect to each nuisance value.
     """
     m = shift.size
     C = np.zeros((m, 3, len(NUISANCE_NAMES)), complex)

@@ -37,6 +37,13 @@ def alternate_set(p: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
 
     q-derivatives per ``q c_w / (2U)``.
 
+    Parameters
+    ----------
+    p : mapping of str to float
+        The model's parameter values by name (``CLa_w``, ``CLa_t``, ``deps_da``, ``l_t`` m, ``Cz_de``, ``Cm_de``).
+    ac : Aircraft
+        The aircraft (wing chord c_w, m; areas S_w, S_t, m^2).
+
     Returns
     -------
     dict
@@ -165,13 +172,15 @@ class UnsteadyModel(_WKBase):
 
     Parameters
     ----------
-    aircraft : Aircraft
-        Geometry, mass, flight condition and default constants.
     gust : bool, optional
         Add the vertical-gust input alpha_w with the Kussner lag (BS-12) and
         the tail delay l_t/U.
     output_bias : bool, optional
         Free the output biases.
+    parameters : Parameters, optional
+        Overrides the default parameter set.
+    aircraft : Aircraft
+        Geometry, mass, flight condition and default constants.
     tail_lag_chord : {"c_w", "c_t"}, optional
         Chord in the tail lift-lag rate 2 z_t U / c of Eq. 17; the paper prints
         c_w (THEORY.md section 2, open question), which is the default.
@@ -255,6 +264,16 @@ class UnsteadyModel(_WKBase):
         ``Cm_adot_G = -(l/c)(St/Sw) a_t eps_ss G/H`` and
         ``Cz_adot_G = -(St/Sw) a_t eps_ss G/H`` (per ``alpha_dot c/(2U)``); the
         F part behaves like ``s ln s`` and has no derivative.
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        dict of str to float
+            Cz_a, Cz_q, Cz_de, Cm_a, Cm_q, Cm_de (1/rad) and Cz_adot_G, Cm_adot_G (1/rad).
         """
         p = self.values(values)
         out = alternate_set(p, self.aircraft)
@@ -275,9 +294,14 @@ class SteadyModel(_WKBase):
 
     Parameters
     ----------
-    aircraft : Aircraft
     gust : bool, optional
+        Add the vertical-gust input alpha_w (no Kussner lag, no tail delay).
     output_bias : bool, optional
+        Free the output biases.
+    parameters : Parameters, optional
+        Overrides the default parameter set.
+    aircraft : Aircraft
+        Geometry, mass, flight condition and default constants.
     """
 
     kind = "steady"
