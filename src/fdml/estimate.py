@@ -178,6 +178,20 @@ class Problem:
 
         How code below this module (the generic candidate sensitivities of
         :class:`fdml.score.ScreenContext`) sets up a fit of another model.
+
+        Parameters
+        ----------
+        data : Record, FrequencyData or sequence of them
+            The records or their spectra, as for :func:`prepare`.
+        model : Model
+            The model to fit.
+        **options
+            Keyword options of :func:`prepare` (band, outputs, sensitivity, ...).
+
+        Returns
+        -------
+        Problem
+            The prepared problem.
         """
         return prepare(data, model, **options)
 

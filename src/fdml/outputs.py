@@ -473,10 +473,15 @@ def atomic_open(
     Parameters
     ----------
     path : str or Path
+        The file to write.
     mode : {"w", "wb"}
         Text (UTF-8, no newline translation) or binary.
     inputs : iterable of str or Path, optional
         The command's inputs (see :func:`check_output`).
+    encoding : str, optional
+        Text encoding (mode ``"w"``), default UTF-8.
+    what : str, optional
+        What the file is, named in an error message.
 
     Yields
     ------

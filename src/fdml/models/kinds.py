@@ -28,6 +28,8 @@ def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(),
     Parameters
     ----------
     kind : {"unsteady", "steady", "derivatives", "dimensional"}
+        The model: Wells-Keskar unsteady or steady, non-dimensional
+        derivatives, or dimensional derivatives.
     aircraft : Aircraft or str, optional
         An :class:`~fdml.aircraft.Aircraft`, a preset name or a JSON file path.
         Required except for ``dimensional`` given ``airspeed=``.
@@ -42,6 +44,7 @@ def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(),
     Returns
     -------
     Model
+        The model, with its default parameter set and the effects free at their nulls.
     """
     try:
         cls = MODEL_KINDS[kind]

@@ -70,6 +70,15 @@ class Descriptor:
     The form of the conventional models (and of the matrix-level effects that
     act on them, :meth:`fdml.models.effects.MatrixEffect.realize`); the outputs
     are alpha = x_0, q = x_1 and a_z = (U/g)(alpha' - q) (THEORY.md Eq. 5).
+
+    Parameters
+    ----------
+    E, A : numpy.ndarray
+        Shape (n, n): the descriptor and state matrices.
+    B0, B1 : numpy.ndarray
+        Shape (n, n_channels): input and input-rate matrices.
+    channels : tuple of (str, float)
+        Input channels: signal name and delay, s.
     """
 
     E: np.ndarray
@@ -79,7 +88,20 @@ class Descriptor:
     channels: tuple
 
     def with_state(self, a_row: np.ndarray, a_col: np.ndarray) -> "Descriptor":
-        """One more state ``x_n`` with ``x_n' = a_row . [x, x_n]`` feeding ``A[:, n] = a_col`` (E_nn = 1)."""
+        """One more state ``x_n`` with ``x_n' = a_row . [x, x_n]`` feeding ``A[:, n] = a_col`` (E_nn = 1).
+
+        Parameters
+        ----------
+        a_row : numpy.ndarray
+            Shape (n + 1,): the new state's row of A.
+        a_col : numpy.ndarray
+            Shape (n,): how the new state enters the old states' equations.
+
+        Returns
+        -------
+        Descriptor
+            The system with n + 1 states.
+        """
         n = self.A.shape[0]
         E = np.eye(n + 1)
         E[:n, :n] = self.E
@@ -361,14 +383,44 @@ def _same_delay(sys: _System, rows, what: str) -> None:
 
 
 def delay_output(sys: _System, row: int, tau: float) -> _System:
-    """Output ``row`` delayed by ``tau`` s: y_row(t - tau) (a negative tau is an advance)."""
+    """Output ``row`` delayed by ``tau`` s: y_row(t - tau) (a negative tau is an advance).
+
+    Parameters
+    ----------
+    sys : _System
+        The finite-state system.
+    row : int
+        Output index (0 alpha, 1 q, 2 a_z).
+    tau : float
+        Delay, s.
+
+    Returns
+    -------
+    _System
+        The changed copy.
+    """
     d = list(sys.out_delay)
     d[row] += float(tau)
     return replace(sys, out_delay=tuple(d))
 
 
 def scale_output(sys: _System, row: int, factor: float) -> _System:
-    """Output ``row`` times ``factor``."""
+    """Output ``row`` times ``factor``.
+
+    Parameters
+    ----------
+    sys : _System
+        The finite-state system.
+    row : int
+        Output index (0 alpha, 1 q, 2 a_z).
+    factor : float
+        Scale factor, dimensionless.
+
+    Returns
+    -------
+    _System
+        The changed copy.
+    """
     C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
     for a in (C, D, Dd, dF):
         a[row] = a[row] * factor
@@ -376,7 +428,22 @@ def scale_output(sys: _System, row: int, factor: float) -> _System:
 
 
 def mix_output(sys: _System, dst: int, src: int, k: float) -> _System:
-    """Output ``dst`` plus ``k`` times output ``src``."""
+    """Output ``dst`` plus ``k`` times output ``src``.
+
+    Parameters
+    ----------
+    sys : _System
+        The finite-state system.
+    dst, src : int
+        Output indices (0 alpha, 1 q, 2 a_z); both must have the same delay.
+    k : float
+        Gain, unit of ``dst`` per unit of ``src``.
+
+    Returns
+    -------
+    _System
+        The changed copy.
+    """
     _same_delay(sys, (dst, src), "mixing two outputs")
     C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
     for a in (C, D, Dd, dF):
@@ -385,7 +452,22 @@ def mix_output(sys: _System, dst: int, src: int, k: float) -> _System:
 
 
 def add_output_rate(sys: _System, dst: int, src: int, k: float) -> _System:
-    """Output ``dst`` plus ``k`` times the time derivative of output ``src`` (x' = A x + B u + bF eps_F)."""
+    """Output ``dst`` plus ``k`` times the time derivative of output ``src`` (x' = A x + B u + bF eps_F).
+
+    Parameters
+    ----------
+    sys : _System
+        The finite-state system.
+    dst, src : int
+        Output indices (0 alpha, 1 q, 2 a_z); both must have the same delay.
+    k : float
+        Gain, unit of ``dst`` per unit of ``src`` per second.
+
+    Returns
+    -------
+    _System
+        The changed copy.
+    """
     _same_delay(sys, (dst, src), "adding an output rate")
     if np.any(sys.Dd[src]) or sys.dF[src] != 0.0:
         raise ParameterError("the rate of this output needs the second derivative of an input: no realisation")
@@ -403,6 +485,20 @@ def filter_input(sys: _System, signal_name: str, T: float) -> _System:
     With the filtered input ``v = x_f``, ``x_f' = (u - x_f)/T``, the old input
     column moves onto the new state, and a feedthrough of ``v'`` becomes
     ``(u - x_f)/T``.
+
+    Parameters
+    ----------
+    sys : _System
+        The finite-state system.
+    signal_name : str
+        The input signal (``de`` or ``alpha_w``).
+    T : float
+        Time constant, s.
+
+    Returns
+    -------
+    _System
+        The changed copy.
     """
     if T == 0.0:
         return sys
@@ -429,6 +525,24 @@ def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -
     """A structural mode driven by the undelayed elevator: q += r_q s w/D, a_z += r_az s^2/D.
 
     D = s^2 + 2 zeta w s + w^2; states eta and eta' of eta = w^2/D de.
+
+    Parameters
+    ----------
+    sys : _System
+        The finite-state system.
+    r_q : float
+        Gain of the mode in q, rad/s per rad of elevator.
+    r_az : float
+        Gain of the mode in a_z, g per rad of elevator.
+    omega : float
+        Mode frequency w, rad/s.
+    zeta : float
+        Mode damping ratio, dimensionless.
+
+    Returns
+    -------
+    _System
+        The system with two more states.
     """
     if sys.out_delay[1] or sys.out_delay[2]:
         raise ParameterError("a structural mode after a q or a_z delay: list the time_delay effect after it")
@@ -464,7 +578,7 @@ class Realization:
     input channels ``(signal, delay s)``, u_i(t) = signal(t - delay), so that
     ``G(s) = [C (sI - A)^-1 B + D + s Dd] diag(exp(-s delay))``.
 
-    Attributes
+    Parameters
     ----------
     A, B, C, D, Dd : ndarray
         State-space matrices (Dd is nonzero only for a gust model with
@@ -474,6 +588,9 @@ class Realization:
     output_delays : tuple of float
         Pure delays of the outputs (alpha, q, a_z), s (sensor delays):
         ``G_i(s)`` is multiplied by ``exp(-s d_i)``.
+
+    Attributes
+    ----------
     states : int
         Number of states.
     """
@@ -492,7 +609,19 @@ class Realization:
         return self.A.shape[0]
 
     def frequency_response(self, omega) -> np.ndarray:
-        """Transfer matrix per model input (de[, alpha_w]), shape (3, n_in, n omega)."""
+        """Transfer matrix per model input (de[, alpha_w]), shape (3, n_in, n omega).
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s.
+
+        Returns
+        -------
+        numpy.ndarray
+            Complex, shape (3, n_in, n omega): outputs (alpha rad, q rad/s,
+            a_z g) per rad of elevator (or per rad of gust angle alpha_w).
+        """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         s = 1j * omega
         I = np.eye(self.states)
@@ -521,6 +650,7 @@ def realize(model, values=None) -> Realization:
     Returns
     -------
     Realization
+        The state-space matrices, input channels and output delays.
     """
     sys = _system(model, model.values(values))
     if sys.kappa != 0.0:
