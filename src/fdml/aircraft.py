@@ -2,7 +2,7 @@
 
 Presets (``navion``, ``sundowner``, ``do128``) are JSON files in
 ``fdml/presets``; every value carries its source and the assumed ones are
-flagged (THEORY.md sections 10 and 11).  A user's own aircraft is a JSON file
+flagged (docs/theory.md sections 10 and 11).  A user's own aircraft is a JSON file
 with the keys ``name, S_w, c_w, S_t, c_t, l_t, mass, Iy, U, rho`` (SI) and,
 optionally, any of the model constants by parameter name.
 """
@@ -100,7 +100,7 @@ class Aircraft:
         Short identifier.
     S_w, c_w : float
         Wing area (m^2) and wing root chord (m), the reference chord of the
-        Wells-Keskar model (THEORY.md section 1).
+        Wells-Keskar model (docs/theory.md section 1).
     S_t, c_t : float
         Horizontal-tail area (m^2) and chord (m).
     l_t : float
@@ -180,7 +180,7 @@ class Aircraft:
     # --- derived quantities --------------------------------------------------
     @property
     def k_z(self) -> float:
-        """The factor of C_z in THEORY.md Eq. 3, rho U S_w / (2 m), 1/s."""
+        """The factor of C_z in docs/theory.md Eq. 3, rho U S_w / (2 m), 1/s."""
         return self.rho * self.U * self.S_w / (2.0 * self.mass)
 
     @property

@@ -1,8 +1,8 @@
 """Steady versus unsteady: one call fits both models and sets the derivatives side by side.
 
 Wells-Keskar Tables 1 and 3 compare the six derivatives of a quasi-steady fit
-with those implied by the unsteady fit (THEORY.md sections 6, 10, 11).  The
-steady column is, by default, the conventional six-derivative model (THEORY.md
+with those implied by the unsteady fit (docs/theory.md sections 6, 10, 11).  The
+steady column is, by default, the conventional six-derivative model (docs/theory.md
 section 10 shows this is what the paper fitted); ``steady_model="steady"``
 uses the quasi-steady Wells-Keskar parameterisation instead.
 """
