@@ -35,9 +35,9 @@ class Limits:
     Attributes
     ----------
     amplitude : float
-        Largest |de|, rad.
+        Largest ``|de|``, rad.
     rate : float
-        Largest |d de/dt|, rad/s (inf: none).
+        Largest ``|d de/dt|``, rad/s (inf: none).
     duration : float
         Record length, s.
     dt : float
