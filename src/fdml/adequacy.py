@@ -6,7 +6,7 @@ After a fit, from the base fit alone (no refits):
   (:mod:`fdml.models.effect_library`) is screened with the diagnosis's score
   (Lagrange-multiplier) screen, :func:`fdml.score.screen`, on the
   fit's own grid and white-noise likelihood (one residual covariance R,
-  THEORY.md Eq. 24).  The screen's linearised estimate eta_lin is one
+  docs/theory.md Eq. 24).  The screen's linearised estimate eta_lin is one
   Gauss-Newton step from the base fit along the effect and the base
   parameters together; the statistic tested is the likelihood ratio at that
   one-step estimate,
@@ -705,7 +705,7 @@ def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
 
 
 def _independent(d) -> np.ndarray:
-    """Grid indices at spacing >= 2 pi/T (the residuals there are independent, THEORY.md section 7)."""
+    """Grid indices at spacing >= 2 pi/T (the residuals there are independent, docs/theory.md section 7)."""
     step = float(np.median(np.diff(d.omega))) if d.m > 1 else 1.0
     k = max(math.ceil(2 * math.pi / (d.T * step) - 1e-9), 1)
     return np.arange(0, d.m, k)

@@ -9,7 +9,7 @@ as pure functions of ``s = j omega`` (rad/s) vectorised over frequency:
 * BS-12 / BS-17, the Kussner gust lag ``K(s)`` with weights summing to one;
 * R. T. Jones-type Wagner and Kussner approximations as named presets.
 
-References are to ``shared/docs/THEORY.md``.
+References are to ``docs/theory.md`` (equation and section numbers).
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ __all__ = [
 
 
 def lift_lag(s, a: float, y: float, z: float, U: float, c: float):
-    """Wells-Keskar lift transfer function N(s), THEORY.md Eq. 17.
+    """Wells-Keskar lift transfer function N(s), docs/theory.md Eq. 17.
 
     ``N(s) = a [1 - s y / (s + 2 z U / c)]``, the transform ``s L{C_La(t)}``
     of the indicial lift of Eq. 1.
@@ -84,11 +84,11 @@ def downwash_pole_time(l: float, U: float, c: float) -> float:
 
 
 def downwash(s, eps_ss: float, F: float, G: float, H: float, l: float, U: float, c: float):
-    """Wells-Keskar tail downwash transfer function E(s), THEORY.md Eq. 16.
+    """Wells-Keskar tail downwash transfer function E(s), docs/theory.md Eq. 16.
 
     ``E(s) = eps_ss [1 - s G/(s + 2HU/c) - (s c F/U) Ei(s T) exp(-s T)]`` with
     ``T = (l - c)/U`` and Ei the principal-branch exponential integral
-    (``scipy.special.expi`` on complex arguments; THEORY.md section 5 shows that
+    (``scipy.special.expi`` on complex arguments; docs/theory.md section 5 shows that
     ``-exp1(-z)`` drops a ``j pi`` and is wrong).  ``E(0) = eps_ss``: the
     ``s Ei(sT)`` term vanishes like ``s ln s`` and is set to its limit at s = 0.
 
@@ -137,7 +137,7 @@ def kussner(s, b, U: float, c: float, weights=None):
     """Kussner gust-lift lag K(s) of Braunschweig Eq. BS-12.
 
     ``K(s) = sum_i a_i / (T_i s + 1)``, ``T_i = c b_i / (2 U)``, weights
-    ``a_i`` summing to one so that K(0) = 1 (THEORY.md section 8 caveat: the
+    ``a_i`` summing to one so that K(0) = 1 (docs/theory.md section 8 caveat: the
     printed BS-12 has unit weights, which would give a steady gain N).
 
     Parameters
@@ -330,31 +330,37 @@ class IndicialFunction:
         return float(sum(A / b for A, b in zip(self.amplitudes, self.rates)))
 
 
-#: Named R. T. Jones-type approximations (THEORY.md sections 2 and 8).
+#: Named R. T. Jones-type approximations (docs/theory.md sections 2 and 8).
 INDICIAL_PRESETS = {
     "wagner_jones_2d": IndicialFunction(
         "wagner_jones_2d",
         (0.165, 0.335),
         (0.0455, 0.3),
-        "R. T. Jones 2-D Wagner approximation (found in stored code, THEORY.md 8)",
+        "R. T. Jones 2-D Wagner approximation (found in stored code, docs/theory.md 8)",
     ),
     "kussner_jones_2d": IndicialFunction(
         "kussner_jones_2d",
         (0.5, 0.5),
         (0.13, 1.0),
-        "Sears-Sparks/Jones 2-D Kussner approximation (AeroSandbox kussners_function, THEORY.md 8)",
+        "Sears-Sparks/Jones 2-D Kussner approximation (AeroSandbox kussners_function, docs/theory.md 8)",
     ),
     "wagner_jones_ar6": IndicialFunction(
-        "wagner_jones_ar6", (0.361,), (0.381,), "R. T. Jones, NACA Rep. 681, elliptic wing AR 6 [MEM] (THEORY.md 2)"
+        "wagner_jones_ar6",
+        (0.361,),
+        (0.381,),
+        "R. T. Jones, NACA Rep. 681, elliptic wing AR 6 [MEM] (docs/theory.md 2)",
     ),
     "wagner_jones_ar3": IndicialFunction(
-        "wagner_jones_ar3", (0.283,), (0.540,), "R. T. Jones, NACA Rep. 681, elliptic wing AR 3 [MEM] (THEORY.md 2)"
+        "wagner_jones_ar3",
+        (0.283,),
+        (0.540,),
+        "R. T. Jones, NACA Rep. 681, elliptic wing AR 3 [MEM] (docs/theory.md 2)",
     ),
     "kussner_jones_ar6": IndicialFunction(
         "kussner_jones_ar6",
         (0.448, 0.272, 0.193),
         (0.29, 0.725, 3.0),
-        "R. T. Jones finite-wing gust function AR 6 [MEM, unverified] (THEORY.md 8)",
+        "R. T. Jones finite-wing gust function AR 6 [MEM, unverified] (docs/theory.md 8)",
     ),
 }
 

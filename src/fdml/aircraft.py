@@ -2,7 +2,7 @@
 
 Presets (``navion``, ``sundowner``, ``do128``) are JSON files in
 ``fdml/presets``; every value carries its source and the assumed ones are
-flagged (THEORY.md sections 10 and 11).  A user's own aircraft is a JSON file
+flagged (docs/theory.md sections 10 and 11).  A user's own aircraft is a JSON file
 with the keys ``name, S_w, c_w, S_t, c_t, l_t, mass, Iy, U, rho`` (SI) and,
 optionally, any of the model constants by parameter name.
 """
@@ -96,7 +96,7 @@ GENERIC_CONSTANTS = {
 }
 
 
-#: The lag constants of the unsteady model (THEORY.md Eqs. 1-2): lift lag of wing
+#: The lag constants of the unsteady model (docs/theory.md Eqs. 1-2): lift lag of wing
 #: and tail, downwash lag.  An aircraft that gives none of them and names no
 #: source for them cannot make the unsteady model (it would be the steady one).
 LAG_KEYS = ("y_w", "z_w", "y_t", "z_t", "F", "G", "H")
@@ -105,12 +105,12 @@ LAG_KEYS = ("y_w", "z_w", "y_t", "z_t", "F", "G", "H")
 #: (``"lag_constants": NAME``), with what each one means.
 LAG_SOURCES = {
     "jones": "lift lags from R. T. Jones's one-term finite-wing indicial approximation (NACA Rep. 681) "
-    "for the aspect ratio S/c^2 of wing and tail (THEORY.md section 2); downwash lag F, G, H borrowed "
+    "for the aspect ratio S/c^2 of wing and tail (docs/theory.md section 2); downwash lag F, G, H borrowed "
     "from the Sundowner, WK Table 2",
     "none": "no lag chosen by the user: the unsteady model is then the quasi-steady model",
 }
 
-#: R. T. Jones's one-term approximation 1 - y exp(-z s) (THEORY.md section 2) at two aspect ratios.
+#: R. T. Jones's one-term approximation 1 - y exp(-z s) (docs/theory.md section 2) at two aspect ratios.
 _JONES_TABLE = {3.0: (0.283, 0.540), 6.0: (0.361, 0.381)}
 #: WK Table 2 (Sundowner) downwash-lag constants, borrowed by the "jones" source.
 _WK_TABLE2_DOWNWASH = {"F": 1.358, "G": 0.513, "H": 0.065}
@@ -120,7 +120,7 @@ def jones_lag_constants(aspect_ratio: float) -> tuple[float, float, float, float
     """(y, z, sigma_y, sigma_z) of R. T. Jones's one-term lift lag for an aspect ratio.
 
     Linear in 1/AR between Jones's AR 3 and AR 6 elliptic-wing values
-    (THEORY.md section 2), held at the nearer end outside [3, 6].  The
+    (docs/theory.md section 2), held at the nearer end outside [3, 6].  The
     uncertainty is half the AR 3-6 spread (0.039 in y, 0.080 in z), doubled
     outside [3, 6]: the one-term form and the [MEM] table do not support more.
 
@@ -150,10 +150,10 @@ def _jones_fill(S_w, c_w, S_t, c_t) -> tuple[dict, dict, dict]:
         y, z, sy, sz = jones_lag_constants(ar)
         for key, v, sv in ((f"y_{part}", y, sy), (f"z_{part}", z, sz)):
             consts[key], sigma[key] = v, sv
-            sources[key] = f"R. T. Jones one-term lift lag for AR = S/c^2 = {ar:.3g} (THEORY.md 2), +/- {sv:.2g}"
+            sources[key] = f"R. T. Jones one-term lift lag for AR = S/c^2 = {ar:.3g} (docs/theory.md 2), +/- {sv:.2g}"
     for key, v in _WK_TABLE2_DOWNWASH.items():
         consts[key], sigma[key] = v, abs(v)  # another aircraft's value: of the order of itself
-        sources[key] = "borrowed from the Sundowner, WK Table 2 (THEORY.md 11.2), +/- 100 %"
+        sources[key] = "borrowed from the Sundowner, WK Table 2 (docs/theory.md 11.2), +/- 100 %"
     return consts, sources, sigma
 
 
@@ -167,7 +167,7 @@ class Aircraft:
         Short identifier.
     S_w, c_w : float
         Wing area (m^2) and wing root chord (m), the reference chord of the
-        Wells-Keskar model (THEORY.md section 1).
+        Wells-Keskar model (docs/theory.md section 1).
     S_t, c_t : float
         Horizontal-tail area (m^2) and chord (m).
     l_t : float
@@ -283,7 +283,7 @@ class Aircraft:
     # --- derived quantities --------------------------------------------------
     @property
     def k_z(self) -> float:
-        """The factor of C_z in THEORY.md Eq. 3, rho U S_w / (2 m), 1/s."""
+        """The factor of C_z in docs/theory.md Eq. 3, rho U S_w / (2 m), 1/s."""
         return self.rho * self.U * self.S_w / (2.0 * self.mass)
 
     @property
@@ -479,7 +479,7 @@ def missing_lag_message(ac: Aircraft, kind: str = "unsteady") -> str:
         f"the {kind} model needs the lag constants {', '.join(LAG_KEYS)} and aircraft {ac.name!r} gives none of "
         "them (without them it is the steady model); give them in the aircraft file, or name a documented "
         'source there, "lag_constants": "jones" (R. T. Jones\'s finite-wing lift lag for the aspect ratio, '
-        'THEORY.md section 2; downwash lag from WK Table 2; uncertainty recorded in the result) or "none" '
+        'docs/theory.md section 2; downwash lag from WK Table 2; uncertainty recorded in the result) or "none" '
         "(no lag, by choice), or free the identifiable ones (fdml fit --free y_w z_w ...)"
     )
 

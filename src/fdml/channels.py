@@ -1,10 +1,10 @@
 """The one registry of fdml's channels, their units and the record formats.
 
 Every module that names a channel, a channel's unit or a record format takes it
-from here, so that the output order (the row order of G, H and P, THEORY.md
+from here, so that the output order (the row order of G, H and P, docs/theory.md
 Eq. 5), the units a record is held in and the formats the readers accept are
 written once.  Units are fdml's SI units (radians, rad/s, and standard gravity
-``g`` for the specific forces, THEORY.md Eq. 5); :data:`DISPLAY_UNITS` gives the
+``g`` for the specific forces, docs/theory.md Eq. 5); :data:`DISPLAY_UNITS` gives the
 unit a person reads a channel in (degrees for angles and rates) and the factor
 from the SI value to it.
 """

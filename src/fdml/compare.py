@@ -1,15 +1,15 @@
 """Steady versus unsteady: one call fits both models, sets the derivatives side by side and weighs the evidence.
 
 Wells-Keskar Tables 1 and 3 compare the six derivatives of a quasi-steady fit
-with those implied by the unsteady fit (THEORY.md sections 6, 10, 11).  The
-steady column is, by default, the conventional six-derivative model (THEORY.md
+with those implied by the unsteady fit (docs/theory.md sections 6, 10, 11).  The
+steady column is, by default, the conventional six-derivative model (docs/theory.md
 section 10 shows this is what the paper fitted); ``steady_model="steady"``
 uses the quasi-steady Wells-Keskar parameterisation instead.
 
 The evidence (:func:`vuong_test`): the two models are not nested, so a
 likelihood-ratio test does not apply; Vuong's (1989) test for non-nested
 models compares their per-frequency log-likelihood contributions (the terms
-of the concentrated likelihood whose sum is -N ln det R, THEORY.md Eqs. 20-25).
+of the concentrated likelihood whose sum is -N ln det R, docs/theory.md Eqs. 20-25).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ SIDPAC and DLR files carry the true airspeed (``record.meta["U"]``: its mean
 over the window, m/s) and, where the file has them, density, mass, pitch
 inertia and geometry (``rho``, ``mass``, ``Iy``, ``S_w``, ``c_w``, ``b``; see
 :mod:`fdml.io.sidpac` and :mod:`fdml.io.dlr`).  The dimensional model needs
-only U (the a_z gain U/g, THEORY.md Eq. 5); the others are reported, not used.
+only U (the a_z gain U/g, docs/theory.md Eq. 5); the others are reported, not used.
 
 A model whose U differs from the record's by more than
 :data:`AIRSPEED_TOLERANCE` gets an ``airspeed.mismatch`` finding: the a_z gain

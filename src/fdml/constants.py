@@ -1,7 +1,7 @@
 """Physical constants and unit conversions used throughout fdml (SI inside).
 
 All of fdml works in SI units and radians; accelerations ``az`` are in units of
-standard gravity (THEORY.md Eq. 5).  The factors below are exact by definition
+standard gravity (docs/theory.md Eq. 5).  The factors below are exact by definition
 (NIST SP 811), so converting a record loses nothing.
 """
 

@@ -7,7 +7,7 @@ to be always on (about a millisecond a record; ``benchmarks/bench_datacheck.py``
 
 * **physical ranges** (``units.<signal>``): an elevator or angle of attack
   beyond 0.6 rad, a pitch rate beyond 3 rad/s, an a_z perturbation beyond 6 g;
-* **the kinematic identity of the short period** (THEORY.md Eq. 5,
+* **the kinematic identity of the short period** (docs/theory.md Eq. 5,
   ``alpha_dot = q + (g/U) a_z``), fitted by one least-squares regression on the
   record's spectra in the band (Eq. 11 transforms; boundary and bias terms as
   nuisance regressors, so that it works on perturbation records and on
@@ -407,7 +407,7 @@ def _kinematic_findings(k: KinematicFit, name: str):
         labels = ", ".join(f"{lab} holds {true}" for lab, true in zip(k.order, OUTPUTS) if lab != true)
         yield Finding(
             "channels.swapped",
-            f"the outputs satisfy the kinematic identity (THEORY.md Eq. 5) only when relabelled: "
+            f"the outputs satisfy the kinematic identity (docs/theory.md Eq. 5) only when relabelled: "
             f"{labels} (relabelled, {_pct(1 - k.fit)} of alpha_dot is left unexplained; as "
             f"labelled, {_pct(1 - k.fit_labelled)})",
             record=name,
@@ -417,7 +417,7 @@ def _kinematic_findings(k: KinematicFit, name: str):
     if not k.scales:
         yield Finding(
             "kinematics.inconsistent",
-            f"alpha, q and a_z do not satisfy the kinematic identity (THEORY.md Eq. 5): {slopes}; "
+            f"alpha, q and a_z do not satisfy the kinematic identity (docs/theory.md Eq. 5): {slopes}; "
             "no single unit or sign error explains it (check units, signs and the airspeed)",
             record=name,
             value=k.slope_q,
@@ -462,7 +462,7 @@ def _kinematic_findings(k: KinematicFit, name: str):
     if sz < 0:
         yield Finding(
             "sign.az",
-            f"a_z has the wrong sign (fdml's a_z is positive down, THEORY.md Eq. 5; "
+            f"a_z has the wrong sign (fdml's a_z is positive down, docs/theory.md Eq. 5; "
             f"a record's a_n is positive up): {slopes}",
             record=name,
             value=k.slope_az,

@@ -1,6 +1,6 @@
 """The main job on bundled defaults: Wells-Keskar Table 1 with the Navion.
 
-Simulate a Navion 3-2-1-1 manoeuvre with the unsteady model (THEORY.md
+Simulate a Navion 3-2-1-1 manoeuvre with the unsteady model (docs/theory.md
 section 10 set-up) and measurement noise, fit the conventional steady model
 and the unsteady model, print the two derivative sets side by side with the
 paper's, and write a Bode-style figure of measured against fitted spectra
@@ -21,7 +21,7 @@ from .record import Record, add_noise
 
 __all__ = ["DemoResult", "run_demo", "WK_TABLE1"]
 
-#: WK Table 1 (THEORY.md 11.1): {derivative: (unsteady, steady)}.
+#: WK Table 1 (docs/theory.md 11.1): {derivative: (unsteady, steady)}.
 WK_TABLE1 = {
     "Cz_a": (-4.99, -4.90),
     "Cz_q": (-4.82, -6.28),

@@ -1,4 +1,4 @@
-"""Frequency-domain maximum-likelihood estimation, THEORY.md Eqs. 20-26.
+"""Frequency-domain maximum-likelihood estimation, docs/theory.md Eqs. 20-26.
 
 The measured output spectra z(w) are modelled as (Eqs. 18-19)
 
@@ -74,7 +74,7 @@ __all__ = ["SETTINGS", "EstimatorSettings", "NoiseModel", "Problem", "fit", "par
 #: Base names of each nuisance role, by the slot's index (fdml.models.measurement order).
 _NUISANCE_BASE = {
     Role.OUTPUT_BIAS: OUTPUT_BIAS_NAMES,
-    Role.BOUNDARY: BOUNDARY_NAMES,  # x(0), x(T) of alpha and q (THEORY.md section 7)
+    Role.BOUNDARY: BOUNDARY_NAMES,  # x(0), x(T) of alpha and q (docs/theory.md section 7)
     Role.STATE_BIAS: STATE_BIAS_NAMES,  # constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations
     Role.INPUT_BIAS: (INPUT_BIAS_NAME,),
 }
@@ -401,7 +401,7 @@ class Problem:
         """
         name = self.slots[i].name
         scale = max(abs(theta[i]), 1e-3)
-        h = self._steps.get(name, SETTINGS.fd_start * scale)  # THEORY.md 7: start at 5 % of |theta|
+        h = self._steps.get(name, SETTINGS.fd_start * scale)  # docs/theory.md 7: start at 5 % of |theta|
         if tol < SETTINGS.settle_tol:
             h = SETTINGS.fd_start * scale
         if self.sensitivity == "central":
@@ -708,7 +708,7 @@ def _check_model_effects(model: Model, outputs, omega) -> None:
 
 
 def _end_findings(prob: Problem) -> list:
-    """Records that end far from trim while boundary='none' (THEORY.md section 7)."""
+    """Records that end far from trim while boundary='none' (docs/theory.md section 7)."""
     from .findings import Finding
 
     out = []
@@ -748,7 +748,7 @@ def _cov_R(V: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         return np.stack(
             [_cov_R(V[rows == b]) if np.any(rows == b) else np.eye(V.shape[1]) for b in range(int(rows.max()) + 1)]
         )
-    # Eq. 24: R_jk = (1/N) sum_i v_ij conj(v_ik) (THEORY.md 7, conjugation convention)
+    # Eq. 24: R_jk = (1/N) sum_i v_ij conj(v_ik) (docs/theory.md 7, conjugation convention)
     R = V.T @ V.conj() / V.shape[0]
     floor = SETTINGS.r_floor * float(np.max(np.real(np.diag(R))))
     return R + floor * np.eye(R.shape[0]) if floor > 0 else R
@@ -948,7 +948,7 @@ def fit(
         Outputs that enter the fit (default ``alpha, q, az``).
     boundary : {"estimated", "measured", "none"}, optional
         Klein's boundary terms ``x(0) - x(T) exp(-jwT)`` for alpha and q
-        (THEORY.md section 7): estimated as nuisance parameters (default),
+        (docs/theory.md section 7): estimated as nuisance parameters (default),
         taken from the measured first and last samples, or omitted (then a
         record that ends far from trim triggers a :class:`DataWarning`).
     biases : {"auto", True, False}, optional
@@ -999,7 +999,7 @@ def fit(
         frequency-domain analogue of the Morelli-Klein correction; use it on
         real data, where residuals hold model error).  ``naive``: the inverse of
         ``2 Re sum A^H R^-1 A``, which treats every frequency as independent
-        and is optimistic on a grid finer than 2 pi/T (THEORY.md section 7).
+        and is optimistic on a grid finer than 2 pi/T (docs/theory.md section 7).
     noise : NoiseModel, optional
         The noise model of the likelihood: white, one R over the band (Eq. 24;
         the default), or ``NoiseModel(edges)``, one R_b per frequency band

@@ -22,7 +22,7 @@ class EstimatorSettings:
     ----------
     settle_tol : float
         Relative change at which the Eq. 26 sensitivities count as settled
-        while iterating (THEORY.md section 7).
+        while iterating (docs/theory.md section 7).
     settle_tol_final : float
         The same for the sensitivities behind the final covariance, taken as
         central differences (error O(h^2)) halved until they settle, so that
@@ -30,7 +30,7 @@ class EstimatorSettings:
         figures.
     fd_start : float
         First forward-difference step, as a fraction of ``max(|theta|, 1e-3)``
-        (THEORY.md section 7: 5 %).
+        (docs/theory.md section 7: 5 %).
     central_step : float
         Step of ``sensitivity="central"``, same scale.
     fd_max_halvings : int

@@ -11,7 +11,7 @@
   (exact in a frequency response, or a Pade approximation of a given order).
 
 The ``unsteady`` model with F != 0 has no finite-state form: the F term of the
-downwash (THEORY.md Eq. 2, section 4) behaves like ``s ln s``; use :func:`to_frd`.
+downwash (docs/theory.md Eq. 2, section 4) behaves like ``s ln s``; use :func:`to_frd`.
 Pure delays (``tau_de``, ``tau_alpha_w``, sensor delays) are not rational either:
 :func:`to_statespace` refuses them unless asked for a Pade approximation.
 """
@@ -128,7 +128,7 @@ def descriptor_matrices(model, values=None):
 def _not_rational(model) -> str:
     return (
         f"the {model.kind} model has no finite-state form "
-        + ("(the downwash F term of THEORY.md Eq. 2 behaves like s ln s); " if model.kind == "unsteady" else "; ")
+        + ("(the downwash F term of docs/theory.md Eq. 2 behaves like s ln s); " if model.kind == "unsteady" else "; ")
         + "use fdml.export.to_frd(result, omega) for its frequency response"
     )
 
@@ -141,7 +141,7 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
     descriptor form ``E x' = A x + B0 u + B1 u'`` with ``x = xi + E^-1 B1 u``,
 
         xi' = E^-1 A xi + E^-1 (B0 + A E^-1 B1) u
-        [alpha, q] = xi + E^-1 B1 u,   a_z = (U/g)(alpha' - q)    (THEORY.md Eq. 5)
+        [alpha, q] = xi + E^-1 B1 u,   a_z = (U/g)(alpha' - q)    (docs/theory.md Eq. 5)
 
     so the states are alpha and q themselves whenever B1 = 0 (then named
     ``alpha``, ``q``; otherwise ``xi_alpha``, ``xi_q``); effects and lags add

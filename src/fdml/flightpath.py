@@ -20,7 +20,7 @@ w_dot = g a_z + g cos(theta) + q u::
     h_dot     = V sin(theta - alpha)
 
 In trim (theta = alpha, a_z cos(alpha) - a_x sin(alpha) = -1) alpha_dot = 0;
-linearised about level flight the first equation is THEORY.md Eq. 5,
+linearised about level flight the first equation is docs/theory.md Eq. 5,
 Delta a_z = (U/g)(alpha_dot - q).  Without wind V and alpha are both air-
 and inertia-relative; wind makes the check fail (see :mod:`fdml.wind`).
 
@@ -635,7 +635,7 @@ def _checked_airspeed(record: Record, U: float | None) -> float:
     if 0.4 < az_mean < 1.6:
         raise RecordError(
             f"record {record.name!r}: mean a_z is {az_mean:+.3g} g; in level flight fdml's a_z (body z, "
-            "positive down, THEORY.md Eq. 5) is near -1 g: the sign looks flipped (a normal acceleration "
+            "positive down, docs/theory.md Eq. 5) is near -1 g: the sign looks flipped (a normal acceleration "
             "a_n, positive up?). Load it with the sign reversed (--sign az=-1)"
         )
     if not -1.6 < az_mean < -0.4:

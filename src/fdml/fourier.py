@@ -2,7 +2,7 @@
 
 The transform of a record x(t) sampled at t_j = j dt (j = 0 .. n-1, t from the
 first sample, T = (n-1) dt) is, at chosen angular frequencies w (rad/s) that are
-generally not FFT bins (THEORY.md Eq. 11),
+generally not FFT bins (docs/theory.md Eq. 11),
 
     X(w) = integral_0^T x(t) exp(-j w t) dt.
 

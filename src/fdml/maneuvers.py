@@ -1,8 +1,8 @@
 """Elevator and gust input generators (pure functions, SI units).
 
-Elevator inputs ``de`` are in rad (trailing edge down positive, THEORY.md
+Elevator inputs ``de`` are in rad (trailing edge down positive, docs/theory.md
 section 1); gust inputs are the vertical gust angle ``alpha_w = w_g / U`` in
-rad (positive for an up-gust, THEORY.md section 8).  Every generator takes a
+rad (positive for an up-gust, docs/theory.md section 8).  Every generator takes a
 time vector ``t`` (s) and returns an array of the same shape.
 
 * :func:`doublet` and :func:`three_two_one_one` are step sequences whose edges
@@ -222,7 +222,7 @@ def multisine(
         so that the input starts (and, being periodic over T, ends) at zero, as
         flight-test multisines do; the amplitude spectrum and crest factor are
         unchanged.  A step at t = 0 would otherwise excite the singular F-term
-        of THEORY.md Eq. 2 at t = T.
+        of docs/theory.md Eq. 2 at t = T.
     amplitudes : array_like, optional
         Relative amplitude of each harmonic (default flat); the peak scaling
         applies on top.

@@ -2,7 +2,7 @@
 
 A :class:`Parameters` set is immutable: every change returns a new set, so a fit
 never mutates the caller's parameters and no stale standard error survives a
-refit (the lmfit #189 trap, STYLE.md section 12).
+refit (the lmfit #189 trap: a refit that kept the previous fit's errors).
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ class Role(str, Enum):
     a measured output (``bias_q``); ``STATE_BIAS``: a constant in a state
     equation (``bias_q_dot``); ``INPUT_BIAS``: an elevator offset
     (``bias_de``); ``BOUNDARY``: a boundary value x(0) or x(T) of the finite
-    transform (``x0_alpha``, THEORY.md section 7).  The value is the JSON form.
+    transform (``x0_alpha``, docs/theory.md section 7).  The value is the JSON form.
 
     Parameters
     ----------

@@ -31,7 +31,7 @@ __all__ = ["check_quality", "QualityReport", "ChannelQuality", "LOW_INPUT_DB", "
 
 #: Input level below its peak (over all frequencies) at which a frequency counts as
 #: unexcited, dB.  Information about parameters at a frequency grows with
-#: |u(w)|^2 (THEORY.md Eq. 23: A_i is proportional to the input), so -40 dB
+#: |u(w)|^2 (docs/theory.md Eq. 23: A_i is proportional to the input), so -40 dB
 #: (1 % of the peak amplitude) carries 1e-4 of the peak's information: with a
 #: signal-to-noise ratio of 40 dB or less at the peak -- typical of flight
 #: data -- the output there is at or below the noise.

@@ -2,7 +2,7 @@
 
 A :class:`Record` holds a uniformly sampled time vector and named signals:
 ``de`` (elevator, rad, trailing edge down positive), ``alpha`` (rad), ``q``
-(rad/s), ``az`` (body-z specific force in g, positive down, THEORY.md Eq. 5)
+(rad/s), ``az`` (body-z specific force in g, positive down, docs/theory.md Eq. 5)
 and optionally ``alpha_w`` (vertical gust angle, rad).  Construction checks
 everything a fit relies on and raises :class:`~fdml.errors.RecordError` with
 a message that names the problem.

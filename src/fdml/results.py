@@ -3,7 +3,7 @@
 :class:`FitResult` holds the estimates, standard errors, covariance and
 correlation, the residual covariance R, the cost history, the convergence
 verdict, the band, the derived (alternate) parameter set with delta-method
-standard errors (THEORY.md section 6), and the spectra that were fitted.  It
+standard errors (docs/theory.md section 6), and the spectra that were fitted.  It
 prints as a table (:meth:`FitResult.summary`) and round-trips through
 versioned JSON without loss (:meth:`FitResult.to_json`, :func:`load_result`).
 """

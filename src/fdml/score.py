@@ -95,7 +95,7 @@ __all__ = [
     "whitener",
 ]
 
-#: Aliasing above which a candidate is "not identifiable" (DIAGNOSIS.md 2.3).
+#: Aliasing above which a candidate is "not identifiable" (docs/diagnosis_method.md 2.3).
 ALIAS_LIMIT = 0.99
 
 

@@ -2,7 +2,7 @@
 
 Every model is linear; the simulation starts from rest (zero states, zero
 input history before the first sample) and returns alpha (rad), q (rad/s) and
-``a_z = (U/g)(alpha_dot - q)`` in g (THEORY.md Eq. 5), plus the output biases.
+``a_z = (U/g)(alpha_dot - q)`` in g (docs/theory.md Eq. 5), plus the output biases.
 
 Two integrators, chosen by the model:
 
@@ -12,13 +12,13 @@ Two integrators, chosen by the model:
   inputs that are piecewise linear between the samples.  The descriptor form
   ``E x' = A x + B0 u + B1 u'`` of the alpha-dot derivatives is reduced to a
   proper state-space system by ``xi = x - E^-1 B1 u``, so no input is
-  differentiated to propagate the states.  The unsteady model's lags (THEORY.md
+  differentiated to propagate the states.  The unsteady model's lags (docs/theory.md
   section 4), the Kussner gust lag (BS-15/16, or an exponential-sum indicial
   preset) and the tail gust delay (BS-8) are realised as states and delayed
   input channels.
 * **Unsteady model with F != 0**: the downwash memory term
   ``eps_F(t) = eps_ss F (c_w/U) PV int_0^t alpha_dot(tau) / (t - tau - T) dtau``,
-  ``T = (l_t - c_w)/U`` (THEORY.md Eqs. 2 and 10, section 4), has no
+  ``T = (l_t - c_w)/U`` (docs/theory.md Eqs. 2 and 10, section 4), has no
   finite-state realisation.  The coupled integro-differential system is
   marched on an internal grid ``h = T/m`` (default m = 16, about 1e-4
   relative accuracy) with the trapezoid rule for the states (the inputs,
@@ -132,7 +132,7 @@ def _pv_tables(m: int, n: int):
 
 
 def pv_memory(rate, m: int) -> np.ndarray:
-    """Principal-value memory integral of THEORY.md Eq. 10 on a uniform grid.
+    """Principal-value memory integral of docs/theory.md Eq. 10 on a uniform grid.
 
     Computes ``I(t_n) = PV int_0^{t_n} r(tau) / (t_n - tau - T) dtau`` for
     ``t_n = n h`` with the pole time ``T = m h`` on a grid node, r = 0 before 0.
@@ -462,7 +462,7 @@ def _simulate_memory(sys: _System, tau, dt, sig, substeps, pole_steps):
         if sys.ru[j] != 0.0 and abs(sig[nm][0]) > _START_RTOL * np.max(np.abs(sig[nm])):
             raise ParameterError(
                 f"input {nm} starts at {sig[nm][0]:.4g} rad, a step at t = 0 that the F-term of "
-                "THEORY.md Eq. 2 turns into an infinite downwash at t = T; start the input from zero "
+                "docs/theory.md Eq. 2 turns into an infinite downwash at t = T; start the input from zero "
                 "(e.g. a later start, rise > 0, or multisine(zero_start=True))"
             )
     h = sys.T / m

@@ -1,9 +1,9 @@
 """From a record to its spectra: trim removal and the finite Fourier transform.
 
 :func:`spectra` turns a :class:`~fdml.record.Record` into
-:class:`FrequencyData`: the transforms (THEORY.md Eq. 11) of the outputs and
+:class:`FrequencyData`: the transforms (docs/theory.md Eq. 11) of the outputs and
 inputs at the chosen frequencies, the measured boundary values used by Klein's
-boundary terms (THEORY.md section 7), the transform of a unit constant (the
+boundary terms (docs/theory.md section 7), the transform of a unit constant (the
 regressor of an output bias), and what is needed to carry white time-domain
 noise through the transform into the estimator's covariance.  It knows nothing
 of models.
@@ -176,7 +176,7 @@ class FrequencyData:
         return self.omega.size
 
     def boundary(self) -> np.ndarray:
-        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, 2) (THEORY.md section 7).
+        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, 2) (docs/theory.md section 7).
 
         Returns
         -------

@@ -20,7 +20,7 @@ so the vertical wind (positive up) and the inertial flight-path angle are::
 
 The inertial ("kinematic") angle of attack is alpha_k = theta - gamma_k and
 the vertical gust angle, positive for an up-gust (it raises the angle of
-attack, THEORY.md section 8's alpha_g = w_g/U)::
+attack, docs/theory.md section 8's alpha_g = w_g/U)::
 
     alpha_w = alpha - alpha_k = gamma_k - gamma_a  ~  w_w / V
 

@@ -3,7 +3,7 @@
 * :mod:`fdml.design.inputs`: classic inputs and multisines within amplitude,
   rate and duration limits, as Record-compatible histories (CSV for a card);
 * :mod:`fdml.design.prediction`: predicted covariance of the estimates through
-  the estimator's own bound (THEORY.md Eqs. 20-26);
+  the estimator's own bound (docs/theory.md Eqs. 20-26);
 * :mod:`fdml.design.discrimination`: expected steady-versus-unsteady
   likelihood-ratio statistic, detection probability, minimum detectable effects;
 * :mod:`fdml.design.optimize`: optimal multisine spectra (D-, A-optimal,

@@ -36,13 +36,13 @@ class Limits:
     Parameters
     ----------
     amplitude : float
-        Largest |de|, rad.
+        Largest ``|de|``, rad.
     duration : float
         Record length, s.
     dt : float
         Sample interval, s.
     rate : float
-        Largest |d de/dt|, rad/s (inf: none).
+        Largest ``|d de/dt|``, rad/s (inf: none).
     """
 
     amplitude: float

@@ -1,4 +1,4 @@
-"""Predicted covariance of the estimates for a planned input (THEORY.md Eqs. 20-26).
+"""Predicted covariance of the estimates for a planned input (docs/theory.md Eqs. 20-26).
 
 The prediction is the estimator's own bound, reached through its own code:
 the noise-free response to the input is transformed and set up exactly as

@@ -30,7 +30,7 @@ One attribution step, from the current fit:
    of the two non-nested fits does not prefer the chosen one at the 5 % level
    (``z = sum d_i / sqrt(sum (d_i - mean d)^2) < 1.645``, d_i the per-frequency
    log-likelihood difference on the independent frequencies), or its AIC is
-   within 2.  DIAGNOSIS.md proposed an LR margin of 2 alone; with LRs in the
+   within 2.  docs/diagnosis_method.md 2.3 step 4 had an LR margin of 2 alone; with LRs in the
    hundreds the LR difference of two near-equivalent effects (a 20 ms delay and
    a 20 ms lag seen by a 3-2-1-1) fluctuates by several units, so a fixed
    margin calls a coin toss "confirmed".

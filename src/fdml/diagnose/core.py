@@ -1,6 +1,6 @@
 """``diagnose``: locate the gap, attribute it to an effect, measure how far it shrinks.
 
-See :mod:`fdml.diagnose` for the method and ``../shared/docs/DIAGNOSIS.md`` for
+See :mod:`fdml.diagnose` for the method and ``docs/diagnosis_method.md`` for
 the design study this follows (and where it departs from it).
 """
 

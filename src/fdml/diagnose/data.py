@@ -1,7 +1,7 @@
 """The analysis grid: spectra at twice the independent frequency spacing.
 
 The Fourier coefficients of white noise over a record of length T are
-independent only at spacings 2 pi/T (THEORY.md section 7).  Every test here
+independent only at spacings 2 pi/T (docs/theory.md section 7).  Every test here
 counts independent frequencies, so the diagnosis builds its own grid per
 record,
 
@@ -35,7 +35,7 @@ from ..spectral import band_numbers, spectra
 
 __all__ = ["AnalysisData", "analysis_data", "parse_diag_band", "DEFAULT_DIAG_BAND"]
 
-#: Default analysis band, rad/s: fdml's default fit band (THEORY.md 11.2: 0-10 rad/s).
+#: Default analysis band, rad/s: fdml's default fit band (docs/theory.md 11.2: 0-10 rad/s).
 DEFAULT_DIAG_BAND = (0.1, 10.0)
 
 

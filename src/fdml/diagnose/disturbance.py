@@ -4,7 +4,7 @@ Turbulence that was not measured drives every output through the model's gust
 column g(w) = G_w(jw) (per unit gust angle): it adds to the residual a
 component incoherent with the elevator but *correlated across channels along
 g*.  Independent sensor noise, white or coloured, is uncorrelated across
-channels.  So the test (DIAGNOSIS.md 2.6 rule 2: disturbance effects on
+channels.  So the test (docs/diagnosis_method.md 2.6 rule 2: disturbance effects on
 non-excited lines, after the deterministic effects) is:
 
 1. in each band, project the residual of the final deterministic model onto
@@ -33,7 +33,7 @@ frequencies.
 
 The result's "shrink" for this noise-kind effect is the share of the
 incoherent residual power that the gust term explains (it does not touch the
-coherent gap, DIAGNOSIS.md 2.3 step 7).
+coherent gap, docs/diagnosis_method.md 2.3 step 7).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 fdml's default likelihood concentrates one residual covariance R over the
 whole band (Eq. 24), i.e. it assumes noise that is white across frequency.
 Coloured sensor noise or turbulence breaks that, and a likelihood-ratio test
-with the wrong weighting is miscalibrated (DIAGNOSIS.md 2.1 and 2.6 rule 1: a
+with the wrong weighting is miscalibrated (docs/diagnosis_method.md 2.1 and 2.6 rule 1: a
 flat, residual-based noise estimate gave 87 % false turbulence calls on
 coloured noise in the prototype).  So every diagnosis fit is :func:`fdml.fit`
 with the band-wise noise model (:class:`fdml.estimate.NoiseModel`), whose cost is

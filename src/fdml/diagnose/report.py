@@ -1,6 +1,6 @@
 """The diagnosis report: verdict, labels, JSON and the plain-language paragraph.
 
-Labels (DIAGNOSIS.md 2.3 step 7), for a significant candidate, judged on the
+Labels (docs/diagnosis_method.md 2.3 step 7), for a significant candidate, judged on the
 held-out record when one is given, else in-sample:
 
 ``confirmed``
@@ -41,7 +41,8 @@ __all__ = ["DiagnosisReport", "label_for", "SHRINK_CONFIRM", "JSON_KEYS"]
 
 #: Shrink of the flagged coherent gap needed for "confirmed".  Chosen on the tuning seed range
 #: (benchmarks/validate_diagnose.py tune: 408 runs, seeds 0-407) by validation.tune_threshold: 0.3-0.6
-#: confirmed the same runs and none wrongly, so the most conservative of them; DIAGNOSIS.md proposed 0.5.
+#: confirmed the same runs and none wrongly, so the most conservative of them;
+#: docs/diagnosis_method.md 2.3 step 7 proposed 0.5.
 SHRINK_CONFIRM = 0.6
 #: Which remaining flagged cells make an accepted effect "partial": the final fit's own map.  Chosen on
 #: the tuning seed range with the threshold (validation.tune_threshold: J = 0.527 against 0.441 for the

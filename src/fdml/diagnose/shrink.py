@@ -1,7 +1,7 @@
 """Shrink: how far the gap closes once an effect is added, and where the effect acts.
 
 * **Shrink** of the coherent gap: ``1 - sum X_after / sum X_before`` over the
-  cells the base fit's map flagged (DIAGNOSIS.md 2.6 rule 6: judged only where
+  cells the base fit's map flagged (docs/diagnosis_method.md 2.6 rule 6: judged only where
   there was a gap), with X the cell's excess in units of the *before* noise
   floor, computed with the same regressors before and after.  In-sample, and
   on a held-out record with every model parameter frozen (only its own
@@ -222,7 +222,7 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
             "augmented_stderr": fit.stderr.get(n, math.nan),
             "shift_in_stderr": shift,
         }
-    # the derived set (alternate set / dimensional derivatives, THEORY.md 6), delta-method errors
+    # the derived set (alternate set / dimensional derivatives, docs/theory.md 6), delta-method errors
     try:
         bd = base.model.derived()
         ad = fit.model.derived()

@@ -119,7 +119,7 @@ def _delay(t, y, tau):
 def _downwash_delay(model, t, inputs, tau: float, sub: int = 8) -> dict:
     """alpha, q, a_z of the steady model whose downwash reaches the tail ``tau`` s late.
 
-    eps(t) = eps_ss alpha(t - tau) instead of eps_ss alpha (THEORY.md Eq. 9 with a transport delay,
+    eps(t) = eps_ss alpha(t - tau) instead of eps_ss alpha (docs/theory.md Eq. 9 with a transport delay,
     the textbook origin of Cm_adot).  With d = alpha(t - tau) - alpha(t), the tail lift changes by
     -a_t eps_ss d, so (Eqs. 3-7) alpha' += k_z (St/Sw) a_t eps_ss d, q' += k_m (l St/(c Sw)) a_t
     eps_ss d and a_z += (U/g) k_z (St/Sw) a_t eps_ss d.  Marched on h = dt/sub with an exact

@@ -4,7 +4,7 @@ Each run simulates a record (and an independent hold-out record of another
 manoeuvre) from a truth that is the base model plus exactly one effect
 (:mod:`fdml.diagnose.truth`), or no effect, or an effect outside the library,
 and runs :func:`fdml.diagnose.diagnose` blind with the base model.  The
-scores (DIAGNOSIS.md 3.2) are
+scores (docs/diagnosis_method.md 3.2) are
 
 * the confusion matrix, truth effect by verdict;
 * detection (any verdict), top-1 attribution (verdict = truth), in-set (truth

@@ -1,7 +1,7 @@
 """Reading real flight records into fdml :class:`~fdml.record.Record` objects.
 
 Every loader returns a record in fdml's units and signs (SI, radians; ``az``
-and ``ax`` in g, body z positive **down**, THEORY.md Eq. 5; alpha, q and the
+and ``ax`` in g, body z positive **down**, docs/theory.md Eq. 5; alpha, q and the
 elevator as in :mod:`fdml.record`), with the flight condition and the
 conversion applied in ``record.meta``.  Trim is kept unless ``trim=`` asks
 for its removal (the estimator removes it itself); the trim values are

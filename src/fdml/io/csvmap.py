@@ -78,7 +78,7 @@ def read_csv_mapped(
     sign : mapping, optional
         A mapping fdml signal -> +1 or -1, applied after unit conversion.  fdml wants
         ``az`` positive **down** (body-z specific force, about -1 g in level
-        flight, THEORY.md Eq. 5): a normal load factor n_z (+1 g in level
+        flight, docs/theory.md Eq. 5): a normal load factor n_z (+1 g in level
         flight, positive up) needs ``units={"az": "g"}, sign={"az": -1}``.
         Elevator: trailing edge down positive; alpha, q: nose up positive.
     t0, t1 : float, optional

@@ -88,7 +88,7 @@ def read_sidpac(
     Signs need no change; the evidence, on both Twin Otter maneuvers:
 
     * a_z reads -1.01 and -0.99 g in the leading trim: body-z specific force,
-      positive **down**, already fdml's a_z (THEORY.md Eq. 5); a regression of
+      positive **down**, already fdml's a_z (docs/theory.md Eq. 5); a regression of
       a_z on (V/g)(d alpha/dt - q) has slope +0.97 and +1.06 (a sign error
       would give -1);
     * q against d theta/dt: slope +0.89, correlation 0.99 (nose up positive);

@@ -3,7 +3,7 @@
 Every fdml signal has a physical quantity (angle, angular rate, ...) and one
 target unit, :data:`fdml.record.SIGNALS`: radians for angles, rad/s, rad/s^2,
 m/s, m, Pa, and standard gravity (g) for the specific forces ``az`` and
-``ax`` (THEORY.md Eq. 5).  :func:`to_si` multiplies a recorded channel by the
+``ax`` (docs/theory.md Eq. 5).  :func:`to_si` multiplies a recorded channel by the
 exact factor of its unit (NIST SP 811 factors from :mod:`fdml.constants`) and
 refuses a unit that is unknown or belongs to another quantity, so a
 conversion can never be silently wrong.

@@ -3,7 +3,7 @@
 =============  =========================================================
 kind           model
 =============  =========================================================
-unsteady       Wells-Keskar, THEORY.md Eqs. 13-17 (+ Kussner gust lag)
+unsteady       Wells-Keskar, docs/theory.md Eqs. 13-17 (+ Kussner gust lag)
 steady         its quasi-steady limit (N = a, E = deps_da, K = 1)
 derivatives    six non-dimensional derivatives (+ optional alpha-dot)
 dimensional    Z_a, Z_q, Z_de, M_a, M_q, M_de (records without geometry)

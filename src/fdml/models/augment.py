@@ -62,7 +62,7 @@ class Param:
     nuisance : bool, optional
         A parameter that is not identified when the effect is absent (a
         structural mode's frequency and damping): held fixed on a grid for the
-        test, then refined continuously (DIAGNOSIS.md 2.6 rule 5).
+        test, then refined continuously (docs/diagnosis_method.md 2.6 rule 5).
     """
 
     name: str

@@ -4,7 +4,7 @@ Each model supplies, per frequency, the matrices of
 
     E (s x~ - d) = A(s) x~ + B(s) u~,      x = [alpha, q],  d = x(0) - x(T) e^{-sT}
 
-(the finite-record transform of ``E xdot = A x + B u``; THEORY.md section 7,
+(the finite-record transform of ``E xdot = A x + B u``; docs/theory.md section 7,
 Klein's boundary terms).  The outputs are alpha, q and
 ``a_z = (U/g)(alpha_dot - q)`` (Eq. 5), whose finite transform is
 ``(U/g)(s alpha~ - d_alpha - q~)``.  So

@@ -1,13 +1,13 @@
 """Conventional short-period models: ``derivatives`` and ``dimensional``.
 
-``derivatives`` is the six-derivative non-dimensional model that THEORY.md
+``derivatives`` is the six-derivative non-dimensional model that docs/theory.md
 section 6 identifies as Wells-Keskar's "steady" column (q per q c/(2U)), with
 optional alpha-dot derivatives.  ``dimensional`` is the form SIDPAC and
 Jategaonkar fit to records without geometry:
 
     alpha_dot = Z_a alpha + (1 + Z_q) q + Z_de de
     q_dot     = M_a alpha + M_q q + M_de de
-    a_z       = (U/g)(alpha_dot - q)                  (THEORY.md Eq. 5)
+    a_z       = (U/g)(alpha_dot - q)                  (docs/theory.md Eq. 5)
 """
 
 from __future__ import annotations
@@ -60,7 +60,7 @@ def to_dimensional(d: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
 class DerivativesModel(Model):
     """Six non-dimensional derivatives, optionally with Cz_adot and Cm_adot.
 
-    Equations (THEORY.md section 6, "steady" model), with k_z = rho U S/(2m),
+    Equations (docs/theory.md section 6, "steady" model), with k_z = rho U S/(2m),
     k_m = rho U^2 S c/(2 Iy) and hat q = q c/(2U)::
 
         alpha_dot = q + k_z [Cz_a alpha + Cz_q hat q + Cz_de de + Cz_adot hat alpha_dot]

@@ -67,7 +67,7 @@ from .wells_keskar import SteadyModel
 __all__ = ["Dispatch", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
 
 #: R. T. Jones' one-term lift-lag rate for an AR 6 elliptic wing, per semichord
-#: (THEORY.md section 2, [MEM]); used when the aircraft gives none.
+#: (docs/theory.md section 2, [MEM]); used when the aircraft gives none.
 JONES_Z = 0.381
 #: Default structural-mode damping ratio during the frequency grid search.
 MODE_ZETA = 0.05
@@ -140,7 +140,7 @@ def to_unsteady_equivalent(root: Model) -> Model:
     """The steady Wells-Keskar model rewritten as the unsteady one with every lag off.
 
     With y_w = y_t = F = G = 0, b1 = 0 (K = 1) and no tail gust delay, Eqs. 13-17
-    reduce exactly to the quasi-steady model (THEORY.md section 6); so the
+    reduce exactly to the quasi-steady model (docs/theory.md section 6); so the
     lag parameters can be freed one at a time as nested augmentations.
 
     Parameters
@@ -276,7 +276,7 @@ def _adot_realize(d, p, root):
 
 
 # On both Wells-Keskar models the downwash lag frees G (the steady model is rewritten as the
-# unsteady one with every lag off, THEORY.md section 6): one effect serves both.
+# unsteady one with every lag off, docs/theory.md section 6): one effect serves both.
 _WK_DOWNWASH_G = FreeParameterEffect(
     "downwash_lag",
     "q",
@@ -321,7 +321,7 @@ DOWNWASH_LAG = Dispatch(
 
 # --- downwash lag in its textbook form: the downwash reaches the tail l_t/U late ----------------
 #
-# The classical origin of Cm_adot: eps(t) = eps_ss alpha(t - l_t/U).  Form chosen with THEORY.md:
+# The classical origin of Cm_adot: eps(t) = eps_ss alpha(t - l_t/U).  Form chosen with docs/theory.md:
 # * the alpha-dot term is only its first order in s; on the steady model that signature is the one the
 #   derivatives absorb (M_adot alpha_dot = M_adot (q + Z_a alpha + Z_de de): 99.97 % aliased on the
 #   Navion), so what tells a downwash lag from an elevator lag is the second-order part;

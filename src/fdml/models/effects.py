@@ -22,7 +22,7 @@ elevator delay ``tau_de``, Wells-Keskar ``y_w``, ``G``, Kussner ``b1``, the
 derivatives model's ``Cm_adot``) are augmentations by *freeing* that
 parameter; the quasi-steady Wells-Keskar model is first rewritten as the
 unsteady model with every lag switched off, which is the same model
-(THEORY.md section 6).
+(docs/theory.md section 6).
 
 A user adds an effect in a few lines::
 

@@ -1,6 +1,6 @@
 """The forward measurement model of every fit, written once.
 
-The output spectra of one record are modelled as (THEORY.md Eqs. 18-19, with
+The output spectra of one record are modelled as (docs/theory.md Eqs. 18-19, with
 Klein's boundary terms of section 7)
 
     y(w) = G(w) u(w) + H(w) d(w) + b 1(w) + P(w) f 1(w) + G_de(w) b_de 1(w),
@@ -141,7 +141,7 @@ def end_shift(omega: np.ndarray, T: float) -> np.ndarray:
 
 
 def boundary_vector(x0: np.ndarray, xT: np.ndarray, shift: np.ndarray) -> np.ndarray:
-    """Klein's boundary vector ``d(w) = x(0) - x(T) exp(-j w T)`` (THEORY.md section 7).
+    """Klein's boundary vector ``d(w) = x(0) - x(T) exp(-j w T)`` (docs/theory.md section 7).
 
     Parameters
     ----------

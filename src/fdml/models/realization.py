@@ -2,9 +2,9 @@
 
 The state space every model kind and effect builds (:class:`Realization`,
 :func:`realize`): the base model's (the conventional descriptor form, the
-Wells-Keskar finite-state form of THEORY.md section 4 with the gust lags of
+Wells-Keskar finite-state form of docs/theory.md section 4 with the gust lags of
 section 8), the matrix-level effects inside it, then the output-level effects
-by the state-space algebra below (THEORY.md Eq. 5 for a_z).  It lives in the
+by the state-space algebra below (docs/theory.md Eq. 5 for a_z).  It lives in the
 model layer, below :mod:`fdml.models.effects` and :mod:`fdml.simulate` (the
 time-domain simulator that integrates it), so that the effects and the models
 reach it without importing upward.
@@ -69,7 +69,7 @@ class Descriptor:
 
     The form of the conventional models (and of the matrix-level effects that
     act on them, :meth:`fdml.models.effects.MatrixEffect.realize`); the outputs
-    are alpha = x_0, q = x_1 and a_z = (U/g)(alpha' - q) (THEORY.md Eq. 5).
+    are alpha = x_0, q = x_1 and a_z = (U/g)(alpha' - q) (docs/theory.md Eq. 5).
 
     Parameters
     ----------
@@ -195,7 +195,7 @@ class _Rows:
 
 
 def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
-    """``unsteady`` (THEORY.md section 4 finite-state form, section 8 gust) and ``steady``.
+    """``unsteady`` (docs/theory.md section 4 finite-state form, section 8 gust) and ``steady``.
 
     Mirrors models/wells_keskar.py term by term:
     C_Lw = N_w alpha + a_w K alpha_g;  eps = E alpha + eps_ss K D alpha_g;
@@ -356,7 +356,7 @@ def _system(model, p) -> _System:
     return sys
 
 
-# --- state-space algebra of the output-level effects (THEORY.md Eq. 5 for a_z) -------------------
+# --- state-space algebra of the output-level effects (docs/theory.md Eq. 5 for a_z) -------------------
 
 
 def _pad_states(sys: _System, k: int) -> _System:
@@ -643,7 +643,7 @@ def realize(model, values=None) -> Realization:
     ----------
     model : fdml.models.Model
         Any kind except ``unsteady`` with F != 0, whose downwash memory has no
-        finite-state form (THEORY.md section 4).
+        finite-state form (docs/theory.md section 4).
     values : mapping, optional
         Parameter values overriding the model's.
 
@@ -654,5 +654,7 @@ def realize(model, values=None) -> Realization:
     """
     sys = _system(model, model.values(values))
     if sys.kappa != 0.0:
-        raise ParameterError("the unsteady model with F != 0 has no finite-state realisation (THEORY.md section 4)")
+        raise ParameterError(
+            "the unsteady model with F != 0 has no finite-state realisation (docs/theory.md section 4)"
+        )
     return Realization(sys.A, sys.B, sys.C, sys.D, sys.Dd, sys.channels, tuple(sys.out_delay))

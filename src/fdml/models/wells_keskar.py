@@ -33,7 +33,7 @@ _THETA = (
 
 
 def alternate_set(p: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
-    """Quasi-steady derivatives implied by theta, THEORY.md section 6.
+    """Quasi-steady derivatives implied by theta, docs/theory.md section 6.
 
     q-derivatives per ``q c_w / (2U)``.
 
@@ -110,7 +110,7 @@ class _WKBase(Model):
         B[:, 0, 0] = kz * p["Cz_de"]
         B[:, 1, 0] = km * p["Cm_de"]
         if self.gust:
-            # THEORY.md section 8: C_Lw += a_w K alpha_g; eps += eps_ss K D alpha_g;
+            # docs/theory.md section 8: C_Lw += a_w K alpha_g; eps += eps_ss K D alpha_g;
             # C_Lt += N_t(-eps_ss K D alpha_g) + a_t K D alpha_g, D = exp(-s l/U).
             K_w, K_tD = Kg
             CLt_g = (p["CLa_t"] - N_t * p["deps_da"]) * K_tD
@@ -162,13 +162,13 @@ class _WKBase(Model):
         return out
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
-        """The alternate set (THEORY.md section 6) at ``values``."""
+        """The alternate set (docs/theory.md section 6) at ``values``."""
         return alternate_set(self.values(values), self.aircraft)
 
 
 @dataclass(frozen=True, kw_only=True)
 class UnsteadyModel(_WKBase):
-    """Wells-Keskar unsteady model, THEORY.md Eqs. 13-17 (and section 8 for the gust).
+    """Wells-Keskar unsteady model, docs/theory.md Eqs. 13-17 (and section 8 for the gust).
 
     Parameters
     ----------
@@ -183,7 +183,7 @@ class UnsteadyModel(_WKBase):
         Geometry, mass, flight condition and default constants.
     tail_lag_chord : {"c_w", "c_t"}, optional
         Chord in the tail lift-lag rate 2 z_t U / c of Eq. 17; the paper prints
-        c_w (THEORY.md section 2, open question), which is the default.
+        c_w (docs/theory.md section 2, open question), which is the default.
     gust_lag : str, optional
         ``"bs12"`` (first-order Kussner lag with free-able length b1, the
         default) or the name of an :data:`fdml.aero.INDICIAL_PRESETS` entry
@@ -259,7 +259,7 @@ class UnsteadyModel(_WKBase):
         return n_w, n_t, e, Kg
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
-        """Alternate set plus the G-part alpha-dot derivatives (THEORY.md section 6).
+        """Alternate set plus the G-part alpha-dot derivatives (docs/theory.md section 6).
 
         ``Cm_adot_G = -(l/c)(St/Sw) a_t eps_ss G/H`` and
         ``Cz_adot_G = -(St/Sw) a_t eps_ss G/H`` (per ``alpha_dot c/(2U)``); the
