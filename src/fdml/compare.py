@@ -123,7 +123,7 @@ class Evidence:
     span : int
         Largest correlation span (frequencies) used in the variance.
     distance : float
-        Largest |shift| of the six derivatives in standard errors: how far a
+        Largest ``|shift|`` of the six derivatives in standard errors: how far a
         steady fit would be biased if the truth were unsteady.
     method : str
         The test's name and variance estimator, for reports.
@@ -339,7 +339,7 @@ class Comparison:
 
     @property
     def distance(self) -> float:
-        """Largest |shift| in standard errors over the six derivatives."""
+        """Largest ``|shift|`` in standard errors over the six derivatives."""
         zs = [abs(v["in_stderr"]) for v in self.shifts.values() if math.isfinite(v["in_stderr"])]
         return max(zs) if zs else math.nan
 

@@ -306,7 +306,7 @@ def read_input(path) -> DesignInput:
     Returns
     -------
     DesignInput
-        The history, time from 0, with limits taken from it (peak |de|, length, dt).
+        The history, time from 0, with limits taken from it (peak ``|de|``, length, dt).
     """
     rec = read_csv(path, require=("de",), check_units=True)
     t = rec.t - rec.t[0]
