@@ -28,14 +28,8 @@ class Role(str, Enum):
     a measured output (``bias_q``); ``STATE_BIAS``: a constant in a state
     equation (``bias_q_dot``); ``INPUT_BIAS``: an elevator offset
     (``bias_de``); ``BOUNDARY``: a boundary value x(0) or x(T) of the finite
-    transform (``x0_alpha``, docs/theory.md section 7).  The value is the JSON form.
-
-    Parameters
-    ----------
-    value : str or Role
-        The JSON form (``"aero"``, ``"delay"``, ...): ``Role("delay")`` is :attr:`Role.DELAY`.
-    names, module, qualname, type, start, boundary : optional
-        The :class:`enum.Enum` functional API (making a new enumeration); not used with Role.
+    transform (``x0_alpha``, docs/theory.md section 7).  The value is the JSON
+    form: ``Role("delay")`` is :attr:`Role.DELAY`.
     """
 
     AERO = "aero"
