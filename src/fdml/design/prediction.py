@@ -126,9 +126,7 @@ class Prediction:
         return {n: {"value": self.values[n], "stderr": se[n]} for n in keep}
 
     @classmethod
-    def from_dict(
-        cls, d, *, noise=None, input: DesignInput | None = None, source: str = "prediction"
-    ) -> Prediction:
+    def from_dict(cls, d, *, noise=None, input: DesignInput | None = None, source: str = "prediction") -> Prediction:
         """Inverse of :meth:`to_dict`, as far as it goes; a bad key raises a one-line FdmlError naming ``source``.
 
         :meth:`to_dict` keeps each quantity's value and standard error, so the
