@@ -192,6 +192,15 @@ def test_restored_arrays_and_what_is_not_restored(instances, plan):
     assert np.count_nonzero(p.cov - np.diag(np.diag(p.cov))) == 0  # no correlations are written
 
 
+def test_names_left_to_the_container():
+    """Slot and ParameterEstimate.to_dict leave out the name: Slot's defaults to the base name, the other's is required."""
+    slot = Slot.from_dict({"base": "bias_q", "role": "output_bias", "record": "r1"})
+    assert slot == Slot("bias_q", "bias_q", Slot.from_dict({"base": "x", "role": "output_bias"}).role, "r1")
+    assert Slot.from_dict(slot.to_dict(), name="bias_q[r1]").name == "bias_q[r1]"
+    with pytest.raises(TypeError):
+        ParameterEstimate.from_dict({})  # name is keyword-only and required
+
+
 def test_design_reads_its_input_csv(plan, tmp_path):
     path = tmp_path / "input.csv"
     plan.input.to_csv(path)
