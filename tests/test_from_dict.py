@@ -32,7 +32,7 @@ from fdml.findings import Finding
 from fdml.flightpath import CompatibilityResult, ParameterEstimate, check_compatibility
 from fdml.jsoncodec import dumps, to_jsonable
 from fdml.models import make_model
-from fdml.parameters import Slot
+from fdml.parameters import Role, Slot
 from fdml.quality import ChannelQuality, QualityReport, check_quality
 from fdml.record import Record
 from fdml.simulate import simulate_maneuver
@@ -193,9 +193,9 @@ def test_restored_arrays_and_what_is_not_restored(instances, plan):
 
 
 def test_names_left_to_the_container():
-    """Slot and ParameterEstimate.to_dict leave out the name: Slot's defaults to the base name, the other's is required."""
+    """Their to_dict leaves out the name: a Slot's defaults to the base name, an estimate's is required."""
     slot = Slot.from_dict({"base": "bias_q", "role": "output_bias", "record": "r1"})
-    assert slot == Slot("bias_q", "bias_q", Slot.from_dict({"base": "x", "role": "output_bias"}).role, "r1")
+    assert slot == Slot("bias_q", "bias_q", Role.OUTPUT_BIAS, "r1")
     assert Slot.from_dict(slot.to_dict(), name="bias_q[r1]").name == "bias_q[r1]"
     with pytest.raises(TypeError):
         ParameterEstimate.from_dict({})  # name is keyword-only and required
