@@ -286,6 +286,24 @@ class Adequacy:
             elapsed=f.number("elapsed", default=0.0),
         )
 
+    @classmethod
+    def from_dict(cls, d, *, source: str = "adequacy check") -> Adequacy:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Adequacy
+            The adequacy check.
+        """
+        return cls.from_fields(Fields(d, source))
+
     def lines(self) -> list:
         """Text lines of the summary's adequacy section.
 

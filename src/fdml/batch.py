@@ -229,6 +229,41 @@ class ModelSpec:
             "effects": list(self.effects),
         }
 
+    @classmethod
+    def from_dict(cls, d, *, source: str = "model spec") -> "ModelSpec":
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        ModelSpec
+            The specification, containers as :meth:`normalized` makes them.
+        """
+        from .jsoncodec import Fields
+
+        f = Fields(d, source)
+        ac = f.raw("aircraft")
+        if ac is not None and not isinstance(ac, (str, Mapping)):
+            raise f.error("aircraft", "must be a preset name, a file or an aircraft object")
+        params = f.items("parameters", allow_none=False) if f.raw("parameters") is not None else None
+        fix = f.number_map("fix") if isinstance(f.raw("fix"), Mapping) else list(f.strings("fix"))
+        return cls(
+            kind=f.string("kind"),
+            aircraft=f.mapping("aircraft") if isinstance(ac, Mapping) else ac,
+            options=f.mapping("options"),
+            values=f.number_map("values"),
+            fix=fix,
+            free=list(f.strings("free")),
+            parameters=None if params is None else [dict(p.doc) for p in params],
+            effects=list(f.strings("effects")),
+        )
+
     def build(self):
         """The :class:`~fdml.models.Model` described.
 

@@ -40,6 +40,7 @@ import numpy as np
 from .channels import OUTPUTS, REQUIRED, SIGNALS
 from .constants import G0
 from .findings import Finding
+from .jsoncodec import Fields
 from .record import Record
 
 __all__ = ["check_data", "DataCheck", "KinematicFit", "RANGE_LIMITS", "DEG", "UNIT_TOLERANCE"]
@@ -182,6 +183,48 @@ class DataCheck:
             "threshold": self.threshold,
             "elapsed": self.elapsed,
         }
+
+    @classmethod
+    def from_dict(cls, d, *, source: str = "data check") -> DataCheck:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        The kinematic fit's ``implied_airspeed`` is derived from its slope and not read.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        DataCheck
+            The data check.
+        """
+        f = Fields(d, source)
+        k = f.sub("kinematics") if f.raw("kinematics") is not None else None
+        kin = (
+            None
+            if k is None
+            else KinematicFit(
+                order=k.strings("order", length=3),
+                slope_q=k.number("slope_q"),
+                slope_az=k.number("slope_az"),
+                expected_az=k.number("expected_az", allow_none=True),
+                fit=k.number("fit"),
+                fit_labelled=k.number("fit_labelled"),
+                scales=k.numbers("scales", length=3),
+            )
+        )
+        return cls(
+            record=f.string("record"),
+            findings=tuple(Finding.from_fields(x) for x in f.items("findings")),
+            kinematics=kin,
+            coherent_fraction=f.number_map("coherent_fraction"),
+            threshold=f.number("threshold"),
+            elapsed=f.number("elapsed"),
+        )
 
     def summary(self) -> str:
         """A few lines for the terminal.

@@ -15,6 +15,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from .errors import DataCheckError, DataWarning
+from .jsoncodec import Fields
 
 __all__ = ["Finding", "emit", "raise_if_strict", "KINDS"]
 
@@ -87,31 +88,45 @@ class Finding:
         }
 
     @classmethod
-    def from_dict(cls, d: Mapping) -> "Finding":
-        """Inverse of :meth:`to_dict`.
+    def from_fields(cls, f: Fields) -> "Finding":
+        """Inverse of :meth:`to_dict` from the fields of a JSON object, every key checked.
 
         Parameters
         ----------
-        d : Mapping
-            A dict as :meth:`to_dict` writes it (``kind`` defaults to ``"data"``).
+        f : fdml.jsoncodec.Fields
+            The fields of the finding (``kind`` defaults to ``"data"``).
 
         Returns
         -------
         Finding
             The finding.
         """
-
-        def num(x):
-            return None if x is None else float(x)
-
         return cls(
-            code=str(d["code"]),
-            message=str(d["message"]),
-            kind=str(d.get("kind", "data")),
-            record=d.get("record"),
-            value=num(d.get("value")),
-            expected=num(d.get("expected")),
+            code=f.string("code"),
+            message=f.string("message"),
+            kind=f.string("kind", default="data", choices=KINDS),
+            record=f.string("record", default=None, allow_none=True),
+            value=f.number("value", default=None, allow_none=True),
+            expected=f.number("expected", default=None, allow_none=True),
         )
+
+    @classmethod
+    def from_dict(cls, d: Mapping, *, source: str = "finding") -> "Finding":
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : Mapping
+            A dict as :meth:`to_dict` writes it (``kind`` defaults to ``"data"``).
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Finding
+            The finding.
+        """
+        return cls.from_fields(Fields(d, source))
 
 
 def emit(findings: Iterable[Finding], stacklevel: int = 2) -> None:

@@ -73,6 +73,7 @@ import numpy as np
 from .channels import SIGNALS, display_unit
 from .constants import G0
 from .errors import FdmlError, IdentifiabilityWarning, RecordError
+from .jsoncodec import Fields
 from .record import Record
 
 __all__ = ["check_compatibility", "CompatibilityResult", "ParameterEstimate", "PARAMETERS", "apply_corrections"]
@@ -159,6 +160,54 @@ class ParameterEstimate:
             "description": self.description,
             "nominal": self.nominal,
         }
+
+    @classmethod
+    def from_fields(cls, f: Fields, name: str) -> ParameterEstimate:
+        """Inverse of :meth:`to_dict` from the fields of a JSON object, every key checked.
+
+        Parameters
+        ----------
+        f : fdml.jsoncodec.Fields
+            The fields of the estimate.
+        name : str
+            The quantity's name (the key :meth:`CompatibilityResult.to_dict` files it under).
+
+        Returns
+        -------
+        ParameterEstimate
+            The estimate.
+        """
+        return cls(
+            name=name,
+            value=f.number("value"),
+            stderr=f.number("stderr"),
+            stderr_white=f.number("stderr_white"),
+            unit=f.string("unit"),
+            description=f.string("description"),
+            nominal=f.number("nominal"),
+        )
+
+    @classmethod
+    def from_dict(cls, d, *, name: str, source: str = "parameter estimate") -> ParameterEstimate:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        :meth:`to_dict` leaves the name to the result that files the estimate under it, so it is given here.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        name : str
+            The quantity's name (``b_q``, ``alpha0``, ...).
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        ParameterEstimate
+            The estimate.
+        """
+        return cls.from_fields(Fields(d, source), name)
 
 
 @dataclass(frozen=True)
@@ -318,6 +367,50 @@ class CompatibilityResult:
             "message": self.message,
             "findings": list(self.findings),
         }
+
+    @classmethod
+    def from_dict(cls, d, *, source: str = "compatibility check") -> CompatibilityResult:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        What :meth:`to_dict` does not keep is not restored: ``record`` (the
+        corrected record) is None, and a non-finite correlation, written as 0,
+        reads back as 0.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        CompatibilityResult
+            The check's estimates, correlations, residuals and findings.
+        """
+        f = Fields(d, source)
+        names = f.strings("names")
+        fixed = f.sub("fixed")
+        return cls(
+            name=f.string("name"),
+            params=_estimates(f.sub("params")),
+            states=_estimates(f.sub("states")),
+            fixed={k: (x.number("value"), x.string("reason")) for k in fixed.doc for x in [fixed.sub(k)]},
+            corr=f.floats("corr", (len(names), len(names))),
+            names=names,
+            outputs=f.strings("outputs"),
+            residual_rms=f.number_map("residual_rms"),
+            sigma=f.number_map("sigma"),
+            n_used=f.integer("n_used", minimum=0),
+            converged=f.boolean("converged"),
+            message=f.string("message"),
+            findings=f.strings("findings"),
+        )
+
+
+def _estimates(f: Fields) -> dict:
+    """``{name: ParameterEstimate}`` from the object ``{name: estimate dict}``."""
+    return {k: ParameterEstimate.from_fields(f.sub(k), k) for k in f.doc}
 
 
 # --- corrections -------------------------------------------------------------------------------

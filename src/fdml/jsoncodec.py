@@ -864,6 +864,26 @@ class Fields:
 
         return self._get(key, default, conv)
 
+    def number_map(self, key: str, default=_MISSING) -> dict:
+        """The JSON object of finite numbers at ``key`` as ``{name: float}``.
+
+        Parameters
+        ----------
+        key : str
+            The key in this object.
+        default : object, optional
+            Returned when the key is absent; without it a missing key is an error.
+
+        Returns
+        -------
+        dict of str to float
+            The numbers by name, in the file's order (or ``default``).
+        """
+        if key not in self.doc and default is not _MISSING:
+            return default
+        sub = self.sub(key)
+        return {name: sub.number(name) for name in sub.doc}
+
     @overload
     def sub(self, key: str) -> Fields: ...
     @overload

@@ -83,6 +83,50 @@ class Slot:
         """
         return {"base": self.base, "role": self.role.value, "record": self.record}
 
+    @classmethod
+    def from_fields(cls, f, name: str | None = None) -> "Slot":
+        """Inverse of :meth:`to_dict` from the fields of a JSON object, every key checked.
+
+        Parameters
+        ----------
+        f : fdml.jsoncodec.Fields
+            The fields of ``{"base", "role", "record"}``.
+        name : str, optional
+            The estimate's name in its result (default: the base name, as in a fit of one record).
+
+        Returns
+        -------
+        Slot
+            The slot.
+        """
+        base = f.string("base")
+        role = Role(f.string("role", choices=tuple(r.value for r in Role)))
+        return cls(base if name is None else name, base, role, f.string("record", default=None, allow_none=True))
+
+    @classmethod
+    def from_dict(cls, d, *, name: str | None = None, source: str = "slot") -> "Slot":
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        :meth:`to_dict` leaves the name to the result that holds the slot, so it is given here.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        name : str, optional
+            The estimate's name in its result (default: the base name, as in a fit of one record).
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Slot
+            The slot.
+        """
+        from .jsoncodec import Fields
+
+        return cls.from_fields(Fields(d, source), name)
+
 
 @dataclass(frozen=True)
 class Parameter:

@@ -25,6 +25,7 @@ import numpy as np
 
 from .channels import OUTPUTS, SIGNALS
 from .errors import BandError, RecordError
+from .jsoncodec import Fields
 from .record import Record
 
 __all__ = ["check_quality", "QualityReport", "ChannelQuality", "LOW_INPUT_DB", "GOOD_COHERENCE"]
@@ -125,6 +126,24 @@ class ChannelQuality:
             "clipped": list(self.clipped),
             "flags": list(self.flags),
         }
+
+    @classmethod
+    def from_dict(cls, d, *, source: str = "channel quality") -> ChannelQuality:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        ChannelQuality
+            The channel's quality figures.
+        """
+        return _channel_from(Fields(d, source))
 
 
 @dataclass(frozen=True)
@@ -291,6 +310,74 @@ class QualityReport:
             "sufficient": self.sufficient,
             "findings": list(self.findings),
         }
+
+    @classmethod
+    def from_dict(cls, d, *, source: str = "quality report") -> QualityReport:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        QualityReport
+            The report, arrays as float arrays.
+        """
+        f = Fields(d, source)
+        omega = f.floats("omega", (None,))
+        coh_w = f.floats("coherence_omega", (None,))
+        coh = f.sub("coherence")
+        return cls(
+            name=f.string("name"),
+            n=f.integer("n", minimum=0),
+            dt=f.number("dt"),
+            duration=f.number("duration"),
+            jitter=f.number("jitter"),
+            channels=tuple(_channel_from(c) for c in f.items("channels")),
+            band=f.numbers("band", length=3),
+            omega=omega,
+            input_db=f.floats("input_db", (omega.size,)),
+            input_energy_fraction=f.number("input_energy_fraction"),
+            low_input=_pairs(f, "low_input"),
+            coherence={k: coh.floats(k, (coh_w.size,)) for k in coh.doc},
+            coherence_omega=coh_w,
+            coherence_method=f.string("coherence_method"),
+            coherence_threshold=f.number("coherence_threshold"),
+            independent_frequencies=f.number("independent_frequencies"),
+            useful_frequencies=f.number("useful_frequencies"),
+            required_frequencies=f.integer("required_frequencies", minimum=0),
+            n_params=f.integer("n_params", minimum=0),
+            sufficient=f.boolean("sufficient"),
+            findings=f.strings("findings"),
+        )
+
+
+def _pairs(f: Fields, key: str) -> tuple:
+    """A list of number pairs as a tuple of float tuples (an empty list is no pair)."""
+    if f.raw(key) == []:
+        return ()
+    return tuple(map(tuple, f.floats(key, (None, 2)).tolist()))
+
+
+def _channel_from(f: Fields) -> ChannelQuality:
+    """A :class:`ChannelQuality` from the fields of its dict."""
+    return ChannelQuality(
+        name=f.string("name"),
+        unit=f.string("unit"),
+        resolution=f.number("resolution"),
+        n_levels=f.integer("n_levels", minimum=0),
+        change_rate=f.number("change_rate"),
+        repeat_fraction=f.number("repeat_fraction"),
+        holds=_pairs(f, "holds"),
+        flat_max=f.number("flat_max"),
+        flat_min=f.number("flat_min"),
+        clipped=f.strings("clipped", choices=("max", "min")),
+        flags=f.strings("flags"),
+    )
 
 
 def _finite_list(a):

@@ -21,7 +21,6 @@ import numpy as np
 
 from .channels import OUTPUTS
 from .errors import FdmlError
-from .findings import KINDS as _FINDING_KINDS
 from .findings import Finding
 from .jsoncodec import Fields, dumps, read_json, to_jsonable, write_json
 from .models.measurement import BOUNDARY_NAMES, INPUT_BIAS_NAME, NUISANCE_NAMES, STATE_BIAS_NAMES, Nuisance
@@ -774,7 +773,7 @@ class FitResult(ByName):
             options=f.mapping("options", default={}),
             spectra=spectra,
             nuisance=f.mapping("nuisance", default={}),
-            findings=tuple(_finding_from_fields(x) for x in f.items("findings", default=[])),
+            findings=tuple(Finding.from_fields(x) for x in f.items("findings", default=[])),
             adequacy=_adequacy_from_fields(f),
             provenance=f.mapping("provenance", default={}),
             time_records=tuple(
@@ -957,16 +956,7 @@ def _slots_from_fields(f: Fields, names) -> tuple:
     items = f.items("slots")
     if len(items) != len(names):
         raise f.error("slots", f"has {len(items)} entries for {len(names)} names")
-    roles = tuple(r.value for r in Role)
-    return tuple(
-        Slot(
-            n,
-            x.string("base"),
-            Role(x.string("role", choices=roles)),
-            x.string("record", default=None, allow_none=True),
-        )
-        for n, x in zip(names, items)
-    )
+    return tuple(Slot.from_fields(x, n) for n, x in zip(names, items))
 
 
 def _warnings_from_fields(f: Fields) -> tuple:
@@ -979,10 +969,9 @@ def _warnings_from_fields(f: Fields) -> tuple:
         if isinstance(w, str):
             out.append(RecordedWarning.from_value(w))
             continue
-        x = Fields(w, f.source, f"{f.name('warnings')}[{i}].") if isinstance(w, dict) else None
-        if x is None:
+        if not isinstance(w, dict):
             raise f.error("warnings", f"entry {i} is neither a string nor a {{category, message}} object")
-        out.append(RecordedWarning(x.string("category"), x.string("message")))
+        out.append(RecordedWarning.from_fields(Fields(w, f.source, f"{f.name('warnings')}[{i}].")))
     return tuple(out)
 
 
@@ -1059,17 +1048,6 @@ def _time_record_from_fields(r: Fields) -> dict:
         "meta": r.mapping("meta"),
         "trim_mode": r.string("trim_mode"),
     }
-
-
-def _finding_from_fields(x: Fields) -> Finding:
-    return Finding(
-        code=x.string("code"),
-        message=x.string("message"),
-        kind=x.string("kind", default="data", choices=_FINDING_KINDS),
-        record=x.string("record", default=None, allow_none=True),
-        value=x.number("value", default=None, allow_none=True),
-        expected=x.number("expected", default=None, allow_none=True),
-    )
 
 
 def _adequacy_from_fields(f: Fields):

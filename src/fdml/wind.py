@@ -47,7 +47,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .errors import RecordError
+from .errors import FdmlError, RecordError
+from .jsoncodec import Fields
 from .record import Record
 
 __all__ = ["gust_angle", "GustEstimate", "DEFAULT_SMOOTH"]
@@ -108,7 +109,8 @@ class GustEstimate:
     def record(self) -> Record:
         """The input record with ``alpha_w`` added (meta ``gust`` says how it was made)."""
         r = self._record
-        assert r is not None  # estimate_gust always keeps its record
+        if r is None:  # gust_angle always keeps its record; from_dict cannot
+            raise FdmlError("this gust estimate was read back from its dict, which does not keep the record")
         return replace(
             r,
             signals={**r.signals, "alpha_w": self.alpha_w},
@@ -161,6 +163,40 @@ class GustEstimate:
             "hdot_noise": self.hdot_noise,
             "notes": list(self.notes),
         }
+
+    @classmethod
+    def from_dict(cls, d, *, source: str = "gust estimate") -> GustEstimate:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        :meth:`to_dict` does not keep the input record, so :attr:`record` of the
+        estimate read back raises :class:`~fdml.errors.FdmlError`.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        GustEstimate
+            The time histories (s, rad, m/s) and settings.
+        """
+        f = Fields(d, source)
+        t = f.floats("t", (None,))
+        return cls(
+            t=t,
+            alpha_w=f.floats("alpha_w", t.shape),
+            w_wind=f.floats("w_wind", t.shape),
+            gamma_k=f.floats("gamma_k", t.shape),
+            gamma_a=f.floats("gamma_a", t.shape),
+            source=f.string("source", choices=("hdot", "altitude")),
+            channels=f.strings("channels"),
+            cutoff_hz=f.number("cutoff_hz", allow_none=True),
+            hdot_noise=f.number("hdot_noise"),
+            notes=f.strings("notes"),
+        )
 
 
 def gust_angle(

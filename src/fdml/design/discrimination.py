@@ -49,6 +49,7 @@ from scipy import optimize, stats
 from ..channels import OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..estimate import Problem, information, prepare
+from ..jsoncodec import Fields
 from .inputs import DesignInput
 from .prediction import noise_stds, predict, response
 
@@ -106,6 +107,33 @@ class Discrimination:
             "vuong": self.vuong,
             "steady_values": self.steady_values,
         }
+
+    @classmethod
+    def from_dict(cls, d, *, source: str = "discrimination") -> Discrimination:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Discrimination
+            The expected statistic and probabilities.
+        """
+        f = Fields(d, source)
+        return cls(
+            noncentrality=f.number("noncentrality"),
+            level=f.number("level"),
+            probability=f.number("probability"),
+            favoured=f.number("favoured"),
+            vuong=f.number("vuong"),
+            steady_values=f.number_map("steady_values"),
+            df=f.integer("df", minimum=1),
+        )
 
 
 def detection_probability(lam: float, level: float = 0.05, df: int = 1) -> float:
@@ -343,6 +371,32 @@ class Detectable:
             Every field by name.
         """
         return dict(self.__dict__)
+
+    @classmethod
+    def from_dict(cls, d, *, source: str = "detectable effect") -> Detectable:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Detectable
+            The minimum detectable value (in the parameter's unit) and its setting.
+        """
+        f = Fields(d, source)
+        return cls(
+            effect=f.string("effect"),
+            parameter=f.string("parameter"),
+            stderr=f.number("stderr"),
+            minimum=f.number("minimum"),
+            power=f.number("power"),
+            level=f.number("level"),
+        )
 
 
 def minimum_detectable(

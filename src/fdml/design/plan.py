@@ -8,14 +8,15 @@ output RMS is turned into standard deviations once, from the response to the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import BandError, ParameterError
+from ..errors import BandError, FdmlError, ParameterError
+from ..jsoncodec import Fields
 from ..models import make_model
-from .discrimination import Discrimination, discriminate, minimum_detectable
-from .inputs import DesignInput, Limits, classic_input
+from .discrimination import Detectable, Discrimination, discriminate, minimum_detectable
+from .inputs import DesignInput, Limits, classic_input, read_input
 from .optimize import CRITERIA, optimal_input
 from .prediction import Prediction, noise_stds, predict, response
 
@@ -134,6 +135,74 @@ class Design:
             "discrimination": {k: d.to_dict() for k, d in self.discrimination.items()},
             "detectable": [e.to_dict() for e in self.detectable],
         }
+
+    @classmethod
+    def from_dict(cls, d, *, input: DesignInput | None = None, source: str = "fdml design") -> Design:
+        """Inverse of :meth:`to_dict`, as far as it goes; a bad key raises a one-line FdmlError naming ``source``.
+
+        Restored: the criterion, band, noise, discrimination, minimum
+        detectable values and, for the input and each baseline, the model
+        parameters' values and predicted standard errors
+        (:meth:`Prediction.from_dict`: no correlations).  :meth:`to_dict` does
+        not write the input history, only the CSV file that holds it
+        (``input``): the history is ``input`` when given, else read from that
+        file (:func:`~fdml.design.inputs.read_input`, its limits taken from
+        the history itself: the planning limits are not written), named as
+        saved.  A plan written without its CSV needs ``input``.  The
+        baselines' histories are not written: their predictions have no input.
+        ``limits`` and ``gains`` are derived, not read.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        input : DesignInput, optional
+            The input history (default: read from the CSV file ``d["input"]`` names).
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Design
+            The plan.
+        """
+        f = Fields(d, source)
+        pred = f.sub("predicted")
+        name = pred.string("input")
+        inp = _saved_input(f, name) if input is None else input
+        noise = f.number_map("noise")
+        params, bases = pred.raw("parameters"), pred.sub("baselines")
+        return cls(
+            criterion=f.string("criterion", choices=(*CRITERIA, "given")),
+            input=inp,
+            predicted=Prediction.from_dict(params, noise=noise, input=inp, source=f"{source}: predicted.parameters"),
+            baselines={
+                k: Prediction.from_dict(bases.raw(k), noise=noise, source=f"{source}: predicted.baselines.{k}")
+                for k in bases.doc
+            },
+            discrimination={
+                k: Discrimination.from_dict(v, source=f"{source}: discrimination.{k}")
+                for k, v in f.mapping("discrimination").items()
+            },
+            noise=noise,
+            band=f.numbers("band", length=3),
+            detectable=tuple(
+                Detectable.from_dict(x.doc, source=f"{source}: detectable[{i}]")
+                for i, x in enumerate(f.items("detectable"))
+            ),
+        )
+
+
+def _saved_input(f: Fields, name: str) -> DesignInput:
+    """The input history from the CSV file ``input`` names, renamed as saved."""
+    path = f.string("input", allow_none=True)
+    if path is None:
+        raise f.error("input", "is null: the plan was written without its input CSV; pass input=")
+    try:
+        inp = read_input(path)
+    except (FdmlError, OSError) as exc:
+        raise f.error("input", f"names an input file that cannot be read: {exc}") from None
+    return replace(inp, name=name)
 
 
 def parse_design_band(band, dt: float) -> tuple[float, float, float]:
@@ -312,6 +381,8 @@ def plot_design(d: Design, fig=None):
     ax1.set_ylabel("de, deg")
     omega = np.linspace(d.band[0], d.band[1], 400)
     for name, inp in [(d.input.name, d.input)] + [(k, p.input) for k, p in d.baselines.items()]:
+        if inp is None:  # a baseline read back without its history (Design.from_dict)
+            continue
         ax2.semilogy(omega, np.degrees(spectrum(inp, omega)), label=name)
     ax2.set_xlabel("omega, rad/s")
     ax2.set_ylabel("|de(j omega)|, deg s")

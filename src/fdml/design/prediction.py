@@ -21,6 +21,7 @@ import numpy as np
 
 from ..errors import FdmlError, ParameterError
 from ..estimate import Problem, information, prepare, white_covariance
+from ..jsoncodec import Fields
 from ..models.base import OUTPUTS
 from ..record import Record
 from ..simulate import simulate
@@ -49,8 +50,8 @@ class Prediction:
         Measurement-noise standard deviations per output (rad, rad/s, g).
     information : ndarray, shape (p, p)
         ``2 Re sum A^H R^-1 A`` (the naive information, Eq. 23's matrix).
-    input : DesignInput
-        The input the prediction is for.
+    input : DesignInput or None
+        The input the prediction is for (None when read back without it: :meth:`from_dict`).
     """
 
     names: tuple
@@ -58,7 +59,7 @@ class Prediction:
     cov: np.ndarray = field(repr=False)
     noise: dict
     information: np.ndarray = field(repr=False)
-    input: DesignInput = field(repr=False)
+    input: DesignInput | None = field(repr=False)
 
     @property
     def stderr(self) -> dict[str, float]:
@@ -123,6 +124,47 @@ class Prediction:
         se = self.stderr
         keep = [n for n in self.names if not model_only or not _nuisance(n)]
         return {n: {"value": self.values[n], "stderr": se[n]} for n in keep}
+
+    @classmethod
+    def from_dict(cls, d, *, noise=None, input: DesignInput | None = None, source: str = "prediction") -> Prediction:
+        """Inverse of :meth:`to_dict`, as far as it goes; a bad key raises a one-line FdmlError naming ``source``.
+
+        :meth:`to_dict` keeps each quantity's value and standard error, so the
+        prediction read back has those quantities (the model parameters alone
+        when it was written with ``model_only``), a diagonal ``cov`` of the
+        squared standard errors (the correlations are not written) and an
+        ``information`` of NaN; ``noise`` and ``input`` are what is passed here.
+        So :attr:`stderr`, :meth:`relative` and ``to_dict`` of the prediction
+        read back are the original's.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        noise : mapping, optional
+            Measurement-noise standard deviations per output (rad, rad/s, g); default none.
+        input : DesignInput, optional
+            The input the prediction is for.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Prediction
+            The predicted standard errors.
+        """
+        f = Fields(d, source)
+        names = tuple(f.doc)
+        entries = [f.sub(n) for n in names]
+        se = np.array([e.number("stderr") for e in entries], float)
+        return cls(
+            names=names,
+            values={n: e.number("value") for n, e in zip(names, entries)},
+            cov=np.diag(se**2),
+            noise=dict(noise or {}),
+            information=np.full((se.size, se.size), np.nan),
+            input=input,
+        )
 
 
 def _nuisance(name: str) -> bool:

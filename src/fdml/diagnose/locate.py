@@ -43,6 +43,7 @@ import numpy as np
 from scipy import stats
 
 from ..channels import OUTPUTS
+from ..jsoncodec import Fields
 from ..score import bh, holm  # the family-wise corrections live with the score tests
 from .data import AnalysisData
 
@@ -219,6 +220,81 @@ class Cell:
             "n_freq": int(self.n),
             **{k: v for k, v in self.extra.items()},
         }
+
+    @classmethod
+    def from_dict(cls, d, *, source: str = "gap-map cell") -> Cell:
+        """Inverse of :meth:`to_dict`, as far as it goes; a bad key raises a one-line FdmlError naming ``source``.
+
+        :meth:`to_dict` keeps the figures a report shows, not every field:
+        the band comes back rounded to 6 decimals and a non-finite number as
+        None (NaN for ``excess`` and ``noise_floor``); ``coherent`` and
+        ``incoherent`` come back as the coherent fraction and its complement
+        (their ratio, not their size); ``residual_power``, ``F``,
+        ``gain_se_db`` are NaN, None and None and ``k`` is 0, as they are not
+        written.  Every key beyond the known ones (``gain_db_<input>``,
+        ``phase_deg_<input>``) goes to ``extra``.  So ``to_dict`` of the cell
+        read back equals ``d``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Cell
+            The cell.
+        """
+        f = Fields(d, source)
+        frac = f.number("coherent_fraction", allow_none=True)
+        return cls(
+            channel=f.string("channel"),
+            band=f.numbers("band", length=2),
+            n=f.integer("n_freq", minimum=0),
+            residual_power=math.nan,
+            coherent=0.0 if frac is None else frac,
+            incoherent=0.0 if frac is None else 1.0 - frac,
+            floor=_nan_if_none(f.number("noise_floor", allow_none=True)),
+            dof=f.integer("floor_dof", minimum=0) // 2,
+            k=0,
+            F=math.nan,
+            p=f.number("p_value", allow_none=True),
+            excess=_nan_if_none(f.number("excess", allow_none=True)),
+            gain_db=f.number("gain_db", allow_none=True),
+            gain_db_ci=_pair_or_none(f, "gain_db_ci"),
+            phase_deg=f.number("phase_deg", allow_none=True),
+            phase_deg_ci=_pair_or_none(f, "phase_deg_ci"),
+            gain_se_db=None,
+            excitation=f.string("excitation"),
+            p_holm=f.number("p_holm", allow_none=True),
+            q_bh=f.number("q_bh", allow_none=True),
+            significant=f.boolean("significant"),
+            extra={k: f.number(k, allow_none=True) for k in f.doc if k not in _CELL_KEYS},
+        )
+
+
+#: The keys :meth:`Cell.to_dict` always writes (the others are ``extra``).
+_CELL_KEYS = frozenset(
+    "channel band excess gain_db gain_db_ci phase_deg phase_deg_ci significant p_value p_holm q_bh "
+    "coherent_fraction noise_floor floor_dof excitation n_freq".split()
+)
+
+
+def _nan_if_none(x: float | None) -> float:
+    return math.nan if x is None else x
+
+
+def _pair_or_none(f: Fields, key: str) -> tuple | None:
+    """A pair of numbers or nulls (None for NaN), or None."""
+    v = f.raw(key)
+    if v is None:
+        return None
+    if not isinstance(v, list) or len(v) != 2:
+        raise f.error(key, "must be a pair of numbers or null")
+    pair = Fields({"0": v[0], "1": v[1]}, f.source, f"{f.name(key)}.")
+    return (pair.number("0", allow_none=True), pair.number("1", allow_none=True))
 
 
 @dataclass

@@ -285,7 +285,7 @@ class DiagnosisReport:
             noise=f.mapping("noise", default={}),
             settings=f.mapping("settings", default={}),
             text=f.string("summary", default=""),
-            findings=tuple(Finding.from_dict(x) for x in items("findings", [])),
+            findings=tuple(Finding.from_fields(x) for x in f.items("findings", default=[])),
             warnings=as_recorded(items("warnings", [])),
             recommended_brief=None if recommended is None else f.mapping("recommended"),
         )
