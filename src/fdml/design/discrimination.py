@@ -47,6 +47,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from ..channels import OUTPUTS
+from ..compare import span_of
 from ..errors import FdmlError, ParameterError
 from ..estimate import Problem, information, prepare
 from ..jsoncodec import Fields
@@ -243,8 +244,6 @@ def compare_power(lam: float, level: float, extra: int, prob: Problem) -> float:
     float
         The probability, between 0 and 1.
     """
-    from ..compare import span_of
-
     n_eff = sum(d.omega.size / span_of(d.omega, d.T) for d in prob.data)
     root = math.sqrt(max(lam, 1e-300))
     mean = root / 2.0 + 0.5 * extra * math.log(max(n_eff, 1.0)) / root

@@ -57,7 +57,7 @@ def model_parameters(model) -> list[str]:
     list of str
         The names, in the model's order.
     """
-    return [n for n in model.parameters.free_names if not n.startswith("bias_")]
+    return list(model.parameters.free_model_names)  # by role: nuisance terms are not designed for
 
 
 def _weights(stds, outputs) -> tuple[np.ndarray, np.ndarray]:
