@@ -24,7 +24,7 @@ from .channels import REQUIRED as REQUIRED_SIGNALS
 from .errors import RecordError
 from .outputs import atomic_write_text
 
-__all__ = ["Record", "read_csv", "add_noise", "uniform_interval", "SIGNALS", "REQUIRED_SIGNALS"]
+__all__ = ["Record", "read_csv", "add_noise", "noise_stds", "uniform_interval", "SIGNALS", "REQUIRED_SIGNALS"]
 
 
 #: Largest plausible perturbation magnitudes in SI units.  A larger value in a
@@ -353,20 +353,47 @@ def add_noise(record: Record, noise, rng: np.random.Generator, *, relative: bool
     """
     if not isinstance(rng, np.random.Generator):
         raise RecordError("add_noise needs a numpy Generator (np.random.default_rng(seed))")
-    outs = OUTPUTS
+    std = noise_stds(record, noise, relative=relative)
+    noisy = {k: record[k] + std[k] * rng.standard_normal(record.n) for k in OUTPUTS}
+    return replace(record, signals={**record.signals, **noisy}, meta={**record.meta, "noise_std": std})
+
+
+def noise_stds(record: Record, noise, *, relative: bool = False) -> dict[str, float]:
+    """Noise standard deviation per output, from one number or a mapping.
+
+    The one reading of a noise level, shared by :func:`add_noise` (the
+    simulator, Monte Carlo) and :mod:`fdml.design` (the predicted bounds).
+
+    Parameters
+    ----------
+    record : Record
+        The noise-free record (its outputs' RMS scales a relative level).
+    noise : float or mapping
+        Standard deviation per output (``{"alpha": rad, "q": rad/s, "az": g}``,
+        missing outputs 0), or one number for all outputs.
+    relative : bool, optional
+        If True, ``noise`` is a fraction of each output's RMS about its mean.
+
+    Returns
+    -------
+    dict of str to float
+        Standard deviation per output: alpha rad, q rad/s, az g.
+    """
     if isinstance(noise, Mapping):
-        unknown = set(noise) - set(outs)
+        unknown = set(noise) - set(OUTPUTS)
         if unknown:
             raise RecordError(f"noise given for unknown output(s) {sorted(unknown)}; outputs: alpha, q, az")
-        std = {k: float(noise.get(k, 0.0)) for k in outs}
+        std = {k: float(noise.get(k, 0.0)) for k in OUTPUTS}
     else:
-        std = {k: float(noise) for k in outs}
+        try:
+            std = {k: float(noise) for k in OUTPUTS}
+        except (TypeError, ValueError):
+            raise RecordError(f"noise must be a number or a mapping of stds per output, got {noise!r}") from None
     if any(not math.isfinite(v) or v < 0 for v in std.values()):
         raise RecordError(f"noise levels must be finite and non-negative, got {std}")
     if relative:
         std = {k: v * float(np.std(record[k])) for k, v in std.items()}
-    noisy = {k: record[k] + std[k] * rng.standard_normal(record.n) for k in outs}
-    return replace(record, signals={**record.signals, **noisy}, meta={**record.meta, "noise_std": std})
+    return std
 
 
 def _time_unit_problem(dt: float, duration: float) -> str | None:

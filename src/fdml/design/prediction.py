@@ -19,11 +19,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..channels import OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..estimate import Problem, information, prepare, white_covariance
 from ..jsoncodec import Fields
-from ..models.base import OUTPUTS
 from ..record import Record
+from ..record import noise_stds as record_noise_stds
 from ..simulate import simulate
 from .inputs import DesignInput
 
@@ -216,22 +217,7 @@ def noise_stds(rec: Record, noise) -> dict[str, float]:
     dict of str to float
         Standard deviation per output: alpha rad, q rad/s, az g.
     """
-    if isinstance(noise, Mapping):
-        bad = sorted(set(noise) - set(OUTPUTS))
-        if bad:
-            raise ParameterError(f"noise given for unknown output(s) {bad}; outputs: {', '.join(OUTPUTS)}")
-        out = {k: float(noise.get(k, 0.0)) for k in OUTPUTS}
-    else:
-        try:
-            frac = float(noise)
-        except (TypeError, ValueError):
-            raise ParameterError(
-                f"noise must be a fraction of output RMS or a mapping of stds, got {noise!r}"
-            ) from None
-        out = {k: frac * float(np.std(rec[k])) for k in OUTPUTS}
-    if not all(math.isfinite(v) and v >= 0 for v in out.values()):
-        raise ParameterError(f"noise standard deviations must be finite and >= 0, got {out}")
-    return out
+    return record_noise_stds(rec, noise, relative=not isinstance(noise, Mapping))
 
 
 def expected_R(prob: Problem, stds: Mapping[str, float]) -> np.ndarray:
