@@ -353,15 +353,10 @@ class Comparison:
             ``|z - y|`` over the frequencies, in the output's spectral units
             (rad s, rad, g s).
         """
-        from .channels import OUTPUTS
-
         out = {}
         for key, res in (("steady", self.steady), ("unsteady", self.unsteady)):
-            idx = [OUTPUTS.index(o) for o in res.outputs]
-            V = np.concatenate(
-                [np.asarray(s["z"])[:, idx] - res.fitted_spectra(r)[:, idx] for r, s in enumerate(res.spectra)]
-            )
-            rms = np.sqrt(np.mean(np.abs(V) ** 2, axis=0)) if V.size else np.full(len(idx), math.nan)
+            V = res.resid  # z - y at the estimate, records stacked, the fitted outputs
+            rms = np.sqrt(np.mean(np.abs(V) ** 2, axis=0)) if V.size else np.full(len(res.outputs), math.nan)
             out[key] = {"ln_det_R": float(np.linalg.slogdet(res.R)[1]), "rms": dict(zip(res.outputs, rms.tolist()))}
         return out
 
