@@ -178,3 +178,27 @@ class _nullcontext:
 
     def __exit__(self, *exc):
         return False
+
+
+@pytest.mark.parametrize("extra", [[], ["--effect", "time_delay:alpha"]])
+def test_fit_process_imports_no_scipy_signal_or_stats(tmp_path, extra):
+    """A whole `fdml fit` process (data check and adequacy check on) never imports scipy.signal,
+    scipy.stats or scipy.optimize: together they cost about 1 s, more than the fit (issue 20)."""
+    from fdml.simulate import simulate_maneuver
+
+    model = __import__("fdml").make_model("dimensional", "navion")
+    rec = simulate_maneuver(model, "3211", duration=10.0, dt=0.02, noise=0.05, seed=1)
+    path = rec.to_csv(tmp_path / "r.csv")
+    code = (
+        "import sys; from fdml.cli import main; rc = main(sys.argv[1:]); "
+        "print(sorted(m for m in ('scipy.signal', 'scipy.stats', 'scipy.optimize') if m in sys.modules)); "
+        "sys.exit(rc)"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, "fit", str(path), "--airspeed", "50", *extra],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"

@@ -144,3 +144,41 @@ def test_diagnosis_names_a_textbook_downwash_lag(navion, maneuver, seed):
     # absorbed by the derivatives, so the likelihood is flat along that ridge; see the issue-8 note)
     par = rep.selected[0]["params"]
     assert par["g_dw"]["value"] > 0.0 and 0.04 <= par["tau_dw"]["value"] <= 0.42, par
+
+
+@pytest.mark.parametrize("order", [1, 2, 4, 6])
+def test_pade_delay_is_scipys_canonical_form_and_all_pass(order):
+    """pade_delay builds its realisation on numpy (no scipy.signal on the fit path, issue 20).
+
+    References: scipy.signal.tf2ss on the same [n/n] coefficients (Pade: c_k = (2n-k)! n! /
+    ((2n)! k! (n-k)!)), and the closed-form property that the approximant is all-pass, |H| = 1
+    exactly, with phase -omega tau to O((omega tau)^(2n+1)).
+    """
+    import math
+
+    from scipy import signal
+
+    from fdml.models.effect_library import pade_delay
+
+    tau = 0.25
+    A, B, C, D = pade_delay(tau, order)
+    k = np.arange(order + 1)
+    c = np.array(
+        [
+            math.factorial(2 * order - j)
+            * math.factorial(order)
+            / math.factorial(2 * order)
+            / (math.factorial(j) * math.factorial(order - j))
+            for j in k
+        ]
+    )
+    Ar, Br, Cr, Dr = signal.tf2ss((c * (-1.0) ** k)[::-1], c[::-1])
+    # the same realisation up to the 1/tau scaling: rounding of a few products only
+    np.testing.assert_allclose(A * tau, Ar, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(B * tau, Br, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(C, Cr, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(D, Dr, rtol=1e-12, atol=1e-12)
+    w = np.array([0.1, 1.0, 4.0])
+    H = np.array([(C @ np.linalg.solve(1j * x * np.eye(order) - A, B) + D)[0, 0] for x in w])
+    np.testing.assert_allclose(np.abs(H), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(np.angle(H[0]), -w[0] * tau, rtol=1e-3)

@@ -143,3 +143,16 @@ def test_a_fit_does_not_import_the_diagnosis():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]"
+
+
+@pytest.mark.parametrize("level,df,power", [(0.05, 1, 0.8), (1e-3, 3, 0.9), (1e-6, 2, 0.5)])
+def test_power_noncentrality_is_the_root_of_the_power_equation(level, df, power):
+    """Against scipy.stats' non-central chi-square and a bracketing root search (independent of
+    scipy.special's inverse that the code uses)."""
+    from scipy import optimize, stats
+
+    from fdml.score import power_noncentrality
+
+    crit = stats.chi2.isf(level, df)
+    ref = optimize.brentq(lambda lam: stats.ncx2.sf(crit, df, lam) - power, 1e-6, 1e4, xtol=1e-12)
+    assert power_noncentrality(level, df, power) == pytest.approx(ref, rel=1e-9)

@@ -752,9 +752,54 @@ def _intervals(omega, mask):
 
 
 # --- coherence ----------------------------------------------------------------------------------
-def _coherence(record: Record, outputs, lo: float, hi: float):
-    from scipy import signal
+def _welch(x: np.ndarray, Y: np.ndarray, fs: float, nper: int, nover: int):
+    """Welch auto and cross spectra of an input and several outputs, up to a common scale.
 
+    Periodic Hann window, each segment's mean removed, segments ``nper - nover`` apart, the
+    segment periodograms averaged: :func:`scipy.signal.welch` and :func:`scipy.signal.csd` with
+    ``window="hann", detrend="constant"``, without their common density scaling (a coherence
+    is a ratio, so it cancels). Written on numpy because importing scipy.signal costs about
+    1 s, more than a whole fit (issue 20); ``tests/test_quality.py`` checks it against scipy.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Input samples.
+    Y : ndarray, shape (n_out, n)
+        Output samples.
+    fs : float
+        Sample rate, Hz.
+    nper, nover : int
+        Segment length and overlap, samples.
+
+    Returns
+    -------
+    f : ndarray, shape (nper // 2 + 1,)
+        Frequencies, Hz.
+    Pxx : ndarray, shape (nper // 2 + 1,)
+        Input auto spectrum.
+    Pyy : ndarray, shape (n_out, nper // 2 + 1)
+        Output auto spectra.
+    Pxy : ndarray, shape (n_out, nper // 2 + 1)
+        Cross spectra, conj(X) Y as scipy.signal.csd has them.
+    """
+    step = nper - nover
+    starts = np.arange(0, x.size - nper + 1, step)
+    idx = starts[:, None] + np.arange(nper)[None, :]
+    win = 0.5 - 0.5 * np.cos(2 * math.pi * np.arange(nper) / nper)  # periodic Hann
+
+    def segments(v):
+        seg = v[..., idx]  # (..., n_seg, nper)
+        return np.fft.rfft((seg - seg.mean(axis=-1, keepdims=True)) * win, axis=-1)
+
+    X, Z = segments(x), segments(Y)
+    Pxx = np.mean(np.abs(X) ** 2, axis=0)
+    Pyy = np.mean(np.abs(Z) ** 2, axis=-2)
+    Pxy = np.mean(np.conj(X)[None] * Z, axis=-2)
+    return np.fft.rfftfreq(nper, 1.0 / fs), Pxx, Pyy, Pxy
+
+
+def _coherence(record: Record, outputs, lo: float, hi: float):
     n, dt = record.n, record.dt
     fs = 1.0 / dt
     de = record["de"]
@@ -770,12 +815,9 @@ def _coherence(record: Record, outputs, lo: float, hi: float):
         if covered >= 0.5 and n_in_band >= MIN_COHERENCE_ESTIMATES:
             names = [k for k in outputs if k in record.signals]
             Y = np.vstack([record[k] for k in names]) if names else np.zeros((0, n))
-            # one Welch pass for all auto spectra and one for the cross spectra (what
-            # scipy.signal.coherence computes, output by output, in three passes each)
-            opts = dict(fs=fs, window="hann", nperseg=nper, noverlap=nover, detrend="constant")
-            f, Pxx = signal.welch(de, **opts)
-            _, Pyy = signal.welch(Y, axis=-1, **opts)
-            _, Pxy = signal.csd(de[None, :], Y, axis=-1, **opts)
+            # one Welch pass over the elevator and all outputs (what scipy.signal.coherence
+            # computes output by output, in three passes each)
+            f, Pxx, Pyy, Pxy = _welch(de, Y, fs, nper, nover)
             w = 2 * math.pi * f
             sel = (w >= lo) & (w <= hi) & (w > 0)
             with np.errstate(invalid="ignore", divide="ignore"):
@@ -785,7 +827,7 @@ def _coherence(record: Record, outputs, lo: float, hi: float):
             w_out = w[sel]
             thr = 1 - COHERENCE_ALPHA ** (1 / max(n_seg - 1, 1))
             method = (
-                f"Welch (scipy.signal.coherence), {nper}-sample Hann segments ({nper * dt:.3g} s), 50 % "
+                f"Welch, {nper}-sample Hann segments ({nper * dt:.3g} s), 50 % "
                 f"overlap, {n_seg} segments: resolution {w1:.3g} rad/s; 5 % significance threshold "
                 f"{thr:.2f}"
             )

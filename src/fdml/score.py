@@ -166,15 +166,14 @@ def f_sf(x: float, dfn: float, dfd: float) -> float:
 
 @functools.lru_cache(maxsize=256)  # a root search of ncx2.sf: the same (level, df) for every candidate
 def power_noncentrality(level: float, df: int = 1, power: float = 0.8) -> float:
-    """Non-centrality lambda* of a chi-square(df) test at ``level`` with the given power."""
-    from scipy import optimize, stats
+    """Non-centrality lambda* of a chi-square(df) test at ``level`` with the given power.
 
-    crit = stats.chi2.isf(level, df)
-
-    def f(lam):
-        return stats.ncx2.sf(crit, df, lam) - power
-
-    return float(optimize.brentq(f, 1e-6, 1e4))
+    The root of ``ncx2.sf(chi2.isf(level, df), df, lambda) = power``, by scipy.special's inverse
+    of the non-central chi-square distribution in its non-centrality (no scipy.stats or
+    scipy.optimize on the fit path: importing them costs more than the fit, issue 20).
+    """
+    crit = special.chdtri(df, level)
+    return float(special.chndtrinc(crit, df, 1.0 - power))
 
 
 def davies_bound(u: float, q: int, V: float) -> float:

@@ -361,8 +361,6 @@ def pade_delay(tau: float, n: int = DW_PADE):
     Built in sigma = s tau (coefficients c_k = (2n-k)! n! / ((2n)! k! (n-k)!)) and rescaled, so
     the realisation stays well conditioned for small tau.
     """
-    from scipy import signal
-
     k = np.arange(n + 1)
     c = np.array(
         [
@@ -372,7 +370,15 @@ def pade_delay(tau: float, n: int = DW_PADE):
             for j in k
         ]
     )
-    A, B, C, D = signal.tf2ss((c * (-1.0) ** k)[::-1], c[::-1])
+    num, den = (c * (-1.0) ** k)[::-1] / c[n], c[::-1] / c[n]  # descending powers of sigma, monic
+    # controller canonical form, as scipy.signal.tf2ss builds it (written here because importing
+    # scipy.signal costs about 1 s on the fit path, issue 20): D the direct term, A the companion
+    # matrix of den, C the strictly proper remainder's numerator
+    D = np.array([[num[0]]])
+    A = np.eye(n, k=-1)
+    A[0, :] = -den[1:]
+    B = np.eye(n, 1)
+    C = (num[1:] - num[0] * den[1:])[None, :]
     return A / tau, B / tau, C, D
 
 
