@@ -161,7 +161,18 @@ def test_report_json_has_the_issue_keys_and_types():
     for r in d["ranking"]:
         assert {"effect", "channel", "lr", "p_value", "shrink", "label", "params"} <= set(r)
         assert r["label"] in (None, "confirmed", "tentative", "partial")
-        assert r["channel"] in ("alpha", "q", "az", "de", "alpha_w", "tail", "q,az", "alpha,q,az")
+        assert r["channel"] in (
+            "alpha",
+            "q",
+            "az",
+            "de",
+            "alpha_w",
+            "tail",
+            "q,az",
+            "alpha,q",
+            "alpha,az",
+            "alpha,q,az",
+        )
         assert r["shrink"] is None or 0.0 <= r["shrink"] <= 1.0
     for c in d["location"]:
         assert {"channel", "band", "excess", "gain_db", "phase_deg", "significant"} <= set(c)

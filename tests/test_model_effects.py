@@ -39,6 +39,9 @@ VALUES = {
     "tau_alpha": 0.05,
     "tau_q": 0.04,
     "tau_az": 0.03,
+    "tau_alpha_q": 0.04,
+    "tau_alpha_az": 0.05,
+    "tau_q_az": 0.03,
     "T_act": 0.05,
     "x_az": 3.0,
     "x_alpha": 3.0,
@@ -376,7 +379,7 @@ def test_cli_effects_lists_the_library(capsys):
     cat = {e["key"]: e for e in json.loads(out)["effects"]}
     assert set(cat) == {e.key for e in registered_effects()}
     x = cat["sensor_offset@az"]["parameters"]["dimensional"][0]
-    assert (x["name"], x["unit"], x["null"], x["plausible"]) == ("x_az", "m", 0.0, [-10.0, 10.0])
+    assert (x["name"], x["unit"], x["null"], x["plausible"]) == ("x_az", "m", 0.0, [-8.0, 8.0])
     code, out, _ = run(capsys, "effects")
     assert code == 0 and "time_delay:alpha" in out and "tau_alpha" in out
 

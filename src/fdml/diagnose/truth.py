@@ -9,7 +9,8 @@ truth                      how it is simulated
 lift_lag, downwash_lag,    the Wells-Keskar unsteady model with that one lag switched on
 gust_lag@alpha_w,          (y_w, G, b1) or the elevator delay tau_de: fdml's simulator
 time_delay@de              (finite-state, exact first-order hold)
-time_delay@alpha|q|az      the sensor's signal delayed, y(t - tau) (cubic interpolation)
+time_delay@alpha|q|az      the sensor's (or the sensor group's, alpha,az ...) signals delayed,
+                           y(t - tau) (cubic interpolation)
 downwash_lag@tail          the textbook downwash lag on the steady model: eps(t) = eps_ss
                            alpha(t - tau_dw), a delay-differential equation marched here
                            (first-order hold, dt/8 steps); the library's candidate is a lag
@@ -65,6 +66,9 @@ _TIME_DOMAIN = (
     "time_delay@alpha",
     "time_delay@q",
     "time_delay@az",
+    "time_delay@alpha,q",
+    "time_delay@alpha,az",
+    "time_delay@q,az",
     "actuator_lag@de",
     "sensor_offset@az",
     "sensor_offset@alpha",
@@ -314,8 +318,9 @@ def simulate_truth(
     rec = simulate(model, t, sim_inputs, mvals or None)
     y = {k: rec[k].copy() for k in OUTPUTS}
     if key is not None and key.startswith("time_delay@") and key != "time_delay@de":
-        ch = key.split("@")[1]
-        y[ch] = _delay(t, y[ch], values[f"tau_{ch}"])
+        group = key.split("@")[1].split(",")  # a sensor group recorded tau late
+        for ch in group:
+            y[ch] = _delay(t, y[ch], values["tau_" + "_".join(group)])
     elif key == "downwash_lag@tail":
         y = _downwash_delay(model, t, sim_inputs, values["tau_dw"])
     elif key == "sensor_offset@az":

@@ -605,45 +605,65 @@ TIME_DELAY_DE = FreeParameterEffect(
         description="elevator time delay",
     ),
     ("unsteady", "steady", "derivatives", "dimensional"),
-    signature="phase lag -omega tau on every output, growing with frequency",
+    signature="alpha, q and a_z respond tau after the recorded elevator (actuator or transport delay): phase "
+    "lag growing with frequency on every output",
 )
 
 
-def _output_delay(row: int, name: str):
+def _output_delay(rows: tuple, name: str):
     def fn(s, p, G, H, P, root):
-        return scale_rows(G, H, P, row, np.exp(-s * p[name]))
+        f = np.exp(-s * p[name])
+        for row in rows:
+            G, H, P = scale_rows(G, H, P, row, f)
+        return G, H, P
 
     return fn
 
 
-def _delay_realize(row: int, name: str):
+def _delay_realize(rows: tuple, name: str):
     def fn(sys, p, root):
-        return delay_output(sys, row, p[name])
+        for row in rows:
+            sys = delay_output(sys, row, p[name])
+        return sys
 
     return fn
 
 
-def _make_output_delay(ch: str) -> OutputEffect:
-    row = OUTPUTS.index(ch)
-    name = f"tau_{ch}"
+def _spoken(channels) -> str:
+    """``alpha and a_z`` for the channels ``("alpha", "az")``."""
+    names = [{"az": "a_z", "de": "the elevator"}.get(c, c) for c in channels]
+    return names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
+
+
+#: Sensor groups that can lag the others: every output alone and every pair of outputs (the three
+#: together lag the elevator: time_delay@de).  A delay is never negative: a channel that leads the
+#: others is the others lagging it (q leading alpha and a_z is time_delay@alpha,az).
+TIMING_GROUPS = tuple((c,) for c in OUTPUTS) + tuple((a, b) for i, a in enumerate(OUTPUTS) for b in OUTPUTS[i + 1 :])
+
+
+def _make_output_delay(channels: tuple) -> OutputEffect:
+    rows = tuple(OUTPUTS.index(c) for c in channels)
+    name = "tau_" + "_".join(channels)
+    others = _spoken([c for c in ("de", *OUTPUTS) if c not in channels])
     return OutputEffect(
         "time_delay",
-        ch,
+        ",".join(channels),
         (
             Param(
                 name,
                 0.0,
-                lower=-0.5,
+                lower=0.0,
                 upper=0.5,
-                plausible=(-0.15, 0.15),
+                plausible=(0.0, 0.25),  # air-data systems lag by up to 0.2 s and more (HFB-320's alpha)
                 unit="s",
                 start=0.002,
-                description=f"delay of the {ch} sensor",
+                description=f"{_spoken(channels)} recorded this long after {others}",
             ),
         ),
-        _output_delay(row, name),
-        signature=f"phase lag on {ch} only, growing with frequency",
-        realize=_delay_realize(row, name),
+        _output_delay(rows, name),
+        signature=f"{_spoken(channels)} recorded tau after {others}: phase lag growing with frequency on "
+        + ("it" if len(channels) == 1 else "them"),
+        realize=_delay_realize(rows, name),
     )
 
 
@@ -707,24 +727,24 @@ def _vane_offset_realize(sys, p, root):
     return mix_output(sys, 0, 1, -p["x_alpha"] / root.U)  # alpha - x q / U
 
 
-def _lever_arm(name: str, sensor: str) -> Param:
-    """A sensor's distance ahead of the c.g., m (null 0; plausible within 10 m of it)."""
+def _lever_arm(name: str, sensor: str, plausible: float, why: str) -> Param:
+    """A sensor's distance ahead of the c.g., m (null 0; plausible within ``plausible`` m of it)."""
     return Param(
         name,
         0.0,
-        lower=-30.0,
-        upper=30.0,
-        plausible=(-10.0, 10.0),
+        lower=-50.0,
+        upper=50.0,
+        plausible=(-plausible, plausible),
         unit="m",
         start=0.05,
-        description=f"{sensor} ahead of the c.g.",
+        description=f"{sensor} ahead of the c.g. ({why})",
     )
 
 
 SENSOR_OFFSET_AZ = OutputEffect(
     "sensor_offset",
     "az",
-    (_lever_arm("x_az", "accelerometer"),),
+    (_lever_arm("x_az", "accelerometer", 8.0, "an accelerometer package sits within a few metres of the c.g."),),
     _accel_offset,
     signature="a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
     realize=_accel_offset_realize,
@@ -732,7 +752,7 @@ SENSOR_OFFSET_AZ = OutputEffect(
 SENSOR_OFFSET_ALPHA = OutputEffect(
     "sensor_offset",
     "alpha",
-    (_lever_arm("x_alpha", "alpha vane"),),
+    (_lever_arm("x_alpha", "alpha vane", 25.0, "a nose-boom vane can sit 20 m ahead on a transport aircraft"),),
     _vane_offset,
     signature="alpha picks up -x q/U: phase change on alpha",
     realize=_vane_offset_realize,
@@ -879,7 +899,7 @@ BUILTINS = (
     GUST_LAG,
     GUST_TAIL,
     TIME_DELAY_DE,
-    *(_make_output_delay(c) for c in OUTPUTS),
+    *(_make_output_delay(g) for g in TIMING_GROUPS),
     ACTUATOR_LAG,
     SENSOR_OFFSET_AZ,
     SENSOR_OFFSET_ALPHA,

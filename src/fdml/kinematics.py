@@ -1,0 +1,825 @@
+r"""What alpha, q and a_z say about their own sensors: the short-period identity.
+
+Whatever the aerodynamics, the angle of attack, the pitch rate and the normal
+acceleration measured at one station obey docs/theory.md Eq. 5,
+``a_z = (U/g)(alpha_dot - q)``.  Its finite Fourier transform (Eq. 11, with
+Klein's boundary terms of docs/theory.md section 7) is
+
+    s alpha~(s) = q~(s) + (g/U) a_z~(s) + alpha(T) e^{-sT} - alpha(0)        (s = j omega)
+
+and it holds at every frequency of every record, so it tests the *sensors*
+without any aerodynamic model.  The sensor errors fdml's library knows enter it
+as (measured from true, per output c):
+
+* a channel recorded ``tau_c`` late: ``y~_c,m = exp(-s tau_c) y~_c``; only the
+  lags *relative* to each other are seen (a common lag of all three is the
+  elevator's delay, invisible here);
+* an alpha vane ``d`` metres ahead of the accelerometer: it reads
+  ``alpha - d q/U`` (Eq. 5 holds at any one station, so only the difference of
+  the two sensors' positions is seen: a vane offset x and an accelerometer
+  offset -x are one and the same to these three channels);
+* scale factors: only their ratios are seen; the two ratios
+  ``kappa_alpha = K_q/K_alpha`` and ``kappa_az = K_q/K_az`` are estimated as
+  nuisance parameters with every hypothesis (a wrong airspeed U goes to
+  ``kappa_az`` too), and reported.
+
+Undoing a hypothesis's sensor terms on the measured spectra, the identity's
+residual is
+
+    e(s) = kappa_alpha s alpha~_acc(s) - q~(s) - kappa_az (g/U) a_z~(s) - b0 - b1 e^{-sT} - b2 1~(s)
+
+with ``alpha~_acc = exp(s tau_alpha) alpha~_m + (d/U) q~`` the angle of attack at
+the accelerometer's station, ``b0, b1`` the boundary terms and ``b2`` the
+transform of a constant (biases of q and a_z), all real and per record.  The
+cost is the complex-Gaussian ``-2 ln L = 2 sum |e|^2 / v(omega)`` counted on
+independent frequencies (a grid ``K`` times finer than ``2 pi/T`` counts each
+one ``K`` times; :mod:`fdml.adequacy` does the same), with the equation error's
+variance ``v = a + b omega^2`` (white sensor noise on alpha enters times omega)
+estimated from the residuals of the best hypothesis and then held, so that
+cost differences are likelihood ratios.
+
+:func:`kinematic_evidence` tries every *sensor pattern* of the library -- each
+timing group of :data:`fdml.models.effect_library.TIMING_GROUPS` and the vane
+offset -- one at a time, each with its size free.  A pattern is *settled* when
+its likelihood ratio against no pattern is significant at :data:`LEVEL` and no
+other pattern explains the identity equally (Vuong's test, :func:`vuong_z`);
+settled patterns enter the model as known, and a second round looks for a
+second pattern on top.  A significant pattern that another explains equally is
+reported as an alias set.  :meth:`KinematicEvidence.check` tells whether any
+candidate's sensor terms contradict the identity.
+
+:mod:`fdml.flightpath` is the full, time-domain compatibility check (with
+theta, V, h and a_x: absolute angles, biases, the q scale against theta); the
+identity here is its short-period, frequency-domain part, fast enough for
+every fit, on the spectra the fit already has.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .constants import G0
+
+__all__ = [
+    "LEVEL",
+    "MAX_SHIFT",
+    "SensorTerms",
+    "Pattern",
+    "KinematicFinding",
+    "SensorEffect",
+    "KinematicEvidence",
+    "kinematic_evidence",
+    "sensor_terms",
+    "vuong_z",
+    "equally",
+    "VUONG_EQUAL",
+    "LR_EQUAL",
+]
+
+#: Level at which the identity settles a sensor pattern or contradicts a candidate: 1e-3, about
+#: the three standard errors at which :mod:`fdml.flightpath` calls a sensor parameter significant.
+LEVEL = 1e-3
+#: Largest relative time shift searched, s (the flight-path check's default).
+MAX_SHIFT = 0.25
+#: Largest vane offset searched, m (|x| > 50 m lies outside any airframe).
+MAX_OFFSET = 50.0
+#: Largest scale-factor error searched (measured / true - 1).
+MAX_SCALE = 0.5
+#: Two hypotheses explain the data equally when Vuong's z of their cost difference is below this
+#: (two-sided 5 %: the difference is within 1.96 of its own sampling standard deviation).
+VUONG_EQUAL = 1.96
+#: ... or when their likelihood ratios differ by less than the 5 % point of chi2(1): with few
+#: independent frequencies (a 6 s record has nine in the short-period band) Vuong's variance is
+#: estimated from too few terms to be trusted alone.
+LR_EQUAL = 3.84
+_OUTPUTS = ("alpha", "q", "az")
+#: The identity is read from MIN_CYCLES cycles over the record up (omega >= MIN_CYCLES 2 pi/T): below,
+#: a frequency is not resolved by the record, its transform is leakage of the record's ends and drift,
+#: and the identity's linearisation about trim (the flight-path angle and airspeed terms it drops) is
+#: weakest there.
+MIN_CYCLES = 1.0
+
+
+@dataclass(frozen=True)
+class SensorTerms:
+    """The sensor errors of one hypothesis, as the three outputs see them.
+
+    Parameters
+    ----------
+    lags : tuple of float
+        Time each output (alpha, q, a_z) is recorded late, s.
+    offset : float
+        The alpha vane's distance ahead of the accelerometer, m (vane offset minus
+        accelerometer offset).
+    scales : tuple of float
+        Scale factor of each output (measured / true), dimensionless.
+    """
+
+    lags: tuple = (0.0, 0.0, 0.0)
+    offset: float = 0.0
+    scales: tuple = (1.0, 1.0, 1.0)
+
+    def __add__(self, other: SensorTerms) -> SensorTerms:
+        return SensorTerms(
+            tuple(a + b for a, b in zip(self.lags, other.lags)),
+            self.offset + other.offset,
+            tuple(a * b for a, b in zip(self.scales, other.scales)),
+        )
+
+    @property
+    def empty(self) -> bool:
+        """True when the terms are invisible to the identity (no relative lag, no offset)."""
+        rel = np.ptp(np.asarray(self.lags, float))
+        return rel == 0.0 and self.offset == 0.0 and all(k == self.scales[0] for k in self.scales)
+
+
+def sensor_terms(effect, values: dict) -> SensorTerms | None:
+    """The sensor terms of a library effect at ``values`` (None: not a sensor effect).
+
+    The elevator's delay and the actuator's lag act on every output alike, so their terms are empty;
+    aerodynamic effects and a structural mode are not sensor errors (None).
+
+    Parameters
+    ----------
+    effect : Effect
+        A library effect (``time_delay``, ``sensor_offset``, ``sensor_scale``, ...).
+    values : dict
+        Its parameter values, by name, in their units.
+
+    Returns
+    -------
+    SensorTerms or None
+        The terms.
+    """
+    name, chans = effect.name, effect.channel.split(",")
+    if name in ("time_delay", "actuator_lag") and chans == ["de"]:
+        return SensorTerms()
+    if name == "time_delay" and all(c in _OUTPUTS for c in chans):
+        tau = float(values["tau_" + "_".join(chans)])
+        return SensorTerms(lags=tuple(tau if c in chans else 0.0 for c in _OUTPUTS))
+    if name == "sensor_offset" and chans == ["alpha"]:
+        return SensorTerms(offset=float(values["x_alpha"]))
+    if name == "sensor_offset" and chans == ["az"]:
+        return SensorTerms(offset=-float(values["x_az"]))
+    if name == "sensor_scale" and chans[0] in _OUTPUTS:
+        k = 1.0 + float(values["k_" + chans[0]])
+        return SensorTerms(scales=tuple(k if c == chans[0] else 1.0 for c in _OUTPUTS))
+    return None
+
+
+@dataclass(frozen=True)
+class Pattern:
+    """A one-parameter sensor hypothesis the identity can test: which effects it stands for and its terms.
+
+    Parameters
+    ----------
+    keys : tuple of str
+        The library effects it stands for (two for a vane offset: the alpha vane x or the
+        accelerometer -x, one and the same to the identity).
+    param : str
+        The size's name (the first effect's parameter).
+    unit : str
+        Its unit.
+    bounds : tuple of float
+        Searched range of the size.
+    lags : tuple of float
+        Lag of each output (alpha, q, a_z) per unit size.
+    offset : float
+        Vane offset per unit size.
+    """
+
+    keys: tuple
+    param: str
+    unit: str
+    bounds: tuple
+    lags: tuple = (0.0, 0.0, 0.0)
+    offset: float = 0.0
+    scale: int | None = None  # the output whose scale factor is 1 + size
+
+    def terms(self, size: float) -> SensorTerms:
+        """The sensor terms at ``size`` (in :attr:`unit`).
+
+        Parameters
+        ----------
+        size : float
+            The pattern's size.
+
+        Returns
+        -------
+        SensorTerms
+            Its terms.
+        """
+        scales = tuple(1.0 + size if i == self.scale else 1.0 for i in range(3))
+        return SensorTerms(tuple(size * x for x in self.lags), size * self.offset, scales)
+
+    def batch(self, base: SensorTerms, sizes: np.ndarray) -> tuple:
+        """``base`` plus the pattern at each of ``sizes``, as the arrays of :func:`_batch`."""
+        sizes = np.asarray(sizes, float)[:, None]
+        lags = np.asarray(base.lags, float) + sizes * np.asarray(self.lags, float)
+        off = base.offset + sizes[:, 0] * self.offset
+        sc = np.tile(np.asarray(base.scales, float), (sizes.shape[0], 1))
+        if self.scale is not None:
+            sc[:, self.scale] *= 1.0 + sizes[:, 0]
+        return lags, off, sc
+
+    def values(self, size: float) -> dict:
+        """``{key: {param: value}}`` of every effect the pattern stands for, at ``size``.
+
+        Parameters
+        ----------
+        size : float
+            The pattern's size.
+
+        Returns
+        -------
+        dict
+            Per effect key, its parameter values.
+        """
+        if self.offset:
+            return {"sensor_offset@alpha": {"x_alpha": size}, "sensor_offset@az": {"x_az": -size}}
+        return {self.keys[0]: {self.param: size}}
+
+
+def patterns() -> tuple:
+    """The library's sensor patterns: every timing group (a lag, >= 0), the vane offset and each scale factor.
+
+    Returns
+    -------
+    tuple of Pattern
+        The patterns, timing first.
+    """
+    from .models.effect_library import TIMING_GROUPS
+
+    out = [
+        Pattern(
+            ("time_delay@" + ",".join(g),),
+            "tau_" + "_".join(g),
+            "s",
+            (0.0, MAX_SHIFT),
+            lags=tuple(1.0 if c in g else 0.0 for c in _OUTPUTS),
+        )
+        for g in TIMING_GROUPS
+    ]
+    out.append(
+        Pattern(("sensor_offset@alpha", "sensor_offset@az"), "x_alpha", "m", (-MAX_OFFSET, MAX_OFFSET), offset=1.0)
+    )
+    out += [
+        Pattern((f"sensor_scale@{c}",), f"k_{c}", "-", (-MAX_SCALE, MAX_SCALE), scale=i) for i, c in enumerate(_OUTPUTS)
+    ]
+    return tuple(out)
+
+
+# --- the identity's cost ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class _Record:
+    """One record's spectra as the identity reads them."""
+
+    s: np.ndarray  # j omega
+    A: np.ndarray
+    Q: np.ndarray
+    Z: np.ndarray
+    N: np.ndarray  # (m, 3) nuisance regressors: 1, exp(-sT), transform of a constant
+    K: float  # grid points per independent frequency
+    block: int  # grid points per independent frequency, rounded (for Vuong's blocks)
+
+
+def _records(spectra) -> list:
+    out = []
+    for d in spectra:
+        keep = np.asarray(d.omega, float) >= MIN_CYCLES * 2 * math.pi / d.T
+        om = np.asarray(d.omega, float)[keep]
+        s = 1j * om
+        step = float(np.median(np.diff(om))) if om.size > 1 else 2 * math.pi / d.T
+        K = max(1.0, 2 * math.pi / (d.T * step))
+        N = np.column_stack([np.ones_like(s), np.exp(-s * d.T), np.asarray(d.ones)[keep]])
+        z = np.asarray(d.z)[keep]
+        out.append(_Record(s, z[:, 0], z[:, 1], z[:, 2], N, K, max(int(round(K)), 1)))
+    return out
+
+
+def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scales: np.ndarray):
+    """The spectra with sensor terms undone, for a batch of G hypotheses: alpha at the accelerometer's
+    station, q, a_z, each of shape (G, m).  ``lags``, ``scales``: (G, 3); ``offset``: (G,), m."""
+    s = r.s[None, :]
+
+    def undo(x, j):  # the lag and scale of output j undone (exp only where a lag is set)
+        lag = lags[:, j : j + 1]
+        return (np.exp(s * lag) * x if np.any(lag) else x[None, :]) / scales[:, j : j + 1]
+
+    Q = undo(r.Q, 1)
+    A = undo(r.A, 0) + (offset[:, None] * c / G0) * Q  # d/U = d c/g
+    return A, Q, undo(r.Z, 2)
+
+
+def _batch(terms) -> tuple:
+    """(lags (G, 3), offsets (G,), scales (G, 3)) of a sequence of SensorTerms."""
+    return (
+        np.array([t.lags for t in terms], float),
+        np.array([t.offset for t in terms], float),
+        np.array([t.scales for t in terms], float),
+    )
+
+
+@dataclass(frozen=True)
+class _Identity:
+    """The identity on a set of records: cost of any sensor terms, with the equation-error variance held.
+
+    Per record, ``weights`` are 1/sqrt(v(omega)) and ``basis`` an orthonormal basis of the weighted,
+    real-stacked nuisance regressors, so that the residual after the best nuisance is a projection.
+    """
+
+    recs: tuple
+    c: float  # g/U, 1/s per g
+    weights: tuple
+    basis: tuple
+
+    def errors(self, terms) -> list:
+        """Per record, the weighted residuals (G, 2m) of a batch of hypotheses after the nuisance.
+
+        ``terms``: a sequence of SensorTerms, or the arrays of :func:`_batch`.
+        """
+        lags, off, sc = terms if isinstance(terms, tuple) else _batch(terms)
+        out = []
+        for r, w, B in zip(self.recs, self.weights, self.basis):
+            A, Q, Z = _corrected(r, self.c, lags, off, sc)
+            y = r.s * A - Q - self.c * Z
+            yr = np.concatenate([y.real, y.imag], axis=1) * np.concatenate([w, w])
+            out.append(yr - (yr @ B) @ B.T)
+        return out
+
+    def costs(self, terms) -> np.ndarray:
+        """-2 ln L on independent frequencies (module doc) of each hypothesis, shape (G,)."""
+        return sum(2.0 * np.sum(e**2, axis=1) / r.K for r, e in zip(self.recs, self.errors(terms)))
+
+    def terms_cost(self, t: SensorTerms) -> float:
+        """The cost of one hypothesis."""
+        return float(self.costs([t])[0])
+
+    def contributions(self, t: SensorTerms) -> np.ndarray:
+        """Cost per independent frequency (blocks of K grid points), all records."""
+        out = []
+        for r, e in zip(self.recs, self.errors([t])):
+            m = r.s.size
+            per = 2.0 * (e[0, :m] ** 2 + e[0, m:] ** 2) / r.K
+            nb = max(m // r.block, 1)
+            out.append(np.add.reduceat(per[: nb * r.block], np.arange(0, nb * r.block, r.block)))
+        return np.concatenate(out)
+
+    def scales(self, t: SensorTerms) -> dict:
+        """kappa_alpha and kappa_az (K_q/K_alpha, K_q/K_az) with standard errors, all records pooled:
+        ``q~ = kappa_alpha s alpha~_acc - kappa_az (g/U) a_z~ - b.N`` by weighted least squares."""
+        lags, off, sc = _batch([t])
+        xtx, xty = np.zeros((2, 2)), np.zeros(2)
+        for r, w in zip(self.recs, self.weights):
+            A, Q, Z = (x[0] for x in _corrected(r, self.c, lags, off, sc))
+            X = np.column_stack([r.s * A, -self.c * Z, -r.N])
+            ww = np.concatenate([w, w])
+            Xr = np.vstack([X.real, X.imag]) * ww[:, None]
+            yr = np.concatenate([Q.real, Q.imag]) * ww
+            Qb, _ = np.linalg.qr(Xr[:, 2:])
+            Xp = Xr[:, :2] - Qb @ (Qb.T @ Xr[:, :2])  # the nuisance projected out
+            xtx += 2.0 * (Xp.T @ Xp) / r.K
+            xty += 2.0 * (Xp.T @ yr) / r.K
+        est = np.linalg.solve(xtx, xty)
+        se = np.sqrt(np.clip(np.diag(np.linalg.pinv(xtx)), 0, None))
+        return {"kappa_alpha": (float(est[0]), float(se[0])), "kappa_az": (float(est[1]), float(se[1]))}
+
+
+def _identity(spectra, U: float, t: SensorTerms | None = None) -> _Identity:
+    """The identity with its equation-error variance v = a + b omega^2 estimated at the terms ``t``."""
+    recs = tuple(_records(spectra))
+    c = G0 / float(U)
+    flat = _Identity(recs, c, tuple(np.ones(r.s.size) for r in recs), tuple(_basis(r, np.ones(r.s.size)) for r in recs))
+    ws = []
+    for r, e in zip(recs, flat.errors([t or SensorTerms()])):
+        m = r.s.size
+        p = e[0, :m] ** 2 + e[0, m:] ** 2
+        B = np.column_stack([np.ones(m), np.abs(r.s) ** 2])
+        ab, *_ = np.linalg.lstsq(B, p, rcond=None)
+        floor = 1e-3 * max(float(np.median(p)), 1e-300)
+        ws.append(1.0 / np.sqrt(np.maximum(B @ np.maximum(ab, 0.0), floor)))
+    return _Identity(recs, c, tuple(ws), tuple(_basis(r, w) for r, w in zip(recs, ws)))
+
+
+def _basis(r: _Record, w: np.ndarray) -> np.ndarray:
+    ww = np.concatenate([w, w])
+    Nr = np.vstack([r.N.real, r.N.imag]) * ww[:, None]
+    q, _ = np.linalg.qr(Nr)
+    return q
+
+
+def _profile(idn: _Identity, base: SensorTerms, pat: Pattern) -> tuple[float, float, float]:
+    """(size, cost, standard error) of ``pat`` on top of ``base``: a grid, then two finer grids."""
+    lo, hi = pat.bounds
+    grid = np.linspace(lo, hi, 61)
+    for _ in range(3):
+        costs = idn.costs(pat.batch(base, grid))
+        i = int(np.argmin(costs))
+        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+        grid = np.linspace(a, b, 21)
+    x = float(grid[10]) if i not in (0,) else float(grid[0])
+    h = 1e-4 * (hi - lo)
+    x = float(np.clip(x, lo, hi))
+    cm, c0, cp = idn.costs(pat.batch(base, np.clip([x - h, x, x + h], lo, hi)))
+    curv = (cp - 2 * c0 + cm) / h**2
+    se = math.sqrt(2.0 / curv) if curv > 0 else math.inf  # cost = -2 ln L: var = 2 / cost''
+    return x, float(c0), se
+
+
+def vuong_z(ca: np.ndarray, cb: np.ndarray) -> float:
+    """Vuong's z that hypothesis b is worse than a, from their costs per independent frequency.
+
+    ``z = sum(cb - ca) / sqrt(sum((d - mean d)^2))`` with ``d = cb - ca`` (each cost is -2 ln L, so
+    the sum of d is the likelihood-ratio statistic of a over b); 0 when the two coincide at every
+    frequency (an exact alias).
+
+    Parameters
+    ----------
+    ca, cb : numpy.ndarray
+        Costs per independent frequency of the two hypotheses.
+
+    Returns
+    -------
+    float
+        The z statistic, standard normal when the two explain the data equally.
+    """
+    d = np.asarray(cb, float) - np.asarray(ca, float)
+    sd = float(np.sqrt(np.sum((d - d.mean()) ** 2)))
+    if sd <= 1e-12 * max(1.0, float(np.sum(np.abs(d)))):
+        return 0.0
+    return float(np.sum(d) / sd)
+
+
+# --- the evidence --------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class KinematicFinding:
+    """One sensor pattern tested on the identity.
+
+    Parameters
+    ----------
+    keys : tuple of str
+        The library effects it stands for (``time_delay@alpha``; a vane offset stands for
+        ``sensor_offset@alpha`` and ``sensor_offset@az``).
+    param : str
+        The size's name.
+    value, stderr : float
+        The size and its standard error, in ``unit``.
+    unit : str
+        ``s`` or ``m``.
+    lr : float
+        Likelihood ratio against the identity without it (with the settled patterns before it).
+    p : float
+        Its p-value (chi-bar-square for a lag whose null is on its bound, chi2(1) for an offset).
+    round : int
+        0 for the first search, 1 for a second pattern on top of a settled one.
+    """
+
+    keys: tuple
+    param: str
+    value: float
+    stderr: float
+    unit: str
+    lr: float
+    p: float
+    round: int = 0
+
+    @property
+    def key(self) -> str:
+        """The first effect key."""
+        return self.keys[0]
+
+    def describe(self) -> str:
+        """One line: the pattern in words, its size and its likelihood ratio.
+
+        Returns
+        -------
+        str
+            The line.
+        """
+        if self.unit == "s":
+            from .models.effects import get_effect
+
+            desc = get_effect(self.key).params[0].description or self.key
+            size = f"{self.value * 1e3:.3g} +- {self.stderr * 1e3:.2g} ms"
+            return f"{desc.replace('this long', size)} (LR {self.lr:.3g}, p {self.p:.2g})"
+        if self.unit == "-":
+            ch = self.param[2:].replace("az", "a_z")
+            return (
+                f"{ch} reads {1 + self.value:.4g} +- {self.stderr:.2g} times its true value, relative to the "
+                f"other two (LR {self.lr:.3g}, p {self.p:.2g})"
+            )
+        return (
+            f"the alpha vane {self.value:+.3g} +- {self.stderr:.2g} m ahead of the accelerometer "
+            f"(a vane offset x_alpha = {self.value:+.3g} m or an accelerometer offset x_az = {-self.value:+.3g} m, "
+            f"one and the same to alpha, q and a_z; LR {self.lr:.3g}, p {self.p:.2g})"
+        )
+
+
+@dataclass(frozen=True)
+class SensorEffect:
+    """A library effect the identity points to: the effect, its parameter's value and standard error.
+
+    Parameters
+    ----------
+    key : str
+        The effect's key (``sensor_offset@alpha``).
+    param : str
+        Its parameter.
+    value, stderr : float
+        The kinematic estimate and its standard error, in ``unit``.
+    unit : str
+        The parameter's unit.
+    finding : KinematicFinding
+        The pattern it came from.
+    plausible : bool
+        Whether the value lies in the parameter's plausible range.
+    """
+
+    key: str
+    param: str
+    value: float
+    stderr: float
+    unit: str
+    finding: KinematicFinding
+    plausible: bool = True
+
+    def effect(self):
+        """The library effect.
+
+        Returns
+        -------
+        Effect
+            It.
+        """
+        from .models.effects import get_effect
+
+        return get_effect(self.key)
+
+    def terms(self) -> SensorTerms:
+        """Its sensor terms.
+
+        Returns
+        -------
+        SensorTerms
+            The terms at :attr:`value`.
+        """
+        t = sensor_terms(self.effect(), {self.param: self.value})
+        assert t is not None  # every pattern stands for sensor effects
+        return t
+
+    def describe(self) -> str:
+        """``sensor_offset@alpha x_alpha = 13.1 +- 0.3 m``.
+
+        Returns
+        -------
+        str
+            The line.
+        """
+        if self.unit == "s":
+            return f"{self.key} {self.param} = {self.value * 1e3:.3g} +- {self.stderr * 1e3:.2g} ms"
+        return f"{self.key} {self.param} = {self.value:.4g} +- {self.stderr:.2g} {self.unit}".rstrip()
+
+
+def _members(found: KinematicFinding) -> list:
+    """The library effects a finding stands for, each with its plausibility."""
+    from .models.effects import get_effect
+
+    pat = _pattern_of(found)
+    out = []
+    for key, vals in pat.values(found.value).items():
+        eff = get_effect(key)
+        ((name, v),) = vals.items()
+        par = next(p for p in eff.params if p.name == name)
+        ok = par.plausible is None or par.plausible[0] <= v <= par.plausible[1]
+        out.append(SensorEffect(key, name, float(v), found.stderr, found.unit, found, bool(ok)))
+    return out
+
+
+@dataclass(frozen=True)
+class KinematicEvidence:
+    """What the short-period identity says about the sensors of a set of records.
+
+    Parameters
+    ----------
+    records : tuple of str
+        The records' names.
+    airspeed : float
+        U, m/s, in g/U.
+    tested : tuple of KinematicFinding
+        Every pattern of the first search, largest LR first.
+    settled : tuple of SensorEffect
+        Sensor effects the identity determines: a pattern significant at :data:`LEVEL` that no other
+        pattern explains equally, standing for one library effect with a plausible value (known
+        sensor positions and plausible ranges separate a vane offset from an accelerometer offset).
+    aliases : tuple of tuple of SensorEffect
+        Significant patterns that others explain equally: each alias set's plausible members, best first.
+    implausible : tuple of SensorEffect
+        Members of a significant pattern's alias set whose values lie outside their plausible ranges.
+    known : SensorTerms
+        Sensor terms known beforehand (sensor positions from the aircraft file), applied first.
+    scales : dict
+        ``kappa_alpha`` and ``kappa_az`` (K_q/K_alpha, K_q/K_az): ``(value, stderr)`` after the
+        settled patterns.
+    level : float
+        The level of the tests.
+    source : str
+        What was used, in words.
+    """
+
+    records: tuple
+    airspeed: float
+    tested: tuple
+    settled: tuple
+    aliases: tuple
+    scales: dict
+    implausible: tuple = ()
+    known: SensorTerms = SensorTerms()
+    level: float = LEVEL
+    source: str = "short-period identity (alpha, q and a_z; docs/theory.md Eq. 5)"
+    _identity: _Identity | None = field(default=None, repr=False, compare=False)
+
+    def settled_terms(self) -> SensorTerms:
+        """The sensor terms of every settled pattern together.
+
+        Returns
+        -------
+        SensorTerms
+            Their sum.
+        """
+        t = self.known
+        for m in self.settled:
+            t = t + m.terms()
+        return t
+
+    def check(self, terms: SensorTerms | None) -> tuple[float, float]:
+        """Does a candidate's sensor part contradict the identity?  (LR, p) against the settled state.
+
+        ``LR = cost(settled + terms) - min(cost(settled), cost(settled + best pattern))``: how much worse
+        the identity fits once the candidate's terms are undone.  None terms (not a sensor effect) and
+        empty ones give (0, 1).
+
+        Parameters
+        ----------
+        terms : SensorTerms or None
+            The candidate's sensor terms (:func:`sensor_terms`).
+
+        Returns
+        -------
+        lr : float
+            The worsening, chi2(1) under "consistent".
+        p : float
+            Its p-value.
+        """
+        if terms is None or terms.empty or self._identity is None:
+            return 0.0, 1.0
+        from .score import chi2_sf
+
+        base = self.settled_terms()
+        ref = self._identity.terms_cost(base)
+        if self.aliases:  # a significant pattern the kinematics could not attribute: its best member
+            ref = min(ref, self._identity.terms_cost(base + self.aliases[0][0].terms()))
+        lr = max(self._identity.terms_cost(base + terms) - ref, 0.0)
+        return float(lr), chi2_sf(lr, 1)
+
+    def lines(self) -> list:
+        """Text lines: the settled patterns, the alias sets and the scale ratios.
+
+        Returns
+        -------
+        list of str
+            The lines.
+        """
+        out = [f"kinematics ({self.source}):"]
+        for m in self.settled:
+            out.append(f"  settled: {m.describe()}: {m.finding.describe()}")
+        for a in self.aliases:
+            out.append(f"  not separable by the kinematics: {' or '.join(m.describe() for m in a)}")
+        for m in self.implausible:
+            out.append(f"  set aside, outside its plausible range: {m.describe()}")
+        if not self.settled and not self.aliases:
+            out.append(f"  no sensor pattern at level {self.level:g} (largest: {self.tested[0].describe()})")
+        ka, kz = self.scales["kappa_alpha"], self.scales["kappa_az"]
+        out.append(
+            f"  scale ratios K_q/K_alpha = {ka[0]:.4g} +- {ka[1]:.2g}, K_q/K_az = {kz[0]:.4g} +- {kz[1]:.2g} "
+            f"(with U = {self.airspeed:.4g} m/s)"
+        )
+        return out
+
+
+def _pattern_of(f: KinematicFinding) -> Pattern:
+    return next(p for p in patterns() if p.keys == f.keys)
+
+
+def _p_value(pat: Pattern, lr: float) -> float:
+    from .score import chi2_sf
+
+    if pat.bounds[0] == 0.0:  # a lag from its bound: 0.5 chi2_0 + 0.5 chi2_1
+        return 0.5 * chi2_sf(lr, 1) if lr > 0 else 1.0
+    return chi2_sf(lr, 1)
+
+
+def _search(idn: _Identity, base: SensorTerms, rnd: int) -> list:
+    """Every pattern on top of ``base``: findings (largest LR first) and their cost contributions."""
+    c0 = idn.terms_cost(base)
+    found = []
+    for pat in patterns():
+        x, c, se = _profile(idn, base, pat)
+        lr = max(c0 - c, 0.0)
+        f = KinematicFinding(pat.keys, pat.param, x, se, pat.unit, lr, _p_value(pat, lr), rnd)
+        found.append((f, idn.contributions(base + pat.terms(x))))
+    found.sort(key=lambda fc: -fc[0].lr)
+    return found
+
+
+def equally(lr_best: float, lr_other: float, z: float) -> bool:
+    """Whether two hypotheses explain the data equally: their LRs differ by less than the 5 % point
+    of chi2(1) (:data:`LR_EQUAL`, the sampling spread of one hypothesis's own LR), or Vuong's z of the
+    difference is below :data:`VUONG_EQUAL` (the spread of the difference itself).
+
+    Parameters
+    ----------
+    lr_best, lr_other : float
+        Likelihood ratios of the two against a common null.
+    z : float
+        Vuong's z (:func:`vuong_z`) that the other is worse.
+
+    Returns
+    -------
+    bool
+        True when the data cannot tell them apart.
+    """
+    return lr_best - lr_other < LR_EQUAL or z < VUONG_EQUAL
+
+
+def _alias_set(found: list) -> list:
+    """The findings that explain the identity equally with the best (:func:`equally`)."""
+    best, cb = found[0]
+    return [f for f, c in found if f is best or equally(best.lr, f.lr, vuong_z(cb, c))]
+
+
+def kinematic_evidence(
+    spectra, U: float, *, known: SensorTerms | None = None, level: float = LEVEL, max_rounds: int = 2
+) -> KinematicEvidence:
+    """The short-period identity's verdict on the sensors of ``spectra`` (module doc).
+
+    Parameters
+    ----------
+    spectra : sequence of fdml.spectral.FrequencyData
+        The records' spectra (trim removed, any grid); every one must carry alpha, q and a_z.
+    U : float
+        Airspeed, m/s.
+    known : SensorTerms, optional
+        Sensor terms known beforehand (sensor positions from the aircraft file).
+    level : float, optional
+        Level at which a pattern is settled (default :data:`LEVEL`).
+    max_rounds : int, optional
+        Settled patterns sought one after another (default 2).
+
+    Returns
+    -------
+    KinematicEvidence
+        The settled patterns, the alias sets and the scale ratios.
+    """
+    spectra = list(spectra)
+    known = known or SensorTerms()
+    # the equation-error variance from the residuals of the best single pattern: estimated under no
+    # pattern at all it would hold the very misfit the patterns explain, and cap every LR
+    first = _search(_identity(spectra, U, known), known, 0)[0][0]
+    base = known
+    idn = _identity(spectra, U, known + _pattern_of(first).terms(first.value))
+    settled, aliases, tested, implausible = [], [], [], []
+    for rnd in range(max_rounds):
+        found = _search(idn, base, rnd)
+        if rnd == 0:
+            tested = [f for f, _ in found]
+        if found[0][0].p >= level:
+            break
+        members = [m for f in _alias_set(found) for m in _members(f)]
+        implausible += [m for m in members if not m.plausible]
+        members = [m for m in members if m.plausible]
+        if len(members) != 1:
+            if members:
+                aliases.append(tuple(members))
+            break
+        settled.append(members[0])
+        base = base + members[0].terms()
+        idn = _identity(spectra, U, base)  # the equation-error variance at the settled terms
+    return KinematicEvidence(
+        records=tuple(d.name for d in spectra),
+        airspeed=float(U),
+        tested=tuple(tested),
+        settled=tuple(settled),
+        aliases=tuple(aliases),
+        scales=idn.scales(base),
+        implausible=tuple(implausible),
+        known=known,
+        level=level,
+        _identity=idn,
+    )
