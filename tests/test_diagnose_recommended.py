@@ -7,6 +7,7 @@ import pytest
 import fdml
 from fdml.cli import main
 from fdml.diagnose import diagnose
+from fdml.diagnose.report import RECOMMENDATION_KEYS
 from fdml.diagnose.truth import simulate_truth
 from fdml.results import load_result
 
@@ -57,15 +58,18 @@ def test_recommended_has_the_schema_of_fit_json(diagnosed):
     ((code_d, rep), (code_f, fit_json)), _ = diagnosed
     assert code_d == 0 and code_f in (0, 1)
     rec = rep["recommended"]
-    # exactly fdml fit --json's keys, less the two the command line adds (timing, the file written)
-    assert set(rec) == set(fit_json) - {"timing", "result_file"}
+    # fdml fit --json's keys, less the two the command line adds (timing, the file written), plus the
+    # diagnosis's own: what the kinematics settled, whether the choice is ambiguous, the derivatives
+    assert set(rec) == set(fit_json) - {"timing", "result_file"} | set(RECOMMENDATION_KEYS)
     assert {"model", "params", "derived", "cost", "converged", "band"} <= set(rec)
-    assert rec["converged"] is True
-    # the accepted effect is part of the fitted model: its parameter is estimated, near the withheld truth
-    # (3 standard errors: the estimate is unbiased at this noise level, so this fails about 0.3 % of seeds)
-    tau = rec["params"]["tau_q"]
-    assert abs(tau["value"] - TAU) < 3 * tau["stderr"]
-    assert set(rec["params"]) - {"tau_q"} == set(fit_json["params"])  # the base fit's estimates plus tau_q
+    assert rec["converged"] is True and rec["ambiguous"] is False
+    # the accepted effect is part of the fitted model near the withheld truth: the kinematics settle a
+    # q-sensor delay (q lags alpha and a_z), so it is fixed at its kinematic value, whose standard error
+    # the fit carries (3 standard errors: the estimate is unbiased, so this fails about 0.3 % of seeds)
+    assert rec["settled_by_kinematics"] == ["time_delay@q"]
+    tau = rec["effects"][0]["parameters"]["tau_q"]
+    assert tau["known"] and abs(tau["value"] - TAU) < 3 * tau["stderr"]
+    assert set(rec["params"]) == set(fit_json["params"])  # the base fit's estimates (tau_q is fixed)
 
 
 def test_recommended_file_reloads_and_reports(diagnosed, tmp_path):
@@ -75,7 +79,9 @@ def test_recommended_file_reloads_and_reports(diagnosed, tmp_path):
     assert res.converged and set(res.names) == set(rec["params"])
     for name in res.names:  # the file holds the estimates the report printed (JSON round trip: exact)
         assert res.params[name] == rec["params"][name]["value"]
-    assert "tau_q" in res.model.parameters and res.model.parameters["tau_q"].free
+    # the kinematics settled the delay: fixed at its kinematic value, its uncertainty carried
+    assert "tau_q" in res.model.parameters and not res.model.parameters["tau_q"].free
+    assert res.options["known_uncertainty"]["tau_q"]["stderr"] > 0
     out = tmp_path / "report"
     code, _ = cli("report", fit_file, "-o", out)
     assert code == 0 and any(out.iterdir())
@@ -100,4 +106,6 @@ def test_fit_json_names_the_effects_with_their_parameters(diagnosed):
     tau = rec["effects"][0]["parameters"]["tau_q"]
     assert tau["unit"] == "s"
     # the same estimate and standard error as the params entry (one fit, two views of it)
-    assert (tau["value"], tau["stderr"]) == (rec["params"]["tau_q"]["value"], rec["params"]["tau_q"]["stderr"])
+    # fixed at its kinematic estimate: the value the kinematics gave, their standard error
+    settled = rep["kinematics"]["settled"][0]
+    assert (tau["value"], tau["stderr"]) == (settled["value"], settled["stderr"])

@@ -42,7 +42,7 @@ cost differences are likelihood ratios.
 timing group of :data:`fdml.models.effect_library.TIMING_GROUPS` and the vane
 offset -- one at a time, each with its size free.  A pattern is *settled* when
 its likelihood ratio against no pattern is significant at :data:`LEVEL` and no
-other pattern explains the identity equally (Vuong's test, :func:`vuong_z`);
+other pattern explains the identity equally (:func:`fdml.score.equally`);
 settled patterns enter the model as known, and a second round looks for a
 second pattern on top.  A significant pattern that another explains equally is
 reported as an alias set.  :meth:`KinematicEvidence.check` tells whether any
@@ -62,10 +62,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .constants import G0
+from .score import chi2_sf, equally, vuong_z
 
 __all__ = [
     "LEVEL",
     "MAX_SHIFT",
+    "resolution",
     "SensorTerms",
     "Pattern",
     "KinematicFinding",
@@ -73,10 +75,6 @@ __all__ = [
     "KinematicEvidence",
     "kinematic_evidence",
     "sensor_terms",
-    "vuong_z",
-    "equally",
-    "VUONG_EQUAL",
-    "LR_EQUAL",
 ]
 
 #: Level at which the identity settles a sensor pattern or contradicts a candidate: 1e-3, about
@@ -88,13 +86,36 @@ MAX_SHIFT = 0.25
 MAX_OFFSET = 50.0
 #: Largest scale-factor error searched (measured / true - 1).
 MAX_SCALE = 0.5
-#: Two hypotheses explain the data equally when Vuong's z of their cost difference is below this
-#: (two-sided 5 %: the difference is within 1.96 of its own sampling standard deviation).
-VUONG_EQUAL = 1.96
-#: ... or when their likelihood ratios differ by less than the 5 % point of chi2(1): with few
-#: independent frequencies (a 6 s record has nine in the short-period band) Vuong's variance is
-#: estimated from too few terms to be trusted alone.
-LR_EQUAL = 3.84
+#: A record resolves time to a fraction of its sample interval: timing errors below a quarter of it
+#: (and vane offsets x whose x/U is below it) are interpolation-level, whatever their significance.
+TIME_RESOLUTION = 0.25
+#: Scale-factor errors below this are at the level to which sensors are calibrated.
+SCALE_RESOLUTION = 0.005
+
+
+def resolution(unit: str, dt: float, U: float) -> float | None:
+    """The smallest sensor-error size these data resolve, by the parameter's unit (None: no floor).
+
+    A time (s): a quarter of the sample interval; a lever arm (m): the offset whose x/U is that
+    time; a scale error: :data:`SCALE_RESOLUTION`.
+
+    Parameters
+    ----------
+    unit : str
+        The parameter's unit: ``s``, ``m`` or ``-``.
+    dt : float
+        Sample interval, s.
+    U : float
+        Airspeed, m/s.
+
+    Returns
+    -------
+    float or None
+        The floor, in ``unit``.
+    """
+    return {"s": TIME_RESOLUTION * dt, "m": TIME_RESOLUTION * dt * U, "-": SCALE_RESOLUTION}.get(unit)
+
+
 _OUTPUTS = ("alpha", "q", "az")
 #: The identity is read from MIN_CYCLES cycles over the record up (omega >= MIN_CYCLES 2 pi/T): below,
 #: a frequency is not resolved by the record, its transform is leakage of the record's ends and drift,
@@ -431,30 +452,6 @@ def _profile(idn: _Identity, base: SensorTerms, pat: Pattern) -> tuple[float, fl
     return x, float(c0), se
 
 
-def vuong_z(ca: np.ndarray, cb: np.ndarray) -> float:
-    """Vuong's z that hypothesis b is worse than a, from their costs per independent frequency.
-
-    ``z = sum(cb - ca) / sqrt(sum((d - mean d)^2))`` with ``d = cb - ca`` (each cost is -2 ln L, so
-    the sum of d is the likelihood-ratio statistic of a over b); 0 when the two coincide at every
-    frequency (an exact alias).
-
-    Parameters
-    ----------
-    ca, cb : numpy.ndarray
-        Costs per independent frequency of the two hypotheses.
-
-    Returns
-    -------
-    float
-        The z statistic, standard normal when the two explain the data equally.
-    """
-    d = np.asarray(cb, float) - np.asarray(ca, float)
-    sd = float(np.sqrt(np.sum((d - d.mean()) ** 2)))
-    if sd <= 1e-12 * max(1.0, float(np.sum(np.abs(d)))):
-        return 0.0
-    return float(np.sum(d) / sd)
-
-
 # --- the evidence --------------------------------------------------------------------------------
 
 
@@ -540,6 +537,8 @@ class SensorEffect:
         The pattern it came from.
     plausible : bool
         Whether the value lies in the parameter's plausible range.
+    resolved : bool
+        Whether the value is above the data's resolution (:func:`resolution`).
     """
 
     key: str
@@ -549,6 +548,7 @@ class SensorEffect:
     unit: str
     finding: KinematicFinding
     plausible: bool = True
+    resolved: bool = True
 
     def effect(self):
         """The library effect.
@@ -587,8 +587,8 @@ class SensorEffect:
         return f"{self.key} {self.param} = {self.value:.4g} +- {self.stderr:.2g} {self.unit}".rstrip()
 
 
-def _members(found: KinematicFinding) -> list:
-    """The library effects a finding stands for, each with its plausibility."""
+def _members(found: KinematicFinding, dt: float, U: float) -> list:
+    """The library effects a finding stands for, each with its plausibility and resolution."""
     from .models.effects import get_effect
 
     pat = _pattern_of(found)
@@ -598,7 +598,9 @@ def _members(found: KinematicFinding) -> list:
         ((name, v),) = vals.items()
         par = next(p for p in eff.params if p.name == name)
         ok = par.plausible is None or par.plausible[0] <= v <= par.plausible[1]
-        out.append(SensorEffect(key, name, float(v), found.stderr, found.unit, found, bool(ok)))
+        floor = resolution(found.unit, dt, U)
+        res = floor is None or abs(v) >= floor
+        out.append(SensorEffect(key, name, float(v), found.stderr, found.unit, found, bool(ok), bool(res)))
     return out
 
 
@@ -622,6 +624,8 @@ class KinematicEvidence:
         Significant patterns that others explain equally: each alias set's plausible members, best first.
     implausible : tuple of SensorEffect
         Members of a significant pattern's alias set whose values lie outside their plausible ranges.
+    unresolved : tuple of SensorEffect
+        Members significant but below the data's resolution (:func:`resolution`): set aside.
     known : SensorTerms
         Sensor terms known beforehand (sensor positions from the aircraft file), applied first.
     scales : dict
@@ -640,6 +644,7 @@ class KinematicEvidence:
     aliases: tuple
     scales: dict
     implausible: tuple = ()
+    unresolved: tuple = ()
     known: SensorTerms = SensorTerms()
     level: float = LEVEL
     source: str = "short-period identity (alpha, q and a_z; docs/theory.md Eq. 5)"
@@ -659,11 +664,13 @@ class KinematicEvidence:
         return t
 
     def check(self, terms: SensorTerms | None) -> tuple[float, float]:
-        """Does a candidate's sensor part contradict the identity?  (LR, p) against the settled state.
+        """Does a candidate's sensor part contradict the identity?  (LR, p) of undoing it.
 
-        ``LR = cost(settled + terms) - min(cost(settled), cost(settled + best pattern))``: how much worse
-        the identity fits once the candidate's terms are undone.  None terms (not a sensor effect) and
-        empty ones give (0, 1).
+        ``LR = cost(settled + terms) - cost(settled)``: how much worse the identity fits once the
+        candidate's terms are undone than without them (a candidate that moves the sensors the wrong
+        way).  Compared with doing nothing rather than with the best pattern, so that a correct
+        candidate that explains only part of several sensor errors is not taken for a wrong one.  None
+        terms (not a sensor effect) and empty ones give (0, 1).
 
         Parameters
         ----------
@@ -679,14 +686,53 @@ class KinematicEvidence:
         """
         if terms is None or terms.empty or self._identity is None:
             return 0.0, 1.0
-        from .score import chi2_sf
-
         base = self.settled_terms()
-        ref = self._identity.terms_cost(base)
-        if self.aliases:  # a significant pattern the kinematics could not attribute: its best member
-            ref = min(ref, self._identity.terms_cost(base + self.aliases[0][0].terms()))
-        lr = max(self._identity.terms_cost(base + terms) - ref, 0.0)
+        lr = max(self._identity.terms_cost(base + terms) - self._identity.terms_cost(base), 0.0)
         return float(lr), chi2_sf(lr, 1)
+
+    def to_dict(self) -> dict:
+        """The evidence as plain JSON data.
+
+        Returns
+        -------
+        dict
+            ``source``, ``records``, ``airspeed``, ``level``, ``settled`` and ``implausible`` (effect dicts),
+            ``aliases`` (lists of effect dicts), ``tested`` (finding dicts) and ``scales``.
+        """
+
+        def eff(m: SensorEffect) -> dict:
+            return {
+                "key": m.key,
+                "param": m.param,
+                "value": m.value,
+                "stderr": m.stderr,
+                "unit": m.unit,
+                "lr": m.finding.lr,
+            }
+
+        return {
+            "source": self.source,
+            "records": list(self.records),
+            "airspeed": self.airspeed,
+            "level": self.level,
+            "settled": [eff(m) for m in self.settled],
+            "aliases": [[eff(m) for m in a] for a in self.aliases],
+            "implausible": [eff(m) for m in self.implausible],
+            "unresolved": [eff(m) for m in self.unresolved],
+            "tested": [
+                {
+                    "keys": list(f.keys),
+                    "param": f.param,
+                    "value": f.value,
+                    "stderr": f.stderr,
+                    "unit": f.unit,
+                    "lr": f.lr,
+                    "p_value": f.p,
+                }
+                for f in self.tested
+            ],
+            "scales": {k: {"value": v, "stderr": e} for k, (v, e) in self.scales.items()},
+        }
 
     def lines(self) -> list:
         """Text lines: the settled patterns, the alias sets and the scale ratios.
@@ -703,6 +749,8 @@ class KinematicEvidence:
             out.append(f"  not separable by the kinematics: {' or '.join(m.describe() for m in a)}")
         for m in self.implausible:
             out.append(f"  set aside, outside its plausible range: {m.describe()}")
+        for m in self.unresolved:
+            out.append(f"  set aside, below the data's resolution: {m.describe()}")
         if not self.settled and not self.aliases:
             out.append(f"  no sensor pattern at level {self.level:g} (largest: {self.tested[0].describe()})")
         ka, kz = self.scales["kappa_alpha"], self.scales["kappa_az"]
@@ -718,8 +766,6 @@ def _pattern_of(f: KinematicFinding) -> Pattern:
 
 
 def _p_value(pat: Pattern, lr: float) -> float:
-    from .score import chi2_sf
-
     if pat.bounds[0] == 0.0:  # a lag from its bound: 0.5 chi2_0 + 0.5 chi2_1
         return 0.5 * chi2_sf(lr, 1) if lr > 0 else 1.0
     return chi2_sf(lr, 1)
@@ -736,26 +782,6 @@ def _search(idn: _Identity, base: SensorTerms, rnd: int) -> list:
         found.append((f, idn.contributions(base + pat.terms(x))))
     found.sort(key=lambda fc: -fc[0].lr)
     return found
-
-
-def equally(lr_best: float, lr_other: float, z: float) -> bool:
-    """Whether two hypotheses explain the data equally: their LRs differ by less than the 5 % point
-    of chi2(1) (:data:`LR_EQUAL`, the sampling spread of one hypothesis's own LR), or Vuong's z of the
-    difference is below :data:`VUONG_EQUAL` (the spread of the difference itself).
-
-    Parameters
-    ----------
-    lr_best, lr_other : float
-        Likelihood ratios of the two against a common null.
-    z : float
-        Vuong's z (:func:`vuong_z`) that the other is worse.
-
-    Returns
-    -------
-    bool
-        True when the data cannot tell them apart.
-    """
-    return lr_best - lr_other < LR_EQUAL or z < VUONG_EQUAL
 
 
 def _alias_set(found: list) -> list:
@@ -794,16 +820,18 @@ def kinematic_evidence(
     first = _search(_identity(spectra, U, known), known, 0)[0][0]
     base = known
     idn = _identity(spectra, U, known + _pattern_of(first).terms(first.value))
-    settled, aliases, tested, implausible = [], [], [], []
+    settled, aliases, tested, implausible, unresolved = [], [], [], [], []
+    dt = max(float(d.dt) for d in spectra)
     for rnd in range(max_rounds):
         found = _search(idn, base, rnd)
         if rnd == 0:
             tested = [f for f, _ in found]
         if found[0][0].p >= level:
             break
-        members = [m for f in _alias_set(found) for m in _members(f)]
+        members = [m for f in _alias_set(found) for m in _members(f, dt, U)]
         implausible += [m for m in members if not m.plausible]
-        members = [m for m in members if m.plausible]
+        unresolved += [m for m in members if m.plausible and not m.resolved]
+        members = [m for m in members if m.plausible and m.resolved]
         if len(members) != 1:
             if members:
                 aliases.append(tuple(members))
@@ -819,6 +847,7 @@ def kinematic_evidence(
         aliases=tuple(aliases),
         scales=idn.scales(base),
         implausible=tuple(implausible),
+        unresolved=tuple(unresolved),
         known=known,
         level=level,
         _identity=idn,

@@ -562,7 +562,9 @@ class FitResult(ByName):
         """The model's effects in order: ``[{"key", "parameters": {name: {value, stderr, unit}}}]``.
 
         ``stderr`` is None for a parameter the fit held fixed (the string "inf" when
-        infinite); a plain model has none (``[]``).
+        infinite), unless the parameter was fixed at a value known to a standard error
+        (``options["known_uncertainty"]``, :mod:`fdml.propagate`): then that one, with
+        ``"known": true``.  A plain model has none (``[]``).
 
         Returns
         -------
@@ -572,17 +574,20 @@ class FitResult(ByName):
         from .models.effects import root_model
 
         se = dict(zip(self.names, (float(x) for x in self.stderr)))
+        known = {k: v["stderr"] for k, v in dict(self.options).get("known_uncertainty", {}).items()}
         vals = self.model.parameters.values
         out = []
         for eff in getattr(self.model, "parts", ()):
             pars = {}
             for p in eff.param_list(root_model(self.model)):
-                s = se.get(p.name)
+                s = se.get(p.name, known.get(p.name))
                 pars[p.name] = {
                     "value": float(vals[p.name]),
                     "unit": p.unit,
                     "stderr": None if s is None else (s if math.isfinite(s) else str(s)),
                 }
+                if p.name in known and p.name not in se:
+                    pars[p.name]["known"] = True
             out.append({"key": eff.key, "parameters": pars})
         return out
 

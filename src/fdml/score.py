@@ -78,6 +78,10 @@ from .models.effects import Effect
 
 __all__ = [
     "ALIAS_LIMIT",
+    "LR_EQUAL",
+    "VUONG_EQUAL",
+    "equally",
+    "vuong_z",
     "ScreenContext",
     "ScreenResult",
     "bh",
@@ -243,6 +247,60 @@ def p_value(lr: float, q: int, null: str, *, V: float = 0.0, n_grid: int = 1) ->
         return math.exp(lp), lp
     lp = chi2_logsf(lr, q)
     return math.exp(lp), lp
+
+
+#: Two hypotheses explain the data equally when Vuong's z of their cost difference is below this
+#: (two-sided 5 %: the difference is within 1.96 of its own sampling standard deviation) ...
+VUONG_EQUAL = 1.96
+#: ... or when their likelihood ratios (penalised by Akaike's 2 per parameter when they differ in
+#: size) differ by less than the 5 % point of chi2(1), the sampling spread of one LR about its mean:
+#: with few independent frequencies (a 6 s record has nine in the short-period band) Vuong's
+#: variance is estimated from too few terms to be trusted alone.
+LR_EQUAL = 3.84
+
+
+def vuong_z(ca: np.ndarray, cb: np.ndarray) -> float:
+    """Vuong's (1989) z that hypothesis b is worse than a, from their costs per independent frequency.
+
+    ``z = sum(cb - ca) / sqrt(sum((d - mean d)^2))`` with ``d = cb - ca`` (each cost is -2 ln L, so
+    the sum of d is the likelihood-ratio statistic of a over b); 0 when the two coincide at every
+    frequency (an exact alias).
+
+    Parameters
+    ----------
+    ca, cb : numpy.ndarray
+        Costs per independent frequency of the two hypotheses.
+
+    Returns
+    -------
+    float
+        The z statistic, standard normal when the two explain the data equally.
+    """
+    d = np.asarray(cb, float) - np.asarray(ca, float)
+    sd = float(np.sqrt(np.sum((d - d.mean()) ** 2)))
+    if sd <= 1e-12 * max(1.0, float(np.sum(np.abs(d)))):
+        return 0.0
+    return float(np.sum(d) / sd)
+
+
+def equally(lr_best: float, lr_other: float, z: float) -> bool:
+    """Whether two hypotheses explain the data equally: their LRs differ by less than the 5 % point
+    of chi2(1) (:data:`LR_EQUAL`, the sampling spread of one hypothesis's own LR), or Vuong's z of the
+    difference is below :data:`VUONG_EQUAL` (the spread of the difference itself).
+
+    Parameters
+    ----------
+    lr_best, lr_other : float
+        Likelihood ratios of the two against a common null.
+    z : float
+        Vuong's z (:func:`vuong_z`) that the other is worse.
+
+    Returns
+    -------
+    bool
+        True when the data cannot tell them apart.
+    """
+    return lr_best - lr_other < LR_EQUAL or z < VUONG_EQUAL
 
 
 def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> tuple[str, int]:

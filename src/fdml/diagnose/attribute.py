@@ -45,15 +45,14 @@ import numpy as np
 
 from ..channels import OUTPUTS
 from ..models.effects import Effect
-from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, screen
+from ..parameters import Role
+from ..score import ScreenContext, ScreenResult, davies_bound, equally, holm, p_value, screen
 from ..score import grid_variation as _grid_variation
 from ..score import null_kind as _null_kind
+from ..score import vuong_z as score_vuong
 from .likelihood import DiagFit, fit_model, likelihood_ratio
 
 __all__ = ["Candidate", "attribute_step", "p_value", "davies_bound", "choose"]
-
-#: AIC difference within which two significant candidates are "ambiguous".
-AMBIGUITY_AIC = 2.0
 
 
 @dataclass
@@ -98,6 +97,11 @@ class Candidate:
         Whether every estimate lies in its plausible range.
     step : int
         The attribution step.
+    demoted : str or None
+        Why the candidate cannot be accepted although significant: its sensor terms contradict the
+        kinematics, or the derivatives it implies are not physical (:mod:`fdml.models.plausibility`).
+    derivatives : dict
+        ``{name: (value, stderr)}`` of the base model's free parameters in its refit.
     """
 
     effect: Effect
@@ -118,6 +122,8 @@ class Candidate:
     params: dict = field(default_factory=dict)  # name -> (value, stderr)
     plausible: bool = True
     step: int = 0
+    demoted: str | None = None
+    derivatives: dict = field(default_factory=dict)
 
     @property
     def name(self) -> str:
@@ -201,6 +207,31 @@ def _params(effect: Effect, model, fit: DiagFit) -> tuple[dict, bool]:
     return out, ok
 
 
+def _judge(c: Candidate, model, kin) -> tuple[dict, str | None]:
+    """(base derivatives of the refit, why the candidate is demoted or None): the kinematics first,
+    then the physics of the derivatives it implies."""
+    from ..kinematics import sensor_terms
+    from ..models.effects import root_model
+    from ..models.plausibility import derivative_problems
+
+    assert c.fit is not None
+    base = [p.name for p in model.parameters if p.free and p.role is Role.AERO and p.name in c.fit.params]
+    derivs = {n: (float(c.fit.params[n]), float(c.fit.stderr.get(n, math.nan))) for n in base}
+    if kin is not None:
+        lr, p = kin.check(sensor_terms(c.effect, {k: v for k, (v, _) in c.params.items()}))
+        if p < kin.level:
+            return derivs, (
+                f"contradicts the kinematics: undoing it, alpha, q and a_z fit the short-period identity "
+                f"worse (LR {lr:.3g}, p {p:.2g})"
+            )
+    probs = derivative_problems(
+        root_model(model), {n: v for n, (v, _) in derivs.items()}, {n: s for n, (_, s) in derivs.items()}
+    )
+    if probs:
+        return derivs, "implies derivatives that are not physical: " + "; ".join(probs)
+    return derivs, None
+
+
 def attribute_step(
     data,
     cur: DiagFit,
@@ -214,6 +245,8 @@ def attribute_step(
     step: int = 0,
     n_obs: int = 1,
     floor_weights: np.ndarray | None = None,
+    kin=None,
+    refit_all: bool = False,
 ) -> tuple[list, list]:
     """One attribution step from ``cur``.
 
@@ -241,6 +274,10 @@ def attribute_step(
         Real independent observations, n of BIC.
     floor_weights : numpy.ndarray, optional
         Shape (N, n_out): diagonal noise-floor whitening for aliasing and the MDE.
+    kin : fdml.kinematics.KinematicEvidence, optional
+        The kinematic evidence: a refitted candidate whose sensor terms contradict it is demoted.
+    refit_all : bool, optional
+        Refit every tested candidate (the kinematic alias set's members).
 
     Returns
     -------
@@ -280,7 +317,7 @@ def attribute_step(
         assert screened is not None  # every tested candidate was screened
         V, ng = _grid_variation(screened)
         p_lm, _ = p_value(screened.lm, c.df, c.null, V=V, n_grid=ng)
-        if i < refit_top or p_lm < alpha / K:
+        if refit_all or i < refit_top or p_lm < alpha / K:
             try:
                 c.fit, grid_cost = _refit(data, cur, c.effect, screened, bands, options)
             except Exception as exc:  # pragma: no cover - reported, never fatal
@@ -290,6 +327,7 @@ def attribute_step(
             c.lr = likelihood_ratio(cur.cost, c.fit.cost, data.oversample)
             c.lr_test = likelihood_ratio(cur.cost, grid_cost, data.oversample)
             c.params, c.plausible = _params(c.effect, cur.model, c.fit)
+            c.derivatives, c.demoted = _judge(c, cur.model, kin)
     for c in tested:
         V, ng = _grid_variation(c.screen)
         u = c.lr_test if (c.refitted and c.lr_test is not None) else c.lr
@@ -311,10 +349,6 @@ def _outputs(options):
     if isinstance(outs, str):
         return tuple(o.strip() for o in outs.split(","))
     return tuple(outs)
-
-
-#: One-sided 5 % point of N(0, 1) for Vuong's test.
-VUONG_Z = 1.645
 
 
 def _loglik_terms(fit: DiagFit, rows: np.ndarray) -> np.ndarray:
@@ -346,19 +380,21 @@ def vuong_z(fa: DiagFit, fb: DiagFit, rows: np.ndarray, dft: np.ndarray) -> floa
     Returns
     -------
     float
-        The z statistic, standard normal when the fits are equally good.
+        The z statistic, standard normal when the fits are equally good (:func:`fdml.score.vuong_z`
+        on the per-frequency costs ``-2 ln L``).
     """
-    d = (_loglik_terms(fa, rows) - _loglik_terms(fb, rows))[dft]
-    s = float(np.sqrt(np.sum((d - d.mean()) ** 2)))
-    if s <= 1e-12 * max(1.0, float(np.sum(np.abs(d)))):
-        return 0.0
-    return float(np.sum(d) / s)
+    return score_vuong(-2.0 * _loglik_terms(fa, rows)[dft], -2.0 * _loglik_terms(fb, rows)[dft])
 
 
 def choose(
     tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = None, dft: np.ndarray | None = None
 ) -> tuple:
-    """(best, ambiguity set) among the significant refitted candidates, or (None, []).
+    """(best, ambiguity set) among the significant refitted candidates that are not demoted, or (None, []).
+
+    Candidates whose fitted size lies outside its plausible range are chosen only when no
+    plausible one is significant.  The ambiguity set holds every eligible candidate that these data
+    do not tell apart from the best (:func:`fdml.score.equally`: AIC within the 5 % point of chi2(1),
+    or Vuong's z below 1.96).
 
     Parameters
     ----------
@@ -376,20 +412,20 @@ def choose(
     Returns
     -------
     best : Candidate or None
-        The significant candidate of lowest BIC.
+        The eligible candidate of lowest BIC.
     ambiguous : list of Candidate
-        The significant candidates these data do not tell apart from it (``best`` included).
+        The eligible candidates these data do not tell apart from it (``best`` included).
     """
-    sig = [c for c in tested if c.refitted and c.significant(alpha)]
-    if not sig:
+    sig = [c for c in tested if c.refitted and c.significant(alpha) and c.demoted is None]
+    pool = [c for c in sig if c.plausible] or sig
+    if not pool:
         return None, []
     logn = math.log(max(n_obs, 2))
-    best = min(sig, key=lambda c: c.q_eff * logn - c.lr)
-    aic_best = 2 * best.q_eff - best.lr
+    best = min(pool, key=lambda c: c.q_eff * logn - c.lr)
+    aic_best = best.lr - 2 * best.q_eff
     amb = []
-    for c in sig:
-        if c is best or (2 * c.q_eff - c.lr) - aic_best <= AMBIGUITY_AIC:
-            amb.append(c)
-        elif rows is not None and dft is not None and vuong_z(best.fit, c.fit, rows, dft) < VUONG_Z:
+    for c in pool:
+        z = vuong_z(best.fit, c.fit, rows, dft) if rows is not None and dft is not None else 0.0
+        if c is best or equally(aic_best, c.lr - 2 * c.q_eff, z):
             amb.append(c)
     return best, amb

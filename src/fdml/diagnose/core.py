@@ -16,8 +16,10 @@ import numpy as np
 from ..channels import OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..estimate import NoiseModel
+from ..kinematics import KinematicEvidence, kinematic_evidence
 from ..models.base import Model
-from ..models.effects import Effect, default_library, registered_effects
+from ..models.effects import Effect, default_library, registered_effects, root_model
+from ..parameters import Role
 from ..record import Record
 from ..warning_log import merged, recording
 from .attribute import Candidate, attribute_step, choose, p_value
@@ -102,6 +104,65 @@ def _noise_effect(effects):
     return next((e for e in effects if e.kind == "noise" and e.name == "unmeasured_gust"), None)
 
 
+def _kinematics(su, model) -> tuple[KinematicEvidence | None, str]:
+    """The short-period identity on the analysis spectra (fdml.kinematics), or None and why not."""
+    missing = [c for c in OUTPUTS if c not in su.channels]
+    if missing:
+        return None, f"the kinematic identity needs alpha, q and a_z; {', '.join(missing)} not fitted"
+    try:
+        U = float(model.U)
+    except (AttributeError, NotImplementedError, TypeError, ValueError):
+        return None, "the kinematic identity needs the airspeed U"
+    try:
+        return kinematic_evidence(su.data.spectra, U), ""
+    except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:  # reported, never fatal
+        return None, f"the kinematic identity could not be evaluated: {exc}"
+
+
+@dataclass(frozen=True)
+class _Sensors:
+    """The base model as given against the base with the settled sensor effects (phase 0)."""
+
+    raw_fit: object  # DiagFit of the model as given (None when it failed)
+    raw_map: GapMap | None  # its gap map: where the model as given misses
+    shrink: float | None  # in-sample shrink of the flagged gap by the settled effects
+    shrink_holdout: float | None
+    n_flagged: int
+
+
+def _sensor_stage(su, raw_model, base_fit, base_map, holdout) -> _Sensors:
+    """How far the settled sensor effects close the gap of the model as given, in-sample and held out."""
+    if su.kin is None or not su.kin.settled:
+        return _Sensors(base_fit, base_map, None, None, 0)
+    try:
+        raw_fit = fit_model(su.data, raw_model, su.nb, **su.options)
+    except FdmlError:
+        return _Sensors(None, None, None, None, 0)
+    raw_map = su.fit_map(raw_fit)
+    shr, nflag = shrink(raw_map, su.fit_map(base_fit, before=raw_map))
+    hs = None
+    if holdout is not None:
+        hdata = analysis_data(holdout, su.data.band, oversample=su.oversample, trim=su.trim, gust=su.model.gust)
+        hnb = noise_bands(hdata, mode=su.noise)
+
+        def hmap(model, before=None):
+            hf = frozen_fit(hdata, model, hnb, su.options)
+            return fit_map(hdata, hf, su.edges, alpha=su.alpha, channels=su.channels, before=before)
+
+        h_raw = hmap(raw_fit.model)
+        hs, nflag_h = shrink(h_raw, hmap(base_fit.model, h_raw))
+        nflag = nflag_h if hs is not None else nflag
+    return _Sensors(raw_fit, raw_map, shr, hs, nflag)
+
+
+def _settled_model(model, kin: KinematicEvidence | None):
+    """``model`` with the sensor effects the kinematics settled, each fixed at its kinematic value."""
+    if kin is None or not kin.settled:
+        return model
+    m = model.with_effects(*[s.effect() for s in kin.settled])
+    return m.fix({s.param: s.value for s in kin.settled})
+
+
 @dataclass(frozen=True)
 class _Setup:
     """What every phase of a diagnosis needs: analysis data, noise model, gap-map bands, options."""
@@ -122,6 +183,8 @@ class _Setup:
     trim: str
     shrink_threshold: float
     designs: dict = field(default_factory=dict, repr=False)  # gap-map regressors, shared by every in-sample map
+    kin: KinematicEvidence | None = None  # what alpha, q and a_z say about their sensors (settled first)
+    kin_note: str = ""  # why there is no kinematic evidence
 
     def fit_map(self, fit, before=None, *, own: bool = False):
         """The gap map of an in-sample fit: with ``before``, that map's noise floors held; the regressors
@@ -270,6 +333,9 @@ def diagnose(
         trim=trim,
         shrink_threshold=shrink_threshold,
     )
+    kin, kin_note = _kinematics(su, model)
+    raw_model, model = model, _settled_model(model, kin)
+    su = replace(su, kin=kin, kin_note=kin_note)
     try:
         base_fit = fit_model(su.data, model, su.nb, **su.options)
     except FdmlError as exc:
@@ -301,12 +367,18 @@ def diagnose(
     shr = _shrink_holdout(su, base_fit, base_map, sel, holdout)
     with recording(reemit=False) as log:  # kept in the report
         rec = recommended_fit(
-            su.data, base_fit.model, [a.effect for a in sel.accepted], start=sel.final.model, **su.options
+            su.data,
+            base_fit.model,
+            [a.effect for a in sel.accepted],
+            start=sel.final.model,
+            settled=kin.settled if kin is not None else (),
+            **su.options,
         )
     warned = merged(
         base_fit.warnings, sel.final.warnings, *(a.fit.warnings for a in sel.accepted), log, rec.warnings if rec else ()
     )
-    return _assemble(su, base_fit, base_map, sel, shr, problems, found, rec, t0, warned)
+    sensors = _sensor_stage(su, raw_model, base_fit, base_map, holdout)
+    return _assemble(su, base_fit, base_map, sel, shr, problems, found, rec, t0, warned, sensors)
 
 
 def _setup(
@@ -399,22 +471,11 @@ def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int)
     step_fits: list[DiagFit] = []
     skipped_all: dict = {}
     K0 = None
-    remaining = [e for e in su.effects if e.kind == "deterministic"]
+    settled = {s.key for s in su.kin.settled} if su.kin is not None else set()
+    remaining = [e for e in su.effects if e.kind == "deterministic" and e.key not in settled]
     for step in range(max(int(max_effects), 0)):
         step_fits.append(cur)
-        tested, skipped = attribute_step(
-            su.data,
-            cur,
-            remaining,
-            su.nb,
-            su.rows,
-            su.options,
-            alpha=su.alpha,
-            refit_top=refit_top,
-            step=step,
-            n_obs=su.n_obs,
-            floor_weights=fw,
-        )
+        tested, skipped = _step(su, cur, remaining, step, refit_top, fw)
         if step == 0:
             K0 = len(tested) + (1 if gust_eff is not None else 0)
             # Holm over the whole first-step family, the turbulence test included
@@ -446,6 +507,41 @@ def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int)
         gust_sig=gust_sig,
         gust_effect=gust_eff,
     )
+
+
+def _step(su: _Setup, cur, remaining: list, step: int, refit_top: int, fw) -> tuple:
+    """One attribution step; the first tests the kinematics' alias set alone when there is one, and the
+    whole library when none of those can be accepted."""
+    first = _kinematic_first(su, remaining) if step == 0 else []
+    for cands in ([first] if first else []) + [remaining]:
+        tested, skipped = attribute_step(
+            su.data,
+            cur,
+            cands,
+            su.nb,
+            su.rows,
+            su.options,
+            alpha=su.alpha,
+            refit_top=refit_top,
+            step=step,
+            n_obs=su.n_obs,
+            floor_weights=fw,
+            kin=su.kin,
+            refit_all=cands is first,
+        )
+        if cands is remaining or choose(tested, su.alpha, su.n_obs)[0] is not None:
+            return tested, skipped
+    return tested, skipped
+
+
+def _kinematic_first(su: _Setup, remaining: list) -> list:
+    """The first step's candidates when the kinematics show a sensor pattern they cannot attribute:
+    its alias set's members, every one refitted (sensors first: no aerodynamic effect is tested
+    before the sensors are settled).  Empty otherwise."""
+    if su.kin is None or not su.kin.aliases:
+        return []
+    keys = {m.key for m in su.kin.aliases[0]}
+    return [e for e in remaining if e.key in keys]
 
 
 def _backward_check(su: _Setup, base_fit, accepted: list, best) -> None:
@@ -561,6 +657,7 @@ def recommended_fit(
     effects,
     *,
     start: Model | None = None,
+    settled=(),
     outputs=None,
     boundary: str = "estimated",
     biases="auto",
@@ -582,6 +679,9 @@ def recommended_fit(
         The accepted effects, in order.
     start : Model, optional
         A model whose parameter values (shared names) start the fit.
+    settled : sequence of fdml.kinematics.SensorEffect, optional
+        Sensor effects the kinematics settled: fixed in ``base_model`` at their kinematic values,
+        their standard errors carried into the covariance (:func:`fdml.propagate.with_known_uncertainty`).
     outputs : sequence of str or str, optional
         Outputs that enter the fit (default ``alpha, q, az``), as in :func:`fdml.fit`.
     boundary : {"estimated", "measured", "none"}, optional
@@ -601,8 +701,22 @@ def recommended_fit(
     if start is not None:
         sv = start.parameters.values
         model = model.with_values({k: v for k, v in sv.items() if k in model.parameters and math.isfinite(v)})
+    from ..propagate import with_known_uncertainty
+
+    def refit(values=None, start_model=model, adequacy=True):
+        m = start_model.with_values(values) if values else start_model
+        return fdml_fit(
+            list(data.spectra), m, outputs=outputs, boundary=boundary, biases=biases, check=False, adequacy=adequacy
+        )
+
     try:  # the diagnosis has checked the records
-        return fdml_fit(list(data.spectra), model, outputs=outputs, boundary=boundary, biases=biases, check=False)
+        res = refit()
+        if settled:
+            with recording(reemit=False):  # the two refits' warnings repeat the fit's
+                res = with_known_uncertainty(
+                    res, lambda v: refit(v, res.model, adequacy=False), {s.param: s.stderr for s in settled}
+                )
+        return res
     except FdmlError as exc:
         logger.warning("the recommended model could not be fitted: %s", exc)
         return None
@@ -622,15 +736,26 @@ def _assemble(
     recommended,
     t0: float,
     warned: tuple,
+    sensors: _Sensors,
 ) -> DiagnosisReport:
     """Labels, verdict, footprints and compensation of the accepted effects: the frozen report.
 
-    ``warned``: the warnings of the fits the report keeps (base, final, accepted, recommended).
+    ``warned``: the warnings of the fits the report keeps (base, final, accepted, recommended);
+    ``sensors``: the model as given against the one with the settled sensor effects.
     """
     from .text import paragraph
 
-    ranking = _ranking(su, sel, shr)
-    verdict = sel.accepted[0].name if sel.accepted else ("unmeasured_gust" if sel.gust_sig else "none")
+    settled = _settled_entries(
+        su, sensors, n_unexplained=len([u for u in shr.unexplained if u["where"] == "in-sample"])
+    )
+    ranking = settled + _ranking(su, sel, shr, n_settled=len(settled))
+    verdict = (
+        settled[0]["effect"]
+        if settled
+        else sel.accepted[0].name
+        if sel.accepted
+        else ("unmeasured_gust" if sel.gust_sig else "none")
+    )
     not_ident = [
         {"effect": s.effect.name, "channel": s.effect.channel, "key": s.key, "reason": s.reason}
         for s in sel.skipped.values()
@@ -643,6 +768,7 @@ def _assemble(
             comp = compensation(su.data, a.fit, base_fit, nulls, base_map)
         entry = next(r for r in ranking if r["key"] == a.key and r["step"] == a.step)
         selected.append({**entry, "parameter_shifts": parameter_shifts(base_fit, a.fit)})
+    selected = settled + selected
     shifts = parameter_shifts(base_fit, sel.final) if sel.accepted else {}
     amb_first = sel.ambiguity[0] if sel.ambiguity else []
     ambiguous = [c.key for c in amb_first if sel.accepted and c.key != sel.accepted[0].key]
@@ -654,7 +780,7 @@ def _assemble(
         ranking=ranking,
         ambiguous=ambiguous,
         not_identifiable=not_ident,
-        location=base_map.to_list(),
+        location=(sensors.raw_map or base_map).to_list(),
         footprint=fp,
         unexplained=shr.unexplained,
         selected=selected,
@@ -690,12 +816,102 @@ def _assemble(
         findings=tuple(found),
         recommended=recommended,
         warnings=tuple(warned),
+        kinematics=su.kin.to_dict() if su.kin is not None else {"note": su.kin_note},
+        recommendation=_recommendation(su, sel, recommended, sensors.raw_fit),
     )
     return replace(report, text=paragraph(report))
 
 
-def _ranking(su: _Setup, sel: _Selection, shr: _Shrink) -> list:
-    """One entry per tested candidate (and the turbulence test), with its label."""
+def _settled_entries(su: _Setup, sensors: _Sensors, n_unexplained: int) -> list:
+    """Ranking entries of the sensor effects the kinematics settled (accepted before any other)."""
+    if su.kin is None:
+        return []
+    out = []
+    shr = sensors.shrink_holdout if sensors.shrink_holdout is not None else sensors.shrink
+    label = label_for(
+        significant=True,
+        accepted=True,
+        ambiguous=False,
+        plausible=True,
+        shrink=shr,
+        n_flagged=sensors.n_flagged,
+        n_unexplained=n_unexplained,
+        threshold=su.shrink_threshold,
+    )
+    for m in su.kin.settled:
+        f = m.finding
+        out.append(
+            {
+                "effect": m.effect().name,
+                "key": m.key,
+                "channel": m.effect().channel,
+                "lr": f.lr,
+                "p_value": f.p,
+                "p_holm": f.p,
+                "shrink": shr,
+                "shrink_in_sample": sensors.shrink,
+                "shrink_holdout": sensors.shrink_holdout,
+                "plausible": True,
+                "label": label,
+                "params": {m.param: {"value": m.value, "stderr": m.stderr, "unit": m.unit}},
+                "accepted": True,
+                "significant": True,
+                "step": 0,
+                "source": "kinematics",
+                "note": f"settled by the kinematics: {f.describe()}",
+            }
+        )
+    return out
+
+
+def _derivative_table(raw, rec) -> dict:
+    """Per free base parameter: the base model's estimate as given and the recommended one, with standard errors."""
+    if rec is None:
+        return {}
+    out = {}
+    names = [p.name for p in root_model(rec.model).parameters if p.free and p.role is Role.AERO]
+    for n in names:
+        if n not in rec.params:
+            continue
+        row = {"recommended": [rec.params[n], rec.errors.get(n)]}
+        if raw is not None and n in raw.params:
+            row["base"] = [raw.params[n], raw.stderr.get(n)]
+        out[n] = row
+    return out
+
+
+def _recommendation(su: _Setup, sel: _Selection, rec, raw_fit) -> dict:
+    """What the recommended model is and how sure: settled sensors, ambiguity, alternatives, derivatives."""
+    amb = sel.ambiguity[0] if sel.ambiguity else []
+    settled = [m.key for m in su.kin.settled] if su.kin is not None else []
+    alts = [
+        {
+            "effects": settled + [c.key],
+            "params": {k: {"value": v, "stderr": e} for k, (v, e) in c.params.items()},
+            "derivatives": {k: {"value": v, "stderr": e} for k, (v, e) in c.derivatives.items()},
+            "lr": c.lr,
+        }
+        for c in amb
+    ]
+    spread = {}
+    if len(amb) > 1:
+        for n in amb[0].derivatives:
+            vals = [c.derivatives[n] for c in amb if n in c.derivatives]
+            v = [x for x, _ in vals]
+            se = min((e for _, e in vals if e and math.isfinite(e)), default=math.nan)
+            spread[n] = {"min": min(v), "max": max(v), "in_stderr": (max(v) - min(v)) / se if se > 0 else None}
+    return {
+        "settled_by_kinematics": settled,
+        "ambiguous": len(amb) > 1,
+        "alternatives": alts if len(amb) > 1 else [],
+        "spread": spread,
+        "derivatives": _derivative_table(raw_fit, rec),
+    }
+
+
+def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> list:
+    """One entry per tested candidate (and the turbulence test, after the ``n_settled`` sensor effects the
+    kinematics settled and the accepted ones), with its label."""
     acc_keys = [(a.key, a.step) for a in sel.accepted]
     # remaining gap for the labels: the final fit's own map (report.UNEXPLAINED_RULE)
     n_unexp_label = len([u for u in shr.unexplained if u["where"] == "in-sample"])
@@ -739,7 +955,7 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink) -> list:
                 "df": 1,
                 "null": "chibar",
                 "accepted": sel.gust_sig,
-                "step": len(sel.accepted),
+                "step": len(sel.accepted) + n_settled,
                 "refitted": True,
                 "shrink_in_sample": gust.share,
                 "shrink_holdout": None,

@@ -37,7 +37,7 @@ from ..warning_log import as_recorded
 if TYPE_CHECKING:
     from ..results import FitResult
 
-__all__ = ["DiagnosisReport", "label_for", "SHRINK_CONFIRM", "JSON_KEYS"]
+__all__ = ["DiagnosisReport", "label_for", "SHRINK_CONFIRM", "JSON_KEYS", "RECOMMENDATION_KEYS"]
 
 #: Shrink of the flagged coherent gap needed for "confirmed".  Chosen on the tuning seed range
 #: (benchmarks/validate_diagnose.py tune: 408 runs, seeds 0-407) by validation.tune_threshold: 0.3-0.6
@@ -49,6 +49,8 @@ SHRINK_CONFIRM = 0.6
 #: held-out map; 217 against 180 correct confirmations, 1 wrong one).
 UNEXPLAINED_RULE = "in-sample"
 _MISSING = object()
+#: Keys of ``recommended`` in the JSON that the diagnosis adds to the fit's brief.
+RECOMMENDATION_KEYS = ("settled_by_kinematics", "ambiguous", "alternatives", "spread", "derivatives")
 #: Keys every JSON report has (issue 4).
 JSON_KEYS = ("verdict", "ranking", "ambiguous", "not_identifiable", "location", "footprint", "unexplained")
 
@@ -103,6 +105,23 @@ def label_for(
     if ambiguous or not accepted:
         return "tentative"
     return "confirmed"
+
+
+def _derivative_lines(table: dict) -> list:
+    """The base model's derivatives as given beside the recommended ones, with standard errors."""
+    if not table:
+        return []
+
+    def cell(x):
+        if not x or x[0] is None:
+            return f"{'-':>22s}"
+        v, se = x
+        return f"{v:>11.4g} +- {se if se is not None else float('nan'):<8.2g}"
+
+    out = [f"  {'parameter':10s} {'base as given':>22s} {'recommended':>22s}"]
+    for n, row in table.items():
+        out.append(f"  {n:10s} {cell(row.get('base'))} {cell(row.get('recommended'))}")
+    return out
 
 
 def _clean(obj):
@@ -178,6 +197,14 @@ class DiagnosisReport:
         Warnings of the fits the report keeps.
     recommended_brief : dict or None
         The recommended fit's ``brief()`` as read back from JSON.
+    kinematics : dict
+        What the short-period identity says about the sensors (:meth:`fdml.kinematics.KinematicEvidence.to_dict`),
+        or ``{"note": why not}``.
+    recommendation : dict
+        ``settled_by_kinematics`` (the sensor effects fixed first), ``ambiguous``, ``alternatives``
+        (each with its effects, their parameters and the derivative set it implies), the
+        derivatives' ``spread`` over the alternatives and ``derivatives`` (the base model's as given against the recommended, each
+        ``[value, stderr]``).  In the JSON its keys are part of ``recommended``.
     """
 
     verdict: str
@@ -202,6 +229,8 @@ class DiagnosisReport:
     recommended: FitResult | None = field(default=None, repr=False)
     warnings: tuple = ()
     recommended_brief: dict | None = field(default=None, repr=False)
+    kinematics: dict = field(default_factory=dict)
+    recommendation: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """JSON-ready dict: the issue's keys first, then the supporting detail.
@@ -230,10 +259,17 @@ class DiagnosisReport:
             "settings": self.settings,
             "summary": self.text,
             "findings": [f.to_dict() for f in self.findings],
-            "recommended": self.recommended_brief if self.recommended is None else self.recommended.brief(),
+            "recommended": self._recommended_dict(),
+            "kinematics": self.kinematics,
             "warnings": [w.to_dict() for w in as_recorded(self.warnings)],
         }
         return _clean(d)
+
+    def _recommended_dict(self) -> dict | None:
+        brief = self.recommended_brief if self.recommended is None else self.recommended.brief()
+        if brief is None:
+            return None
+        return {**brief, **self.recommendation}
 
     @classmethod
     def from_dict(cls, d, *, source: str = "fdml diagnosis report") -> DiagnosisReport:
@@ -288,6 +324,10 @@ class DiagnosisReport:
             findings=tuple(Finding.from_fields(x) for x in f.items("findings", default=[])),
             warnings=as_recorded(items("warnings", [])),
             recommended_brief=None if recommended is None else f.mapping("recommended"),
+            kinematics=f.mapping("kinematics", default={}),
+            recommendation={
+                k: recommended[k] for k in RECOMMENDATION_KEYS if isinstance(recommended, dict) and k in recommended
+            },
         )
 
     def to_json(self, path=None, indent: int = 1, *, inputs=()) -> str:
@@ -341,13 +381,15 @@ class DiagnosisReport:
         if self.recommended is not None:
             r = self.recommended
             state = "converged" if r.converged else "NOT converged"
+            amb = " AMBIGUOUS (see above)" if self.recommendation.get("ambiguous") else ""
             lines += [
                 "",
                 (
-                    f"recommended model: {r.model.describe()} ({state}, {len(r.names)} estimates); "
+                    f"recommended model{amb}: {r.model.describe()} ({state}, {len(r.names)} estimates); "
                     "fdml diagnose --recommended-output FIT.json saves it"
                 ),
             ]
+            lines += _derivative_lines(self.recommendation.get("derivatives", {}))
         if self.warnings:
             lines += ["", "warnings of the fits:"] + [f"  {w}" for w in as_recorded(self.warnings)]
         if self.not_identifiable:

@@ -41,6 +41,77 @@ def _p(p) -> str:
     return f"{p:.2g}" if p >= 1e-300 else "< 1e-300"
 
 
+def _kinematics_sentences(rep) -> list:
+    """What the short-period identity said about the sensors, and what it did with it."""
+    k = rep.kinematics or {}
+    out = []
+    for m in k.get("settled", []):
+        size = _fmt_param(m["param"], m)
+        out.append(
+            f"The kinematics (alpha, q and a_z obey the short-period identity whatever the aerodynamics) settle "
+            f"{m['key']} ({size}, LR {m['lr']:.3g}): it enters the recommended model fixed at that value, its "
+            "uncertainty carried into the standard errors."
+        )
+    for m in k.get("implausible", []):
+        out.append(
+            f"The kinematics' other reading, {m['key']} ({_fmt_param(m['param'], m)}), lies outside its "
+            "plausible range."
+        )
+    for a in k.get("aliases", []):
+        names = " or ".join(f"{m['key']} ({_fmt_param(m['param'], m)})" for m in a)
+        out.append(
+            f"The kinematics show a sensor error they cannot attribute: {names}; the aerodynamic fit chose "
+            "among them first."
+        )
+    return out
+
+
+#: What separates two kinds of alias, by the effects involved.
+_SEPARATE = (
+    (
+        {"sensor_offset@alpha", "sensor_offset@az"},
+        'give the sensor positions in the aircraft file ("sensors": {"alpha": {"x": m}, "az": {"x": m}}), '
+        "or record theta, V and h so that the flight-path reconstruction (fdml check --compat) sees the absolute angle",
+    ),
+    (
+        {"time_delay@alpha", "sensor_offset@alpha", "time_delay@alpha,az"},
+        "a delay and a vane offset part at high frequency: a manoeuvre with more energy above the short-period "
+        "frequency (a sweep or a multisine to twice it; fdml design --criterion discriminate) separates them, "
+        "as does the vane's known position",
+    ),
+)
+
+
+def _ambiguity_sentences(rep) -> list:
+    rec = rep.recommendation or {}
+    if not rec.get("ambiguous"):
+        return ["Equally consistent with these data: " + ", ".join(rep.ambiguous) + "."] if rep.ambiguous else []
+    alts = rec.get("alternatives", [])
+    keys = {a["effects"][-1] for a in alts}
+    spread = rec.get("spread", {})
+    worst = max(spread.items(), key=lambda kv: kv[1].get("in_stderr") or 0.0, default=None)
+    out = [
+        "These data cannot tell apart "
+        + " or ".join(
+            f"{a['effects'][-1]} ({', '.join(_fmt_param(n, d) for n, d in a['params'].items())})" for a in alts
+        )
+        + ": the recommended model is ambiguous."
+    ]
+    if worst is not None and worst[1].get("in_stderr") is not None:
+        n, d = worst
+        out.append(
+            f"Their derivatives spread most in {n}, {d['min']:.4g} to {d['max']:.4g} "
+            f"({d['in_stderr']:.1f} standard errors)."
+        )
+    how = [txt for ks, txt in _SEPARATE if len(keys & ks) >= 2]
+    out.append(
+        "To separate them: "
+        + ("; ".join(how) if how else "fdml design --criterion discriminate plans a manoeuvre that does")
+        + "."
+    )
+    return out
+
+
 def paragraph(rep) -> str:
     """A short paragraph: where the model misses, what explains it, how much, and what is left.
 
@@ -60,6 +131,7 @@ def paragraph(rep) -> str:
         f"{st['band'][0]:.3g}-{st['band'][1]:.3g} rad/s, {st.get('independent_frequencies')} independent "
         "frequencies."
     ]
+    out += _kinematics_sentences(rep)
     flagged = [c for c in rep.location if c.get("significant")]
     if flagged:
         flagged.sort(key=lambda c: -(c.get("excess") or 0))
@@ -74,7 +146,7 @@ def paragraph(rep) -> str:
             "The gap map flags no channel-band cell: in every band the base model's error is within "
             "what the noise floor allows (small effects can still be found by the targeted tests)."
         )
-    sel = rep.selected
+    sel = [s for s in rep.selected if s.get("source") != "kinematics"]
     if sel:
         for i, s in enumerate(sel):
             params = ", ".join(_fmt_param(k, v) for k, v in s["params"].items())
@@ -126,6 +198,8 @@ def paragraph(rep) -> str:
                 f"Unmeasured turbulence is also present (sigma_w = {g['params']['sigma_w']['value']:.2g} m/s, "
                 f"p = {_p(g['p_holm'])})."
             )
+    elif len(sel) < len(rep.selected):
+        out.append("No further effect is significant at the family level once the sensors are settled.")
     elif rep.verdict == "unmeasured_gust":
         g = next(r for r in rep.ranking if r["effect"] == "unmeasured_gust")
         out.append(
@@ -135,8 +209,7 @@ def paragraph(rep) -> str:
         )
     else:
         out.append(f"No candidate effect is significant at the family level {st.get('alpha')}: verdict none.")
-    if rep.ambiguous:
-        out.append("Equally consistent with these data: " + ", ".join(rep.ambiguous) + ".")
+    out += _ambiguity_sentences(rep)
     uin = [u for u in rep.unexplained if u.get("where") == "in-sample"]
     uho = [u for u in rep.unexplained if u.get("where") == "holdout"]
     if uin or uho:
