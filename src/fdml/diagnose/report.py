@@ -203,8 +203,8 @@ class DiagnosisReport:
     recommendation : dict
         ``settled_by_kinematics`` (the sensor effects fixed first), ``ambiguous``, ``alternatives``
         (each with its effects, their parameters and the derivative set it implies), the
-        derivatives' ``spread`` over the alternatives and ``derivatives`` (the base model's as given against the recommended, each
-        ``[value, stderr]``).  In the JSON its keys are part of ``recommended``.
+        derivatives' ``spread`` over the alternatives and ``derivatives`` (the base model's as given
+        against the recommended, each ``[value, stderr]``).  In the JSON its keys are part of ``recommended``.
     """
 
     verdict: str
