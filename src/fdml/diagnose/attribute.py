@@ -46,10 +46,11 @@ import numpy as np
 from ..channels import OUTPUTS
 from ..models.effects import Effect
 from ..parameters import Role
-from ..score import ScreenContext, ScreenResult, davies_bound, equally, holm, p_value, screen
+from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, screen
 from ..score import grid_variation as _grid_variation
 from ..score import null_kind as _null_kind
 from ..score import vuong_z as score_vuong
+from ..verdict import choose_among, judge
 from .likelihood import DiagFit, fit_model, likelihood_ratio
 
 __all__ = ["Candidate", "attribute_step", "p_value", "davies_bound", "choose"]
@@ -207,29 +208,17 @@ def _params(effect: Effect, model, fit: DiagFit) -> tuple[dict, bool]:
     return out, ok
 
 
-def _judge(c: Candidate, model, kin) -> tuple[dict, str | None]:
-    """(base derivatives of the refit, why the candidate is demoted or None): the kinematics first,
-    then the physics of the derivatives it implies."""
-    from ..kinematics import sensor_terms
-    from ..models.effects import root_model
-    from ..models.plausibility import derivative_problems
-
+def _judge(c: Candidate, model, kin, data) -> tuple[dict, str | None]:
+    """(base derivatives of the refit, why the candidate is demoted or None: :func:`fdml.verdict.judge`)."""
     assert c.fit is not None
     base = [p.name for p in model.parameters if p.free and p.role is Role.AERO and p.name in c.fit.params]
     derivs = {n: (float(c.fit.params[n]), float(c.fit.stderr.get(n, math.nan))) for n in base}
-    if kin is not None:
-        lr, p = kin.check(sensor_terms(c.effect, {k: v for k, (v, _) in c.params.items()}))
-        if p < kin.level:
-            return derivs, (
-                f"contradicts the kinematics: undoing it, alpha, q and a_z fit the short-period identity "
-                f"worse (LR {lr:.3g}, p {p:.2g})"
-            )
-    probs = derivative_problems(
-        root_model(model), {n: v for n, (v, _) in derivs.items()}, {n: s for n, (_, s) in derivs.items()}
-    )
-    if probs:
-        return derivs, "implies derivatives that are not physical: " + "; ".join(probs)
-    return derivs, None
+    dt = max(float(d.dt) for d in data.spectra)
+    try:
+        U = float(model.U)
+    except (AttributeError, NotImplementedError, TypeError, ValueError):
+        U = None
+    return derivs, judge(c.effect, c.params, model, derivs, kin, dt=dt, U=U)
 
 
 def attribute_step(
@@ -327,7 +316,7 @@ def attribute_step(
             c.lr = likelihood_ratio(cur.cost, c.fit.cost, data.oversample)
             c.lr_test = likelihood_ratio(cur.cost, grid_cost, data.oversample)
             c.params, c.plausible = _params(c.effect, cur.model, c.fit)
-            c.derivatives, c.demoted = _judge(c, cur.model, kin)
+            c.derivatives, c.demoted = _judge(c, cur.model, kin, data)
     for c in tested:
         V, ng = _grid_variation(c.screen)
         u = c.lr_test if (c.refitted and c.lr_test is not None) else c.lr
@@ -417,15 +406,8 @@ def choose(
         The eligible candidates these data do not tell apart from it (``best`` included).
     """
     sig = [c for c in tested if c.refitted and c.significant(alpha) and c.demoted is None]
-    pool = [c for c in sig if c.plausible] or sig
-    if not pool:
-        return None, []
-    logn = math.log(max(n_obs, 2))
-    best = min(pool, key=lambda c: c.q_eff * logn - c.lr)
-    aic_best = best.lr - 2 * best.q_eff
-    amb = []
-    for c in pool:
-        z = vuong_z(best.fit, c.fit, rows, dft) if rows is not None and dft is not None else 0.0
-        if c is best or equally(aic_best, c.lr - 2 * c.q_eff, z):
-            amb.append(c)
-    return best, amb
+
+    def z_of(best, c):
+        return vuong_z(best.fit, c.fit, rows, dft) if rows is not None and dft is not None else 0.0
+
+    return choose_among(sig, n_obs, z_of)
