@@ -160,7 +160,7 @@ def test_report_json_has_the_issue_keys_and_types():
     assert d["verdict"] == "time_delay"
     for r in d["ranking"]:
         assert {"effect", "channel", "lr", "p_value", "shrink", "label", "params"} <= set(r)
-        assert r["label"] in (None, "confirmed", "tentative", "partial")
+        assert r["label"] in (None, "confirmed", "tentative", "partial", "absorbs a model error", "set aside")
         assert r["channel"] in (
             "alpha",
             "q",

@@ -60,6 +60,7 @@ from .errors import FdmlError
 from .jsoncodec import Fields
 from .score import (
     ScreenContext,
+    blocked,
     chi2_sf,
     f_sf,
     grid_variation,
@@ -67,9 +68,10 @@ from .score import (
     null_kind,
     p_value,
     screen_all,
+    vuong_z,
 )
 
-__all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "advice", "check", "invocation"]
+__all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "Verdict", "advice", "check", "invocation", "rank"]
 
 #: Family-wise level of the adequacy check (every fit runs it: 1 in 100 adequate fits warns).
 ALPHA = 0.01
@@ -191,6 +193,100 @@ class ResidualCheck:
 
 
 @dataclass(frozen=True)
+class Verdict:
+    """What the diagnosis would accept first, by its rules (:mod:`fdml.verdict`), from the fit alone.
+
+    Parameters
+    ----------
+    key : str or None
+        The effect (None: every candidate was set aside).
+    params : dict
+        Its parameters, ``{name: [value, stderr]}``, each in ``units``.
+    units : dict
+        Unit of every parameter.
+    source : str
+        ``"kinematics"`` (settled by the short-period identity, :mod:`fdml.kinematics`) or ``"refit"``
+        (the flagged candidates, or the kinematics' alias set, refitted and ranked).
+    aliases : tuple of str
+        Every effect these data cannot tell apart from it (itself included).
+    set_aside : tuple of (str, str)
+        Significant candidates that were set aside, with the reason.
+    lr : float
+        Its likelihood ratio against the fit.
+    """
+
+    key: str | None
+    params: dict
+    units: dict
+    source: str
+    aliases: tuple = ()
+    set_aside: tuple = ()
+    lr: float = 0.0
+
+    @property
+    def ambiguous(self) -> bool:
+        """More than one effect explains the data equally."""
+        return len(self.aliases) > 1
+
+    def describe(self) -> str:
+        """One line: the effect and its parameters.
+
+        Returns
+        -------
+        str
+            The line.
+        """
+        vals = ", ".join(
+            f"{k} = {_fmt(v, self.units.get(k, ''))} +- {_fmt(se, self.units.get(k, ''))}"
+            for k, (v, se) in self.params.items()
+        )
+        how = "settled by the kinematics" if self.source == "kinematics" else f"LR {self.lr:.3g}"
+        return f"{self.key} ({vals}; {how})"
+
+    def to_dict(self) -> dict:
+        """The verdict as plain JSON data.
+
+        Returns
+        -------
+        dict
+            Every field by name.
+        """
+        return {
+            "key": self.key,
+            "params": {k: list(v) for k, v in self.params.items()},
+            "units": dict(self.units),
+            "source": self.source,
+            "aliases": list(self.aliases),
+            "set_aside": [list(x) for x in self.set_aside],
+            "lr": self.lr,
+        }
+
+    @classmethod
+    def from_fields(cls, f: Fields) -> Verdict:
+        """Inverse of :meth:`to_dict`, every key checked.
+
+        Parameters
+        ----------
+        f : fdml.jsoncodec.Fields
+            The fields of the JSON object.
+
+        Returns
+        -------
+        Verdict
+            The verdict.
+        """
+        return cls(
+            key=f.string("key", allow_none=True),
+            params={k: tuple(float(x) for x in v) for k, v in f.mapping("params").items()},
+            units={k: str(v) for k, v in f.mapping("units").items()},
+            source=f.string("source", choices=("kinematics", "refit")),
+            aliases=tuple(str(x) for x in f.raw("aliases", [])),
+            set_aside=tuple(tuple(str(y) for y in x) for x in f.raw("set_aside", [])),
+            lr=f.number("lr", default=0.0),
+        )
+
+
+@dataclass(frozen=True)
 class Adequacy:
     """The adequacy check of one fit (:func:`check`).
 
@@ -206,6 +302,8 @@ class Adequacy:
         The two residual checks.
     elapsed : float
         Seconds spent.
+    verdict : Verdict or None
+        When anything is flagged: the effect the diagnosis would accept first, by its rules.
     """
 
     alpha: float
@@ -214,6 +312,7 @@ class Adequacy:
     whiteness: ResidualCheck
     coherence: ResidualCheck
     elapsed: float = 0.0
+    verdict: Verdict | None = None
 
     @property
     def flagged(self) -> tuple:
@@ -242,6 +341,7 @@ class Adequacy:
             "adequate": self.adequate,
             "alpha": self.alpha,
             "flagged": [_effect_dict(e) for e in self.flagged],
+            "verdict": None if self.verdict is None else self.verdict.to_dict(),
             "whiteness": _check_dict(self.whiteness),
             "coherence": _check_dict(self.coherence),
         }
@@ -261,6 +361,7 @@ class Adequacy:
             "whiteness": _check_dict(self.whiteness),
             "coherence": _check_dict(self.coherence),
             "elapsed": self.elapsed,
+            "verdict": None if self.verdict is None else self.verdict.to_dict(),
         }
 
     @classmethod
@@ -284,6 +385,7 @@ class Adequacy:
             whiteness=_check_from(f.sub("whiteness")),
             coherence=_check_from(f.sub("coherence")),
             elapsed=f.number("elapsed", default=0.0),
+            verdict=None if f.raw("verdict", None) is None else Verdict.from_fields(f.sub("verdict")),
         )
 
     @classmethod
@@ -313,6 +415,10 @@ class Adequacy:
             Flagged effects and residual checks, or one line saying nothing is flagged.
         """
         out = []
+        v = self.verdict
+        if v is not None and v.key is not None:
+            amb = f" (or equally: {', '.join(k for k in v.aliases if k != v.key)})" if v.ambiguous else ""
+            out.append(f"FIRST {v.describe()}{amb}")
         for e in self.flagged:
             out.append(f"FLAGGED {e.describe()}")
         for c in self.residual_flags:
@@ -839,6 +945,158 @@ def check(prob, theta, V, R, *, alpha: float = ALPHA, library=None, sensitivitie
     )
 
 
+# --- one ranking: what the diagnosis would accept first -----------------------------------------------
+
+#: Flagged candidates refitted to rank them, at most (the most significant first).
+MAX_REFITS = 5
+
+
+@dataclass
+class _Refit:
+    """A candidate refitted on the fit's own spectra (the fields :func:`fdml.verdict.choose_among` reads)."""
+
+    effect: object
+    result: object
+    lr: float
+    p: float
+    q_eff: int
+    params: dict
+    plausible: bool
+    demoted: str | None
+
+
+def _airspeed(model) -> float | None:
+    try:
+        return float(model.U)
+    except (AttributeError, NotImplementedError, TypeError, ValueError):
+        return None
+
+
+def _kinematics(prob, model):
+    """The short-period identity on the fit's spectra (None without alpha, q and a_z or an airspeed)."""
+    from .kinematics import kinematic_evidence
+    from .models.base import OUTPUTS
+
+    U = _airspeed(model)
+    if U is None or sorted(prob.out_idx) != list(range(len(OUTPUTS))):
+        return None
+    try:
+        return kinematic_evidence(prob.data, U)
+    except (FdmlError, np.linalg.LinAlgError, ValueError):
+        return None
+
+
+def _independent_rows(prob) -> np.ndarray:
+    off, out = 0, []
+    for d in prob.data:
+        out.append(off + _independent(d))
+        off += d.m
+    return np.concatenate(out)
+
+
+def _loglik_cost(res, prob) -> np.ndarray:
+    """-2 ln L of a fit per independent frequency: ``2 (ln det R + v^H R^-1 v)`` (complex Gaussian) of every
+    row, summed over blocks of K rows (:func:`fdml.score.blocked`)."""
+    V = np.asarray(res.resid)
+    R = np.asarray(res.R)
+    W = np.linalg.inv(R)
+    q = np.real(np.einsum("nj,jk,nk->n", V.conj(), W.T, V))
+    rows = 2.0 * (np.linalg.slogdet(R)[1] + q)
+    return blocked(rows, [d.m for d in prob.data], [round(k) for k in _oversampling(prob)])
+
+
+def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Refit | None:
+    from .models.effects import root_model
+    from .verdict import judge
+
+    model = result.model.with_effects(eff)
+    model = model.with_values({k: v for k, v in start.items() if k in model.parameters and math.isfinite(v)})
+    try:
+        r = refit(model)
+    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
+        return None
+    lr = max(2.0 * n_ind * (np.linalg.slogdet(result.R)[1] - np.linalg.slogdet(r.R)[1]), 0.0)
+    null, q = null_kind(eff, result.model)
+    p, _ = p_value(lr, q, null)
+    plist = eff.param_list(result.model)
+    params = {x.name: (r.params.get(x.name, math.nan), r.errors.get(x.name, math.nan)) for x in plist}
+    plausible = all(
+        x.plausible is None or x.nuisance or x.plausible[0] <= params[x.name][0] <= x.plausible[1] for x in plist
+    )
+    base = [x.name for x in root_model(result.model).parameters if x.free and x.name in r.params]
+    derivs = {n: (r.params[n], r.errors[n]) for n in base}
+    dt = max(float(d.dt) for d in prob.data)
+    why = judge(eff, params, result.model, derivs, kin, dt=dt, U=_airspeed(result.model))
+    return _Refit(eff, r, lr, p, q + len([x for x in plist if x.nuisance]), params, plausible, why)
+
+
+def _candidates(adequacy: Adequacy, kin, model) -> list:
+    """(effect, start values) to refit: the kinematics' alias set, else the flagged effects."""
+    from .models.effects import get_effect
+
+    if kin is not None and kin.aliases:
+        return [(get_effect(m.key), {m.param: m.value}) for m in kin.aliases[0]]
+    out = []
+    for e in adequacy.flagged[:MAX_REFITS]:
+        out.append((get_effect(e.key), dict(e.expected)))
+    return out
+
+
+def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
+    """The effect the diagnosis would accept first, by its rules (:mod:`fdml.verdict`); None when nothing is flagged.
+
+    Sensors first: what the short-period identity settles is the answer.  Otherwise the candidates --
+    the identity's alias set when it shows a sensor error it cannot attribute, else the flagged
+    effects -- are refitted on the fit's own spectra with its options, and chosen as the diagnosis
+    chooses.
+
+    Parameters
+    ----------
+    adequacy : Adequacy
+        The check of the fit.
+    prob : fdml.estimate.Problem
+        The fit's problem.
+    result : FitResult
+        The fit.
+    refit : callable
+        ``refit(model) -> FitResult``: the fit's own options on its own spectra, no adequacy check.
+
+    Returns
+    -------
+    Verdict or None
+        The verdict.
+    """
+    from .verdict import choose_among
+
+    if adequacy.adequate:
+        return None
+    kin = _kinematics(prob, result.model)
+    if kin is not None and kin.settled:
+        m = kin.settled[0]
+        return Verdict(
+            m.key, {m.param: (m.value, m.stderr)}, {m.param: m.unit}, "kinematics", (m.key,), (), m.finding.lr
+        )
+    rows = _independent_rows(prob)
+    n_ind = float(rows.size)
+    fits = [
+        _refit_one(eff, st, prob, result, refit, kin, n_ind) for eff, st in _candidates(adequacy, kin, result.model)
+    ]
+    fits = [f for f in fits if f is not None]
+    level = adequacy.alpha / max(len(fits), 1)
+    eligible = [f for f in fits if f.p < level and f.demoted is None]
+    costs = {id(f): _loglik_cost(f.result, prob) for f in eligible}
+    best, aliases = choose_among(
+        eligible, 2.0 * n_ind * len(prob.out_idx), lambda b, c: vuong_z(costs[id(b)], costs[id(c)])
+    )
+    aside = tuple((f.effect.key, f.demoted) for f in fits if f.demoted is not None and f.p < level)
+    if best is None:
+        return Verdict(None, {}, {}, "refit", (), aside, 0.0) if aside else None
+    units = {x.name: x.unit for x in best.effect.param_list(result.model)}
+    return Verdict(
+        best.effect.key, dict(best.params), units, "refit", tuple(f.effect.key for f in aliases), aside, best.lr
+    )
+
+
 # --- the warning ----------------------------------------------------------------------------------
 
 
@@ -867,6 +1125,9 @@ def advice(adequacy: Adequacy) -> str | None:
     diag = (
         shlex.join(diag_argv) if diag_argv else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
     )
+    v = adequacy.verdict
+    if v is not None:
+        return _verdict_advice(adequacy, v, fit_argv, diag)
     if adequacy.flagged:
         top = adequacy.flagged[0]
         others = [e.key for e in adequacy.flagged[1:]]
@@ -888,7 +1149,37 @@ def advice(adequacy: Adequacy) -> str | None:
     )
 
 
-def attach(prob, result, V, sensitivities=None):
+def _option(key: str) -> str:
+    name, _, channel = key.partition("@")
+    return f"{name}:{channel}"
+
+
+def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diag: str) -> str:
+    """The warning when the check ranked the flagged effects as the diagnosis would (:func:`rank`)."""
+    if v.key is None:
+        why = "; ".join(f"{k}: {r}" for k, r in v.set_aside)
+        return f"the fit's residuals flag effects that were all set aside ({why}); run the full diagnosis: {diag}"
+    extra = [f"{k}={val:.6g}" for k, (val, _) in v.params.items()] if v.source == "kinematics" else []
+    args = ["--effect", _option(v.key)] + [a for x in extra for a in ("--fix", x)]
+    refit = shlex.join([*fit_argv, *args]) if fit_argv else "fdml fit RECORD ... " + shlex.join(args)
+    others = [e.key for e in adequacy.flagged if e.key not in v.aliases]
+    also = f"; also flagged: {', '.join(others)}" if others else ""
+    if v.source == "kinematics":
+        what = (
+            f"the kinematics (alpha, q and a_z against the short-period identity, whatever the aerodynamics) "
+            f"settle {v.describe()}{also}. Refit with it fixed at that value: {refit}"
+        )
+    elif v.ambiguous:
+        what = (
+            f"the fit's residuals carry one of {', '.join(v.aliases)}, which these data cannot tell apart "
+            f"(the best: {v.describe()}){also}; the full diagnosis says what would separate them"
+        )
+    else:
+        what = f"the fit's residuals carry {v.describe()}{also}. Refit with it: {refit}"
+    return f"{what}; or run the full diagnosis: {diag}"
+
+
+def attach(prob, result, V, sensitivities=None, refit=None):
     """``result`` with its adequacy check (``FitResult.adequacy``) and, when it flags, the warning.
 
     Called by :func:`fdml.estimate.fit` after a converged fit (``sensitivities``: the fit's
@@ -907,6 +1198,9 @@ def attach(prob, result, V, sensitivities=None):
         Residuals at the estimate, shape (N, n_out), complex.
     sensitivities : numpy.ndarray, optional
         The fit's sensitivities at the estimate.
+    refit : callable, optional
+        ``refit(model) -> FitResult`` with the fit's own options (:func:`rank`); without it the
+        flagged effects are not ranked.
 
     Returns
     -------
@@ -920,6 +1214,8 @@ def attach(prob, result, V, sensitivities=None):
 
     try:
         found = check(prob, result.values, V, result.R, sensitivities=sensitivities)
+        if refit is not None and not found.adequate:
+            found = replace(found, verdict=rank(found, prob, result, refit))
     except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:
         msg = f"the adequacy check could not run: {exc}"
         warnings.warn(msg, AdequacyWarning, stacklevel=4)

@@ -1205,7 +1205,7 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
     )
     res = replace(res, findings=tuple(found)) if found else res
     if options["adequacy"] and converged:
-        res = _with_adequacy(prob, res, V, A_final)
+        res = _with_adequacy(prob, res, V, A_final, options)
     return res, prob
 
 
@@ -1236,14 +1236,24 @@ def _end_of_pass(stop: str, accepted: bool, J_old: float, J: float, rel_step: fl
     return None
 
 
-def _with_adequacy(prob, res, V, A_final):
-    """The result with its adequacy check (:mod:`fdml.adequacy`; it warns when the check flags anything)."""
+def _with_adequacy(prob, res, V, A_final, options):
+    """The result with its adequacy check (:mod:`fdml.adequacy`; it warns when the check flags anything).
+
+    The check refits the candidates it ranks with the fit's own options on the fit's own spectra.
+    """
     from .adequacy import attach
+
+    def refit(model):
+        # closed-form sensitivities where the model has them, else central differences (as the
+        # diagnosis's fits): a refit starts near its optimum and needs no settled Eq. 26 columns
+        opts = {**options, "adequacy": False, "check": False, "sensitivity": "analytic"}
+        with recording(reemit=False):  # the refits' warnings belong to them, not to this fit
+            return _fit(prob.data, model, None, None, **opts)[0]
 
     # analytic sensitivities at the estimate do not depend on the settling tolerance, so the last ones
     # serve the check too
     A_est = A_final if prob.sensitivity == "analytic" else None
-    return attach(prob, res, V, A_est)
+    return attach(prob, res, V, A_est, refit=refit)
 
 
 def _data_findings(prob: Problem, strict: bool) -> list:

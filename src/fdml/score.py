@@ -80,6 +80,7 @@ __all__ = [
     "ALIAS_LIMIT",
     "LR_EQUAL",
     "VUONG_EQUAL",
+    "blocked",
     "equally",
     "vuong_z",
     "ScreenContext",
@@ -281,6 +282,37 @@ def vuong_z(ca: np.ndarray, cb: np.ndarray) -> float:
     if sd <= 1e-12 * max(1.0, float(np.sum(np.abs(d)))):
         return 0.0
     return float(np.sum(d) / sd)
+
+
+def blocked(costs: np.ndarray, sizes, blocks) -> np.ndarray:
+    """Per-row costs summed over blocks of consecutive rows, each block one independent frequency.
+
+    A grid K times finer than 2 pi/T holds about one independent frequency in every K consecutive
+    points; Vuong's variance (:func:`vuong_z`) is taken over such blocks, record by record, so that
+    a fit's grid and the diagnosis's analysis grid give it from the same information.
+
+    Parameters
+    ----------
+    costs : numpy.ndarray
+        Cost (-2 ln L) of every stacked row.
+    sizes : sequence of int
+        Rows of each record, in stacking order.
+    blocks : sequence of int
+        Rows per independent frequency of each record (>= 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        The block sums, records concatenated.
+    """
+    out, off = [], 0
+    for n, b in zip(sizes, blocks):
+        b = max(int(b), 1)
+        c = np.asarray(costs[off : off + n], float)
+        off += n
+        nb = max(n // b, 1)
+        out.append(np.add.reduceat(c[: nb * b] if n >= b else c, np.arange(0, min(nb * b, n), b)))
+    return np.concatenate(out) if out else np.zeros(0)
 
 
 def equally(lr_best: float, lr_other: float, z: float) -> bool:

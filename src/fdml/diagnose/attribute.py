@@ -46,7 +46,7 @@ import numpy as np
 from ..channels import OUTPUTS
 from ..models.effects import Effect
 from ..parameters import Role
-from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, screen
+from ..score import ScreenContext, ScreenResult, blocked, davies_bound, holm, p_value, screen
 from ..score import grid_variation as _grid_variation
 from ..score import null_kind as _null_kind
 from ..score import vuong_z as score_vuong
@@ -354,8 +354,8 @@ def _loglik_terms(fit: DiagFit, rows: np.ndarray) -> np.ndarray:
     return out
 
 
-def vuong_z(fa: DiagFit, fb: DiagFit, rows: np.ndarray, dft: np.ndarray) -> float:
-    """Vuong's z for "fit a is better than fit b" on the independent frequencies (0 when they coincide).
+def vuong_z(fa: DiagFit, fb: DiagFit, rows: np.ndarray, sizes, block: int) -> float:
+    """Vuong's z for "fit a is better than fit b", over independent frequencies (0 when they coincide).
 
     Parameters
     ----------
@@ -363,27 +363,31 @@ def vuong_z(fa: DiagFit, fb: DiagFit, rows: np.ndarray, dft: np.ndarray) -> floa
         The two fits, on the same rows.
     rows : numpy.ndarray of int
         Noise band of each stacked row.
-    dft : numpy.ndarray
-        Shape (N,), bool: which rows are DFT points.
+    sizes : sequence of int
+        Rows of each record.
+    block : int
+        Grid points per independent frequency (the analysis grid's oversampling).
 
     Returns
     -------
     float
-        The z statistic, standard normal when the fits are equally good (:func:`fdml.score.vuong_z`
-        on the per-frequency costs ``-2 ln L``).
+        The z statistic (:func:`fdml.score.vuong_z` on the per-row costs ``-2 ln L`` summed over
+        blocks of ``block`` rows, :func:`fdml.score.blocked`), standard normal when the fits are
+        equally good.
     """
-    return score_vuong(-2.0 * _loglik_terms(fa, rows)[dft], -2.0 * _loglik_terms(fb, rows)[dft])
+    blocks = [block] * len(sizes)
+    ca = blocked(-2.0 * _loglik_terms(fa, rows), sizes, blocks)
+    cb = blocked(-2.0 * _loglik_terms(fb, rows), sizes, blocks)
+    return score_vuong(ca, cb)
 
 
-def choose(
-    tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = None, dft: np.ndarray | None = None
-) -> tuple:
+def choose(tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = None, data=None) -> tuple:
     """(best, ambiguity set) among the significant refitted candidates that are not demoted, or (None, []).
 
-    Candidates whose fitted size lies outside its plausible range are chosen only when no
-    plausible one is significant.  The ambiguity set holds every eligible candidate that these data
-    do not tell apart from the best (:func:`fdml.score.equally`: AIC within the 5 % point of chi2(1),
-    or Vuong's z below 1.96).
+    The rules of :mod:`fdml.verdict`: candidates whose fitted size lies in its plausible range
+    first, the lowest BIC, and an ambiguity set of every eligible candidate that these data do not
+    tell apart from the best (:func:`fdml.score.equally`: AIC within the 5 % point of chi2(1), or
+    Vuong's z below 1.96).
 
     Parameters
     ----------
@@ -394,9 +398,9 @@ def choose(
     n_obs : int
         Real independent observations, n of BIC.
     rows : numpy.ndarray of int, optional
-        Noise band of each stacked row (with ``dft``, enables Vuong's test).
-    dft : numpy.ndarray, optional
-        Shape (N,), bool: which stacked rows are DFT points (independent frequencies).
+        Noise band of each stacked row (with ``data``, enables Vuong's test).
+    data : AnalysisData, optional
+        The records' spectra (their sizes and the grid's oversampling).
 
     Returns
     -------
@@ -406,8 +410,9 @@ def choose(
         The eligible candidates these data do not tell apart from it (``best`` included).
     """
     sig = [c for c in tested if c.refitted and c.significant(alpha) and c.demoted is None]
+    sizes = [d.m for d in data.spectra] if data is not None else []
 
     def z_of(best, c):
-        return vuong_z(best.fit, c.fit, rows, dft) if rows is not None and dft is not None else 0.0
+        return vuong_z(best.fit, c.fit, rows, sizes, data.oversample) if rows is not None and sizes else 0.0
 
     return choose_among(sig, n_obs, z_of)

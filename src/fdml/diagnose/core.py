@@ -21,6 +21,7 @@ from ..models.base import Model
 from ..models.effects import Effect, default_library, registered_effects, root_model
 from ..parameters import Role
 from ..record import Record
+from ..verdict import ABSORBS
 from ..warning_log import merged, recording
 from .attribute import Candidate, attribute_step, choose, p_value
 from .data import AnalysisData, analysis_data
@@ -485,7 +486,7 @@ def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int)
             for s in skipped:
                 skipped_all.setdefault(s.key, s)
         all_tested.extend(tested)
-        best, amb = choose(tested, su.alpha, su.n_obs, su.rows, su.data.stacked_dft())
+        best, amb = choose(tested, su.alpha, su.n_obs, su.rows, su.data)
         if best is None:
             break
         if accepted:
@@ -933,6 +934,8 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> l
             n_unexplained=n_unexp_label,
             threshold=su.shrink_threshold,
         )
+        if sig and c.demoted:
+            lab = ABSORBS if c.demoted.startswith(ABSORBS) else "set aside"
         ranking.append(_rank_entry(c, lab, shr_, in_sample, h[0] if h else None, acc, su.n_obs, sig))
     gust, K0 = sel.gust, sel.family
     if gust is not None:
@@ -1029,6 +1032,7 @@ def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_
         "accepted": accepted,
         "step": c.step,
         "aliasing": c.screen.aliasing if c.screen is not None else None,
+        "demoted": c.demoted,
         "mde": c.screen.mde if c.screen is not None else None,
     }
 
