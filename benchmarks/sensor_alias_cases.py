@@ -98,8 +98,13 @@ CASES = {
     "c": Case(
         "alpha, az lag q 100 ms",
         truth_sim.Sensors(delays={"alpha": 0.1, "az": 0.1}),
-        # the same timing said two ways in today's library: alpha and az late, or elevator late and q early
-        (frozenset({"time_delay@alpha", "time_delay@az"}), frozenset({"time_delay@de", "time_delay@q"})),
+        # the timing group itself, or the same timing said in two parts: alpha and az late, or elevator
+        # late and q early
+        (
+            frozenset({"time_delay@alpha,az"}),
+            frozenset({"time_delay@alpha", "time_delay@az"}),
+            frozenset({"time_delay@de", "time_delay@q"}),
+        ),
     ),
     "d": Case("alpha lags 20 ms", truth_sim.Sensors(delays={"alpha": 0.02}), (frozenset({"time_delay@alpha"}),)),
     "e": Case("no effect", truth_sim.Sensors(), (frozenset(),)),
@@ -161,6 +166,9 @@ def flagged_ambiguous(report) -> bool | None:
     Looks for ``recommended.ambiguous``, then ``report.alternatives``, then the recommended
     brief's ``"ambiguous"``; None when fdml has none of them (today's code).
     """
+    v = (getattr(report, "recommendation", None) or {}).get("ambiguous")
+    if v is not None:
+        return bool(v)
     rec = report.recommended
     for v in (getattr(rec, "ambiguous", None), getattr(report, "alternatives", None)):
         if v is not None:
@@ -202,10 +210,16 @@ def _fit_part(rec, base) -> dict:
     t0 = time.perf_counter()
     res = fdml.fit(rec, base)
     flagged = res.adequacy.flagged if res.adequacy is not None else ()
+    verdict = res.adequacy.verdict if res.adequacy is not None else None
     tab, wz, wn = derivative_table(res)
+    if verdict is not None:  # the check's one ranking (issue 19): what the diagnosis would accept first
+        first, size = verdict.key, {k: v for k, (v, _) in verdict.params.items()}
+    else:
+        first, size = (flagged[0].key, dict(flagged[0].expected)) if flagged else (None, {})
     return {
-        "first": flagged[0].key if flagged else None,
-        "first_size": dict(flagged[0].expected) if flagged else {},
+        "first": first,
+        "first_size": size,
+        "first_aliases": list(verdict.aliases) if verdict is not None else [],
         "flagged": [e.key for e in flagged],
         "residual_flags": [c.name for c in res.adequacy.residual_flags] if res.adequacy is not None else [],
         "derivs": tab,

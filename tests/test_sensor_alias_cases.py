@@ -4,8 +4,8 @@ Each case is seed 0 of the benchmark: a 12 s 3-2-1-1 at 50 Hz with raised-cosine
 3 % noise, simulated by tests/independent_truth.py (no fdml model code).  What is asserted is what
 issue 19's "done when" asks of records that no fdml code made: no confident wrong answer (a
 recommended derivative more than 3 standard errors from the truth while the recommendation is not
-flagged ambiguous), and the clean and single-delay records named right.  The cases that fdml gets
-wrong today are marked xfail (strict: when the fix lands they pass, and the mark must go).
+flagged ambiguous), and every case named first by both the fit's adequacy check and the
+diagnosis (one ranking).
 """
 
 from __future__ import annotations
@@ -23,17 +23,7 @@ bench = importlib.util.module_from_spec(_spec)
 sys.modules.setdefault("sensor_alias_cases", bench)
 _spec.loader.exec_module(bench)
 
-_TODAY = "issue 19: an accelerometer offset is recommended as an alpha-vane offset (order decides)"
-_TIMING = "issue 19: relative timing of sensor groups is pieced together from two wrong effects"
-CASES = [
-    "a",
-    pytest.param("b+", marks=pytest.mark.xfail(strict=True, raises=AssertionError, reason=_TODAY)),
-    "b-",
-    pytest.param("c", marks=pytest.mark.xfail(strict=True, raises=AssertionError, reason=_TIMING)),
-    "d",
-    "e",
-    "f",
-]
+CASES = ["a", "b+", "b-", "c", "d", "e", "f"]
 
 
 @pytest.fixture(scope="module")
@@ -60,15 +50,15 @@ def test_no_confident_wrong_answer(rows, case):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("case", ["d", "e", "f"])
-def test_unaliased_cases_are_named_first(rows, case):
-    """A lone alpha or q lag is named first by both judges; the clean record by neither."""
+@pytest.mark.parametrize("case", CASES)
+def test_every_case_is_named_first_by_both(rows, case):
+    """Both judges name the truth first (the aliased offsets separated by the derivatives' physics,
+    the relative timing as one group); the clean record by neither."""
     r = rows(case)
     assert r["fit_names_truth"] and r["diagnose_names_truth"], bench.format_row(r)
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=_TIMING)
 def test_relative_timing_recovers_the_derivatives(rows):
     """Issue 19 done-when: alpha and a_z 100 ms behind q, the derivatives within 3 s.e. of the truth."""
     r = rows("c")
