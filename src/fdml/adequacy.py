@@ -974,14 +974,14 @@ def _airspeed(model) -> float | None:
 
 def _kinematics(prob, model):
     """The short-period identity on the fit's spectra (None without alpha, q and a_z or an airspeed)."""
-    from .kinematics import kinematic_evidence
+    from .kinematics import kinematic_evidence, known_terms
     from .models.base import OUTPUTS
 
     U = _airspeed(model)
     if U is None or sorted(prob.out_idx) != list(range(len(OUTPUTS))):
         return None
     try:
-        return kinematic_evidence(prob.data, U)
+        return kinematic_evidence(prob.data, U, known=known_terms(model))
     except (FdmlError, np.linalg.LinAlgError, ValueError):
         return None
 

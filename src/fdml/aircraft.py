@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
+from types import MappingProxyType
 
 from .errors import AircraftError
 
@@ -192,6 +193,11 @@ class Aircraft:
     lag_constants : str, optional
         A documented source for the lag constants the aircraft does not give
         (a key of :data:`LAG_SOURCES`: ``"jones"`` or ``"none"``); "" for none named.
+    sensors : mapping, optional
+        Known sensor positions, ``{"alpha": {"x": m}, "az": {"x": m}}``: the alpha vane's and the
+        normal accelerometer's distance ahead of the c.g. (aft negative), m.  Every model of the
+        aircraft applies them as known (fixed ``sensor_offset`` effects, :func:`fdml.models.make_model`),
+        and the diagnosis does not test them.
 
     Attributes
     ----------
@@ -216,6 +222,7 @@ class Aircraft:
     assumed: frozenset = frozenset()
     description: str = ""
     lag_constants: str = ""
+    sensors: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     given: frozenset = field(default=frozenset(), init=False, compare=False)
     lag_uncertainty: Mapping[str, float] = field(default_factory=dict, init=False, compare=False)
 
@@ -246,6 +253,7 @@ class Aircraft:
             raise AircraftError(f"aircraft {self.name!r}: assumed must be a list of key names, got {self.assumed!r}")
         if not isinstance(self.description, str):
             raise AircraftError(f"aircraft {self.name!r}: description must be text, got {self.description!r}")
+        object.__setattr__(self, "sensors", _checked_sensors(self.sensors, f"aircraft {self.name!r}"))
         unknown = set(self.constants) - set(CONSTANT_KEYS)
         if unknown:
             raise AircraftError(
@@ -333,6 +341,8 @@ class Aircraft:
         d.update({k: v for k, v in self.constants.items() if k in self.given})  # generic defaults stay implicit
         if self.lag_constants:
             d["lag_constants"] = self.lag_constants
+        if self.sensors:
+            d["sensors"] = {k: dict(v) for k, v in self.sensors.items()}
         d["description"] = self.description
         d["sources"] = dict(self.sources)
         d["assumed"] = sorted(self.assumed)
@@ -360,7 +370,10 @@ class Aircraft:
         if missing:
             raise AircraftError(f"{origin}: missing key(s) {', '.join(missing)} (all SI units)")
         extra = (
-            set(d) - set(REQUIRED_KEYS) - set(CONSTANT_KEYS) - {"description", "sources", "assumed", "lag_constants"}
+            set(d)
+            - set(REQUIRED_KEYS)
+            - set(CONSTANT_KEYS)
+            - {"description", "sources", "assumed", "lag_constants", "sensors"}
         )
         if extra:
             raise AircraftError(f"{origin}: unknown key(s) {', '.join(sorted(extra))}")
@@ -380,6 +393,7 @@ class Aircraft:
                 assumed=frozenset(assumed),
                 description=d.get("description", ""),
                 lag_constants=d.get("lag_constants", ""),
+                sensors=d.get("sensors", {}),
             )
         except AircraftError as exc:
             raise AircraftError(f"{origin}: {exc}") from None  # name the user's file
@@ -482,6 +496,37 @@ def missing_lag_message(ac: Aircraft, kind: str = "unsteady") -> str:
         'docs/theory.md section 2; downwash lag from WK Table 2; uncertainty recorded in the result) or "none" '
         "(no lag, by choice), or free the identifiable ones (fdml fit --free y_w z_w ...)"
     )
+
+
+#: Channels whose sensor position an aircraft file can give, and the effect parameter each one sets.
+SENSOR_POSITIONS = {"alpha": "x_alpha", "az": "x_az"}
+#: Largest |x| of a sensor position, m: outside it no airframe has a sensor.
+MAX_SENSOR_X = 50.0
+
+
+def _checked_sensors(sensors, where: str) -> dict:
+    """The ``sensors`` entry checked: known channels, one number ``x`` each, inside any airframe."""
+    example = '{"alpha": {"x": 13.0}, "az": {"x": 0.4}}'
+    if not isinstance(sensors, Mapping):
+        raise AircraftError(f"{where}: sensors must map channels to positions, e.g. {example}, got {sensors!r}")
+    out = {}
+    for ch, pos in sensors.items():
+        if ch not in SENSOR_POSITIONS:
+            raise AircraftError(
+                f"{where}: sensors: unknown channel {ch!r}; positions can be given for {', '.join(SENSOR_POSITIONS)}"
+            )
+        if not isinstance(pos, Mapping) or set(pos) != {"x"}:
+            raise AircraftError(
+                f'{where}: sensors: {ch} must be {{"x": metres ahead of the c.g.}}, e.g. {example}, got {pos!r}'
+            )
+        x = _real(pos["x"], f"{where}: sensors: {ch} x (m ahead of the c.g.)")
+        if abs(x) > MAX_SENSOR_X:
+            raise AircraftError(
+                f"{where}: sensors: {ch} x = {x:g} m lies outside any airframe (|x| <= {MAX_SENSOR_X:g} m); "
+                "give metres ahead of the c.g."
+            )
+        out[ch] = MappingProxyType({"x": x})
+    return MappingProxyType(out)
 
 
 def _real(value, what: str) -> float:

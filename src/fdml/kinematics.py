@@ -75,6 +75,7 @@ __all__ = [
     "KinematicEvidence",
     "kinematic_evidence",
     "sensor_terms",
+    "known_terms",
 ]
 
 #: Level at which the identity settles a sensor pattern or contradicts a candidate: 1e-3, about
@@ -189,6 +190,32 @@ def sensor_terms(effect, values: dict) -> SensorTerms | None:
         k = 1.0 + float(values["k_" + chans[0]])
         return SensorTerms(scales=tuple(k if c == chans[0] else 1.0 for c in _OUTPUTS))
     return None
+
+
+def known_terms(model) -> SensorTerms:
+    """The sensor terms of the effects a model holds fixed (known sensor positions, settled effects).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+
+    Returns
+    -------
+    SensorTerms
+        Their sum (empty when there are none).
+    """
+    from .models.effects import applied_effects
+
+    vals = model.parameters.values
+    out = SensorTerms()
+    for e in applied_effects(model):
+        names = [p.name for p in e.param_list(model)]
+        if names and all(not model.parameters[n].free for n in names):
+            t = sensor_terms(e, {n: vals[n] for n in names})
+            if t is not None:
+                out = out + t
+    return out
 
 
 @dataclass(frozen=True)

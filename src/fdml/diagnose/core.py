@@ -16,9 +16,9 @@ import numpy as np
 from ..channels import OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..estimate import NoiseModel
-from ..kinematics import KinematicEvidence, kinematic_evidence
+from ..kinematics import KinematicEvidence, kinematic_evidence, known_terms
 from ..models.base import Model
-from ..models.effects import Effect, default_library, registered_effects, root_model
+from ..models.effects import Effect, applied_effects, default_library, registered_effects, root_model
 from ..parameters import Role
 from ..record import Record
 from ..verdict import ABSORBS
@@ -115,7 +115,7 @@ def _kinematics(su, model) -> tuple[KinematicEvidence | None, str]:
     except (AttributeError, NotImplementedError, TypeError, ValueError):
         return None, "the kinematic identity needs the airspeed U"
     try:
-        return kinematic_evidence(su.data.spectra, U), ""
+        return kinematic_evidence(su.data.spectra, U, known=known_terms(model)), ""
     except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:  # reported, never fatal
         return None, f"the kinematic identity could not be evaluated: {exc}"
 
@@ -472,8 +472,9 @@ def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int)
     step_fits: list[DiagFit] = []
     skipped_all: dict = {}
     K0 = None
-    settled = {s.key for s in su.kin.settled} if su.kin is not None else set()
-    remaining = [e for e in su.effects if e.kind == "deterministic" and e.key not in settled]
+    # what the model already holds (known sensor positions, the kinematics' settled effects) is not tested
+    held = {e.key for e in applied_effects(base_fit.model)}
+    remaining = [e for e in su.effects if e.kind == "deterministic" and e.key not in held]
     for step in range(max(int(max_effects), 0)):
         step_fits.append(cur)
         tested, skipped = _step(su, cur, remaining, step, refit_top, fw)

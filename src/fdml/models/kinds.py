@@ -44,7 +44,9 @@ def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(),
     Returns
     -------
     Model
-        The model, with its default parameter set and the effects free at their nulls.
+        The model, with its default parameter set and the effects free at their nulls; the
+        aircraft's known sensor positions (its ``sensors`` entry) come first, as fixed
+        ``sensor_offset`` effects.
     """
     try:
         cls = MODEL_KINDS[kind]
@@ -56,4 +58,27 @@ def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(),
         model = cls(aircraft=aircraft, **options)
     except TypeError as exc:
         raise ParameterError(f"bad option for the {kind} model: {exc}") from None
+    model = known_sensors(model)
     return model.with_effects(effects) if effects else model
+
+
+def known_sensors(model: Model) -> Model:
+    """``model`` with its aircraft's known sensor positions applied: fixed ``sensor_offset`` effects.
+
+    Parameters
+    ----------
+    model : Model
+        A model whose aircraft may give ``sensors`` (:class:`~fdml.aircraft.Aircraft`).
+
+    Returns
+    -------
+    Model
+        The model, unchanged without known positions.
+    """
+    from ..aircraft import SENSOR_POSITIONS
+
+    sensors = getattr(getattr(model, "aircraft", None), "sensors", None) or {}
+    if not sensors:
+        return model
+    m = model.with_effects([f"sensor_offset:{ch}" for ch in sensors])
+    return m.fix({SENSOR_POSITIONS[ch]: float(pos["x"]) for ch, pos in sensors.items()})
