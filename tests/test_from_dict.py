@@ -19,7 +19,7 @@ import pytest
 
 import fdml
 from fdml import fit
-from fdml.adequacy import Adequacy
+from fdml.adequacy import Adequacy, Verdict
 from fdml.batch import ModelSpec
 from fdml.datacheck import DataCheck, check_data
 from fdml.design import Design, Discrimination, Prediction, design
@@ -31,11 +31,13 @@ from fdml.errors import FdmlError
 from fdml.findings import Finding
 from fdml.flightpath import CompatibilityResult, ParameterEstimate, check_compatibility
 from fdml.jsoncodec import dumps, to_jsonable
+from fdml.kinematics import KinematicEvidence, kinematic_evidence
 from fdml.models import make_model
 from fdml.parameters import Role, Slot
 from fdml.quality import ChannelQuality, QualityReport, check_quality
 from fdml.record import Record
 from fdml.simulate import simulate_maneuver
+from fdml.spectral import spectra
 from fdml.warning_log import RecordedWarning
 from fdml.wind import GustEstimate, gust_angle
 
@@ -140,6 +142,8 @@ def instances(record, fitted, air_record, plan, cell):
         Detectable: (plan.detectable[0], {}, True),
         Prediction: (plan.predicted, {"noise": plan.noise, "input": plan.input}, False),
         Design: (plan, {"input": plan.input}, False),
+        Verdict: (_delayed_fit().adequacy.verdict, {}, True),
+        KinematicEvidence: (kinematic_evidence([spectra(_delayed_record())], 53.6448), {}, False),
     }
 
 
@@ -160,7 +164,21 @@ CLASSES = [
     Detectable,
     Prediction,
     Design,
+    Verdict,
+    KinematicEvidence,
 ]
+
+
+def _delayed_record():
+    """A Navion record whose alpha lags 40 ms: the kinematics settle it, and a fit flags it."""
+    from fdml.diagnose.truth import simulate_truth
+
+    base = make_model("dimensional", "navion")
+    return simulate_truth(base, "time_delay@alpha", {"tau_alpha": 0.04}, maneuver="3211", noise=0.03, seed=5)
+
+
+def _delayed_fit():
+    return fit(_delayed_record(), make_model("dimensional", "navion"))
 
 
 def _through_json(obj) -> dict:
@@ -232,6 +250,8 @@ DAMAGE = {
     Detectable: ("minimum", "effect"),
     Prediction: ("CLa_w.stderr", "CLa_w.value"),
     Design: ("criterion", "band"),
+    Verdict: ("source", "params"),
+    KinematicEvidence: ("airspeed", "source"),
 }
 
 

@@ -285,6 +285,24 @@ class Verdict:
             lr=f.number("lr", default=0.0),
         )
 
+    @classmethod
+    def from_dict(cls, d, *, source: str = "adequacy verdict") -> Verdict:
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        Verdict
+            The verdict.
+        """
+        return cls.from_fields(Fields(d, source))
+
 
 @dataclass(frozen=True)
 class Adequacy:

@@ -761,6 +761,59 @@ class KinematicEvidence:
             "scales": {k: {"value": v, "stderr": e} for k, (v, e) in self.scales.items()},
         }
 
+    @classmethod
+    def from_dict(cls, d, *, source: str = "kinematic evidence") -> KinematicEvidence:
+        """Inverse of :meth:`to_dict`, every key checked (a missing or mistyped one raises a one-line
+        FdmlError naming ``source``).  The spectra are not written, so :meth:`check` of a read-back
+        evidence finds no contradiction.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message.
+
+        Returns
+        -------
+        KinematicEvidence
+            The evidence, without its spectra.
+        """
+        from .jsoncodec import Fields
+
+        f = Fields(d, source)
+
+        def finding(x) -> KinematicFinding:
+            keys = tuple(x.raw("keys")) if x.raw("keys", None) is not None else (x.string("key"),)
+            return KinematicFinding(
+                keys,
+                x.string("param"),
+                x.number("value"),
+                x.number("stderr"),
+                x.string("unit"),
+                x.number("lr"),
+                x.number("p_value", default=math.nan),
+            )
+
+        def effect(x) -> SensorEffect:
+            return SensorEffect(
+                x.string("key"), x.string("param"), x.number("value"), x.number("stderr"), x.string("unit"), finding(x)
+            )
+
+        scales = f.mapping("scales")
+        return cls(
+            records=tuple(str(r) for r in f.raw("records")),
+            airspeed=f.number("airspeed"),
+            tested=tuple(finding(x) for x in f.items("tested")),
+            settled=tuple(effect(x) for x in f.items("settled")),
+            aliases=tuple(tuple(effect(Fields(y, source)) for y in a) for a in f.raw("aliases")),
+            scales={k: (float(v["value"]), float(v["stderr"])) for k, v in scales.items()},
+            implausible=tuple(effect(x) for x in f.items("implausible", default=[])),
+            unresolved=tuple(effect(x) for x in f.items("unresolved", default=[])),
+            level=f.number("level"),
+            source=f.string("source"),
+        )
+
     def lines(self) -> list:
         """Text lines: the settled patterns, the alias sets and the scale ratios.
 
