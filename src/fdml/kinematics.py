@@ -237,6 +237,8 @@ class Pattern:
         Lag of each output (alpha, q, a_z) per unit size.
     offset : float
         Vane offset per unit size.
+    scale : int or None
+        The output (0 alpha, 1 q, 2 a_z) whose scale factor is 1 + size, for a scale pattern.
     """
 
     keys: tuple
@@ -264,7 +266,20 @@ class Pattern:
         return SensorTerms(tuple(size * x for x in self.lags), size * self.offset, scales)
 
     def batch(self, base: SensorTerms, sizes: np.ndarray) -> tuple:
-        """``base`` plus the pattern at each of ``sizes``, as the arrays of :func:`_batch`."""
+        """``base`` plus the pattern at each of ``sizes``, as the arrays of :func:`_batch`.
+
+        Parameters
+        ----------
+        base : SensorTerms
+            The terms the pattern is added to.
+        sizes : array_like
+            Sizes of the pattern, in :attr:`unit`.
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            Lags (G, 3), offsets (G,) and scales (G, 3).
+        """
         sizes = np.asarray(sizes, float)[:, None]
         lags = np.asarray(base.lags, float) + sizes * np.asarray(self.lags, float)
         off = base.offset + sizes[:, 0] * self.offset
@@ -662,6 +677,8 @@ class KinematicEvidence:
         The level of the tests.
     source : str
         What was used, in words.
+    _identity : object, optional
+        The identity on the records' spectra, for :meth:`check` (not written to JSON).
     """
 
     records: tuple
@@ -763,9 +780,10 @@ class KinematicEvidence:
 
     @classmethod
     def from_dict(cls, d, *, source: str = "kinematic evidence") -> KinematicEvidence:
-        """Inverse of :meth:`to_dict`, every key checked (a missing or mistyped one raises a one-line
-        FdmlError naming ``source``).  The spectra are not written, so :meth:`check` of a read-back
-        evidence finds no contradiction.
+        """Inverse of :meth:`to_dict`, every key checked.
+
+        A missing or mistyped key raises a one-line FdmlError naming ``source``.  The spectra are
+        not written, so :meth:`check` of a read-back evidence finds no contradiction.
 
         Parameters
         ----------

@@ -316,9 +316,11 @@ def blocked(costs: np.ndarray, sizes, blocks) -> np.ndarray:
 
 
 def equally(lr_best: float, lr_other: float, z: float) -> bool:
-    """Whether two hypotheses explain the data equally: their LRs differ by less than the 5 % point
-    of chi2(1) (:data:`LR_EQUAL`, the sampling spread of one hypothesis's own LR), or Vuong's z of the
-    difference is below :data:`VUONG_EQUAL` (the spread of the difference itself).
+    """Whether two hypotheses explain the data equally.
+
+    They do when their LRs differ by less than the 5 % point of chi2(1) (:data:`LR_EQUAL`, the
+    sampling spread of one hypothesis's own LR), or when Vuong's z of the difference is below
+    :data:`VUONG_EQUAL` (the spread of the difference itself).
 
     Parameters
     ----------
