@@ -664,15 +664,15 @@ class KinematicEvidence:
         sensor positions and plausible ranges separate a vane offset from an accelerometer offset).
     aliases : tuple of tuple of SensorEffect
         Significant patterns that others explain equally: each alias set's plausible members, best first.
+    scales : dict
+        ``kappa_alpha`` and ``kappa_az`` (K_q/K_alpha, K_q/K_az): ``(value, stderr)`` after the
+        settled patterns.
     implausible : tuple of SensorEffect
         Members of a significant pattern's alias set whose values lie outside their plausible ranges.
     unresolved : tuple of SensorEffect
         Members significant but below the data's resolution (:func:`resolution`): set aside.
     known : SensorTerms
         Sensor terms known beforehand (sensor positions from the aircraft file), applied first.
-    scales : dict
-        ``kappa_alpha`` and ``kappa_az`` (K_q/K_alpha, K_q/K_az): ``(value, stderr)`` after the
-        settled patterns.
     level : float
         The level of the tests.
     source : str
