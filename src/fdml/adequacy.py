@@ -60,7 +60,6 @@ from .errors import FdmlError
 from .jsoncodec import Fields
 from .score import (
     ScreenContext,
-    blocked,
     chi2_sf,
     f_sf,
     grid_variation,
@@ -68,7 +67,6 @@ from .score import (
     null_kind,
     p_value,
     screen_all,
-    vuong_z,
 )
 
 __all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "Verdict", "advice", "check", "invocation", "rank"]
@@ -1012,17 +1010,6 @@ def _independent_rows(prob) -> np.ndarray:
     return np.concatenate(out)
 
 
-def _loglik_cost(res, prob) -> np.ndarray:
-    """-2 ln L of a fit per independent frequency: ``2 (ln det R + v^H R^-1 v)`` (complex Gaussian) of every
-    row, summed over blocks of K rows (:func:`fdml.score.blocked`)."""
-    V = np.asarray(res.resid)
-    R = np.asarray(res.R)
-    W = np.linalg.inv(R)
-    q = np.real(np.einsum("nj,jk,nk->n", V.conj(), W.T, V))
-    rows = 2.0 * (np.linalg.slogdet(R)[1] + q)
-    return blocked(rows, [d.m for d in prob.data], [round(k) for k in _oversampling(prob)])
-
-
 def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Refit | None:
     from .models.effects import root_model
     from .verdict import judge
@@ -1102,10 +1089,7 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
     fits = [f for f in fits if f is not None]
     level = adequacy.alpha / max(len(fits), 1)
     eligible = [f for f in fits if f.p < level and f.demoted is None]
-    costs = {id(f): _loglik_cost(f.result, prob) for f in eligible}
-    best, aliases = choose_among(
-        eligible, 2.0 * n_ind * len(prob.out_idx), lambda b, c: vuong_z(costs[id(b)], costs[id(c)])
-    )
+    best, aliases = choose_among(eligible, 2.0 * n_ind * len(prob.out_idx))
     aside = tuple((f.effect.key, f.demoted) for f in fits if f.demoted is not None and f.p < level)
     if best is None:
         return Verdict(None, {}, {}, "refit", (), aside, 0.0) if aside else None

@@ -62,7 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .constants import G0
-from .score import chi2_sf, equally, vuong_z
+from .score import chi2_sf, equally
 
 __all__ = [
     "LEVEL",
@@ -342,6 +342,7 @@ def patterns() -> tuple:
 class _Record:
     """One record's spectra as the identity reads them."""
 
+    T: float  # record length, s
     s: np.ndarray  # j omega
     A: np.ndarray
     Q: np.ndarray
@@ -361,22 +362,47 @@ def _records(spectra) -> list:
         K = max(1.0, 2 * math.pi / (d.T * step))
         N = np.column_stack([np.ones_like(s), np.exp(-s * d.T), np.asarray(d.ones)[keep]])
         z = np.asarray(d.z)[keep]
-        out.append(_Record(s, z[:, 0], z[:, 1], z[:, 2], N, K, max(int(round(K)), 1)))
+        out.append(_Record(float(d.T), s, z[:, 0], z[:, 1], z[:, 2], N, K, max(int(round(K)), 1)))
     return out
 
 
-def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scales: np.ndarray):
-    """The spectra with sensor terms undone, for a batch of G hypotheses: alpha at the accelerometer's
-    station, q, a_z, each of shape (G, m).  ``lags``, ``scales``: (G, 3); ``offset``: (G,), m."""
-    s = r.s[None, :]
+def _shifts(r: _Record, lags: np.ndarray) -> list:
+    """exp(s tau) of each output's lag, shape (G, m), or None where no hypothesis lags it."""
+    return [np.exp(r.s[None, :] * lags[:, j : j + 1]) if np.any(lags[:, j]) else None for j in range(3)]
 
-    def undo(x, j):  # the lag and scale of output j undone (exp only where a lag is set)
-        lag = lags[:, j : j + 1]
-        return (np.exp(s * lag) * x if np.any(lag) else x[None, :]) / scales[:, j : j + 1]
+
+def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scales: np.ndarray, shifts=None):
+    """The spectra with sensor terms undone, for a batch of G hypotheses: alpha at the accelerometer's
+    station, q, a_z, each of shape (G, m).  ``lags``, ``scales``: (G, 3); ``offset``: (G,), m;
+    ``shifts``: :func:`_shifts` of ``lags`` when the caller has them."""
+    shifts = _shifts(r, lags) if shifts is None else shifts
+
+    def undo(x, j):  # the lag and scale of output j undone
+        e = shifts[j]
+        return (e * x if e is not None else x[None, :]) / scales[:, j : j + 1]
 
     Q = undo(r.Q, 1)
     A = undo(r.A, 0) + (offset[:, None] * c / G0) * Q  # d/U = d c/g
     return A, Q, undo(r.Z, 2)
+
+
+def _end_columns(r: _Record, c: float, shifts: list) -> np.ndarray | None:
+    """Regressors of the record ends a lag moves, shape (G, m, k); None when no output lags.
+
+    A channel recorded tau late, x_m(t) = x(t - tau), has ``exp(s tau) x~_m = x~ + x(0)(exp(s tau) - 1)/s
+    - x(T) exp(-sT)(exp(s tau) - 1)/s`` to first order over the tau-long end pieces: the ends' values
+    enter with the two columns ``(exp(s tau) - 1)`` and ``(exp(s tau) - 1) exp(-sT)``, over s for q and
+    a_z (alpha's enters the identity times s), with free real coefficients (the ends' values).
+    """
+    cols = []
+    s = r.s[None, :]
+    eT = np.exp(-s * r.T)
+    for e, scale in zip(shifts, (1.0, -1.0 / s, -c / s)):
+        if e is None:
+            continue
+        f = (e - 1.0) * scale
+        cols += [f, f * eT]
+    return np.stack(np.broadcast_arrays(*cols), axis=-1) if cols else None
 
 
 def _batch(terms) -> tuple:
@@ -409,10 +435,22 @@ class _Identity:
         lags, off, sc = terms if isinstance(terms, tuple) else _batch(terms)
         out = []
         for r, w, B in zip(self.recs, self.weights, self.basis):
-            A, Q, Z = _corrected(r, self.c, lags, off, sc)
+            shifts = _shifts(r, lags)
+            A, Q, Z = _corrected(r, self.c, lags, off, sc, shifts)
             y = r.s * A - Q - self.c * Z
-            yr = np.concatenate([y.real, y.imag], axis=1) * np.concatenate([w, w])
-            out.append(yr - (yr @ B) @ B.T)
+            ww = np.concatenate([w, w])
+            yr = np.concatenate([y.real, y.imag], axis=1) * ww
+            yr = yr - (yr @ B) @ B.T
+            E = _end_columns(r, self.c, shifts)
+            if E is not None:  # Frisch-Waugh: the end columns, with the boundary nuisance projected out
+                Er = np.concatenate([E.real, E.imag], axis=1) * ww[None, :, None]
+                Er = Er - B @ (B.T @ Er)
+                Et = Er.transpose(0, 2, 1)
+                G = Et @ Er
+                ridge = 1e-12 * np.trace(G, axis1=1, axis2=2)[:, None, None] * np.eye(G.shape[1]) + 1e-300
+                coef = np.linalg.solve(G + ridge, Et @ yr[..., None])
+                yr = yr - (Er @ coef)[..., 0]
+            out.append(yr)
         return out
 
     def costs(self, terms) -> np.ndarray:
@@ -422,16 +460,6 @@ class _Identity:
     def terms_cost(self, t: SensorTerms) -> float:
         """The cost of one hypothesis."""
         return float(self.costs([t])[0])
-
-    def contributions(self, t: SensorTerms) -> np.ndarray:
-        """Cost per independent frequency (blocks of K grid points), all records."""
-        out = []
-        for r, e in zip(self.recs, self.errors([t])):
-            m = r.s.size
-            per = 2.0 * (e[0, :m] ** 2 + e[0, m:] ** 2) / r.K
-            nb = max(m // r.block, 1)
-            out.append(np.add.reduceat(per[: nb * r.block], np.arange(0, nb * r.block, r.block)))
-        return np.concatenate(out)
 
     def scales(self, t: SensorTerms) -> dict:
         """kappa_alpha and kappa_az (K_q/K_alpha, K_q/K_az) with standard errors, all records pooled:
@@ -476,16 +504,16 @@ def _basis(r: _Record, w: np.ndarray) -> np.ndarray:
     return q
 
 
-def _profile(idn: _Identity, base: SensorTerms, pat: Pattern) -> tuple[float, float, float]:
-    """(size, cost, standard error) of ``pat`` on top of ``base``: a grid, then two finer grids."""
+def _profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int = 2) -> tuple[float, float, float]:
+    """(size, cost, standard error) of ``pat`` on top of ``base``: a grid, then ``refine`` finer grids."""
     lo, hi = pat.bounds
-    grid = np.linspace(lo, hi, 61)
-    for _ in range(3):
+    grid = np.linspace(lo, hi, 51)
+    for _ in range(1 + refine):
         costs = idn.costs(pat.batch(base, grid))
         i = int(np.argmin(costs))
         a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-        grid = np.linspace(a, b, 21)
-    x = float(grid[10]) if i not in (0,) else float(grid[0])
+        grid = np.linspace(a, b, 15)
+    x = float(grid[7]) if i not in (0,) else float(grid[0])
     h = 1e-4 * (hi - lo)
     x = float(np.clip(x, lo, hi))
     cm, c0, cp = idn.costs(pat.batch(base, np.clip([x - h, x, x + h], lo, hi)))
@@ -869,23 +897,22 @@ def _p_value(pat: Pattern, lr: float) -> float:
     return chi2_sf(lr, 1)
 
 
-def _search(idn: _Identity, base: SensorTerms, rnd: int) -> list:
-    """Every pattern on top of ``base``: findings (largest LR first) and their cost contributions."""
+def _search(idn: _Identity, base: SensorTerms, rnd: int, refine: int = 2) -> list:
+    """Every pattern on top of ``base``: findings, largest LR first."""
     c0 = idn.terms_cost(base)
     found = []
     for pat in patterns():
-        x, c, se = _profile(idn, base, pat)
+        x, c, se = _profile(idn, base, pat, refine)
         lr = max(c0 - c, 0.0)
-        f = KinematicFinding(pat.keys, pat.param, x, se, pat.unit, lr, _p_value(pat, lr), rnd)
-        found.append((f, idn.contributions(base + pat.terms(x))))
-    found.sort(key=lambda fc: -fc[0].lr)
+        found.append(KinematicFinding(pat.keys, pat.param, x, se, pat.unit, lr, _p_value(pat, lr), rnd))
+    found.sort(key=lambda f: -f.lr)
     return found
 
 
 def _alias_set(found: list) -> list:
     """The findings that explain the identity equally with the best (:func:`equally`)."""
-    best, cb = found[0]
-    return [f for f, c in found if f is best or equally(best.lr, f.lr, vuong_z(cb, c))]
+    best = found[0]
+    return [f for f in found if f is best or equally(best.lr, f.lr)]
 
 
 def kinematic_evidence(
@@ -915,7 +942,7 @@ def kinematic_evidence(
     known = known or SensorTerms()
     # the equation-error variance from the residuals of the best single pattern: estimated under no
     # pattern at all it would hold the very misfit the patterns explain, and cap every LR
-    first = _search(_identity(spectra, U, known), known, 0)[0][0]
+    first = _search(_identity(spectra, U, known), known, 0, refine=0)[0]
     base = known
     idn = _identity(spectra, U, known + _pattern_of(first).terms(first.value))
     settled, aliases, tested, implausible, unresolved = [], [], [], [], []
@@ -923,8 +950,8 @@ def kinematic_evidence(
     for rnd in range(max_rounds):
         found = _search(idn, base, rnd)
         if rnd == 0:
-            tested = [f for f, _ in found]
-        if found[0][0].p >= level:
+            tested = list(found)
+        if found[0].p >= level:
             break
         members = [m for f in _alias_set(found) for m in _members(f, dt, U)]
         implausible += [m for m in members if not m.plausible]

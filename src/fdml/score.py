@@ -79,10 +79,7 @@ from .models.effects import Effect
 __all__ = [
     "ALIAS_LIMIT",
     "LR_EQUAL",
-    "VUONG_EQUAL",
-    "blocked",
     "equally",
-    "vuong_z",
     "ScreenContext",
     "ScreenResult",
     "bh",
@@ -250,91 +247,33 @@ def p_value(lr: float, q: int, null: str, *, V: float = 0.0, n_grid: int = 1) ->
     return math.exp(lp), lp
 
 
-#: Two hypotheses explain the data equally when Vuong's z of their cost difference is below this
-#: (two-sided 5 %: the difference is within 1.96 of its own sampling standard deviation) ...
-VUONG_EQUAL = 1.96
-#: ... or when their likelihood ratios (penalised by Akaike's 2 per parameter when they differ in
-#: size) differ by less than the 5 % point of chi2(1), the sampling spread of one LR about its mean:
-#: with few independent frequencies (a 6 s record has nine in the short-period band) Vuong's
-#: variance is estimated from too few terms to be trusted alone.
-LR_EQUAL = 3.84
+#: Two hypotheses explain the data equally when their likelihood ratios differ by less than this:
+#: (2 x 1.96)^2, the difference within 1.96 of its own sampling standard deviation (see :func:`equally`).
+LR_EQUAL = (2 * 1.959964) ** 2
 
 
-def vuong_z(ca: np.ndarray, cb: np.ndarray) -> float:
-    """Vuong's (1989) z that hypothesis b is worse than a, from their costs per independent frequency.
+def equally(lr_best: float, lr_other: float) -> bool:
+    """Whether two hypotheses explain the data equally: their LRs differ by less than :data:`LR_EQUAL`.
 
-    ``z = sum(cb - ca) / sqrt(sum((d - mean d)^2))`` with ``d = cb - ca`` (each cost is -2 ln L, so
-    the sum of d is the likelihood-ratio statistic of a over b); 0 when the two coincide at every
-    frequency (an exact alias).
-
-    Parameters
-    ----------
-    ca, cb : numpy.ndarray
-        Costs per independent frequency of the two hypotheses.
-
-    Returns
-    -------
-    float
-        The z statistic, standard normal when the two explain the data equally.
-    """
-    d = np.asarray(cb, float) - np.asarray(ca, float)
-    sd = float(np.sqrt(np.sum((d - d.mean()) ** 2)))
-    if sd <= 1e-12 * max(1.0, float(np.sum(np.abs(d)))):
-        return 0.0
-    return float(np.sum(d) / sd)
-
-
-def blocked(costs: np.ndarray, sizes, blocks) -> np.ndarray:
-    """Per-row costs summed over blocks of consecutive rows, each block one independent frequency.
-
-    A grid K times finer than 2 pi/T holds about one independent frequency in every K consecutive
-    points; Vuong's variance (:func:`vuong_z`) is taken over such blocks, record by record, so that
-    a fit's grid and the diagnosis's analysis grid give it from the same information.
-
-    Parameters
-    ----------
-    costs : numpy.ndarray
-        Cost (-2 ln L) of every stacked row.
-    sizes : sequence of int
-        Rows of each record, in stacking order.
-    blocks : sequence of int
-        Rows per independent frequency of each record (>= 1).
-
-    Returns
-    -------
-    numpy.ndarray
-        The block sums, records concatenated.
-    """
-    out, off = [], 0
-    for n, b in zip(sizes, blocks):
-        b = max(int(b), 1)
-        c = np.asarray(costs[off : off + n], float)
-        off += n
-        nb = max(n // b, 1)
-        out.append(np.add.reduceat(c[: nb * b] if n >= b else c, np.arange(0, min(nb * b, n), b)))
-    return np.concatenate(out) if out else np.zeros(0)
-
-
-def equally(lr_best: float, lr_other: float, z: float) -> bool:
-    """Whether two hypotheses explain the data equally.
-
-    They do when their LRs differ by less than the 5 % point of chi2(1) (:data:`LR_EQUAL`, the
-    sampling spread of one hypothesis's own LR), or when Vuong's z of the difference is below
-    :data:`VUONG_EQUAL` (the spread of the difference itself).
+    Against a common null, the two likelihood ratios differ by ``dLR = 2 sum |d_i|^2 / v_i`` plus the
+    noise's share ``4 sum Re(n_i^* d_i) / v_i`` (``d_i`` the difference of the two fits' predictions at
+    frequency i, ``v_i`` the noise variance, a grid K times finer than 2 pi/T counted 1/K).  That share
+    has standard deviation ``2 sqrt(dLR)`` whatever the grid, so the better one is told apart at the
+    two-sided 5 % level only when ``dLR > 2 x 1.96 sqrt(dLR)``, i.e. ``dLR > (2 x 1.96)^2 = 15.4``.  The
+    rule is a function of the two LRs alone, so a fit's adequacy check and the diagnosis apply it alike.
+    With parameter counts that differ, pass Akaike-penalised values (``LR - 2 q``).
 
     Parameters
     ----------
     lr_best, lr_other : float
         Likelihood ratios of the two against a common null.
-    z : float
-        Vuong's z (:func:`vuong_z`) that the other is worse.
 
     Returns
     -------
     bool
         True when the data cannot tell them apart.
     """
-    return lr_best - lr_other < LR_EQUAL or z < VUONG_EQUAL
+    return lr_best - lr_other < LR_EQUAL
 
 
 def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> tuple[str, int]:

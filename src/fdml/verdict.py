@@ -16,9 +16,10 @@ both use these rules, so that they give one answer (issue 19):
 
 3. among the rest, a candidate whose size lies in its plausible range is preferred; the best is
    the one of lowest BIC (``q ln n - LR``);
-4. every eligible candidate that explains the data **equally** (:func:`fdml.score.equally`: AIC
-   within the 5 % point of chi2(1), or Vuong's z below 1.96) joins its alias set; with more than
-   one member the choice is ambiguous, and the order of the library never decides.
+4. every eligible candidate that explains the data **equally** (:func:`fdml.score.equally`: its
+   likelihood ratio, Akaike-penalised, within (2 x 1.96)^2 = 15.4 of the best's, i.e. the
+   difference within 1.96 of its own sampling standard deviation) joins its alias set; with more
+   than one member the choice is ambiguous, and the order of the library never decides.
 """
 
 from __future__ import annotations
@@ -86,7 +87,7 @@ def judge(effect, params: dict, model, derivatives: dict, kin=None, *, dt: float
     return None
 
 
-def choose_among(cands: list, n_obs: float, z_of) -> tuple:
+def choose_among(cands: list, n_obs: float) -> tuple:
     """(best, alias set) among eligible candidates (rules 3 and 4), or (None, []).
 
     Parameters
@@ -96,9 +97,6 @@ def choose_among(cands: list, n_obs: float, z_of) -> tuple:
         ``plausible``.
     n_obs : float
         Real independent observations, n of BIC.
-    z_of : callable
-        ``z_of(best, other) -> float``: Vuong's z that ``other`` is worse than ``best`` (0 when
-        unknown).
 
     Returns
     -------
@@ -113,4 +111,4 @@ def choose_among(cands: list, n_obs: float, z_of) -> tuple:
     logn = math.log(max(n_obs, 2))
     best = min(pool, key=lambda c: c.q_eff * logn - c.lr)
     aic = best.lr - 2 * best.q_eff
-    return best, [c for c in pool if c is best or equally(aic, c.lr - 2 * c.q_eff, z_of(best, c))]
+    return best, [c for c in pool if c is best or equally(aic, c.lr - 2 * c.q_eff)]

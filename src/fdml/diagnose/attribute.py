@@ -46,10 +46,9 @@ import numpy as np
 from ..channels import OUTPUTS
 from ..models.effects import Effect
 from ..parameters import Role
-from ..score import ScreenContext, ScreenResult, blocked, davies_bound, holm, p_value, screen
+from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, screen
 from ..score import grid_variation as _grid_variation
 from ..score import null_kind as _null_kind
-from ..score import vuong_z as score_vuong
 from ..verdict import choose_among, judge
 from .likelihood import DiagFit, fit_model, likelihood_ratio
 
@@ -340,54 +339,13 @@ def _outputs(options):
     return tuple(outs)
 
 
-def _loglik_terms(fit: DiagFit, rows: np.ndarray) -> np.ndarray:
-    """Per-row complex-Gaussian log-likelihood ``-ln det R_b - v^H R_b^-1 v``."""
-    out = np.empty(fit.V.shape[0])
-    for b, R in enumerate(fit.Rs):
-        sel = rows == b
-        if not np.any(sel):
-            continue
-        W = np.linalg.inv(R)
-        v = fit.V[sel]
-        q = np.real(np.einsum("nj,jk,nk->n", v.conj(), W.T, v))
-        out[sel] = -np.linalg.slogdet(R)[1] - q
-    return out
-
-
-def vuong_z(fa: DiagFit, fb: DiagFit, rows: np.ndarray, sizes, block: int) -> float:
-    """Vuong's z for "fit a is better than fit b", over independent frequencies (0 when they coincide).
-
-    Parameters
-    ----------
-    fa, fb : DiagFit
-        The two fits, on the same rows.
-    rows : numpy.ndarray of int
-        Noise band of each stacked row.
-    sizes : sequence of int
-        Rows of each record.
-    block : int
-        Grid points per independent frequency (the analysis grid's oversampling).
-
-    Returns
-    -------
-    float
-        The z statistic (:func:`fdml.score.vuong_z` on the per-row costs ``-2 ln L`` summed over
-        blocks of ``block`` rows, :func:`fdml.score.blocked`), standard normal when the fits are
-        equally good.
-    """
-    blocks = [block] * len(sizes)
-    ca = blocked(-2.0 * _loglik_terms(fa, rows), sizes, blocks)
-    cb = blocked(-2.0 * _loglik_terms(fb, rows), sizes, blocks)
-    return score_vuong(ca, cb)
-
-
-def choose(tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = None, data=None) -> tuple:
+def choose(tested: list, alpha: float, n_obs: int) -> tuple:
     """(best, ambiguity set) among the significant refitted candidates that are not demoted, or (None, []).
 
     The rules of :mod:`fdml.verdict`: candidates whose fitted size lies in its plausible range
     first, the lowest BIC, and an ambiguity set of every eligible candidate that these data do not
-    tell apart from the best (:func:`fdml.score.equally`: AIC within the 5 % point of chi2(1), or
-    Vuong's z below 1.96).
+    tell apart from the best (:func:`fdml.score.equally`: the Akaike-penalised LR within 15.4 of the
+    best's, the difference within 1.96 of its own sampling standard deviation).
 
     Parameters
     ----------
@@ -397,10 +355,6 @@ def choose(tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = Non
         Family-wise level.
     n_obs : int
         Real independent observations, n of BIC.
-    rows : numpy.ndarray of int, optional
-        Noise band of each stacked row (with ``data``, enables Vuong's test).
-    data : AnalysisData, optional
-        The records' spectra (their sizes and the grid's oversampling).
 
     Returns
     -------
@@ -410,9 +364,4 @@ def choose(tested: list, alpha: float, n_obs: int, rows: np.ndarray | None = Non
         The eligible candidates these data do not tell apart from it (``best`` included).
     """
     sig = [c for c in tested if c.refitted and c.significant(alpha) and c.demoted is None]
-    sizes = [d.m for d in data.spectra] if data is not None else []
-
-    def z_of(best, c):
-        return vuong_z(best.fit, c.fit, rows, sizes, data.oversample) if rows is not None and sizes else 0.0
-
-    return choose_among(sig, n_obs, z_of)
+    return choose_among(sig, n_obs)

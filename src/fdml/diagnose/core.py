@@ -487,7 +487,7 @@ def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int)
             for s in skipped:
                 skipped_all.setdefault(s.key, s)
         all_tested.extend(tested)
-        best, amb = choose(tested, su.alpha, su.n_obs, su.rows, su.data)
+        best, amb = choose(tested, su.alpha, su.n_obs)
         if best is None:
             break
         if accepted:
