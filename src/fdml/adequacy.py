@@ -68,11 +68,13 @@ from .score import (
     p_value,
     screen_all,
 )
+from .verdict import LEVEL
 
 __all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "Verdict", "advice", "check", "invocation", "rank"]
 
-#: Family-wise level of the adequacy check (every fit runs it: 1 in 100 adequate fits warns).
-ALPHA = 0.01
+#: Family-wise level of the adequacy check (every fit runs it: 1 in 100 adequate fits warns); the
+#: diagnosis's too (:data:`fdml.verdict.LEVEL`).
+ALPHA = LEVEL
 #: Bands of the residual checks: at most this many, each with at least MIN_BAND independent frequencies.
 MAX_BANDS = 4
 MIN_BAND = 6

@@ -6,7 +6,14 @@ simulated with one withheld effect; see :mod:`fdml.diagnose.validation`).
 
 from __future__ import annotations
 
+from ..verdict import LEVEL
 from . import _options as O
+
+
+def _level() -> float:
+    from ..verdict import LEVEL  # deferred: the parser must not import the numerics (fdml --help)
+
+    return LEVEL
 
 
 def register(sub) -> None:
@@ -40,7 +47,12 @@ def register(sub) -> None:
         help="outputs in the fit, comma-separated, each once (default alpha,q,az)",
     )
     p.add_argument("--library", metavar="NAME,...", help="candidate effects (default: all registered)")
-    p.add_argument("--alpha", type=float, default=0.05, help="family-wise level (default 0.05)")
+    p.add_argument(
+        "--alpha",
+        type=float,
+        default=LEVEL,
+        help=f"family-wise level (default {LEVEL:g}, as every fit's adequacy check)",
+    )
     p.add_argument("--max-effects", type=int, default=2, help="greedy forward selection limit (default 2)")
     p.add_argument(
         "--noise-model", choices=("band", "white"), default=None, help="noise model of the likelihood (default band)"
@@ -168,7 +180,7 @@ def run(args) -> int:
         band=args.band,
         bands=bands,
         library=library,
-        alpha=args.alpha,
+        alpha=args.alpha if args.alpha is not None else _level(),
         max_effects=args.max_effects,
         outputs=outputs,
         trim="first",

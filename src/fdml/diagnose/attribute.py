@@ -49,7 +49,7 @@ from ..parameters import Role
 from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, screen
 from ..score import grid_variation as _grid_variation
 from ..score import null_kind as _null_kind
-from ..verdict import choose_among, judge
+from ..verdict import LEVEL, choose_among, judge
 from .likelihood import DiagFit, fit_model, likelihood_ratio
 
 __all__ = ["Candidate", "attribute_step", "p_value", "davies_bound", "choose"]
@@ -228,7 +228,7 @@ def attribute_step(
     rows,
     options: dict,
     *,
-    alpha: float = 0.05,
+    alpha: float = LEVEL,
     refit_top: int = 4,
     step: int = 0,
     n_obs: int = 1,

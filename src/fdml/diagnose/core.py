@@ -21,7 +21,7 @@ from ..models.base import Model
 from ..models.effects import Effect, applied_effects, default_library, registered_effects, root_model
 from ..parameters import Role
 from ..record import Record
-from ..verdict import ABSORBS
+from ..verdict import ABSORBS, LEVEL
 from ..warning_log import merged, recording
 from .attribute import Candidate, attribute_step, choose, p_value
 from .data import AnalysisData, analysis_data
@@ -239,7 +239,7 @@ def diagnose(
     band=None,
     bands=None,
     library=None,
-    alpha: float = 0.05,
+    alpha: float = LEVEL,
     max_effects: int = 2,
     oversample: int = 2,
     noise: str = "band",
