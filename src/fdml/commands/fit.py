@@ -84,7 +84,7 @@ def _progress_callback(enabled: bool):
             "fdml: note: --progress needs tqdm (pip install 'fdml[progress]'); fitting without a progress bar\n"
         )
         return None
-    return TqdmProgress(desc="fdml fit", leave=False)
+    return TqdmProgress(desc="fdml fit", leave=True)  # the last state stays: N iterations
 
 
 def run(args) -> int:
