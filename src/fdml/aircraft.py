@@ -320,6 +320,21 @@ class Aircraft:
             return self.lag_constants
         return "aircraft file" if self.given & set(LAG_KEYS) else None
 
+    @property
+    def placeholders(self) -> dict[str, str]:
+        """Constants at a generic start value (:data:`GENERIC_CONSTANTS`) that nothing gave: name -> "generic NAME = V".
+
+        A constant the description gives, one filled from a named lag source, and
+        the lag constants of ``"lag_constants": "none"`` (no lag, chosen) are not
+        placeholders.
+        """
+        out = {}
+        for k in CONSTANT_KEYS:
+            chosen = k in LAG_KEYS and self.lag_constants == "none"
+            if k not in self.given and k not in self.lag_uncertainty and not chosen:
+                out[k] = f"generic {k} = {GENERIC_CONSTANTS[k]:g}"
+        return out
+
     # --- derived quantities --------------------------------------------------
     @property
     def k_z(self) -> float:
