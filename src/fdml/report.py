@@ -176,12 +176,13 @@ def _markdown(res, source, figures, notes) -> str:
     from . import __version__
 
     s = res.summary()
+    s = type(s)(s.title, s.header, s.tables, [n for n in s.notes if n[0] != "warnings"], digits=s.digits)
     lines = [f"# fdml report: {res.model.describe()}", ""]
     if source is not None:
         lines.append(f"Result file: `{source.name}` (fdml {__version__}).")
     else:
         lines.append(f"fdml {__version__}.")
-    lines += ["", "## Summary", "", s.as_markdown().replace("### ", "#### ", 1), ""]
+    lines += ["", "## Summary", "", s.as_markdown().replace("### ", "#### ", 1), ""]  # warnings: below, once
     lines += ["## Convergence", ""]
     verdict = "stopped by the callback" if res.stopped else "converged" if res.converged else "NOT converged"
     lines.append(f"{verdict} after {res.iterations} iterations ({res.method}, stop rule {res.stop!r}): {res.message}.")

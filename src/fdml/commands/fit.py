@@ -141,9 +141,7 @@ def run(args) -> int:
             out["result_file"] = args.output
         print_json(out)
     else:
-        print(res.summary())
-        if provenance["airspeed"]["source"] == "record":
-            print(f"\nairspeed U = {provenance['airspeed']['value']:.4g} m/s: the record's mean airspeed")
+        print(res.summary())  # its header gives the airspeed and where it came from
         if args.output:
             print(f"\nwrote {args.output}")
     return 0 if res.converged else 1
