@@ -390,14 +390,20 @@ def _scorer(criterion: str, model, steady, stds, band, targets):
 
 
 def plot_design(d: Design, fig=None):
-    """Input history and its spectrum (with the baselines'), and predicted stderr ratios.
+    """Input history, its spectrum against the baselines', and the predicted stderr ratios, under a title.
+
+    The title names the criterion, the input, its length, peak and band; each
+    input's entry in the spectrum legend gives its lambda and P(compare) when
+    the model is unsteady (the probability that ``fdml compare`` favours the
+    unsteady model, :mod:`fdml.design.discrimination`).  Legends sit beside
+    the panels, off the data.
 
     Parameters
     ----------
     d : Design
         The plan.
     fig : matplotlib.figure.Figure, optional
-        Figure to draw in (default: a new 10 x 7 in figure).
+        Figure to draw in (default: a new 11 x 8 in figure, constrained layout).
 
     Returns
     -------
@@ -408,7 +414,7 @@ def plot_design(d: Design, fig=None):
 
     from .inputs import spectrum
 
-    fig = fig or plt.figure(figsize=(10, 7))
+    fig = fig or plt.figure(figsize=(11, 8), layout="constrained")
     ax1, ax2, ax3 = fig.add_subplot(311), fig.add_subplot(312), fig.add_subplot(313)
     ax1.plot(d.input.t, np.degrees(d.input.de), label=d.input.name)
     ax1.set_xlabel("t, s")
@@ -417,10 +423,10 @@ def plot_design(d: Design, fig=None):
     for name, inp in [(d.input.name, d.input)] + [(k, p.input) for k, p in d.baselines.items()]:
         if inp is None:  # a baseline read back without its history (Design.from_dict)
             continue
-        ax2.semilogy(omega, np.degrees(spectrum(inp, omega)), label=name)
+        ax2.semilogy(omega, np.degrees(spectrum(inp, omega)), label=_with_discrimination(name, d.discrimination))
     ax2.set_xlabel("omega, rad/s")
     ax2.set_ylabel("|de(j omega)|, deg s")
-    ax2.legend(fontsize=8)
+    ax2.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     gains = d.gains()
     names = list(d.predicted.to_dict())
     x = np.arange(len(names))
@@ -430,6 +436,23 @@ def plot_design(d: Design, fig=None):
     ax3.set_xticks(x + 0.4 - 0.4 / max(len(gains), 1), names, fontsize=8)
     ax3.set_ylabel("stderr ratio baseline / design")
     if gains:
-        ax3.legend(fontsize=8)
-    fig.tight_layout()
+        ax3.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.suptitle(_design_title(d))
     return fig
+
+
+def _with_discrimination(name: str, disc: dict) -> str:
+    """An input's legend entry: its name, and its lambda and P(compare) when it has them."""
+    if name not in disc:
+        return name
+    return f"{name}: lambda {disc[name].noncentrality:.3g}, P(compare) {disc[name].vuong:.2f}"
+
+
+def _design_title(d: Design) -> str:
+    """What was designed: criterion, input, length, peak, band (and why no lambda, for a steady model)."""
+    peak = math.degrees(float(np.max(np.abs(d.input.de)))) if len(d.input.de) else math.nan
+    lo, hi = d.band[0], d.band[1]
+    title = f"{d.criterion} design: {d.input.name}, {d.input.t[-1]:g} s, peak {peak:.3g} deg, band {lo:g}-{hi:g} rad/s"
+    if not d.discrimination:
+        title += "\n(steady model: no steady-vs-unsteady lambda or P(compare))"
+    return title
