@@ -273,7 +273,10 @@ def plot_spectra(
     Magnitudes are those of the output spectra (finite Fourier transforms of
     the trimmed records); phases are taken relative to the elevator
     spectrum, i.e. the phase of the transfer function, so the manoeuvre's
-    timing drops out.  The shaded band is ``+-sigma`` standard deviations of
+    timing drops out, and they are drawn on one branch: the first fit's
+    phase unwrapped along frequency, the data and the other fits point by
+    point on the branch nearest it (:func:`phase_on_one_branch`), so a good
+    fit looks like one.  The shaded band is ``+-sigma`` standard deviations of
     the fitted spectrum from the parameter covariance (the Cramer-Rao bound
     for ``cov_type="white"``; see :func:`spectra_uncertainty`): on the
     magnitude ``|y| +- sigma sd(y)`` (clipped at ``1e-3 |y|`` on a log axis), on
@@ -521,8 +524,9 @@ def plot_time_histories(
     The cross-check of a frequency-domain fit: the model response comes from
     :func:`simulate_fit` (forced response to the measured inputs, free
     response from the estimated initial state, output biases and trim added
-    back; see there for what is and is not reproduced).  Each output's
-    legend gives the RMS of measured minus model.
+    back; see there for what is and is not reproduced).  Each output
+    panel's title gives the RMS of measured minus model; one legend sits
+    below the panels.
 
     Parameters
     ----------
