@@ -18,8 +18,8 @@ from fdml.cli import build_parser, main
 from fdml.commands._options import DEFAULT_BAND_TEXT, MODEL_CHOICES, default_model
 
 #: Commands that write files, and those that only print.
-WRITERS = {"demo", "fit", "compare", "simulate", "report", "batch", "montecarlo", "diagnose", "design"}
-PRINTERS = {"check", "response", "aircraft", "effects"}
+WRITERS = {"demo", "fit", "compare", "simulate", "report", "batch", "montecarlo", "diagnose", "design", "aircraft"}
+PRINTERS = {"check", "response", "effects"}
 
 #: What each shared flag means: its dest, and how it parses (action, nargs).  A flag not in this
 #: table is used by one command only; one that is must mean the same everywhere it is shown.

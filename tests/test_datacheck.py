@@ -167,12 +167,108 @@ def test_real_records_pass_and_close_the_identity(path, kw, band):
     except RecordError as exc:
         pytest.skip(str(exc))
     dc = check_data(rec, band=band)
-    assert dc.findings == (), dc.summary()
+    # the 60 s HFB-320 record holds a phugoid cycle that the default band reaches (test_phugoid_* below)
+    phugoid = path.startswith("hfb320") and band is None
+    assert dc.codes == (("phugoid.in_band",) if phugoid else ()), dc.summary()
     k = dc.kinematics
     # Real sensors: vane upwash and position, accelerometer position (absorbed by the j w q
     # regressor), alpha lags: a within 5 %, the implied airspeed within 10 % of the record's.
     assert k.slope_q == pytest.approx(1.0, abs=0.05)
     assert k.implied_airspeed == pytest.approx(rec.meta["U"], rel=0.10)
+
+
+# --- the phugoid -----------------------------------------------------------------------------
+U_PH = 100.0
+#: A four-state longitudinal model (u m/s, alpha rad, q rad/s, theta rad; level flight,
+#: stability axes): force and moment derivatives per unit of state, as accelerations.  The lift's
+#: change with speed Z_u = -2 g/U is that of a trimmed aircraft (L = m g at U), so the speed-to-
+#: flight-path coupling d = -Z_u/U = 2 g/U^2 and Lanchester's omega = sqrt(g d) = sqrt(2) g/U.
+LONG = {"X_u": -0.02, "X_a": 4.0, "Z_u": -2 * G0 / U_PH, "Z_a": -1.2 * U_PH, "Z_de": -0.08 * U_PH}
+LONG |= {"M_a": -4.0, "M_q": -1.5, "M_de": -6.0}
+
+
+def _four_state():
+    p = LONG
+    A = np.array(
+        [
+            [p["X_u"], p["X_a"], 0.0, -G0],
+            [p["Z_u"] / U_PH, p["Z_a"] / U_PH, 1.0, 0.0],
+            [0.0, p["M_a"], p["M_q"], 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ]
+    )
+    return A, np.array([0.0, p["Z_de"] / U_PH, p["M_de"], 0.0])
+
+
+@pytest.fixture(scope="module")
+def phugoid_record():
+    """60 s at 20 Hz of the four-state model after a slow 3-2-1-1 (1 s unit), exact zero-order hold."""
+    from scipy.linalg import expm
+
+    A, B = _four_state()
+    dt = 0.05
+    t = np.arange(0.0, 60.0 + 1e-9, dt)
+    de = three_two_one_one(t, amplitude=math.radians(1.0), start=2.0, unit=1.0, rise=0.3)
+    M = np.zeros((5, 5))
+    M[:4, :4], M[:4, 4] = A * dt, B * dt
+    E = expm(M)
+    x, xs = np.zeros(4), []
+    for u_k in de:
+        xs.append(x)
+        x = E[:4, :4] @ x + E[:4, 4] * u_k
+    u, alpha, q, theta = np.array(xs).T
+    az = (LONG["Z_u"] * u + LONG["Z_a"] * alpha + LONG["Z_de"] * de) / G0  # body-z specific force, g
+    rng = np.random.default_rng(11)
+    noisy = {"alpha": alpha, "q": q, "az": az, "theta": theta}
+    noisy = {k: v + 0.02 * v.std() * rng.standard_normal(t.size) for k, v in noisy.items()}
+    V = U_PH + u + 0.05 * rng.standard_normal(t.size)  # a 0.05 m/s airspeed sensor
+    return Record(t, {"de": de, **noisy, "V": V}, name="phugoid", meta={"U": U_PH})
+
+
+def test_phugoid_in_the_default_band_is_found_with_a_window_and_a_band(phugoid_record):
+    from fdml.datacheck import PHUGOID_BAND_FACTOR, phugoid_frequency
+
+    lanchester = math.sqrt(2.0) * G0 / U_PH
+    # what the check measures is Lanchester's frequency of this aircraft; 3 % covers the noise
+    assert phugoid_frequency(phugoid_record) == pytest.approx(lanchester, rel=0.03)
+    dc = check_data(phugoid_record)
+    assert dc.codes == ("phugoid.in_band",), dc.summary()
+    f = dc.findings[0]
+    assert f.kind == "estimation" and f.value == pytest.approx(lanchester, rel=0.03) and f.expected == 0.1
+    # the suggestions leave out the four-state model's own phugoid (its eigenvalue, not the approximation)
+    true_w = float(np.min(np.abs(np.linalg.eigvals(_four_state()[0]))))  # the slow pair: 0.115 rad/s
+    t1 = float(f.message.split("--t1 ")[1].split(")")[0])
+    lo = float(f.message.split("--band ")[1].split(":")[0])
+    assert t1 <= math.pi / true_w  # at most half a period of the true phugoid
+    assert lo >= PHUGOID_BAND_FACTOR * f.value and lo > 2.5 * true_w
+    # what the finding suggests removes it
+    assert check_data(phugoid_record.window(0.0, t1)).codes == ()
+    assert check_data(phugoid_record, band=f"{lo}:10:0.1").codes == ()
+
+
+def test_no_phugoid_claimed_without_speed_and_attitude_or_a_full_cycle(phugoid_record, navion_3211):
+    short_period_only = Record(phugoid_record.t, {k: phugoid_record[k] for k in ("de", "alpha", "q", "az")})
+    assert check_data(short_period_only).codes == ()
+    assert check_data(phugoid_record.window(0.0, 35.0)).codes == ()  # 0.8 of a cycle
+    steady_speed = phugoid_record.with_signals(V=np.full(phugoid_record.n, U_PH))
+    assert "phugoid.in_band" not in check_data(steady_speed).codes
+    assert check_data(navion_3211).codes == ()
+
+
+def test_phugoid_of_the_60_s_hfb320_record(capsys):
+    from fdml.io import data_path, load_record
+
+    rec = load_record(data_path("hfb320/hfb320_1_10.asc"))
+    dc = check_data(rec)
+    assert dc.codes == ("phugoid.in_band",), dc.summary()
+    w = dc.findings[0].value
+    # Lanchester's sqrt(2) g/U at the record's mean airspeed (0.128 rad/s); 15 %: the real aircraft's
+    # lift-speed slope need not be 2 g/U^2 (thrust, compressibility), and the record holds 1.3 cycles
+    assert w == pytest.approx(math.sqrt(2.0) * G0 / float(np.mean(rec["V"])), rel=0.15)
+    assert "--t1 23" in dc.findings[0].message  # half a period: the docs' 0-20 s window lies inside it
+    assert check_data(load_record(data_path("hfb320/hfb320_1_10.asc"), t0=0.0, t1=20.0)).codes == ()
+    code = main(["check", str(data_path("hfb320/hfb320_1_10.asc"))])
+    assert code == 0 and "[phugoid.in_band]" in capsys.readouterr().out
 
 
 # --- inside the fit and on the command line --------------------------------------------------

@@ -12,6 +12,7 @@ from scipy import stats
 from fdml import fit
 from fdml import maneuvers as mv
 from fdml.design import (
+    Design,
     Limits,
     classic_input,
     design,
@@ -237,3 +238,54 @@ def test_discrimination_design_beats_the_classic_inputs():
 def test_a_optimal_design_names_its_targets():
     d = design(make_model("unsteady", "navion"), criterion="a-optimal", targets=["Cm_de"], duration=12.0, refine=4)
     assert d.criterion == "a-optimal" and "Cm_de" in d.predicted.to_dict()
+
+
+# --- what the table says: placeholders, whole input names, units (issue 21) ----------------------
+PARTIAL = {
+    "name": "partial",
+    **{k: v for k, v in make_model("steady", "navion").aircraft.to_dict().items() if k not in ("sources", "assumed")},
+}
+for _k in ("CLa_t", "deps_da", "Cz_de", "y_w", "z_w", "y_t", "z_t", "F", "G", "H", "b1"):
+    PARTIAL.pop(_k, None)  # the file gives CLa_w and Cm_de only
+
+
+def test_placeholders_are_the_values_nobody_gave():
+    from fdml.aircraft import GENERIC_CONSTANTS, Aircraft
+
+    ac = Aircraft.from_dict(PARTIAL)
+    steady = make_model("steady", ac)
+    assert set(steady.placeholders()) == {"CLa_t", "deps_da", "Cz_de"}
+    for k, why in steady.placeholders().items():
+        assert steady.parameters[k].value == GENERIC_CONSTANTS[k] and f"{GENERIC_CONSTANTS[k]:g}" in why
+    assert set(steady.with_values({"CLa_t": 3.9}).placeholders()) == {"deps_da", "Cz_de"}  # --set gives it
+    assert set(steady.with_effects("time_delay:alpha").placeholders()) == set(steady.placeholders())
+    # the quasi-steady derivatives built from a placeholder are placeholders too; Cm_de is given
+    assert set(make_model("derivatives", ac).placeholders()) == {"Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q"}
+    assert set(make_model("dimensional", airspeed=50.0).placeholders()) == {"Z_a", "Z_q", "Z_de", "M_a", "M_q", "M_de"}
+    assert make_model("steady", "navion").placeholders() == {}  # the preset gives every constant
+
+
+def test_design_table_marks_placeholders_names_inputs_whole_and_gives_units():
+    from fdml.aircraft import Aircraft
+
+    d = design(
+        make_model("steady", Aircraft.from_dict(PARTIAL)),
+        duration=6.0,
+        dt=0.05,
+        band="0.5:8",
+        refine=0,
+        detect=["time_delay:alpha"],
+    )
+    text = d.table()
+    lines = text.splitlines()
+    for name in [d.input.name, *d.baselines]:
+        assert f" {name}" in lines[0], (name, lines[0])  # "d-optimal multisine", not "d-optimal multisin"
+    rows = {line.split()[0]: line for line in lines[2 : 2 + len(d.predicted.to_dict())]}
+    for k, row in rows.items():
+        assert (f"{d.predicted.values[k]:.4g}*" in row) == (k in ("CLa_t", "deps_da", "Cz_de")), row
+    note = text.split("* placeholder")[1].split("\n\n")[0]
+    assert all(k in note for k in ("CLa_t", "deps_da", "Cz_de")) and "CLa_w" not in note
+    (det,) = d.detectable
+    assert det.unit == "s" and f"{det.minimum:.4g} s" in text
+    back = Design.from_dict(d.to_dict(), input=d.input)
+    assert back.placeholders == d.placeholders and back.detectable[0].unit == "s"

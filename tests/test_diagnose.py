@@ -185,6 +185,46 @@ def test_report_json_has_the_issue_keys_and_types():
     assert "tau_q" in d["summary"]
 
 
+def _cell(channel, band, excess, gain_db, phase_deg, p):
+    return {"channel": channel, "band": list(band), "excess": excess, "gain_db": gain_db, "phase_deg": phase_deg} | {
+        "significant": True,
+        "p_holm": p,
+    }
+
+
+def _located(cells, band=(0.1, 10.0)):
+    """The fields of a report that the paragraph reads, with a gap map of ``cells`` and nothing attributed."""
+    from types import SimpleNamespace
+
+    settings = {"base_model": "dimensional model", "records": ["a", "b"], "band": list(band)}
+    settings |= {"independent_frequencies": 21, "alpha": 0.05}
+    return SimpleNamespace(
+        settings=settings,
+        location=cells,
+        selected=[],
+        ranking=[],
+        verdict="none",
+        ambiguous=[],
+        unexplained=[],
+        footprint=[],
+    )
+
+
+def test_a_gap_over_the_whole_band_is_said_to_be_across_it_with_the_worst_cell():
+    """Short records give the gap map one band, the analysis band: "across the band", the worst channel named."""
+    from fdml.diagnose.text import paragraph
+
+    whole = (0.1, 10.0)
+    cells = [_cell("alpha", whole, 48.0, -0.02, -3.0, 2e-9), _cell("q", whole, 34.0, 0.48, 0.5, 5e-8)]
+    cells.append(_cell("az", whole, 70.0, 0.42, 3.7, 3e-11))
+    text = paragraph(_located(cells))
+    assert "rad/s (" not in text.split("independent frequencies.")[1]  # no cell "at 0.1-10 rad/s"
+    assert "across the band" in text and "worst: az (measured/model +0.42 dB, +3.7 deg" in text
+    # a map of several bands still says where
+    text = paragraph(_located([_cell("q", (3.0, 10.0), 20.0, 0.5, -8.0, 1e-6)]))
+    assert "q at 3-10 rad/s (measured/model +0.50 dB, -8.0 deg" in text and "across the band" not in text
+
+
 def test_figure_is_written(tmp_path):
     rep = run("actuator_lag@de", {"T_act": 0.05}, holdout=False, max_effects=1)
     path = tmp_path / "diag.png"

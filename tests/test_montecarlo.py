@@ -1,5 +1,6 @@
 """Monte Carlo driver: scatter against the Cramer-Rao bound, seeding, statistics, outputs."""
 
+import dataclasses
 import json
 import math
 
@@ -155,3 +156,32 @@ def test_montecarlo_command(tmp_path, capsys):
     for name in ("montecarlo.json", "montecarlo.txt", "montecarlo.png"):
         assert (tmp_path / name).stat().st_size > 0
     assert load_monte_carlo(tmp_path / "montecarlo.json").n == 6
+
+
+def test_table_shows_only_the_parameters_the_fit_shares_with_the_truth():
+    """A fit model other than the truth: rows for the shared parameters only, no nan truth or bias."""
+    rng = np.random.default_rng(2)
+    n = 20
+    est = np.array([1.0, 7.0, -2.0]) + 0.01 * rng.standard_normal((n, 3))
+    r = MonteCarloResult(
+        names=("Cz_de", "Cz_a", "Cm_de"),
+        truth=np.array([1.0, math.nan, -2.0]),  # Cz_a: a parameter of the fit model only
+        estimates=est,
+        stderr=np.full((n, 3), 0.01),
+        converged=np.ones(n, bool),
+        iterations=np.ones(n, int),
+        fit_seconds=np.ones(n),
+        errors={},
+        settings={"truth_kind": "steady", "fit_kind": "derivatives", "duration": 10.0, "dt": 0.02},
+        wall_time=1.0,
+    )
+    text = r.table()
+    assert "nan" not in text.lower()
+    rows = [line.split()[0] for line in text.splitlines()[4:] if line.strip()]
+    assert rows[:2] == ["Cz_de", "Cm_de"]
+    note = text.splitlines()[-1]
+    assert "Cz_a" in note and "not shown" in note and "derivatives" in note
+    # nothing shared: no table at all, and it says so
+    lone = dataclasses.replace(r, truth=np.full(3, math.nan))
+    text = lone.table()
+    assert "nan" not in text.lower() and "no parameter shared with the truth model" in text

@@ -102,6 +102,38 @@ def test_cli_report(res, tmp_path, capsys):
     assert code == 2 and err.startswith("fdml: error:") and "missing.json" in err and err.count("\n") == 1
 
 
+def test_report_gives_the_airspeed_and_its_source_and_each_warning_once(rec, tmp_path, capsys):
+    """A fit whose adequacy check warns (a 40 ms alpha delay): report.md lists that warning once."""
+    late = rec.with_signals(alpha=np.concatenate([np.full(2, rec["alpha"][0]), rec["alpha"][:-2]]))
+    csv, fit_json = tmp_path / "late.csv", tmp_path / "fit.json"
+    late.to_csv(csv)
+    code = main(["fit", str(csv), "--airspeed", "53.6448", "--band", "0.2:8:0.2", "-o", str(fit_json)])
+    out, _ = capsys.readouterr()
+    assert code in (0, 1) and "airspeed: 53.64 m/s (given with --airspeed)" in out
+    res = fdml.load_result(fit_json)
+    assert res.warnings, "the delayed alpha should make the adequacy check warn"
+    md = write_report(fit_json, tmp_path / "rep", dpi=40)["report"].read_text()
+    assert "**airspeed**: 53.64 m/s (given with --airspeed)" in md
+    for w in res.warnings:
+        assert md.count(w.message) == 1, w
+    # a library fit without provenance: the airspeed is the model's, and it says whose
+    md = write_report(dataclasses.replace(res, provenance={}), tmp_path / "rep2", dpi=40)["report"].read_text()
+    assert "**airspeed**: 53.64 m/s (given to the model)" in md
+
+
+def test_report_on_a_diagnosis_report_points_to_the_recommended_fit(tmp_path, capsys):
+    from fdml.diagnose import JSON_KEYS
+
+    diag = {k: [] for k in JSON_KEYS} | {"verdict": "time_delay", "recommended": {"model": "dimensional"}}
+    diag["settings"] = {"records": ["r017", "r018"]}
+    path = tmp_path / "diag.json"
+    path.write_text(json.dumps(diag))
+    code = main(["report", str(path)])
+    _, err = capsys.readouterr()
+    assert code == 2 and err.count("\n") == 1
+    assert "diagnosis report" in err and "--recommended-output FIT.json" in err and "r017, r018" in err
+
+
 # --- progress callbacks ------------------------------------------------------------------------
 
 

@@ -4,7 +4,10 @@ Presets (``navion``, ``sundowner``, ``do128``) are JSON files in
 ``fdml/presets``; every value carries its source and the assumed ones are
 flagged (docs/theory.md sections 10 and 11).  A user's own aircraft is a JSON file
 with the keys ``name, S_w, c_w, S_t, c_t, l_t, mass, Iy, U, rho`` (SI) and,
-optionally, any of the model constants by parameter name.
+optionally, the span ``b``, any of the model constants by parameter name,
+``lag_constants``, ``description``, ``sources`` and ``assumed``
+(:data:`KEY_MEANINGS` says what each one is).  :func:`aircraft_template` starts
+such a file from what a flight record carries (``fdml aircraft init``).
 """
 
 from __future__ import annotations
@@ -34,12 +37,16 @@ __all__ = [
     "missing_lag_message",
     "list_aircraft",
     "load_aircraft",
+    "KEY_MEANINGS",
+    "AircraftTemplate",
+    "aircraft_template",
 ]
 
 #: Keys every aircraft description must have (SI units).
 REQUIRED_KEYS = ("name", "S_w", "c_w", "S_t", "c_t", "l_t", "mass", "Iy", "U", "rho")
 
 _UNITS = {
+    "b": "m",
     "S_w": "m^2",
     "c_w": "m",
     "S_t": "m^2",
@@ -49,6 +56,27 @@ _UNITS = {
     "Iy": "kg m^2",
     "U": "m/s",
     "rho": "kg/m^3",
+}
+
+#: What each key of an aircraft file holds (the geometry, mass and flight condition, SI), for
+#: messages, templates and the docs.
+KEY_MEANINGS = {
+    "name": "short identifier",
+    "S_w": "wing reference area, m^2",
+    "c_w": "wing reference chord, m (the Wells-Keskar model's chord; a record's mean aerodynamic chord serves)",
+    "b": "wing span, m (optional; the aspect ratio b^2/S_w of the jones lag source, else S_w/c_w^2)",
+    "S_t": "horizontal-tail area, m^2",
+    "c_t": "horizontal-tail chord, m (tail area over tail span)",
+    "l_t": "tail length, m: centre of gravity to the tail's aerodynamic centre (quarter chord)",
+    "mass": "mass, kg",
+    "Iy": "pitch moment of inertia, kg m^2",
+    "U": "true airspeed of the flight condition, m/s",
+    "rho": "air density, kg/m^3",
+    "lag_constants": "a documented source of the lag constants the file does not give: jones or none",
+    "description": "one line on the aircraft and the flight condition",
+    "sources": "where each value comes from, by key",
+    "assumed": "the keys whose values are assumptions rather than data",
+    "sensors": 'known sensor positions, m ahead of the c.g.: {"alpha": {"x": m}, "az": {"x": m}} (optional)',
 }
 
 #: Largest airspeed fdml accepts, m/s.  No aircraft has flown faster in the
@@ -143,15 +171,19 @@ def jones_lag_constants(aspect_ratio: float) -> tuple[float, float, float, float
     return y6 + w * (y3 - y6), z6 + w * (z3 - z6), grow * abs(y3 - y6) / 2, grow * abs(z3 - z6) / 2
 
 
-def _jones_fill(S_w, c_w, S_t, c_t) -> tuple[dict, dict, dict]:
-    """(constants, sources, uncertainty) of the "jones" lag source."""
+def _jones_fill(S_w, c_w, S_t, c_t, b=None) -> tuple[dict, dict, dict]:
+    """(constants, sources, uncertainty) of the "jones" lag source; the wing's AR is b^2/S_w when the span is given."""
     consts, sources, sigma = {}, {}, {}
     for part, S, c in (("w", S_w, c_w), ("t", S_t, c_t)):
-        ar = S / c**2
+        span = part == "w" and b is not None
+        ar = b**2 / S if span else S / c**2
         y, z, sy, sz = jones_lag_constants(ar)
         for key, v, sv in ((f"y_{part}", y, sy), (f"z_{part}", z, sz)):
             consts[key], sigma[key] = v, sv
-            sources[key] = f"R. T. Jones one-term lift lag for AR = S/c^2 = {ar:.3g} (docs/theory.md 2), +/- {sv:.2g}"
+            sources[key] = (
+                f"R. T. Jones one-term lift lag for AR = {'b^2/S' if span else 'S/c^2'} = {ar:.3g} "
+                f"(docs/theory.md 2), +/- {sv:.2g}"
+            )
     for key, v in _WK_TABLE2_DOWNWASH.items():
         consts[key], sigma[key] = v, abs(v)  # another aircraft's value: of the order of itself
         sources[key] = "borrowed from the Sundowner, WK Table 2 (docs/theory.md 11.2), +/- 100 %"
@@ -193,6 +225,9 @@ class Aircraft:
     lag_constants : str, optional
         A documented source for the lag constants the aircraft does not give
         (a key of :data:`LAG_SOURCES`: ``"jones"`` or ``"none"``); "" for none named.
+    b : float or None, optional
+        Wing span, m: the wing's aspect ratio b^2/S_w for the ``"jones"``
+        lag source (without it, S_w/c_w^2).  No model uses it otherwise.
     sensors : mapping, optional
         Known sensor positions, ``{"alpha": {"x": m}, "az": {"x": m}}``: the alpha vane's and the
         normal accelerometer's distance ahead of the c.g. (aft negative), m.  Every model of the
@@ -222,6 +257,7 @@ class Aircraft:
     assumed: frozenset = frozenset()
     description: str = ""
     lag_constants: str = ""
+    b: float | None = None
     sensors: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
     given: frozenset = field(default=frozenset(), init=False, compare=False)
     lag_uncertainty: Mapping[str, float] = field(default_factory=dict, init=False, compare=False)
@@ -237,6 +273,11 @@ class Aircraft:
                     f"aircraft {self.name!r}: {key} must be positive and finite ({_UNITS[key]}), got {v!r}"
                 )
             object.__setattr__(self, key, v)
+        if self.b is not None:
+            span = _real(self.b, f"aircraft {self.name!r}: b ({_UNITS['b']})")
+            if span <= 0:
+                raise AircraftError(f"aircraft {self.name!r}: b must be positive and finite (m), got {span!r}")
+            object.__setattr__(self, "b", span)
         if self.U > MAX_AIRSPEED:
             raise AircraftError(
                 f"aircraft {self.name!r}: airspeed U = {self.U:g} m/s is not physical "
@@ -270,7 +311,7 @@ class Aircraft:
             )
         sigma: dict[str, float] = {}
         if self.lag_constants == "jones":
-            filled, why, sigma = _jones_fill(self.S_w, self.c_w, self.S_t, self.c_t)
+            filled, why, sigma = _jones_fill(self.S_w, self.c_w, self.S_t, self.c_t, self.b)
             sigma = {k: v for k, v in sigma.items() if k not in given}
             consts.update({k: filled[k] for k in sigma})
             sources.update({k: why[k] for k in sigma})
@@ -287,6 +328,21 @@ class Aircraft:
         if self.lag_constants:
             return self.lag_constants
         return "aircraft file" if self.given & set(LAG_KEYS) else None
+
+    @property
+    def placeholders(self) -> dict[str, str]:
+        """Constants at a generic start value (:data:`GENERIC_CONSTANTS`) that nothing gave: name -> "generic NAME = V".
+
+        A constant the description gives, one filled from a named lag source, and
+        the lag constants of ``"lag_constants": "none"`` (no lag, chosen) are not
+        placeholders.
+        """
+        out = {}
+        for k in CONSTANT_KEYS:
+            chosen = k in LAG_KEYS and self.lag_constants == "none"
+            if k not in self.given and k not in self.lag_uncertainty and not chosen:
+                out[k] = f"generic {k} = {GENERIC_CONSTANTS[k]:g}"
+        return out
 
     # --- derived quantities --------------------------------------------------
     @property
@@ -322,7 +378,7 @@ class Aircraft:
         for k, v in changes.items():
             if k in CONSTANT_KEYS:
                 consts[k] = v
-            elif k in REQUIRED_KEYS or k == "lag_constants":
+            elif k in REQUIRED_KEYS or k in ("lag_constants", "b"):
                 fields_[k] = v
             else:
                 raise AircraftError(f"unknown aircraft field or constant {k!r}")
@@ -338,6 +394,8 @@ class Aircraft:
             The required keys, the constants, ``description``, ``sources`` and ``assumed``.
         """
         d = {k: getattr(self, k) for k in REQUIRED_KEYS}
+        if self.b is not None:
+            d["b"] = self.b
         d.update({k: v for k, v in self.constants.items() if k in self.given})  # generic defaults stay implicit
         if self.lag_constants:
             d["lag_constants"] = self.lag_constants
@@ -369,19 +427,21 @@ class Aircraft:
         missing = [k for k in REQUIRED_KEYS if k not in d]
         if missing:
             raise AircraftError(f"{origin}: missing key(s) {', '.join(missing)} (all SI units)")
-        extra = (
-            set(d)
-            - set(REQUIRED_KEYS)
-            - set(CONSTANT_KEYS)
-            - {"description", "sources", "assumed", "lag_constants", "sensors"}
-        )
+        empty = [k for k in REQUIRED_KEYS if d[k] is None]
+        if empty:  # what fdml aircraft init leaves for the user
+            raise AircraftError(
+                f"{origin}: not filled in (null): "
+                + "; ".join(f"{k}: {KEY_MEANINGS[k]}" for k in empty)
+                + "; give their values"
+            )
+        extra = set(d) - set(REQUIRED_KEYS) - set(CONSTANT_KEYS) - set(KEY_MEANINGS)
         if extra:
             raise AircraftError(f"{origin}: unknown key(s) {', '.join(sorted(extra))}")
         assumed = d.get("assumed", ())
         if (
             isinstance(assumed, (str, Mapping))
             or not isinstance(assumed, (list, tuple))
-            or any(k not in REQUIRED_KEYS and k not in CONSTANT_KEYS for k in assumed)
+            or any(k not in REQUIRED_KEYS and k not in CONSTANT_KEYS and k != "b" for k in assumed)
         ):
             raise AircraftError(f'{origin}: assumed must be a list of key names (e.g. ["S_t", "b1"]), got {assumed!r}')
         try:
@@ -393,6 +453,7 @@ class Aircraft:
                 assumed=frozenset(assumed),
                 description=d.get("description", ""),
                 lag_constants=d.get("lag_constants", ""),
+                b=d.get("b"),
                 sensors=d.get("sensors", {}),
             )
         except AircraftError as exc:
@@ -409,6 +470,8 @@ class Aircraft:
         lines = [f"{self.name}: {self.description}".rstrip(": ")]
         for k in REQUIRED_KEYS[1:]:
             lines.append(self._line(k, getattr(self, k), _UNITS[k]))
+            if k == "c_w" and self.b is not None:
+                lines.append(self._line("b", self.b, _UNITS["b"]))
         for k in CONSTANT_KEYS:
             lines.append(self._line(k, self.constants[k], ""))
         return "\n".join(lines)
@@ -621,3 +684,121 @@ def load_aircraft(spec: str | Path | Aircraft) -> Aircraft:
 def _no_constant(name: str):
     """json ``parse_constant`` hook: Python's json reads NaN and Infinity, JSON has neither."""
     raise ValueError(f"{name} is not a JSON number")
+
+
+# --- an aircraft file started from a record -------------------------------------------------
+#: Keys a record's ``meta`` may fill (the readers put them there in SI: fdml.io), in file order.
+_FROM_RECORD = ("S_w", "c_w", "b", "mass", "Iy", "U", "rho")
+
+
+@dataclass(frozen=True)
+class AircraftTemplate:
+    """The start of an aircraft file: what a record carries, and what it does not.
+
+    Parameters
+    ----------
+    values : dict
+        The aircraft-file layout (:data:`KEY_MEANINGS`): the keys the record
+        fills, ``None`` (JSON null) for each required key it does not, and
+        ``sources`` naming where every filled value comes from.
+    missing : dict
+        Required key -> what it is and where to find it, for the keys left null.
+    """
+
+    values: dict
+    missing: dict
+
+    def as_file(self) -> dict:
+        """The aircraft file, JSON-ready (missing values as None).
+
+        Returns
+        -------
+        dict
+            A copy of :attr:`values`; more keys may be added to it before writing.
+        """
+        return json.loads(json.dumps(self.values))
+
+    def describe(self) -> str:
+        """What was filled (value, unit, source) and what is left to fill, one line each.
+
+        Returns
+        -------
+        str
+            The text ``fdml aircraft init`` prints.
+        """
+        v = self.values
+        lines = [f"aircraft {v['name']!r} from {v['sources'].get('name', 'the record')}:"]
+        origin = v["sources"].get("name", "")
+        for k in _FROM_RECORD:
+            if v.get(k) is not None:
+                lines.append(f"  {k:5s} = {v[k]:12.6g} {_UNITS[k]:8s} {v['sources'][k].removeprefix(origin + ': ')}")
+        lines.append("left to fill (null in the file):" if self.missing else "nothing left to fill")
+        lines += [f"  {k:5s}  {why}" for k, why in self.missing.items()]
+        lines.append(
+            "optional: the model constants (" + ", ".join(CONSTANT_KEYS[:5]) + "; generic placeholders where not "
+            'given) and the lag constants (give them, or "lag_constants": "jones" or "none")'
+        )
+        return "\n".join(lines)
+
+
+def aircraft_template(record, name: str | None = None) -> AircraftTemplate:
+    """Start an aircraft file from what a flight record carries (``fdml aircraft init``).
+
+    The readers put the flight condition and any reference geometry a file
+    holds into ``record.meta`` in SI (fdml.io): SIDPAC files carry S, the mean
+    chord, the span, the mass, Iy and the density; the DLR layouts the book's
+    constants.  Every value taken gets a source; each required key the record
+    does not give is left null, with what it is.
+
+    Parameters
+    ----------
+    record : fdml.Record
+        A record as read (its ``meta`` and ``name`` are used).
+    name : str, optional
+        The aircraft's name (default: the aircraft the record names, else the record's name).
+
+    Returns
+    -------
+    AircraftTemplate
+        The file's values, and the keys left to fill.
+    """
+    meta = record.meta
+    origin = f"record {record.name} ({meta.get('format', 'record')} file {meta.get('source', record.name)})"
+    values: dict = {"name": name or meta.get("aircraft") or record.name}
+    sources: dict = {"name": origin}
+    for k in _FROM_RECORD:
+        x = meta.get(k)
+        if isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) and x > 0:
+            values[k] = float(x)
+            sources[k] = f"{origin}: " + _record_source(k, meta)
+    missing = {k: KEY_MEANINGS[k] + _hint(k, meta) for k in REQUIRED_KEYS[1:] if k not in values}
+    ordered = {"name": values["name"]}
+    for k in REQUIRED_KEYS[1:]:
+        ordered[k] = values.get(k)
+        if k == "c_w" and "b" in values:
+            ordered["b"] = values["b"]
+    ordered["description"] = f"started by fdml aircraft init from {origin}; fill the null values"
+    ordered["sources"] = sources
+    ordered["assumed"] = []
+    return AircraftTemplate(ordered, missing)
+
+
+def _record_source(key: str, meta: Mapping) -> str:
+    """Where a reader found ``key``: a channel's mean over the record, a file's constant, or its reference geometry."""
+    if key in meta.get("window_means", ()):
+        noun = {"U": "true airspeed", "rho": "density", "mass": "mass", "Iy": "pitch inertia"}.get(key, key)
+        return f"mean over the record of its {noun} channel"
+    note = f"; 2 qbar/V^2 over the record gives {meta['rho_from_data']:.4g} kg/m^3" if key == "rho" else ""
+    if meta.get("constants_source"):
+        return meta["constants_source"] + (note if "rho_from_data" in meta else "")
+    return {"S_w": "sarea", "c_w": "cbar (mean aerodynamic chord)", "b": "bspan"}.get(key, f"meta[{key!r}]")
+
+
+def _hint(key: str, meta: Mapping) -> str:
+    """Where to find a missing value, when the record gives a clue."""
+    k = meta.get("Sc_over_Iy")
+    if key in ("c_w", "Iy") and k:
+        return f"; the record gives S c/Iy = {k:.5g} m/kg only: Iy = S_w c_w / {k:.5g}"
+    if key in ("S_t", "c_t", "l_t"):
+        return "; tail geometry is in no record: the type's data or a three-view"
+    return ""

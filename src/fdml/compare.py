@@ -476,8 +476,8 @@ class Comparison:
         from .plotting import plot_spectra
 
         n_out = len(self.unsteady.outputs)
-        fig = fig or plt.figure(figsize=(4.2 * n_out, 9))
-        grid = fig.add_gridspec(3, n_out, height_ratios=(1.0, 0.7, 0.8), hspace=0.45)
+        fig = fig or plt.figure(figsize=(4.2 * n_out, 9.5), layout="constrained")  # room for every label
+        grid = fig.add_gridspec(3, n_out, height_ratios=(1.0, 0.7, 0.8))
         axes = np.array([[fig.add_subplot(grid[i, j]) for j in range(n_out)] for i in range(2)])
         plot_spectra([self.unsteady, self.steady], ["unsteady fit", "steady fit"], record=record, axes=axes)
         ax = fig.add_subplot(grid[2, :])
@@ -498,7 +498,7 @@ class Comparison:
                 else f"; evidence: {ev.favoured} favoured (z = {ev.statistic:+.2f}, p = {ev.p_value:.2g})"
             )
         )
-        ax.legend(loc="best", fontsize=8)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)  # beside the bars, not over them
         return fig
 
 

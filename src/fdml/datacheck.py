@@ -21,7 +21,17 @@ to be always on (about a millisecond a record; ``benchmarks/bench_datacheck.py``
   elevator stays below its significance threshold over most of the band, and
   the outputs do not satisfy the kinematic identity either (a record in strong
   turbulence is coherent with the elevator over little of the band, but its
-  outputs still satisfy Eq. 5).
+  outputs still satisfy Eq. 5);
+* **the phugoid** (``phugoid.in_band``, an estimation finding): a record that
+  carries the airspeed and the pitch attitude and holds at least one cycle of
+  the phugoid whose frequency lies in (or near the bottom of) the band.  The
+  frequency is measured, not assumed: the flight-path angle gamma = theta - alpha
+  obeys gamma_dot = d (V - V0) + (alpha and elevator terms), the lift's change
+  with speed, and with the along-path balance V_dot = -g gamma this is
+  Lanchester's phugoid, omega^2 = g d (:func:`phugoid_frequency`).  The
+  short-period models have neither speed nor attitude states, so the phugoid
+  is model error inside the band; the finding gives a window and a band that
+  leave it out.
 
 A small time shift between channels (the Twin Otter's 21 ms alpha lag) moves
 the slopes by a few per cent only and is left to the diagnosis.  Findings are
@@ -43,7 +53,16 @@ from .findings import Finding
 from .jsoncodec import Fields
 from .record import Record
 
-__all__ = ["check_data", "DataCheck", "KinematicFit", "RANGE_LIMITS", "DEG", "UNIT_TOLERANCE"]
+__all__ = [
+    "check_data",
+    "DataCheck",
+    "KinematicFit",
+    "RANGE_LIMITS",
+    "DEG",
+    "UNIT_TOLERANCE",
+    "phugoid_frequency",
+    "PHUGOID_BAND_FACTOR",
+]
 
 #: One degree in radians' reciprocal: the factor a degree-valued channel carries.
 DEG = 180.0 / math.pi
@@ -79,6 +98,15 @@ _VOUCH_FIT = 0.9
 #: An output fails the response check when its coherence with the elevator exceeds the
 #: 5 % significance threshold at fewer than this fraction of the band's estimates.
 _MIN_COHERENT_FRACTION = 0.2
+#: The phugoid's regression (gamma on the integrals of the speed, alpha and elevator
+#: perturbations) must explain this fraction of the flight-path angle's variance, and the
+#: speed term at least ``_PHUGOID_SPEED_SHARE`` of what the other terms leave: otherwise the
+#: record shows no speed-driven flight-path motion, and no phugoid is claimed.
+_PHUGOID_MIN_FIT = 0.9
+_PHUGOID_SPEED_SHARE = 0.5
+#: The band that leaves the phugoid out starts at this multiple of its frequency: a
+#: second-order mode's response |w_n^2 / (w_n^2 - w^2)| has fallen to 1/8 there.
+PHUGOID_BAND_FACTOR = 3.0
 
 
 @dataclass(frozen=True)
@@ -294,6 +322,7 @@ def check_data(record: Record, *, band=None, airspeed: float | None = None, data
     frac, thr = _coherent_fraction(record, data)
     if kin is None or kin.fit < _VOUCH_FIT:
         findings.extend(_response_findings(frac, thr, record.name))
+    findings.extend(_phugoid_findings(record, _band_of(band, data)))
     return DataCheck(
         record=record.name,
         findings=tuple(findings),
@@ -540,3 +569,101 @@ def _response_findings(frac: dict, thr: float, name: str):
                 value=f,
                 expected=1.0,
             )
+
+
+# --- the phugoid -----------------------------------------------------------------------------
+def _cumulative(x: np.ndarray, dt: float) -> np.ndarray:
+    """The running trapezoid integral of ``x`` from the first sample (0 there)."""
+    return np.concatenate([[0.0], np.cumsum(0.5 * (x[1:] + x[:-1]) * dt)])
+
+
+def phugoid_frequency(record: Record) -> float | None:
+    """The phugoid's natural frequency measured in a record, rad/s, or None when it shows none.
+
+    The flight-path angle gamma = theta - alpha changes with the lift, which
+    grows with speed: ``gamma_dot = d (V - V0) + e (alpha - alpha0) +
+    f (de - de0)`` (the elevator term where the record has it).  Integrated
+    from the first sample, this is one linear regression of ``gamma - gamma0``
+    on the running integrals of the perturbations and on time (a constant
+    rate: trim and sensor offsets).  With the along-path balance
+    ``V_dot = -g gamma`` of a trimmed aircraft, the speed and flight-path
+    angle form Lanchester's phugoid, ``omega^2 = g d`` (for a lift slope
+    d = 2 g/U^2 this is the classic sqrt(2) g/U).
+
+    Parameters
+    ----------
+    record : Record
+        A record with ``V`` (m/s), ``theta`` and ``alpha`` (rad).
+
+    Returns
+    -------
+    float or None
+        The frequency omega, rad/s; None when the record lacks a channel, the regression
+        explains less than 90 % of gamma's variation, the speed term adds less
+        than half of what the others leave, or d is not positive.
+    """
+    if not all(record.has(k) for k in ("V", "theta", "alpha")):
+        return None
+    gamma = record["theta"] - record["alpha"]
+    y = gamma - gamma[0]
+    t = record.t - record.t[0]
+    others = [_cumulative(record[k] - record[k][0], record.dt) for k in ("alpha", "de") if record.has(k)]
+    speed = _cumulative(record["V"] - record["V"][0], record.dt)
+    X = np.column_stack([speed, *others, t])
+    ss = float(y @ y)
+    if ss == 0.0:
+        return None
+    beta, *_ = np.linalg.lstsq(X, y, rcond=None)
+    left = float(np.sum((y - X @ beta) ** 2))
+    beta0, *_ = np.linalg.lstsq(X[:, 1:], y, rcond=None)
+    left0 = float(np.sum((y - X[:, 1:] @ beta0) ** 2))
+    if 1.0 - left / ss < _PHUGOID_MIN_FIT or left0 <= 0 or 1.0 - left / left0 < _PHUGOID_SPEED_SHARE:
+        return None
+    d = float(beta[0])
+    return math.sqrt(G0 * d) if d > 0 else None
+
+
+def _band_of(band, data) -> tuple[float, float, float] | None:
+    """(lo, hi, step) rad/s of the band the check ran on, or None when there is none."""
+    from .errors import FdmlError
+    from .spectral import parse_band
+
+    if data is not None:
+        w = np.asarray(data.omega, float)
+        return float(w.min()), float(w.max()), float(np.min(np.diff(w))) if w.size > 1 else 0.0
+    try:
+        return parse_band(band)
+    except FdmlError:
+        return None
+
+
+def _up(x: float) -> float:
+    """``x`` rounded up to two significant digits."""
+    scale = 10.0 ** (math.floor(math.log10(x)) - 1)
+    return math.ceil(x / scale - 1e-9) * scale
+
+
+def _phugoid_findings(record: Record, band):
+    """``phugoid.in_band`` when the record holds a full phugoid cycle whose frequency the band reaches."""
+    w = phugoid_frequency(record)
+    if w is None or band is None:
+        return
+    lo, hi, step = band
+    period = 2.0 * math.pi / w
+    if record.duration < period or lo >= PHUGOID_BAND_FACTOR * w:
+        return  # less than one cycle (the boundary terms absorb a part-swing), or the band starts above it
+    t0 = float(record.t[0])
+    t1 = t0 + math.floor(0.5 * period)
+    new_lo = _up(PHUGOID_BAND_FACTOR * w)
+    yield Finding(
+        "phugoid.in_band",
+        f"the record holds {record.duration / period:.1f} cycles of the phugoid, at {w:.2g} rad/s "
+        f"(period {period:.0f} s; gamma_dot on the speed change, Lanchester's omega^2 = g d), and the band "
+        f"starts at {lo:g} rad/s: the short-period model has no phugoid, so it is model error there. Fit "
+        f"a window of at most half a period, t = {t0:g}-{t1:g} s (--t0 {t0:g} --t1 {t1:g}), or start the band "
+        f"at {PHUGOID_BAND_FACTOR:g} x {w:.2g} = {new_lo:g} rad/s (--band {new_lo:g}:{hi:g}:{step:g})",
+        kind="estimation",
+        record=record.name,
+        value=w,
+        expected=lo,
+    )

@@ -232,7 +232,10 @@ class MonteCarloResult:
 
     # --- presentation -------------------------------------------------------------------------
     def table(self, digits: int = 4) -> str:
-        """The statistics as a text table.
+        """The statistics as a text table, one line per parameter the fit shares with the truth.
+
+        A parameter of the fitted model that the truth model lacks has no
+        truth and no bias; it is named below the table, not tabulated.
 
         Parameters
         ----------
@@ -242,7 +245,7 @@ class MonteCarloResult:
         Returns
         -------
         str
-            A heading on the study and one line per parameter.
+            A heading on the study and one line per shared parameter.
         """
         s = self.settings
         head = (
@@ -256,15 +259,26 @@ class MonteCarloResult:
             head += f"\n{len(self.warnings)} runs warned ({counts}; per run: .warnings)"
         cols = ("parameter", "truth", "mean", "bias", "scatter", "mean CRB", "scatter/CRB", "bias/se")
         rows = []
-        for st in self.stats():
+        shared = [st for st in self.stats() if math.isfinite(st["truth"])]  # a parameter of both models
+        for st in shared:
             rows.append(
                 [st["name"]]
                 + [f"{st[k]:.{digits}g}" for k in ("truth", "mean", "bias", "scatter", "mean_crb")]
                 + [f"{st['efficiency']:.3f}", f"{st['bias_z']:+.2f}"]
             )
-        widths = [max(len(c), *(len(r[j]) for r in rows)) for j, c in enumerate(cols)]
-        line = lambda cells: "  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(cells, widths)))  # noqa: E731
-        return "\n".join([head, line(cols), line(["-" * w for w in widths])] + [line(r) for r in rows])
+        lines = [head]
+        if rows:
+            widths = [max(len(c), *(len(r[j]) for r in rows)) for j, c in enumerate(cols)]
+            lines += [_row(cols, widths), _row(["-" * w for w in widths], widths)] + [_row(r, widths) for r in rows]
+        own = [n for n, t in zip(self.names, self.truth) if not math.isfinite(t)]
+        if own:
+            lines.append(
+                f"{'not shown' if rows else 'no parameter shared with the truth model; not shown'}: "
+                f"{', '.join(own)} (parameters of the {self.settings.get('fit_kind')} fit that the "
+                f"{self.settings.get('truth_kind')} truth does not have, so no truth or bias; their "
+                "estimates: .estimates, .stats())"
+            )
+        return "\n".join(lines)
 
     def __str__(self) -> str:
         return self.table()
@@ -618,6 +632,11 @@ def monte_carlo(
         units=units,
         **trials,
     )
+
+
+def _row(cells, widths) -> str:
+    """One line of :meth:`MonteCarloResult.table`: the name left-aligned, the numbers right-aligned."""
+    return "  ".join(c.rjust(w) if j else c.ljust(w) for j, (c, w) in enumerate(zip(cells, widths)))
 
 
 def _check_counts(n, seed, workers) -> None:

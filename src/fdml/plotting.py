@@ -35,6 +35,9 @@ __all__ = [
     "plot_correlation",
     "spectra_uncertainty",
     "simulate_fit",
+    "phase_on_one_branch",
+    "figure_legend",
+    "settle_layout",
 ]
 
 _LABELS = {"alpha": r"$\tilde\alpha$ (rad s)", "q": r"$\tilde q$ (rad)", "az": r"$\tilde a_z$ (g s)"}
@@ -50,14 +53,14 @@ def _freq(omega: np.ndarray, unit: str):
 
 
 def _axes_grid(axes, ax, shape: tuple[int, int], figsize, sharex=True):
-    """(figure, axes array of ``shape``, created) from user axes or a new figure."""
+    """(figure, axes array of ``shape``, created) from user axes or a new (constrained-layout) figure."""
     if axes is not None and ax is not None:
         raise ValueError("give axes= or ax=, not both")
     given = axes if axes is not None else ax
     if given is None:
         import matplotlib.pyplot as plt
 
-        fig, arr = plt.subplots(*shape, figsize=figsize, sharex=sharex, squeeze=False)
+        fig, arr = plt.subplots(*shape, figsize=figsize, sharex=sharex, squeeze=False, layout="constrained")
         return fig, arr, True
     arr = np.asarray(given, dtype=object)
     n = shape[0] * shape[1]
@@ -80,6 +83,93 @@ def _plain_log_ticks(axis) -> None:
 
     axis.set_major_formatter(_Plain())
     axis.set_minor_formatter(_Plain(labelOnlyBase=False, minor_thresholds=(2, 0.5)))
+
+
+def phase_on_one_branch(reference, *others) -> list[np.ndarray]:
+    """Phases, deg, of a reference response and of others, all on one branch.
+
+    The reference (a model's response, smooth along frequency) is unwrapped
+    along frequency from its principal value at the first frequency; each
+    other response (data, or another model of the same data) is placed point
+    by point on the branch nearest the reference, ``ref + angle(other/ref)``.
+    A response within 180 deg of the reference is then drawn beside it, so a
+    good fit looks like one: two separate unwraps part by 360 deg wherever
+    noise or a near-zero magnitude makes them take different branches.
+
+    Parameters
+    ----------
+    reference : array_like, complex, shape (m,)
+        The response the branch follows, in frequency order.
+    *others : array_like, complex, shape (m,)
+        Responses at the same frequencies.
+
+    Returns
+    -------
+    list of ndarray
+        The reference's phase, then each other's, deg.
+    """
+    ref = np.asarray(reference, complex)
+    base = np.unwrap(np.angle(ref))
+    out = [np.degrees(base)]
+    for o in others:
+        out.append(np.degrees(base + np.angle(np.asarray(o, complex) * np.conj(ref))))
+    return out
+
+
+def figure_legend(fig, axes, *, side: str = "lower", **kw):
+    """One legend for the whole figure, above or below its axes, with the entries of ``axes`` (duplicates once).
+
+    Under constrained layout (every figure fdml makes) the legend gets its own
+    room outside the axes, so it covers no data.  In a figure without it, the
+    legend goes to the first axes at its emptiest place instead.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    axes : iterable of Axes
+        Where the entries come from.
+    side : {"lower", "upper"}, optional
+        Below the axes (default) or above them (under the figure's title).
+    **kw
+        Passed to :meth:`~matplotlib.figure.Figure.legend` (``ncol``, ``fontsize``).
+
+    Returns
+    -------
+    matplotlib.legend.Legend or None
+        The legend (None when there is nothing to show).
+    """
+    handles, labels = [], []
+    axes = list(axes)
+    for a in axes:
+        for h, lab in zip(*a.get_legend_handles_labels()):
+            if lab not in labels:
+                handles.append(h)
+                labels.append(lab)
+    if not handles:
+        return None
+    opts = {"fontsize": "small", "ncol": min(len(labels), 5), **kw}
+    engine = fig.get_layout_engine()
+    if engine is not None and type(engine).__name__ == "ConstrainedLayoutEngine":
+        return fig.legend(handles, labels, loc=f"outside {side} center", **opts)
+    return axes[0].legend(handles, labels, loc="best", **{k: v for k, v in opts.items() if k != "ncol"})
+
+
+def settle_layout(fig) -> None:
+    """Tight layout measured twice, for a figure with fixed-aspect axes (a heat map) and a colour bar.
+
+    The first pass changes the axes' size, which moves the fixed-aspect axes
+    and its labels; the second sees where they went.  One pass leaves a long
+    row label outside the figure.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        A figure without a layout engine.
+    """
+    for _ in range(2):
+        fig.draw_without_rendering()
+        fig.tight_layout()
 
 
 def _check_outputs(outputs) -> list[str]:
@@ -183,7 +273,10 @@ def plot_spectra(
     Magnitudes are those of the output spectra (finite Fourier transforms of
     the trimmed records); phases are taken relative to the elevator
     spectrum, i.e. the phase of the transfer function, so the manoeuvre's
-    timing drops out.  The shaded band is ``+-sigma`` standard deviations of
+    timing drops out, and they are drawn on one branch: the first fit's
+    phase unwrapped along frequency, the data and the other fits point by
+    point on the branch nearest it (:func:`phase_on_one_branch`), so a good
+    fit looks like one.  The shaded band is ``+-sigma`` standard deviations of
     the fitted spectrum from the parameter covariance (the Cramer-Rao bound
     for ``cov_type="white"``; see :func:`spectra_uncertainty`): on the
     magnitude ``|y| +- sigma sd(y)`` (clipped at ``1e-3 |y|`` on a log axis), on
@@ -244,11 +337,13 @@ def plot_spectra(
             ax_m.set_yscale("log")
             _plain_log_ticks(ax_m.yaxis)
         ax_m.plot(f, mag(np.abs(z)), "k.", ms=4, label="measured")
-        ax_p.plot(f, np.degrees(np.unwrap(np.angle(z * ref))), "k.", ms=4)
-        for (y_all, sd_all), lab in zip(bands, labels):
+        # one branch for all: the first fit unwrapped along frequency, the data and the other fits beside it
+        fits = [y_all[:, k] * ref for y_all, _ in bands]
+        first, data_ph, *other_ph = phase_on_one_branch(fits[0], z * ref, *fits[1:])
+        ax_p.plot(f, data_ph, "k.", ms=4)
+        for (y_all, sd_all), lab, ph in zip(bands, labels, [first, *other_ph]):
             y = y_all[:, k]
             (line,) = ax_m.plot(f, mag(np.abs(y)), "-", lw=1.5, label=lab)
-            ph = np.degrees(np.unwrap(np.angle(y * ref)))
             ax_p.plot(f, ph, "-", lw=1.5, color=line.get_color())
             if sd_all is not None:
                 a, sd = np.abs(y), sigma * sd_all[:, k]
@@ -279,11 +374,9 @@ def plot_spectra(
         ax_p.set_xlabel(flabel)
         ax_m.grid(True, which="both", alpha=0.3)
         ax_p.grid(True, alpha=0.3)
-    axes[0, 0].legend(loc="best", fontsize="small")
+    figure_legend(fig, axes[0, :1])
     if title:
         fig.suptitle(title)
-    if created:
-        fig.tight_layout()
     return fig, axes
 
 
@@ -431,8 +524,9 @@ def plot_time_histories(
     The cross-check of a frequency-domain fit: the model response comes from
     :func:`simulate_fit` (forced response to the measured inputs, free
     response from the estimated initial state, output biases and trim added
-    back; see there for what is and is not reproduced).  Each output's
-    legend gives the RMS of measured minus model.
+    back; see there for what is and is not reproduced).  Each output
+    panel's title gives the RMS of measured minus model; one legend sits
+    below the panels.
 
     Parameters
     ----------
@@ -479,7 +573,6 @@ def plot_time_histories(
         if meas.has("alpha_w") and result.model.gust:
             a.plot(t, sc["alpha_w"] * meas["alpha_w"], "-", color="0.5", lw=1.0, label=r"$\alpha_w$")
         a.set_ylabel(f"input ({unit['de']})")
-        a.legend(loc="best", fontsize="small")
         a.grid(True, alpha=0.3)
         i0 = 1
     names = {"alpha": r"$\alpha$", "q": r"$q$", "az": r"$a_z$"}
@@ -487,16 +580,15 @@ def plot_time_histories(
         a = arr[i0 + j]
         ym, yf = sc[out] * meas[out], sc[out] * model[out]
         rms = float(np.sqrt(np.mean((ym - yf) ** 2)))
-        a.plot(t, yf, "-", lw=2.2, color="C1", alpha=0.85, label=f"model (rms error {rms:.3g} {unit[out]})")
+        a.plot(t, yf, "-", lw=2.2, color="C1", alpha=0.85, label="model")
         a.plot(t, ym, "k-", lw=0.7, label="measured", zorder=3)
         a.set_ylabel(f"{names[out]} ({unit[out]})")
-        a.legend(loc="best", fontsize="small")
+        a.set_title(f"rms error {rms:.3g} {unit[out]}", loc="right", fontsize="small")
         a.grid(True, alpha=0.3)
     arr[-1].set_xlabel("time (s)")
+    figure_legend(fig, arr, ncol=4)
     if title:
         fig.suptitle(title)
-    if created:
-        fig.tight_layout()
     return fig, arr
 
 
@@ -565,11 +657,9 @@ def plot_residual_spectra(
         a.set_ylabel("|" + _LABELS[out] + "|")
         a.set_xlabel(flabel)
         a.grid(True, which="both", alpha=0.3)
-    arr[0].legend(loc="best", fontsize="small")
+    figure_legend(fig, arr[:1])
     if title:
         fig.suptitle(title)
-    if created:
-        fig.tight_layout()
     return fig, arr
 
 
@@ -628,6 +718,8 @@ def plot_correlation(
     n = len(names)
     size = max(3.5, 0.45 * n + 1.8)
     fig, arr, created = _axes_grid(None, ax, (1, 1), (size + (1.0 if colorbar else 0.0), size))
+    if created:
+        fig.set_layout_engine(None)  # a fixed-aspect heat map with a colour bar: settle_layout below
     a = arr[0, 0]
     import matplotlib
 
@@ -656,5 +748,5 @@ def plot_correlation(
         fig.colorbar(im, ax=a, fraction=0.046, pad=0.04, label="correlation")
     a.set_title(title or "correlation of the estimates")
     if created:
-        fig.tight_layout()
+        settle_layout(fig)
     return fig, a

@@ -159,7 +159,13 @@ class TqdmProgress:
         return None
 
     def close(self) -> None:
-        """Close the bar."""
+        """Close the bar after drawing its final count.
+
+        tqdm redraws at most every 0.1 s, so without this last drawing a fast
+        fit's bar would end on the count of its first iteration ("1it").
+        """
+        if not self.bar.disable:
+            self.bar.refresh()
         self.bar.close()
 
     def __enter__(self) -> "TqdmProgress":

@@ -134,6 +134,21 @@ class Record:
         except KeyError:
             raise RecordError(f"record {self.name!r} has no signal {name!r}") from None
 
+    def __getattr__(self, name: str) -> np.ndarray:
+        """A channel as an attribute (``rec.de``, ``rec.alpha``), the same array as ``rec["de"]``.
+
+        Called only when ordinary lookup fails, so the fields and methods win.
+        A name that is no channel of this record raises AttributeError naming
+        the channels it has (``hasattr`` and ``getattr(rec, name, default)`` work).
+        """
+        signals = self.__dict__.get("signals")
+        if name.startswith("__") or signals is None:  # copy/pickle probe before __init__ ran
+            raise AttributeError(name)
+        if name in signals:
+            return signals[name]
+        what = "no channel" if name in SIGNALS else "no attribute or channel"
+        raise AttributeError(f"record {self.name!r} has {what} {name!r}; its channels: {', '.join(signals)}")
+
     def has(self, name: str) -> bool:
         """True if the record carries signal ``name``.
 

@@ -38,10 +38,11 @@ def _default_dir(source: Path | None) -> Path:
     return source.with_name(source.stem + "-report")
 
 
-def _figure(figsize):
+def _figure(figsize, dpi: int, constrained: bool = True):
+    """A figure at the resolution it is saved at (text extents, and so the layout, depend on it)."""
     from matplotlib.figure import Figure
 
-    return Figure(figsize=figsize)
+    return Figure(figsize=figsize, dpi=dpi, layout="constrained" if constrained else None)
 
 
 def write_report(
@@ -75,7 +76,7 @@ def write_report(
     """
     from .errors import FdmlError
     from .outputs import StagedOutputs, check_output, check_output_dir
-    from .plotting import plot_correlation, plot_residual_spectra, plot_spectra, plot_time_histories
+    from .plotting import plot_correlation, plot_residual_spectra, plot_spectra, plot_time_histories, settle_layout
 
     res, source = _load(result_or_path)
     out = Path(out_dir) if out_dir is not None else _default_dir(source)
@@ -97,7 +98,7 @@ def write_report(
             sfx = f"_{i}" if multi else ""
             rname = spec["name"]
             n_out = len(res.outputs)
-            fig = _figure((4.2 * n_out, 6))
+            fig = _figure((4.2 * n_out, 6.4), dpi)
             axes = fig.subplots(2, n_out, sharex=True, squeeze=False)
             plot_spectra(
                 res,
@@ -106,14 +107,13 @@ def write_report(
                 axes=axes,
                 title=f"{rname}: measured and fitted spectra ({res.kind}), 2-sigma band",
             )
-            fig.tight_layout()
             save("spectra" + sfx, fig, "spectra" + sfx)
             figures.append(
                 (rname, "Measured against fitted spectra with the 2-sigma Cramer-Rao band", f"spectra{sfx}.png")
             )
             if i < len(res.time_records) and res.time_records[i] is not None:
                 try:
-                    fig = _figure((8, 2.0 * 4 + 0.6))
+                    fig = _figure((8, 2.0 * 4 + 1.0), dpi)
                     axes = fig.subplots(4, 1, sharex=True, squeeze=False)
                     plot_time_histories(
                         res,
@@ -122,7 +122,6 @@ def write_report(
                         trim_window=trim_window,
                         title=f"{rname}: measured and simulated from the estimate",
                     )
-                    fig.tight_layout()
                     save("time_histories" + sfx, fig, "time_histories" + sfx)
                     figures.append(
                         (
@@ -137,7 +136,7 @@ def write_report(
                 notes.append(
                     f"record {rname}: time histories not drawn (the fit was given spectra, not time-domain records)"
                 )
-            fig = _figure((4.2 * n_out, 3.4))
+            fig = _figure((4.2 * n_out, 3.8), dpi)
             axes = fig.subplots(1, n_out, squeeze=False)
             plot_residual_spectra(
                 res,
@@ -146,17 +145,16 @@ def write_report(
                 axes=axes,
                 title=f"{rname}: residual spectra and the noise floor implied by R",
             )
-            fig.tight_layout()
             save("residual_spectra" + sfx, fig, "residual_spectra" + sfx)
             figures.append(
                 (rname, "Residual spectra |z - y| with sqrt(R_kk) and its 95 % level", f"residual_spectra{sfx}.png")
             )
         n = len(res.names)
         size = max(3.5, 0.45 * n + 1.8)
-        fig = _figure((size + 1.0, size))
+        fig = _figure((size + 1.0, size), dpi, constrained=False)
         ax = fig.subplots()
         plot_correlation(res, ax=ax)
-        fig.tight_layout()
+        settle_layout(fig)  # a fixed-aspect heat map with a colour bar
         save("correlation", fig, "correlation")
         figures.append(("", "Correlation of the estimates", "correlation.png"))
         text = _markdown(res, source, figures, notes)
@@ -176,12 +174,13 @@ def _markdown(res, source, figures, notes) -> str:
     from . import __version__
 
     s = res.summary()
+    s = type(s)(s.title, s.header, s.tables, [n for n in s.notes if n[0] != "warnings"], digits=s.digits)
     lines = [f"# fdml report: {res.model.describe()}", ""]
     if source is not None:
         lines.append(f"Result file: `{source.name}` (fdml {__version__}).")
     else:
         lines.append(f"fdml {__version__}.")
-    lines += ["", "## Summary", "", s.as_markdown().replace("### ", "#### ", 1), ""]
+    lines += ["", "## Summary", "", s.as_markdown().replace("### ", "#### ", 1), ""]  # warnings: below, once
     lines += ["## Convergence", ""]
     verdict = "stopped by the callback" if res.stopped else "converged" if res.converged else "NOT converged"
     lines.append(f"{verdict} after {res.iterations} iterations ({res.method}, stop rule {res.stop!r}): {res.message}.")

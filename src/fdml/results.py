@@ -1086,4 +1086,12 @@ def load_result(path: str | Path) -> FitResult:
     """
     path = Path(path)
     what = f"result file {path}"
-    return FitResult.from_dict(read_json(path, what="result file"), source=what)
+    doc = read_json(path, what="result file")
+    if isinstance(doc, dict) and "format" not in doc and {"verdict", "ranking", "recommended"} <= set(doc):
+        records = ", ".join((doc.get("settings") or {}).get("records") or []) or "its records"
+        raise FdmlError(
+            f"{what} is a diagnosis report (fdml diagnose -o), not a fit result; fdml report reads the "
+            f"diagnosis's recommended fit, which fdml diagnose writes with --recommended-output FIT.json: "
+            f"run fdml diagnose again on {records} with --recommended-output FIT.json, then fdml report FIT.json"
+        )
+    return FitResult.from_dict(doc, source=what)

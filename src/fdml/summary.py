@@ -439,11 +439,36 @@ def _biases_used(res) -> list[str]:
     return out
 
 
+#: Where a fit's airspeed came from (``FitResult.provenance["airspeed"]["source"]``), in words.
+_AIRSPEED_SOURCES = {
+    "record": "the record's mean airspeed",
+    "--airspeed": "given with --airspeed",
+    "aircraft": "the aircraft's U",
+}
+
+
+def _airspeed(res) -> str | None:
+    """The fit's airspeed and where it came from, or None for a model without one."""
+    given = (getattr(res, "provenance", None) or {}).get("airspeed")
+    if isinstance(given, Mapping) and given.get("value") is not None:
+        src = str(given.get("source"))
+        return f"{float(given['value']):.4g} m/s ({_AIRSPEED_SOURCES.get(src, src)})"
+    try:
+        U = float(res.model.U)
+    except (AttributeError, NotImplementedError, TypeError, ValueError):
+        return None
+    ac = getattr(res.model, "aircraft", None)
+    return f"{U:.4g} m/s ({'aircraft ' + ac.name if ac is not None else 'given to the model'})"
+
+
 def _header(res) -> list[tuple[str, str]]:
     h = [("model", res.model.describe())]
     ac = getattr(res.model, "aircraft", None)
     if ac is not None and getattr(ac, "name", None):
-        h.append(("aircraft", f"{ac.name} (U = {ac.U:g} m/s)"))
+        h.append(("aircraft", ac.name))
+    airspeed = _airspeed(res)
+    if airspeed is not None:
+        h.append(("airspeed", airspeed))
     h.append(("records", ", ".join(res.records)))
     h.append(("outputs", ", ".join(res.outputs)))
     if res.band is not None:

@@ -1,14 +1,26 @@
-"""``fdml aircraft list|show NAME``: the bundled presets and their sources."""
+"""``fdml aircraft list|show NAME|init RECORD``: presets, one aircraft with its sources, a file from a record."""
 
 from __future__ import annotations
 
 
 def register(sub) -> None:
-    p = sub.add_parser("aircraft", help="list the aircraft presets or show one with its sources")
-    p.add_argument("action", choices=("list", "show"))
-    p.add_argument("name", nargs="?", help="preset name or aircraft JSON file (for show)")
+    p = sub.add_parser(
+        "aircraft",
+        help="list the aircraft presets, show one with its sources, or start an aircraft file from a record",
+        description="list: the bundled presets.  show NAME|FILE.json: every value with its unit and source.  "
+        "init RECORD -o FILE.json: an aircraft file filled with what the record carries (areas, chord, span, "
+        "mass, Iy, density, airspeed), each with its source, and null for what it does not (tail geometry).",
+    )
+    p.add_argument("action", choices=("list", "show", "init"))
+    p.add_argument("name", nargs="?", help="preset name or aircraft JSON file (show); flight record (init)")
+    p.add_argument(
+        "--name", dest="aircraft_name", metavar="NAME", help="the aircraft's name (init; default: the record's)"
+    )
+    from ..io.cli import add_record_arguments
     from . import _options as O
 
+    add_record_arguments(p)
+    O.add_output_option(p, kind="file", metavar="FILE.json", help="the aircraft file started by init")
     O.add_json_option(p)
     p.set_defaults(func=run)
 
@@ -18,6 +30,8 @@ def run(args) -> int:
     from ..cli import print_json
     from ..errors import AircraftError
 
+    if args.action == "init":
+        return _init(args)
     if args.action == "list":
         names = list_aircraft()
         if args.json:
@@ -32,4 +46,32 @@ def run(args) -> int:
         print_json(ac.to_dict())
     else:
         print(ac.describe())
+    return 0
+
+
+def _init(args) -> int:
+    """Start an aircraft file from a record: write it (-o) or print it (JSON on stdout)."""
+    from ..aircraft import aircraft_template
+    from ..cli import print_json
+    from ..errors import AircraftError
+    from ..io import load_record
+    from ..io.cli import record_options
+    from ..outputs import atomic_write_text, check_output
+
+    if not args.name:
+        raise AircraftError("fdml aircraft init needs a RECORD (fdml aircraft init RECORD -o FILE.json)")
+    if args.output:
+        check_output(args.output, [args.name], what="aircraft file")  # never over the record
+    tpl = aircraft_template(load_record(args.name, **record_options(args)), name=args.aircraft_name)
+    if not args.output:
+        print_json(tpl.as_file())
+        return 0
+    import json
+
+    atomic_write_text(args.output, json.dumps(tpl.as_file(), indent=1) + "\n")
+    if args.json:
+        print_json({"aircraft_file": str(args.output), "missing": tpl.missing})
+    else:
+        print(tpl.describe())
+        print(f"\nwrote {args.output}; fill the null values, then: fdml aircraft show {args.output}")
     return 0

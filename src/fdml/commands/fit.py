@@ -84,7 +84,7 @@ def _progress_callback(enabled: bool):
             "fdml: note: --progress needs tqdm (pip install 'fdml[progress]'); fitting without a progress bar\n"
         )
         return None
-    return TqdmProgress(desc="fdml fit", leave=False)
+    return TqdmProgress(desc="fdml fit", leave=True)  # the last state stays: N iterations
 
 
 def run(args) -> int:
@@ -141,9 +141,7 @@ def run(args) -> int:
             out["result_file"] = args.output
         print_json(out)
     else:
-        print(res.summary())
-        if provenance["airspeed"]["source"] == "record":
-            print(f"\nairspeed U = {provenance['airspeed']['value']:.4g} m/s: the record's mean airspeed")
+        print(res.summary())  # its header gives the airspeed and where it came from
         if args.output:
             print(f"\nwrote {args.output}")
     return 0 if res.converged else 1

@@ -352,6 +352,8 @@ class Detectable:
         Detection probability.
     level : float
         Test level alpha.
+    unit : str, optional
+        The parameter's unit (``"s"`` for a delay, ``"m"`` for a sensor offset).
     """
 
     effect: str
@@ -360,6 +362,7 @@ class Detectable:
     minimum: float
     power: float
     level: float
+    unit: str = ""
 
     def to_dict(self) -> dict:
         """JSON-ready dict.
@@ -395,6 +398,7 @@ class Detectable:
             minimum=f.number("minimum"),
             power=f.number("power"),
             level=f.number("level"),
+            unit=f.string("unit", default=""),
         )
 
 
@@ -438,4 +442,5 @@ def minimum_detectable(
     pred = predict(with_effect, inp, noise=noise, **kw)
     lam_req = required_noncentrality(power, level, 1)
     se = pred.stderr
-    return [Detectable(effect, n, se[n], math.sqrt(lam_req) * se[n], power, level) for n in new]
+    units = with_effect.parameters
+    return [Detectable(effect, n, se[n], math.sqrt(lam_req) * se[n], power, level, units[n].unit) for n in new]

@@ -50,6 +50,10 @@ class Design:
         The fit's band (lo, hi, step), rad/s.
     detectable : tuple of Detectable
         Minimum detectable value of each parameter of the effects asked for, with the input.
+    placeholders : dict, optional
+        Model parameter -> the generic value it stands on, for each value that
+        neither the aircraft file nor the user gave (:meth:`fdml.models.Model.placeholders`):
+        the predictions hold for those values, not for the aircraft.
     """
 
     criterion: str
@@ -60,6 +64,7 @@ class Design:
     noise: dict = field(default_factory=dict)
     band: tuple = ()
     detectable: tuple = ()
+    placeholders: dict = field(default_factory=dict)
 
     def gains(self) -> dict[str, dict[str, float]]:
         """Ratio of each baseline's predicted stderr to the input's, per model parameter (> 1: a gain).
@@ -85,17 +90,21 @@ class Design:
         """
         names = list(self.predicted.to_dict())
         cols = {self.input.name: self.predicted, **self.baselines}
-        head = f"{'parameter':<12}{'value':>10}" + "".join(f"{c[:18]:>20}" for c in cols)
+        w = max(20, *(len(c) + 2 for c in cols))  # every column as wide as its input's name
+        head = f"{'parameter':<12}{'value':>11}" + "".join(f"{c:>{w}}" for c in cols)
         lines = [head, "-" * len(head)]
         for n in names:
-            row = f"{n:<12}{self.predicted.values[n]:>10.4g}"
-            row += "".join(f"{p.stderr.get(n, math.nan):>20.3g}" for p in cols.values())
+            mark = "*" if n in self.placeholders else " "
+            row = f"{n:<12}{self.predicted.values[n]:>10.4g}{mark}"
+            row += "".join(f"{p.stderr.get(n, math.nan):>{w}.3g}" for p in cols.values())
             lines.append(row)
+        lines += _placeholder_note(self.placeholders, len(head))
         if self.detectable:
             lines.append("")
-            lines.append(f"{'effect':<22}{'parameter':<12}{'min. detectable':>16}  (power, level)")
+            lines.append(f"{'effect':<22}{'parameter':<12}{'min. detectable':>22}  (power, level)")
             for e in self.detectable:
-                lines.append(f"{e.effect[:22]:<22}{e.parameter:<12}{e.minimum:>16.4g}  ({e.power:g}, {e.level:g})")
+                value = f"{e.minimum:.4g} {e.unit}".rstrip()
+                lines.append(f"{e.effect:<22}{e.parameter:<12}{value:>22}  ({e.power:g}, {e.level:g})")
         if self.discrimination:
             lines.append("")
             head = f"{'steady vs unsteady':<22}{'lambda':>10}{'P(detect)':>11}{'P(favoured)':>13}{'P(compare)':>12}"
@@ -134,6 +143,7 @@ class Design:
             "predicted": predicted,
             "discrimination": {k: d.to_dict() for k, d in self.discrimination.items()},
             "detectable": [e.to_dict() for e in self.detectable],
+            "placeholders": dict(self.placeholders),
         }
 
     @classmethod
@@ -190,7 +200,31 @@ class Design:
                 Detectable.from_dict(x.doc, source=f"{source}: detectable[{i}]")
                 for i, x in enumerate(f.items("detectable"))
             ),
+            placeholders=_string_map(f, "placeholders"),
         )
+
+
+def _placeholder_note(placeholders: dict, width: int) -> list[str]:
+    """The table's footnote on the values marked * (none without placeholders), wrapped to ``width``."""
+    import textwrap
+
+    if not placeholders:
+        return []
+    generic = dict.fromkeys(p for why in placeholders.values() for p in why.removeprefix("from ").split(", "))
+    text = (
+        f"* placeholder, not data: {', '.join(placeholders)} rest on {', '.join(generic)}, which neither the "
+        "aircraft file nor --set gives; the predictions hold for these values, not for the aircraft. Give them "
+        "in the aircraft file or with --set NAME=VALUE."
+    )
+    return textwrap.wrap(text, max(width, 60), subsequent_indent="  ")
+
+
+def _string_map(f: Fields, key: str) -> dict[str, str]:
+    """``key`` of a saved plan as a {str: str} mapping ({} when a plan written before it lacks it)."""
+    if key not in f:
+        return {}
+    sub = f.sub(key)
+    return {name: sub.string(name) for name in sub.doc}
 
 
 def _saved_input(f: Fields, name: str) -> DesignInput:
@@ -338,7 +372,7 @@ def design(
         for k, b in {inp.name: inp, **base}.items():
             disc[k] = discriminate(model, ms, b, noise=stds, level=level, band=fband)
     found = tuple(e for eff in detect for e in minimum_detectable(model, eff, inp, noise=stds, level=level, band=fband))
-    return Design(criterion, inp, pred, preds, disc, stds, fband, found)
+    return Design(criterion, inp, pred, preds, disc, stds, fband, found, model.placeholders())
 
 
 def _scorer(criterion: str, model, steady, stds, band, targets):
@@ -356,14 +390,20 @@ def _scorer(criterion: str, model, steady, stds, band, targets):
 
 
 def plot_design(d: Design, fig=None):
-    """Input history and its spectrum (with the baselines'), and predicted stderr ratios.
+    """Input history, its spectrum against the baselines', and the predicted stderr ratios, under a title.
+
+    The title names the criterion, the input, its length, peak and band; each
+    input's entry in the spectrum legend gives its lambda and P(compare) when
+    the model is unsteady (the probability that ``fdml compare`` favours the
+    unsteady model, :mod:`fdml.design.discrimination`).  Legends sit beside
+    the panels, off the data.
 
     Parameters
     ----------
     d : Design
         The plan.
     fig : matplotlib.figure.Figure, optional
-        Figure to draw in (default: a new 10 x 7 in figure).
+        Figure to draw in (default: a new 11 x 8 in figure, constrained layout).
 
     Returns
     -------
@@ -374,7 +414,7 @@ def plot_design(d: Design, fig=None):
 
     from .inputs import spectrum
 
-    fig = fig or plt.figure(figsize=(10, 7))
+    fig = fig or plt.figure(figsize=(11, 8), layout="constrained")
     ax1, ax2, ax3 = fig.add_subplot(311), fig.add_subplot(312), fig.add_subplot(313)
     ax1.plot(d.input.t, np.degrees(d.input.de), label=d.input.name)
     ax1.set_xlabel("t, s")
@@ -383,10 +423,10 @@ def plot_design(d: Design, fig=None):
     for name, inp in [(d.input.name, d.input)] + [(k, p.input) for k, p in d.baselines.items()]:
         if inp is None:  # a baseline read back without its history (Design.from_dict)
             continue
-        ax2.semilogy(omega, np.degrees(spectrum(inp, omega)), label=name)
+        ax2.semilogy(omega, np.degrees(spectrum(inp, omega)), label=_with_discrimination(name, d.discrimination))
     ax2.set_xlabel("omega, rad/s")
     ax2.set_ylabel("|de(j omega)|, deg s")
-    ax2.legend(fontsize=8)
+    ax2.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     gains = d.gains()
     names = list(d.predicted.to_dict())
     x = np.arange(len(names))
@@ -396,6 +436,23 @@ def plot_design(d: Design, fig=None):
     ax3.set_xticks(x + 0.4 - 0.4 / max(len(gains), 1), names, fontsize=8)
     ax3.set_ylabel("stderr ratio baseline / design")
     if gains:
-        ax3.legend(fontsize=8)
-    fig.tight_layout()
+        ax3.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    fig.suptitle(_design_title(d))
     return fig
+
+
+def _with_discrimination(name: str, disc: dict) -> str:
+    """An input's legend entry: its name, and its lambda and P(compare) when it has them."""
+    if name not in disc:
+        return name
+    return f"{name}: lambda {disc[name].noncentrality:.3g}, P(compare) {disc[name].vuong:.2f}"
+
+
+def _design_title(d: Design) -> str:
+    """What was designed: criterion, input, length, peak, band (and why no lambda, for a steady model)."""
+    peak = math.degrees(float(np.max(np.abs(d.input.de)))) if len(d.input.de) else math.nan
+    lo, hi = d.band[0], d.band[1]
+    title = f"{d.criterion} design: {d.input.name}, {d.input.t[-1]:g} s, peak {peak:.3g} deg, band {lo:g}-{hi:g} rad/s"
+    if not d.discrimination:
+        title += "\n(steady model: no steady-vs-unsteady lambda or P(compare))"
+    return title

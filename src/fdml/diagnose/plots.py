@@ -7,10 +7,18 @@ import math
 import numpy as np
 
 from ..channels import OUTPUTS
+from ..plotting import figure_legend, phase_on_one_branch
 
 __all__ = ["plot_report"]
 
 _CH = {"alpha": r"$\alpha$", "q": "$q$", "az": "$a_z$"}
+#: What a gap-map cell shows, written above the diagnosis in the figure.
+_MAP_KEY = (
+    "Gap map, per output and band: the excess coherent energy of the residual over the noise floor, in "
+    "floor units (noise alone gives about 0, and negative values, less than noise alone); then the "
+    "measured/model gain (dB) and phase (deg); * significant after Holm.  After: the same with the "
+    "final model."
+)
 
 
 def _map_array(cells, channels, nb):
@@ -95,7 +103,6 @@ def plot_report(rep, path=None):
     fig.colorbar(im, ax=[ax0, ax1], label="log10(1 + excess)", shrink=0.8)
     axt = fig.add_subplot(gs[0, 2])
     axt.axis("off")
-    axt.text(0, 1, _wrap(rep.text, 58), va="top", fontsize=6.5)
     # Bode overlays (elevator column) at the independent frequencies
     om = np.concatenate([d.omega[m] for d, m in zip(data.spectra, data.dft)])
     order = np.argsort(om)
@@ -106,17 +113,18 @@ def plot_report(rep, path=None):
     Gf = np.concatenate([final.model.evaluate(d.omega).G[:, :, 0] for d in data.spectra])[rows]
     good = np.abs(u) > 0.05 * np.max(np.abs(u))
     Gd = Gb + e / np.where(good, u, 1.0)[:, None]
+    bode = []
     for j, ch in enumerate(OUTPUTS):
         axm = fig.add_subplot(gs[1, j])
         axp = fig.add_subplot(gs[2, j], sharex=axm)
         k = order[good[order]]
-        ph_b = np.degrees(np.unwrap(np.angle(Gb[order, j])))  # base phase, unwrapped along frequency
-        ref = dict(zip(order.tolist(), ph_b))
+        # the base model unwrapped along frequency; the data and the final model on its branch
+        ph_b, ph_d, ph_f = phase_on_one_branch(Gb[order, j], Gd[order, j], Gf[order, j])
         axm.semilogx(om[k], 20 * np.log10(np.abs(Gd[k, j])), "k.", ms=4, label="data")
-        axp.semilogx(om[k], [ref[i] + np.degrees(np.angle(Gd[i, j] / Gb[i, j])) for i in k], "k.", ms=4)
-        for G, st, name in ((Gb, "C0-", "base"), (Gf, "C3--", "final")):
+        axp.semilogx(om[k], ph_d[good[order]], "k.", ms=4)
+        for G, ph, st, name in ((Gb, ph_b, "C0-", "base"), (Gf, ph_f, "C3--", "final")):
             axm.semilogx(om[order], 20 * np.log10(np.abs(G[order, j])), st, lw=1.2, label=name)
-            axp.semilogx(om[order], ph_b + np.degrees(np.angle(G[order, j] / Gb[order, j])), st, lw=1.2)
+            axp.semilogx(om[order], ph, st, lw=1.2)
         axm.set_title(f"{_CH[ch]} / $\\delta_e$", fontsize=9)
         axm.set_ylabel("dB")
         axp.set_ylabel("deg")
@@ -124,8 +132,9 @@ def plot_report(rep, path=None):
         for x in edges[1:-1]:
             axm.axvline(x, color="0.8", lw=0.6)
             axp.axvline(x, color="0.8", lw=0.6)
-        if j == 0:
-            axm.legend(fontsize=7)
+        bode.append(axm)
+    figure_legend(fig, bode[:1], ncol=3)
+    _fit_text(axt, _MAP_KEY + "\n\n" + rep.text, fontsize=6.5)
     if path is not None:
         from ..outputs import atomic_savefig
 
@@ -137,9 +146,37 @@ def plot_report(rep, path=None):
 
 
 def _wrap(text: str, width: int) -> str:
+    """Each paragraph of ``text`` wrapped to ``width`` characters."""
     import textwrap
 
-    return "\n".join(textwrap.wrap(text, width))
+    return "\n".join("\n".join(textwrap.wrap(p, width)) if p else "" for p in text.split("\n"))
+
+
+def _fit_text(ax, text: str, fontsize: float) -> None:
+    """Write ``text`` into ``ax`` (an axes without a plot) from its top left, wrapped and sized to fit inside it.
+
+    The axes' box is known only once the layout has run, so the figure is laid
+    out first; then the widest wrap whose drawn box lies inside the axes is
+    kept, at a smaller font when no wrap fits.  The text takes no part in the
+    layout (the axes' cell gives its room).
+    """
+    fig = ax.figure
+    fig.draw_without_rendering()
+    renderer = fig.canvas.get_renderer()
+    box = ax.get_window_extent(renderer)
+    t = ax.text(0, 1, "", va="top", ha="left", fontsize=fontsize, transform=ax.transAxes)
+    t.set_in_layout(False)
+    size = fontsize
+    while True:
+        for width in range(100, 24, -4):
+            t.set_text(_wrap(text, width))
+            t.set_fontsize(size)
+            tb = t.get_window_extent(renderer)
+            if tb.x1 <= box.x1 and tb.y0 >= box.y0:
+                return
+        if size <= 4.0:
+            return  # the smallest font and wrap: shown as far as it goes
+        size -= 0.5
 
 
 def _finite(x) -> bool:  # pragma: no cover - helper

@@ -24,7 +24,14 @@ def _band(c) -> str:
     return f"{c['band'][0]:.3g}-{c['band'][1]:.3g} rad/s"
 
 
-def _cell_phrase(c) -> str:
+def _where(c, whole) -> str:
+    """``at LO-HI rad/s``, or ``across the band`` for a cell that spans the whole analysis band."""
+    if whole is not None and all(math.isclose(a, b, rel_tol=1e-6) for a, b in zip(c["band"], whole)):
+        return "across the band"
+    return f"at {_band(c)}"
+
+
+def _errors(c) -> str:
     bits = []
     if c.get("gain_db") is not None:
         bits.append(f"{c['gain_db']:+.2f} dB")
@@ -32,7 +39,28 @@ def _cell_phrase(c) -> str:
         bits.append(f"{c['phase_deg']:+.1f} deg")
     p = c.get("p_holm")
     ptxt = f", p = {p:.1g}" if p is not None else ""
-    return f"{c['channel']} at {_band(c)} (measured/model {', '.join(bits)}{ptxt})"
+    return f"measured/model {', '.join(bits)}{ptxt}"
+
+
+def _cell_phrase(c, whole=None) -> str:
+    return f"{c['channel']} {_where(c, whole)} ({_errors(c)})"
+
+
+def _misses(flagged: list, whole) -> str:
+    """The sentence on the flagged cells, worst first; cells that all span the band are said to be across it."""
+    if all(_where(c, whole) == "across the band" for c in flagged):
+        worst = flagged[0]
+        return (
+            f"The model misses the measured {', '.join(c['channel'] for c in flagged)} across the band "
+            f"({whole[0]:.3g}-{whole[1]:.3g} rad/s, the gap map's only band); "
+            f"worst: {worst['channel']} ({_errors(worst)})."
+        )
+    return (
+        "The model misses the measured "
+        + "; ".join(_cell_phrase(c, whole) for c in flagged[:3])
+        + (f"; {len(flagged) - 3} more cell(s)" if len(flagged) > 3 else "")
+        + "."
+    )
 
 
 def _p(p) -> str:
@@ -132,15 +160,11 @@ def paragraph(rep) -> str:
         "frequencies."
     ]
     out += _kinematics_sentences(rep)
+    whole = st.get("band")
     flagged = [c for c in rep.location if c.get("significant")]
     if flagged:
         flagged.sort(key=lambda c: -(c.get("excess") or 0))
-        out.append(
-            "The model misses the measured "
-            + "; ".join(_cell_phrase(c) for c in flagged[:3])
-            + (f"; {len(flagged) - 3} more cell(s)" if len(flagged) > 3 else "")
-            + "."
-        )
+        out.append(_misses(flagged, whole))
     else:
         out.append(
             "The gap map flags no channel-band cell: in every band the base model's error is within "
@@ -169,7 +193,7 @@ def paragraph(rep) -> str:
                 if fp:
                     top = max(fp, key=lambda f: f["share"])
                     out.append(
-                        f"It acts mostly on {top['channel']} at {_band(top)} ({100 * top['share']:.0f} % "
+                        f"It acts mostly on {top['channel']} {_where(top, whole)} ({100 * top['share']:.0f} % "
                         "of its footprint)."
                     )
                 if not s.get("plausible", True):
@@ -215,9 +239,9 @@ def paragraph(rep) -> str:
     if uin or uho:
         parts = []
         if uin:
-            parts.append("in-sample " + "; ".join(_cell_phrase(u) for u in uin[:3]))
+            parts.append("in-sample " + "; ".join(_cell_phrase(u, whole) for u in uin[:3]))
         if uho:
-            parts.append("on the held-out record " + "; ".join(_cell_phrase(u) for u in uho[:3]))
+            parts.append("on the held-out record " + "; ".join(_cell_phrase(u, whole) for u in uho[:3]))
         out.append("Still unexplained: " + " and ".join(parts) + ".")
     elif sel:
         out.append("No flagged cell remains after the final model.")

@@ -104,7 +104,8 @@ def finish(
     for key, arr in per_sample.items():
         extra[key] = float(np.mean(np.asarray(arr, dtype=float)[keep]))
     tv = trim_values(rec.t, rec.signals, trim_window)
-    meta2 = {**rec.meta, **extra, "trim_values": tv, "trim_values_window": trim_window}
+    # window_means: which meta values are means of per-sample channels over the record (their provenance)
+    meta2 = {**rec.meta, **extra, "window_means": sorted(extra), "trim_values": tv, "trim_values_window": trim_window}
     rec = replace(rec, meta=meta2)
     if trim not in (None, "none"):
         try:

@@ -341,6 +341,9 @@ class AugmentedModel(Model):
                     )
             object.__setattr__(self, "parameters", Parameters(tuple(items)))
 
+    def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
+        return self.root._placeholder_sources()  # the effects start at their nulls: no placeholders
+
     @property
     def parts(self) -> tuple:
         """The effects that make this model (as requested, else the applied ones)."""

@@ -197,6 +197,28 @@ class Model:
         """Airspeed, m/s."""
         raise NotImplementedError
 
+    def placeholders(self) -> dict[str, str]:
+        """Parameters still at a generic start value that no aircraft file and no user gave.
+
+        Such a value is not data: a design, a simulation or a prediction made
+        with it says little about the real aircraft.  A value changed since the
+        model was built (:meth:`with_values`, ``--set``) is no longer a placeholder.
+
+        Returns
+        -------
+        dict of str to str
+            Parameter name -> what generic value it stands on.
+        """
+        return {
+            n: why
+            for n, (start, why) in self._placeholder_sources().items()
+            if n in self.parameters and self.parameters[n].value == start
+        }
+
+    def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
+        """Parameter name -> (its generic start value, why) for the parameters built on generic values."""
+        return {}
+
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         """Derived quantities (the alternate set); empty by default.
 

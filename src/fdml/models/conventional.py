@@ -21,7 +21,7 @@ from ..aircraft import MAX_AIRSPEED, Aircraft
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters
 from .base import Model
-from .wells_keskar import alternate_set
+from .wells_keskar import ALTERNATE_INPUTS, alternate_set, placeholder_sources
 
 __all__ = ["DerivativesModel", "DimensionalModel", "to_dimensional"]
 
@@ -103,6 +103,9 @@ class DerivativesModel(Model):
     @property
     def U(self) -> float:
         return self.aircraft.U
+
+    def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
+        return placeholder_sources(self._default_parameters(), self.aircraft, ALTERNATE_INPUTS)
 
     def _default_parameters(self) -> Parameters:
         c = self.aircraft.constants
@@ -226,6 +229,13 @@ class DimensionalModel(Model):
             return float(self.airspeed)
         assert self.aircraft is not None  # __post_init__ requires the airspeed or an aircraft
         return self.aircraft.U
+
+    def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
+        start = self._default_parameters()
+        if self.aircraft is None:
+            return {n: (start[n].value, "generic start value (no aircraft)") for n in _GENERIC_DIMENSIONAL}
+        dimensional = {d: ALTERNATE_INPUTS["C" + d[0].lower() + d[1:]] for d in _GENERIC_DIMENSIONAL}
+        return placeholder_sources(start, self.aircraft, dimensional)
 
     def _default_parameters(self) -> Parameters:
         if self.aircraft is not None:

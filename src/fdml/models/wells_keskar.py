@@ -62,6 +62,43 @@ def alternate_set(p: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
     }
 
 
+#: The constants of theta each quasi-steady derivative of :func:`alternate_set` is built from.
+ALTERNATE_INPUTS = {
+    "Cz_a": ("CLa_w", "CLa_t", "deps_da"),
+    "Cz_q": ("CLa_t",),
+    "Cz_de": ("Cz_de",),
+    "Cm_a": ("CLa_t", "deps_da"),
+    "Cm_q": ("CLa_t",),
+    "Cm_de": ("Cm_de",),
+}
+
+
+def placeholder_sources(params: Parameters, ac: Aircraft, inputs: Mapping[str, tuple]) -> dict:
+    """(start value, why) of each parameter in ``inputs`` built from a placeholder constant of ``ac``.
+
+    Parameters
+    ----------
+    params : Parameters
+        The model's default parameters (their values are the start values).
+    ac : Aircraft
+        The aircraft whose :attr:`~fdml.aircraft.Aircraft.placeholders` count.
+    inputs : mapping of str to tuple of str
+        Parameter -> the aircraft constants it is computed from.
+
+    Returns
+    -------
+    dict
+        Parameter name -> (start value, a note naming the placeholder constants).
+    """
+    ph = ac.placeholders
+    out = {}
+    for name, consts in inputs.items():
+        bad = [c for c in consts if c in ph]
+        if bad and name in params:
+            out[name] = (params[name].value, ("" if consts == (name,) else "from ") + ", ".join(ph[c] for c in bad))
+    return out
+
+
 @dataclass(frozen=True, kw_only=True)
 class _WKBase(Model):
     aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
@@ -75,6 +112,10 @@ class _WKBase(Model):
     @property
     def U(self) -> float:
         return self.aircraft.U
+
+    def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
+        names = self._default_parameters().names
+        return placeholder_sources(self._default_parameters(), self.aircraft, {n: (n,) for n in names})
 
     def _theta_parameters(self) -> list[Parameter]:
         c = self.aircraft.constants
