@@ -51,7 +51,7 @@ from .errors import (
 )
 from .estimator_settings import SETTINGS, EstimatorSettings
 from .findings import emit, raise_if_strict
-from .models.base import OUTPUTS, Model, ModelResponse
+from .models.base import OUTPUTS, Model
 from .models.measurement import (
     BOUNDARY_NAMES,
     INPUT_BIAS_NAME,
@@ -323,6 +323,22 @@ class Problem:
         nu = self._nuisance(theta, r)
         return _measure(change, d.u, d.ones, nu.boundary(self._shift[r]), None, nu.state_biases, nu.input_bias)
 
+    def _forcing(self, theta: np.ndarray, r: int):
+        """Record r's inputs u (the elevator offset added), boundary vector d and state forcing f 1(w).
+
+        The linear part of the measurement model (:func:`fdml.models.measurement.predict`
+        without output biases) is ``G u + H d + P f 1 + G_de b_de 1 = C M^-1 (B u' + E d + f 1)``
+        with ``u' = u + b_de 1 e_de``: the forcing of :meth:`Model.forced_sensitivity`.
+        """
+        d = self.data[r]
+        nu = self._nuisance(theta, r)
+        u = d.u
+        if nu.input_bias is not None:
+            u = u.copy()
+            u[:, 0] += nu.input_bias * d.ones
+        f = None if nu.state_biases is None else d.ones[:, None] * nu.state_biases[None, :]
+        return u, nu.boundary(self._shift[r]), f
+
     def residuals(self, theta: np.ndarray, responses=None) -> np.ndarray:
         """Stacked residuals v = z - y over records, selected outputs, shape (N, n_out).
 
@@ -368,10 +384,8 @@ class Problem:
             mnames = [self.slots[i].name for i in self.model_slots]
             responses = []
             for r, d in enumerate(self.data):
-                parts = ("G",) + (("H",) if self.boundary != "none" else ()) + (("P",) if self.state_biases else ())
-                resp, dG, dH, dP = self.model.sensitivity(d.omega, vals, mnames, parts)
+                resp, dy = self.model.forced_sensitivity(d.omega, vals, mnames, *self._forcing(theta, r))
                 responses.append(resp)
-                dy = self.linear_predict(theta, r, ModelResponse(d.omega, dG, dH, dP))
                 A[offs[r] : offs[r + 1], :, self.model_slots] = np.moveaxis(dy[:, :, self.out_idx], 0, -1)
         else:
             responses = self._responses(vals)
@@ -831,8 +845,31 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np
     g = -(2/N) Re sum A^H R^-1 v (the Eq. 23 right-hand side), H1 = (2/N) Re
     sum A^H R^-1 A (Eq. 23's matrix), and, for the concentrated likelihood,
     H = H1 - tr(R^-1 dR_k R^-1 dR_l) with dR_k = -(1/N) sum (a_k v^H + v a_k^H).
-    Written as a few matrix products over all frequencies and outputs at once.
+    One R (white noise) is taken out by its Cholesky factor R = L L^H: with
+    a~ = L^-1 a and w = L^-1 v every sum above is a plain product of the
+    whitened rows, and tr(R^-1 dR_k R^-1 dR_l) = tr(D_k D_l) with the Hermitian
+    D_k = L^-1 dR_k L^-H = -(1/N) sum (a~_k w^H + w a~_k^H).
     """
+    if rows is not None:
+        return _grad_hess_bands(A, V, R, full, rows)
+    N, no, p = A.shape
+    Li = np.linalg.inv(np.linalg.cholesky(R))
+    Aw = np.tensordot(Li, A, axes=(1, 1))  # (no, N, p)
+    Vw = Li @ V.T  # (no, N)
+    Ar = Aw.reshape(no * N, p)
+    Ar = np.concatenate([Ar.real, Ar.imag])  # Re(a^H b) = a_r . b_r + a_i . b_i
+    H1 = (2.0 / N) * (Ar.T @ Ar)
+    g = -(2.0 / N) * (Ar.T @ np.concatenate([Vw.real.ravel(), Vw.imag.ravel()]))
+    if not full:
+        return g, H1, H1
+    S = (np.transpose(Aw, (2, 0, 1)).reshape(p * no, N) @ Vw.conj().T).reshape(p, no, no)  # sum_n a~_nk w_n^H
+    X = (-(S + np.conj(np.transpose(S, (0, 2, 1)))) / N).reshape(p, no * no)  # D_k, flattened
+    Hc = H1 - np.real(X @ X.conj().T)
+    return g, H1, 0.5 * (Hc + Hc.T)
+
+
+def _grad_hess_bands(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np.ndarray):
+    """:func:`_grad_hess` for one R_b per noise band (``rows``: band of each residual row)."""
     N, no, p = A.shape
     W = _weights(R, rows)
     WA = W @ A  # (N, no, p); cost weights v^* R^-1 v with R = E{v v^*}
@@ -843,13 +880,10 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np
     if not full:
         return g, H1, H1
     H2 = np.zeros((p, p))
-    # band-wise noise: the same term per band, weighted N_b / N (one band: white)
-    groups = (
-        [(slice(None), N, W)]
-        if rows is None
-        else [(rows == b, int(np.sum(rows == b)), Wb) for b, Wb in enumerate(np.linalg.inv(R))]
-    )
-    for sel, Nb, Wb in groups:
+    # the same term per band, weighted N_b / N
+    for b, Wb in enumerate(np.linalg.inv(R)):
+        sel = rows == b
+        Nb = int(np.sum(sel))
         if Nb == 0:
             continue
         S = np.transpose(A[sel], (2, 1, 0)) @ V[sel].conj()  # sum_n a_nk v_n^H, shape (p, no, no)
@@ -1152,9 +1186,7 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
         active = ~(at_lo | at_hi)
         # standard errors for the step test: naive CRB (N H1)^-1
         sig = _naive_sigma(prob.N * H1)
-        step_n = _solve(H if full else H1, g, active)
-        if full and not np.all(np.isfinite(step_n)):
-            step_n = _solve(H1, g, active)
+        step_n, eig = _proposal(g, H1, H, active, full)
         rel_step = np.max(np.abs(step_n) / np.where(sig > 0, sig, np.inf)) if step_n.size else 0.0
         if stop == "converge" and rel_step < tol and (prob.sensitivity != "fd" or tight):
             # theta is within tol standard errors of the optimum: stop without the step,
@@ -1167,16 +1199,17 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
         rel_prev = rel_step
         J_old = J
         if full:
-            accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, H, J, active, lo, hi, rows)
+            accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, J, active, lo, hi, rows, eig)
         else:
             accepted, t_new, V_new, R_new, J_new = _halving_step(prob, theta, step_n, lo, hi, J, rows)
         if accepted:
             theta, V, R, J = t_new, V_new, R_new, J_new
         history.append(math.exp(J))
-        info = IterationInfo(
-            iteration=it, cost=math.exp(J), params=dict(zip(names, theta.tolist())), step_in_stderr=float(rel_step)
-        )
-        if callback is not None and callback(info):
+        if callback is not None and callback(
+            IterationInfo(
+                iteration=it, cost=math.exp(J), params=dict(zip(names, theta.tolist())), step_in_stderr=float(rel_step)
+            )
+        ):
             stopped = True
             message = f"stopped by the callback after {it} iterations"
             break
@@ -1273,7 +1306,40 @@ def _try(prob, theta, step, lo, hi, J, rows=None):
     return J_new <= J + 1e-12 * abs(J), t_new, V_new, R_new, J_new
 
 
-def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi, rows=None):
+def _proposal(g, H1, H, active, full):
+    """The pass's full step on the active set, and for ``full`` (Levenberg-Marquardt) the scaled eigensystem.
+
+    ``full``: the Newton step on ln det R, ``-H^+ g`` with the pseudo-inverse of
+    the concentrated Hessian in the metric of diag H1 (eigenvalues below 1e-12 of
+    the largest dropped), from the eigensystem that :func:`_hybrid_step` shifts.
+    Otherwise the Gauss-Newton step ``-H1^+ g`` (Eq. 23).
+    """
+    if not full:
+        return _solve(H1, g, active), None
+    idx = np.flatnonzero(active)
+    if not np.all(np.isfinite(H)):
+        return _solve(H1, g, active), None
+    eig = _scaled_eig(H1, H, idx)
+    step = np.zeros_like(g)
+    if idx.size:
+        D, w, Q = eig
+        inv = np.zeros_like(w)
+        keep = np.abs(w) > 1e-12 * np.max(np.abs(w))
+        inv[keep] = 1.0 / w[keep]
+        step[idx] = -(Q @ ((Q.T @ (g[idx] / D)) * inv)) / D
+    return step, eig
+
+
+def _scaled_eig(H1, H, idx):
+    """(D, w, Q): D = sqrt(diag H1) on the active set ``idx`` (1 where not positive), and the
+    eigenvalues w and vectors Q of H[idx, idx] / (D D^T)."""
+    d1 = np.diag(H1)[idx]
+    D = np.sqrt(np.where(d1 > 0, d1, 1.0))
+    w, Q = np.linalg.eigh(H[np.ix_(idx, idx)] / np.outer(D, D))
+    return D, w, Q
+
+
+def _hybrid_step(prob, theta, g, H1, J, active, lo, hi, rows=None, eig=None):
     """One step on ln det R.
 
     Newton with the concentrated Hessian ``Hc`` when it is positive definite.
@@ -1282,16 +1348,14 @@ def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi, rows=None):
     scaled by diag H1) that makes it positive definite, which keeps the
     curvature the paper's alternation ignores; mu grows until the cost falls.
     The paper's Gauss-Newton step with R held (Eq. 23), with step halving, is
-    the last resort.
+    the last resort.  ``eig`` is :func:`_scaled_eig` of ``Hc`` on the active set
+    (None: no finite Hc, straight to the last resort).
     """
     idx = np.flatnonzero(active)
     last = None
-    if idx.size:
-        d1 = np.diag(H1)[idx]
-        D = np.sqrt(np.where(d1 > 0, d1, 1.0))
-        Hn = Hc[np.ix_(idx, idx)] / np.outer(D, D)
+    if idx.size and eig is not None:
+        D, w, Q = eig
         gn = g[idx] / D
-        w, Q = np.linalg.eigh(Hn)
         top = max(float(w.max()), 1e-300)
         mu = 0.0 if w.min() > SETTINGS.singular_eig * top else 2.0 * abs(float(w.min())) + 1e-8 * top
         # strongly indefinite (far from the optimum): the Gauss-Newton step goes further
