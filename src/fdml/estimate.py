@@ -287,8 +287,13 @@ class Problem:
         list of numpy.ndarray
             Complex spectra of alpha (rad s), q (rad), a_z (g s) per record, shape (m_r, 3).
         """
-        if responses is None:
-            responses = self._responses(self.model_values(theta))
+        if responses is None:  # Eqs. 18-19 as one forcing of the states: no G, H, P formed
+            vals = self.model_values(theta)
+            return [
+                self.model.forced_response(d.omega, vals, *self._forcing(theta, r))
+                + d.ones[:, None] * self._nuisance(theta, r).biases[None, :]
+                for r, d in enumerate(self.data)
+            ]
         out = []
         for r, (d, resp) in enumerate(zip(self.data, responses)):
             nu = self._nuisance(theta, r)  # Eqs. 18-19 with section 7's boundary terms
@@ -1572,14 +1577,14 @@ def _finish(
         corr = cov / np.outer(stderr, stderr)
     corr[~np.isfinite(corr)] = np.nan
     np.fill_diagonal(corr, 1.0)
-    for i in range(len(names)):
-        for j in range(i):
-            if np.isfinite(corr[i, j]) and abs(corr[i, j]) > SETTINGS.correlation_warn:
-                m = (
-                    f"parameters {names[j]} and {names[i]} are correlated at {corr[i, j]:+.3f} "
-                    f"(beyond {SETTINGS.correlation_warn:g})"
-                )
-                warnings.warn(m, IdentifiabilityWarning, stacklevel=4)
+    with np.errstate(invalid="ignore"):
+        high = np.tril(np.abs(corr) > SETTINGS.correlation_warn, -1)  # NaN compares False
+    for i, j in zip(*np.nonzero(high)):  # row by row, as the pairs (i, j < i) are listed
+        m = (
+            f"parameters {names[j]} and {names[i]} are correlated at {corr[i, j]:+.3f} "
+            f"(beyond {SETTINGS.correlation_warn:g})"
+        )
+        warnings.warn(m, IdentifiabilityWarning, stacklevel=4)
     model = prob.model.with_values({n: theta[i] for i, n in enumerate(names) if not prob.slots[i].role.nuisance})
     _warn_at_bounds(prob, theta)
     return FitResult.build(

@@ -90,12 +90,7 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
     P : ndarray, shape (n, 3, 2)
         Outputs per unit forcing of each state equation.
     """
-    det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
-    if (det == 0).any():
-        bad = s[det == 0]
-        raise ParameterError(f"the model is singular at s = {bad[0]}: a pole lies on the frequency grid")
-    # M^-1 = adj(M) / det, adj(M) = [[m11, -m01], [-m10, m00]]
-    inv = M[:, ::-1, ::-1].transpose(0, 2, 1) * (_ADJ_SIGN / det[:, None, None])
+    inv = _adjugate(M) / _determinant(s, M)[:, None, None]  # M^-1
     k = U / G0  # Eq. 5: a_z = (U/g)(alpha_dot - q), in g
     X = inv @ B  # (n, 2, n_in): alpha~, q~ per unit input
     G = np.empty((s.size, 3, B.shape[2]), dtype=complex)
@@ -110,6 +105,20 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
         H = P @ np.broadcast_to(E, M.shape)  # state per boundary term: M^-1 E
     H[:, 2, 0] -= k  # finite transform of alpha_dot is s alpha~ - d_alpha
     return G, H, P
+
+
+def _determinant(s: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """det M per frequency, shape (n,); a zero (a pole on the grid) is an error naming s."""
+    det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
+    if (det == 0).any():
+        bad = s[det == 0]
+        raise ParameterError(f"the model is singular at s = {bad[0]}: a pole lies on the frequency grid")
+    return det
+
+
+def _adjugate(M: np.ndarray) -> np.ndarray:
+    """adj(M) = [[m11, -m01], [-m10, m00]] per frequency, so that M^-1 = adj(M) / det M."""
+    return M[:, ::-1, ::-1].transpose(0, 2, 1) * _ADJ_SIGN
 
 
 #: Signs of the adjugate of a 2 x 2 matrix.
@@ -425,13 +434,66 @@ class Model:
             w = w + _apply(dE, boundary)
         return ModelResponse(omega, G, H, P), _apply(P, w)
 
-    def _solved(self, omega, p):
-        """s, M, B with input delays, E, the delay factors (n, n_in) and :func:`solve_short_period`'s (G, H, P)."""
+    def forced_response(self, omega, values, u, boundary=None, forcing=None) -> np.ndarray:
+        """The outputs ``G u + H d + P f`` for one forcing, without forming G, H and P.
+
+        The linear part of :func:`fdml.models.measurement.predict` (no output
+        biases): with ``x = M^-1 (B u + E d + f)`` (one 2 x 2 solve per
+        frequency, by the adjugate), alpha = x_alpha, q = x_q and
+        ``a_z = (U/g)(s x_alpha - d_alpha - x_q)`` (Eq. 5).  Models without
+        matrices (an overridden :meth:`evaluate`) go through their response.
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s, shape (n,).
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+        u : numpy.ndarray
+            Input spectra (de rad s[, alpha_w rad s]), complex, shape (n, n_in).
+        boundary : numpy.ndarray, optional
+            Boundary vector d (alpha rad s, q rad), complex, shape (n, 2); None for none.
+        forcing : numpy.ndarray, optional
+            State forcing f, complex, shape (n, 2).
+
+        Returns
+        -------
+        numpy.ndarray
+            Outputs alpha (rad s), q (rad), a_z (g s), complex, shape (n, 3).
+        """
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        if type(self).evaluate is not Model.evaluate:
+            resp = self.evaluate(omega, values)
+            y = (resp.G @ u[:, :, None])[..., 0]
+            if boundary is not None:
+                y = y + (resp.H @ boundary[:, :, None])[..., 0]
+            return y if forcing is None else y + (resp.P @ forcing[:, :, None])[..., 0]
+        s, M, Bd, E, _ = self._forced_matrices(omega, self.values(values))
+        r = _inputs(Bd, u)
+        if boundary is not None:
+            r = r + (boundary if _is_identity(E) else _apply(E, boundary))
+        if forcing is not None:
+            r = r + forcing
+        x = _apply(_adjugate(M), r) / _determinant(s, M)[:, None]
+        k = self.U / G0  # Eq. 5
+        y = np.empty((s.size, 3), dtype=complex)
+        y[:, :2] = x
+        y[:, 2] = k * (s * x[:, 0] - x[:, 1])
+        if boundary is not None:
+            y[:, 2] -= k * boundary[:, 0]  # the transform of alpha_dot is s alpha~ - d_alpha
+        return y
+
+    def _forced_matrices(self, omega, p):
+        """s, M, B with input delays, E and the delay factors exp(-s tau), shape (n, n_in)."""
         s = 1j * omega
         M, B, E = self._matrices(s, p)
         delays = [p[nm] for nm in self._delay_names()]
         Dl = np.exp(-np.outer(s, delays))
-        Bd = B * Dl[:, None, :]  # pure input delays
+        return s, M, B * Dl[:, None, :], E, Dl  # pure input delays
+
+    def _solved(self, omega, p):
+        """:meth:`_forced_matrices` and :func:`solve_short_period`'s (G, H, P)."""
+        s, M, Bd, E, Dl = self._forced_matrices(omega, p)
         return s, M, Bd, E, Dl, solve_short_period(s, M, Bd, E, self.U)
 
     def _derivative_stack(self, s, p, names, Bd, Dl):
