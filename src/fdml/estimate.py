@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from . import fourier
 from .errors import (
     BandError,
     BoundsWarning,
@@ -169,6 +170,8 @@ class Problem:
             [],
         )  # (model, fixed nuisance values per record): see _nuisance
         self.N = sum(d.m for d in data)
+        self._offsets = np.cumsum([0] + [d.m for d in data])  # first row of each record
+        self._all_outputs = list(outputs) == list(range(len(OUTPUTS)))
         self.n_out = len(outputs)
         self._steps: dict = {}
 
@@ -383,15 +386,16 @@ class Problem:
         """
         p = len(self.slots)
         A = np.zeros((self.N, self.n_out, p), complex)
-        offs = np.cumsum([0] + [d.m for d in self.data])
+        offs = self._offsets
         vals = self.model_values(theta)
         if self.sensitivity == "analytic":
             mnames = [self.slots[i].name for i in self.model_slots]
             responses = []
+            pm = len(mnames)  # the model's slots come first (Problem.__init__)
             for r, d in enumerate(self.data):
                 resp, dy = self.model.forced_sensitivity(d.omega, vals, mnames, *self._forcing(theta, r))
                 responses.append(resp)
-                A[offs[r] : offs[r + 1], :, self.model_slots] = np.moveaxis(dy[:, :, self.out_idx], 0, -1)
+                A[offs[r] : offs[r + 1], :, :pm] = np.moveaxis(self._fitted(dy, -1), 0, -1)
         else:
             responses = self._responses(vals)
             if y0 is None:
@@ -403,9 +407,13 @@ class Problem:
         for r, d in enumerate(self.data):
             own, cols = self._nu[r]
             if own.size:  # exact: every nuisance value enters linearly
-                C = nuisance_columns(responses[r], self._shift[r], d.ones)[:, self.out_idx]
-                A[offs[r] : offs[r + 1], :, own] = C[:, :, cols]
+                C = self._fitted(nuisance_columns(responses[r], self._shift[r], d.ones), 1)
+                A[offs[r] : offs[r + 1], :, own[0] : own[-1] + 1] = C[:, :, cols]  # a record's slots are adjacent
         return A
+
+    def _fitted(self, y: np.ndarray, axis: int) -> np.ndarray:
+        """The fitted outputs of ``y``, whose ``axis`` runs over all three outputs."""
+        return y if self._all_outputs else np.take(y, self.out_idx, axis=axis)
 
     def _eval_stacked(self, theta: np.ndarray) -> np.ndarray:
         return np.concatenate([y[:, self.out_idx] for y in self.predict(theta)])
@@ -1126,6 +1134,8 @@ def _stored_options(options: dict, prob: Problem) -> dict:
     out["bounds"] = {k: [_finite_or_none(x) for x in pair] for k, pair in (options["bounds"] or {}).items()}
     band = options["band"]
     out["band"] = band if band is None or isinstance(band, str) else [float(x) for x in band]
+    if options["cov_type"] != "naive":  # how white noise reached the covariance, per record
+        out["noise_covariance"] = _noise_routes(prob)
     return out
 
 
@@ -1439,11 +1449,11 @@ def _white_cov_g(
     bchan = [(j, out_idx.index(j)) for j in (0, 1) if j in out_idx]  # measured alpha, q in the fit
     cov = np.zeros((p, p))
     off = 0
-    vals = prob.model.parameters.values
     for d in prob.data:
         Cr = C[off : off + d.m]
         off += d.m
-        if not (prob.boundary == "measured" and bchan) and d.m <= SETTINGS.gram_max:
+        rows, E = _boundary_noise(prob, d, Cr, bchan) if prob.boundary == "measured" and bchan else (None, None)
+        if _noise_route(prob, d) != "adjoint":
             # frequency-domain form, O(m^2): g = Re sum_i C_i v_i with E{v v^H} = Sigma (x) Psi,
             # E{v v^T} = Sigma (x) Phi, Psi = (F P)(F P)^H, Phi = (F P)(F P)^T, so
             # Cov g = 1/2 Re sum_ik [Psi_ik C_i Sigma C_k^H + Phi_ik C_i Sigma C_k^T]
@@ -1452,23 +1462,77 @@ def _white_cov_g(
             Y = np.tensordot(Psi, Cr.conj(), axes=(1, 0))
             Z = np.tensordot(Phi, Cr, axes=(1, 0))
             cov += 0.5 * np.real(CS @ np.transpose(Y + Z, (1, 0, 2)).reshape(p, -1).T)
+            if rows is not None:  # K_n = Kf_n + E_n differs from the Gram's Kf_n on the rows of E only
+                Kf = np.einsum("ms,mpo->spo", _noise_columns(d, rows), Cr)
+                cov += _real_sum(Kf + E, Sigma) - _real_sum(Kf, Sigma)
             continue
         K = d.noise_adjoint(Cr.reshape(d.m, p * no)).reshape(d.n, p, no)
-        if prob.boundary == "measured" and bchan:
-            # v = z - y: the noise of the measured x(0), x(T) enters through y's exact boundary columns
-            X = nuisance_columns(prob.model.evaluate(d.omega, vals), end_shift(d.omega, d.T), d.ones)
-            CX = Cr @ X[:, prob.out_idx][:, :, _BOUNDARY_COLS]  # (m, p, 4): x0_alpha, x0_q, xT_alpha, xT_q
-            Q0, QT = -CX[:, :, :2].sum(axis=0), -CX[:, :, 2:].sum(axis=0)
-            ell = d.trim_vector()
-            for j, col in bchan:
-                K[0, :, col] += Q0[:, j]
-                K[-1, :, col] += QT[:, j]
-                if ell is not None:
-                    K[:, :, col] -= np.outer(ell, Q0[:, j] + QT[:, j])
-        K = np.real(K)
-        KS = np.transpose(K @ Sigma, (1, 0, 2)).reshape(p, -1)
-        cov += KS @ np.transpose(K, (1, 0, 2)).reshape(p, -1).T  # sum_n K_n Sigma K_n^T
+        if rows is not None:
+            K[rows] += E
+        cov += _real_sum(K, Sigma)
     return cov
+
+
+def _noise_route(prob: Problem, d: FrequencyData) -> str:
+    """How record ``d``'s white noise reaches the covariance (:func:`_white_cov_g`).
+
+    ``"closed form"``: the Gram matrices of :meth:`FrequencyData.noise_gram`
+    (Dirichlet sums, :func:`fdml.fourier.gram`); ``"explicit weights"``: the
+    same from the explicit transform weights (a record too short for the closed
+    form); ``"adjoint"``: the direct sums of the adjoint transform over the
+    samples, for a grid beyond :attr:`EstimatorSettings.gram_max` frequencies,
+    where the (m, m) matrices would cost more than the n samples.
+    """
+    if d.m > SETTINGS.gram_max:
+        return "adjoint"
+    return "closed form" if fourier.gram_form(d.n, d.end_correction) == "closed form" else "explicit weights"
+
+
+def _noise_routes(prob: Problem) -> dict[str, str]:
+    """:func:`_noise_route` of every record, by name, in words (for :attr:`FitResult.options`)."""
+    words = {
+        "closed form": "closed form",
+        "explicit weights": "direct sum: explicit transform weights (record too short for the closed form)",
+        "adjoint": f"direct sum: adjoint transform (more than {SETTINGS.gram_max} frequencies)",
+    }
+    return {d.name: words[_noise_route(prob, d)] for d in prob.data}
+
+
+def _real_sum(K: np.ndarray, Sigma: np.ndarray) -> np.ndarray:
+    """sum_n Re K_n Sigma Re K_n^T for K of shape (n, p, n_out)."""
+    p = K.shape[1]
+    K = np.real(K)
+    KS = np.transpose(K @ Sigma, (1, 0, 2)).reshape(p, -1)
+    return KS @ np.transpose(K, (1, 0, 2)).reshape(p, -1).T
+
+
+def _noise_columns(d: FrequencyData, rows: np.ndarray) -> np.ndarray:
+    """Columns ``rows`` of the noise map F P (transform after trim removal), shape (m, len(rows))."""
+    cols = fourier.transform_columns(d.n, d.dt, d.omega, rows, end_correction=d.end_correction)
+    ell = d.trim_vector()
+    return cols if ell is None else cols - d.ones[:, None] * ell[rows][None, :]  # F (I - 1 l^T)
+
+
+def _boundary_noise(prob: Problem, d: FrequencyData, Cr: np.ndarray, bchan) -> tuple[np.ndarray, np.ndarray]:
+    """Rows n of the noise map K where measured boundary values add to it, and what they add.
+
+    v = z - y: the noise of the measured x(0), x(T) (samples 0 and n - 1 of the
+    fitted alpha and q, after trim removal) enters through y's exact boundary
+    columns.  Returns the sample indices (the trim samples, 0 and n - 1) and
+    E of shape (len(rows), p, n_out).
+    """
+    X = nuisance_columns(prob.model.evaluate(d.omega, prob.model.parameters.values), end_shift(d.omega, d.T), d.ones)
+    CX = Cr @ X[:, prob.out_idx][:, :, _BOUNDARY_COLS]  # (m, p, 4): x0_alpha, x0_q, xT_alpha, xT_q
+    Q0, QT = -CX[:, :, :2].sum(axis=0), -CX[:, :, 2:].sum(axis=0)
+    ell = d.trim_vector()
+    rows = np.unique(np.r_[0, d.n - 1, np.arange(0 if ell is None else d.trim_samples)])
+    E = np.zeros((rows.size,) + Cr.shape[1:], complex)
+    for j, col in bchan:
+        E[rows == 0, :, col] += Q0[:, j]
+        E[rows == d.n - 1, :, col] += QT[:, j]
+        if ell is not None:
+            E[:, :, col] -= np.outer(ell[rows], Q0[:, j] + QT[:, j])
+    return rows, E
 
 
 def information(A: np.ndarray, W: np.ndarray) -> np.ndarray:

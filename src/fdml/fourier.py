@@ -56,6 +56,7 @@ __all__ = [
     "gram",
     "gram_form",
     "leading_transform",
+    "transform_columns",
 ]
 
 _METHODS = ("auto", "czt", "direct")
@@ -585,6 +586,39 @@ def transform_weights(n, dt, omega, *, end_correction="cubic"):
         mat[:, :nend] += alpha
         mat[:, ::-1][:, :nend] += tail
     return mat * dt
+
+
+def transform_columns(n, dt, omega, cols, *, end_correction="cubic"):
+    """Columns ``cols`` of the transform matrix F (:func:`transform_weights`), in O(m len(cols)) work.
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    dt : float
+        Sample interval, s (> 0).
+    omega : array_like, shape (m,)
+        Angular frequencies, rad/s, ``|omega| <= pi/dt``.
+    cols : array_like of int, shape (c,)
+        Sample indices, 0 <= col < n.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        Quadrature, as in :func:`finite_fourier_transform`.
+
+    Returns
+    -------
+    numpy.ndarray, complex, shape (m, c)
+        ``F[:, cols]``, s: the transform of a unit sample at each column.
+    """
+    _, n, dt, omega = _check(dt, omega, end_correction, "direct", n=n)
+    cols = np.asarray(cols, dtype=int)
+    if cols.ndim != 1 or np.any((cols < 0) | (cols >= n)):
+        raise RecordError(f"cols must be sample indices 0 .. {n - 1}, not {cols!r}")
+    theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
+    out = weight[:, None] * _expi(-np.outer(theta, cols.astype(float)))
+    for k in range(alpha.shape[1]):  # the end-corrected samples: a_k on the left, the tail on the right
+        out[:, cols == k] += alpha[:, k : k + 1]
+        out[:, cols == n - 1 - k] += tail[:, k : k + 1]
+    return out * dt
 
 
 def _dirichlet(x, n):
