@@ -145,6 +145,22 @@ def _inputs(B: np.ndarray, u: np.ndarray) -> np.ndarray:
     return out
 
 
+def _right_side(Bd: np.ndarray, E: np.ndarray, u: np.ndarray, boundary, forcing) -> np.ndarray:
+    """The right-hand side ``B u + E d + f`` of ``M x = ...`` per frequency, shape (n, 2)."""
+    r = _inputs(Bd, u)
+    if boundary is not None:
+        r = r + (boundary if _is_identity(E) else _apply(E, boundary))
+    return r if forcing is None else r + forcing
+
+
+def _responded(resp: ModelResponse, u: np.ndarray, boundary, forcing) -> np.ndarray:
+    """``G u + H d + P f`` of a response (or of its derivatives, with a leading axis), shape (..., n, 3)."""
+    y = (resp.G @ u[:, :, None])[..., 0]
+    if boundary is not None:
+        y = y + (resp.H @ boundary[:, :, None])[..., 0]
+    return y if forcing is None else y + (resp.P @ forcing[:, :, None])[..., 0]
+
+
 #: Roles whose derivatives are not derivatives of the model matrices (M, B, E): input delays
 #: (exact, through exp(-s tau)) and the measurement's nuisance terms.
 _NOT_IN_MATRICES = frozenset({Role.DELAY}) | frozenset(r for r in Role if r.nuisance)
@@ -414,20 +430,10 @@ class Model:
         if type(self).evaluate is not Model.evaluate or type(self).sensitivity is not Model.sensitivity:
             parts = ("G",) + (("H",) if boundary is not None else ()) + (("P",) if forcing is not None else ())
             resp, dG, dH, dP = self.sensitivity(omega, values, names, parts)
-            dy = (dG @ u[:, :, None])[..., 0]
-            if boundary is not None:
-                dy = dy + (dH @ boundary[:, :, None])[..., 0]
-            if forcing is not None:
-                dy = dy + (dP @ forcing[:, :, None])[..., 0]
-            return resp, dy
+            return resp, _responded(ModelResponse(omega, dG, dH, dP), u, boundary, forcing)
         p = self.values(values)
         s, M, Bd, E, Dl, (G, H, P) = self._solved(omega, p)
-        r = _inputs(Bd, u)  # B u, (n, 2)
-        if boundary is not None:
-            r = r + (boundary if _is_identity(E) else _apply(E, boundary))
-        if forcing is not None:
-            r = r + forcing
-        x = _apply(P[:, :2], r)  # the states M^-1 r
+        x = _apply(P[:, :2], _right_side(Bd, E, u, boundary, forcing))  # the states M^-1 r
         dM, dBd, dE = self._derivative_stack(s, p, names, Bd, Dl)
         w = _inputs(dBd, u) - _apply(dM, x)  # (k, n, 2)
         if boundary is not None and dE.any():
@@ -463,18 +469,9 @@ class Model:
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         if type(self).evaluate is not Model.evaluate:
-            resp = self.evaluate(omega, values)
-            y = (resp.G @ u[:, :, None])[..., 0]
-            if boundary is not None:
-                y = y + (resp.H @ boundary[:, :, None])[..., 0]
-            return y if forcing is None else y + (resp.P @ forcing[:, :, None])[..., 0]
+            return _responded(self.evaluate(omega, values), u, boundary, forcing)
         s, M, Bd, E, _ = self._forced_matrices(omega, self.values(values))
-        r = _inputs(Bd, u)
-        if boundary is not None:
-            r = r + (boundary if _is_identity(E) else _apply(E, boundary))
-        if forcing is not None:
-            r = r + forcing
-        x = _apply(_adjugate(M), r) / _determinant(s, M)[:, None]
+        x = _apply(_adjugate(M), _right_side(Bd, E, u, boundary, forcing)) / _determinant(s, M)[:, None]
         k = self.U / G0  # Eq. 5
         y = np.empty((s.size, 3), dtype=complex)
         y[:, :2] = x
