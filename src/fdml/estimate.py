@@ -777,8 +777,11 @@ def _cov_R(V: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         )
     # Eq. 24: R_jk = (1/N) sum_i v_ij conj(v_ik) (docs/theory.md 7, conjugation convention)
     R = V.T @ V.conj() / V.shape[0]
-    floor = SETTINGS.r_floor * float(np.max(np.real(np.diag(R))))
-    return R + floor * np.eye(R.shape[0]) if floor > 0 else R
+    diag = R.reshape(-1)[:: R.shape[0] + 1]  # a view of the diagonal
+    floor = SETTINGS.r_floor * float(diag.real.max())
+    if floor > 0:
+        diag += floor
+    return R
 
 
 def _weights(R: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
@@ -867,7 +870,7 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np
         return _grad_hess_bands(A, V, R, full, rows)
     N, no, p = A.shape
     Li = np.linalg.inv(np.linalg.cholesky(R))
-    Aw = np.tensordot(Li, A, axes=(1, 1))  # (no, N, p)
+    Aw = (Li @ A.transpose(1, 0, 2).reshape(no, N * p)).reshape(no, N, p)
     Vw = Li @ V.T  # (no, N)
     Ar = Aw.reshape(no * N, p)
     Ar = np.concatenate([Ar.real, Ar.imag])  # Re(a^H b) = a_r . b_r + a_i . b_i
@@ -1348,9 +1351,10 @@ def _proposal(g, H1, H, active, full):
 def _scaled_eig(H1, H, idx):
     """(D, w, Q): D = sqrt(diag H1) on the active set ``idx`` (1 where not positive), and the
     eigenvalues w and vectors Q of H[idx, idx] / (D D^T)."""
-    d1 = np.diag(H1)[idx]
+    whole = idx.size == H.shape[0]  # every parameter active: no copy of the block
+    d1 = np.diag(H1) if whole else np.diag(H1)[idx]
     D = np.sqrt(np.where(d1 > 0, d1, 1.0))
-    w, Q = np.linalg.eigh(H[np.ix_(idx, idx)] / np.outer(D, D))
+    w, Q = np.linalg.eigh((H if whole else H[np.ix_(idx, idx)]) / np.outer(D, D))
     return D, w, Q
 
 
@@ -1571,8 +1575,7 @@ def white_covariance(
 def _naive_sigma(F: np.ndarray) -> np.ndarray:
     """sqrt(diag(F^-1)) for an information matrix F (Cholesky; pseudo-inverse if singular)."""
     try:
-        L = np.linalg.cholesky(F)
-        Li = np.linalg.solve(L, np.eye(F.shape[0]))
+        Li = np.linalg.inv(np.linalg.cholesky(F))  # F^-1 = Li^T Li
         return np.sqrt(np.sum(Li**2, axis=0))
     except np.linalg.LinAlgError:
         with np.errstate(divide="ignore", invalid="ignore"):

@@ -90,15 +90,11 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
     P : ndarray, shape (n, 3, 2)
         Outputs per unit forcing of each state equation.
     """
-    inv = _adjugate(M) / _determinant(s, M)[:, None, None]  # M^-1
     k = U / G0  # Eq. 5: a_z = (U/g)(alpha_dot - q), in g
-    X = inv @ B  # (n, 2, n_in): alpha~, q~ per unit input
-    G = np.empty((s.size, 3, B.shape[2]), dtype=complex)
-    G[:, :2] = X
-    G[:, 2] = k * (s[:, None] * X[:, 0] - X[:, 1])
     P = np.empty((s.size, 3, 2), dtype=complex)
-    P[:, :2] = inv  # state per unit forcing of each state equation
-    P[:, 2] = k * (s[:, None] * inv[:, 0] - inv[:, 1])
+    P[:, :2] = _adjugate(M) / _determinant(s, M)[:, None, None]  # M^-1: state per unit forcing of each equation
+    P[:, 2] = (k * s)[:, None] * P[:, 0] - k * P[:, 1]
+    G = P @ B  # (n, 3, n_in): alpha~, q~, a_z~ per unit input
     if _is_identity(E):
         H = P.copy()
     else:
