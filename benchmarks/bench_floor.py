@@ -272,7 +272,7 @@ def pass_costs(rec, model, omega, fl, th0, reps) -> dict:
         "fdml: trial point (residuals, R, ln det R)": lambda: _logdet(_cov_R(prob.residuals(th))),
         "fdml: sensitivities, one batched solve": lambda: prob.sensitivities(th),
         "  model derivatives only (forced_sensitivity)": lambda: model.forced_sensitivity(
-            d.omega, prob.model_values(th), names, *prob._forcing(th, 0)
+            d.omega, prob.model_values(th), names, *prob._forcing(prob._nuisance(th, 0), 0)
         ),
         "  the same by derivative matrices (before)": generic_sensitivities,
         "fdml: gradient and Hessian of ln det R": lambda: _grad_hess(A, V, R, True),

@@ -292,11 +292,12 @@ class Problem:
         """
         if responses is None:  # Eqs. 18-19 as one forcing of the states: no G, H, P formed
             vals = self.model_values(theta)
-            return [
-                self.model.forced_response(d.omega, vals, *self._forcing(theta, r))
-                + d.ones[:, None] * self._nuisance(theta, r).biases[None, :]
-                for r, d in enumerate(self.data)
-            ]
+            out = []
+            for r, d in enumerate(self.data):
+                nu = self._nuisance(theta, r)
+                y = self.model.forced_response(d.omega, vals, *self._forcing(nu, r))
+                out.append(y + d.ones[:, None] * nu.biases[None, :])
+            return out
         out = []
         for r, (d, resp) in enumerate(zip(self.data, responses)):
             nu = self._nuisance(theta, r)  # Eqs. 18-19 with section 7's boundary terms
@@ -331,7 +332,7 @@ class Problem:
         nu = self._nuisance(theta, r)
         return _measure(change, d.u, d.ones, nu.boundary(self._shift[r]), None, nu.state_biases, nu.input_bias)
 
-    def _forcing(self, theta: np.ndarray, r: int):
+    def _forcing(self, nu: Nuisance, r: int):
         """Record r's inputs u (the elevator offset added), boundary vector d and state forcing f 1(w).
 
         The linear part of the measurement model (:func:`fdml.models.measurement.predict`
@@ -339,7 +340,6 @@ class Problem:
         with ``u' = u + b_de 1 e_de``: the forcing of :meth:`Model.forced_sensitivity`.
         """
         d = self.data[r]
-        nu = self._nuisance(theta, r)
         u = d.u
         if nu.input_bias is not None:
             u = u.copy()
@@ -393,7 +393,8 @@ class Problem:
             responses = []
             pm = len(mnames)  # the model's slots come first (Problem.__init__)
             for r, d in enumerate(self.data):
-                resp, dy = self.model.forced_sensitivity(d.omega, vals, mnames, *self._forcing(theta, r))
+                forcing = self._forcing(self._nuisance(theta, r), r)
+                resp, dy = self.model.forced_sensitivity(d.omega, vals, mnames, *forcing)
                 responses.append(resp)
                 A[offs[r] : offs[r + 1], :, :pm] = np.moveaxis(self._fitted(dy, -1), 0, -1)
         else:

@@ -477,10 +477,12 @@ class Model:
         return y
 
     def _forced_matrices(self, omega, p):
-        """s, M, B with input delays, E and the delay factors exp(-s tau), shape (n, n_in)."""
+        """s, M, B with input delays, E and the delay factors exp(-s tau), shape (n, n_in) (None: no delays)."""
         s = 1j * omega
         M, B, E = self._matrices(s, p)
         delays = [p[nm] for nm in self._delay_names()]
+        if not any(delays):  # no delay (the usual case): factors of one
+            return s, M, B, E, None
         Dl = np.exp(-np.outer(s, delays))
         return s, M, B * Dl[:, None, :], E, Dl  # pure input delays
 
@@ -490,7 +492,10 @@ class Model:
         return s, M, Bd, E, Dl, solve_short_period(s, M, Bd, E, self.U)
 
     def _derivative_stack(self, s, p, names, Bd, Dl):
-        """dM (k, n, 2, 2), d(B with delays) (k, n, 2, n_in) and dE (k, 1, 2, 2), one row per name."""
+        """dM (k, n, 2, 2), d(B with delays) (k, n, 2, n_in) and dE (k, 1, 2, 2), one row per name.
+
+        ``Dl`` holds the delay factors of :meth:`_forced_matrices` (None: no delays).
+        """
         n, n_in, k = s.size, Bd.shape[2], len(names)
         dM = np.zeros((k, n, 2, 2), complex)
         dBd = np.zeros((k, n, 2, n_in), complex)
@@ -505,7 +510,7 @@ class Model:
             elif role not in _NOT_IN_MATRICES:  # output biases enter the measurement, not G
                 dMi, dBi, dEi = mats[nm]
                 dM[i] = dMi
-                dBd[i] = dBi * Dl[:, None, :]
+                dBd[i] = dBi if Dl is None else dBi * Dl[:, None, :]
                 if dEi is not None:
                     dE[i, 0] = dEi
         return dM, dBd, dE
