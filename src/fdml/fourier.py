@@ -87,9 +87,10 @@ MAX_BAND_FREQUENCIES = 100_000
 _MEMO_SIZE = 8
 #: Largest grid whose end weights are kept (8 entries of at most 0.6 MB).
 _MEMO_MAX_SETUP = 4096
-#: Largest grid whose Gram matrices are kept: two (m, m) complex matrices, 5 MB at
-#: m = 400, so at most 40 MB in all.
-_MEMO_MAX_GRAM = 400
+#: Largest grid whose Gram matrices are kept: two (m, m) complex matrices, 2 MB at
+#: m = 256, so at most 16 MB in all (and as much again for the trim-corrected ones of
+#: :meth:`fdml.spectral.FrequencyData.noise_gram`).  Fit bands have about 100.
+_MEMO_MAX_GRAM = 256
 
 
 def _lagrange_basis(nodes):
@@ -640,7 +641,7 @@ def gram(n, dt, omega, *, end_correction="cubic"):
     touching the n samples: E{v v^H} = sigma^2 F F^H, E{v v^T} = sigma^2 F F^T.
     A record of fewer than 2K + 1 samples (no interior) takes the explicit
     weights instead (:func:`gram_form` says which).  The matrices are kept per
-    (n, dt, grid, end correction) for grids of at most 400 frequencies and
+    (n, dt, grid, end correction) for grids of at most 256 frequencies and
     returned read-only, so a fit's passes, its records and its adequacy check
     build them once.
 

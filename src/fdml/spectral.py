@@ -263,7 +263,7 @@ class FrequencyData:
         and ``f = F l`` (:func:`fdml.fourier.gram`, ``leading_transform``).
 
         Kept, like :func:`fdml.fourier.gram`, per (n, dt, grid, end correction,
-        trim samples, ``ones``) for grids of at most 400 frequencies, so the
+        trim samples, ``ones``) for grids of at most 256 frequencies, so the
         records of a study or of a joint fit on one grid share them.
 
         Returns
