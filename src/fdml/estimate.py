@@ -290,14 +290,8 @@ class Problem:
         list of numpy.ndarray
             Complex spectra of alpha (rad s), q (rad), a_z (g s) per record, shape (m_r, 3).
         """
-        if responses is None:  # Eqs. 18-19 as one forcing of the states: no G, H, P formed
-            vals = self.model_values(theta)
-            out = []
-            for r, d in enumerate(self.data):
-                nu = self._nuisance(theta, r)
-                y = self.model.forced_response(d.omega, vals, *self._forcing(nu, r))
-                out.append(y + d.ones[:, None] * nu.biases[None, :])
-            return out
+        if responses is None:
+            responses = self._responses(self.model_values(theta))
         out = []
         for r, (d, resp) in enumerate(zip(self.data, responses)):
             nu = self._nuisance(theta, r)  # Eqs. 18-19 with section 7's boundary terms

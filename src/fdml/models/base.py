@@ -436,46 +436,6 @@ class Model:
             w = w + _apply(dE, boundary)
         return ModelResponse(omega, G, H, P), _apply(P, w)
 
-    def forced_response(self, omega, values, u, boundary=None, forcing=None) -> np.ndarray:
-        """The outputs ``G u + H d + P f`` for one forcing, without forming G, H and P.
-
-        The linear part of :func:`fdml.models.measurement.predict` (no output
-        biases): with ``x = M^-1 (B u + E d + f)`` (one 2 x 2 solve per
-        frequency, by the adjugate), alpha = x_alpha, q = x_q and
-        ``a_z = (U/g)(s x_alpha - d_alpha - x_q)`` (Eq. 5).  Models without
-        matrices (an overridden :meth:`evaluate`) go through their response.
-
-        Parameters
-        ----------
-        omega : array_like
-            Frequencies, rad/s, shape (n,).
-        values : mapping of str to float, optional
-            Parameter values by name overriding the model's own.
-        u : numpy.ndarray
-            Input spectra (de rad s[, alpha_w rad s]), complex, shape (n, n_in).
-        boundary : numpy.ndarray, optional
-            Boundary vector d (alpha rad s, q rad), complex, shape (n, 2); None for none.
-        forcing : numpy.ndarray, optional
-            State forcing f, complex, shape (n, 2).
-
-        Returns
-        -------
-        numpy.ndarray
-            Outputs alpha (rad s), q (rad), a_z (g s), complex, shape (n, 3).
-        """
-        omega = np.atleast_1d(np.asarray(omega, dtype=float))
-        if type(self).evaluate is not Model.evaluate:
-            return _responded(self.evaluate(omega, values), u, boundary, forcing)
-        s, M, Bd, E, _ = self._forced_matrices(omega, self.values(values))
-        x = _apply(_adjugate(M), _right_side(Bd, E, u, boundary, forcing)) / _determinant(s, M)[:, None]
-        k = self.U / G0  # Eq. 5
-        y = np.empty((s.size, 3), dtype=complex)
-        y[:, :2] = x
-        y[:, 2] = k * (s * x[:, 0] - x[:, 1])
-        if boundary is not None:
-            y[:, 2] -= k * boundary[:, 0]  # the transform of alpha_dot is s alpha~ - d_alpha
-        return y
-
     def _forced_matrices(self, omega, p):
         """s, M, B with input delays, E and the delay factors exp(-s tau), shape (n, n_in) (None: no delays)."""
         s = 1j * omega
