@@ -439,3 +439,42 @@ def test_fit_refuses_an_input_without_power_in_the_band():
     fast = Record(rec.t, {**rec.signals, "de": 0.01 * np.sin(60.0 * rec.t)}, name="fast")
     with pytest.raises(RecordError, match="'fast'.*no power in the band"):
         fit(fast, m, band=(0.2, 2.0, 0.2))
+
+
+def _direct_sums_everywhere(monkeypatch):
+    """Every record's white noise through the adjoint transform (the direct sums), as beyond gram_max."""
+    import dataclasses
+
+    from fdml import estimate
+
+    monkeypatch.setattr(estimate, "SETTINGS", dataclasses.replace(estimate.SETTINGS, gram_max=0))
+
+
+@pytest.mark.parametrize(
+    "case",
+    [
+        dict(boundary="estimated"),
+        dict(boundary="measured"),  # the noise of the measured x(0), x(T): rows 0, n - 1 and the trim
+        dict(boundary="measured", trim="mean", outputs="q,az"),
+        dict(boundary="none", cov_type="colored"),
+    ],
+)
+def test_white_covariance_in_closed_form_equals_the_direct_sums(dimensional_case, monkeypatch, case):
+    # two records of different lengths on an uneven grid: the closed-form Gram matrices (and, for measured
+    # boundary values, their correction on a few samples) against the adjoint transform over every sample.
+    # Both are exact; they differ by rounding in sums of ~n m terms (~1e-13 of the largest entry)
+    m, t, de, y = dimensional_case
+    rng = np.random.default_rng(11)
+    recs = [noisy_record(t, de, y, rng, name="a"), noisy_record(t[:401], de[:401], y[:401], rng, name="b")]
+    om = np.sort(np.r_[np.linspace(0.3, 9.0, 45), 1.234, 5.55])
+    res = fit(recs, m, omega=om, adequacy=False, check=False, **case)
+    assert res.options["noise_covariance"] == {"a": "closed form", "b": "closed form"}
+    _direct_sums_everywhere(monkeypatch)
+    ref = fit(recs, m, omega=om, adequacy=False, check=False, **case)
+    assert set(ref.options["noise_covariance"].values()) == {"direct sum: adjoint transform (more than 0 frequencies)"}
+    assert np.array_equal(res.values, ref.values)  # the iteration does not see the route
+    assert np.abs(res.cov - ref.cov).max() <= 1e-12 * np.abs(ref.cov).max()
+    assert np.allclose(res.stderr, ref.stderr, rtol=1e-11, atol=0)
+    if case["boundary"] == "estimated":  # the naive bound carries no noise: no route to name
+        naive = fit(recs, m, omega=om, adequacy=False, check=False, cov_type="naive")
+        assert "noise_covariance" not in naive.options

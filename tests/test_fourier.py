@@ -409,3 +409,62 @@ def test_leading_transform_matches_full_transform():
         ref = fourier.finite_fourier_transform(x, 0.02, om)
         got = fourier.leading_transform(w, 500, 0.02, om)
         assert np.allclose(got, ref, rtol=1e-12, atol=1e-15)
+
+
+@pytest.mark.parametrize("om", [np.array([2.5]), np.array([0.7, 4.1]), np.array([-3.0]), np.array([0.0, 1.3])])
+def test_gram_of_one_and_two_frequencies_matches_explicit_weights(om):
+    # the closed form on the smallest grids (no Toeplitz path) against W W^H: sums of ~n terms of
+    # size dt^2, so rounding ~ n eps relative
+    for n, ec in ((16, "cubic"), (9, "cubic"), (301, "trapezoid"), (2, "none"), (301, "none")):
+        F = fourier.transform_weights(n, 0.02, om, end_correction=ec)
+        GH, GT = fourier.gram(n, 0.02, om, end_correction=ec)
+        for got, ref in ((GH, F @ F.conj().T), (GT, F @ F.T)):
+            assert got.shape == (om.size, om.size)
+            assert np.abs(got - ref).max() <= 1e-12 * np.abs(ref).max()
+
+
+def test_gram_of_a_record_without_interior_uses_the_explicit_weights():
+    # fewer than 2K + 1 samples: the Dirichlet sum has no interior to sum; gram_form says so
+    om = np.linspace(0.5, 20.0, 7)
+    assert fourier.gram_form(8, "cubic") == "direct sum" and fourier.gram_form(9, "cubic") == "closed form"
+    assert fourier.gram_form(2, "trapezoid") == "direct sum" and fourier.gram_form(3, "trapezoid") == "closed form"
+    for n in (4, 8, 9):
+        F = fourier.transform_weights(n, 0.05, om)
+        GH, _ = fourier.gram(n, 0.05, om)
+        assert np.abs(GH - F @ F.conj().T).max() <= 1e-14 * np.abs(GH).max()
+
+
+def test_gram_is_kept_per_grid_and_read_only():
+    om = np.linspace(0.3, 9.0, 40)
+    first = fourier.gram(500, 0.02, om)
+    again = fourier.gram(500, 0.02, om.copy())  # an equal grid, another array
+    assert all(a is b for a, b in zip(first, again))
+    assert not first[0].flags.writeable and not first[1].flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        first[0][0, 0] = 0.0
+    # another record length, interval, grid or end correction is another Gram matrix
+    for other in (
+        fourier.gram(501, 0.02, om),
+        fourier.gram(500, 0.025, om),
+        fourier.gram(500, 0.02, om * 1.01),
+        fourier.gram(500, 0.02, om, end_correction="trapezoid"),
+    ):
+        assert np.abs(other[0] - first[0]).max() > 1e-6 * np.abs(first[0]).max()
+    # a grid too large to keep is still exact, and read-only like the kept ones
+    big = np.linspace(0.1, 60.0, 401)
+    F = fourier.transform_weights(700, 0.05, big)
+    GH, GT = fourier.gram(700, 0.05, big)
+    assert not GH.flags.writeable and fourier.gram(700, 0.05, big)[0] is not GH
+    assert np.abs(GH - F @ F.conj().T).max() <= 1e-12 * np.abs(GH).max()
+
+
+def test_transform_columns_are_columns_of_the_weights():
+    om = np.r_[np.linspace(0.3, 9.0, 30), -2.0, 0.0]
+    for n, ec in ((5, "cubic"), (8, "cubic"), (300, "cubic"), (300, "trapezoid"), (300, "none")):
+        F = fourier.transform_weights(n, 0.02, om, end_correction=ec)
+        cols = np.unique(np.r_[0, 1, 2, 3, n // 2, n - 4, n - 2, n - 1])
+        got = fourier.transform_columns(n, 0.02, om, cols, end_correction=ec)
+        # phases theta j up to ~n theta: rounding ~ n eps relative
+        assert np.abs(got - F[:, cols]).max() <= 1e-13 * np.abs(F).max()
+    with pytest.raises(RecordError, match="sample indices"):
+        fourier.transform_columns(10, 0.02, om, [10])

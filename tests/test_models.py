@@ -260,3 +260,44 @@ def test_aircraft_file(tmp_path):
         Aircraft.from_dict(minimal)
     with pytest.raises(AircraftError, match="unknown aircraft"):
         load_aircraft("concorde")
+
+
+def _forcing_case(model, rng):
+    """Inputs, boundary vector and state forcing on OMEGA, random (the forms are linear in each)."""
+    shape_u = (OMEGA.size, len(model.inputs))
+    u = rng.normal(size=shape_u) + 1j * rng.normal(size=shape_u)
+    d = rng.normal(size=(OMEGA.size, 2)) + 1j * rng.normal(size=(OMEGA.size, 2))
+    f = rng.normal(size=(OMEGA.size, 2)) + 1j * rng.normal(size=(OMEGA.size, 2))
+    return u, d, f
+
+
+@pytest.mark.parametrize(
+    "kind, options",
+    [
+        ("dimensional", {}),
+        ("derivatives", {"gust": True}),
+        ("steady", {"gust": True}),
+        ("unsteady", {}),
+        ("unsteady", {"effects": ["sensor_offset:az"]}),  # overrides evaluate: goes through the response
+    ],
+)
+def test_forced_sensitivity_matches_the_derivatives_of_the_response(kind, options):
+    # Model.forced_sensitivity, P (dB u + dE d - dM x) per name with one 2 x 2 solve of the forcing,
+    # against dG u + dH d + dP f from Model.sensitivity's derivative matrices: the same arithmetic
+    # reordered, so rounding ~ 1e-13 of the largest term
+    model = make_model(kind, "navion", **options).free(["tau_de"])
+    rng = np.random.default_rng(5)
+    u, d, f = _forcing_case(model, rng)
+    vals = {n: v * (1.0 + 0.1 * rng.normal()) for n, v in model.parameters.values.items()}
+    vals["tau_de"] = 0.03
+    names = list(model.parameters.free_model_names)
+    resp = model.evaluate(OMEGA, vals)
+    _, dG, dH, dP = model.sensitivity(OMEGA, vals, names)
+    for dd, ff in ((None, None), (d, None), (d, f)):
+        dy = (dG @ u[:, :, None])[..., 0]
+        dy = dy + (0 if dd is None else (dH @ dd[:, :, None])[..., 0])
+        dy = dy + (0 if ff is None else (dP @ ff[:, :, None])[..., 0])
+        resp2, got_dy = model.forced_sensitivity(OMEGA, vals, names, u, dd, ff)
+        assert got_dy.shape == (len(names), OMEGA.size, 3)
+        assert np.abs(got_dy - dy).max() <= 1e-12 * np.abs(dy).max()
+        assert np.abs(resp2.G - resp.G).max() <= 1e-14 * np.abs(resp.G).max()

@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from . import fourier
 from .errors import (
     BandError,
     BoundsWarning,
@@ -51,7 +52,7 @@ from .errors import (
 )
 from .estimator_settings import SETTINGS, EstimatorSettings
 from .findings import emit, raise_if_strict
-from .models.base import OUTPUTS, Model, ModelResponse
+from .models.base import OUTPUTS, Model
 from .models.measurement import (
     BOUNDARY_NAMES,
     INPUT_BIAS_NAME,
@@ -169,6 +170,8 @@ class Problem:
             [],
         )  # (model, fixed nuisance values per record): see _nuisance
         self.N = sum(d.m for d in data)
+        self._offsets = np.cumsum([0] + [d.m for d in data])  # first row of each record
+        self._all_outputs = list(outputs) == list(range(len(OUTPUTS)))
         self.n_out = len(outputs)
         self._steps: dict = {}
 
@@ -323,6 +326,21 @@ class Problem:
         nu = self._nuisance(theta, r)
         return _measure(change, d.u, d.ones, nu.boundary(self._shift[r]), None, nu.state_biases, nu.input_bias)
 
+    def _forcing(self, nu: Nuisance, r: int):
+        """Record r's inputs u (the elevator offset added), boundary vector d and state forcing f 1(w).
+
+        The linear part of the measurement model (:func:`fdml.models.measurement.predict`
+        without output biases) is ``G u + H d + P f 1 + G_de b_de 1 = C M^-1 (B u' + E d + f 1)``
+        with ``u' = u + b_de 1 e_de``: the forcing of :meth:`Model.forced_sensitivity`.
+        """
+        d = self.data[r]
+        u = d.u
+        if nu.input_bias is not None:
+            u = u.copy()
+            u[:, 0] += nu.input_bias * d.ones
+        f = None if nu.state_biases is None else d.ones[:, None] * nu.state_biases[None, :]
+        return u, nu.boundary(self._shift[r]), f
+
     def residuals(self, theta: np.ndarray, responses=None) -> np.ndarray:
         """Stacked residuals v = z - y over records, selected outputs, shape (N, n_out).
 
@@ -362,17 +380,17 @@ class Problem:
         """
         p = len(self.slots)
         A = np.zeros((self.N, self.n_out, p), complex)
-        offs = np.cumsum([0] + [d.m for d in self.data])
+        offs = self._offsets
         vals = self.model_values(theta)
         if self.sensitivity == "analytic":
             mnames = [self.slots[i].name for i in self.model_slots]
             responses = []
+            pm = len(mnames)  # the model's slots come first (Problem.__init__)
             for r, d in enumerate(self.data):
-                parts = ("G",) + (("H",) if self.boundary != "none" else ()) + (("P",) if self.state_biases else ())
-                resp, dG, dH, dP = self.model.sensitivity(d.omega, vals, mnames, parts)
+                forcing = self._forcing(self._nuisance(theta, r), r)
+                resp, dy = self.model.forced_sensitivity(d.omega, vals, mnames, *forcing)
                 responses.append(resp)
-                dy = self.linear_predict(theta, r, ModelResponse(d.omega, dG, dH, dP))
-                A[offs[r] : offs[r + 1], :, self.model_slots] = np.moveaxis(dy[:, :, self.out_idx], 0, -1)
+                A[offs[r] : offs[r + 1], :, :pm] = np.moveaxis(self._fitted(dy, -1), 0, -1)
         else:
             responses = self._responses(vals)
             if y0 is None:
@@ -384,9 +402,13 @@ class Problem:
         for r, d in enumerate(self.data):
             own, cols = self._nu[r]
             if own.size:  # exact: every nuisance value enters linearly
-                C = nuisance_columns(responses[r], self._shift[r], d.ones)[:, self.out_idx]
-                A[offs[r] : offs[r + 1], :, own] = C[:, :, cols]
+                C = self._fitted(nuisance_columns(responses[r], self._shift[r], d.ones), 1)
+                A[offs[r] : offs[r + 1], :, own[0] : own[-1] + 1] = C[:, :, cols]  # a record's slots are adjacent
         return A
+
+    def _fitted(self, y: np.ndarray, axis: int) -> np.ndarray:
+        """The fitted outputs of ``y``, whose ``axis`` runs over all three outputs."""
+        return y if self._all_outputs else np.take(y, self.out_idx, axis=axis)
 
     def _eval_stacked(self, theta: np.ndarray) -> np.ndarray:
         return np.concatenate([y[:, self.out_idx] for y in self.predict(theta)])
@@ -750,8 +772,11 @@ def _cov_R(V: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         )
     # Eq. 24: R_jk = (1/N) sum_i v_ij conj(v_ik) (docs/theory.md 7, conjugation convention)
     R = V.T @ V.conj() / V.shape[0]
-    floor = SETTINGS.r_floor * float(np.max(np.real(np.diag(R))))
-    return R + floor * np.eye(R.shape[0]) if floor > 0 else R
+    diag = R.reshape(-1)[:: R.shape[0] + 1]  # a view of the diagonal
+    floor = SETTINGS.r_floor * float(diag.real.max())
+    if floor > 0:
+        diag += floor
+    return R
 
 
 def _weights(R: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
@@ -831,8 +856,31 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np
     g = -(2/N) Re sum A^H R^-1 v (the Eq. 23 right-hand side), H1 = (2/N) Re
     sum A^H R^-1 A (Eq. 23's matrix), and, for the concentrated likelihood,
     H = H1 - tr(R^-1 dR_k R^-1 dR_l) with dR_k = -(1/N) sum (a_k v^H + v a_k^H).
-    Written as a few matrix products over all frequencies and outputs at once.
+    One R (white noise) is taken out by its Cholesky factor R = L L^H: with
+    a~ = L^-1 a and w = L^-1 v every sum above is a plain product of the
+    whitened rows, and tr(R^-1 dR_k R^-1 dR_l) = tr(D_k D_l) with the Hermitian
+    D_k = L^-1 dR_k L^-H = -(1/N) sum (a~_k w^H + w a~_k^H).
     """
+    if rows is not None:
+        return _grad_hess_bands(A, V, R, full, rows)
+    N, no, p = A.shape
+    Li = np.linalg.inv(np.linalg.cholesky(R))
+    Aw = (Li @ A.transpose(1, 0, 2).reshape(no, N * p)).reshape(no, N, p)
+    Vw = Li @ V.T  # (no, N)
+    Ar = Aw.reshape(no * N, p)
+    Ar = np.concatenate([Ar.real, Ar.imag])  # Re(a^H b) = a_r . b_r + a_i . b_i
+    H1 = (2.0 / N) * (Ar.T @ Ar)
+    g = -(2.0 / N) * (Ar.T @ np.concatenate([Vw.real.ravel(), Vw.imag.ravel()]))
+    if not full:
+        return g, H1, H1
+    S = (np.transpose(Aw, (2, 0, 1)).reshape(p * no, N) @ Vw.conj().T).reshape(p, no, no)  # sum_n a~_nk w_n^H
+    X = (-(S + np.conj(np.transpose(S, (0, 2, 1)))) / N).reshape(p, no * no)  # D_k, flattened
+    Hc = H1 - np.real(X @ X.conj().T)
+    return g, H1, 0.5 * (Hc + Hc.T)
+
+
+def _grad_hess_bands(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np.ndarray):
+    """:func:`_grad_hess` for one R_b per noise band (``rows``: band of each residual row)."""
     N, no, p = A.shape
     W = _weights(R, rows)
     WA = W @ A  # (N, no, p); cost weights v^* R^-1 v with R = E{v v^*}
@@ -843,13 +891,10 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np
     if not full:
         return g, H1, H1
     H2 = np.zeros((p, p))
-    # band-wise noise: the same term per band, weighted N_b / N (one band: white)
-    groups = (
-        [(slice(None), N, W)]
-        if rows is None
-        else [(rows == b, int(np.sum(rows == b)), Wb) for b, Wb in enumerate(np.linalg.inv(R))]
-    )
-    for sel, Nb, Wb in groups:
+    # the same term per band, weighted N_b / N
+    for b, Wb in enumerate(np.linalg.inv(R)):
+        sel = rows == b
+        Nb = int(np.sum(sel))
         if Nb == 0:
             continue
         S = np.transpose(A[sel], (2, 1, 0)) @ V[sel].conj()  # sum_n a_nk v_n^H, shape (p, no, no)
@@ -1087,6 +1132,8 @@ def _stored_options(options: dict, prob: Problem) -> dict:
     out["bounds"] = {k: [_finite_or_none(x) for x in pair] for k, pair in (options["bounds"] or {}).items()}
     band = options["band"]
     out["band"] = band if band is None or isinstance(band, str) else [float(x) for x in band]
+    if options["cov_type"] != "naive":  # how white noise reached the covariance, per record
+        out["noise_covariance"] = _noise_routes(prob)
     return out
 
 
@@ -1152,9 +1199,7 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
         active = ~(at_lo | at_hi)
         # standard errors for the step test: naive CRB (N H1)^-1
         sig = _naive_sigma(prob.N * H1)
-        step_n = _solve(H if full else H1, g, active)
-        if full and not np.all(np.isfinite(step_n)):
-            step_n = _solve(H1, g, active)
+        step_n, eig = _proposal(g, H1, H, active, full)
         rel_step = np.max(np.abs(step_n) / np.where(sig > 0, sig, np.inf)) if step_n.size else 0.0
         if stop == "converge" and rel_step < tol and (prob.sensitivity != "fd" or tight):
             # theta is within tol standard errors of the optimum: stop without the step,
@@ -1167,16 +1212,17 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
         rel_prev = rel_step
         J_old = J
         if full:
-            accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, H, J, active, lo, hi, rows)
+            accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, J, active, lo, hi, rows, eig)
         else:
             accepted, t_new, V_new, R_new, J_new = _halving_step(prob, theta, step_n, lo, hi, J, rows)
         if accepted:
             theta, V, R, J = t_new, V_new, R_new, J_new
         history.append(math.exp(J))
-        info = IterationInfo(
-            iteration=it, cost=math.exp(J), params=dict(zip(names, theta.tolist())), step_in_stderr=float(rel_step)
-        )
-        if callback is not None and callback(info):
+        if callback is not None and callback(
+            IterationInfo(
+                iteration=it, cost=math.exp(J), params=dict(zip(names, theta.tolist())), step_in_stderr=float(rel_step)
+            )
+        ):
             stopped = True
             message = f"stopped by the callback after {it} iterations"
             break
@@ -1283,7 +1329,41 @@ def _try(prob, theta, step, lo, hi, J, rows=None):
     return J_new <= J + 1e-12 * abs(J), t_new, V_new, R_new, J_new
 
 
-def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi, rows=None):
+def _proposal(g, H1, H, active, full):
+    """The pass's full step on the active set, and for ``full`` (Levenberg-Marquardt) the scaled eigensystem.
+
+    ``full``: the Newton step on ln det R, ``-H^+ g`` with the pseudo-inverse of
+    the concentrated Hessian in the metric of diag H1 (eigenvalues below 1e-12 of
+    the largest dropped), from the eigensystem that :func:`_hybrid_step` shifts.
+    Otherwise the Gauss-Newton step ``-H1^+ g`` (Eq. 23).
+    """
+    if not full:
+        return _solve(H1, g, active), None
+    idx = np.flatnonzero(active)
+    if not np.all(np.isfinite(H)):
+        return _solve(H1, g, active), None
+    eig = _scaled_eig(H1, H, idx)
+    step = np.zeros_like(g)
+    if idx.size:
+        D, w, Q = eig
+        inv = np.zeros_like(w)
+        keep = np.abs(w) > 1e-12 * np.max(np.abs(w))
+        inv[keep] = 1.0 / w[keep]
+        step[idx] = -(Q @ ((Q.T @ (g[idx] / D)) * inv)) / D
+    return step, eig
+
+
+def _scaled_eig(H1, H, idx):
+    """(D, w, Q): D = sqrt(diag H1) on the active set ``idx`` (1 where not positive), and the
+    eigenvalues w and vectors Q of H[idx, idx] / (D D^T)."""
+    whole = idx.size == H.shape[0]  # every parameter active: no copy of the block
+    d1 = np.diag(H1) if whole else np.diag(H1)[idx]
+    D = np.sqrt(np.where(d1 > 0, d1, 1.0))
+    w, Q = np.linalg.eigh((H if whole else H[np.ix_(idx, idx)]) / np.outer(D, D))
+    return D, w, Q
+
+
+def _hybrid_step(prob, theta, g, H1, J, active, lo, hi, rows=None, eig=None):
     """One step on ln det R.
 
     Newton with the concentrated Hessian ``Hc`` when it is positive definite.
@@ -1292,16 +1372,14 @@ def _hybrid_step(prob, theta, g, H1, Hc, J, active, lo, hi, rows=None):
     scaled by diag H1) that makes it positive definite, which keeps the
     curvature the paper's alternation ignores; mu grows until the cost falls.
     The paper's Gauss-Newton step with R held (Eq. 23), with step halving, is
-    the last resort.
+    the last resort.  ``eig`` is :func:`_scaled_eig` of ``Hc`` on the active set
+    (None: no finite Hc, straight to the last resort).
     """
     idx = np.flatnonzero(active)
     last = None
-    if idx.size:
-        d1 = np.diag(H1)[idx]
-        D = np.sqrt(np.where(d1 > 0, d1, 1.0))
-        Hn = Hc[np.ix_(idx, idx)] / np.outer(D, D)
+    if idx.size and eig is not None:
+        D, w, Q = eig
         gn = g[idx] / D
-        w, Q = np.linalg.eigh(Hn)
         top = max(float(w.max()), 1e-300)
         mu = 0.0 if w.min() > SETTINGS.singular_eig * top else 2.0 * abs(float(w.min())) + 1e-8 * top
         # strongly indefinite (far from the optimum): the Gauss-Newton step goes further
@@ -1380,11 +1458,11 @@ def _white_cov_g(
     bchan = [(j, out_idx.index(j)) for j in (0, 1) if j in out_idx]  # measured alpha, q in the fit
     cov = np.zeros((p, p))
     off = 0
-    vals = prob.model.parameters.values
     for d in prob.data:
         Cr = C[off : off + d.m]
         off += d.m
-        if not (prob.boundary == "measured" and bchan) and d.m <= SETTINGS.gram_max:
+        rows, E = _boundary_noise(prob, d, Cr, bchan) if prob.boundary == "measured" and bchan else (None, None)
+        if _noise_route(prob, d) != "adjoint":
             # frequency-domain form, O(m^2): g = Re sum_i C_i v_i with E{v v^H} = Sigma (x) Psi,
             # E{v v^T} = Sigma (x) Phi, Psi = (F P)(F P)^H, Phi = (F P)(F P)^T, so
             # Cov g = 1/2 Re sum_ik [Psi_ik C_i Sigma C_k^H + Phi_ik C_i Sigma C_k^T]
@@ -1393,23 +1471,77 @@ def _white_cov_g(
             Y = np.tensordot(Psi, Cr.conj(), axes=(1, 0))
             Z = np.tensordot(Phi, Cr, axes=(1, 0))
             cov += 0.5 * np.real(CS @ np.transpose(Y + Z, (1, 0, 2)).reshape(p, -1).T)
+            if rows is not None:  # K_n = Kf_n + E_n differs from the Gram's Kf_n on the rows of E only
+                Kf = np.einsum("ms,mpo->spo", _noise_columns(d, rows), Cr)
+                cov += _real_sum(Kf + E, Sigma) - _real_sum(Kf, Sigma)
             continue
         K = d.noise_adjoint(Cr.reshape(d.m, p * no)).reshape(d.n, p, no)
-        if prob.boundary == "measured" and bchan:
-            # v = z - y: the noise of the measured x(0), x(T) enters through y's exact boundary columns
-            X = nuisance_columns(prob.model.evaluate(d.omega, vals), end_shift(d.omega, d.T), d.ones)
-            CX = Cr @ X[:, prob.out_idx][:, :, _BOUNDARY_COLS]  # (m, p, 4): x0_alpha, x0_q, xT_alpha, xT_q
-            Q0, QT = -CX[:, :, :2].sum(axis=0), -CX[:, :, 2:].sum(axis=0)
-            ell = d.trim_vector()
-            for j, col in bchan:
-                K[0, :, col] += Q0[:, j]
-                K[-1, :, col] += QT[:, j]
-                if ell is not None:
-                    K[:, :, col] -= np.outer(ell, Q0[:, j] + QT[:, j])
-        K = np.real(K)
-        KS = np.transpose(K @ Sigma, (1, 0, 2)).reshape(p, -1)
-        cov += KS @ np.transpose(K, (1, 0, 2)).reshape(p, -1).T  # sum_n K_n Sigma K_n^T
+        if rows is not None:
+            K[rows] += E
+        cov += _real_sum(K, Sigma)
     return cov
+
+
+def _noise_route(prob: Problem, d: FrequencyData) -> str:
+    """How record ``d``'s white noise reaches the covariance (:func:`_white_cov_g`).
+
+    ``"closed form"``: the Gram matrices of :meth:`FrequencyData.noise_gram`
+    (Dirichlet sums, :func:`fdml.fourier.gram`); ``"explicit weights"``: the
+    same from the explicit transform weights (a record too short for the closed
+    form); ``"adjoint"``: the direct sums of the adjoint transform over the
+    samples, for a grid beyond :attr:`EstimatorSettings.gram_max` frequencies,
+    where the (m, m) matrices would cost more than the n samples.
+    """
+    if d.m > SETTINGS.gram_max:
+        return "adjoint"
+    return "closed form" if fourier.gram_form(d.n, d.end_correction) == "closed form" else "explicit weights"
+
+
+def _noise_routes(prob: Problem) -> dict[str, str]:
+    """:func:`_noise_route` of every record, by name, in words (for :attr:`FitResult.options`)."""
+    words = {
+        "closed form": "closed form",
+        "explicit weights": "direct sum: explicit transform weights (record too short for the closed form)",
+        "adjoint": f"direct sum: adjoint transform (more than {SETTINGS.gram_max} frequencies)",
+    }
+    return {d.name: words[_noise_route(prob, d)] for d in prob.data}
+
+
+def _real_sum(K: np.ndarray, Sigma: np.ndarray) -> np.ndarray:
+    """sum_n Re K_n Sigma Re K_n^T for K of shape (n, p, n_out)."""
+    p = K.shape[1]
+    K = np.real(K)
+    KS = np.transpose(K @ Sigma, (1, 0, 2)).reshape(p, -1)
+    return KS @ np.transpose(K, (1, 0, 2)).reshape(p, -1).T
+
+
+def _noise_columns(d: FrequencyData, rows: np.ndarray) -> np.ndarray:
+    """Columns ``rows`` of the noise map F P (transform after trim removal), shape (m, len(rows))."""
+    cols = fourier.transform_columns(d.n, d.dt, d.omega, rows, end_correction=d.end_correction)
+    ell = d.trim_vector()
+    return cols if ell is None else cols - d.ones[:, None] * ell[rows][None, :]  # F (I - 1 l^T)
+
+
+def _boundary_noise(prob: Problem, d: FrequencyData, Cr: np.ndarray, bchan) -> tuple[np.ndarray, np.ndarray]:
+    """Rows n of the noise map K where measured boundary values add to it, and what they add.
+
+    v = z - y: the noise of the measured x(0), x(T) (samples 0 and n - 1 of the
+    fitted alpha and q, after trim removal) enters through y's exact boundary
+    columns.  Returns the sample indices (the trim samples, 0 and n - 1) and
+    E of shape (len(rows), p, n_out).
+    """
+    X = nuisance_columns(prob.model.evaluate(d.omega, prob.model.parameters.values), end_shift(d.omega, d.T), d.ones)
+    CX = Cr @ X[:, prob.out_idx][:, :, _BOUNDARY_COLS]  # (m, p, 4): x0_alpha, x0_q, xT_alpha, xT_q
+    Q0, QT = -CX[:, :, :2].sum(axis=0), -CX[:, :, 2:].sum(axis=0)
+    ell = d.trim_vector()
+    rows = np.unique(np.r_[0, d.n - 1, np.arange(0 if ell is None else d.trim_samples)])
+    E = np.zeros((rows.size,) + Cr.shape[1:], complex)
+    for j, col in bchan:
+        E[rows == 0, :, col] += Q0[:, j]
+        E[rows == d.n - 1, :, col] += QT[:, j]
+        if ell is not None:
+            E[:, :, col] -= np.outer(ell[rows], Q0[:, j] + QT[:, j])
+    return rows, E
 
 
 def information(A: np.ndarray, W: np.ndarray) -> np.ndarray:
@@ -1448,8 +1580,7 @@ def white_covariance(
 def _naive_sigma(F: np.ndarray) -> np.ndarray:
     """sqrt(diag(F^-1)) for an information matrix F (Cholesky; pseudo-inverse if singular)."""
     try:
-        L = np.linalg.cholesky(F)
-        Li = np.linalg.solve(L, np.eye(F.shape[0]))
+        Li = np.linalg.inv(np.linalg.cholesky(F))  # F^-1 = Li^T Li
         return np.sqrt(np.sum(Li**2, axis=0))
     except np.linalg.LinAlgError:
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -1518,14 +1649,14 @@ def _finish(
         corr = cov / np.outer(stderr, stderr)
     corr[~np.isfinite(corr)] = np.nan
     np.fill_diagonal(corr, 1.0)
-    for i in range(len(names)):
-        for j in range(i):
-            if np.isfinite(corr[i, j]) and abs(corr[i, j]) > SETTINGS.correlation_warn:
-                m = (
-                    f"parameters {names[j]} and {names[i]} are correlated at {corr[i, j]:+.3f} "
-                    f"(beyond {SETTINGS.correlation_warn:g})"
-                )
-                warnings.warn(m, IdentifiabilityWarning, stacklevel=4)
+    with np.errstate(invalid="ignore"):
+        high = np.tril(np.abs(corr) > SETTINGS.correlation_warn, -1)  # NaN compares False
+    for i, j in zip(*np.nonzero(high)):  # row by row, as the pairs (i, j < i) are listed
+        m = (
+            f"parameters {names[j]} and {names[i]} are correlated at {corr[i, j]:+.3f} "
+            f"(beyond {SETTINGS.correlation_warn:g})"
+        )
+        warnings.warn(m, IdentifiabilityWarning, stacklevel=4)
     model = prob.model.with_values({n: theta[i] for i, n in enumerate(names) if not prob.slots[i].role.nuisance})
     _warn_at_bounds(prob, theta)
     return FitResult.build(

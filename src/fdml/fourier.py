@@ -36,6 +36,7 @@ in O(n log(n_omega)) operations.
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -53,7 +54,9 @@ __all__ = [
     "fourier_adjoint",
     "is_evenly_spaced",
     "gram",
+    "gram_form",
     "leading_transform",
+    "transform_columns",
 ]
 
 _METHODS = ("auto", "czt", "direct")
@@ -78,6 +81,16 @@ _SERIES_TERMS = 20
 #: 1000 s record over 0-100 rad/s (beyond any short-period band) has only about
 #: 16,000 independent ones.  The paper's grid has 100.
 MAX_BAND_FREQUENCIES = 100_000
+#: Transforms whose end weights and Gram matrices are kept, most recently used first
+#: (a fit, its covariance and its adequacy check, and every record of a Monte Carlo
+#: study or a multi-record fit share one grid and record length).
+_MEMO_SIZE = 8
+#: Largest grid whose end weights are kept (8 entries of at most 0.6 MB).
+_MEMO_MAX_SETUP = 4096
+#: Largest grid whose Gram matrices are kept: two (m, m) complex matrices, 2 MB at
+#: m = 256, so at most 16 MB in all (and as much again for the trim-corrected ones of
+#: :meth:`fdml.spectral.FrequencyData.noise_gram`).  Fit bands have about 100.
+_MEMO_MAX_GRAM = 256
 
 
 def _lagrange_basis(nodes):
@@ -328,7 +341,33 @@ def _check(dt, omega, end_correction, method, *, x=None, n=None):
 
 
 def _setup(n, dt, omega, end_correction):
-    """theta (m,), W (m,), left end coefficients a (m, K), right ones exp(-j theta M) conj(a)."""
+    """theta (m,), W (m,), left end coefficients a (m, K), right ones exp(-j theta M) conj(a).
+
+    Read-only arrays, kept per (n, dt, grid, end correction) for grids of at
+    most :data:`_MEMO_MAX_SETUP` frequencies (:func:`_memo_key`).
+    """
+    if omega.size > _MEMO_MAX_SETUP:
+        return _setup_arrays(n, dt, omega, end_correction)
+    return _setup_memo(*_memo_key(n, dt, omega, end_correction))
+
+
+def _memo_key(n, dt, omega, end_correction):
+    """Hashable key of a transform: (n, dt, the grid's float64 bytes, end correction)."""
+    return int(n), float(dt), np.ascontiguousarray(omega, dtype=float).tobytes(), end_correction
+
+
+def _read_only(*arrays):
+    for a in arrays:
+        a.setflags(write=False)
+    return arrays
+
+
+@functools.lru_cache(maxsize=_MEMO_SIZE)
+def _setup_memo(n, dt, omega_bytes, end_correction):
+    return _read_only(*_setup_arrays(n, dt, np.frombuffer(omega_bytes), end_correction))
+
+
+def _setup_arrays(n, dt, omega, end_correction):
     theta = omega * dt
     weight, alpha = _end_weights(theta, end_correction)
     return theta, weight, alpha, np.exp(-1j * theta * (n - 1))[:, None] * alpha.conj()
@@ -550,6 +589,39 @@ def transform_weights(n, dt, omega, *, end_correction="cubic"):
     return mat * dt
 
 
+def transform_columns(n, dt, omega, cols, *, end_correction="cubic"):
+    """Columns ``cols`` of the transform matrix F (:func:`transform_weights`), in O(m len(cols)) work.
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    dt : float
+        Sample interval, s (> 0).
+    omega : array_like, shape (m,)
+        Angular frequencies, rad/s, ``|omega| <= pi/dt``.
+    cols : array_like of int, shape (c,)
+        Sample indices, 0 <= col < n.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        Quadrature, as in :func:`finite_fourier_transform`.
+
+    Returns
+    -------
+    numpy.ndarray, complex, shape (m, c)
+        ``F[:, cols]``, s: the transform of a unit sample at each column.
+    """
+    _, n, dt, omega = _check(dt, omega, end_correction, "direct", n=n)
+    cols = np.asarray(cols, dtype=int)
+    if cols.ndim != 1 or np.any((cols < 0) | (cols >= n)):
+        raise RecordError(f"cols must be sample indices 0 .. {n - 1}, not {cols!r}")
+    theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
+    out = weight[:, None] * _expi(-np.outer(theta, cols.astype(float)))
+    for k in range(alpha.shape[1]):  # the end-corrected samples: a_k on the left, the tail on the right
+        out[:, cols == k] += alpha[:, k : k + 1]
+        out[:, cols == n - 1 - k] += tail[:, k : k + 1]
+    return out * dt
+
+
 def _dirichlet(x, n):
     """sum_{j<n} exp(-1j x j) = exp(-1j x (n-1)/2) sin(n x/2) / sin(x/2), n where x = 0."""
     half = 0.5 * x
@@ -567,6 +639,11 @@ def gram(n, dt, omega, *, end_correction="cubic"):
     Dirichlet kernel); the 2K end-corrected samples are added explicitly.  Used
     to carry white time-domain noise into the covariance of estimates without
     touching the n samples: E{v v^H} = sigma^2 F F^H, E{v v^T} = sigma^2 F F^T.
+    A record of fewer than 2K + 1 samples (no interior) takes the explicit
+    weights instead (:func:`gram_form` says which).  The matrices are kept per
+    (n, dt, grid, end correction) for grids of at most 256 frequencies and
+    returned read-only, so a fit's passes, its records and its adequacy check
+    build them once.
 
     Parameters
     ----------
@@ -582,16 +659,48 @@ def gram(n, dt, omega, *, end_correction="cubic"):
     Returns
     -------
     FFH : numpy.ndarray, complex, shape (m, m)
-        F F^H, s^2.
+        F F^H, s^2 (read-only).
     FFT : numpy.ndarray, complex, shape (m, m)
-        F F^T, s^2.
+        F F^T, s^2 (read-only).
     """
     _, n, dt, omega = _check(dt, omega, end_correction, "direct", n=n)
-    theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
-    nend = alpha.shape[1]
-    if n < 2 * nend + 1:
+    if omega.size > _MEMO_MAX_GRAM:
+        return _read_only(*_gram_arrays(n, dt, omega, end_correction))
+    return _gram_memo(*_memo_key(n, dt, omega, end_correction))
+
+
+def gram_form(n, end_correction="cubic") -> str:
+    """How :func:`gram` sums a record of ``n`` samples: ``"closed form"`` or ``"direct sum"``.
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        Quadrature, as in :func:`finite_fourier_transform`.
+
+    Returns
+    -------
+    str
+        ``"closed form"`` (Dirichlet sums of the interior plus the end
+        columns) when the record has an interior sample between its two
+        end-corrected stretches, else ``"direct sum"`` (the explicit weights).
+    """
+    return "closed form" if n >= 2 * _N_END[end_correction] + 1 else "direct sum"
+
+
+@functools.lru_cache(maxsize=_MEMO_SIZE)
+def _gram_memo(n, dt, omega_bytes, end_correction):
+    return _read_only(*_gram_arrays(n, dt, np.frombuffer(omega_bytes), end_correction))
+
+
+def _gram_arrays(n, dt, omega, end_correction):
+    """:func:`gram` after its checks."""
+    if gram_form(n, end_correction) == "direct sum":
         F = transform_weights(n, dt, omega, end_correction=end_correction)
         return F @ F.conj().T, F @ F.T
+    theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
+    nend = alpha.shape[1]
     ww = np.outer(weight, weight)
     m = theta.size
     if m > 2 and is_evenly_spaced(omega):

@@ -65,6 +65,10 @@ class IterationInfo:
         return (_rebuild, (type(self), _thawed_fields(self)))
 
 
+#: Immutable leaf types :func:`frozen` returns as they are, without the ABC checks below.
+_LEAVES = frozenset({str, int, float, bool, complex, np.float64, np.int64, np.bool_})
+
+
 def frozen(value):
     """``value`` made immutable all the way down: read-only arrays, mapping proxies, tuples for lists.
 
@@ -81,6 +85,8 @@ def frozen(value):
     object
         The frozen value (read-only array, mapping proxy, tuple or ``value`` itself).
     """
+    if value is None or type(value) in _LEAVES:  # most fields and entries: nothing to freeze
+        return value
     if isinstance(value, np.ndarray):
         if value.flags.writeable:
             value = value.copy()

@@ -11,6 +11,7 @@ of models.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -261,24 +262,22 @@ class FrequencyData:
         ``F P (F P)^H = F F^H - f b^H - b f^H + |l|^2 b b^H`` with ``b = F 1``
         and ``f = F l`` (:func:`fdml.fourier.gram`, ``leading_transform``).
 
+        Kept, like :func:`fdml.fourier.gram`, per (n, dt, grid, end correction,
+        trim samples, ``ones``) for grids of at most 256 frequencies, so the
+        records of a study or of a joint fit on one grid share them.
+
         Returns
         -------
         Psi : numpy.ndarray
-            ``E{v v^H}``, complex, shape (m, m), s^2 per unit noise variance.
+            ``E{v v^H}``, complex, shape (m, m), s^2 per unit noise variance (read-only).
         Phi : numpy.ndarray
-            ``E{v v^T}``, complex, shape (m, m), s^2 per unit noise variance.
+            ``E{v v^T}``, complex, shape (m, m), s^2 per unit noise variance (read-only).
         """
-        GH, GT = fourier.gram(self.n, self.dt, self.omega, end_correction=self.end_correction)
-        ell = self.trim_vector()
-        if ell is None:
-            return GH, GT
-        L = self.trim_samples
-        f = fourier.leading_transform(ell[:L], self.n, self.dt, self.omega, end_correction=self.end_correction)
-        b = self.ones
-        l2 = float(ell[:L] @ ell[:L])
-        Psi = GH - np.outer(f, b.conj()) - np.outer(b, f.conj()) + l2 * np.outer(b, b.conj())
-        Phi = GT - np.outer(f, b) - np.outer(b, f) + l2 * np.outer(b, b)
-        return Psi, Phi
+        L = 0 if self.trim_vector() is None else self.trim_samples
+        if self.m > fourier._MEMO_MAX_GRAM:
+            return _noise_gram(self.n, self.dt, self.omega, self.end_correction, L, self.ones)
+        key = fourier._memo_key(self.n, self.dt, self.omega, self.end_correction)
+        return _noise_gram_memo(*key, L, np.ascontiguousarray(self.ones, dtype=complex).tobytes())
 
     def noise_adjoint(self, y: np.ndarray) -> np.ndarray:
         """Apply ``(F P)^T`` to frequency-domain weights: ``sum_i (F P)_in y_i``.
@@ -301,6 +300,27 @@ class FrequencyData:
         if ell is not None:
             out = out - ell[:, None] * out.sum(axis=0, keepdims=True)  # P^T = I - l 1^T
         return out
+
+
+@functools.lru_cache(maxsize=fourier._MEMO_SIZE)
+def _noise_gram_memo(n, dt, omega_bytes, end_correction, L, ones_bytes):
+    omega, ones = np.frombuffer(omega_bytes), np.frombuffer(ones_bytes, dtype=complex)
+    return _noise_gram(n, dt, omega, end_correction, L, ones)
+
+
+def _noise_gram(n, dt, omega, end_correction, L, ones):
+    """(Psi, Phi) of :meth:`FrequencyData.noise_gram`, read-only; ``L`` leading samples make the trim (0: none)."""
+    GH, GT = fourier.gram(n, dt, omega, end_correction=end_correction)
+    if L == 0:
+        return GH, GT
+    f = fourier.leading_transform(np.full(L, 1.0 / L), n, dt, omega, end_correction=end_correction)  # F l
+    b = ones
+    l2 = 1.0 / L  # |l|^2
+    Psi = GH - np.outer(f, b.conj()) - np.outer(b, f.conj()) + l2 * np.outer(b, b.conj())
+    Phi = GT - np.outer(f, b) - np.outer(b, f) + l2 * np.outer(b, b)
+    Psi.setflags(write=False)
+    Phi.setflags(write=False)
+    return Psi, Phi
 
 
 def spectra(

@@ -90,30 +90,71 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
     P : ndarray, shape (n, 3, 2)
         Outputs per unit forcing of each state equation.
     """
-    m00, m01, m10, m11 = M[:, 0, 0], M[:, 0, 1], M[:, 1, 0], M[:, 1, 1]
-    det = m00 * m11 - m01 * m10
-    if np.any(det == 0):
-        bad = s[det == 0]
-        raise ParameterError(f"the model is singular at s = {bad[0]}: a pole lies on the frequency grid")
-    inv = np.empty_like(M)
-    inv[:, 0, 0] = m11 / det
-    inv[:, 0, 1] = -m01 / det
-    inv[:, 1, 0] = -m10 / det
-    inv[:, 1, 1] = m00 / det
     k = U / G0  # Eq. 5: a_z = (U/g)(alpha_dot - q), in g
-    X = inv @ B  # (n, 2, n_in): alpha~, q~ per unit input
-    G = np.empty((s.size, 3, B.shape[2]), dtype=complex)
-    G[:, :2] = X
-    G[:, 2] = k * (s[:, None] * X[:, 0] - X[:, 1])
     P = np.empty((s.size, 3, 2), dtype=complex)
-    P[:, :2] = inv  # state per unit forcing of each state equation
-    P[:, 2] = k * (s[:, None] * inv[:, 0] - inv[:, 1])
-    if E.ndim == 2 and np.array_equal(E, np.eye(2)):
+    P[:, :2] = _adjugate(M) / _determinant(s, M)[:, None, None]  # M^-1: state per unit forcing of each equation
+    P[:, 2] = (k * s)[:, None] * P[:, 0] - k * P[:, 1]
+    G = P @ B  # (n, 3, n_in): alpha~, q~, a_z~ per unit input
+    if _is_identity(E):
         H = P.copy()
     else:
         H = P @ np.broadcast_to(E, M.shape)  # state per boundary term: M^-1 E
     H[:, 2, 0] -= k  # finite transform of alpha_dot is s alpha~ - d_alpha
     return G, H, P
+
+
+def _determinant(s: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """det M per frequency, shape (n,); a zero (a pole on the grid) is an error naming s."""
+    det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
+    if (det == 0).any():
+        bad = s[det == 0]
+        raise ParameterError(f"the model is singular at s = {bad[0]}: a pole lies on the frequency grid")
+    return det
+
+
+def _adjugate(M: np.ndarray) -> np.ndarray:
+    """adj(M) = [[m11, -m01], [-m10, m00]] per frequency, so that M^-1 = adj(M) / det M."""
+    return M[:, ::-1, ::-1].transpose(0, 2, 1) * _ADJ_SIGN
+
+
+#: Signs of the adjugate of a 2 x 2 matrix.
+_ADJ_SIGN = np.array([[1.0, -1.0], [-1.0, 1.0]])
+_EYE2 = np.eye(2)
+
+
+def _is_identity(E: np.ndarray) -> bool:
+    """Whether a (2, 2) E is the identity (an (n, 2, 2) one is taken as general)."""
+    E = np.asarray(E)
+    return E.ndim == 2 and bool((E == _EYE2).all())
+
+
+def _apply(A: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``A @ x`` per frequency for ``A`` (..., r, 2) and 2-vectors ``x`` (n, 2), as two broadcast products."""
+    return A[..., 0] * x[..., :1] + A[..., 1] * x[..., 1:]
+
+
+def _inputs(B: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """``B @ u`` per frequency for ``B`` (..., n, 2, n_in) and inputs ``u`` (n, n_in): shape (..., n, 2)."""
+    out = B[..., 0] * u[:, :1]
+    for j in range(1, u.shape[1]):
+        out = out + B[..., j] * u[:, j : j + 1]
+    return out
+
+
+def _right_side(Bd: np.ndarray, E: np.ndarray, u: np.ndarray, boundary, forcing) -> np.ndarray:
+    """The right-hand side ``B u + E d + f`` of ``M x = ...`` per frequency, shape (n, 2)."""
+    r = _inputs(Bd, u)
+    if boundary is not None:
+        r = r + (boundary if _is_identity(E) else _apply(E, boundary))
+    return r if forcing is None else r + forcing
+
+
+def _responded(resp: ModelResponse, u: np.ndarray, boundary, forcing) -> np.ndarray:
+    """``G u + H d + P f`` of a response (or of its derivatives, with a leading axis), shape (..., n, 3)."""
+    y = (resp.G @ u[:, :, None])[..., 0]
+    if boundary is not None:
+        y = y + (resp.H @ boundary[:, :, None])[..., 0]
+    return y if forcing is None else y + (resp.P @ forcing[:, :, None])[..., 0]
 
 
 #: Roles whose derivatives are not derivatives of the model matrices (M, B, E): input delays
@@ -305,12 +346,7 @@ class Model:
             The response at ``omega``.
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
-        p = self.values(values)
-        s = 1j * omega
-        M, B, E = self._matrices(s, p)
-        delays = [p[nm] for nm in self._delay_names()]
-        B = B * np.exp(-np.outer(s, delays))[:, None, :]  # pure input delays
-        G, H, P = solve_short_period(s, M, B, E, self.U)
+        *_, (G, H, P) = self._solved(omega, self.values(values))
         return ModelResponse(omega, G, H, P)
 
     def sensitivity(
@@ -361,17 +397,88 @@ class Model:
         names = list(names)
         if type(self).evaluate is not Model.evaluate:
             return self._fd_sensitivity(omega, p, names)
+        s, M, Bd, E, Dl, (G, H, P) = self._solved(omega, p)
+        inv = P[:, :2]  # M^-1
+        X = inv @ Bd
+        IE = inv if _is_identity(E) else inv @ np.broadcast_to(E, M.shape)
+        dM, dBd, dE = self._derivative_stack(s, p, names, Bd, Dl)
+        # all parameters at once: dG = P (dB - dM X), dH = P (dE - dM M^-1 E), dP = -P dM M^-1
+        PdM = P @ dM
+        dG = P @ dBd - PdM @ X
+        dH = (P @ dE - PdM @ IE) if "H" in parts else None
+        dP = -(PdM @ inv) if "P" in parts else None
+        return ModelResponse(omega, G, H, P), dG, dH, dP
+
+    def forced_sensitivity(self, omega, values, names, u, boundary=None, forcing=None):
+        """The response and the derivatives of the outputs it gives for one forcing.
+
+        With ``x = M^-1 (B u + E d + f)`` the states for inputs ``u``, boundary
+        vector ``d`` and state forcing ``f`` (the linear part of
+        :func:`fdml.models.measurement.predict`: ``y = G u + H d + P f``), the
+        derivative of ``y`` with respect to each name is ``P (dB u + dE d - dM
+        x)``: the same quantity as :meth:`sensitivity`'s ``dG u + dH d + dP f``,
+        formed without the derivative matrices (one 2-vector per frequency and
+        name instead of 2 x 2 blocks).  Models without matrices (an overridden
+        :meth:`evaluate`) apply :meth:`sensitivity`'s derivatives instead.
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s, shape (n,).
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+        names : sequence of str
+            Parameters to differentiate with respect to.
+        u : numpy.ndarray
+            Input spectra (de rad s[, alpha_w rad s]), complex, shape (n, n_in).
+        boundary : numpy.ndarray, optional
+            Boundary vector d (alpha rad s, q rad), complex, shape (n, 2); None for none.
+        forcing : numpy.ndarray, optional
+            State forcing f (transform of the alpha_dot and q_dot equations' constants), shape (n, 2).
+
+        Returns
+        -------
+        resp : ModelResponse
+            The response at ``omega``.
+        dy : numpy.ndarray
+            Derivatives of the outputs (alpha rad s, q rad, a_z g s) per name, complex, shape (len(names), n, 3).
+        """
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        names = list(names)
+        if type(self).evaluate is not Model.evaluate or type(self).sensitivity is not Model.sensitivity:
+            parts = ("G",) + (("H",) if boundary is not None else ()) + (("P",) if forcing is not None else ())
+            resp, dG, dH, dP = self.sensitivity(omega, values, names, parts)
+            return resp, _responded(ModelResponse(omega, dG, dH, dP), u, boundary, forcing)
+        p = self.values(values)
+        s, M, Bd, E, Dl, (G, H, P) = self._solved(omega, p)
+        x = _apply(P[:, :2], _right_side(Bd, E, u, boundary, forcing))  # the states M^-1 r
+        dM, dBd, dE = self._derivative_stack(s, p, names, Bd, Dl)
+        w = _inputs(dBd, u) - _apply(dM, x)  # (k, n, 2)
+        if boundary is not None and dE.any():
+            w = w + _apply(dE, boundary)
+        return ModelResponse(omega, G, H, P), _apply(P, w)
+
+    def _forced_matrices(self, omega, p):
+        """s, M, B with input delays, E and the delay factors exp(-s tau), shape (n, n_in) (None: no delays)."""
         s = 1j * omega
         M, B, E = self._matrices(s, p)
         delays = [p[nm] for nm in self._delay_names()]
-        Dl = np.exp(-np.outer(s, delays))[:, None, :]
-        Bd = B * Dl
-        G, H, P = solve_short_period(s, M, B * Dl, E, self.U)
-        inv = P[:, :2]  # M^-1
-        X = inv @ Bd
-        identity_E = np.ndim(E) == 2 and np.array_equal(E, np.eye(2))
-        IE = inv if identity_E else inv @ np.broadcast_to(E, M.shape)
-        n, n_in, k = s.size, B.shape[2], len(names)
+        if not any(delays):  # no delay (the usual case): factors of one
+            return s, M, B, E, None
+        Dl = np.exp(-np.outer(s, delays))
+        return s, M, B * Dl[:, None, :], E, Dl  # pure input delays
+
+    def _solved(self, omega, p):
+        """:meth:`_forced_matrices` and :func:`solve_short_period`'s (G, H, P)."""
+        s, M, Bd, E, Dl = self._forced_matrices(omega, p)
+        return s, M, Bd, E, Dl, solve_short_period(s, M, Bd, E, self.U)
+
+    def _derivative_stack(self, s, p, names, Bd, Dl):
+        """dM (k, n, 2, 2), d(B with delays) (k, n, 2, n_in) and dE (k, 1, 2, 2), one row per name.
+
+        ``Dl`` holds the delay factors of :meth:`_forced_matrices` (None: no delays).
+        """
+        n, n_in, k = s.size, Bd.shape[2], len(names)
         dM = np.zeros((k, n, 2, 2), complex)
         dBd = np.zeros((k, n, 2, n_in), complex)
         dE = np.zeros((k, 1, 2, 2))
@@ -385,15 +492,10 @@ class Model:
             elif role not in _NOT_IN_MATRICES:  # output biases enter the measurement, not G
                 dMi, dBi, dEi = mats[nm]
                 dM[i] = dMi
-                dBd[i] = dBi * Dl
+                dBd[i] = dBi if Dl is None else dBi * Dl[:, None, :]
                 if dEi is not None:
                     dE[i, 0] = dEi
-        # all parameters at once: dG = P (dB - dM X), dH = P (dE - dM M^-1 E), dP = -P dM M^-1
-        PdM = P @ dM
-        dG = P @ dBd - PdM @ X
-        dH = (P @ dE - PdM @ IE) if "H" in parts else None
-        dP = -(PdM @ inv) if "P" in parts else None
-        return ModelResponse(omega, G, H, P), dG, dH, dP
+        return dM, dBd, dE
 
     def _matrix_derivatives(self, s, p, names):
         """{name: (dM, dB, dE)}: central differences of :meth:`_matrices`.

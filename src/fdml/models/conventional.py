@@ -20,7 +20,7 @@ import numpy as np
 from ..aircraft import MAX_AIRSPEED, Aircraft
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters
-from .base import Model
+from .base import _EYE2, Model
 from .wells_keskar import ALTERNATE_INPUTS, alternate_set, placeholder_sources
 
 __all__ = ["DerivativesModel", "DimensionalModel", "to_dimensional"]
@@ -249,7 +249,7 @@ class DimensionalModel(Model):
     def _matrices(self, s, p):
         n = s.size
         A = np.array([[p["Z_a"], 1.0 + p["Z_q"]], [p["M_a"], p["M_q"]]])
-        M = s[:, None, None] * np.eye(2) - A
+        M = s[:, None, None] * _EYE2 - A
         n_in = 2 if self.gust else 1
         B = np.empty((n, 2, n_in), dtype=complex)
         B[:, 0, 0] = p["Z_de"]
