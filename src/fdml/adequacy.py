@@ -53,6 +53,7 @@ import shlex
 import time
 import weakref
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -973,8 +974,8 @@ MAX_REFITS = 5
 class _Refit:
     """A candidate refitted on the fit's own spectra (the fields :func:`fdml.verdict.choose_among` reads)."""
 
-    effect: object
-    result: object
+    effect: Any
+    result: Any
     lr: float
     p: float
     q_eff: int
@@ -1085,10 +1086,8 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
         )
     rows = _independent_rows(prob)
     n_ind = float(rows.size)
-    fits = [
-        _refit_one(eff, st, prob, result, refit, kin, n_ind) for eff, st in _candidates(adequacy, kin, result.model)
-    ]
-    fits = [f for f in fits if f is not None]
+    raw = [_refit_one(eff, st, prob, result, refit, kin, n_ind) for eff, st in _candidates(adequacy, kin, result.model)]
+    fits: list[_Refit] = [f for f in raw if f is not None]
     level = adequacy.alpha / max(len(fits), 1)
     eligible = [f for f in fits if f.p < level and f.demoted is None]
     best, aliases = choose_among(eligible, 2.0 * n_ind * len(prob.out_idx))

@@ -567,7 +567,7 @@ SENSOR_POSITIONS = {"alpha": "x_alpha", "az": "x_az"}
 MAX_SENSOR_X = 50.0
 
 
-def _checked_sensors(sensors, where: str) -> dict:
+def _checked_sensors(sensors, where: str) -> Mapping:
     """The ``sensors`` entry checked: known channels, one number ``x`` each, inside any airframe."""
     example = '{"alpha": {"x": 13.0}, "az": {"x": 0.4}}'
     if not isinstance(sensors, Mapping):

@@ -58,9 +58,10 @@ def _sign_problems(values: dict, stderr: dict) -> list:
 def _lever_problem(model, values: dict, stderr: dict) -> list:
     """The lever-arm rule, where the model's aircraft gives mass, pitch inertia and tail arm."""
     ac = getattr(model, "aircraft", None)
-    m, Iy, lt = (getattr(ac, k, None) for k in ("mass", "Iy", "l_t"))
-    if not all(isinstance(x, (int, float)) and x > 0 for x in (m, Iy, lt)):
+    got = [getattr(ac, k, None) for k in ("mass", "Iy", "l_t")]
+    if not all(isinstance(x, (int, float)) and x > 0 for x in got):
         return []
+    m, Iy, lt = (float(x) for x in got)  # type: ignore[arg-type]
     if "Z_de" in values and "M_de" in values:
         name, pred = "Z_de", float(values["M_de"]) * Iy / (m * float(model.U) * lt)
     elif "Cz_de" in values and "Cm_de" in values:
