@@ -76,6 +76,7 @@ __all__ = [
     "kinematic_evidence",
     "sensor_terms",
     "known_terms",
+    "members",
 ]
 
 #: Level at which the identity settles a sensor pattern or contradicts a candidate: 1e-3, about
@@ -657,8 +658,23 @@ class SensorEffect:
         return f"{self.key} {self.param} = {self.value:.4g} +- {self.stderr:.2g} {self.unit}".rstrip()
 
 
-def _members(found: KinematicFinding, dt: float, U: float) -> list:
-    """The library effects a finding stands for, each with its plausibility and resolution."""
+def members(found: KinematicFinding, dt: float = 0.0, U: float = 0.0) -> list:
+    """The library effects a finding stands for, each with its value, plausibility and resolution.
+
+    Parameters
+    ----------
+    found : KinematicFinding
+        A tested pattern.
+    dt : float, optional
+        Sample interval, s (0: no resolution floor).
+    U : float, optional
+        Airspeed, m/s.
+
+    Returns
+    -------
+    list of SensorEffect
+        One per library effect (two for a vane offset: the vane x and the accelerometer -x).
+    """
     from .models.effects import get_effect
 
     pat = _pattern_of(found)
@@ -953,16 +969,16 @@ def kinematic_evidence(
             tested = list(found)
         if found[0].p >= level:
             break
-        members = [m for f in _alias_set(found) for m in _members(f, dt, U)]
-        implausible += [m for m in members if not m.plausible]
-        unresolved += [m for m in members if m.plausible and not m.resolved]
-        members = [m for m in members if m.plausible and m.resolved]
-        if len(members) != 1:
-            if members:
-                aliases.append(tuple(members))
+        members_ = [m for f in _alias_set(found) for m in members(f, dt, U)]
+        implausible += [m for m in members_ if not m.plausible]
+        unresolved += [m for m in members_ if m.plausible and not m.resolved]
+        members_ = [m for m in members_ if m.plausible and m.resolved]
+        if len(members_) != 1:
+            if members_:
+                aliases.append(tuple(members_))
             break
-        settled.append(members[0])
-        base = base + members[0].terms()
+        settled.append(members_[0])
+        base = base + members_[0].terms()
         idn = _identity(spectra, U, base)  # the equation-error variance at the settled terms
     return KinematicEvidence(
         records=tuple(d.name for d in spectra),

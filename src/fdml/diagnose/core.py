@@ -17,6 +17,7 @@ from ..channels import OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..estimate import NoiseModel
 from ..kinematics import KinematicEvidence, kinematic_evidence, known_terms
+from ..kinematics import members as _members_of
 from ..models.base import Model
 from ..models.effects import Effect, applied_effects, default_library, registered_effects, root_model
 from ..parameters import Role
@@ -770,7 +771,7 @@ def _assemble(
             comp = compensation(su.data, a.fit, base_fit, nulls, base_map)
         entry = next(r for r in ranking if r["key"] == a.key and r["step"] == a.step)
         selected.append({**entry, "parameter_shifts": parameter_shifts(base_fit, a.fit)})
-    selected = settled + selected
+    selected = settled + [_as_recommended(e, recommended, su.kin) for e in selected]
     shifts = parameter_shifts(base_fit, sel.final) if sel.accepted else {}
     amb_first = sel.ambiguity[0] if sel.ambiguity else []
     ambiguous = [c.key for c in amb_first if sel.accepted and c.key != sel.accepted[0].key]
@@ -822,6 +823,24 @@ def _assemble(
         recommendation=_recommendation(su, sel, recommended, sensors.raw_fit),
     )
     return replace(report, text=paragraph(report))
+
+
+def _as_recommended(entry: dict, rec, kin) -> dict:
+    """An accepted effect's entry with its sizes as the recommended fit has them (the diagnosis's own
+    band-noise refit kept as ``diagnosis_fit``), and, for a sensor effect, the kinematic view beside:
+    the identity's estimate of the same effect (``kinematic``), when it tested it."""
+    out = dict(entry)
+    if rec is not None:
+        params = {}
+        for n, d in entry["params"].items():
+            params[n] = dict(d, value=rec.params[n], stderr=rec.errors[n]) if n in rec.params else d
+        out["params"], out["diagnosis_fit"] = params, entry["params"]
+    if kin is not None:
+        for f in kin.tested:
+            if entry["key"] in f.keys:
+                m = next(x for x in _members_of(f) if x.key == entry["key"])
+                out["kinematic"] = {m.param: {"value": m.value, "stderr": m.stderr, "unit": m.unit, "lr": f.lr}}
+    return out
 
 
 def _settled_entries(su: _Setup, sensors: _Sensors, n_unexplained: int) -> list:
@@ -882,6 +901,10 @@ def _derivative_table(raw, rec) -> dict:
     return out
 
 
+def _unit(c: Candidate, name: str) -> str:
+    return next((p.unit for p in c.effect.params if p.name == name), "")
+
+
 def _recommendation(su: _Setup, sel: _Selection, rec, raw_fit) -> dict:
     """What the recommended model is and how sure: settled sensors, ambiguity, alternatives, derivatives."""
     amb = sel.ambiguity[0] if sel.ambiguity else []
@@ -889,7 +912,7 @@ def _recommendation(su: _Setup, sel: _Selection, rec, raw_fit) -> dict:
     alts = [
         {
             "effects": settled + [c.key],
-            "params": {k: {"value": v, "stderr": e} for k, (v, e) in c.params.items()},
+            "params": {k: {"value": v, "stderr": e, "unit": _unit(c, k)} for k, (v, e) in c.params.items()},
             "derivatives": {k: {"value": v, "stderr": e} for k, (v, e) in c.derivatives.items()},
             "lr": c.lr,
         }

@@ -98,8 +98,8 @@ def _kinematics_sentences(rep) -> list:
 _SEPARATE = (
     (
         {"sensor_offset@alpha", "sensor_offset@az"},
-        'give the sensor positions in the aircraft file ("sensors": {"alpha": {"x": m}, "az": {"x": m}}), '
-        "or record theta, V and h so that the flight-path reconstruction (fdml check --compat) sees the absolute angle",
+        'give the sensor positions in the aircraft file ("sensors": {"alpha": {"x": m}, "az": {"x": m}}): '
+        "alpha, q and a_z see only the difference of the two positions",
     ),
     (
         {"time_delay@alpha", "sensor_offset@alpha", "time_delay@alpha,az"},
@@ -184,9 +184,13 @@ def paragraph(rep) -> str:
             if hs is not None and s.get("shrink_in_sample") is not None:
                 shtxt += f" (held out; in-sample {100 * s['shrink_in_sample']:.0f} %)"
             lead = "Cause" if i == 0 else "A further effect"
+            kin = s.get("kinematic")
+            kin_txt = (
+                "; the kinematics alone give " + ", ".join(_fmt_param(k, v) for k, v in kin.items()) if kin else ""
+            )
             out.append(
-                f"{lead}: {s['effect']} on {s['channel']} ({params}) {shtxt}; LR = {s['lr']:.1f}, "
-                f"p = {_p(s.get('p_holm'))} after Holm; label {s['label']}."
+                f"{lead}: {s['effect']} on {s['channel']} ({params}, as the recommended model has it{kin_txt}) "
+                f"{shtxt}; LR = {s['lr']:.1f}, p = {_p(s.get('p_holm'))} after Holm; label {s['label']}."
             )
             if i == 0:
                 fp = [f for f in rep.footprint if f.get("effect") == s["key"] and f.get("share")]
