@@ -18,7 +18,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
-from types import MappingProxyType
 
 from .errors import AircraftError
 
@@ -588,8 +587,8 @@ def _checked_sensors(sensors, where: str) -> Mapping:
                 f"{where}: sensors: {ch} x = {x:g} m lies outside any airframe (|x| <= {MAX_SENSOR_X:g} m); "
                 "give metres ahead of the c.g."
             )
-        out[ch] = MappingProxyType({"x": x})
-    return MappingProxyType(out)
+        out[ch] = {"x": x}
+    return out
 
 
 def _real(value, what: str) -> float:

@@ -61,6 +61,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .channels import OUTPUTS
 from .constants import G0
 from .score import chi2_sf, equally
 
@@ -118,7 +119,7 @@ def resolution(unit: str, dt: float, U: float) -> float | None:
     return {"s": TIME_RESOLUTION * dt, "m": TIME_RESOLUTION * dt * U, "-": SCALE_RESOLUTION}.get(unit)
 
 
-_OUTPUTS = ("alpha", "q", "az")
+_OUTPUTS = OUTPUTS  # alpha, q, a_z: the three outputs the identity links
 #: The identity is read from MIN_CYCLES cycles over the record up (omega >= MIN_CYCLES 2 pi/T): below,
 #: a frequency is not resolved by the record, its transform is leakage of the record's ends and drift,
 #: and the identity's linearisation about trim (the flight-path angle and airspeed terms it drops) is

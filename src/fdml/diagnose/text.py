@@ -71,7 +71,7 @@ def _p(p) -> str:
 
 def _kinematics_sentences(rep) -> list:
     """What the short-period identity said about the sensors, and what it did with it."""
-    k = rep.kinematics or {}
+    k = getattr(rep, "kinematics", None) or {}
     out = []
     for m in k.get("settled", []):
         size = _fmt_param(m["param"], m)
@@ -111,7 +111,7 @@ _SEPARATE = (
 
 
 def _ambiguity_sentences(rep) -> list:
-    rec = rep.recommendation or {}
+    rec = getattr(rep, "recommendation", None) or {}
     if not rec.get("ambiguous"):
         return ["Equally consistent with these data: " + ", ".join(rep.ambiguous) + "."] if rep.ambiguous else []
     alts = rec.get("alternatives", [])
