@@ -272,13 +272,16 @@ class ModelSpec:
         Model
             The model, its values, fixed and free parameters applied.
         """
-        from .aircraft import Aircraft
+        from .aircraft import Aircraft, aircraft_for_lags
         from .models import make_model
         from .parameters import Parameters
 
         ac = self.aircraft
         if isinstance(ac, Mapping):
             ac = Aircraft.from_dict(ac, origin="model spec")
+        if self.kind == "unsteady" and ac is not None:  # lag constants by values, fix or free count as given
+            given = {**self.values, **(self.fix if isinstance(self.fix, Mapping) else {})}
+            ac = aircraft_for_lags(ac, self.free, given, source="the model spec's values or fix")
         model = make_model(self.kind, ac, **dict(self.options))
         if self.parameters is not None:  # a saved model: its base kind plus its effects, as model_to_dict
             from .models.effects import assemble

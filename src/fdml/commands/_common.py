@@ -111,7 +111,9 @@ def model_for_records(args, records, values: dict | None = None):
             )
         opts.pop("airspeed", None)
     aircraft = args.aircraft
-    if kind == "unsteady":  # freeing a lag constant is a way out of the missing-lag refusal (fdml.aircraft)
+    if kind == "unsteady":  # lag constants by --set, --fix or --free count as given (fdml.aircraft.aircraft_for_lags)
+        for option, supplied in (("--fix", assignments(getattr(args, "fix", None))), ("--set", values)):
+            aircraft = aircraft_for_lags(aircraft, given=supplied, source=option)
         aircraft = aircraft_for_lags(aircraft, getattr(args, "free", None))
     model = make_model(kind, aircraft, **opts)
     effects = list(getattr(args, "effect", None) or ())
