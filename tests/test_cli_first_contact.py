@@ -103,3 +103,57 @@ def test_noise_free_fit_converges_at_the_floor_saves_reports_and_exits_0(tmp_pat
     code, _, err = run(capsys, "report", out, "-o", tmp_path / "rep")
     assert code == 0, err
     assert "converged at the floating-point floor" in (tmp_path / "rep" / "report.md").read_text()
+
+
+# --- item 4: fdml batch takes each record's airspeed, and says when --airspeed disagrees -----------
+@pytest.fixture
+def record_with_airspeed(tmp_path):
+    """(csv, mapping options, U): a noisy dimensional-model record at 60 m/s with an airspeed column V."""
+    from fdml.models import make_model
+    from fdml.record import add_noise
+    from fdml.simulate import simulate_maneuver
+
+    U = 60.0
+    rec = add_noise(
+        simulate_maneuver(make_model("dimensional", airspeed=U), "3211", duration=10.0, dt=0.02),
+        0.02,
+        np.random.default_rng(4),
+        relative=True,
+    )
+    V = U + 0.5 * np.sin(rec.t)  # the record's airspeed varies a little; its mean is what the rule takes
+    path = tmp_path / "rec.csv"
+    cols = np.column_stack([rec.t, rec["de"], rec["alpha"], rec["q"], rec["az"], V])
+    np.savetxt(path, cols, delimiter=",", header="t,de,alpha,q,az,V", comments="")
+    opts = ["--columns", "t=t,de=de,alpha=alpha,q=q,az=az,V=V", "--units", "de=rad,alpha=rad,q=rad/s,az=g,V=m/s"]
+    return path, opts, float(np.mean(V))
+
+
+def _batch_result(capsys, tmp_path, rec, opts, *extra):
+    out = tmp_path / "batch"
+    code, _, err = run(capsys, "batch", rec, *opts, "--serial", "--no-progress", "-o", out, *extra)
+    assert code == 0, err
+    return json.loads((out / "results" / "rec.json").read_text())
+
+
+def test_batch_without_airspeed_uses_each_records_mean_airspeed_as_fit_does(tmp_path, capsys, record_with_airspeed):
+    rec, opts, U = record_with_airspeed
+    res = _batch_result(capsys, tmp_path, rec, opts)
+    assert res["provenance"]["airspeed"]["source"] == "record"
+    assert res["provenance"]["airspeed"]["value"] == pytest.approx(U, rel=1e-12)
+    code, out, err = run(capsys, "fit", rec, *opts, "--json")
+    assert code == 0, err
+    fitted = json.loads(out)
+    names = ("Z_a", "Z_q", "Z_de", "M_a", "M_q", "M_de")
+    batch = dict(zip(res["names"], res["values"]))
+    for name in names:  # the same model at the same airspeed, the same fit: equal to rounding
+        assert batch[name] == pytest.approx(fitted["params"][name]["value"], rel=1e-9), name
+
+
+def test_batch_with_a_wrong_airspeed_reports_the_mismatch_and_its_provenance(tmp_path, capsys, record_with_airspeed):
+    rec, opts, U = record_with_airspeed
+    res = _batch_result(capsys, tmp_path, rec, opts, "--airspeed", "35")
+    assert [f["code"] for f in res["findings"]] == ["airspeed.mismatch"]
+    assert res["findings"][0]["expected"] == pytest.approx(U, rel=1e-12)
+    assert res["provenance"]["airspeed"]["value"] == 35.0
+    table = (tmp_path / "batch" / "table.csv").read_text()
+    assert "airspeed.mismatch" in table

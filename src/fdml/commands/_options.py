@@ -73,7 +73,7 @@ MODEL_CHOICES = _model_choices()
 DEFAULT_BAND_TEXT = _band_default()
 #: The one rule for the model when --model is not given (quoted in --help).
 MODEL_RULE = "unsteady with --aircraft, else dimensional with --airspeed or the record's mean airspeed"
-#: The same rule for commands that read no record (simulate, response, montecarlo, batch).
+#: The same rule for commands that read no record (simulate, response, montecarlo, design).
 MODEL_RULE_NO_RECORD = "unsteady with --aircraft, else dimensional with --airspeed"
 
 

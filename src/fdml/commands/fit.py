@@ -91,6 +91,7 @@ def run(args) -> int:
     import time
 
     t0 = time.perf_counter()
+    from ..conditions import attach_conditions
     from ..estimate import fit
     from ..io import load_records
     from ..io.cli import record_options
@@ -127,7 +128,7 @@ def run(args) -> int:
     finally:
         if bar is not None:
             bar.close()
-    res = _with_conditions(res, model, records, provenance)
+    res = attach_conditions(res, model, records, provenance)
     t_fit = time.perf_counter()
     if args.output:
         res.to_json(args.output)
@@ -147,15 +148,3 @@ def run(args) -> int:
         if args.output:
             print(f"\nwrote {args.output}")
     return 0 if res.converged else 1
-
-
-def _with_conditions(res, model, records, provenance):
-    """The result with its provenance and any airspeed.mismatch finding (also issued as a warning)."""
-    from dataclasses import replace
-
-    from ..conditions import airspeed_findings
-    from ..findings import emit
-
-    found = airspeed_findings(model, records)
-    emit(found)
-    return replace(res, provenance=provenance, findings=tuple(res.findings) + tuple(found))
