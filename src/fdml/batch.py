@@ -97,7 +97,9 @@ class ModelSpec:
         files into the dict, so workers need no access to the file and the
         input hash changes when the aircraft does.
     options : mapping, optional
-        Model options (``gust``, ``airspeed``, ...; see :func:`fdml.make_model`).
+        Model options (``gust``, ``airspeed``, ...; see :func:`fdml.make_model`).  A
+        dimensional spec with neither ``airspeed`` nor an aircraft takes each record's
+        mean airspeed, m/s (the model rule of ``fdml fit``; :meth:`build`).
     values : mapping, optional
         Parameter values (the fit's starting point).
     fix : mapping or sequence of str, optional
