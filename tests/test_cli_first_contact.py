@@ -4,7 +4,10 @@ Each test runs the command line as a user types it and checks what the user sees
 exit code, the one-line messages, and numbers against an independent computation.
 """
 
+import argparse
 import json
+import re
+import shlex
 
 import numpy as np
 import pytest
@@ -157,3 +160,144 @@ def test_batch_with_a_wrong_airspeed_reports_the_mismatch_and_its_provenance(tmp
     assert res["provenance"]["airspeed"]["value"] == 35.0
     table = (tmp_path / "batch" / "table.csv").read_text()
     assert "airspeed.mismatch" in table
+
+
+# --- item 5: advice that can be run as printed ----------------------------------------------------
+def _options_of(command: str) -> set:
+    """Every option string the parser of ``fdml COMMAND`` accepts."""
+    from fdml.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    return {flag for a in sub.choices[command]._actions for flag in a.option_strings}
+
+
+def _assert_named_options_exist(message: str, command: str) -> None:
+    """Every ``--option`` the message names is an option of ``fdml COMMAND``."""
+    named = set(re.findall(r"(?<![\w-])--[a-z][a-z0-9-]*", message))
+    assert named, message
+    assert named <= _options_of(command), (named - _options_of(command), message)
+
+
+def test_fit_advice_commands_parse_and_run_as_printed(tmp_path, capsys):
+    from fdml.cli import build_parser
+
+    rec = tmp_path / "td.csv"
+    argv = ["simulate", "--airspeed", "60", "--effect", "time_delay:alpha", "--set", "tau_alpha=0.1"]
+    assert run(capsys, *argv, "--noise", "0.02", "--seed", "1", "-o", rec)[0] == 0
+    effects = ["sensor_offset:az", "sensor_scale:q"]
+    code, out, err = run(
+        capsys, "fit", rec, "--airspeed", "60", "--effect", effects[0], "--effect", effects[1], "--json"
+    )
+    assert code == 0, err
+    msg = next(w["message"] for w in json.loads(out)["warnings"] if w["category"] == "AdequacyWarning")
+    refit, diagnose = re.search(
+        r"Refit with it: (fdml fit .*); or run the full diagnosis: (fdml diagnose .*)$", msg
+    ).groups()
+    for command in (refit, diagnose):
+        args = build_parser().parse_args(shlex.split(command)[1:])  # exits with code 2 on an unrecognised argument
+        assert args.effect[:2] == effects, command
+    assert build_parser().parse_args(shlex.split(refit)[1:]).effect == [*effects, "time_delay:alpha"]
+    code, _, err = run(capsys, *shlex.split(refit)[1:])
+    assert code == 0, err
+
+
+def _adequacy(whiteness: bool, coherence: bool):
+    from fdml.adequacy import Adequacy, ResidualCheck
+
+    def check(name, failed):
+        return ResidualCheck(name, 30.0 if failed else 1.0, 1e-9 if failed else 0.5, 1e-8 if failed else 1.0, 3, "r/q")
+
+    return Adequacy(0.01, (), (), whiteness=check("whiteness", whiteness), coherence=check("coherence", coherence))
+
+
+def test_residual_advice_spells_cov_type_as_run_and_only_where_it_helps():
+    from fdml.adequacy import advice, invocation, within_diagnosis
+
+    white = _adequacy(whiteness=True, coherence=False)
+    with invocation(["fdml", "fit", "r.csv"], ["fdml", "diagnose", "r.csv"]):
+        on_cli = advice(white)
+        given = advice(white, cov_type="colored")
+        coherence = advice(_adequacy(whiteness=False, coherence=True))
+    assert "--cov-type colored" in on_cli and "cov_type" not in on_cli
+    _assert_named_options_exist(on_cli, "fit")
+    assert "try" not in given and "--cov-type" not in given  # already given: not suggested again
+    assert "colored" not in coherence  # a coherence with the input is model error: coloured bounds do not help
+    assert 'cov_type="colored"' in advice(white)  # in Python, the keyword (and the option beside it)
+    with within_diagnosis():  # the diagnosis's own fits do not send the user to the diagnosis
+        assert "diagnos" not in advice(white)
+
+
+def test_the_diagnosis_does_not_advise_running_the_diagnosis(tmp_path, capsys):
+    from fdml.io import data_path
+
+    rec = data_path("hfb320/hfb320_1_10.asc")
+    code, _, err = run(capsys, "diagnose", rec, "--t1", "20", "-o", tmp_path / "d.json")
+    assert code == 0, err
+    report = json.loads((tmp_path / "d.json").read_text())
+    messages = [w["message"] for w in report["warnings"]]
+    assert messages  # the record's recommended fit fails the whiteness check: the warning is there ...
+    assert not any("fdml diagnose" in m for m in messages), messages  # ... without sending the user back
+
+
+def test_unit_check_message_names_an_option_that_reads_the_record(tmp_path, capsys):
+    from fdml.models import make_model
+    from fdml.simulate import simulate_maneuver
+
+    rec = simulate_maneuver(make_model("dimensional", airspeed=60.0), "3211", duration=6.0, dt=0.02)
+    path = tmp_path / "large_angles.csv"
+    big = {k: (rec[k] * 200 if k in ("alpha", "q") else rec[k]) for k in ("de", "alpha", "q", "az")}
+    np.savetxt(path, np.column_stack([rec.t, *big.values()]), delimiter=",", header="t,de,alpha,q,az", comments="")
+    code, _, err = run(capsys, "check", path)
+    assert code == 2 and "--no-unit-check" in err and "check_units=False" in err.replace("Python: ", "")
+    _assert_named_options_exist(err, "check")
+    code, _, err = run(capsys, "check", path, "--no-unit-check")
+    assert code == 0, err
+
+
+def test_csv_unit_message_names_the_units_option_as_spelled(tmp_path, capsys):
+    from fdml.models import make_model
+    from fdml.simulate import simulate_maneuver
+
+    rec = simulate_maneuver(make_model("dimensional", airspeed=60.0), "3211", duration=6.0, dt=0.02)
+    path = tmp_path / "mapped.csv"
+    cols = [rec.t, rec["de"], rec["alpha"], rec["q"], rec["az"]]
+    np.savetxt(path, np.column_stack(cols), delimiter=",", header="time,elev,aoa,q,nz", comments="")
+    mapping = ["--columns", "t=time,de=elev,alpha=aoa,q=q,az=nz"]
+    code, _, err = run(capsys, "check", path, *mapping)
+    assert code == 2 and "--units de=UNIT" in err, err
+    _assert_named_options_exist(err, "check")
+    code, _, err = run(capsys, "check", path, *mapping, "--units", "de=rad,alpha=rad,q=rad/s,az=g")
+    assert code == 0, err
+
+
+def test_dlr_mat_with_two_matrices_names_the_variable_option(tmp_path, capsys):
+    from scipy.io import savemat
+
+    from fdml.constants import G0
+    from fdml.models import make_model
+    from fdml.simulate import simulate_maneuver
+
+    rec = simulate_maneuver(make_model("dimensional", airspeed=100.0), "3211", duration=8.0, dt=0.1)
+    M = np.zeros((rec.t.size, 20))  # the HFB-320 layout (fdml.io.dlr.LAYOUTS): 1-based columns below
+    M[:, 0], M[:, 1], M[:, 4], M[:, 5], M[:, 7] = rec.t, rec["de"], 100.0, rec["alpha"], rec["q"]
+    M[:, 10] = G0 * (rec["az"] - 1.0)  # body-z specific force, m/s^2: -1 g in trim
+    path = tmp_path / "two.mat"
+    savemat(path, {"first": M, "second": M})
+    code, _, err = run(capsys, "check", path)
+    assert code == 2 and "--variable NAME" in err, err
+    _assert_named_options_exist(err, "check")
+    code, _, err = run(capsys, "check", path, "--variable", "second")
+    assert code == 0, err
+
+
+def test_compatibility_message_names_a_runnable_estimate_option(capsys):
+    from fdml.io import data_path
+
+    rec = data_path("twin_otter/totter_lon_020213f1_017.mat")
+    code, out, err = run(capsys, "check", rec, "--compat")
+    assert code == 0, err
+    line = next(ln for ln in out.splitlines() if ln.strip().startswith("K_az"))
+    command = re.search(r"to estimate it: (fdml check --compat --estimate \S+);", line).group(1)
+    code, out, err = run(capsys, *shlex.split(command)[1:], rec)
+    assert code == 0, err
+    assert not any(ln.strip().startswith("K_az") and "not estimated" in ln for ln in out.splitlines())

@@ -69,7 +69,7 @@ from .score import (
     screen_all,
 )
 
-__all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "advice", "check", "invocation"]
+__all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "advice", "check", "invocation", "within_diagnosis"]
 
 #: Family-wise level of the adequacy check (every fit runs it: 1 in 100 adequate fits warns).
 ALPHA = 0.01
@@ -78,6 +78,8 @@ MAX_BANDS = 4
 MIN_BAND = 6
 
 _COMMAND: contextvars.ContextVar = contextvars.ContextVar("fdml_adequacy_command", default=None)
+#: True within the diagnosis's own fits (:func:`within_diagnosis`): their warnings send no one to the diagnosis.
+_IN_DIAGNOSIS: contextvars.ContextVar = contextvars.ContextVar("fdml_adequacy_in_diagnosis", default=False)
 #: Output effects whose function evaluates a nuisance grid at once (checked once each, see _Context._agrees).
 _VECTORISES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -102,6 +104,21 @@ def invocation(fit_argv, diagnose_argv=None):
         yield
     finally:
         _COMMAND.reset(token)
+
+
+@contextlib.contextmanager
+def within_diagnosis():
+    """Within the block (the diagnosis's own fits), the warnings do not suggest running the diagnosis.
+
+    Yields
+    ------
+    None
+    """
+    token = _IN_DIAGNOSIS.set(True)
+    try:
+        yield
+    finally:
+        _IN_DIAGNOSIS.reset(token)
 
 
 @dataclass(frozen=True)
@@ -842,18 +859,22 @@ def check(prob, theta, V, R, *, alpha: float = ALPHA, library=None, sensitivitie
 # --- the warning ----------------------------------------------------------------------------------
 
 
-def advice(adequacy: Adequacy) -> str | None:
+def advice(adequacy: Adequacy, cov_type: str | None = None) -> str | None:
     """The warning text for a flagged fit (None when nothing is flagged).
 
     It names the most significant flagged effect and the command that refits
     with it (the running ``fdml fit`` command with ``--effect NAME:CHANNEL``
     when the command line set one with :func:`invocation`), or runs the
-    diagnosis.
+    diagnosis (not within the diagnosis itself, :func:`within_diagnosis`).
+    Every suggestion is spelled as it is run: command-line options on the
+    command line, keywords in Python.
 
     Parameters
     ----------
     adequacy : Adequacy
         The check of a fit.
+    cov_type : str, optional
+        The fit's covariance type; ``"colored"`` is not suggested again.
 
     Returns
     -------
@@ -867,6 +888,7 @@ def advice(adequacy: Adequacy) -> str | None:
     diag = (
         shlex.join(diag_argv) if diag_argv else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
     )
+    diagnosis = "" if _IN_DIAGNOSIS.get() else f"run the full diagnosis: {diag}"
     if adequacy.flagged:
         top = adequacy.flagged[0]
         others = [e.key for e in adequacy.flagged[1:]]
@@ -876,15 +898,18 @@ def advice(adequacy: Adequacy) -> str | None:
             else f"fdml fit RECORD ... --effect {top.option} (Python: model.with_effects({top.option!r}))"
         )
         also = f"; also flagged: {', '.join(others)}" if others else ""
-        return (
-            f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}; "
-            f"or run the full diagnosis: {diag}"
+        return f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}" + (
+            f"; or {diagnosis}" if diagnosis else ""
         )
     c = adequacy.residual_flags[0]
+    bounds = "the bounds assume white noise"
+    if cov_type == "colored":
+        bounds = "the colored bounds allow for non-white noise"
+    elif adequacy.whiteness in adequacy.residual_flags:  # not for coherence: a model error, not coloured noise
+        bounds += " (try --cov-type colored)" if fit_argv else ' (try --cov-type colored; cov_type="colored" in Python)'
     return (
         f"the fit's residuals fail the {c.name} check (Holm p {c.p_holm:.2g}, worst {c.worst}) but no "
-        f"library effect explains them: the bounds assume white noise (try cov_type='colored'); "
-        f"run the full diagnosis: {diag}"
+        f"library effect explains them: {bounds}" + (f"; {diagnosis}" if diagnosis else "")
     )
 
 
@@ -924,7 +949,7 @@ def attach(prob, result, V, sensitivities=None):
         msg = f"the adequacy check could not run: {exc}"
         warnings.warn(msg, AdequacyWarning, stacklevel=4)
         return result
-    msg = advice(found)
+    msg = advice(found, cov_type=getattr(result, "cov_type", None))
     if msg is None:
         return replace(result, adequacy=found)
     warnings.warn(msg, AdequacyWarning, stacklevel=4)

@@ -332,7 +332,10 @@ def fit_kwargs(args) -> dict:
 
 # --- reading records ---------------------------------------------------------------------------
 def add_record_options(p) -> None:
-    """--format, --t0, --t1, --columns, --units, --sign, --layout (see :func:`fdml.io.cli.record_options`)."""
+    """--format, --t0, --t1, --columns, --units, --sign, --layout, --variable, --delimiter, --no-unit-check.
+
+    See :func:`fdml.io.cli.record_options`.
+    """
     from ..io.cli import add_record_arguments
 
     add_record_arguments(p)

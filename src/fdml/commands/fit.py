@@ -58,7 +58,12 @@ def _argv_of(parser, args, *, rename=None) -> list:
             pos += [str(x) for x in (v if isinstance(v, list) else [v])]
         elif v != a.default and v is not None and not (a.choices and v not in a.choices):
             flag = max(a.option_strings, key=len)
-            opt += [flag] if a.nargs == 0 else [flag, *(str(x) for x in (v if isinstance(v, list) else [v]))]
+            # a repeatable option once per value (--effect a --effect b): every parser reads that form
+            opt += (
+                [flag]
+                if a.nargs == 0
+                else [x for item in (v if isinstance(v, list) else [v]) for x in (flag, str(item))]
+            )
     return pos + opt
 
 

@@ -595,6 +595,7 @@ def recommended_fit(
         Its warnings are raised to the caller (:func:`diagnose` keeps them in
         the report).
     """
+    from ..adequacy import within_diagnosis
     from ..estimate import fit as fdml_fit
 
     model = base_model.with_effects(*effects) if effects else base_model
@@ -602,7 +603,8 @@ def recommended_fit(
         sv = start.parameters.values
         model = model.with_values({k: v for k, v in sv.items() if k in model.parameters and math.isfinite(v)})
     try:  # the diagnosis has checked the records
-        return fdml_fit(list(data.spectra), model, outputs=outputs, boundary=boundary, biases=biases, check=False)
+        with within_diagnosis():  # its adequacy warning does not send the user to the diagnosis that runs it
+            return fdml_fit(list(data.spectra), model, outputs=outputs, boundary=boundary, biases=biases, check=False)
     except FdmlError as exc:
         logger.warning("the recommended model could not be fitted: %s", exc)
         return None

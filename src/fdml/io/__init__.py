@@ -147,7 +147,7 @@ def detect_format(path, **kw) -> tuple[str, dict]:
         listing = ", ".join(f"{n} {shape}" for n, shape in names.items()) or "none"
         raise RecordError(
             f"{p}: a .mat file without SIDPAC's fdata or a known DLR layout "
-            f"(variables: {listing}); pass format= and layout="
+            f"(variables: {listing}); give --format and --layout (Python: format=, layout=)"
         )
     if suffix in (".asc", ".dat", ".txt"):
         if "layout" in kw:
@@ -157,12 +157,12 @@ def detect_format(path, **kw) -> tuple[str, dict]:
             if spec["n_columns"] == n_cols:
                 return "dlr-asc", {"layout": lay}
         known = ", ".join(f"{k}: {v['n_columns']}" for k, v in LAYOUTS.items())
-        raise RecordError(f"{p}: {n_cols} columns match no known DLR layout ({known}); pass layout=")
+        raise RecordError(f"{p}: {n_cols} columns match no known DLR layout ({known}); give --layout (Python: layout=)")
     if suffix == ".csv":
         return ("csv-map" if kw.get("columns") else "csv"), {}
     raise RecordError(
-        f"{p}: cannot tell the record format from the suffix {suffix or '(none)'}; pass format= "
-        f"({', '.join(FORMATS[1:])})"
+        f"{p}: cannot tell the record format from the suffix {suffix or '(none)'}; give --format "
+        f"(Python: format=): {', '.join(FORMATS[1:])}"
     )
 
 
