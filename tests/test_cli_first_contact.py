@@ -301,3 +301,23 @@ def test_compatibility_message_names_a_runnable_estimate_option(capsys):
     code, out, err = run(capsys, *shlex.split(command)[1:], rec)
     assert code == 0, err
     assert not any(ln.strip().startswith("K_az") and "not estimated" in ln for ln in out.splitlines())
+
+
+# --- item 7: one band syntax, LO:HI[:STEP], everywhere ----------------------------------------------
+def test_fit_and_batch_accept_lo_hi_with_the_documented_default_step(tmp_path, capsys, record_with_airspeed):
+    from fdml.spectral import DEFAULT_STEP
+
+    rec, opts, _ = record_with_airspeed
+    code, out, err = run(capsys, "fit", rec, *opts, "--band", "1:8", "--json")
+    assert code == 0, err
+    short = json.loads(out)
+    code, out, err = run(capsys, "fit", rec, *opts, "--band", f"1:8:{DEFAULT_STEP}", "--json")
+    assert code == 0, err
+    full = json.loads(out)
+    assert short["band"] == full["band"] == [1.0, 8.0, DEFAULT_STEP]
+    assert short["params"] == full["params"]  # the same grid: the same fit
+    res = _batch_result(capsys, tmp_path, rec, opts, "--band", "1:8")
+    assert res["n_freq"] == full["n_freq"] and res["values"][0] == full["params"][res["names"][0]]["value"]
+    with pytest.raises(SystemExit):
+        main(["fit", "--help"])
+    assert f"without :STEP the step is {DEFAULT_STEP:g}" in " ".join(capsys.readouterr().out.split())
