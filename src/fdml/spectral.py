@@ -93,7 +93,8 @@ def band_numbers(band, sizes: tuple[int, ...], *, what: str = "band", example: s
     BandError
         A string or sequence with another count of parts, or parts that are not numbers.
     """
-    form = {(3,): "LO:HI:STEP", (2,): "LO:HI"}.get(tuple(sizes), "LO:HI[:STEP]")
+    forms: dict[tuple[int, ...], str] = {(3,): "LO:HI:STEP", (2,): "LO:HI"}
+    form = forms.get(tuple(sizes), "LO:HI[:STEP]")
     if isinstance(band, str):
         parts = band.split(":")
         if len(parts) not in sizes:
