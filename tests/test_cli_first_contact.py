@@ -321,3 +321,57 @@ def test_fit_and_batch_accept_lo_hi_with_the_documented_default_step(tmp_path, c
     with pytest.raises(SystemExit):
         main(["fit", "--help"])
     assert f"without :STEP the step is {DEFAULT_STEP:g}" in " ".join(capsys.readouterr().out.split())
+
+
+# --- item 6: a band typed in Hz ----------------------------------------------------------------------
+@pytest.fixture
+def short_record(tmp_path):
+    """A 7.5 s noisy 3-2-1-1 of the dimensional model at 60 m/s (short period about 3.5 rad/s)."""
+    from fdml.models import make_model
+    from fdml.record import add_noise
+    from fdml.simulate import simulate_maneuver
+
+    model = make_model("dimensional", airspeed=60.0)
+    rec = add_noise(
+        simulate_maneuver(model, "3211", duration=7.5, dt=0.02), 0.02, np.random.default_rng(7), relative=True
+    )
+    return rec.to_csv(tmp_path / "short.csv"), model
+
+
+def _band_findings(capsys, rec, *band):
+    code, out, err = run(capsys, "fit", rec, "--airspeed", "60", *band, "--json")
+    assert code in (0, 1), err
+    d = json.loads(out)
+    return [f for f in d["findings"] if f["code"] == "band.hz"], d
+
+
+def test_a_band_typed_in_hz_is_named_with_its_rad_per_s_band(capsys, short_record):
+    rec, model = short_record
+    found, _ = _band_findings(capsys, rec, "--band", "0.1:1.5:0.02")
+    assert len(found) == 1, found
+    msg = found[0]["message"]
+    assert "looks like Hz" in msg
+    # the rad/s band is the typed one times 2 pi
+    rad = re.search(r"--band (\S+) ", msg).group(1)
+    assert [float(x) for x in rad.split(":")] == pytest.approx([2 * np.pi * x for x in (0.1, 1.5, 0.02)], rel=1e-3)
+    _assert_named_options_exist(msg, "fit")
+    # the short period of the truth lies above the typed band: the reason given
+    assert model.short_period_frequency() > 1.5 and "below the fitted short-period frequency" in msg
+    again, fitted = _band_findings(capsys, rec, "--band", rad)
+    assert again == [] and fitted["converged"]
+
+
+def test_rad_per_s_and_default_bands_are_not_taken_for_hz(capsys, short_record):
+    rec, _ = short_record
+    assert _band_findings(capsys, rec, "--band", "0.5:12:0.2")[0] == []
+    assert _band_findings(capsys, rec)[0] == []  # the default band, 0.1:10:0.1
+
+
+def test_short_period_frequency_is_the_modulus_of_the_eigenvalues():
+    from fdml.models import make_model
+
+    m = make_model("dimensional", "navion")
+    p = m.parameters.values
+    A = np.array([[p["Z_a"], 1 + p["Z_q"]], [p["M_a"], p["M_q"]]])  # docs/theory.md: the classical short period
+    # a complex pair: both eigenvalues have modulus omega_n
+    assert m.short_period_frequency() == pytest.approx(np.abs(np.linalg.eigvals(A)), rel=1e-12)

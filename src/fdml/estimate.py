@@ -1204,10 +1204,25 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
         A_final,
         rows,
     )
+    found += _band_findings(prob, theta)
     res = replace(res, findings=tuple(found)) if found else res
     if options["adequacy"] and converged:
         res = _with_adequacy(prob, res, V, A_final)
     return res, prob
+
+
+def _band_findings(prob: Problem, theta: np.ndarray) -> list:
+    """The ``band.hz`` finding when the band looks like Hz (:mod:`fdml.band_units`), issued as a warning."""
+    from .band_units import hz_band_finding
+
+    try:
+        found = hz_band_finding(prob.data, prob.model.with_values(prob.model_values(theta)))
+    except (FdmlError, np.linalg.LinAlgError):  # a model the check cannot evaluate: nothing to say
+        return []
+    if found is None:
+        return []
+    emit([found], stacklevel=4)
+    return [found]
 
 
 def _halving_step(prob, theta, step, lo, hi, J, rows):
