@@ -375,3 +375,17 @@ def test_short_period_frequency_is_the_modulus_of_the_eigenvalues():
     A = np.array([[p["Z_a"], 1 + p["Z_q"]], [p["M_a"], p["M_q"]]])  # docs/theory.md: the classical short period
     # a complex pair: both eigenvalues have modulus omega_n
     assert m.short_period_frequency() == pytest.approx(np.abs(np.linalg.eigvals(A)), rel=1e-12)
+
+
+# --- item 8: -v anywhere, showing messages ------------------------------------------------------------
+def test_verbose_after_the_command_shows_warnings_as_messages(capsys, short_record):
+    rec, _ = short_record
+    code, _, err_after = run(capsys, "fit", rec, "--airspeed", "60", "--band", "0.1:1.5:0.02", "-v")
+    assert code in (0, 1), err_after
+    code, _, err_before = run(capsys, "-v", "fit", rec, "--airspeed", "60", "--band", "0.1:1.5:0.02")
+    assert err_after == err_before
+    lines = err_after.splitlines()
+    assert any("band.hz" in ln for ln in lines), err_after  # the warnings are shown ...
+    for ln in lines:  # ... each as a message: no source file, line number or code line of a Python warning
+        assert ln.startswith("fdml: ") and ".py:" not in ln and "site-packages" not in ln, ln
+    assert run(capsys, "fit", rec, "--airspeed", "60", "--band", "0.1:1.5:0.02")[2] == ""  # quiet without -v

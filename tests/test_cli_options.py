@@ -69,6 +69,8 @@ MEANINGS = {
     "--amplitude": ("amplitude", "store", None),
     "--steady": ("steady", "store", None),
     "--gust": ("gust", "store_true", 0),
+    "-v": ("verbose", "store_true", 0),
+    "--verbose": ("verbose", "store_true", 0),
 }
 #: Shown flags that parse differently on purpose: simulate's --gust takes an optional STD (m/s).
 DIFFERENT = {("simulate", "--gust"): ("gust", "store", "?")}
