@@ -389,3 +389,43 @@ def test_verbose_after_the_command_shows_warnings_as_messages(capsys, short_reco
     for ln in lines:  # ... each as a message: no source file, line number or code line of a Python warning
         assert ln.startswith("fdml: ") and ".py:" not in ln and "site-packages" not in ln, ln
     assert run(capsys, "fit", rec, "--airspeed", "60", "--band", "0.1:1.5:0.02")[2] == ""  # quiet without -v
+
+
+# --- item 9: a wrong --format names the format the file looks like -----------------------------------
+@pytest.fixture
+def dlr_mat(tmp_path):
+    """A DLR .mat record in the HFB-320 layout (20 columns, fdml.io.dlr.LAYOUTS), from a simulation."""
+    from scipy.io import savemat
+
+    from fdml.constants import G0
+    from fdml.models import make_model
+    from fdml.simulate import simulate_maneuver
+
+    rec = simulate_maneuver(make_model("dimensional", airspeed=100.0), "3211", duration=8.0, dt=0.1)
+    M = np.zeros((rec.t.size, 20))
+    M[:, 0], M[:, 1], M[:, 4], M[:, 5], M[:, 7] = rec.t, rec["de"], 100.0, rec["alpha"], rec["q"]
+    M[:, 10] = G0 * (rec["az"] - 1.0)
+    path = tmp_path / "hfb.mat"
+    savemat(path, {"hfb": M})
+    return path
+
+
+@pytest.mark.parametrize("wrong", ["csv", "dlr-asc", "sidpac"])
+def test_a_wrong_format_on_a_mat_file_names_the_format_it_looks_like(capsys, dlr_mat, wrong):
+    from conftest import assert_refused_in_one_line
+
+    code, _, err = run(capsys, "check", dlr_mat, "--format", wrong)
+    assert_refused_in_one_line(code, err, [f"--format {wrong} does not fit", "--format dlr-mat"])
+    assert "codec" not in err and "corrupt" not in err
+    assert run(capsys, "check", dlr_mat, "--format", "dlr-mat")[0] == 0  # the format named reads it
+
+
+def test_a_wrong_format_on_a_csv_names_csv(tmp_path, capsys, short_record):
+    from conftest import assert_refused_in_one_line
+
+    rec, _ = short_record
+    for wrong in ("sidpac", "dlr-mat", "dlr-asc"):
+        code, _, err = run(capsys, "check", rec, "--format", wrong)
+        assert_refused_in_one_line(code, err, [f"--format {wrong} does not fit", "--format csv"])
+    code, _, err = run(capsys, "check", rec, "--format", "csv-map")  # was an internal error (no column map)
+    assert_refused_in_one_line(code, err, ["csv-map needs --columns"])
