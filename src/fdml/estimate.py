@@ -452,7 +452,7 @@ def _as_data(data, model: Model, omega, band, trim, trim_window, end_correction)
         if model.gust and "alpha_w" not in item.inputs:
             raise RecordError(
                 f"record {item.name!r} has no alpha_w column but the model has a gust input; "
-                "fit without gust=True or supply the measured gust angle"
+                "fit without --gust (Python: a model without gust=True) or supply the measured gust angle"
             )
         if not model.gust and item.u.shape[1] > 1:
             item = _drop_gust(item)
@@ -720,8 +720,8 @@ def _end_findings(prob: Problem) -> list:
                     Finding(
                         "boundary.truncated",
                         f"the record ends far from trim in {', '.join(far)} ({100 * max(d.end_offset[:2]):.0f} % of "
-                        "the peak) and boundary='none': the transform sees a truncated response; use "
-                        "boundary='estimated' or 'measured'",
+                        "the peak) and boundary 'none': the transform sees a truncated response; use "
+                        "--boundary estimated or measured (Python: boundary=)",
                         kind="estimation",
                         record=d.name,
                         value=float(max(d.end_offset[:2])),
