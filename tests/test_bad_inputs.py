@@ -158,9 +158,9 @@ CASES = [
         ["--band", "below"],
     ),
     (
-        "two-part-band-batch",
-        ["batch", "{a}", *STEADY, "--band", "1:2", "--out", "{dir}/b2", "--serial", "--no-progress"],
-        ["--band", "LO:HI:STEP"],
+        "four-part-band-batch",
+        ["batch", "{a}", *STEADY, "--band", "1:2:0.1:4", "--out", "{dir}/b2", "--serial", "--no-progress"],
+        ["--band", "LO:HI[:STEP]"],
     ),
     ("inverted-omega-response", ["response", *STEADY, "--omega", "10:1:1"], ["--omega"]),
     ("negative-seed", ["simulate", *STEADY, "--seed", "-1", "-o", "{dir}/s.csv"], ["--seed", "-1"]),
@@ -331,7 +331,7 @@ def test_band_frequency_limit_is_exact():
         check_band(1e-300, 1e308, 1e-300)  # (hi - lo) / step overflows to inf
 
 
-@pytest.mark.parametrize("band", ["10:1:1", "1:2", "0:10:0.1", "0.1:10:0", "nan:1:0.1"])
+@pytest.mark.parametrize("band", ["10:1:1", "1:2:0.1:4", "0:10:0.1", "0.1:10:0", "nan:1:0.1"])
 def test_every_band_goes_through_one_check(band, files, tmp_path):
     from fdml.batch import ModelSpec, run_batch
     from fdml.quality import check_quality

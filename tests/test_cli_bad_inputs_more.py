@@ -97,7 +97,7 @@ CASES = [
     ("check-header-only", ["check", "{header_only}"], ["{header_only}"]),
     ("check-non-utf8", ["check", "{nonutf8}"], ["{nonutf8}"]),
     ("check-band-above-nyquist", ["check", "{a}", "--band", "1:500:1"], ["Nyquist"]),
-    ("check-band-two-parts", ["check", "{a}", "--band", "1:5"], ["--band"]),
+    ("check-band-four-parts", ["check", "{a}", "--band", "1:5:0.1:2"], ["--band", "LO:HI[:STEP]"]),
     ("check-n-params-zero", ["check", "{a}", "--n-params", "0"], ["n_params", "got 0"]),
     ("check-window-inverted", ["check", "{a}", "--t0", "5", "--t1", "2"], ["{a}", "window"]),
     ("check-wrong-format", ["check", "{a}", "--format", "sidpac"], ["{a}"]),

@@ -50,6 +50,9 @@ MEANINGS = {
     "--units": ("units", "store", None),
     "--sign": ("sign", "store", None),
     "--layout": ("layout", "store", None),
+    "--variable": ("variable", "store", None),
+    "--delimiter": ("delimiter", "store", None),
+    "--no-unit-check": ("check_units", "store_false", 0),
     "--output": ("output", "store", None),
     "-o": ("output", "store", None),
     "--workers": ("workers", "store", None),
@@ -66,6 +69,8 @@ MEANINGS = {
     "--amplitude": ("amplitude", "store", None),
     "--steady": ("steady", "store", None),
     "--gust": ("gust", "store_true", 0),
+    "-v": ("verbose", "store_true", 0),
+    "--verbose": ("verbose", "store_true", 0),
 }
 #: Shown flags that parse differently on purpose: simulate's --gust takes an optional STD (m/s).
 DIFFERENT = {("simulate", "--gust"): ("gust", "store", "?")}
@@ -106,6 +111,9 @@ SHARED_DESTS = {
     "units",
     "sign",
     "layout",
+    "variable",
+    "delimiter",
+    "check_units",
     "output",
     "workers",
     "progress",

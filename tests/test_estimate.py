@@ -290,7 +290,7 @@ def test_bad_inputs_give_named_errors(dimensional_case):
         fit(rec, make_model("dimensional", "navion", gust=True))
     with pytest.raises(FdmlError, match="unknown output"):
         fit(rec, m, outputs="alpha,nz")
-    with pytest.raises(BandError, match="LO:HI:STEP"):
+    with pytest.raises(BandError, match=r"LO:HI\[:STEP\]"):
         fit(rec, m, band="0.1-10")
 
 

@@ -70,11 +70,27 @@ def _det_r_branch(clean, model):
     pytest.fail("no record tried ends on the 'no further decrease of det R' branch")
 
 
+def _stalled_branch(clean, model):
+    """A fit that ends 'stalled': no step lowers det R while det R still resolves the progress.
+
+    Between the noise-free record (at the floating-point floor, converged) and ordinary noise
+    (converged by the step rule) lies a narrow range of noise levels where the cost neither
+    improves nor is at its rounding floor; a few (level, seed) pairs are tried.
+    """
+    for level in (3e-8, 5e-8, 2e-8):
+        for seed in range(1, 6):
+            res = _fit(add_noise(clean, level, np.random.default_rng(seed), relative=True), model)
+            if res.message == "stalled: no step decreases det R":
+                return res
+    pytest.fail("no record tried ends on the 'stalled' branch")
+
+
 #: branch -> (how to build it, what identifies it: message prefix, converged, stopped)
 BRANCHES = {
     "step": ("converged: every step below", True, False),
     "det_r": ("converged: no further decrease of det R", True, False),
     "stalled": ("stalled: no step decreases det R", False, False),
+    "floor": ("converged at the floating-point floor", True, False),
     "max_iter": ("maximum number of iterations reached", False, False),
     "callback": ("stopped by the callback after 2 iterations", False, True),
     "paper": ("paper's rule: relative change of det R below 0.01", True, False),
@@ -87,7 +103,8 @@ def fits(model, clean, noisy):
     return {
         "step": _fit(noisy, model),
         "det_r": _det_r_branch(clean, model),
-        "stalled": _fit(clean, model),  # the issue's reproduction: noise-free record
+        "stalled": _stalled_branch(clean, model),
+        "floor": _fit(clean, model),  # issues 14 and 21: the noise-free record
         "max_iter": _fit(noisy, model, max_iter=1),
         "callback": _fit(noisy, model, callback=lambda info: info.iteration >= 2),
         "paper": _fit(noisy, model, stop="paper"),
@@ -233,7 +250,7 @@ def test_every_branch_round_trips(fits, branch, tmp_path):
     assert_same(back, FitResult.from_dict(json.loads(res.to_json())))  # text and file agree
 
 
-@pytest.mark.parametrize("branch", ["det_r", "stalled", "callback"])
+@pytest.mark.parametrize("branch", ["det_r", "stalled", "floor", "callback"])
 def test_report_works_on_reloaded_result(fits, branch, tmp_path, capsys):
     path = fits[branch].to_json(tmp_path / "r.json")
     assert main(["report", str(path), "-o", str(tmp_path / "rep")]) == 0
@@ -323,7 +340,7 @@ def test_dumps_compact_and_loads_bom():
 
 def test_old_result_files_still_read(fits, tmp_path):
     """Files written before the codec held NaN/Infinity tokens; they still load."""
-    res = fits["stalled"]
+    res = fits["floor"]
     d = res.to_dict()
     d["stderr"] = [math.nan if x == "nan" else x for x in d["stderr"]]
     d["cost_history"] = [math.inf] + d["cost_history"][1:]
@@ -403,8 +420,8 @@ EDITS = [
 
 @pytest.fixture(scope="module")
 def saved(fits):
-    """The JSON dict of a real result (the noise-free, stalled fit)."""
-    return fits["stalled"].to_dict()
+    """The JSON dict of a real result (the noise-free fit, converged at the floating-point floor)."""
+    return fits["floor"].to_dict()
 
 
 def _one_line(err: str) -> str:

@@ -71,7 +71,18 @@ from .score import (
 )
 from .verdict import LEVEL
 
-__all__ = ["ALPHA", "Adequacy", "EffectTest", "ResidualCheck", "Verdict", "advice", "check", "invocation", "rank"]
+__all__ = [
+    "ALPHA",
+    "Adequacy",
+    "EffectTest",
+    "ResidualCheck",
+    "Verdict",
+    "advice",
+    "check",
+    "invocation",
+    "rank",
+    "within_diagnosis",
+]
 
 #: Family-wise level of the adequacy check (every fit runs it: 1 in 100 adequate fits warns); the
 #: diagnosis's too (:data:`fdml.verdict.LEVEL`).
@@ -81,6 +92,8 @@ MAX_BANDS = 4
 MIN_BAND = 6
 
 _COMMAND: contextvars.ContextVar = contextvars.ContextVar("fdml_adequacy_command", default=None)
+#: True within the diagnosis's own fits (:func:`within_diagnosis`): their warnings send no one to the diagnosis.
+_IN_DIAGNOSIS: contextvars.ContextVar = contextvars.ContextVar("fdml_adequacy_in_diagnosis", default=False)
 #: Output effects whose function evaluates a nuisance grid at once (checked once each, see _Context._agrees).
 _VECTORISES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -105,6 +118,21 @@ def invocation(fit_argv, diagnose_argv=None):
         yield
     finally:
         _COMMAND.reset(token)
+
+
+@contextlib.contextmanager
+def within_diagnosis():
+    """Within the block (the diagnosis's own fits), the warnings do not suggest running the diagnosis.
+
+    Yields
+    ------
+    None
+    """
+    token = _IN_DIAGNOSIS.set(True)
+    try:
+        yield
+    finally:
+        _IN_DIAGNOSIS.reset(token)
 
 
 @dataclass(frozen=True)
@@ -1103,18 +1131,22 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
 # --- the warning ----------------------------------------------------------------------------------
 
 
-def advice(adequacy: Adequacy) -> str | None:
+def advice(adequacy: Adequacy, cov_type: str | None = None) -> str | None:
     """The warning text for a flagged fit (None when nothing is flagged).
 
     It names the most significant flagged effect and the command that refits
     with it (the running ``fdml fit`` command with ``--effect NAME:CHANNEL``
     when the command line set one with :func:`invocation`), or runs the
-    diagnosis.
+    diagnosis (not within the diagnosis itself, :func:`within_diagnosis`).
+    Every suggestion is spelled as it is run: command-line options on the
+    command line, keywords in Python.
 
     Parameters
     ----------
     adequacy : Adequacy
         The check of a fit.
+    cov_type : str, optional
+        The fit's covariance type; ``"colored"`` is not suggested again.
 
     Returns
     -------
@@ -1128,9 +1160,10 @@ def advice(adequacy: Adequacy) -> str | None:
     diag = (
         shlex.join(diag_argv) if diag_argv else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
     )
+    diagnosis = "" if _IN_DIAGNOSIS.get() else f"run the full diagnosis: {diag}"
     v = adequacy.verdict
     if v is not None:
-        return _verdict_advice(adequacy, v, fit_argv, diag)
+        return _verdict_advice(adequacy, v, fit_argv, diagnosis)
     if adequacy.flagged:
         top = adequacy.flagged[0]
         others = [e.key for e in adequacy.flagged[1:]]
@@ -1140,15 +1173,18 @@ def advice(adequacy: Adequacy) -> str | None:
             else f"fdml fit RECORD ... --effect {top.option} (Python: model.with_effects({top.option!r}))"
         )
         also = f"; also flagged: {', '.join(others)}" if others else ""
-        return (
-            f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}; "
-            f"or run the full diagnosis: {diag}"
+        return f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}" + (
+            f"; or {diagnosis}" if diagnosis else ""
         )
     c = adequacy.residual_flags[0]
+    bounds = "the bounds assume white noise"
+    if cov_type == "colored":
+        bounds = "the colored bounds allow for non-white noise"
+    elif adequacy.whiteness in adequacy.residual_flags:  # not for coherence: a model error, not coloured noise
+        bounds += " (try --cov-type colored)" if fit_argv else ' (try --cov-type colored; cov_type="colored" in Python)'
     return (
         f"the fit's residuals fail the {c.name} check (Holm p {c.p_holm:.2g}, worst {c.worst}) but no "
-        f"library effect explains them: the bounds assume white noise (try cov_type='colored'); "
-        f"run the full diagnosis: {diag}"
+        f"library effect explains them: {bounds}" + (f"; {diagnosis}" if diagnosis else "")
     )
 
 
@@ -1157,11 +1193,15 @@ def _option(key: str) -> str:
     return f"{name}:{channel}"
 
 
-def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diag: str) -> str:
-    """The warning when the check ranked the flagged effects as the diagnosis would (:func:`rank`)."""
+def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) -> str:
+    """The warning when the check ranked the flagged effects as the diagnosis would (:func:`rank`).
+
+    ``diagnosis``: "run the full diagnosis: COMMAND", or "" within the diagnosis itself.
+    """
+    tail = f"; {diagnosis}" if diagnosis else ""
     if v.key is None:
         why = "; ".join(f"{k}: {r}" for k, r in v.set_aside)
-        return f"the fit's residuals flag effects that were all set aside ({why}); run the full diagnosis: {diag}"
+        return f"the fit's residuals flag effects that were all set aside ({why}){tail}"
     extra = [f"{k}={val:.6g}" for k, (val, _) in v.params.items()] if v.source == "kinematics" else []
     args = ["--effect", _option(v.key)] + [a for x in extra for a in ("--fix", x)]
     refit = shlex.join([*fit_argv, *args]) if fit_argv else "fdml fit RECORD ... " + shlex.join(args)
@@ -1175,11 +1215,11 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diag: str) -> str:
     elif v.ambiguous:
         what = (
             f"the fit's residuals carry one of {', '.join(v.aliases)}, which these data cannot tell apart "
-            f"(the best: {v.describe()}){also}; the full diagnosis says what would separate them"
+            f"(the best: {v.describe()}){also}; the diagnosis says what would separate them"
         )
     else:
         what = f"the fit's residuals carry {v.describe()}{also}. Refit with it: {refit}"
-    return f"{what}; or run the full diagnosis: {diag}"
+    return what + (f"; or {diagnosis}" if diagnosis else "")
 
 
 def attach(prob, result, V, sensitivities=None, refit=None):
@@ -1223,7 +1263,7 @@ def attach(prob, result, V, sensitivities=None, refit=None):
         msg = f"the adequacy check could not run: {exc}"
         warnings.warn(msg, AdequacyWarning, stacklevel=4)
         return result
-    msg = advice(found)
+    msg = advice(found, cov_type=getattr(result, "cov_type", None))
     if msg is None:
         return replace(result, adequacy=found)
     warnings.warn(msg, AdequacyWarning, stacklevel=4)

@@ -512,10 +512,14 @@ def lag_provenance(ac: Aircraft) -> dict:
     }
 
 
-def aircraft_for_lags(spec, free=()) -> "Aircraft":
-    """The aircraft ``spec``; without lag constants but with some of them in ``free``, started at Jones's values.
+def aircraft_for_lags(spec, free=(), given=None, source: str = "given as a parameter value") -> "Aircraft":
+    """The aircraft ``spec`` with the lag constants supplied beside it: given values, or freed ones.
 
-    Freeing an identifiable lag constant is one way out of the missing-constants
+    A lag constant supplied with the model counts as given by the aircraft
+    (``fdml response --set y_w=...``, ``fdml fit --fix y_w=...``): the aircraft
+    carries it, with ``source`` as its source, so the unsteady model accepts an
+    aircraft file without lag constants when they come this way.  Freeing an
+    identifiable lag constant is the other way out of the missing-constants
     refusal: the fit estimates it, from the "jones" start values (the rest stay at those).
 
     Parameters
@@ -524,13 +528,27 @@ def aircraft_for_lags(spec, free=()) -> "Aircraft":
         A preset name, an aircraft file or an :class:`Aircraft`.
     free : sequence of str, optional
         Parameters the fit frees (lag constants among them start at Jones's values).
+    given : mapping of str to float, optional
+        Parameter values supplied with the model; the lag constants among them
+        (:data:`LAG_KEYS`, dimensionless) are put into the aircraft.
+    source : str, optional
+        Where those values come from, recorded as their source (``"--set"``).
 
     Returns
     -------
     Aircraft
-        The aircraft, with Jones's lag constants filled in where a freed one needs a start.
+        The aircraft with the given lag constants, and Jones's lag constants filled
+        in where a freed one needs a start.
     """
     ac = load_aircraft(spec)
+    supplied = {k: float(v) for k, v in (given or {}).items() if k in LAG_KEYS}
+    if supplied:
+        ac = replace(
+            ac,
+            constants={**{k: ac.constants[k] for k in ac.given}, **supplied},
+            sources={**ac.sources, **dict.fromkeys(supplied, source)},
+            assumed=ac.assumed - set(supplied),
+        )
     if ac.lag_status is None and set(free or ()) & set(LAG_KEYS):
         return ac.with_changes(lag_constants="jones")
     return ac
@@ -549,14 +567,15 @@ def missing_lag_message(ac: Aircraft, kind: str = "unsteady") -> str:
     Returns
     -------
     str
-        The message, naming the missing constants and the three ways out.
+        The message, naming the missing constants and the ways out.
     """
     return (
         f"the {kind} model needs the lag constants {', '.join(LAG_KEYS)} and aircraft {ac.name!r} gives none of "
         "them (without them it is the steady model); give them in the aircraft file, or name a documented "
         'source there, "lag_constants": "jones" (R. T. Jones\'s finite-wing lift lag for the aspect ratio, '
         'docs/theory.md section 2; downwash lag from WK Table 2; uncertainty recorded in the result) or "none" '
-        "(no lag, by choice), or free the identifiable ones (fdml fit --free y_w z_w ...)"
+        "(no lag, by choice), or give them on the command line (--set y_w=... or fdml fit --fix y_w=...), "
+        "or free the identifiable ones (fdml fit --free y_w z_w ...)"
     )
 
 

@@ -45,7 +45,7 @@ import os
 import re
 import time
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .errors import FdmlError
@@ -97,7 +97,9 @@ class ModelSpec:
         files into the dict, so workers need no access to the file and the
         input hash changes when the aircraft does.
     options : mapping, optional
-        Model options (``gust``, ``airspeed``, ...; see :func:`fdml.make_model`).
+        Model options (``gust``, ``airspeed``, ...; see :func:`fdml.make_model`).  A
+        dimensional spec with neither ``airspeed`` nor an aircraft takes each record's
+        mean airspeed, m/s (the model rule of ``fdml fit``; :meth:`build`).
     values : mapping, optional
         Parameter values (the fit's starting point).
     fix : mapping or sequence of str, optional
@@ -264,22 +266,56 @@ class ModelSpec:
             effects=list(f.strings("effects")),
         )
 
-    def build(self):
+    @property
+    def airspeed_from_records(self) -> bool:
+        """True when the model takes the records' mean airspeed: dimensional, without an aircraft or an airspeed.
+
+        The model rule of ``fdml fit`` (:func:`fdml.conditions.airspeed_rule`): such a spec is
+        built per record, with the airspeed that record carries.
+        """
+        return (
+            self.parameters is None
+            and self.kind == "dimensional"
+            and self.aircraft is None
+            and ("airspeed" not in self.options)
+        )
+
+    def check(self) -> None:
+        """Build the model once, to refuse a bad spec (unknown effect, parameter or option) before any work.
+
+        A spec whose airspeed comes from each record is built at a nominal
+        airspeed (1 m/s), on which no name, effect or option depends.
+        """
+        if self.airspeed_from_records:
+            replace(self, options={**self.options, "airspeed": 1.0}).build()
+        else:
+            self.build()
+
+    def build(self, records=None):
         """The :class:`~fdml.models.Model` described.
+
+        Parameters
+        ----------
+        records : sequence of Record, optional
+            The records the model is fitted to; a spec whose airspeed comes from
+            the records (:attr:`airspeed_from_records`) takes their mean airspeed (m/s).
 
         Returns
         -------
         Model
             The model, its values, fixed and free parameters applied.
         """
-        from .aircraft import Aircraft
+        from .aircraft import Aircraft, aircraft_for_lags
         from .models import make_model
         from .parameters import Parameters
 
         ac = self.aircraft
         if isinstance(ac, Mapping):
             ac = Aircraft.from_dict(ac, origin="model spec")
-        model = make_model(self.kind, ac, **dict(self.options))
+        if self.kind == "unsteady" and ac is not None:  # lag constants by values, fix or free count as given
+            given = {**self.values, **(self.fix if isinstance(self.fix, Mapping) else {})}
+            ac = aircraft_for_lags(ac, self.free, given, source="the model spec's values or fix")
+        model = make_model(self.kind, ac, **self._options_for(records))
         if self.parameters is not None:  # a saved model: its base kind plus its effects, as model_to_dict
             from .models.effects import assemble
 
@@ -296,6 +332,43 @@ class ModelSpec:
             model.parameters.check_names(self.free)
             model = model.with_parameters(model.parameters.free(self.free))
         return model
+
+    def _options_for(self, records) -> dict:
+        """The model options, with the records' mean airspeed where the spec takes it from them."""
+        options = dict(self.options)
+        if self.airspeed_from_records:
+            from .conditions import record_airspeed
+
+            U = record_airspeed(records or ())
+            if U is None:
+                names = ", ".join(str(getattr(r, "name", r)) for r in records or ()) or "no record given"
+                raise FdmlError(
+                    f"the dimensional model needs an airspeed and the record carries none ({names}): "
+                    "give --airspeed U (m/s) or --aircraft"
+                )
+            options["airspeed"] = U
+        return options
+
+    def provenance(self, model, records) -> dict:
+        """The provenance of a fit of ``model`` (built by :meth:`build`) to ``records``.
+
+        Parameters
+        ----------
+        model : Model
+            The model built from this spec.
+        records : sequence of Record
+            The records fitted.
+
+        Returns
+        -------
+        dict
+            As :func:`fdml.conditions.model_provenance`; the airspeed's source is
+            ``"given"`` (the spec's options), ``"aircraft"`` or ``"record"``.
+        """
+        from .conditions import airspeed_rule, model_provenance
+
+        _, source = airspeed_rule(self.kind, self.aircraft, self.options.get("airspeed"), records)
+        return model_provenance(self.kind, "model spec", model, source, records)
 
 
 def _effect_keys(effects) -> list:
@@ -622,12 +695,15 @@ def run_task(task: Mapping) -> dict:
                 "reused": True,
             }
     try:
+        from .conditions import attach_conditions
         from .estimate import fit
 
         rec = load_source(task["path"], task["t0"], task["t1"], name=task["key"], **task.get("read", {}))
-        model = ModelSpec(**task["spec"]).build()
+        spec = ModelSpec(**task["spec"])
+        model = spec.build([rec])  # the model rule of fdml fit: the record's own airspeed where the spec has none
         with recording(reemit=False) as log:  # a worker shows nothing: the row and the result keep them
             res = fit(rec, model, **task["fit_kwargs"])
+            res = attach_conditions(res, model, [rec], spec.provenance(model, [rec]))
         row.update(
             status="ok",
             converged=bool(res.converged),
@@ -1132,7 +1208,7 @@ def run_batch(
     t_start = time.perf_counter()
     items = collect_sources(sources)
     spec = ModelSpec.coerce(model_spec).normalized()
-    spec.build()  # a bad model spec is one error now, not one per record
+    spec.check()  # a bad model spec is one error now, not one per record
     spec_d = spec.to_dict()
     kw = check_fit_kwargs(fit_kwargs)
     read = dict(read_kwargs or {})

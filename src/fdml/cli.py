@@ -18,6 +18,7 @@ EXIT_BAD_INPUT = 2
 EXIT_FAILURE = 1
 #: A closed stdout pipe: 128 + SIGPIPE, as a shell reports a process ended by SIGPIPE.
 EXIT_CLOSED_PIPE = 141
+VERBOSE_HELP = "show warnings and log messages as they happen (before or after the command)"
 
 #: Command modules under fdml.commands, in help order.
 COMMANDS = (
@@ -60,10 +61,12 @@ def build_parser() -> argparse.ArgumentParser:
         "of aircraft short-period dynamics, with unsteady aerodynamics.",
     )
     parser.add_argument("--version", action="version", version=f"fdml {__version__}")
-    parser.add_argument("-v", "--verbose", action="store_true", help="show warnings and log messages")
+    parser.add_argument("-v", "--verbose", action="store_true", help=VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     for name in COMMANDS:
         importlib.import_module(f"fdml.commands.{name}").register(sub)
+    for command in sub.choices.values():  # -v after the command too; absent there, the one before it stands
+        command.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
     return parser
 
 
@@ -117,6 +120,11 @@ def _stdout_closed() -> bool:
     return any(ev & (select.POLLERR | select.POLLHUP) for _, ev in poller.poll(0))
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning as the command line shows it (with -v): ``fdml: Category: message``, no source path or line."""
+    (file or sys.stderr).write(f"fdml: {category.__name__}: {message}\n")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; returns the exit code.
 
@@ -146,6 +154,7 @@ def main(argv: list[str] | None = None) -> int:
         with warnings.catch_warnings():
             if not args.verbose:  # shown with -v only; results keep theirs (fdml.warning_log records past filters)
                 warnings.simplefilter("ignore")
+            warnings.showwarning = _show_warning  # restored by catch_warnings
             code = int(args.func(args) or 0)
         sys.stdout.flush()  # a closed pipe shows here, not at interpreter exit
         return code

@@ -22,6 +22,9 @@ __all__ = [
     "AIRSPEED_TOLERANCE",
     "RECORD_CONDITIONS",
     "airspeed_findings",
+    "airspeed_rule",
+    "attach_conditions",
+    "model_provenance",
     "record_airspeed",
     "record_conditions",
 ]
@@ -115,7 +118,8 @@ def airspeed_findings(model, records, tolerance: float = AIRSPEED_TOLERANCE) -> 
                 "airspeed.mismatch",
                 f"the model's airspeed {U:.4g} m/s differs from the record's mean airspeed {Ur:.4g} m/s by "
                 f"{100 * (U / Ur - 1):+.1f} % (more than {100 * tolerance:g} %): the a_z gain U/g is wrong by that "
-                "fraction; fit without --aircraft (the record's airspeed) or give --airspeed",
+                f"fraction; give --airspeed {Ur:.4g}, or leave out --airspeed and --aircraft: the dimensional "
+                "model then takes the record's airspeed",
                 kind="estimation",
                 record=r.name,
                 value=U,
@@ -123,3 +127,99 @@ def airspeed_findings(model, records, tolerance: float = AIRSPEED_TOLERANCE) -> 
             )
         )
     return found
+
+
+def airspeed_rule(kind: str, aircraft, airspeed: float | None, records) -> tuple[float | None, str]:
+    """The airspeed of the model rule and where it comes from: ``(U, source)``.
+
+    The rule (``fdml fit``, ``fdml batch`` and :class:`fdml.batch.ModelSpec` alike): a given
+    ``airspeed`` wins (source ``"given"``); a model with an aircraft takes the aircraft's
+    (``(None, "aircraft")``); the dimensional model without either takes the records' mean
+    airspeed (source ``"record"``; U is None when a record carries none).
+
+    Parameters
+    ----------
+    kind : str
+        The base model kind (``"dimensional"``, ``"unsteady"``, ...).
+    aircraft : object or None
+        The aircraft given, if any.
+    airspeed : float or None
+        The airspeed given, m/s.
+    records : sequence of Record
+        The records the model is for.
+
+    Returns
+    -------
+    tuple
+        ``(U, source)``: the airspeed in m/s (None: the aircraft's, or none found) and
+        ``"given"``, ``"aircraft"`` or ``"record"``.
+    """
+    if airspeed is not None:
+        return float(airspeed), "given"
+    if aircraft is not None or kind != "dimensional":
+        return None, "aircraft"
+    return record_airspeed(records), "record"
+
+
+def model_provenance(kind: str, model_source: str, model, airspeed_source: str, records) -> dict:
+    """A result's provenance: the model, its airspeed and where it came from, the lag constants, the records' condition.
+
+    Parameters
+    ----------
+    kind : str
+        The base model kind.
+    model_source : str
+        How the kind was chosen (``"--model"``, ``"model rule"``, ``"model spec"``).
+    model : Model
+        The model built; its ``U`` (m/s) and, for the unsteady model, its aircraft's lag constants.
+    airspeed_source : str
+        Where the airspeed came from (:func:`airspeed_rule`'s source, or an option's name).
+    records : sequence of Record
+        The records fitted.
+
+    Returns
+    -------
+    dict
+        ``{"model", "airspeed", ["lag_constants"], ["record_conditions"]}``, plain data.
+    """
+    from .aircraft import lag_provenance
+
+    out: dict = {
+        "model": {"kind": kind, "source": model_source},
+        "airspeed": {"value": float(model.U), "unit": "m/s", "source": airspeed_source},
+    }
+    aircraft = getattr(model, "aircraft", None)
+    if kind == "unsteady" and aircraft is not None:
+        out["lag_constants"] = lag_provenance(aircraft)
+    cond = record_conditions(records)
+    if cond:
+        out["record_conditions"] = cond
+    return out
+
+
+def attach_conditions(res, model, records, provenance: dict):
+    """The fit result with its provenance and any ``airspeed.mismatch`` finding (also issued as a warning).
+
+    Parameters
+    ----------
+    res : FitResult
+        The result of fitting ``model`` to ``records``.
+    model : Model
+        The model fitted.
+    records : sequence of Record
+        The records fitted.
+    provenance : dict
+        As :func:`model_provenance` makes it.
+
+    Returns
+    -------
+    FitResult
+        ``res`` with ``provenance`` and the findings appended.
+    """
+    from dataclasses import replace
+
+    from .findings import emit
+
+    found = airspeed_findings(model, records)
+    emit(found)
+    return replace(res, provenance=provenance, findings=tuple(res.findings) + tuple(found))

@@ -474,7 +474,7 @@ def _as_data(data, model: Model, omega, band, trim, trim_window, end_correction)
         if model.gust and "alpha_w" not in item.inputs:
             raise RecordError(
                 f"record {item.name!r} has no alpha_w column but the model has a gust input; "
-                "fit without gust=True or supply the measured gust angle"
+                "fit without --gust (Python: a model without gust=True) or supply the measured gust angle"
             )
         if not model.gust and item.u.shape[1] > 1:
             item = _drop_gust(item)
@@ -742,8 +742,8 @@ def _end_findings(prob: Problem) -> list:
                     Finding(
                         "boundary.truncated",
                         f"the record ends far from trim in {', '.join(far)} ({100 * max(d.end_offset[:2]):.0f} % of "
-                        "the peak) and boundary='none': the transform sees a truncated response; use "
-                        "boundary='estimated' or 'measured'",
+                        "the peak) and boundary 'none': the transform sees a truncated response; use "
+                        "--boundary estimated or measured (Python: boundary=)",
                         kind="estimation",
                         record=d.name,
                         value=float(max(d.end_offset[:2])),
@@ -1226,7 +1226,8 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
             stopped = True
             message = f"stopped by the callback after {it} iterations"
             break
-        end = _end_of_pass(stop, accepted, J_old, J, rel_step, tol, it)
+        floor = "" if accepted else _floor_reached(R, rows, history)
+        end = _end_of_pass(stop, accepted, J_old, J, rel_step, tol, it, floor)
         if end is not None:
             converged, message = end
             break
@@ -1249,10 +1250,25 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
         A_final,
         rows,
     )
+    found += _band_findings(prob, theta)
     res = replace(res, findings=tuple(found)) if found else res
     if options["adequacy"] and converged:
         res = _with_adequacy(prob, res, V, A_final, options)
     return res, prob
+
+
+def _band_findings(prob: Problem, theta: np.ndarray) -> list:
+    """The ``band.hz`` finding when the band looks like Hz (:mod:`fdml.band_units`), issued as a warning."""
+    from .band_units import hz_band_finding
+
+    try:
+        found = hz_band_finding(prob.data, prob.model.with_values(prob.model_values(theta)))
+    except (FdmlError, np.linalg.LinAlgError):  # a model the check cannot evaluate: nothing to say
+        return []
+    if found is None:
+        return []
+    emit([found], stacklevel=4)
+    return [found]
 
 
 def _halving_step(prob, theta, step, lo, hi, J, rows):
@@ -1266,8 +1282,14 @@ def _halving_step(prob, theta, step, lo, hi, J, rows):
     return accepted, t_new, V_new, R_new, J_new
 
 
-def _end_of_pass(stop: str, accepted: bool, J_old: float, J: float, rel_step: float, tol: float, it: int):
-    """(converged, message) when the iteration ends after this pass's step, else None."""
+def _end_of_pass(
+    stop: str, accepted: bool, J_old: float, J: float, rel_step: float, tol: float, it: int, floor: str = ""
+):
+    """(converged, message) when the iteration ends after this pass's step, else None.
+
+    ``floor``: why det R is at the floating-point floor (:func:`_floor_reached`), or "" when it is not;
+    a pass that finds no decrease there has converged.
+    """
     if stop == "paper":
         if abs(math.exp(J_old - J) - 1.0) < SETTINGS.paper_rel_change:  # Eq. 25 rule |J_k-1 - J_k| / J_k
             return True, (
@@ -1275,11 +1297,52 @@ def _end_of_pass(stop: str, accepted: bool, J_old: float, J: float, rel_step: fl
             )
         return None
     if not accepted:
-        converged = bool(rel_step < SETTINGS.stall_factor * tol)  # a plain bool: numpy's is not JSON
-        return converged, (
-            "converged: no further decrease of det R" if converged else "stalled: no step decreases det R"
-        )
+        if rel_step < SETTINGS.stall_factor * tol:
+            return True, "converged: no further decrease of det R"
+        if floor:
+            return True, f"converged at the floating-point floor: {floor}; no step can decrease det R further"
+        return False, "stalled: no step decreases det R"
     return None
+
+
+def _logdet_rounding(R: np.ndarray, rows: np.ndarray | None = None) -> float:
+    """The rounding error of ln det R (Eq. 25): eps * lambda_max * tr(R^-1), band-weighted as :func:`_logdet`.
+
+    Rounding R perturbs each eigenvalue by about eps * lambda_max (Weyl), and d ln det R = tr(R^-1 dR):
+    a nearly singular R (residuals of the outputs nearly linearly dependent, as on noise-free data)
+    makes ln det R uncertain far above eps.
+    """
+    if rows is not None:
+        counts = np.bincount(rows, minlength=R.shape[0])
+        return sum(float(c) * _logdet_rounding(Rb) for c, Rb in zip(counts, R) if c) / rows.size
+    w = np.linalg.eigvalsh(R)
+    return float(np.finfo(float).eps * w[-1] * np.sum(1.0 / w)) if w[0] > 0 else math.inf
+
+
+def _floor_reached(R: np.ndarray, rows, history: list) -> str:
+    """Why det R is at the floating-point floor, or "" when it is not (the cost still resolves progress).
+
+    At the floor when the last decrease of ln det R an accepted step made is below the rounding
+    error of ln det R (:func:`_logdet_rounding`): the iteration had come to where the cost cannot
+    tell steps apart.  Before any accepted step, when R is singular to working precision: its
+    smallest eigenvalue is the floor of :func:`_cov_R` (``r_floor`` times the largest variance),
+    the outputs' residuals being linearly dependent to rounding.
+    """
+    rounding = _logdet_rounding(R, rows)
+    drops = -np.diff(np.log(history))
+    drops = drops[drops > 0]
+    if drops.size:
+        if drops[-1] <= rounding:
+            return (
+                f"the last decrease of ln det R ({drops[-1]:.2g}) is below its rounding error ({rounding:.2g}; "
+                "the outputs' residuals are nearly linearly dependent, as on a noise-free record)"
+            )
+        return ""
+    for Rb in R.reshape(-1, *R.shape[-2:]):
+        w = np.linalg.eigvalsh(Rb)
+        if w[0] <= 2.0 * SETTINGS.r_floor * w[-1]:
+            return "R is singular to rounding (the outputs' residuals are linearly dependent, as on noise-free data)"
+    return ""
 
 
 def _with_adequacy(prob, res, V, A_final, options):

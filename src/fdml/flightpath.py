@@ -714,9 +714,13 @@ def _default_free(record: Record) -> tuple[list[str], dict]:
         why["b_ax"] = "no airspeed or no a_x: the airspeed equation is not integrated"
     for k in ("K_az", "tau_az"):
         why[k] = (
-            "not estimated by default: with a_z near -1 g a scale error looks like a bias (pass estimate= to add it)"
+            "not estimated by default: with a_z near -1 g a scale error looks like a bias "
+            f"(to estimate it: fdml check --compat --estimate {','.join([*free, k])}; Python: estimate=)"
         )
-    why["K_V"] = "not estimated by default (pass estimate= to add it)"
+    why["K_V"] = (
+        f"not estimated by default (to estimate it: fdml check --compat --estimate {','.join([*free, 'K_V'])}; "
+        "Python: estimate=)"
+    )
     return free, why
 
 

@@ -115,7 +115,7 @@ class Record:
                         raise RecordError(
                             f"{where}: {k} reaches {max(span, peak):.3g} {SIGNALS[k]}, which looks like "
                             f"{unit} where {SIGNALS[k]} is due; convert to radians "
-                            "(or pass check_units=False if this is real)"
+                            "(or, if this is real, --no-unit-check; Python: check_units=False)"
                         )
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "signals", sig)

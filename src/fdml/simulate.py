@@ -279,7 +279,7 @@ def _check_inputs(model, t: np.ndarray, inputs) -> dict[str, np.ndarray]:
         raise RecordError(f"simulate: missing input(s) {', '.join(missing)}{extra}")
     unknown = [k for k in inputs if k not in needed]
     if unknown:
-        hint = " (the model has no gust input; build it with gust=True)" if "alpha_w" in unknown else ""
+        hint = " (the model has no gust input; build it with --gust, Python: gust=True)" if "alpha_w" in unknown else ""
         raise RecordError(
             f"simulate: unexpected input(s) {', '.join(map(str, unknown))}{hint}; this model takes {', '.join(needed)}"
         )

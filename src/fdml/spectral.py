@@ -22,14 +22,19 @@ from .channels import GUST, INPUTS, OUTPUTS
 from .errors import BandError, RecordError
 from .record import Record
 
-__all__ = ["FrequencyData", "spectra", "parse_band", "band_numbers", "DEFAULT_BAND"]
+__all__ = ["FrequencyData", "spectra", "parse_band", "band_numbers", "DEFAULT_BAND", "DEFAULT_STEP"]
 
 #: The paper's grid: 0.1 to 10 rad/s at 0.1 rad/s ("10 points per radian").
 DEFAULT_BAND = (0.1, 10.0, 0.1)
+#: The step of a band given without one (``LO:HI``), rad/s: the default band's.
+DEFAULT_STEP = DEFAULT_BAND[2]
 
 
 def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[float, float, float]:
-    """Normalise and check a band given as ``(lo, hi, step)`` or ``"LO:HI:STEP"`` (rad/s).
+    """Normalise and check a band given as ``"LO:HI[:STEP]"`` or ``(lo, hi[, step])`` (rad/s).
+
+    fdml's one band syntax, for every command and call that takes a band: without a
+    step, the step is :data:`DEFAULT_STEP` (0.1 rad/s, the default band's).
 
     Parameters
     ----------
@@ -59,7 +64,8 @@ def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[floa
     """
     if band is None:
         return DEFAULT_BAND
-    lo, hi, step = band_numbers(band, (3,), what=what, example="0.1:10:0.1")
+    lo, hi, *given = band_numbers(band, (2, 3), what=what, example="0.1:10:0.1")
+    step = given[0] if given else DEFAULT_STEP
     lo, hi, step, _ = fourier.check_band(lo, hi, step, what=what, positive=positive)
     return lo, hi, step
 
@@ -88,7 +94,8 @@ def band_numbers(band, sizes: tuple[int, ...], *, what: str = "band", example: s
     BandError
         A string or sequence with another count of parts, or parts that are not numbers.
     """
-    form = "LO:HI:STEP" if min(sizes) == 3 else "LO:HI"
+    forms: dict[tuple[int, ...], str] = {(3,): "LO:HI:STEP", (2,): "LO:HI"}
+    form = forms.get(tuple(sizes), "LO:HI[:STEP]")
     if isinstance(band, str):
         parts = band.split(":")
         if len(parts) not in sizes:
@@ -102,7 +109,7 @@ def band_numbers(band, sizes: tuple[int, ...], *, what: str = "band", example: s
     except (TypeError, ValueError):
         vals = []
     if len(vals) not in sizes:
-        raise BandError(f"{what} {band!r} must be ({form.lower().replace(':', ', ')}) in rad/s")
+        raise BandError(f"{what} {band!r} must be {form} in rad/s, as a string or a sequence of numbers")
     return vals
 
 

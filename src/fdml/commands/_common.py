@@ -79,39 +79,25 @@ def model_for_records(args, records, values: dict | None = None):
     """(model, provenance) by the model rule of :mod:`fdml.commands._options`.
 
     Without ``--model``: unsteady with ``--aircraft``, else dimensional, whose
-    airspeed is ``--airspeed`` or else the records' mean airspeed.
-    ``provenance`` says where the airspeed came from (``--airspeed``,
-    ``aircraft`` or ``record``) and lists the flight condition the records
-    carry (:func:`fdml.conditions.record_conditions`).
+    airspeed is ``--airspeed`` or else the records' mean airspeed
+    (:func:`fdml.conditions.airspeed_rule`).  ``provenance`` says where the
+    airspeed came from (``--airspeed``, ``aircraft`` or ``record``) and lists
+    the flight condition the records carry (:func:`fdml.conditions.model_provenance`).
     """
-    from ..aircraft import aircraft_for_lags, lag_provenance
-    from ..conditions import record_airspeed, record_conditions
-    from ..errors import ParameterError
+    from ..aircraft import aircraft_for_lags
+    from ..conditions import airspeed_rule, model_provenance
     from ..models import make_model
 
     kind = default_model(args)
+    check_model_rule(kind, args, bool(records), records)
     opts: dict = {"gust": bool(args.gust)}
-    if args.airspeed is not None:
-        opts["airspeed"] = args.airspeed
-    source = "--airspeed" if args.airspeed is not None else "aircraft"
-    if kind == "dimensional" and args.aircraft is None and args.airspeed is None:
-        U = record_airspeed(records)
-        if U is None:
-            raise ParameterError(
-                "the dimensional model needs --airspeed U (m/s) or --aircraft"
-                + (", or a record that carries its airspeed" if records else "")
-            )
-        opts["airspeed"], source = U, "record"
-    elif kind != "dimensional":
-        if args.aircraft is None:
-            raise ParameterError(f"the {kind} model needs --aircraft NAME or FILE.json")
-        if args.airspeed is not None:
-            raise ParameterError(
-                f"--airspeed applies to the dimensional model; the {kind} model takes the airspeed of --aircraft"
-            )
-        opts.pop("airspeed", None)
+    U, source = airspeed_rule(kind, args.aircraft, args.airspeed, records)
+    if U is not None:
+        opts["airspeed"] = U
     aircraft = args.aircraft
-    if kind == "unsteady":  # freeing a lag constant is a way out of the missing-lag refusal (fdml.aircraft)
+    if kind == "unsteady":  # lag constants by --set, --fix or --free count as given (fdml.aircraft.aircraft_for_lags)
+        for option, supplied in (("--fix", assignments(getattr(args, "fix", None))), ("--set", values)):
+            aircraft = aircraft_for_lags(aircraft, given=supplied, source=option)
         aircraft = aircraft_for_lags(aircraft, getattr(args, "free", None))
     model = make_model(kind, aircraft, **opts)
     effects = list(getattr(args, "effect", None) or ())
@@ -120,40 +106,54 @@ def model_for_records(args, records, values: dict | None = None):
     if values:
         model.parameters.check_names(values)
         model = model.with_values(values)
-    provenance = {
-        "model": {"kind": kind, "source": "--model" if getattr(args, "model", None) else "model rule"},
-        "airspeed": {"value": float(model.U), "unit": "m/s", "source": source},
-    }
-    if kind == "unsteady":
-        provenance["lag_constants"] = lag_provenance(aircraft)
-    cond = record_conditions(records)
-    if cond:
-        provenance["record_conditions"] = cond
+    model_source = "--model" if getattr(args, "model", None) else "model rule"
+    provenance = model_provenance(kind, model_source, model, "--airspeed" if source == "given" else source, records)
     return model, provenance
 
 
-def model_spec_from_args(args, **fields):
+def check_model_rule(kind: str, args, reads_records: bool, records=None) -> None:
+    """Refuse, in one line, a model the arguments cannot make: no airspeed, no aircraft, a misplaced --airspeed.
+
+    ``records``: when given, the dimensional model without --airspeed and --aircraft
+    needs them to carry their airspeed.
+    """
+    from ..conditions import record_airspeed
+    from ..errors import ParameterError
+
+    if kind == "dimensional" and args.aircraft is None and args.airspeed is None:
+        if not reads_records or (records is not None and record_airspeed(records) is None):
+            raise ParameterError(
+                "the dimensional model needs --airspeed U (m/s) or --aircraft"
+                + (", or a record that carries its airspeed" if reads_records else "")
+            )
+    elif kind != "dimensional":
+        if args.aircraft is None:
+            raise ParameterError(f"the {kind} model needs --aircraft NAME or FILE.json")
+        if args.airspeed is not None:
+            raise ParameterError(
+                f"--airspeed applies to the dimensional model; the {kind} model takes the airspeed of --aircraft"
+            )
+
+
+def model_spec_from_args(args, *, reads_records: bool = False, **fields):
     """The :class:`fdml.batch.ModelSpec` named by the arguments (batch, montecarlo), effects included.
 
-    The model rule of :func:`model_for_records`, without records (the
-    dimensional model needs ``--airspeed`` or ``--aircraft``).  The effects are
-    resolved here, so a bad name fails before any work.
+    The model rule of :func:`model_for_records`; with ``reads_records`` (batch),
+    the dimensional model without ``--airspeed`` and ``--aircraft`` takes each
+    record's mean airspeed when it is fitted.  The effects are resolved here,
+    so a bad name fails before any work.
     """
     from ..batch import ModelSpec
-    from ..errors import FdmlError
 
     kind = default_model(args)
-    if kind == "dimensional" and args.aircraft is None and args.airspeed is None:
-        raise FdmlError("the dimensional model needs --airspeed U (m/s) or --aircraft")
-    if kind != "dimensional" and args.aircraft is None:
-        raise FdmlError(f"the {kind} model needs --aircraft NAME or FILE.json")
+    check_model_rule(kind, args, reads_records)
     options = {"gust": bool(args.gust)}
     if args.airspeed is not None:
         options["airspeed"] = args.airspeed
     spec = ModelSpec(
         kind=kind, aircraft=args.aircraft, options=options, effects=tuple(getattr(args, "effect", None) or ()), **fields
     )
-    spec.build()  # an unknown effect, parameter or option: one line now, not once per record
+    spec.check()  # an unknown effect, parameter or option: one line now, not once per record
     return spec
 
 

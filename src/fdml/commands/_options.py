@@ -34,6 +34,7 @@ from ._common import add_effect_argument, default_model, positive_int
 
 __all__ = [
     "DEFAULT_BAND_TEXT",
+    "DEFAULT_STEP_TEXT",
     "MODEL_CHOICES",
     "MODEL_RULE",
     "accumulating",
@@ -67,13 +68,21 @@ def _band_default() -> str:
     return ":".join(f"{x:g}" for x in DEFAULT_BAND)
 
 
+def _step_default() -> str:
+    from ..spectral import DEFAULT_STEP
+
+    return f"{DEFAULT_STEP:g}"
+
+
 #: Model names, from :data:`fdml.models.MODEL_KINDS` (the one list).
 MODEL_CHOICES = _model_choices()
 #: The default band ``LO:HI:STEP`` (rad/s), from :data:`fdml.spectral.DEFAULT_BAND`.
 DEFAULT_BAND_TEXT = _band_default()
+#: The step of a band given as ``LO:HI`` (rad/s), from :data:`fdml.spectral.DEFAULT_STEP`.
+DEFAULT_STEP_TEXT = _step_default()
 #: The one rule for the model when --model is not given (quoted in --help).
 MODEL_RULE = "unsteady with --aircraft, else dimensional with --airspeed or the record's mean airspeed"
-#: The same rule for commands that read no record (simulate, response, montecarlo, batch).
+#: The same rule for commands that read no record (simulate, response, montecarlo, design).
 MODEL_RULE_NO_RECORD = "unsteady with --aircraft, else dimensional with --airspeed"
 
 
@@ -143,16 +152,16 @@ def add_set_option(p, help: str = "parameter values") -> None:
 
 
 # --- the band ----------------------------------------------------------------------------------
-def add_band_option(p, *, step: bool = True, old: tuple = (), help: str | None = None) -> None:
-    """--band LO:HI:STEP (rad/s; ``step=False``: LO:HI, diagnose); ``old``: hidden aliases (response: ``--omega``).
+def add_band_option(p, *, old: tuple = (), help: str | None = None) -> None:
+    """--band LO:HI[:STEP], rad/s (fdml's one band syntax, :func:`fdml.spectral.parse_band`).
 
-    The step is required where the band is the fit's frequency grid (an
-    ``LO:HI`` there is refused, naming the form): only the diagnosis, which
-    uses each record's own spacing, takes ``LO:HI`` and ignores a step.
+    Without a step the step is :data:`fdml.spectral.DEFAULT_STEP`; ``help`` replaces
+    the default text (diagnose, design: their own default band and use of the step).
+    ``old``: hidden aliases (response: ``--omega``).
     """
     if help is None:
-        help = f"frequency band, rad/s (default {DEFAULT_BAND_TEXT})"
-    p.add_argument("--band", metavar="LO:HI:STEP" if step else "LO:HI[:STEP]", default=None, help=help)
+        help = f"frequency band, rad/s (default {DEFAULT_BAND_TEXT}; without :STEP the step is {DEFAULT_STEP_TEXT})"
+    p.add_argument("--band", metavar="LO:HI[:STEP]", default=None, help=help)
     for flag in old:
         hidden_alias(p, flag, "band")
 
@@ -332,7 +341,10 @@ def fit_kwargs(args) -> dict:
 
 # --- reading records ---------------------------------------------------------------------------
 def add_record_options(p) -> None:
-    """--format, --t0, --t1, --columns, --units, --sign, --layout (see :func:`fdml.io.cli.record_options`)."""
+    """--format, --t0, --t1, --columns, --units, --sign, --layout, --variable, --delimiter, --no-unit-check.
+
+    See :func:`fdml.io.cli.record_options`.
+    """
     from ..io.cli import add_record_arguments
 
     add_record_arguments(p)

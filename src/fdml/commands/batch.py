@@ -10,9 +10,9 @@ def register(sub) -> None:
     p = sub.add_parser(
         "batch",
         help="fit a model to every record of folders, globs or files (resumable)",
-        description="Fit one model to many records, one result file each.  Model rule: "
-        + O.MODEL_RULE_NO_RECORD
-        + " (one airspeed for all records).",
+        description="Fit one model to many records, one result file each.  Model rule, when --model is not given: "
+        + O.MODEL_RULE
+        + " (each record's own, as fdml fit).",
     )
     p.add_argument(
         "sources",
@@ -20,7 +20,7 @@ def register(sub) -> None:
         metavar="SOURCE",
         help="a folder, a glob, a record file, or FILE@T0:T1 for a manoeuvre window (s)",
     )
-    O.add_model_options(p, reads_records=False)
+    O.add_model_options(p)
     O.add_record_options(p)
     O.add_band_option(p)
     O.add_fit_options(p)
@@ -135,7 +135,7 @@ def run(args) -> int:
 
     band = args.band
     check_band_option(band)  # up front: a bad band would fail every record one by one
-    spec = model_spec_from_args(args, fix=assignments(args.fix), free=list(args.free or []))
+    spec = model_spec_from_args(args, reads_records=True, fix=assignments(args.fix), free=list(args.free or []))
     fit_kwargs = O.fit_kwargs(args)
     if band is not None:
         fit_kwargs["band"] = band

@@ -27,6 +27,12 @@ def register(sub) -> None:
         help="also estimate sensor biases, scale factors and time shifts from the kinematics",
     )
     p.add_argument(
+        "--estimate",
+        metavar="NAME,...",
+        help="with --compat: the sensor parameters to estimate, comma-separated (default: those the channels "
+        "determine; the check's summary lists the others and why)",
+    )
+    p.add_argument(
         "--airspeed",
         type=float,
         metavar="U",
@@ -53,11 +59,14 @@ def run(args) -> int:
     from ..errors import RecordError
 
     compat, compat_note = None, None
+    if args.estimate and not args.compat:
+        raise RecordError("--estimate names the parameters of the compatibility check: give --compat too")
     if args.compat:
         from ..flightpath import check_compatibility
 
+        estimate = [x.strip() for x in args.estimate.split(",") if x.strip()] if args.estimate else None
         try:
-            compat = check_compatibility(rec)
+            compat = check_compatibility(rec, estimate=estimate)
         except RecordError as exc:  # a perturbation record: the data check above covers Eq. 5
             if "trim kept" not in str(exc):
                 raise

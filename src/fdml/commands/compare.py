@@ -44,9 +44,9 @@ def _check_outputs(args) -> None:
 
 def _fit_both(args, records, data, kwargs):
     """(steady, unsteady) FitResults, each with the command's provenance; --fix/--free go to the model that has them."""
+    from ..conditions import attach_conditions
     from ..errors import ParameterError
     from ..estimate import fit
-    from .fit import _with_conditions
 
     fixed, free = assignments(args.fix), list(args.free or [])
     out = {}
@@ -61,7 +61,7 @@ def _fit_both(args, records, data, kwargs):
             free=[n for n in free if n in names],
             **kwargs,
         )
-        out[kind] = _with_conditions(res, model, records, prov)
+        out[kind] = attach_conditions(res, model, records, prov)
         names_seen = out.setdefault("_names", set())
         names_seen |= names
     unknown = sorted((set(fixed) | set(free)) - out["_names"])

@@ -51,7 +51,8 @@ def register(sub) -> None:
     p.add_argument("--amplitude", default="1deg", help="peak elevator, rad or e.g. 3deg (default 1deg)")
     p.add_argument("--rate", help="elevator rate limit, rad/s or e.g. 40deg/s (default none)")
     O.add_band_option(
-        p, step=False, help="band of the input and the fit, LO:HI[:STEP] rad/s (default 0.5:10, step 0.1)"
+        p,
+        help=f"band of the input and the fit, rad/s (default 0.5:10; without :STEP the step is {O.DEFAULT_STEP_TEXT})",
     )
     O.add_noise_option(p, default="0.05, of the 3-2-1-1 response")
     O.add_steady_option(p)

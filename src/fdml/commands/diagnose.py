@@ -29,7 +29,6 @@ def register(sub) -> None:
     lo_hi = _default_lo_hi()
     O.add_band_option(
         p,
-        step=False,
         help=f"analysis band, rad/s (default {lo_hi}; a :STEP is ignored: the "
         "diagnosis uses each record's spacing 2 pi/(K T))",
     )

@@ -58,7 +58,12 @@ def _argv_of(parser, args, *, rename=None) -> list:
             pos += [str(x) for x in (v if isinstance(v, list) else [v])]
         elif v != a.default and v is not None and not (a.choices and v not in a.choices):
             flag = max(a.option_strings, key=len)
-            opt += [flag] if a.nargs == 0 else [flag, *(str(x) for x in (v if isinstance(v, list) else [v]))]
+            # a repeatable option once per value (--effect a --effect b): every parser reads that form
+            opt += (
+                [flag]
+                if a.nargs == 0
+                else [x for item in (v if isinstance(v, list) else [v]) for x in (flag, str(item))]
+            )
     return pos + opt
 
 
@@ -91,6 +96,7 @@ def run(args) -> int:
     import time
 
     t0 = time.perf_counter()
+    from ..conditions import attach_conditions
     from ..estimate import fit
     from ..io import load_records
     from ..io.cli import record_options
@@ -127,7 +133,7 @@ def run(args) -> int:
     finally:
         if bar is not None:
             bar.close()
-    res = _with_conditions(res, model, records, provenance)
+    res = attach_conditions(res, model, records, provenance)
     t_fit = time.perf_counter()
     if args.output:
         res.to_json(args.output)
@@ -145,15 +151,3 @@ def run(args) -> int:
         if args.output:
             print(f"\nwrote {args.output}")
     return 0 if res.converged else 1
-
-
-def _with_conditions(res, model, records, provenance):
-    """The result with its provenance and any airspeed.mismatch finding (also issued as a warning)."""
-    from dataclasses import replace
-
-    from ..conditions import airspeed_findings
-    from ..findings import emit
-
-    found = airspeed_findings(model, records)
-    emit(found)
-    return replace(res, provenance=provenance, findings=tuple(res.findings) + tuple(found))

@@ -15,7 +15,12 @@ def register(sub) -> None:
     )
     O.add_model_options(p, reads_records=False)
     O.add_set_option(p)
-    O.add_band_option(p, old=("--omega",), help=f"frequencies, rad/s (default {O.DEFAULT_BAND_TEXT}; LO may be 0)")
+    O.add_band_option(
+        p,
+        old=("--omega",),
+        help=f"frequencies, rad/s (default {O.DEFAULT_BAND_TEXT}; without :STEP the step is {O.DEFAULT_STEP_TEXT}; "
+        "LO may be 0)",
+    )
     O.add_json_option(p)
     p.set_defaults(func=run)
 

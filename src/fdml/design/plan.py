@@ -24,8 +24,6 @@ __all__ = ["Design", "design", "parse_design_band", "BASELINES"]
 
 #: The classic inputs an optimised one is compared with (same duration and peak).
 BASELINES = ("3211", "sweep")
-#: Default grid step of the fit's band, rad/s (fdml.spectra's default step).
-_STEP = 0.1
 
 
 @dataclass(frozen=True)
@@ -240,7 +238,7 @@ def _saved_input(f: Fields, name: str) -> DesignInput:
 
 
 def parse_design_band(band, dt: float) -> tuple[float, float, float]:
-    """``"LO:HI[:STEP]"`` or a tuple, rad/s; HI must lie below the Nyquist frequency pi/dt.
+    """``"LO:HI[:STEP]"`` or a tuple, rad/s (:func:`fdml.spectral.parse_band`); HI must lie below pi/dt.
 
     Parameters
     ----------
@@ -258,21 +256,11 @@ def parse_design_band(band, dt: float) -> tuple[float, float, float]:
     step : float
         Frequency step of the fit, rad/s.
     """
-    if band is None:
-        band = (0.5, 10.0)
-    if isinstance(band, str):
-        try:
-            parts = [float(x) for x in band.split(":")]
-        except ValueError:
-            raise BandError(f"band {band!r} must be LO:HI or LO:HI:STEP in rad/s") from None
-    else:
-        parts = [float(x) for x in band]
-    if len(parts) not in (2, 3) or not all(map(math.isfinite, parts)):
-        raise BandError(f"band {band!r} must be LO:HI or LO:HI:STEP in rad/s")
-    lo, hi = parts[0], parts[1]
-    step = parts[2] if len(parts) == 3 else _STEP
-    if not (0 < lo < hi) or step <= 0:
-        raise BandError(f"band {band!r}: need 0 < LO < HI and STEP > 0 (rad/s)")
+    from ..spectral import parse_band
+
+    lo, hi, step = parse_band((0.5, 10.0) if band is None else band)  # fdml's one band syntax and check
+    if not lo < hi:
+        raise BandError(f"band {band!r}: need LO < HI (rad/s)")
     nyq = math.pi / dt
     if hi >= nyq:
         raise BandError(f"band edge {hi:g} rad/s is above the Nyquist frequency pi/dt = {nyq:.4g} rad/s")

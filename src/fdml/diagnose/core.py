@@ -698,6 +698,7 @@ def recommended_fit(
         Its warnings are raised to the caller (:func:`diagnose` keeps them in
         the report).
     """
+    from ..adequacy import within_diagnosis
     from ..estimate import fit as fdml_fit
 
     model = base_model.with_effects(*effects) if effects else base_model
@@ -713,12 +714,13 @@ def recommended_fit(
         )
 
     try:  # the diagnosis has checked the records
-        res = refit()
-        if settled:
-            with recording(reemit=False):  # the two refits' warnings repeat the fit's
-                res = with_known_uncertainty(
-                    res, lambda v: refit(v, res.model, adequacy=False), {s.param: s.stderr for s in settled}
-                )
+        with within_diagnosis():  # its adequacy warning does not send the user to the diagnosis that runs it
+            res = refit()
+            if settled:
+                with recording(reemit=False):  # the two refits' warnings repeat the fit's
+                    res = with_known_uncertainty(
+                        res, lambda v: refit(v, res.model, adequacy=False), {s.param: s.stderr for s in settled}
+                    )
         return res
     except FdmlError as exc:
         logger.warning("the recommended model could not be fitted: %s", exc)

@@ -36,6 +36,7 @@ from .csvmap import read_csv_mapped
 from .dlr import LAYOUTS, read_dlr_asc, read_dlr_mat
 from .paths import DATA_ENV, data_dir, data_path
 from .sidpac import read_sidpac
+from .sniff import check_format_fits, first_numeric_width, mat_format
 from .units import UNITS, to_si
 
 __all__ = [
@@ -132,37 +133,21 @@ def detect_format(path, **kw) -> tuple[str, dict]:
     p = check_path(path)
     suffix = p.suffix.lower()
     if suffix == ".mat":
-        from ._common import read_mat
-
-        info = read_mat(p, names_only=True)
-        names = {n: shape for n, shape, _cls in info}
-        if "fdata" in names:
-            return "sidpac", {}
-        if "layout" in kw:
-            return "dlr-mat", {}
-        for n, shape in names.items():
-            for lay, spec in LAYOUTS.items():
-                if len(shape) == 2 and shape[1] == spec["n_columns"] and shape[0] > 1:
-                    return "dlr-mat", {"layout": lay}
-        listing = ", ".join(f"{n} {shape}" for n, shape in names.items()) or "none"
-        raise RecordError(
-            f"{p}: a .mat file without SIDPAC's fdata or a known DLR layout "
-            f"(variables: {listing}); pass format= and layout="
-        )
+        return mat_format(p, **kw)
     if suffix in (".asc", ".dat", ".txt"):
         if "layout" in kw:
             return "dlr-asc", {}
-        n_cols = _first_numeric_width(p)
+        n_cols = first_numeric_width(p)
         for lay, spec in LAYOUTS.items():
             if spec["n_columns"] == n_cols:
                 return "dlr-asc", {"layout": lay}
         known = ", ".join(f"{k}: {v['n_columns']}" for k, v in LAYOUTS.items())
-        raise RecordError(f"{p}: {n_cols} columns match no known DLR layout ({known}); pass layout=")
+        raise RecordError(f"{p}: {n_cols} columns match no known DLR layout ({known}); give --layout (Python: layout=)")
     if suffix == ".csv":
         return ("csv-map" if kw.get("columns") else "csv"), {}
     raise RecordError(
-        f"{p}: cannot tell the record format from the suffix {suffix or '(none)'}; pass format= "
-        f"({', '.join(FORMATS[1:])})"
+        f"{p}: cannot tell the record format from the suffix {suffix or '(none)'}; give --format "
+        f"(Python: format=): {', '.join(FORMATS[1:])}"
     )
 
 
@@ -192,6 +177,8 @@ def load_record(path, format: str = "auto", t0: float | None = None, t1: float |
     implied: dict = {}
     if format == "auto":
         format, implied = detect_format(path, **kw)
+    else:  # a format given: one that does not fit the file is named with the one it looks like
+        implied = check_format_fits(path, format, **kw)
     loader = _LOADERS[format]
     params = inspect.signature(loader).parameters
     unknown = [k for k in kw if k not in params]
@@ -255,17 +242,3 @@ def check_same_rate(records, paths=None) -> None:
         raise RecordError(
             f"records at different sample rates cannot be used together: {listing}; resample them to one rate first"
         )
-
-
-def _first_numeric_width(p: Path) -> int:
-    with open(p, errors="replace") as fh:
-        for line in fh:
-            parts = line.replace(",", " ").split()
-            if not parts or parts[0][0] in "%#":
-                continue
-            try:
-                [float(x) for x in parts]
-            except ValueError:
-                continue
-            return len(parts)
-    raise RecordError(f"{p}: no numeric data line (empty or not a record)")

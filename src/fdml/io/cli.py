@@ -13,7 +13,7 @@ __all__ = ["add_record_arguments", "record_options", "parse_mapping"]
 
 
 def add_record_arguments(p: argparse.ArgumentParser) -> None:
-    """Add --format, --t0, --t1, --columns, --units, --sign and --layout to a parser.
+    """Add --format, --t0, --t1, --columns, --units, --sign, --layout, --variable, --delimiter, --no-unit-check.
 
     Parameters
     ----------
@@ -36,6 +36,19 @@ def add_record_arguments(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument("--sign", metavar="SIG=+-1,...", help="sign flips of mapped columns, e.g. az=-1 for n_z up")
     g.add_argument("--layout", choices=("hfb320", "attas"), help="DLR column layout (default: by column count)")
+    g.add_argument("--variable", metavar="NAME", help="DLR .mat: the record matrix's name (default: the only one)")
+    g.add_argument(
+        "--delimiter",
+        metavar="CHAR",
+        help="column-mapped CSV: the field separator (default: found from the header; 'whitespace' for spaces)",
+    )
+    g.add_argument(
+        "--no-unit-check",
+        dest="check_units",
+        action="store_false",
+        default=None,
+        help="accept angles that look like degrees (a real record with large angles)",
+    )
 
 
 def parse_mapping(text: str | None, what: str) -> dict[str, str]:
@@ -93,7 +106,7 @@ def record_options(args) -> dict:
     -------
     dict
         ``format``, ``t0``, ``t1`` and, where given, ``columns``, ``units``,
-        ``sign`` and ``layout``.
+        ``sign``, ``layout``, ``variable``, ``delimiter`` and ``check_units``.
     """
     from ..errors import RecordError
 
@@ -115,6 +128,9 @@ def record_options(args) -> dict:
             opts["sign"] = {k: _sign(k, v) for k, v in sign_txt.items()}
     elif units or sign_txt:
         raise RecordError("--units and --sign apply to a column-mapped CSV: give --columns too")
-    if getattr(args, "layout", None):
-        opts["layout"] = args.layout
+    for key in ("layout", "variable", "delimiter"):
+        if getattr(args, key, None):
+            opts[key] = getattr(args, key)
+    if getattr(args, "check_units", None) is False:
+        opts["check_units"] = False
     return opts

@@ -219,13 +219,14 @@ def _convert(p, header, col_index, header_units, data, units, sign):
         hu, uu = header_units[sig], units.get(sig)
         if hu is not None and uu is not None and normalise_unit(hu) != normalise_unit(uu):
             raise RecordError(
-                f"{p}: mixed units for {sig}: the header of column {header[i]!r} says {hu!r} but units= says {uu!r}"
+                f"{p}: mixed units for {sig}: the header of column {header[i]!r} says {hu!r} but --units "
+                f"(Python: units=) says {uu!r}"
             )
         unit = uu or hu or ("s" if sig == "t" else None)
         if unit is None:
             raise RecordError(
-                f"{p}: no unit for {sig} (column {header[i]!r}); pass units={{{sig!r}: ...}} "
-                "or write it in the header, e.g. 'AOA (deg)'"
+                f"{p}: no unit for {sig} (column {header[i]!r}); give --units {sig}=UNIT (Python: "
+                f"units={{{sig!r}: ...}}) or write it in the header, e.g. 'AOA (deg)'"
             )
         f = unit_factor(unit, QUANTITY[sig], what=f"{p}: {sig} (column {header[i]!r})")
         s = float(sign.get(sig, 1))
@@ -250,4 +251,7 @@ def _splitter(p, sample: list[str], delimiter: str | None):
             return lambda ln, d=d: next(csv.reader(io.StringIO(ln), delimiter=d))
     if len(head.split()) > 1:
         return lambda ln: ln.split()
-    raise RecordError(f"{p}: cannot tell the field separator from the header {head[:60]!r}; pass delimiter=")
+    raise RecordError(
+        f"{p}: cannot tell the field separator from the header {head[:60]!r}; give --delimiter CHAR "
+        "(Python: delimiter=)"
+    )

@@ -213,7 +213,8 @@ def read_dlr_mat(
         ]
         if len(mats) != 1:
             raise RecordError(
-                f"{p}: expected one record matrix, found {len(mats)} ({', '.join(mats) or 'none'}); pass variable=NAME"
+                f"{p}: expected one record matrix, found {len(mats)} ({', '.join(mats) or 'none'}); "
+                "give --variable NAME (Python: variable=NAME)"
             )
         variable = mats[0]
     if variable not in mat:

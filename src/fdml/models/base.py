@@ -233,6 +233,37 @@ class Model:
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         return self._matrices(1j * omega, self.values(values))
 
+    def short_period_frequency(self, values: Mapping[str, float] | None = None) -> float:
+        """The undamped natural frequency of the short period, rad/s.
+
+        ``det(s E - A) = det(E) s^2 + ... + det(A)`` (the two-state system of
+        :func:`solve_short_period`), so omega_n = sqrt(|det A / det E|).  Where A
+        depends on s (the lags of the unsteady model, effects), it is taken at
+        s = j omega_n itself: a few fixed-point passes from 1 rad/s, each exact
+        for constant matrices.
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        float
+            The frequency omega_n, rad/s (NaN when the matrices are not finite).
+        """
+        w = 1.0
+        for _ in range(4):
+            M, _, E = self.matrices([w], values)
+            E0 = E if E.ndim == 2 else E[0]
+            A = 1j * w * E0 - M[0]
+            with np.errstate(all="ignore"):
+                w_new = float(np.sqrt(np.abs(np.linalg.det(A) / np.linalg.det(E0))))
+            if not np.isfinite(w_new) or w_new <= 0.0:
+                return w_new if np.isfinite(w_new) else float("nan")
+            w = w_new
+        return w
+
     @property
     def U(self) -> float:  # pragma: no cover - abstract
         """Airspeed, m/s."""
