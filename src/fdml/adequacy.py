@@ -1210,7 +1210,7 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
     if v.source == "kinematics":
         what = (
             f"the kinematics (alpha, q and a_z against the short-period identity, whatever the aerodynamics) "
-            f"settle {v.describe()}{also}. Refit with it fixed at that value: {refit}"
+            f"settle {v.describe()}{also}; the refit holds it at that value. Refit with it: {refit}"
         )
     elif v.ambiguous:
         what = (
