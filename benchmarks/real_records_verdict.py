@@ -99,6 +99,8 @@ def run(name: str, recs) -> dict:
         "flight_path": flight_path(recs),
         "t_fit": t_fit,
         "t_diag": t_diag,
+        "plain": res,
+        "recommended": rep.recommended,
     }
 
 
@@ -133,6 +135,29 @@ def agreement(a: dict, b: dict) -> None:
         print(f"     {n:5s} {x[0]:9.4g} vs {y[0]:9.4g}: {(x[0] - y[0]) / np.hypot(x[1], y[1]):+.1f}")
 
 
+def predict(params_res, target) -> tuple:
+    """``target`` predicted by the parameter set of ``params_res``: its model's parameters frozen, the
+    nuisance terms (biases, boundary values) estimated.  (det R, residual RMS / measured RMS per output)."""
+    m = params_res.model
+    free = [n for n in m.parameters.free_names if not n.startswith("bias_")]
+    res = fdml.fit(target, m, fix=free, adequacy=False, check=False)
+    z = np.asarray(res.spectra[0]["z"])
+    v = z - res.fitted_spectra(0)
+    return res.cost, np.sqrt(np.mean(np.abs(v) ** 2, axis=0) / np.mean(np.abs(z) ** 2, axis=0))
+
+
+def cross_prediction(results: dict, cases: dict) -> None:
+    print("\n== Twin Otter: each manoeuvre predicted by the other's parameters (a withheld manoeuvre)")
+    for src, tgt in (("017", "018"), ("018", "017")):
+        a, rec = results[f"Twin Otter {src}"], cases[f"Twin Otter {tgt}"][0]
+        for label in ("plain", "recommended"):
+            cost, rel = predict(a[label], rec)
+            print(
+                f"     {src} -> {tgt} {label:11s} det R {cost:.3g}; residual / measured RMS "
+                + ", ".join(f"{o} {x:.3f}" for o, x in zip(("alpha", "q", "a_z"), rel))
+            )
+
+
 def cmq(r: dict) -> None:
     qbar = 0.5 * HFB["rho"] * HFB["V0"] ** 2
     k = HFB["Sc_over_Iy"] * qbar * HFB["cbar_half"] / HFB["V0"]
@@ -153,6 +178,7 @@ def main() -> int:
         if name.startswith("HFB"):
             cmq(results[name])
     agreement(results["Twin Otter 017"], results["Twin Otter 018"])
+    cross_prediction(results, cases)
     n_agree = sum(r["agree"] for r in results.values())
     print(f"\nfit and diagnosis name the same effect first on {n_agree} of {len(results)} cases")
     return 0
