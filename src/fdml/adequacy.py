@@ -1061,8 +1061,11 @@ def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Ref
     )
     base = [x.name for x in root_model(result.model).parameters if x.free and x.name in r.params]
     derivs = {n: (r.params[n], r.errors[n]) for n in base}
+    from .kinematics import input_resolution
+
     dt = max(float(d.dt) for d in prob.data)
-    why = judge(eff, params, result.model, derivs, kin, dt=dt, U=_airspeed(result.model))
+    floor = input_resolution([d.record for d in prob.data], dt)
+    why = judge(eff, params, result.model, derivs, kin, dt=dt, U=_airspeed(result.model), input_floor=floor)
     return _Refit(eff, r, lr, p, q + len([x for x in plist if x.nuisance]), params, plausible, why)
 
 

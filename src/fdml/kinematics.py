@@ -69,6 +69,8 @@ __all__ = [
     "LEVEL",
     "MAX_SHIFT",
     "resolution",
+    "input_resolution",
+    "unresolved_edges",
     "SensorTerms",
     "Pattern",
     "KinematicFinding",
@@ -94,6 +96,58 @@ MAX_SCALE = 0.5
 TIME_RESOLUTION = 0.25
 #: Scale-factor errors below this are at the level to which sensors are calibrated.
 SCALE_RESOLUTION = 0.005
+
+
+#: An input edge is unresolved when one sample interval carries more than this share of the change over
+#: the three intervals around it: a step between two samples, whose time the record does not keep.
+EDGE_SHARE = 0.8
+#: ... counted when it is at least this share of the input's range (smaller steps are quantisation).
+EDGE_SIZE = 0.05
+
+
+def unresolved_edges(u: np.ndarray) -> int:
+    """How many edges of a sampled input happen within one sample interval (a step between samples).
+
+    Such an edge's time is known only to +-dt/2: a fit that interpolates the record puts it mid-way,
+    and an elevator delay of up to half a sample then stands for where the steps really were.
+
+    Parameters
+    ----------
+    u : numpy.ndarray
+        The input's samples.
+
+    Returns
+    -------
+    int
+        The number of unresolved edges.
+    """
+    u = np.asarray(u, float)
+    if u.size < 4:
+        return 0
+    d = np.diff(u)
+    big = np.abs(d) >= EDGE_SIZE * max(float(np.ptp(u)), 1e-300)
+    local = np.abs(u[np.minimum(np.arange(d.size) + 2, u.size - 1)] - u[np.maximum(np.arange(d.size) - 1, 0)])
+    return int(np.sum(big & (np.abs(d) > EDGE_SHARE * np.maximum(local, np.abs(d)))))
+
+
+def input_resolution(records, dt: float) -> float:
+    """The input timing these records resolve, s: half a sample when any elevator steps between two
+    samples (:func:`unresolved_edges`), else a quarter (:func:`resolution`).
+
+    Parameters
+    ----------
+    records : sequence of Record or None
+        The time-domain records (None entries are skipped).
+    dt : float
+        Sample interval, s.
+
+    Returns
+    -------
+    float
+        The floor of an input delay or lag, s.
+    """
+    stepped = any(r is not None and r.has("de") and unresolved_edges(r["de"]) for r in records)
+    return (0.5 if stepped else TIME_RESOLUTION) * dt
 
 
 def resolution(unit: str, dt: float, U: float) -> float | None:

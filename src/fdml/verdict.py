@@ -41,7 +41,9 @@ LEVEL = 0.01
 ABSORBS = "absorbs a model error"
 
 
-def judge(effect, params: dict, model, derivatives: dict, kin=None, *, dt: float, U: float | None) -> str | None:
+def judge(
+    effect, params: dict, model, derivatives: dict, kin=None, *, dt: float, U: float | None, input_floor: float = 0.0
+) -> str | None:
     """Why a refitted candidate cannot be chosen (rule 2), or None.
 
     Parameters
@@ -60,6 +62,9 @@ def judge(effect, params: dict, model, derivatives: dict, kin=None, *, dt: float
         Sample interval of the records, s.
     U : float or None
         Airspeed, m/s (None: no floor for lever arms).
+    input_floor : float, optional
+        The input timing the records resolve, s (:func:`fdml.kinematics.input_resolution`): the floor
+        of the elevator's delay and lag where it exceeds the quarter sample.
 
     Returns
     -------
@@ -73,6 +78,8 @@ def judge(effect, params: dict, model, derivatives: dict, kin=None, *, dt: float
             if p.name not in values or p.nuisance or (p.unit == "m" and U is None):
                 continue
             floor = resolution(p.unit, dt, U or 0.0)
+            if floor is not None and effect.channel == "de" and p.unit == "s":
+                floor = max(floor, input_floor)
             if floor is not None and abs(values[p.name]) < floor:
                 v = values[p.name]
                 return f"{ABSORBS}: {p.name} = {v:.3g} {p.unit} lies below the data's resolution ({floor:.3g})"

@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..channels import OUTPUTS
+from ..kinematics import input_resolution
 from ..models.effects import Effect
 from ..parameters import Role
 from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, screen
@@ -217,7 +218,8 @@ def _judge(c: Candidate, model, kin, data) -> tuple[dict, str | None]:
         U = float(model.U)
     except (AttributeError, NotImplementedError, TypeError, ValueError):
         U = None
-    return derivs, judge(c.effect, c.params, model, derivs, kin, dt=dt, U=U)
+    floor = input_resolution([d.record for d in data.spectra], dt)
+    return derivs, judge(c.effect, c.params, model, derivs, kin, dt=dt, U=U, input_floor=floor)
 
 
 def attribute_step(
