@@ -69,6 +69,8 @@ __all__ = [
     "LEVEL",
     "MAX_SHIFT",
     "resolution",
+    "flight_path_findings",
+    "FLIGHT_PATH_CHANNELS",
     "input_resolution",
     "unresolved_edges",
     "SensorTerms",
@@ -148,6 +150,54 @@ def input_resolution(records, dt: float) -> float:
     """
     stepped = any(r is not None and r.has("de") and unresolved_edges(r["de"]) for r in records)
     return (0.5 if stepped else TIME_RESOLUTION) * dt
+
+
+#: Channels the full, time-domain flight-path reconstruction (:mod:`fdml.flightpath`) uses beyond
+#: alpha, q and a_z.
+FLIGHT_PATH_CHANNELS = ("theta", "V", "h", "ax")
+
+
+def flight_path_findings(records) -> list:
+    """The time-domain flight-path reconstruction's significant sensor findings, per record.
+
+    Run on every record that has theta (and the trim kept, a_z near -1 g): what it determines beyond
+    the short-period identity (the q scale against theta, the absolute alpha bias from h, ...).
+    It models no vane offset: a vane x ahead of the accelerometer reads there as an alpha lag of
+    about x/U.
+
+    Parameters
+    ----------
+    records : sequence of Record
+        The records.
+
+    Returns
+    -------
+    list of dict
+        Per record: ``record``, ``missing`` (channels of :data:`FLIGHT_PATH_CHANNELS` it lacks),
+        and either ``significant`` (``name``, ``value``, ``stderr``, ``unit``, ``description`` of
+        each parameter :data:`fdml.flightpath.SIGNIFICANT` standard errors from nominal) or
+        ``note`` (why it was not run).
+    """
+    from .errors import FdmlError
+    from .flightpath import SIGNIFICANT, check_compatibility
+
+    out = []
+    for r in records:
+        entry: dict = {"record": r.name, "missing": [c for c in FLIGHT_PATH_CHANNELS if not r.has(c)]}
+        if not r.has("theta"):
+            entry["note"] = "no theta: the short-period identity alone"
+        else:
+            try:
+                c = check_compatibility(r)
+                entry["significant"] = [
+                    {"name": k, "value": p.value, "stderr": p.stderr, "unit": p.unit, "description": p.description}
+                    for k, p in c.params.items()
+                    if p.stderr > 0 and abs(p.value - p.nominal) > SIGNIFICANT * p.stderr
+                ]
+            except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:  # reported, never fatal
+                entry["note"] = f"not run: {exc}"
+        out.append(entry)
+    return out
 
 
 def resolution(unit: str, dt: float, U: float) -> float | None:

@@ -16,7 +16,7 @@ import numpy as np
 from ..channels import OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..estimate import NoiseModel
-from ..kinematics import KinematicEvidence, kinematic_evidence, known_terms
+from ..kinematics import KinematicEvidence, flight_path_findings, kinematic_evidence, known_terms
 from ..kinematics import members as _members_of
 from ..models.base import Model
 from ..models.effects import Effect, applied_effects, default_library, registered_effects, root_model
@@ -187,6 +187,7 @@ class _Setup:
     designs: dict = field(default_factory=dict, repr=False)  # gap-map regressors, shared by every in-sample map
     kin: KinematicEvidence | None = None  # what alpha, q and a_z say about their sensors (settled first)
     kin_note: str = ""  # why there is no kinematic evidence
+    flight_path: tuple = ()  # the time-domain flight-path reconstruction's findings, per record
 
     def fit_map(self, fit, before=None, *, own: bool = False):
         """The gap map of an in-sample fit: with ``before``, that map's noise floors held; the regressors
@@ -337,7 +338,7 @@ def diagnose(
     )
     kin, kin_note = _kinematics(su, model)
     raw_model, model = model, _settled_model(model, kin)
-    su = replace(su, kin=kin, kin_note=kin_note)
+    su = replace(su, kin=kin, kin_note=kin_note, flight_path=tuple(flight_path_findings(records)))
     try:
         base_fit = fit_model(su.data, model, su.nb, **su.options)
     except FdmlError as exc:
@@ -821,7 +822,10 @@ def _assemble(
         findings=tuple(found),
         recommended=recommended,
         warnings=tuple(warned),
-        kinematics=su.kin.to_dict() if su.kin is not None else {"note": su.kin_note},
+        kinematics={
+            **(su.kin.to_dict() if su.kin is not None else {"note": su.kin_note}),
+            "flight_path": list(su.flight_path),
+        },
         recommendation=_recommendation(su, sel, recommended, sensors.raw_fit),
     )
     return replace(report, text=paragraph(report))

@@ -85,11 +85,36 @@ def _kinematics_sentences(rep) -> list:
             f"The kinematics' other reading, {m['key']} ({_fmt_param(m['param'], m)}), lies outside its "
             "plausible range."
         )
+    out += _flight_path_sentences(k)
     for a in k.get("aliases", []):
         names = " or ".join(f"{m['key']} ({_fmt_param(m['param'], m)})" for m in a)
         out.append(
             f"The kinematics show a sensor error they cannot attribute: {names}; the aerodynamic fit chose "
             "among them first."
+        )
+    return out
+
+
+def _flight_path_sentences(k: dict) -> list:
+    """The time-domain flight-path reconstruction's view beside the identity's (where theta is recorded)."""
+    out = []
+    offset = any(m["key"].startswith("sensor_offset") for m in k.get("settled", []) + sum(k.get("aliases", []), []))
+    for e in k.get("flight_path", []):
+        sig = e.get("significant")
+        if not sig:
+            continue
+        found = ", ".join(_fmt_param(p["name"], p) for p in sig)
+        note = (
+            " (it models no vane offset: a vane x ahead of the accelerometer reads there as an alpha lag of about x/U)"
+            if offset and any(p["name"] == "tau_alpha" for p in sig)
+            else ""
+        )
+        out.append(f"The flight-path reconstruction of {e['record']} (theta, V, h) finds {found}{note}.")
+    missing = sorted({c for e in k.get("flight_path", []) for c in e.get("missing", [])})
+    if missing:
+        out.append(
+            f"The records lack {', '.join(missing)}: the kinematics rest on the short-period identity "
+            "(alpha, q and a_z) there."
         )
     return out
 
