@@ -133,8 +133,10 @@ def unresolved_edges(u: np.ndarray) -> int:
 
 
 def input_resolution(records, dt: float) -> float:
-    """The input timing these records resolve, s: half a sample when any elevator steps between two
-    samples (:func:`unresolved_edges`), else a quarter (:func:`resolution`).
+    """The input timing these records resolve, s.
+
+    Half a sample when any elevator steps between two samples (:func:`unresolved_edges`), else a
+    quarter (:func:`resolution`).
 
     Parameters
     ----------
