@@ -385,10 +385,15 @@ def _worker_init(owner: int, start_method: str) -> None:
     Ctrl-C reaches the whole process group, so SIGINT is ignored here and the
     owner ends the workers itself; SIGTERM and SIGHUP handlers inherited from
     the owner by ``fork`` (those of :func:`signals_end_the_run`) go back to
-    the default, which ends the worker; then :func:`_die_with_parent`.
+    the default, which ends the worker; then :func:`_die_with_parent`.  Each worker's BLAS keeps
+    one thread (threadpoolctl): the workers already fill the cores, and a multi-threaded BLAS in
+    every one of them contends for the same cores (Monte Carlo fits 2-3 times slower, issue 20).
     """
     import signal
 
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1, user_api="blas")
     with contextlib.suppress(ValueError, OSError):  # never break the pool over this
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         for name in ("SIGTERM", "SIGHUP"):
