@@ -29,6 +29,7 @@ _LAZY = {
     "ParameterError": "errors",
     "RecordError": "errors",
     "fit": "estimate",
+    "FitOptions": "fit_options",
     "EstimatorSettings": "estimate",
     "MODEL_KINDS": "models",
     "Model": "models",

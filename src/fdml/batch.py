@@ -564,7 +564,7 @@ def check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
     Parameters
     ----------
     fit_kwargs : mapping or None
-        Options of :func:`fdml.fit` (not ``data``, ``model``, ``callback``).
+        Options of :func:`fdml.fit` (the fields of :class:`fdml.fit_options.FitOptions`).
 
     Returns
     -------
@@ -574,23 +574,35 @@ def check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
     Raises
     ------
     FdmlError
-        An unknown option, a bad band, or a value that is not plain data.
+        An unknown option, a bad value (a bad band among them), or a value that is not plain data.
     """
-    import inspect
-
-    from .estimate import fit
+    from .fit_options import FitOptions
 
     kw = dict(fit_kwargs or {})
-    allowed = set(inspect.signature(fit).parameters) - {"data", "model", "callback"}
-    unknown = sorted(set(kw) - allowed)
-    if unknown:
-        raise FdmlError(f"unknown fit option(s) {unknown}; fit takes {', '.join(sorted(allowed))}")
-    if kw.get("band") is not None:
-        from .spectral import parse_band
-
-        parse_band(kw["band"])  # refuse a bad band before any task: it would fail every one of them
-    canonical_json(kw)  # plain data only: it is hashed and shipped to workers
+    canonical_json(kw)  # plain data only: it is shipped to workers
+    FitOptions.of(**kw)  # every option checked: a bad one would fail every task
     return kw
+
+
+def _fit_options_key(fit_kwargs: Mapping) -> dict:
+    """What the input hash holds of the fit's options: all of them, as :class:`~fdml.fit_options.FitOptions` has them.
+
+    Two spellings of the same options (``band="0.2:8"`` and ``band=[0.2, 8, 0.1]``, a default given
+    or left out) hash the same.
+
+    Parameters
+    ----------
+    fit_kwargs : mapping
+        Checked options (:func:`check_fit_kwargs`).
+
+    Returns
+    -------
+    dict
+        Plain data.
+    """
+    from .fit_options import FitOptions
+
+    return FitOptions.of(**fit_kwargs).to_dict()
 
 
 # --- the task (runs in a worker) ------------------------------------------------------------
@@ -667,7 +679,7 @@ def run_task(task: Mapping) -> dict:
     try:
         h = hashlib.sha256()
         h.update(_file_hash(task["path"]).encode())
-        key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_kwargs"], "fdml": __version__}
+        key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_key"], "fdml": __version__}
         if task.get("read"):  # absent when empty: the hash of a batch without reading options is unchanged
             key["read"] = task["read"]
         h.update(canonical_json(key).encode())
@@ -1211,6 +1223,7 @@ def run_batch(
     spec.check()  # a bad model spec is one error now, not one per record
     spec_d = spec.to_dict()
     kw = check_fit_kwargs(fit_kwargs)
+    fit_key = _fit_options_key(kw)
     read = dict(read_kwargs or {})
     canonical_json(read)  # plain data only: it is hashed and shipped to workers
     if workers is not None and (not isinstance(workers, int) or workers < 1):
@@ -1227,6 +1240,7 @@ def run_batch(
             "t1": it.t1,
             "spec": spec_d,
             "fit_kwargs": kw,
+            "fit_key": fit_key,
             "read": read,
             "out_dir": str(out),
             "resume": bool(resume),

@@ -31,7 +31,6 @@ applies the paper's rule, relative change of J below 0.01.
 
 from __future__ import annotations
 
-import itertools
 import math
 import time
 import warnings
@@ -52,6 +51,7 @@ from .errors import (
 )
 from .estimator_settings import SETTINGS, EstimatorSettings
 from .findings import emit, raise_if_strict
+from .fit_options import CHECKS, ITERATION, PROBLEM, SPECTRA, FitOptions, NoiseModel, parse_outputs, takes_options
 from .models.base import OUTPUTS, Model
 from .models.measurement import (
     BOUNDARY_NAMES,
@@ -64,13 +64,13 @@ from .models.measurement import (
     nuisance_columns,
 )
 from .models.measurement import predict as _measure
-from .parameters import Role, as_names, check_fix_free
+from .parameters import Role
 from .record import Record
 from .results import FitResult, IterationInfo
 from .spectral import FrequencyData, spectra
 from .warning_log import recording
 
-__all__ = ["SETTINGS", "EstimatorSettings", "NoiseModel", "Problem", "fit", "parse_outputs", "prepare"]
+__all__ = ["SETTINGS", "EstimatorSettings", "FitOptions", "NoiseModel", "Problem", "fit", "parse_outputs", "prepare"]
 
 #: Base names of each nuisance role, by the slot's index (fdml.models.measurement order).
 _NUISANCE_BASE = {
@@ -461,15 +461,18 @@ class Problem:
         return best
 
 
-def _as_data(data, model: Model, omega, band, trim, trim_window, end_correction) -> list[FrequencyData]:
+def _as_data(data, model: Model, opts: FitOptions) -> list[FrequencyData]:
     items = data if isinstance(data, (list, tuple)) else [data]
     if not items:
         raise RecordError("no records were given to fit")
+    given = {k: v for k, v in opts.pick(SPECTRA).items() if v is not None and k != "omega"}
     out = []
-    for item in items:
+    for i, item in enumerate(items):
         if isinstance(item, Record):
-            item = spectra(item, omega, band=band, trim=trim, trim_window=trim_window, end_correction=end_correction)
-        elif not isinstance(item, FrequencyData):
+            item = spectra(item, opts.omega, **given)
+        elif isinstance(item, FrequencyData):
+            opts.refuse_inapplicable(item, i)  # a band (trim, ...) given with spectra made otherwise
+        else:
             raise RecordError(f"cannot fit a {type(item).__name__}: give an fdml Record or FrequencyData")
         if model.gust and "alpha_w" not in item.inputs:
             raise RecordError(
@@ -541,86 +544,25 @@ def _renamed(d: FrequencyData, name: str) -> FrequencyData:
     return replace(d, name=name)
 
 
-def _configure_model(model: Model, free, fix, bounds, biases: bool, out_idx) -> Model:
+def _configure_model(model: Model, opts: FitOptions, biases: bool, out_idx) -> Model:
     params = model.parameters
     if biases:
         params = params.free([f"bias_{OUTPUTS[k]}" for k in out_idx])
-    check_fix_free(fix, free)  # a str is one name, not its characters (parameters.as_names)
-    if fix:
-        if isinstance(fix, Mapping):
-            params.check_names(fix)
-            params = params.fix(fix)
-        else:
-            params.check_names(as_names(fix, "fix"))
-            params = params.fix(as_names(fix, "fix"))
-    if free:
-        params.check_names(as_names(free, "free"))
-        params = params.free(as_names(free, "free"))
-    if bounds:
-        for name, (lo, hi) in bounds.items():
-            params.check_names([name])
-            params = params.bound(name, -math.inf if lo is None else lo, math.inf if hi is None else hi)
+    if opts.fix:
+        params.check_names(list(opts.fix))
+        params = params.fix(dict(opts.fix) if isinstance(opts.fix, Mapping) else list(opts.fix))
+    if opts.free:
+        params.check_names(list(opts.free))
+        params = params.free(list(opts.free))
+    for name, (lo, hi) in opts.bounds.items():
+        params.check_names([name])
+        params = params.bound(name, -math.inf if lo is None else lo, math.inf if hi is None else hi)
     return model.with_parameters(params)
 
 
-def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
-    """The fitted outputs as a tuple of names, from a sequence or ``"alpha,q,az"``.
-
-    None gives all of :data:`~fdml.models.base.OUTPUTS`.  An unknown name, a
-    name given twice (``alpha,alpha``) or an empty list is an
-    :class:`~fdml.errors.FdmlError` naming it (``what`` names the option).
-
-    Parameters
-    ----------
-    outputs : None, str or sequence of str
-        The outputs; None for all.
-    what : str, optional
-        The option's name, for messages.
-
-    Returns
-    -------
-    tuple of str
-        The output names, in the order given.
-    """
-    if outputs is None:
-        return tuple(OUTPUTS)
-    if isinstance(outputs, str):
-        items = [o.strip() for o in outputs.split(",")]
-    else:
-        items = [str(o).strip() for o in outputs]
-    if not items or not any(items):
-        raise FdmlError(f"{what}: empty; choose from {', '.join(OUTPUTS)}")
-    if "" in items:
-        raise FdmlError(f"{what} {outputs!r}: an empty item; give names separated by commas")
-    bad = [o for o in items if o not in OUTPUTS]
-    if bad:
-        raise FdmlError(f"{what}: unknown output(s) {bad}; choose from {', '.join(OUTPUTS)}")
-    dup = sorted({o for o in items if items.count(o) > 1})
-    if dup:
-        raise FdmlError(f"{what}: {', '.join(dup)} given more than once; name each output once")
-    return tuple(items)
-
-
-def prepare(
-    data,
-    model: Model,
-    *,
-    omega=None,
-    band=None,
-    outputs=None,
-    boundary="estimated",
-    biases="auto",
-    state_biases=False,
-    input_bias=False,
-    free=None,
-    fix=None,
-    bounds=None,
-    sensitivity="auto",
-    trim="first",
-    trim_window=0.5,
-    end_correction="cubic",
-) -> Problem:
-    """Set up a fit without running it (see :func:`fit` for the arguments).
+@takes_options(SPECTRA, PROBLEM)
+def prepare(data, model: Model, options: FitOptions | None = None, **keywords) -> Problem:
+    """Set up a fit without running it (see :func:`fit`).
 
     Parameters
     ----------
@@ -628,58 +570,34 @@ def prepare(
         The records.
     model : Model
         The model; its free parameters are estimated.
-    omega : array_like, optional
-        Frequencies, rad/s.
-    band : tuple or str, optional
-        ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``.
-    outputs : sequence of str or str, optional
-        Outputs that enter the fit.
-    boundary : {"estimated", "measured", "none"}, optional
-        Klein's boundary terms.
-    biases : {"auto", True, False}, optional
-        Estimate an output bias for every fitted output.
-    state_biases : bool, optional
-        Estimate state-equation biases.
-    input_bias : bool, optional
-        Estimate an elevator offset, rad.
-    free, fix : optional
-        Names to free; names (or a ``{name: value}`` mapping) to fix.
-    bounds : mapping, optional
-        ``{name: (lower, upper)}``.
-    sensitivity : {"auto", "analytic", "fd", "central"}, optional
-        How the sensitivities are computed.
-    trim : {"first", "mean", "none"}, optional
-        Trim removal of time-domain records.
-    trim_window : float, optional
-        Leading window for ``trim="mean"``, s.
-    end_correction : {"cubic", "trapezoid", "none"}, optional
-        End correction of the finite Fourier integral.
+    options : FitOptions, optional
+        Options made before (those of the iteration and the checks are not used here); the
+        keywords below replace its fields.
+    <the fit options: FitOptions' fields>
 
     Returns
     -------
     Problem
         The fit, set up.
     """
+    unused = sorted(set(keywords) & set(FitOptions.names(ITERATION, CHECKS)))
+    if unused:
+        raise FdmlError(f"prepare does not take the fit option(s) {unused}: give them to fit")
+    opts = FitOptions.of(options, **keywords)
     if not isinstance(model, Model):
         raise ParameterError(f"model must be an fdml Model, got {type(model).__name__}")
-    if boundary not in ("estimated", "measured", "none"):
-        raise FdmlError(f"boundary must be 'estimated', 'measured' or 'none', got {boundary!r}")
-    if sensitivity not in ("auto", "analytic", "fd", "central"):
-        raise FdmlError(f"sensitivity must be 'auto', 'analytic', 'fd' (Eq. 26) or 'central', got {sensitivity!r}")
-    out_idx = tuple(OUTPUTS.index(o) for o in parse_outputs(outputs))
-    fdata = _as_data(data, model, omega, band, trim, trim_window, end_correction)
+    out_idx = tuple(OUTPUTS.index(o) for o in opts.outputs)
+    fdata = _as_data(data, model, opts)
     _refuse_unexcited(fdata)
-    if biases == "auto":
-        biases = any(d.trim_mode != "none" for d in fdata)
-    elif biases not in (True, False):
-        raise FdmlError(f"biases must be 'auto', True or False, got {biases!r}")
-    model = _configure_model(model, free, fix, bounds, biases, out_idx)
+    biases = any(d.trim_mode != "none" for d in fdata) if opts.biases == "auto" else bool(opts.biases)
+    model = _configure_model(model, opts, biases, out_idx)
     _check_model_effects(model, [OUTPUTS[i] for i in out_idx], fdata[0].omega)  # H1: effects vs outputs
+    sensitivity = opts.sensitivity
     if sensitivity == "auto":
         # analytic where every free model parameter has a closed form, else Eq. 26
         closed: frozenset = getattr(model, "closed_form_parameters", frozenset())
         sensitivity = "analytic" if all(n in closed for n in model.parameters.free_model_names) else "fd"
-    prob = Problem(fdata, model, out_idx, boundary, sensitivity, bool(state_biases), bool(input_bias))
+    prob = Problem(fdata, model, out_idx, opts.boundary, sensitivity, opts.state_biases, opts.input_bias)
     p = len(prob.slots)
     if p == 0:
         raise ParameterError("no free parameters: nothing to estimate")
@@ -784,71 +702,6 @@ def _weights(R: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
     return np.linalg.inv(R) if rows is None else np.linalg.inv(R)[rows]
 
 
-@dataclass(frozen=True)
-class NoiseModel:
-    """The noise model of the likelihood: which residual covariance the estimator concentrates out.
-
-    ``NoiseModel()`` (white, the default of :func:`fit`): one R over the whole band (Eq. 24), cost
-    ln det R (Eq. 25).  ``NoiseModel(edges)``: one R_b per frequency band [e_b, e_b+1) (Eq. 24 within
-    each band), cost (1/N) sum_b N_b ln det R_b: the likelihood of noise whose spectrum is flat within
-    each band but not across them (coloured sensor noise, turbulence; fdml.diagnose uses it).
-
-    Parameters
-    ----------
-    edges : tuple of float
-        Band edges, rad/s, increasing; empty (or two edges, one band) is white.
-    """
-
-    edges: tuple = ()
-
-    def __post_init__(self):
-        try:
-            e = tuple(float(x) for x in self.edges)
-        except (TypeError, ValueError):
-            e = (math.nan,)
-        if len(e) == 1 or not all(map(math.isfinite, e)) or any(b <= a for a, b in itertools.pairwise(e)):
-            raise FdmlError(f"noise band edges must be two or more increasing numbers in rad/s, got {self.edges!r}")
-        object.__setattr__(self, "edges", e)
-
-    @property
-    def n(self) -> int:
-        """Number of noise bands (1: white)."""
-        return max(len(self.edges) - 1, 1)
-
-    def assign(self, omega) -> np.ndarray:
-        """Band index of each frequency (rad/s); frequencies beyond the edges join the outer bands.
-
-        Parameters
-        ----------
-        omega : array_like
-            Frequencies, rad/s.
-
-        Returns
-        -------
-        numpy.ndarray
-            Band index (int) of each frequency, same shape.
-        """
-        if self.n == 1:
-            return np.zeros(np.shape(omega), int)
-        idx = np.searchsorted(np.asarray(self.edges), omega, side="right") - 1
-        return np.clip(idx, 0, self.n - 1)
-
-    def rows(self, prob: Problem) -> np.ndarray | None:
-        """Band of each stacked residual row of ``prob`` (records in order); None when white.
-
-        Parameters
-        ----------
-        prob : Problem
-            The fit.
-
-        Returns
-        -------
-        numpy.ndarray or None
-            Band index of each row, shape (N,).
-        """
-        return None if self.n == 1 else self.assign(np.concatenate([d.omega for d in prob.data]))
-
-
 def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np.ndarray | None = None):
     """Gradient and Gauss-Newton Hessian of ln det R(theta) (band-wise: of (1/N) sum_b N_b ln det R_b).
 
@@ -946,36 +799,20 @@ def _identifiability(H1: np.ndarray, names: Sequence[str]) -> tuple[list[str], l
     return msgs, dead
 
 
+@takes_options()
 def fit(
     data,
     model: Model,
+    options: FitOptions | None = None,
     *,
-    omega=None,
-    band=None,
-    outputs=None,
-    boundary: str = "estimated",
-    biases: bool | str = "auto",
-    state_biases: bool = False,
-    input_bias: bool = False,
-    free: Sequence[str] | None = None,
-    fix: Sequence[str] | Mapping[str, float] | None = None,
-    bounds: Mapping[str, tuple] | None = None,
-    method: str = "lm",
-    stop: str = "converge",
-    tol: float = 1e-3,
-    max_iter: int = 200,
-    sensitivity: str = "auto",
-    cov_type: str = "white",
-    noise: NoiseModel | None = None,
-    trim: str = "first",
-    trim_window: float = 0.5,
-    end_correction: str = "cubic",
     callback: Callable[[IterationInfo], bool | None] | None = None,
-    check: bool = True,
-    strict: bool = False,
-    adequacy: bool = True,
+    **keywords,
 ) -> FitResult:
     """Fit a model to one or more records by frequency-domain maximum likelihood.
+
+    The options are the fields of :class:`~fdml.fit_options.FitOptions`: given by name
+    (``fit(record, model, band="0.5:8")``), or made once and passed on
+    (``fit(record, model, opts)``; names given beside it replace its fields).
 
     Parameters
     ----------
@@ -985,193 +822,41 @@ def fit(
     model : Model
         From :func:`fdml.models.make_model`; its free parameters are estimated
         from their current values.
-    omega : array_like, optional
-        Frequencies, rad/s; default the ``band`` grid.
-    band : tuple or str, optional
-        ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``; default 0.1:10:0.1.
-    outputs : sequence of str or str, optional
-        Outputs that enter the fit (default ``alpha, q, az``).
-    boundary : {"estimated", "measured", "none"}, optional
-        Klein's boundary terms ``x(0) - x(T) exp(-jwT)`` for alpha and q
-        (docs/theory.md section 7): estimated as nuisance parameters (default),
-        taken from the measured first and last samples, or omitted (then a
-        record that ends far from trim triggers a :class:`DataWarning`).
-    biases : {"auto", True, False}, optional
-        Estimate an output bias for every fitted output.  ``"auto"`` (default)
-        does so whenever trim was removed from a record: the trim value is
-        itself a noisy estimate (the first sample, or a short mean), and its
-        error is a constant offset on the whole record, i.e. exactly an
-        output bias; left unestimated it biases the low-frequency fit.
-    state_biases : bool, optional
-        Estimate constants ``bias_alpha_dot`` (rad/s) and ``bias_q_dot``
-        (rad/s^2) added to the two state equations, per record: they absorb a
-        trim that is not an equilibrium (an elevator trim error, a trimmed
-        pitch acceleration).
-    input_bias : bool, optional
-        Estimate a constant elevator offset ``bias_de`` (rad) per record: the
-        error of the elevator trim (a special case of state-equation biases
-        along the elevator's input direction).
-    free, fix : optional
-        Names to free; names (or a ``{name: value}`` mapping) to fix.  A str
-        is one name (``fix="Cm_de"``) or several separated by commas, as for
-        ``outputs``.  A name in both is an error, not "the last wins".
-    bounds : mapping, optional
-        ``{name: (lower, upper)}``; None for an open side.
-    method : {"lm", "gauss-newton"}, optional
-        Levenberg-Marquardt on ln det R (default) or the paper's alternation.
-    stop : {"converge", "paper"}, optional
-        Run to convergence (default) or stop when the relative change of
-        J = det R falls below 0.01 (the paper's rule).
-    tol : float, optional
-        Convergence: every parameter step below ``tol`` standard errors.
-    max_iter : int, optional
-        Most iterations (default 200).
-    sensitivity : {"auto", "analytic", "fd", "central"}, optional
-        ``analytic``: derivatives of the model matrices propagated exactly
-        through the solve (closed forms for every model's theta; central
-        differences of the matrices for freed constants).  ``fd``: the paper's
-        Eq. 26 forward differences of the outputs with the step halved until
-        they settle.  ``central``: central differences of the outputs.
-        ``auto`` (default): ``analytic`` when every free model parameter has a
-        closed form, else ``fd``.  Both give the same estimates and bounds to
-        six significant figures or better.
-    cov_type : {"white", "colored", "naive"}, optional
-        ``white`` (default): covariance of the estimate for white measurement
-        noise, carried exactly through the transform, the frequency grid and
-        the trim removal (a sandwich form); at independent frequency spacing
-        2 pi/T it equals the Cramer-Rao bound.  ``colored``: the same with the
-        noise level following the smoothed residual spectrum (the
-        frequency-domain analogue of the Morelli-Klein correction; use it on
-        real data, where residuals hold model error).  ``naive``: the inverse of
-        ``2 Re sum A^H R^-1 A``, which treats every frequency as independent
-        and is optimistic on a grid finer than 2 pi/T (docs/theory.md section 7).
-    noise : NoiseModel, optional
-        The noise model of the likelihood: white, one R over the band (Eq. 24;
-        the default), or ``NoiseModel(edges)``, one R_b per frequency band
-        (edges in rad/s).  With band-wise noise, ``R`` in the result is still
-        Eq. 24 over the whole band, ``cost`` is exp((1/N) sum_b N_b ln det R_b),
-        and the ``white`` covariance scales the noise to each band's level.
-    trim : {"first", "mean", "none"}, optional
-        Trim removal of time-domain records (:func:`fdml.spectral.spectra`).
-    trim_window : float, optional
-        Leading window for ``trim="mean"``, s.
-    end_correction : {"cubic", "trapezoid", "none"}, optional
-        End correction of the finite Fourier integral.
+    options : FitOptions, optional
+        Options made before; the keywords below replace its fields.
+    <the fit options: FitOptions' fields>
     callback : callable, optional
         Called after every iteration with an :class:`IterationInfo`; return
         True to stop the fit cleanly (the result says so).
-    check : bool, optional
-        Run the data check (:func:`fdml.datacheck.check_data`: units, signs,
-        swapped channels, no response) on every record given in the time
-        domain (default True); its findings are issued as
-        :class:`~fdml.errors.DataWarning` and kept in ``FitResult.findings``.
-    strict : bool, optional
-        Raise :class:`~fdml.errors.DataCheckError` before fitting when the
-        data check finds anything (default False).
-    adequacy : bool, optional
-        After a converged fit, check its adequacy (:func:`fdml.adequacy.check`:
-        score tests of the effect library, residual coherence and whiteness,
-        no refits); kept in ``FitResult.adequacy``, and an
-        :class:`~fdml.errors.AdequacyWarning` names a flagged effect and the
-        command that refits with it.  False skips it (default True).
 
     Returns
     -------
     FitResult
         With every warning raised during the fit in ``warnings`` (each also
-        raised as usual) and every option above in ``options``.
+        raised as usual) and every option, as resolved, in ``options``.
     """
-    if method not in ("lm", "gauss-newton"):
-        raise FdmlError(f"method must be 'lm' or 'gauss-newton', got {method!r}")
-    if stop not in ("converge", "paper"):
-        raise FdmlError(f"stop must be 'converge' or 'paper', got {stop!r}")
-    if cov_type not in ("white", "colored", "naive"):
-        raise FdmlError(f"cov_type must be 'white', 'colored' or 'naive', got {cov_type!r}")
-    noise = NoiseModel() if noise is None else noise
-    if not isinstance(noise, NoiseModel):
-        raise FdmlError(f"noise must be an fdml.estimate.NoiseModel, got {type(noise).__name__}")
-    options = dict(
-        band=band,
-        outputs=outputs,
-        boundary=boundary,
-        biases=biases,
-        state_biases=state_biases,
-        input_bias=input_bias,
-        free=free,
-        fix=fix,
-        bounds=bounds,
-        method=method,
-        stop=stop,
-        tol=tol,
-        max_iter=max_iter,
-        sensitivity=sensitivity,
-        cov_type=cov_type,
-        noise=noise,
-        trim=trim,
-        trim_window=trim_window,
-        end_correction=end_correction,
-        check=check,
-        strict=strict,
-        adequacy=adequacy,
-    )
+    opts = FitOptions.of(options, **keywords)
     with recording() as log:  # fdml.warning_log: every warning of the fit is kept in its result
-        res, prob = _fit(data, model, omega, callback, **options)
-    return replace(res, warnings=tuple(log), options=_stored_options(options, prob))
+        res, prob = _fit(data, model, opts, callback)
+    return replace(res, warnings=tuple(log))
 
 
-def _stored_options(options: dict, prob: Problem) -> dict:
+def _stored_options(opts: FitOptions, prob: Problem) -> dict:
     """The options of a fit as plain data for :attr:`FitResult.options` (``auto`` choices as resolved)."""
-    out = dict(options)
-    out["noise"] = list(options["noise"].edges)
-    out["sensitivity"] = prob.sensitivity
-    out["biases"] = any(s.role is Role.OUTPUT_BIAS for s in prob.slots)
-    out["outputs"] = [OUTPUTS[k] for k in prob.out_idx]
-    fix = options["fix"]
-    out["fix"] = {k: float(v) for k, v in fix.items()} if isinstance(fix, Mapping) else as_names(fix, "fix")
-    out["free"] = as_names(options["free"], "free")
-    out["bounds"] = {k: [_finite_or_none(x) for x in pair] for k, pair in (options["bounds"] or {}).items()}
-    band = options["band"]
-    out["band"] = band if band is None or isinstance(band, str) else [float(x) for x in band]
-    if options["cov_type"] != "naive":  # how white noise reached the covariance, per record
+    biases = any(s.role is Role.OUTPUT_BIAS for s in prob.slots)
+    out = opts.resolved(prob.data, biases=biases, sensitivity=prob.sensitivity).to_dict()
+    if opts.cov_type != "naive":  # how white noise reached the covariance, per record
         out["noise_covariance"] = _noise_routes(prob)
     return out
 
 
-#: The options of :func:`fit` that :func:`prepare` takes.
-_PREPARE_OPTIONS = (
-    "band",
-    "outputs",
-    "boundary",
-    "biases",
-    "state_biases",
-    "input_bias",
-    "free",
-    "fix",
-    "bounds",
-    "sensitivity",
-    "trim",
-    "trim_window",
-    "end_correction",
-)
-
-
-def _finite_or_none(x) -> float | None:
-    """A bound as stored: a finite number, or None for an open side."""
-    return None if x is None or not math.isfinite(float(x)) else float(x)
-
-
-def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Problem]:
-    """:func:`fit` after its arguments are checked: the result (without its warnings and options) and the problem."""
+def _fit(data, model: Model, opts: FitOptions, callback) -> tuple[FitResult, Problem]:
+    """:func:`fit` after its options are checked: the result (without its warnings) and the problem."""
     t_start = time.perf_counter()
-    method, stop, tol, cov_type = options["method"], options["stop"], options["tol"], options["cov_type"]
-    prob = prepare(
-        data,
-        model,
-        omega=omega,
-        **{k: options[k] for k in _PREPARE_OPTIONS},
-    )
-    max_iter, noise = options["max_iter"], options["noise"]
-    found = (_data_findings(prob, options["strict"]) if options["check"] else []) + _end_findings(prob)
+    method, stop, tol, cov_type = opts.method, opts.stop, opts.tol, opts.cov_type
+    prob = prepare(data, model, opts)
+    max_iter, noise = opts.max_iter, opts.noise
+    found = (_data_findings(prob, opts.strict) if opts.check else []) + _end_findings(prob)
     emit(found, stacklevel=3)
     theta = prob.initial()
     lo, hi = prob.bounds()
@@ -1252,8 +937,9 @@ def _fit(data, model: Model, omega, callback, **options) -> tuple[FitResult, Pro
     )
     found += _band_findings(prob, theta)
     res = replace(res, findings=tuple(found)) if found else res
-    if options["adequacy"] and converged:
-        res = _with_adequacy(prob, res, V, A_final, options)
+    res = replace(res, options=_stored_options(opts, prob))
+    if opts.adequacy and converged:
+        res = _with_adequacy(prob, res, V, A_final, opts)
     return res, prob
 
 
@@ -1345,7 +1031,7 @@ def _floor_reached(R: np.ndarray, rows, history: list) -> str:
     return ""
 
 
-def _with_adequacy(prob, res, V, A_final, options):
+def _with_adequacy(prob, res, V, A_final, opts: FitOptions):
     """The result with its adequacy check (:mod:`fdml.adequacy`; it warns when the check flags anything).
 
     The check refits the candidates it ranks with the fit's own options on the fit's own spectra.
@@ -1355,9 +1041,9 @@ def _with_adequacy(prob, res, V, A_final, options):
     def refit(model):
         # closed-form sensitivities where the model has them, else central differences (as the
         # diagnosis's fits): a refit starts near its optimum and needs no settled Eq. 26 columns
-        opts = {**options, "adequacy": False, "check": False, "sensitivity": "analytic"}
+        refit_opts = FitOptions.of(opts, adequacy=False, check=False, sensitivity="analytic")
         with recording(reemit=False):  # the refits' warnings belong to them, not to this fit
-            return _fit(prob.data, model, None, None, **opts)[0]
+            return _fit(prob.data, model, refit_opts, None)[0]
 
     # analytic sensitivities at the estimate do not depend on the settling tolerance, so the last ones
     # serve the check too

@@ -62,6 +62,8 @@ __all__ = [
 _METHODS = ("auto", "czt", "direct")
 #: Number of endpoint-corrected samples at each end, per end correction.
 _N_END = {"cubic": 4, "trapezoid": 1, "none": 0}
+#: The end corrections of the finite Fourier integral.
+END_CORRECTIONS = tuple(_N_END)
 #: Peak bytes of temporaries per chunk of the direct sums.
 _CHUNK_BYTES = 32 * 2**20
 #: "auto" uses the chirp-z path when n * n_omega reaches this.  Measured: both

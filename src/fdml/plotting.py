@@ -440,8 +440,9 @@ def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
     tr = result.time_records[record]
     mode = tr["trim_mode"]
     if trim_window is None:
-        trim_window = float(result.options.get("trim_window", 0.5))  # 0.5 s: fdml.fit's default, for old files
-    trimmed = raw.remove_trim(mode, window=trim_window) if mode != "none" else raw
+        trim_window = result.options.get("trim_window")  # the fit's (None: not a mean trim)
+    window = {} if trim_window is None else {"window": float(trim_window)}
+    trimmed = raw.remove_trim(mode, **window) if mode != "none" else raw
     trim = {k: float(raw[k][0] - trimmed[k][0]) for k in raw.signals}
     model = result.model
     nu = result.nuisance_values(record)  # the values the frequency-domain measurement model uses

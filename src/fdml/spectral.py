@@ -241,7 +241,7 @@ class FrequencyData:
         numpy.ndarray
             The expected power ``s_i``, shape (m,), in s^2 per unit noise variance.
         """
-        if self.n >= 16 and self.end_correction in ("cubic", "trapezoid", "none"):
+        if self.n >= 16 and self.end_correction in fourier.END_CORRECTIONS:
             # interior weights dt W e^{-j theta n}; the first K samples carry dt (W e^{-j theta k} + a_k)
             # and the last K the conjugate pattern, whose modulus is the same
             theta, W, a, _ = fourier._setup(self.n, self.dt, self.omega, self.end_correction)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import argparse
 
+from ..fit_options import command_line_options, parse_outputs
 from ._common import add_effect_argument, default_model, positive_int
 
 __all__ = [
@@ -234,107 +235,35 @@ def add_steady_option(p) -> None:
 
 
 # --- fit options -------------------------------------------------------------------------------
-_FIT_CHOICES = {
-    "boundary": ("estimated", "measured", "none"),
-    "biases": ("auto", "yes", "no"),
-    "trim": ("first", "mean", "none"),
-    "method": ("lm", "gauss-newton"),
-    "stop": ("converge", "paper"),
-    "cov_type": ("white", "colored", "naive"),
-    "sensitivity": ("auto", "analytic", "fd", "central"),
-}
-
-
 def add_fit_options(p, *, fix_free: bool = True) -> None:
-    """--outputs, --fix, --free, --boundary, --biases, --trim, --method, --stop, --cov-type,
-    --state-biases, --input-bias, --sensitivity (defaults: fdml.fit's)."""
+    """The fit options the command line shows (defaults: fdml.fit's), from :class:`fdml.fit_options.FitOptions`.
+
+    Each is ``--name`` (underscores as hyphens) with the table's help, choices and spellings;
+    ``fix_free=False`` leaves out the repeatable --fix and --free.
+    """
     g = p.add_argument_group("fit options (defaults: fdml.fit's)")
-    g.add_argument(
-        "--outputs",
-        metavar="NAME,...",
-        default=None,
-        help="outputs in the fit, comma-separated, each once (default alpha,q,az)",
-    )
-    if fix_free:
-        accumulating(g, "--fix", metavar="NAME=VALUE", help="fix parameters at values (repeatable)")
-        accumulating(g, "--free", metavar="NAME", help="free parameters (repeatable)")
-    g.add_argument(
-        "--boundary",
-        choices=_FIT_CHOICES["boundary"],
-        default=None,
-        help="boundary terms x(0) - x(T)exp(-jwT) (default estimated)",
-    )
-    g.add_argument(
-        "--biases",
-        choices=_FIT_CHOICES["biases"],
-        default=None,
-        help="estimate output biases (default auto: when trim is removed)",
-    )
-    g.add_argument(
-        "--trim", choices=_FIT_CHOICES["trim"], default=None, help="trim removal (default first: the first sample)"
-    )
-    g.add_argument(
-        "--method",
-        choices=_FIT_CHOICES["method"],
-        default=None,
-        help="Levenberg-Marquardt (default lm) or the paper's alternation",
-    )
-    g.add_argument(
-        "--stop",
-        choices=_FIT_CHOICES["stop"],
-        default=None,
-        help="run to convergence (default) or the paper's 1 %% rule",
-    )
-    g.add_argument(
-        "--cov-type",
-        choices=_FIT_CHOICES["cov_type"],
-        default=None,
-        help="error bounds: white noise (default), colored (the noise level follows the residual "
-        "spectrum; recommended on real records) or naive",
-    )
-    g.add_argument(
-        "--state-biases",
-        action="store_true",
-        default=None,
-        help="estimate constant biases of the two state equations per record (a trim that is not an equilibrium)",
-    )
-    g.add_argument(
-        "--input-bias",
-        action="store_true",
-        default=None,
-        help="estimate a constant elevator offset per record (an elevator trim error)",
-    )
-    g.add_argument(
-        "--sensitivity",
-        choices=_FIT_CHOICES["sensitivity"],
-        default=None,
-        help="output sensitivities (default auto: analytic where closed forms exist, else Eq. 26)",
-    )
+    for o in command_line_options():
+        if o["repeat"]:
+            if fix_free:
+                accumulating(g, o["flag"], metavar=o["metavar"], help=o["help"])
+        elif o["switch"]:
+            g.add_argument(o["flag"], action="store_true", default=None, help=o["help"])
+        else:
+            extra = {"metavar": o["metavar"]} if "metavar" in o else {}
+            g.add_argument(o["flag"], choices=o["choices"], default=None, help=o["help"], **extra)
 
 
 def fit_kwargs(args) -> dict:
-    """Keyword arguments of :func:`fdml.fit` from the fit options given (None: the library's default)."""
-    out = {}
-    for name in (
-        "outputs",
-        "boundary",
-        "trim",
-        "method",
-        "stop",
-        "cov_type",
-        "sensitivity",
-        "state_biases",
-        "input_bias",
-    ):
-        v = getattr(args, name, None)
-        if v is not None:
-            out[name] = v
-    b = getattr(args, "biases", None)
-    if b is not None:
-        out["biases"] = {"auto": "auto", "yes": True, "no": False}[b]
-    if out.get("outputs") is not None:
-        from ..estimate import parse_outputs
+    """Keyword arguments of :func:`fdml.fit` from the fit options given (None: the library's default).
 
+    --fix and --free are the commands' own (they change the model); the others map one to one.
+    """
+    out = {}
+    for o in command_line_options():
+        v = getattr(args, o["name"], None)
+        if v is not None and not o["repeat"]:
+            out[o["name"]] = o["values"].get(v, v)
+    if out.get("outputs") is not None:
         out["outputs"] = ",".join(parse_outputs(out["outputs"], what="--outputs"))
     return out
 
