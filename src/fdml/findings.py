@@ -11,11 +11,11 @@ command loses them; ``--strict`` turns the data findings into errors
 from __future__ import annotations
 
 import warnings
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 from .errors import DataCheckError, DataWarning
-from .jsoncodec import Fields
+from .jsoncodec import Codec, text
 
 __all__ = ["Finding", "emit", "raise_if_strict", "KINDS"]
 
@@ -27,7 +27,7 @@ KINDS = ("data", "estimation")
 
 
 @dataclass(frozen=True)
-class Finding:
+class Finding(Codec):
     """One finding of a check.
 
     Parameters
@@ -53,6 +53,9 @@ class Finding:
     value: float | None = None
     expected: float | None = None
 
+    json_fields = {"kind": text(choices=KINDS)}
+    json_source = "finding"
+
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise ValueError(f"finding kind must be one of {KINDS}, got {self.kind!r}")
@@ -60,73 +63,6 @@ class Finding:
     def __str__(self) -> str:
         where = f"{self.record}: " if self.record else ""
         return f"[{self.code}] {where}{self.message}"
-
-    def to_dict(self) -> dict:
-        """JSON-ready dict (non-finite numbers as strings).
-
-        Returns
-        -------
-        dict
-            The fields by name; ``value`` and ``expected`` as float, ``None``
-            or the string of a non-finite number.
-        """
-        import math
-
-        def num(x):
-            if x is None:
-                return None
-            x = float(x)
-            return x if math.isfinite(x) else str(x)
-
-        return {
-            "code": self.code,
-            "message": self.message,
-            "kind": self.kind,
-            "record": self.record,
-            "value": num(self.value),
-            "expected": num(self.expected),
-        }
-
-    @classmethod
-    def from_fields(cls, f: Fields) -> "Finding":
-        """Inverse of :meth:`to_dict` from the fields of a JSON object, every key checked.
-
-        Parameters
-        ----------
-        f : fdml.jsoncodec.Fields
-            The fields of the finding (``kind`` defaults to ``"data"``).
-
-        Returns
-        -------
-        Finding
-            The finding.
-        """
-        return cls(
-            code=f.string("code"),
-            message=f.string("message"),
-            kind=f.string("kind", default="data", choices=KINDS),
-            record=f.string("record", default=None, allow_none=True),
-            value=f.number("value", default=None, allow_none=True),
-            expected=f.number("expected", default=None, allow_none=True),
-        )
-
-    @classmethod
-    def from_dict(cls, d: Mapping, *, source: str = "finding") -> "Finding":
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : Mapping
-            A dict as :meth:`to_dict` writes it (``kind`` defaults to ``"data"``).
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        Finding
-            The finding.
-        """
-        return cls.from_fields(Fields(d, source))
 
 
 def emit(findings: Iterable[Finding], stacklevel: int = 2) -> None:

@@ -25,13 +25,15 @@ Reading
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
 import stat
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
 from pathlib import Path, PurePath
-from typing import Any, Literal, overload
+from typing import Any, ClassVar, Literal, cast, overload
 
 import numpy as np
 
@@ -47,6 +49,25 @@ __all__ = [
     "float_array",
     "complex_array",
     "Fields",
+    "Codec",
+    "Spec",
+    "SKIP",
+    "boolean",
+    "choice",
+    "complexes",
+    "floats",
+    "integer",
+    "mapping",
+    "nested",
+    "nested_list",
+    "number",
+    "number_map",
+    "numbers",
+    "pairs",
+    "renamed",
+    "specs",
+    "text",
+    "texts",
 ]
 
 #: Strings that stand for non-finite floats (lower case; ``str(float)`` and JavaScript spellings).
@@ -934,3 +955,418 @@ class Fields:
             None if (x is None and allow_none) else Fields(x, self.source, f"{self.name(key)}[{i}].")
             for i, x in enumerate(v)
         ]
+
+
+# --- the declarative codec ----------------------------------------------------------------------
+@dataclass(frozen=True)
+class Spec:
+    """How one dataclass field is written to JSON and read back (see :class:`Codec`).
+
+    Parameters
+    ----------
+    read : callable
+        ``read(f, key, done) -> value``: the value at ``key`` of the :class:`Fields` ``f``;
+        ``done`` holds the fields read so far (for shapes that follow another field).
+    write : callable, optional
+        ``write(value) -> JSON data`` (None: the value as it is, for :func:`to_jsonable`).
+    key : str, optional
+        The JSON key, when it is not the field's name (a key kept for old files).
+    """
+
+    read: Callable
+    write: Callable | None = None
+    key: str | None = None
+
+
+#: A field that is not written (a cache, a back reference); it gets its default when read.
+SKIP = Spec(read=lambda f, key, done: None)
+
+
+def _dims(shape, done) -> tuple | None:
+    """A shape whose entries may name an earlier field (its length)."""
+    if shape is None:
+        return None
+    return tuple(len(done[s]) if isinstance(s, str) else s for s in shape)
+
+
+def text(choices=None, none: bool = False) -> Spec:
+    """A string, one of ``choices`` when given (null allowed with ``none``).
+
+    Parameters
+    ----------
+    choices : collection of str, optional
+        The allowed values.
+    none : bool, optional
+        Accept null (None).
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: f.string(k, choices=choices, allow_none=none))
+
+
+def number(none: bool = False) -> Spec:
+    """A number (non-finite ones as the strings ``"nan"``, ``"inf"``), null allowed with ``none``.
+
+    Parameters
+    ----------
+    none : bool, optional
+        Accept null (None).
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: f.number(k, allow_none=none))
+
+
+def integer(minimum: int | None = None) -> Spec:
+    """An integer, at least ``minimum`` when given.
+
+    Parameters
+    ----------
+    minimum : int, optional
+        The smallest value allowed.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: f.integer(k, minimum=minimum))
+
+
+def boolean() -> Spec:
+    """True or false.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: f.boolean(k))
+
+
+def choice(enum) -> Spec:
+    """A member of the enumeration ``enum``, written as its value (a string).
+
+    Parameters
+    ----------
+    enum : type
+        An :class:`enum.Enum` of string values.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    values = tuple(m.value for m in enum)
+    return Spec(lambda f, k, done: enum(f.string(k, choices=values)), write=lambda m: m.value)
+
+
+def texts(choices=None, length: int | None = None) -> Spec:
+    """A list of strings, read as a tuple.
+
+    Parameters
+    ----------
+    choices : collection of str, optional
+        The allowed values.
+    length : int, optional
+        The required number of entries.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: f.strings(k, choices=choices, length=length))
+
+
+def numbers(length: int | None = None, none: bool = False) -> Spec:
+    """A list of numbers, read as a tuple of floats (null for the whole list with ``none``).
+
+    Parameters
+    ----------
+    length : int, optional
+        The required number of entries.
+    none : bool, optional
+        Accept null (None).
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+
+    def read(f, k, done):
+        return None if none and f.raw(k) is None else f.numbers(k, length=length)
+
+    return Spec(read)
+
+
+def floats(*shape, nulls: bool = False) -> Spec:
+    """A float array; ``shape`` entries are lengths, None (any) or the name of an earlier field (its length).
+
+    Parameters
+    ----------
+    *shape : int, None or str
+        The expected shape; none given: any shape.
+    nulls : bool, optional
+        Read null entries as NaN.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: f.floats(k, _dims(shape or None, done), nulls=nulls))
+
+
+def complexes(*shape) -> Spec:
+    """A complex array written as ``{"re", "im"}`` (``shape`` as for :func:`floats`).
+
+    Parameters
+    ----------
+    *shape : int, None or str
+        The expected shape; none given: any shape.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: f.complexes(k, _dims(shape or None, done)))
+
+
+def pairs() -> Spec:
+    """A list of number pairs, read as a tuple of float tuples.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+
+    def read(f, k, done):
+        if f.raw(k) == []:
+            return ()
+        return tuple(map(tuple, f.floats(k, (None, 2)).tolist()))
+
+    return Spec(read)
+
+
+def mapping() -> Spec:
+    """A JSON object, read as a dict as it is.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: f.mapping(k))
+
+
+def number_map() -> Spec:
+    """A JSON object of numbers, read as ``{name: float}``.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: f.number_map(k))
+
+
+def nested(kind, none: bool = False) -> Spec:
+    """An object of a class with ``from_fields`` (a :class:`Codec`), null allowed with ``none``.
+
+    Parameters
+    ----------
+    kind : type
+        The class.
+    none : bool, optional
+        Accept null (None).
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+
+    def read(f, k, done):
+        return None if none and f.raw(k) is None else kind.from_fields(f.sub(k))
+
+    return Spec(read)
+
+
+def nested_list(kind) -> Spec:
+    """A list of objects of a class with ``from_fields``, read as a tuple.
+
+    Parameters
+    ----------
+    kind : type
+        The class.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: tuple(kind.from_fields(x) for x in f.items(k)))
+
+
+def renamed(spec: Spec, key: str) -> Spec:
+    """``spec`` under another JSON key (kept for files written before a field was renamed).
+
+    Parameters
+    ----------
+    spec : Spec
+        The field's spec.
+    key : str
+        The key in the file.
+
+    Returns
+    -------
+    Spec
+        The spec, renamed.
+    """
+    return replace(spec, key=key)
+
+
+#: Field annotations (as written, ``from __future__ import annotations``) and the spec each gets.
+_BY_ANNOTATION = {
+    "str": text,
+    "str | None": lambda: text(none=True),
+    "float": number,
+    "float | None": lambda: number(none=True),
+    "int": integer,
+    "bool": boolean,
+    "tuple[str, ...]": texts,
+    "np.ndarray": floats,
+    "dict": mapping,
+    "Mapping": mapping,
+}
+
+
+def specs(kind: Any) -> dict[str, Spec]:
+    """The spec of every field of the dataclass ``kind``: its ``json_fields`` entry, else by its annotation.
+
+    Parameters
+    ----------
+    kind : type
+        A dataclass deriving from :class:`Codec`.
+
+    Returns
+    -------
+    dict of str to Spec
+        Field name -> spec, in field order.
+
+    Raises
+    ------
+    TypeError
+        A field with neither an entry nor a known annotation (the class must say how to read it).
+    """
+    own = dict(getattr(kind, "json_fields", {}))
+    out = {}
+    for fld in dataclasses.fields(kind):
+        if fld.name in own:
+            out[fld.name] = own[fld.name]
+            continue
+        make = _BY_ANNOTATION.get(str(fld.type))
+        if make is None:
+            raise TypeError(
+                f"{kind.__name__}.{fld.name}: annotation {fld.type!r} has no JSON spec; add it to json_fields"
+            )
+        out[fld.name] = make()
+    return out
+
+
+def _has_default(fld) -> bool:
+    return fld.default is not dataclasses.MISSING or fld.default_factory is not dataclasses.MISSING
+
+
+class Codec:
+    """``to_dict``, ``from_dict`` and ``from_fields`` derived from a frozen dataclass's fields.
+
+    A field is written under its name (or its spec's ``key``) as :func:`to_jsonable` writes its
+    value, and read back with the reader its annotation calls for (``str``, ``float | None``,
+    ``tuple[str, ...]``, ``np.ndarray``, ...) or the class's ``json_fields`` entry (a
+    :class:`Spec`: shapes, choices, complex arrays, nested objects, renamed keys; :data:`SKIP`
+    for a field not written).  A key that is absent gets the field's default, if it has one;
+    every other problem is one :class:`~fdml.errors.FdmlError` line naming the source and the key.
+    A class sets ``json_source`` (how its JSON is named in messages by default) and may list
+    derived properties in ``json_extra`` (written, not read).
+    """
+
+    json_fields: ClassVar[Mapping[str, Spec]] = {}
+    json_extra: ClassVar[tuple[str, ...]] = ()
+    json_source: ClassVar[str] = "JSON object"
+
+    def to_dict(self) -> dict:
+        """The object as plain JSON data: every field (but the skipped ones) by name.
+
+        Returns
+        -------
+        dict
+            JSON-ready (:func:`to_jsonable`).
+        """
+        out = {}
+        for name, spec in specs(type(self)).items():
+            if spec is not SKIP:
+                value = getattr(self, name)
+                out[spec.key or name] = value if spec.write is None else spec.write(value)
+        for name in self.json_extra:
+            out[name] = getattr(self, name)
+        return to_jsonable(out)
+
+    @classmethod
+    def from_fields(cls, f: Fields, **given):
+        """Inverse of :meth:`to_dict` from the fields of a JSON object, every key checked.
+
+        Parameters
+        ----------
+        f : Fields
+            The object's fields.
+        **given
+            Field values the JSON does not hold (the container's: a name, an input).
+
+        Returns
+        -------
+        object
+            An instance of the class.
+        """
+        done = dict(given)
+        fields_ = {fld.name: fld for fld in dataclasses.fields(cast(Any, cls))}
+        for name, spec in specs(cls).items():
+            key = spec.key or name
+            if name in given or spec is SKIP or (key not in f and _has_default(fields_[name])):
+                continue
+            done[name] = spec.read(f, key, done)
+        try:
+            return cls(**done)
+        except (TypeError, ValueError) as exc:
+            where = f"key '{f.prefix.rstrip('.')}'" if f.prefix else "the object"
+            raise FdmlError(f"{f.source}: {where} does not describe a {cls.__name__}: {exc}") from None
+
+    @classmethod
+    def from_dict(cls, d, *, source: str | None = None, **given):
+        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
+
+        Parameters
+        ----------
+        d : dict
+            As written by :meth:`to_dict`.
+        source : str, optional
+            What ``d`` came from, for the message (default the class's ``json_source``).
+        **given
+            Field values the JSON does not hold.
+
+        Returns
+        -------
+        object
+            An instance of the class.
+        """
+        return cls.from_fields(Fields(d, cls.json_source if source is None else source), **given)

@@ -15,6 +15,7 @@ from enum import Enum
 import numpy as np
 
 from .errors import ParameterError
+from .jsoncodec import SKIP, Codec, choice
 
 __all__ = ["NUISANCE_ROLES", "Parameter", "Parameters", "Role", "Slot", "as_names", "check_fix_free"]
 
@@ -51,7 +52,7 @@ NUISANCE_ROLES = frozenset({Role.OUTPUT_BIAS, Role.STATE_BIAS, Role.INPUT_BIAS, 
 
 
 @dataclass(frozen=True)
-class Slot:
+class Slot(Codec):
     """One estimated quantity of a fit, typed: what it is and which record it belongs to.
 
     Parameters
@@ -73,59 +74,28 @@ class Slot:
     role: Role
     record: str | None = None
 
-    def to_dict(self) -> dict:
-        """``{"base", "role", "record"}`` for JSON (the name is the result's).
-
-        Returns
-        -------
-        dict
-            The base name, the role's JSON form and the record.
-        """
-        return {"base": self.base, "role": self.role.value, "record": self.record}
+    json_fields = {"name": SKIP, "role": choice(Role)}  # the name is the result's (its container's)
+    json_source = "slot"
 
     @classmethod
-    def from_fields(cls, f, name: str | None = None) -> "Slot":
-        """Inverse of :meth:`to_dict` from the fields of a JSON object, every key checked.
+    def from_fields(cls, f, name: str | None = None, **given) -> "Slot":
+        """Inverse of :meth:`to_dict` from the fields of ``{"base", "role", "record"}``, every key checked.
 
         Parameters
         ----------
         f : fdml.jsoncodec.Fields
-            The fields of ``{"base", "role", "record"}``.
+            The fields of the JSON object.
         name : str, optional
             The estimate's name in its result (default: the base name, as in a fit of one record).
+        **given
+            Other field values (none: every other one is in the JSON).
 
         Returns
         -------
         Slot
             The slot.
         """
-        base = f.string("base")
-        role = Role(f.string("role", choices=tuple(r.value for r in Role)))
-        return cls(base if name is None else name, base, role, f.string("record", default=None, allow_none=True))
-
-    @classmethod
-    def from_dict(cls, d, *, name: str | None = None, source: str = "slot") -> "Slot":
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        :meth:`to_dict` leaves the name to the result that holds the slot, so it is given here.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        name : str, optional
-            The estimate's name in its result (default: the base name, as in a fit of one record).
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        Slot
-            The slot.
-        """
-        from .jsoncodec import Fields
-
-        return cls.from_fields(Fields(d, source), name)
+        return super().from_fields(f, name=f.string("base") if name is None else name, **given)
 
 
 @dataclass(frozen=True)

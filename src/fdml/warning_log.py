@@ -16,13 +16,13 @@ from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
-from .jsoncodec import Fields
+from .jsoncodec import Codec
 
 __all__ = ["RecordedWarning", "recording", "as_recorded", "merged"]
 
 
 @dataclass(frozen=True)
-class RecordedWarning:
+class RecordedWarning(Codec):
     """One warning, as kept in a result.
 
     Parameters
@@ -36,52 +36,10 @@ class RecordedWarning:
     category: str
     message: str
 
+    json_source = "recorded warning"
+
     def __str__(self) -> str:
         return f"{self.category}: {self.message}"
-
-    def to_dict(self) -> dict[str, str]:
-        """The warning as a JSON-ready dict.
-
-        Returns
-        -------
-        dict of str to str
-            ``{"category": ..., "message": ...}``.
-        """
-        return {"category": self.category, "message": self.message}
-
-    @classmethod
-    def from_fields(cls, f: Fields) -> RecordedWarning:
-        """Inverse of :meth:`to_dict` from the fields of a JSON object, every key checked.
-
-        Parameters
-        ----------
-        f : fdml.jsoncodec.Fields
-            The fields of ``{"category": ..., "message": ...}``.
-
-        Returns
-        -------
-        RecordedWarning
-            The warning.
-        """
-        return cls(f.string("category"), f.string("message"))
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "recorded warning") -> RecordedWarning:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        RecordedWarning
-            The warning.
-        """
-        return cls.from_fields(Fields(d, source))
 
     @classmethod
     def from_value(cls, value) -> RecordedWarning:
