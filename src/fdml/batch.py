@@ -49,6 +49,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .errors import FdmlError
+from .jsoncodec import Codec, Spec, integer, mapping, number_map, renamed, texts
 from .jsoncodec import dumps as _dumps
 from .jsoncodec import loads as _loads
 from .outputs import atomic_open, atomic_write_text
@@ -83,8 +84,26 @@ _GLOB_CHARS = re.compile(r"[*?\[]")
 
 
 # --- the model specification ----------------------------------------------------------------
+def _aircraft_field(f, key: str, done: dict):
+    """A model spec's aircraft: a preset name, a file, an aircraft object or null."""
+    ac = f.raw(key)
+    if ac is not None and not isinstance(ac, (str, Mapping)):
+        raise f.error(key, "must be a preset name, a file or an aircraft object")
+    return f.mapping(key) if isinstance(ac, Mapping) else ac
+
+
+def _fix_field(f, key: str, done: dict):
+    """Parameters to fix: ``{name: value}`` or a list of names."""
+    return f.number_map(key) if isinstance(f.raw(key), Mapping) else list(f.strings(key))
+
+
+def _parameters_field(f, key: str, done: dict):
+    """A whole parameter set (a list of parameter objects) or null."""
+    return None if f.raw(key) is None else [dict(p.doc) for p in f.items(key)]
+
+
 @dataclass(frozen=True)
-class ModelSpec:
+class ModelSpec(Codec):
     """A picklable description of a model, rebuilt in every worker.
 
     Parameters
@@ -122,6 +141,17 @@ class ModelSpec:
     free: Sequence = ()
     parameters: Sequence | None = None
     effects: Sequence = ()
+
+    json_fields = {
+        "aircraft": Spec(_aircraft_field),
+        "options": mapping(),
+        "values": number_map(),
+        "fix": Spec(_fix_field),
+        "free": texts(),
+        "parameters": Spec(_parameters_field),
+        "effects": texts(),
+    }
+    json_source = "model spec"
 
     @classmethod
     def from_model(cls, model) -> "ModelSpec":
@@ -210,60 +240,6 @@ class ModelSpec:
             free=as_names(self.free, "free"),
             parameters=None if self.parameters is None else [dict(p) for p in self.parameters],
             effects=_effect_keys(self.effects),
-        )
-
-    def to_dict(self) -> dict:
-        """JSON-ready dict (call on a :meth:`normalized` spec).
-
-        Returns
-        -------
-        dict
-            The fields by name.
-        """
-        return {
-            "kind": self.kind,
-            "aircraft": self.aircraft,
-            "options": dict(self.options),
-            "values": dict(self.values),
-            "fix": self.fix if isinstance(self.fix, Mapping) else list(self.fix),
-            "free": list(self.free),
-            "parameters": self.parameters,
-            "effects": list(self.effects),
-        }
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "model spec") -> "ModelSpec":
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        ModelSpec
-            The specification, containers as :meth:`normalized` makes them.
-        """
-        from .jsoncodec import Fields
-
-        f = Fields(d, source)
-        ac = f.raw("aircraft")
-        if ac is not None and not isinstance(ac, (str, Mapping)):
-            raise f.error("aircraft", "must be a preset name, a file or an aircraft object")
-        params = f.items("parameters", allow_none=False) if f.raw("parameters") is not None else None
-        fix = f.number_map("fix") if isinstance(f.raw("fix"), Mapping) else list(f.strings("fix"))
-        return cls(
-            kind=f.string("kind"),
-            aircraft=f.mapping("aircraft") if isinstance(ac, Mapping) else ac,
-            options=f.mapping("options"),
-            values=f.number_map("values"),
-            fix=fix,
-            free=list(f.strings("free")),
-            parameters=None if params is None else [dict(p.doc) for p in params],
-            effects=list(f.strings("effects")),
         )
 
     @property
@@ -783,7 +759,7 @@ def _write_error(task, row, exc, err_path: Path, res_path: Path, input_hash, t_s
 
 # --- summary ----------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class BatchSummary:
+class BatchSummary(Codec):
     """What :func:`run_batch` did.
 
     The rows themselves stay on disk (memory flat in the number of records);
@@ -826,6 +802,14 @@ class BatchSummary:
     findings: dict = field(default_factory=dict)
     warnings: dict = field(default_factory=dict)
 
+    json_fields = {
+        "n_total": renamed(integer(0), "records"),  # the short names of ``fdml batch --json``
+        "n_fitted": renamed(integer(0), "fitted"),
+        "n_reused": renamed(integer(0), "reused"),
+        "n_failed": renamed(integer(0), "failed"),
+    }
+    json_source = "fdml batch summary"
+
     @functools.cached_property
     def rows(self) -> list[dict]:
         """One row per record, in source order, as in ``table.json``."""
@@ -840,64 +824,6 @@ class BatchSummary:
     def failed(self) -> list[dict]:
         """Rows of the records that failed."""
         return [r for r in self.rows if r["status"] != "ok"]
-
-    def to_dict(self) -> dict:
-        """Short JSON form (``fdml batch --json``).
-
-        Returns
-        -------
-        dict
-            Counts, wall time, engine, table paths, errors, findings and warnings.
-        """
-        return {
-            "out_dir": str(self.out_dir),
-            "records": self.n_total,
-            "fitted": self.n_fitted,
-            "reused": self.n_reused,
-            "failed": self.n_failed,
-            "wall_time": self.wall_time,
-            "engine": self.engine,
-            "table_csv": str(self.table_csv),
-            "table_json": str(self.table_json),
-            "errors": dict(self.errors),
-            "findings": dict(self.findings),
-            "warnings": dict(self.warnings),
-        }
-
-    @classmethod
-    def from_dict(cls, d: Mapping, *, source: str = "fdml batch summary") -> "BatchSummary":
-        """Inverse of :meth:`to_dict`; a key missing or of the wrong type raises :class:`FdmlError`.
-
-        Parameters
-        ----------
-        d : mapping
-            A dict as written by :meth:`to_dict`.
-        source : str, optional
-            What and where, for the messages.
-
-        Returns
-        -------
-        BatchSummary
-            The summary.
-        """
-        from .jsoncodec import Fields
-
-        f = Fields(d, source)
-        n_total, n_fitted = f.integer("records", minimum=0), f.integer("fitted", minimum=0)
-        return cls(
-            out_dir=Path(f.string("out_dir")),
-            table_csv=Path(f.string("table_csv")),
-            table_json=Path(f.string("table_json")),
-            n_total=n_total,
-            n_fitted=n_fitted,
-            n_reused=f.integer("reused", minimum=0),
-            n_failed=f.integer("failed", minimum=0),
-            errors=f.mapping("errors"),
-            wall_time=f.number("wall_time"),
-            engine=f.string("engine"),
-            findings=f.mapping("findings", default={}),
-            warnings=f.mapping("warnings", default={}),
-        )
 
     def to_frame(self):
         """The table as a pandas DataFrame (pandas is optional).

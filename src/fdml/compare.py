@@ -22,6 +22,8 @@ import numpy as np
 from .aircraft import Aircraft, lag_provenance, load_aircraft
 from .errors import FdmlError
 from .estimate import fit
+from .jsoncodec import Codec
+from .jsoncodec import text as choose
 from .models import make_model
 from .models.wells_keskar import ALTERNATE_NAMES
 from .results import FitResult
@@ -103,7 +105,7 @@ def _long_run_variance(d: np.ndarray, span: int) -> float:
 
 
 @dataclass(frozen=True)
-class Evidence:
+class Evidence(Codec):
     """Which model the data favour: Vuong's test on per-frequency log-likelihoods.
 
     Parameters
@@ -138,48 +140,8 @@ class Evidence:
     distance: float = math.nan
     method: str = "Vuong (1989) non-nested test, Newey-West variance over the frequency correlation span"
 
-    def to_dict(self) -> dict:
-        """JSON-ready dict of every field.
-
-        Returns
-        -------
-        dict
-            ``{field name: value}``.
-        """
-        return {k: getattr(self, k) for k in self.__dataclass_fields__}
-
-    @classmethod
-    def from_dict(cls, d: dict, source: str = "comparison evidence") -> "Evidence":
-        """Inverse of :meth:`to_dict`; a bad key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        Evidence
-            The evidence ``d`` describes.
-        """
-        from .jsoncodec import Fields
-
-        f = Fields(d, source)
-        favoured = f.raw("favoured")
-        if favoured not in ("steady", "unsteady", "neither"):
-            raise f.error("favoured", f"must be steady, unsteady or neither, got {favoured!r}")
-        return cls(
-            statistic=f.number("statistic"),
-            p_value=f.number("p_value"),
-            favoured=favoured,
-            level=f.number("level", EVIDENCE_LEVEL),
-            n_freq=f.integer("n_freq", 0),
-            span=f.integer("span", 1),
-            distance=f.number("distance", math.nan),
-            method=str(f.raw("method", cls.method)),
-        )
+    json_fields = {"favoured": choose(("steady", "unsteady", "neither"))}
+    json_source = "comparison evidence"
 
     def text(self) -> str:
         """One paragraph: statistic, p-value, the verdict and, for "neither", the distance.
@@ -453,7 +415,7 @@ class Comparison:
         return cls(
             steady=FitResult.from_dict(f.raw("steady"), source=f"{source}: steady"),
             unsteady=FitResult.from_dict(f.raw("unsteady"), source=f"{source}: unsteady"),
-            evidence=None if ev is None else Evidence.from_dict(ev, f"{source}: evidence"),
+            evidence=None if ev is None else Evidence.from_dict(ev, source=f"{source}: evidence"),
         )
 
     def plot(self, *, record: int = 0, fig=None):

@@ -50,7 +50,7 @@ import numpy as np
 from .channels import OUTPUTS, REQUIRED, SIGNALS
 from .constants import G0
 from .findings import Finding
-from .jsoncodec import Fields
+from .jsoncodec import Codec, nested, nested_list, number_map, numbers, texts
 from .record import Record
 
 __all__ = [
@@ -110,7 +110,7 @@ PHUGOID_BAND_FACTOR = 3.0
 
 
 @dataclass(frozen=True)
-class KinematicFit:
+class KinematicFit(Codec):
     """The regression ``j w alpha = a q + b a_z + nuisance`` on a record's spectra.
 
     Parameters
@@ -141,6 +141,10 @@ class KinematicFit:
     fit_labelled: float
     scales: tuple = (1.0, 1.0, 1.0)
 
+    json_fields = {"order": texts(length=3), "scales": numbers(3)}
+    json_extra = ("implied_airspeed",)  # written for readers of the file; derived from the slope, not read
+    json_source = "kinematic fit"
+
     @property
     def implied_airspeed(self) -> float:
         """The airspeed the a_z slope implies (as labelled), g / slope_az, m/s."""
@@ -148,7 +152,7 @@ class KinematicFit:
 
 
 @dataclass(frozen=True)
-class DataCheck:
+class DataCheck(Codec):
     """Outcome of :func:`check_data` for one record.
 
     Parameters
@@ -175,84 +179,17 @@ class DataCheck:
     threshold: float = math.nan
     elapsed: float = 0.0
 
+    json_fields = {
+        "findings": nested_list(Finding),
+        "kinematics": nested(KinematicFit, none=True),
+        "coherent_fraction": number_map(),
+    }
+    json_source = "data check"
+
     @property
     def codes(self) -> tuple:
         """The findings' codes."""
         return tuple(f.code for f in self.findings)
-
-    def to_dict(self) -> dict:
-        """JSON-ready dict.
-
-        Returns
-        -------
-        dict
-            Every field by name; the findings and the kinematic fit as dicts.
-        """
-        k = self.kinematics
-        kin = (
-            None
-            if k is None
-            else {
-                "order": list(k.order),
-                "slope_q": k.slope_q,
-                "slope_az": k.slope_az,
-                "expected_az": k.expected_az,
-                "fit": k.fit,
-                "fit_labelled": k.fit_labelled,
-                "scales": list(k.scales),
-                "implied_airspeed": k.implied_airspeed,
-            }
-        )
-        return {
-            "record": self.record,
-            "findings": [f.to_dict() for f in self.findings],
-            "kinematics": kin,
-            "coherent_fraction": dict(self.coherent_fraction),
-            "threshold": self.threshold,
-            "elapsed": self.elapsed,
-        }
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "data check") -> DataCheck:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        The kinematic fit's ``implied_airspeed`` is derived from its slope and not read.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        DataCheck
-            The data check.
-        """
-        f = Fields(d, source)
-        k = f.sub("kinematics") if f.raw("kinematics") is not None else None
-        kin = (
-            None
-            if k is None
-            else KinematicFit(
-                order=k.strings("order", length=3),
-                slope_q=k.number("slope_q"),
-                slope_az=k.number("slope_az"),
-                expected_az=k.number("expected_az", allow_none=True),
-                fit=k.number("fit"),
-                fit_labelled=k.number("fit_labelled"),
-                scales=k.numbers("scales", length=3),
-            )
-        )
-        return cls(
-            record=f.string("record"),
-            findings=tuple(Finding.from_fields(x) for x in f.items("findings")),
-            kinematics=kin,
-            coherent_fraction=f.number_map("coherent_fraction"),
-            threshold=f.number("threshold"),
-            elapsed=f.number("elapsed"),
-        )
 
     def summary(self) -> str:
         """A few lines for the terminal.

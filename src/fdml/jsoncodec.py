@@ -64,6 +64,7 @@ __all__ = [
     "number_map",
     "numbers",
     "pairs",
+    "path",
     "renamed",
     "specs",
     "text",
@@ -1158,6 +1159,17 @@ def pairs() -> Spec:
     return Spec(read)
 
 
+def path() -> Spec:
+    """A file system path, written as its string.
+
+    Returns
+    -------
+    Spec
+        The field's spec.
+    """
+    return Spec(lambda f, k, done: Path(f.string(k)))
+
+
 def mapping() -> Spec:
     """A JSON object, read as a dict as it is.
 
@@ -1248,6 +1260,7 @@ _BY_ANNOTATION = {
     "np.ndarray": floats,
     "dict": mapping,
     "Mapping": mapping,
+    "Path": path,
 }
 
 

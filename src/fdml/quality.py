@@ -25,7 +25,7 @@ import numpy as np
 
 from .channels import OUTPUTS, SIGNALS
 from .errors import BandError, RecordError
-from .jsoncodec import Fields
+from .jsoncodec import Codec, Spec, floats, integer, nested_list, numbers, pairs, texts
 from .record import Record
 
 __all__ = ["check_quality", "QualityReport", "ChannelQuality", "LOW_INPUT_DB", "GOOD_COHERENCE"]
@@ -61,7 +61,7 @@ DEFAULT_N_PARAMS = 13
 
 
 @dataclass(frozen=True)
-class ChannelQuality:
+class ChannelQuality(Codec):
     """Findings for one channel.
 
     Parameters
@@ -105,49 +105,19 @@ class ChannelQuality:
     clipped: tuple = ()
     flags: tuple = ()
 
-    def to_dict(self) -> dict:
-        """The channel's quality figures as plain JSON data.
+    json_fields = {"n_levels": integer(0), "holds": pairs(), "clipped": texts(("max", "min")), "flags": texts()}
+    json_source = "channel quality"
 
-        Returns
-        -------
-        dict
-            Every field by name, tuples as lists.
-        """
-        return {
-            "name": self.name,
-            "unit": self.unit,
-            "resolution": self.resolution,
-            "n_levels": self.n_levels,
-            "change_rate": self.change_rate,
-            "repeat_fraction": self.repeat_fraction,
-            "holds": [list(h) for h in self.holds],
-            "flat_max": self.flat_max,
-            "flat_min": self.flat_min,
-            "clipped": list(self.clipped),
-            "flags": list(self.flags),
-        }
 
-    @classmethod
-    def from_dict(cls, d, *, source: str = "channel quality") -> ChannelQuality:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        ChannelQuality
-            The channel's quality figures.
-        """
-        return _channel_from(Fields(d, source))
+def _coherence_field(f, key: str, done: dict) -> dict:
+    """The coherence estimates by output, each on the report's ``coherence_omega``."""
+    m = f.floats("coherence_omega", (None,)).size
+    sub = f.sub(key)
+    return {k: sub.floats(k, (m,)) for k in sub.doc}
 
 
 @dataclass(frozen=True)
-class QualityReport:
+class QualityReport(Codec):
     """What :func:`check_quality` found.  Frozen; print :meth:`summary`.
 
     Parameters
@@ -219,6 +189,21 @@ class QualityReport:
     sufficient: bool
     findings: tuple = field(default=())
 
+    json_fields = {
+        "n": integer(0),
+        "channels": nested_list(ChannelQuality),
+        "band": numbers(3),
+        "omega": floats(None),
+        "input_db": floats("omega"),
+        "low_input": pairs(),
+        "coherence": Spec(_coherence_field),
+        "coherence_omega": floats(None),
+        "required_frequencies": integer(0),
+        "n_params": integer(0),
+        "findings": texts(),
+    }
+    json_source = "quality report"
+
     def channel(self, name: str) -> ChannelQuality:
         """The report of channel ``name`` (KeyError if there is none).
 
@@ -278,110 +263,6 @@ class QualityReport:
         out.append("Findings:")
         out.extend(f"  - {f}" for f in self.findings)
         return "\n".join(out)
-
-    def to_dict(self) -> dict:
-        """JSON-safe dictionary of everything in the report.
-
-        Returns
-        -------
-        dict
-            Every field by name; arrays as lists.
-        """
-        return {
-            "name": self.name,
-            "n": self.n,
-            "dt": self.dt,
-            "duration": self.duration,
-            "jitter": self.jitter,
-            "channels": [c.to_dict() for c in self.channels],
-            "band": list(self.band),
-            "omega": self.omega.tolist(),
-            "input_db": _finite_list(self.input_db),
-            "input_energy_fraction": self.input_energy_fraction,
-            "low_input": [list(x) for x in self.low_input],
-            "coherence": {k: v.tolist() for k, v in self.coherence.items()},
-            "coherence_omega": self.coherence_omega.tolist(),
-            "coherence_method": self.coherence_method,
-            "coherence_threshold": self.coherence_threshold,
-            "independent_frequencies": self.independent_frequencies,
-            "useful_frequencies": self.useful_frequencies,
-            "required_frequencies": self.required_frequencies,
-            "n_params": self.n_params,
-            "sufficient": self.sufficient,
-            "findings": list(self.findings),
-        }
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "quality report") -> QualityReport:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        QualityReport
-            The report, arrays as float arrays.
-        """
-        f = Fields(d, source)
-        omega = f.floats("omega", (None,))
-        coh_w = f.floats("coherence_omega", (None,))
-        coh = f.sub("coherence")
-        return cls(
-            name=f.string("name"),
-            n=f.integer("n", minimum=0),
-            dt=f.number("dt"),
-            duration=f.number("duration"),
-            jitter=f.number("jitter"),
-            channels=tuple(_channel_from(c) for c in f.items("channels")),
-            band=f.numbers("band", length=3),
-            omega=omega,
-            input_db=f.floats("input_db", (omega.size,)),
-            input_energy_fraction=f.number("input_energy_fraction"),
-            low_input=_pairs(f, "low_input"),
-            coherence={k: coh.floats(k, (coh_w.size,)) for k in coh.doc},
-            coherence_omega=coh_w,
-            coherence_method=f.string("coherence_method"),
-            coherence_threshold=f.number("coherence_threshold"),
-            independent_frequencies=f.number("independent_frequencies"),
-            useful_frequencies=f.number("useful_frequencies"),
-            required_frequencies=f.integer("required_frequencies", minimum=0),
-            n_params=f.integer("n_params", minimum=0),
-            sufficient=f.boolean("sufficient"),
-            findings=f.strings("findings"),
-        )
-
-
-def _pairs(f: Fields, key: str) -> tuple:
-    """A list of number pairs as a tuple of float tuples (an empty list is no pair)."""
-    if f.raw(key) == []:
-        return ()
-    return tuple(map(tuple, f.floats(key, (None, 2)).tolist()))
-
-
-def _channel_from(f: Fields) -> ChannelQuality:
-    """A :class:`ChannelQuality` from the fields of its dict."""
-    return ChannelQuality(
-        name=f.string("name"),
-        unit=f.string("unit"),
-        resolution=f.number("resolution"),
-        n_levels=f.integer("n_levels", minimum=0),
-        change_rate=f.number("change_rate"),
-        repeat_fraction=f.number("repeat_fraction"),
-        holds=_pairs(f, "holds"),
-        flat_max=f.number("flat_max"),
-        flat_min=f.number("flat_min"),
-        clipped=f.strings("clipped", choices=("max", "min")),
-        flags=f.strings("flags"),
-    )
-
-
-def _finite_list(a):
-    return [float(x) if math.isfinite(x) else str(x) for x in np.asarray(a, float)]
 
 
 def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS, outputs=OUTPUTS) -> QualityReport:

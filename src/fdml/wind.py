@@ -48,7 +48,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from .errors import FdmlError, RecordError
-from .jsoncodec import Fields
+from .jsoncodec import SKIP, Codec, floats, text, texts
 from .record import Record
 
 __all__ = ["gust_angle", "GustEstimate", "DEFAULT_SMOOTH"]
@@ -65,7 +65,7 @@ DEFAULT_SMOOTH = 0.4
 
 
 @dataclass(frozen=True)
-class GustEstimate:
+class GustEstimate(Codec):
     """The vertical wind and gust angle along a record.
 
     Parameters
@@ -105,6 +105,16 @@ class GustEstimate:
     notes: tuple = ()
     _record: Record | None = field(default=None, repr=False, compare=False)
 
+    json_fields = {
+        "t": floats(None),
+        **{k: floats("t") for k in ("alpha_w", "w_wind", "gamma_k", "gamma_a")},
+        "source": text(("hdot", "altitude")),
+        "channels": texts(),
+        "notes": texts(),
+        "_record": SKIP,  # the input record is not written: :attr:`record` of an estimate read back refuses
+    }
+    json_source = "gust estimate"
+
     @property
     def record(self) -> Record:
         """The input record with ``alpha_w`` added (meta ``gust`` says how it was made)."""
@@ -142,61 +152,6 @@ class GustEstimate:
         ]
         lines += [f"  - {n}" for n in self.notes]
         return "\n".join(lines)
-
-    def to_dict(self) -> dict:
-        """The estimate's time histories and settings as plain JSON data.
-
-        Returns
-        -------
-        dict
-            Every public field by name, arrays as lists.
-        """
-        return {
-            "t": self.t.tolist(),
-            "alpha_w": self.alpha_w.tolist(),
-            "w_wind": self.w_wind.tolist(),
-            "gamma_k": self.gamma_k.tolist(),
-            "gamma_a": self.gamma_a.tolist(),
-            "source": self.source,
-            "channels": list(self.channels),
-            "cutoff_hz": self.cutoff_hz,
-            "hdot_noise": self.hdot_noise,
-            "notes": list(self.notes),
-        }
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "gust estimate") -> GustEstimate:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        :meth:`to_dict` does not keep the input record, so :attr:`record` of the
-        estimate read back raises :class:`~fdml.errors.FdmlError`.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        GustEstimate
-            The time histories (s, rad, m/s) and settings.
-        """
-        f = Fields(d, source)
-        t = f.floats("t", (None,))
-        return cls(
-            t=t,
-            alpha_w=f.floats("alpha_w", t.shape),
-            w_wind=f.floats("w_wind", t.shape),
-            gamma_k=f.floats("gamma_k", t.shape),
-            gamma_a=f.floats("gamma_a", t.shape),
-            source=f.string("source", choices=("hdot", "altitude")),
-            channels=f.strings("channels"),
-            cutoff_hz=f.number("cutoff_hz", allow_none=True),
-            hdot_noise=f.number("hdot_noise"),
-            notes=f.strings("notes"),
-        )
 
 
 def gust_angle(
