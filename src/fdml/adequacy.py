@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from .errors import FdmlError
-from .jsoncodec import Fields
+from .jsoncodec import Codec, Fields, Spec, mapping, text, texts
 from .score import (
     ScreenContext,
     chi2_sf,
@@ -222,7 +222,7 @@ class ResidualCheck:
 
 
 @dataclass(frozen=True)
-class Verdict:
+class Verdict(Codec):
     """What the diagnosis would accept first, by its rules (:mod:`fdml.verdict`), from the fit alone.
 
     Parameters
@@ -252,6 +252,15 @@ class Verdict:
     set_aside: tuple = ()
     lr: float = 0.0
 
+    json_fields = {
+        "params": Spec(lambda f, k, done: {n: tuple(float(x) for x in v) for n, v in f.mapping(k).items()}),
+        "units": mapping(),
+        "source": text(("kinematics", "refit")),
+        "aliases": texts(),
+        "set_aside": Spec(lambda f, k, done: tuple(tuple(str(y) for y in x) for x in f.raw(k))),
+    }
+    json_source = "adequacy verdict"
+
     @property
     def ambiguous(self) -> bool:
         """More than one effect explains the data equally."""
@@ -271,66 +280,6 @@ class Verdict:
         )
         how = "settled by the kinematics" if self.source == "kinematics" else f"LR {self.lr:.3g}"
         return f"{self.key} ({vals}; {how})"
-
-    def to_dict(self) -> dict:
-        """The verdict as plain JSON data.
-
-        Returns
-        -------
-        dict
-            Every field by name.
-        """
-        return {
-            "key": self.key,
-            "params": {k: list(v) for k, v in self.params.items()},
-            "units": dict(self.units),
-            "source": self.source,
-            "aliases": list(self.aliases),
-            "set_aside": [list(x) for x in self.set_aside],
-            "lr": self.lr,
-        }
-
-    @classmethod
-    def from_fields(cls, f: Fields) -> Verdict:
-        """Inverse of :meth:`to_dict`, every key checked.
-
-        Parameters
-        ----------
-        f : fdml.jsoncodec.Fields
-            The fields of the JSON object.
-
-        Returns
-        -------
-        Verdict
-            The verdict.
-        """
-        return cls(
-            key=f.string("key", allow_none=True),
-            params={k: tuple(float(x) for x in v) for k, v in f.mapping("params").items()},
-            units={k: str(v) for k, v in f.mapping("units").items()},
-            source=f.string("source", choices=("kinematics", "refit")),
-            aliases=tuple(str(x) for x in f.raw("aliases", [])),
-            set_aside=tuple(tuple(str(y) for y in x) for x in f.raw("set_aside", [])),
-            lr=f.number("lr", default=0.0),
-        )
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "adequacy verdict") -> Verdict:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        Verdict
-            The verdict.
-        """
-        return cls.from_fields(Fields(d, source))
 
 
 @dataclass(frozen=True)
