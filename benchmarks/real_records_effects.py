@@ -113,7 +113,7 @@ def predict(params_res, target, opts):
     free = [n for n in m.parameters.free_names if not n.startswith("bias_")]
     res = fit(target, m, fix=free, adequacy=False, check=False, **opts)
     sp = res.spectra[0]
-    z = np.asarray(sp["z"])
+    z = np.asarray(sp.z)
     v = z - res.fitted_spectra(0)
     rel = np.sqrt(np.mean(np.abs(v) ** 2, axis=0) / np.mean(np.abs(z) ** 2, axis=0))
     return res.cost, rel

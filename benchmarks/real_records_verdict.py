@@ -141,7 +141,7 @@ def predict(params_res, target) -> tuple:
     m = params_res.model
     free = [n for n in m.parameters.free_names if not n.startswith("bias_")]
     res = fdml.fit(target, m, fix=free, adequacy=False, check=False)
-    z = np.asarray(res.spectra[0]["z"])
+    z = np.asarray(res.spectra[0].z)
     v = z - res.fitted_spectra(0)
     return res.cost, np.sqrt(np.mean(np.abs(v) ** 2, axis=0) / np.mean(np.abs(z) ** 2, axis=0))
 

@@ -447,7 +447,7 @@ def test_fit_exposes_cov_type_and_nuisance_options(sim, tmp_path, capsys):
     assert code in (0, 1), err
     assert d["cov_type"] == "colored"
     assert {"bias_alpha_dot", "bias_q_dot"} <= set(d["params"])
-    assert json.loads(res_file.read_text())["nuisance"]["state_biases"] is True
+    assert json.loads(res_file.read_text())["options"]["state_biases"] is True
 
 
 def test_batch_reads_mapped_columns(sim, tmp_path, capsys):
@@ -459,4 +459,4 @@ def test_batch_reads_mapped_columns(sim, tmp_path, capsys):
     s = json.loads(out)
     assert code == 0 and s["failed"] == 0, err
     res = json.loads(next((out_dir / "results").glob("m@*.json")).read_text())  # the windowed key
-    assert res["cov_type"] == "colored" and res["batch"]["window"] == [None, 10.0]
+    assert res["options"]["cov_type"] == "colored" and res["batch"]["window"] == [None, 10.0]

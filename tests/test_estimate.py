@@ -249,16 +249,16 @@ def test_result_json_roundtrip_is_lossless(dimensional_case, tmp_path):
     assert back.names == res.names
     assert np.array_equal(back.values, res.values) and np.array_equal(back.stderr, res.stderr)
     assert np.array_equal(back.R, res.R) and back.derived == res.derived
-    assert np.array_equal(back.spectra[0]["z"], res.spectra[0]["z"])
+    assert np.array_equal(back.spectra[0].z, res.spectra[0].z)
     assert np.allclose(back.fitted_spectra(), res.fitted_spectra(), rtol=1e-14)
     d = json.loads(path.read_text())
-    assert d["format"] == "fdml.FitResult" and d["version"] == 1
+    assert d["format"] == "fdml.FitResult" and d["version"] == 2
 
 
 def test_fitted_spectra_close_to_measured(dimensional_case):
     m, t, de, y = dimensional_case
     res = fit(noisy_record(t, de, y, np.random.default_rng(2), fraction=0.01), m)
-    z = res.spectra[0]["z"]
+    z = res.spectra[0].z
     resid = np.abs(z - res.fitted_spectra())
     assert np.all(resid.mean(axis=0) < 0.1 * np.abs(z).mean(axis=0))  # 1 % noise
 
@@ -302,7 +302,7 @@ def test_result_keeps_the_time_record(dimensional_case, tmp_path):
     for r in (res, back):
         got = r.record(0)
         assert np.array_equal(got.t, rec.t) and np.array_equal(got["q"], rec["q"])
-        assert r.time_records[0]["trim_mode"] == "first"
+        assert r.spectra[0].trim_mode == "first"
 
 
 def test_elevator_offset_is_caught_by_input_or_state_biases(dimensional_case):

@@ -78,7 +78,7 @@ def test_export_from_a_fit():
     r = simulate_maneuver(truth, "3211", duration=10.0, dt=0.02)
     r = add_noise(r, 0.02, np.random.default_rng(2), relative=True)
     res = fdml.fit(r, truth, band=(0.2, 8, 0.2))
-    w = res.spectra[0]["omega"]
+    w = res.spectra[0].omega
     frd = to_frd(res)  # default: the fitted frequencies
     np.testing.assert_array_equal(frd.omega, w)
     np.testing.assert_array_equal(_frdata(frd), res.model.frequency_response(w))

@@ -122,12 +122,12 @@ def test_spectra_phase_puts_the_data_on_the_fit_branch(record):
     res = fdml.fit(record, fdml.make_model("derivatives", "navion"), band=BAND)
     spec = res.spectra[0]
     y = res.fitted_spectra()
-    ref = np.exp(-1j * np.angle(spec["u"][:, 0]))
+    ref = np.exp(-1j * np.angle(spec.u[:, 0]))
     first = np.degrees(np.angle(y[0] * ref[0]))  # alpha and q start near -180 deg (a nose-down response)
     assert np.min(180 - np.abs(first[:2])) < 6
     delta = np.radians(6.0) * np.random.default_rng(0).uniform(-1, 1, y.shape)
     delta[0, :2] = np.sign(first[:2]) * np.radians(6.0)  # the first point pushed across the cut from the fit
-    moved = dataclasses.replace(res, spectra=({**spec, "z": y * np.exp(1j * delta)},))
+    moved = dataclasses.replace(res, spectra=(dataclasses.replace(spec, z=y * np.exp(1j * delta)),))
     fig, axes = plot_spectra(moved, crb=False)
     for ax in axes[1]:
         data, (fit,) = _phases(ax)

@@ -125,7 +125,7 @@ def test_fitted_spectra_equal_problem_predict_at_the_estimate(case, tmp_path):
 def test_reported_residual_covariance_is_that_of_the_fitted_spectra(case):
     res, prob = case
     out = [OUTS.index(o) for o in res.outputs]
-    V = np.concatenate([(s["z"] - res.fitted_spectra(r))[:, out] for r, s in enumerate(res.spectra)])
+    V = np.concatenate([(s.z - res.fitted_spectra(r))[:, out] for r, s in enumerate(res.spectra)])
     np.testing.assert_allclose(prob.residuals(res.values), V, rtol=0, atol=8 * EPS * np.abs(V).max())
     R = V.T @ V.conj() / V.shape[0]  # Eq. 24
     scale = np.real(np.diag(R)).max()
@@ -158,13 +158,13 @@ def _time_domain_error(res):
         sim = simulate_fit(res, r)
         s, nu = res.spectra[r], res.nuisance_values(r)
         trim = sim.meta["trim"]
-        Y = np.column_stack([finite_fourier_transform(sim[o] - trim[o], sim.dt, s["omega"]) for o in OUTS])
+        Y = np.column_stack([finite_fourier_transform(sim[o] - trim[o], sim.dt, s.omega) for o in OUTS])
         y = res.fitted_spectra(r)
         # simulate_fit ends where the model goes, not at the fitted x(T) (a property of the
         # transform, not of the motion): move y's x(T) there, d = x(0) - x(T) exp(-j w T)
         xT = np.array([sim["alpha"][-1] - trim["alpha"], sim["q"][-1] - trim["q"]]) - nu.biases[:2]
-        H = res.model.evaluate(s["omega"]).H
-        y = y - (H @ (xT - nu.xT)) * np.exp(-1j * s["omega"] * s["T"])[:, None]
+        H = res.model.evaluate(s.omega).H
+        y = y - (H @ (xT - nu.xT)) * np.exp(-1j * s.omega * s.T)[:, None]
         worst = np.maximum(worst, np.abs(Y - y).max(axis=0) / np.abs(y).max(axis=0))
     return worst
 

@@ -84,7 +84,7 @@ def test_report_is_atomic(res, tmp_path, monkeypatch):
 
 
 def test_report_without_time_records_says_why(res, tmp_path):
-    files = write_report(dataclasses.replace(res, time_records=()), tmp_path / "r", freq_unit="Hz", dpi=40)
+    files = write_report(res.without_records(), tmp_path / "r", freq_unit="Hz", dpi=40)
     assert "time_histories" not in files
     assert "time histories not drawn" in files["report"].read_text()
 

@@ -118,7 +118,7 @@ def test_arrays_are_read_only_and_mappings_immutable(res):
     before = str(res.summary())
     with pytest.raises(ValueError, match="read-only"):
         res.values[0] = 99.0
-    for arr in (res.stderr, res.cov, res.corr, res.R, res.spectra[0]["z"], res.time_records[0]["t"]):
+    for arr in (res.stderr, res.cov, res.corr, res.R, res.spectra[0].z, res.time_records[0].t, res.record()["q"]):
         with pytest.raises(ValueError):
             arr[..., 0] = 0
     with pytest.raises(TypeError):
@@ -126,7 +126,7 @@ def test_arrays_are_read_only_and_mappings_immutable(res):
     with pytest.raises(TypeError):
         res.options["tol"] = 1.0  # type: ignore[index]
     with pytest.raises(TypeError):
-        res.time_records[0]["signals"]["q"] = None  # type: ignore[index]
+        res.time_records[0].signals["q"] = None  # type: ignore[index]
     with pytest.raises(dataclasses.FrozenInstanceError):
         res.converged = False  # type: ignore[misc]
     assert str(res.summary()) == before

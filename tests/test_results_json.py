@@ -130,10 +130,10 @@ def _same_number(a, b, what):
 
 
 def assert_same(a: FitResult, b: FitResult) -> None:
-    """Every field of ``a`` equals the one of ``b`` (arrays exactly, NaN where NaN)."""
+    """Every field of ``a`` equals the one of ``b`` (arrays exactly, NaN where NaN), and so does what is derived."""
     assert a.model == b.model
     assert a.model.parameters.values == b.model.parameters.values
-    for f in ("values", "stderr", "cov", "corr", "cov_naive", "R"):
+    for f in ("values", "cov", "cov_naive", "R", "stderr", "corr"):  # stderr and corr: derived from cov
         _same_array(getattr(a, f), getattr(b, f), f)
     assert len(a.cost_history) == len(b.cost_history)
     for x, y in zip(a.cost_history, b.cost_history):
@@ -156,33 +156,26 @@ def assert_same(a: FitResult, b: FitResult) -> None:
     assert a.fixed.keys() == b.fixed.keys()
     for k in a.fixed:
         _same_number(a.fixed[k], b.fixed[k], f"fixed {k}")
-    assert (a.band is None) == (b.band is None)
-    if a.band is not None:
-        assert isinstance(b.band, tuple) and len(a.band) == len(b.band)
-        for x, y in zip(a.band, b.band):
-            _same_number(x, y, "band")
     assert a.derived.keys() == b.derived.keys()
     for k in a.derived:
         for x, y in zip(a.derived[k], b.derived[k]):
             _same_number(x, y, f"derived {k}")
     assert len(a.spectra) == len(b.spectra)
     for sa, sb in zip(a.spectra, b.spectra):
-        assert sa.keys() == sb.keys()
-        for k in sa:
-            if isinstance(sa[k], np.ndarray):
-                _same_array(sa[k], sb[k], f"spectra {k}")
-            elif isinstance(sa[k], float):
-                _same_number(sa[k], sb[k], f"spectra {k}")
+        for f in dataclasses.fields(sa):
+            x, y = getattr(sa, f.name), getattr(sb, f.name)
+            if isinstance(x, np.ndarray):
+                _same_array(x, y, f"spectra {f.name}")
+            elif isinstance(x, float):
+                _same_number(x, y, f"spectra {f.name}")
+            elif isinstance(x, tuple) and x and isinstance(x[0], float):  # the band
+                assert len(x) == len(y) and all(_same_number(u, v, "band") is None for u, v in zip(x, y))
+            elif f.name == "record":
+                _same_record(x, y)
             else:
-                assert sa[k] == sb[k], f"spectra {k}"
+                assert to_jsonable(x) == to_jsonable(y), f"spectra {f.name}"  # frozen: lists kept as tuples
+    assert (a.band is None) == (b.band is None)
     assert len(a.time_records) == len(b.time_records)
-    for ra, rb in zip(a.time_records, b.time_records):
-        assert ra["name"] == rb["name"] and ra["trim_mode"] == rb["trim_mode"]
-        _same_array(ra["t"], rb["t"], "time_records t")
-        assert ra["signals"].keys() == rb["signals"].keys()
-        for k in ra["signals"]:
-            _same_array(ra["signals"][k], rb["signals"][k], f"time_records signal {k}")
-        assert to_jsonable(ra["meta"]) == to_jsonable(rb["meta"])  # frozen: lists kept as tuples
     assert a.adequacy == b.adequacy  # fdml.adequacy: floats and strings only, so exact
     assert to_jsonable(a.provenance) == to_jsonable(b.provenance)  # plain data (fdml.conditions), frozen
     assert a.slots == b.slots  # issue 10: typed roles and records of the estimates
@@ -192,38 +185,36 @@ def assert_same(a: FitResult, b: FitResult) -> None:
         "model",
         "names",
         "values",
-        "stderr",
         "cov",
-        "corr",
         "cov_naive",
+        "options",
         "R",
         "cost_history",
         "iterations",
         "converged",
         "message",
-        "derived",
-        "fixed",
         "at_bound",
-        "outputs",
-        "band",
-        "n_freq",
-        "records",
-        "boundary",
-        "cov_type",
-        "method",
-        "stop",
+        "spectra",
         "stopped",
         "warnings",
         "elapsed",
-        "spectra",
-        "time_records",
-        "nuisance",
         "findings",
         "adequacy",
         "provenance",
         "slots",
-        "options",
     }
+
+
+def _same_record(ra, rb) -> None:
+    assert (ra is None) == (rb is None)
+    if ra is None:
+        return
+    assert ra.name == rb.name
+    _same_array(ra.t, rb.t, "record t")
+    assert ra.signals.keys() == rb.signals.keys()
+    for k in ra.signals:
+        _same_array(ra.signals[k], rb.signals[k], f"record signal {k}")
+    assert to_jsonable(ra.meta) == to_jsonable(rb.meta)  # frozen: lists kept as tuples
 
 
 FINDINGS = (
@@ -267,7 +258,7 @@ def test_cli_reproduction_writes_loadable_result(tmp_path, capsys):
     assert rc in (0, 1), err
     assert "internal error" not in err
     res = load_result(out)
-    assert res.records and res.time_records[0]["t"].size == 501  # 10 s at 0.02 s
+    assert res.records and res.time_records[0].t.size == 501  # 10 s at 0.02 s
     assert (rc == 0) == res.converged
 
 
@@ -338,21 +329,74 @@ def test_dumps_compact_and_loads_bom():
     assert loads(b"\xef\xbb\xbf[1]") == [1]
 
 
-def test_old_result_files_still_read(fits, tmp_path):
-    """Files written before the codec held NaN/Infinity tokens; they still load."""
-    res = fits["floor"]
-    d = res.to_dict()
+#: A result of version 1, written by fdml before issue 22 (commit 96a172a): a steady Navion model
+#: fitted to two noisy 4 s 3-2-1-1 records (20 Hz) on the band 0.5:10:0.5 with trim "mean" (1 s) and a
+#: bound on Cm_de, written with ``to_json(indent=None)``.  It kept stderr, corr, derived, fixed,
+#: n_freq, records and nuisance, which version 2 derives, and the records apart from the spectra.
+V1_FILE = Path(__file__).parent / "data" / "fit_result_v1.json"
+
+
+def test_a_version_1_file_loads_and_derives_what_it_kept():
+    d = json.loads(V1_FILE.read_text())
+    assert d["version"] == 1
+    res = load_result(V1_FILE)
+    # what version 1 kept and version 2 derives is what it kept (JSON holds doubles exactly)
+    np.testing.assert_array_equal(res.stderr, [float(x) for x in d["stderr"]])
+    np.testing.assert_array_equal(res.corr, np.array([[float(x) for x in row] for row in d["corr"]]))
+    assert {k: list(v) for k, v in res.derived.items()} == d["derived"]
+    assert dict(res.fixed) == d["fixed"] and res.n_freq == d["n_freq"] and list(res.records) == d["records"]
+    assert list(res.band) == d["band"] and list(res.outputs) == d["outputs"]
+    assert (res.boundary, res.cov_type, res.method, res.stop) == tuple(
+        d[k] for k in ("boundary", "cov_type", "method", "stop")
+    )
+    assert to_jsonable(res.nuisance) == d["nuisance"]
+    # the records went into the spectra, the band and trim with them
+    for s, r in zip(res.spectra, d["time_records"]):
+        assert s.record.name == r["name"] and s.trim_mode == r["trim_mode"] == "mean"
+        np.testing.assert_array_equal(s.record["q"], r["signals"]["q"])
+        assert s.trim_samples == 21  # 1 s at 0.05 s, and the first sample
+    # and it is written as version 2 and read back the same
+    back = FitResult.from_dict(json.loads(res.to_json()))
+    assert json.loads(res.to_json())["version"] == 2
+    assert_same(res, back)
+    np.testing.assert_array_equal(res.resid, back.resid)
+
+
+def test_old_result_files_still_read(tmp_path):
+    """Files written before the codec held NaN/Infinity tokens and lacked later keys; they still load."""
+    d = json.loads(V1_FILE.read_text())
     d["stderr"] = [math.nan if x == "nan" else x for x in d["stderr"]]
     d["cost_history"] = [math.inf] + d["cost_history"][1:]
     d["derived"] = {k: [v, math.inf] for k, (v, _) in d["derived"].items()}
-    for key in ("findings", "nuisance", "time_records", "method", "stop", "stopped", "elapsed"):
+    d["cov"][0][0] = math.inf
+    for key in ("findings", "nuisance", "time_records", "method", "stop", "stopped", "elapsed", "options", "slots"):
         del d[key]  # keys added by later versions have defaults
     path = tmp_path / "old.json"
     path.write_text(json.dumps(d))  # json's own NaN / Infinity tokens
     back = load_result(path)
-    assert back.cost_history[0] == math.inf
-    assert all(s == math.inf for _, s in back.derived.values())
+    assert back.cost_history[0] == math.inf and back.stderr[0] == math.inf
     assert back.findings == () and back.time_records == () and back.method == "lm"
+    assert back.outputs == tuple(d["outputs"]) and back.spectra[0].trim_mode == "first"  # the defaults of then
+    assert back.slots[0].name == d["names"][0]  # rebuilt from the names
+
+
+@pytest.mark.parametrize(
+    "keys, value, expected",
+    [
+        (("time_records", 0, "signals", "alpha"), [0.0, 1.0], "key 'time_records[0].signals.alpha' must be a list"),
+        (("spectra", 0, "z"), {"re": [[0.0]], "im": [[0.0]]}, "key 'spectra[0].z' must be an array of shape 20 x"),
+        (("band",), [0.1, 10.0], "key 'band' must be a list of 3 numbers, got 2"),
+        (("version",), "1", "key 'version' is the string '1' where the integer 1 is expected"),
+    ],
+)
+def test_a_damaged_version_1_file_names_its_own_keys(tmp_path, capsys, keys, value, expected):
+    d = json.loads(V1_FILE.read_text())
+    _set(d, keys, value)
+    path = tmp_path / "v1.json"
+    path.write_text(json.dumps(d))
+    assert main(["report", str(path), "-o", str(tmp_path / "rep")]) == 2
+    line = _one_line(capsys.readouterr().err)
+    assert f"result file {path}:" in line and expected in line
 
 
 # --- hand-edited and damaged files -------------------------------------------------------------
@@ -378,18 +422,19 @@ EDITS = [
     (("values",), [1.0, "abc"], "key 'values' must be a list of numbers, holds the string 'abc'"),
     (("values",), [1.0, 2.0], "key 'values' must be a list of 12 numbers, got 2"),
     (("cov",), [[1.0, 2.0], [3.0, 4.0]], "key 'cov' must be an array of shape 12 x 12, got shape 2 x 2"),
-    (("corr",), [[1.0], [1.0, 2.0]], "key 'corr' must be a rectangular array"),
+    (("cov_naive",), [[1.0], [1.0, 2.0]], "key 'cov_naive' must be a rectangular array"),
     (("R", "im"), _DELETE, "key 'R' must be an object with keys 're' and 'im'; 'im' is missing"),
     (("R",), [[1.0]], "key 'R' must be an object with keys 're' and 'im', got list"),
     (("names",), "Cz_a", "key 'names' must be a list of strings, got str"),
-    (("outputs",), ["alpha", "beta"], "key 'outputs' holds 'beta'"),
-    (("band",), [0.1, 10.0], "key 'band' must be a list of 3 numbers, got 2"),
+    (("options", "outputs"), ["alpha", "beta"], "key 'options' holds no valid fit options: outputs: unknown output"),
+    (("spectra", 0, "band"), [0.1, 10.0], "key 'spectra[0].band' must be a list of 3 numbers, got 2"),
     (("cost_history",), [], "key 'cost_history' must hold at least 1 number"),
     (("message",), None, "key 'message' must be a string, got null"),
-    (("fixed", "l_t"), "4.6", "key 'fixed.l_t' must be a number, got the string '4.6'"),
-    (("derived", "Cm_a"), [1.0], "key 'derived.Cm_a' must be a list of 2 numbers, got 1"),
-    (("version",), "1", "key 'version' is the string '1' where the integer 1 is expected"),
-    (("version",), 2, "key 'version' is 2: this fdml reads version 1 only"),
+    (("options", "tol"), "0.001", "key 'options' holds no valid fit options: tol must be a finite number"),
+    (("options",), [], "key 'options' must be an object, got list"),
+    (("slots", 0, "role"), "pilot", "key 'slots[0].role' must be one of"),
+    (("version",), "2", "key 'version' is the string '2' where the integer 2 is expected"),
+    (("version",), 3, "key 'version' is 3: this fdml reads versions 1, 2"),
     (("format",), _DELETE, "key 'format' is missing: not an fdml result file"),
     (("format",), "fdml.MonteCarloResult", "key 'format' is 'fdml.MonteCarloResult'"),
     (("model", "kind"), 3, "key 'model.kind' must be a string, got int"),
@@ -402,19 +447,21 @@ EDITS = [
         "key 'spectra[0].z' must be an array of shape 100 x any, got shape 1 x 1",
     ),
     (("spectra", 0, "n"), "501", "key 'spectra[0].n' must be an integer, got str"),
+    (("spectra", 0, "trim_mode"), "median", "key 'spectra[0].trim_mode' must be one of 'first', 'mean', 'none'"),
     (("spectra", 0), 7, "key 'spectra[0]' must be an object, got int"),
     (
-        ("time_records", 0, "signals", "alpha"),
+        ("spectra", 0, "record", "signals", "alpha"),
         [0.0, 1.0],
-        "key 'time_records[0].signals.alpha' must be a list of 501 numbers, got 2",
+        "key 'spectra[0].record.signals.alpha' must be a list of 501 numbers, got 2",
     ),
+    (("spectra", 0, "record", "t"), "0:10", "key 'spectra[0].record.t' must be a list of numbers, got str"),
     (
         ("findings",),
         [{"code": "x", "message": "m", "kind": "bogus"}],
         "key 'findings[0].kind' must be one of 'data', 'estimation', got 'bogus'",
     ),
     (("findings",), [{"message": "m"}], "key 'findings[0].code' is missing"),
-    (("nuisance",), [], "key 'nuisance' must be an object, got list"),
+    (("provenance",), [], "key 'provenance' must be an object, got list"),
 ]
 
 
@@ -531,17 +578,28 @@ def perturbed(draw, base: FitResult):
             a[idx] = complex(draw(_any_float), draw(_any_float)) if np.iscomplexobj(a) else draw(_any_float)
         return a
 
-    spectra = tuple({**s, "omega": arr(s["omega"]), "z": arr(s["z"]), "T": draw(_any_float)} for s in base.spectra)
-    time_records = tuple(
-        {**r, "t": arr(r["t"]), "signals": {k: arr(v) for k, v in r["signals"].items()}} for r in base.time_records
+    def record(r):  # a record's samples are finite (Record refuses others): finite extremes, -0.0, subnormals
+        finite = st.one_of(st.floats(allow_nan=False, allow_infinity=False), st.sampled_from([1e308, 5e-324, -0.0]))
+        signals = {k: v.copy() for k, v in r.signals.items()}
+        for _ in range(draw(st.integers(0, 3))):
+            signals[draw(st.sampled_from(sorted(signals)))][draw(st.integers(0, r.n - 1))] = draw(finite)
+        return dataclasses.replace(r, signals=signals, check_units=False)
+
+    spectra = tuple(
+        dataclasses.replace(
+            s,
+            omega=arr(s.omega),
+            z=arr(s.z),
+            T=draw(_any_float),
+            band=draw(st.one_of(st.none(), st.tuples(_any_float, _any_float, _any_float))),
+            record=None if s.record is None else record(s.record),
+        )
+        for s in base.spectra
     )
-    derived = {k: (draw(_any_float), draw(_any_float)) for k in base.derived}
     return dataclasses.replace(
         base,
         values=arr(base.values),
-        stderr=arr(base.stderr),
-        cov=arr(base.cov),
-        corr=arr(base.corr),
+        cov=arr(base.cov),  # stderr, corr and derived follow from it
         cov_naive=arr(base.cov_naive),
         R=arr(base.R),
         cost_history=tuple(draw(st.lists(_any_float, min_size=1, max_size=4))),
@@ -551,12 +609,7 @@ def perturbed(draw, base: FitResult):
         message=draw(st.text(max_size=20)),
         warnings=tuple(draw(st.lists(st.text(max_size=10), max_size=2))),
         elapsed=draw(_any_float),
-        derived=derived,
-        fixed={k: draw(_any_float) for k in base.fixed},
-        band=draw(st.one_of(st.none(), st.tuples(_any_float, _any_float, _any_float))),
-        n_freq=draw(st.integers(0, 10**6)),
         spectra=spectra,
-        time_records=time_records,
         findings=tuple(
             Finding(
                 draw(st.text(min_size=1, max_size=8)),

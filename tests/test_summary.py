@@ -91,10 +91,10 @@ def test_text_numbers_parse_back(res):
 
 def test_flags_fixed_at_bound_not_identifiable(res):
     pytest.importorskip("pandas")  # the optional extra fdml[pandas]
-    se = res.stderr.copy()
+    cov = np.array(res.cov)
     i = res.names.index("Cm_a")
-    se[i] = math.inf
-    bad = dataclasses.replace(res, stderr=se, at_bound=("Cz_q",))
+    cov[i, i] = math.inf  # its standard error, derived from cov, is infinite
+    bad = dataclasses.replace(res, cov=cov, at_bound=("Cz_q",))
     s = bad.summary()
     assert "at bound" in s and "not identifiable" in s
     f = bad.to_frame()

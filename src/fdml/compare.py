@@ -70,7 +70,7 @@ def loglik_contributions(res: FitResult) -> list[np.ndarray]:
     from .models.base import OUTPUTS
 
     idx = [OUTPUTS.index(o) for o in res.outputs]
-    V = [np.asarray(s["z"])[:, idx] - res.fitted_spectra(r)[:, idx] for r, s in enumerate(res.spectra)]
+    V = [s.z[:, idx] - res.fitted_spectra(r)[:, idx] for r, s in enumerate(res.spectra)]
     allv = np.concatenate(V)
     R = allv.T @ allv.conj() / allv.shape[0]  # Eq. 24
     Rinv = np.linalg.inv(R)
@@ -85,7 +85,7 @@ def correlation_span(res: FitResult) -> list[int]:
     frequencies closer than 2 pi / T (the Dirichlet kernel's main lobe), so a
     grid finer than that has fewer independent frequencies than points.
     """
-    return [span_of(s["omega"], s["T"]) for s in res.spectra]
+    return [span_of(s.omega, s.T) for s in res.spectra]
 
 
 def span_of(omega, T: float) -> int:

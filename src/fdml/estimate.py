@@ -66,7 +66,7 @@ from .models.measurement import (
 from .models.measurement import predict as _measure
 from .parameters import Role
 from .record import Record
-from .results import FitResult, IterationInfo
+from .results import FitResult, IterationInfo, correlation
 from .spectral import FrequencyData, spectra
 from .warning_log import recording
 
@@ -930,14 +930,12 @@ def _fit(data, model: Model, opts: FitOptions, callback) -> tuple[FitResult, Pro
         cov_type,
         time.perf_counter() - t_start,
         stopped,
-        method,
-        stop,
+        _stored_options(opts, prob),
         A_final,
         rows,
     )
     found += _band_findings(prob, theta)
     res = replace(res, findings=tuple(found)) if found else res
-    res = replace(res, options=_stored_options(opts, prob))
     if opts.adequacy and converged:
         res = _with_adequacy(prob, res, V, A_final, opts)
     return res, prob
@@ -1350,23 +1348,7 @@ def _warn_at_bounds(prob: Problem, theta: np.ndarray) -> None:
             )
 
 
-def _finish(
-    prob,
-    theta,
-    V,
-    R,
-    history,
-    it,
-    converged,
-    message,
-    cov_type,
-    elapsed,
-    stopped,
-    method,
-    stop,
-    A=None,
-    rows=None,
-) -> FitResult:
+def _finish(prob, theta, V, R, history, it, converged, message, cov_type, elapsed, stopped, options, A=None, rows=None):
     names = prob.names
     if A is None:  # Eq. 26 columns for the bounds are the tight central differences
         A = prob.sensitivities(theta, tol=SETTINGS.settle_tol_final)
@@ -1393,11 +1375,7 @@ def _finish(
             cov[np.ix_(idx, idx)] = cov_naive[np.ix_(idx, idx)]
     for k in np.flatnonzero(~live):
         cov[k, k] = cov_naive[k, k] = math.inf
-    stderr = np.sqrt(np.diag(cov))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        corr = cov / np.outer(stderr, stderr)
-    corr[~np.isfinite(corr)] = np.nan
-    np.fill_diagonal(corr, 1.0)
+    corr = correlation(cov)
     with np.errstate(invalid="ignore"):
         high = np.tril(np.abs(corr) > SETTINGS.correlation_warn, -1)  # NaN compares False
     for i, j in zip(*np.nonzero(high)):  # row by row, as the pairs (i, j < i) are listed
@@ -1412,18 +1390,14 @@ def _finish(
         prob=prob,
         model=model,
         theta=theta,
+        history=history,
+        options=options,
         cov=cov,
         cov_naive=cov_naive,
-        stderr=stderr,
-        corr=corr,
         R=R if rows is None else _cov_R(V),
-        history=history,
         iterations=it,
         converged=converged,
         message=message,
-        cov_type=cov_type,
         elapsed=elapsed,
         stopped=stopped,
-        method=method,
-        stop=stop,
     )

@@ -71,7 +71,7 @@ def to_frd(result_or_model, omega=None, *, name: str | None = None):
         spectra = getattr(result_or_model, "spectra", None)
         if not spectra:
             raise ParameterError("to_frd needs omega (rad/s) for a model")
-        omega = spectra[0]["omega"]
+        omega = spectra[0].omega
     omega = np.sort(np.atleast_1d(np.asarray(omega, dtype=float)))
     if omega.size == 0 or not np.all(np.isfinite(omega)) or np.any(omega <= 0):
         raise ParameterError("omega must hold finite positive frequencies (rad/s)")

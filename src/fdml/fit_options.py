@@ -38,6 +38,7 @@ from .channels import OUTPUTS
 from .errors import FdmlError, ParameterError
 from .fourier import END_CORRECTIONS
 from .parameters import as_names, check_fix_free
+from .record import TRIM_MODES
 from .spectral import parse_band
 
 if TYPE_CHECKING:
@@ -156,14 +157,15 @@ class NoiseModel:
 SPECTRA, PROBLEM, ITERATION, CHECKS = "spectra", "problem", "iteration", "checks"
 
 
-def _option(default, type_: str, doc: str, stage: str, *, choices=None, cli: str | None = None, **cli_kw) -> Any:
+def _option(default, stage: str, *, choices=None, cli: str | None = None, **cli_kw) -> Any:
     """One option's declaration: a dataclass field whose metadata holds the rest of the table's row.
 
-    ``type_`` and ``doc`` are its numpydoc entry; ``choices`` the allowed values (checked, and the
-    command line's choices); ``cli`` its ``--help`` text when the command line shows it, with
-    ``cli_kw`` what the command line needs beyond it (``values``: the command line's spellings).
+    ``stage`` says where it acts; ``choices`` are the allowed values (checked, and the command
+    line's choices); ``cli`` its ``--help`` text when the command line shows it, with ``cli_kw``
+    what the command line needs beyond it (``values``: the command line's spellings).  Its
+    documentation is its entry in :class:`FitOptions`' docstring.
     """
-    meta = {"type": type_, "doc": doc, "stage": stage, "choices": choices, "cli": cli, "cli_kw": cli_kw}
+    meta = {"stage": stage, "choices": choices, "cli": cli, "cli_kw": cli_kw}
     return field(default=default, metadata=MappingProxyType(meta))
 
 
@@ -257,47 +259,117 @@ class FitOptions:
     Frozen: :func:`dataclasses.replace` (or :meth:`of`) gives a changed copy,
     checked again.  ``fdml.fit(record, model, band=..., ...)`` makes one from its
     keywords; ``fdml.fit(record, model, options)`` takes one made before (and
-    keywords given beside it replace its fields).
+    keywords given beside it replace its fields).  The entries below are the
+    options' documentation everywhere (:func:`takes_options`).
 
     Parameters
     ----------
-    <the fit options: FitOptions' fields>
+    omega : array_like, optional
+        Frequencies, rad/s; default the ``band`` grid (time-domain records).
+    band : tuple or str, optional
+        ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``; default 0.1:10:0.1
+        (time-domain records).
+    outputs : sequence of str or str, optional
+        Outputs that enter the fit (default ``alpha, q, az``).
+    boundary : {"estimated", "measured", "none"}, optional
+        Klein's boundary terms ``x(0) - x(T) exp(-jwT)`` for alpha and q
+        (docs/theory.md section 7): estimated as nuisance parameters (default),
+        taken from the measured first and last samples, or omitted (then a
+        record that ends far from trim triggers a :class:`~fdml.errors.DataWarning`).
+    biases : {"auto", True, False}, optional
+        Estimate an output bias for every fitted output.  ``"auto"`` (default)
+        does so whenever trim was removed from a record: the trim value is
+        itself a noisy estimate (the first sample, or a short mean), and its
+        error is a constant offset on the whole record, i.e. exactly an
+        output bias; left unestimated it biases the low-frequency fit.
+    state_biases : bool, optional
+        Estimate constants ``bias_alpha_dot`` (rad/s) and ``bias_q_dot``
+        (rad/s^2) added to the two state equations, per record: they absorb a
+        trim that is not an equilibrium (an elevator trim error, a trimmed
+        pitch acceleration).
+    input_bias : bool, optional
+        Estimate a constant elevator offset ``bias_de`` (rad) per record: the
+        error of the elevator trim (a special case of state-equation biases
+        along the elevator's input direction).
+    free : str or sequence of str, optional
+        Names to free: one name (``free="Cm_de"``), several separated by
+        commas, or a sequence.
+    fix : str, sequence of str or mapping, optional
+        Names to fix, or a ``{name: value}`` mapping, as for ``free``.  A name
+        in both is an error, not "the last wins".
+    bounds : mapping, optional
+        ``{name: (lower, upper)}``; None for an open side.
+    method : {"lm", "gauss-newton"}, optional
+        Levenberg-Marquardt on ln det R (default) or the paper's alternation.
+    stop : {"converge", "paper"}, optional
+        Run to convergence (default) or stop when the relative change of
+        J = det R falls below 0.01 (the paper's rule).
+    tol : float, optional
+        Convergence: every parameter step below ``tol`` standard errors.
+    max_iter : int, optional
+        Most iterations (default 200).
+    sensitivity : {"auto", "analytic", "fd", "central"}, optional
+        ``analytic``: derivatives of the model matrices propagated exactly
+        through the solve (closed forms for every model's theta; central
+        differences of the matrices for freed constants).  ``fd``: the paper's
+        Eq. 26 forward differences of the outputs with the step halved until
+        they settle.  ``central``: central differences of the outputs.
+        ``auto`` (default): ``analytic`` when every free model parameter has a
+        closed form, else ``fd``.  Both give the same estimates and bounds to
+        six significant figures or better.
+    cov_type : {"white", "colored", "naive"}, optional
+        ``white`` (default): covariance of the estimate for white measurement
+        noise, carried exactly through the transform, the frequency grid and
+        the trim removal (a sandwich form); at independent frequency spacing
+        2 pi/T it equals the Cramer-Rao bound.  ``colored``: the same with the
+        noise level following the smoothed residual spectrum (the
+        frequency-domain analogue of the Morelli-Klein correction; use it on
+        real data, where residuals hold model error).  ``naive``: the inverse of
+        ``2 Re sum A^H R^-1 A``, which treats every frequency as independent
+        and is optimistic on a grid finer than 2 pi/T (docs/theory.md section 7).
+    noise : NoiseModel or sequence of float, optional
+        The noise model of the likelihood: white, one R over the band (Eq. 24;
+        the default), or ``NoiseModel(edges)`` (or the edges), one R_b per
+        frequency band (edges in rad/s).  With band-wise noise, ``R`` in the
+        result is still Eq. 24 over the whole band, ``cost`` is
+        exp((1/N) sum_b N_b ln det R_b), and the ``white`` covariance scales
+        the noise to each band's level.
+    trim : {"first", "mean", "none"}, optional
+        Trim removal of time-domain records (:func:`fdml.spectral.spectra`;
+        default ``first``).
+    trim_window : float, optional
+        Leading window for ``trim="mean"``, s (default 0.5 s).
+    end_correction : {"cubic", "trapezoid", "none"}, optional
+        End correction of the finite Fourier integral (default ``cubic``).
+    check : bool, optional
+        Run the data check (:func:`fdml.datacheck.check_data`: units, signs,
+        swapped channels, no response) on every record given in the time
+        domain (default True); its findings are issued as
+        :class:`~fdml.errors.DataWarning` and kept in ``FitResult.findings``.
+    strict : bool, optional
+        Raise :class:`~fdml.errors.DataCheckError` before fitting when the
+        data check finds anything (default False).
+    adequacy : bool, optional
+        After a converged fit, check its adequacy (:func:`fdml.adequacy.check`:
+        score tests of the effect library, residual coherence and whiteness,
+        no refits); kept in ``FitResult.adequacy``, and an
+        :class:`~fdml.errors.AdequacyWarning` names a flagged effect and the
+        command that refits with it.  False skips it (default True).
     """
 
-    omega: tuple | None = _option(
-        None, "array_like, optional", "Frequencies, rad/s; default the ``band`` grid (time-domain records).", SPECTRA
-    )
-    band: tuple | None = _option(
-        None,
-        "tuple or str, optional",
-        '``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``; default 0.1:10:0.1 (time-domain records only).',
-        SPECTRA,
-    )
+    omega: tuple | None = _option(None, SPECTRA)
+    band: tuple | None = _option(None, SPECTRA)
     outputs: tuple = _option(
-        None,
-        "sequence of str or str, optional",
-        "Outputs that enter the fit (default ``alpha, q, az``).",
-        PROBLEM,
-        cli="outputs in the fit, comma-separated, each once (default alpha,q,az)",
-        metavar="NAME,...",
+        None, PROBLEM, cli="outputs in the fit, comma-separated, each once (default alpha,q,az)", metavar="NAME,..."
     )
     boundary: str = _option(
         "estimated",
-        '{"estimated", "measured", "none"}, optional',
-        "Klein's boundary terms ``x(0) - x(T) exp(-jwT)`` for alpha and q (docs/theory.md section 7): "
-        "estimated as nuisance parameters (default), taken from the measured first and last samples, or "
-        "omitted (then a record that ends far from trim triggers a :class:`~fdml.errors.DataWarning`).",
         PROBLEM,
         choices=("estimated", "measured", "none"),
         cli="boundary terms x(0) - x(T)exp(-jwT) (default estimated)",
     )
     biases: bool | str = _option(
         "auto",
-        '{"auto", True, False}, optional',
-        'Estimate an output bias for every fitted output.  ``"auto"`` (default) does so whenever trim was '
-        "removed from a record: the trim value is itself a noisy estimate (the first sample, or a short "
-        "mean), and its error is a constant offset on the whole record, i.e. exactly an output bias; left "
-        "unestimated it biases the low-frequency fit.",
         PROBLEM,
         choices=("auto", True, False),
         cli="estimate output biases (default auto: when trim is removed)",
@@ -305,140 +377,49 @@ class FitOptions:
     )
     state_biases: bool = _option(
         False,
-        "bool, optional",
-        "Estimate constants ``bias_alpha_dot`` (rad/s) and ``bias_q_dot`` (rad/s^2) added to the two state "
-        "equations, per record: they absorb a trim that is not an equilibrium (an elevator trim error, a "
-        "trimmed pitch acceleration).",
         PROBLEM,
         cli="estimate constant biases of the two state equations per record (a trim that is not an equilibrium)",
     )
     input_bias: bool = _option(
-        False,
-        "bool, optional",
-        "Estimate a constant elevator offset ``bias_de`` (rad) per record: the error of the elevator trim "
-        "(a special case of state-equation biases along the elevator's input direction).",
-        PROBLEM,
-        cli="estimate a constant elevator offset per record (an elevator trim error)",
+        False, PROBLEM, cli="estimate a constant elevator offset per record (an elevator trim error)"
     )
-    free: tuple = _option(
-        (),
-        "str or sequence of str, optional",
-        'Names to free: one name (``free="Cm_de"``), several separated by commas, or a sequence.',
-        PROBLEM,
-        cli="free parameters (repeatable)",
-        metavar="NAME",
-        repeat=True,
-    )
-    fix: Any = _option(
-        (),
-        "str, sequence of str or mapping, optional",
-        "Names to fix, or a ``{name: value}`` mapping, as for ``free``.  A name in both is an error, not "
-        '"the last wins".',
-        PROBLEM,
-        cli="fix parameters at values (repeatable)",
-        metavar="NAME=VALUE",
-        repeat=True,
-    )
-    bounds: Mapping = _option(None, "mapping, optional", "``{name: (lower, upper)}``; None for an open side.", PROBLEM)
+    free: tuple = _option((), PROBLEM, cli="free parameters (repeatable)", metavar="NAME", repeat=True)
+    fix: Any = _option((), PROBLEM, cli="fix parameters at values (repeatable)", metavar="NAME=VALUE", repeat=True)
+    bounds: Mapping = _option(None, PROBLEM)
     method: str = _option(
         "lm",
-        '{"lm", "gauss-newton"}, optional',
-        "Levenberg-Marquardt on ln det R (default) or the paper's alternation.",
         ITERATION,
         choices=("lm", "gauss-newton"),
         cli="Levenberg-Marquardt (default lm) or the paper's alternation",
     )
     stop: str = _option(
         "converge",
-        '{"converge", "paper"}, optional',
-        "Run to convergence (default) or stop when the relative change of J = det R falls below 0.01 "
-        "(the paper's rule).",
         ITERATION,
         choices=("converge", "paper"),
         cli="run to convergence (default) or the paper's 1 %% rule",
     )
-    tol: float = _option(
-        1e-3, "float, optional", "Convergence: every parameter step below ``tol`` standard errors.", ITERATION
-    )
-    max_iter: int = _option(200, "int, optional", "Most iterations (default 200).", ITERATION)
+    tol: float = _option(1e-3, ITERATION)
+    max_iter: int = _option(200, ITERATION)
     sensitivity: str = _option(
         "auto",
-        '{"auto", "analytic", "fd", "central"}, optional',
-        "``analytic``: derivatives of the model matrices propagated exactly through the solve (closed "
-        "forms for every model's theta; central differences of the matrices for freed constants).  ``fd``: "
-        "the paper's Eq. 26 forward differences of the outputs with the step halved until they settle.  "
-        "``central``: central differences of the outputs.  ``auto`` (default): ``analytic`` when every free "
-        "model parameter has a closed form, else ``fd``.  Both give the same estimates and bounds to six "
-        "significant figures or better.",
         PROBLEM,
         choices=("auto", "analytic", "fd", "central"),
         cli="output sensitivities (default auto: analytic where closed forms exist, else Eq. 26)",
     )
     cov_type: str = _option(
         "white",
-        '{"white", "colored", "naive"}, optional',
-        "``white`` (default): covariance of the estimate for white measurement noise, carried exactly "
-        "through the transform, the frequency grid and the trim removal (a sandwich form); at independent "
-        "frequency spacing 2 pi/T it equals the Cramer-Rao bound.  ``colored``: the same with the noise "
-        "level following the smoothed residual spectrum (the frequency-domain analogue of the Morelli-Klein "
-        "correction; use it on real data, where residuals hold model error).  ``naive``: the inverse of "
-        "``2 Re sum A^H R^-1 A``, which treats every frequency as independent and is optimistic on a grid "
-        "finer than 2 pi/T (docs/theory.md section 7).",
         ITERATION,
         choices=("white", "colored", "naive"),
         cli="error bounds: white noise (default), colored (the noise level follows the residual "
         "spectrum; recommended on real records) or naive",
     )
-    noise: NoiseModel = _option(
-        None,
-        "NoiseModel or sequence of float, optional",
-        "The noise model of the likelihood: white, one R over the band (Eq. 24; the default), or "
-        "``NoiseModel(edges)`` (or the edges), one R_b per frequency band (edges in rad/s).  With band-wise "
-        "noise, ``R`` in the result is still Eq. 24 over the whole band, ``cost`` is "
-        "exp((1/N) sum_b N_b ln det R_b), and the ``white`` covariance scales the noise to each band's level.",
-        ITERATION,
-    )
-    trim: str | None = _option(
-        None,
-        '{"first", "mean", "none"}, optional',
-        "Trim removal of time-domain records (:func:`fdml.spectral.spectra`; default ``first``).",
-        SPECTRA,
-        choices=("first", "mean", "none"),
-        cli="trim removal (default first: the first sample)",
-    )
-    trim_window: float | None = _option(
-        None, "float, optional", 'Leading window for ``trim="mean"``, s (default 0.5 s).', SPECTRA
-    )
-    end_correction: str | None = _option(
-        None,
-        '{"cubic", "trapezoid", "none"}, optional',
-        "End correction of the finite Fourier integral (default ``cubic``).",
-        SPECTRA,
-        choices=END_CORRECTIONS,
-    )
-    check: bool = _option(
-        True,
-        "bool, optional",
-        "Run the data check (:func:`fdml.datacheck.check_data`: units, signs, swapped channels, no "
-        "response) on every record given in the time domain (default True); its findings are issued as "
-        ":class:`~fdml.errors.DataWarning` and kept in ``FitResult.findings``.",
-        CHECKS,
-    )
-    strict: bool = _option(
-        False,
-        "bool, optional",
-        "Raise :class:`~fdml.errors.DataCheckError` before fitting when the data check finds anything (default False).",
-        CHECKS,
-    )
-    adequacy: bool = _option(
-        True,
-        "bool, optional",
-        "After a converged fit, check its adequacy (:func:`fdml.adequacy.check`: score tests of the effect "
-        "library, residual coherence and whiteness, no refits); kept in ``FitResult.adequacy``, and an "
-        ":class:`~fdml.errors.AdequacyWarning` names a flagged effect and the command that refits with it.  "
-        "False skips it (default True).",
-        CHECKS,
-    )
+    noise: NoiseModel = _option(None, ITERATION)
+    trim: str | None = _option(None, SPECTRA, choices=TRIM_MODES, cli="trim removal (default first: the first sample)")
+    trim_window: float | None = _option(None, SPECTRA)
+    end_correction: str | None = _option(None, SPECTRA, choices=END_CORRECTIONS)
+    check: bool = _option(True, CHECKS)
+    strict: bool = _option(False, CHECKS)
+    adequacy: bool = _option(True, CHECKS)
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -664,7 +645,7 @@ def _text(value) -> str:
 
 # --- what the table gives the functions that take the options ------------------------------------
 def option_docs(*stages: str) -> str:
-    """The numpydoc entries of the options of ``stages`` (all without), indented for a Parameters section.
+    """The numpydoc entries of the options of ``stages`` (all without), from :class:`FitOptions`' docstring.
 
     Parameters
     ----------
@@ -674,17 +655,15 @@ def option_docs(*stages: str) -> str:
     Returns
     -------
     str
-        ``name : type`` lines, each followed by its description.
+        ``name : type`` lines, each followed by its description, indented for a Parameters section.
     """
-    import textwrap
-
-    out = []
-    for f in fields(FitOptions):
-        if stages and f.metadata["stage"] not in stages:
-            continue
-        body = textwrap.fill(f.metadata["doc"], 100, initial_indent="    ", subsequent_indent="    ")
-        out.append(f"{f.name} : {f.metadata['type']}\n{body}")
-    return textwrap.indent("\n".join(out), "    ")
+    entries: dict[str, list[str]] = {}
+    section = (inspect.getdoc(FitOptions) or "").split("----------\n", 1)[1]
+    for line in section.splitlines():
+        if line and not line.startswith(" "):
+            entries[line.split(" : ")[0]] = []
+        entries[next(reversed(entries))].append(line)
+    return "\n".join("    " + ln if ln else ln for n in FitOptions.names(*stages) for ln in entries[n])
 
 
 def keyword_parameters(*stages: str) -> list[inspect.Parameter]:
@@ -773,6 +752,3 @@ def takes_options(*stages: str):
         return func
 
     return wrap
-
-
-FitOptions.__doc__ = (FitOptions.__doc__ or "").replace(OPTIONS_MARK, option_docs() + "\n")

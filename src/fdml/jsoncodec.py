@@ -577,30 +577,34 @@ class Fields:
         except (TypeError, ValueError) as exc:
             raise self.error(key, str(exc)) from None
 
-    def version(self, key: str, expected: int) -> int:
-        """An integer version equal to ``expected``; a string '1' is named as such.
+    def version(self, key: str, expected: int, older: tuple = ()) -> int:
+        """An integer version equal to ``expected`` or one of ``older``; a string '1' is named as such.
 
         Parameters
         ----------
         key : str
             The key in this object.
         expected : int
-            The only version this code reads.
+            The version this code writes.
+        older : tuple of int, optional
+            Older versions it still reads.
 
         Returns
         -------
         int
-            The version, equal to ``expected``.
+            The version.
         """
         v = self.raw(key)
+        known = (*older, expected)
         if isinstance(v, str):
-            if v.strip() == str(expected):
-                raise self.error(key, f"is the string {v!r} where the integer {expected} is expected")
+            if v.strip() in map(str, known):
+                raise self.error(key, f"is the string {v!r} where the integer {v.strip()} is expected")
             raise self.error(key, f"must be the integer {expected}, got the string {v[:40]!r}")
         if isinstance(v, bool) or not isinstance(v, int):
             raise self.error(key, f"must be the integer {expected}, got {_kind(v)}")
-        if v != expected:
-            raise self.error(key, f"is {v}: this fdml reads version {expected} only")
+        if v not in known:
+            which = f"version {expected} only" if not older else f"versions {', '.join(map(str, known))}"
+            raise self.error(key, f"is {v}: this fdml reads {which}")
         return v
 
     def integer(self, key: str, default=_MISSING, minimum: int | None = None) -> int:
@@ -1086,7 +1090,7 @@ def texts(choices=None, length: int | None = None) -> Spec:
     return Spec(lambda f, k, done: f.strings(k, choices=choices, length=length))
 
 
-def numbers(length: int | None = None, none: bool = False) -> Spec:
+def numbers(length: int | None = None, none: bool = False, min_length: int = 0) -> Spec:
     """A list of numbers, read as a tuple of floats (null for the whole list with ``none``).
 
     Parameters
@@ -1095,6 +1099,8 @@ def numbers(length: int | None = None, none: bool = False) -> Spec:
         The required number of entries.
     none : bool, optional
         Accept null (None).
+    min_length : int, optional
+        The smallest number of entries allowed.
 
     Returns
     -------
@@ -1103,7 +1109,7 @@ def numbers(length: int | None = None, none: bool = False) -> Spec:
     """
 
     def read(f, k, done):
-        return None if none and f.raw(k) is None else f.numbers(k, length=length)
+        return None if none and f.raw(k) is None else f.numbers(k, length=length, min_length=min_length)
 
     return Spec(read)
 

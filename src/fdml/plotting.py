@@ -229,7 +229,7 @@ def spectra_uncertainty(result, record: int = 0, *, rel_step: float = 1e-6):
     cov = np.where(np.isfinite(cov), cov, 0.0)
     cov[~ok, :] = 0.0
     cov[:, ~ok] = 0.0
-    rec_name = result.spectra[record]["name"]
+    rec_name = result.spectra[record].name
     params = result.model.parameters
     A = np.zeros(y0.shape + (p,), complex)
     for i, name in enumerate(result.names):
@@ -319,11 +319,11 @@ def plot_spectra(
     labels = list(labels) if labels is not None else [r.kind for r in results]
     outputs = _check_outputs(outputs or results[0].outputs)
     spec = results[0].spectra[record]
-    f, flabel = _freq(np.asarray(spec["omega"], float), freq_unit)
+    f, flabel = _freq(spec.omega, freq_unit)
     fig, axes, created = _axes_grid(axes, ax, (2, len(outputs)), (4.2 * len(outputs), 6))
     # phase relative to the elevator spectrum: removes the manoeuvre's timing
     # (exp(-j w t_0)) without dividing magnitudes by the input's spectral zeros
-    ref = np.exp(-1j * np.angle(spec["u"][:, 0]))
+    ref = np.exp(-1j * np.angle(spec.u[:, 0]))
     bands = [spectra_uncertainty(r, record) if crb else (r.fitted_spectra(record), None) for r in results]
 
     def mag(x):
@@ -331,7 +331,7 @@ def plot_spectra(
 
     for j, out in enumerate(outputs):
         k = _OUTPUTS.index(out)
-        z = spec["z"][:, k]
+        z = spec.z[:, k]
         ax_m, ax_p = axes[0, j], axes[1, j]
         if mag_unit == "abs":
             ax_m.set_yscale("log")
@@ -437,8 +437,7 @@ def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
     from .simulate import realize, simulate
 
     raw = result.record(record)
-    tr = result.time_records[record]
-    mode = tr["trim_mode"]
+    mode = result.spectra[record].trim_mode
     if trim_window is None:
         trim_window = result.options.get("trim_window")  # the fit's (None: not a mean trim)
     window = {} if trim_window is None else {"window": float(trim_window)}
@@ -639,8 +638,8 @@ def plot_residual_spectra(
     """
     outputs = _check_outputs(outputs or result.outputs)
     spec = result.spectra[record]
-    f, flabel = _freq(np.asarray(spec["omega"], float), freq_unit)
-    v = spec["z"] - result.fitted_spectra(record)
+    f, flabel = _freq(spec.omega, freq_unit)
+    v = spec.z - result.fitted_spectra(record)
     fig, arr, created = _axes_grid(axes, ax, (1, len(outputs)), (4.2 * len(outputs), 3.4))
     arr = arr[0]
     R = np.asarray(result.R)

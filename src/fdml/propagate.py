@@ -52,10 +52,6 @@ def with_known_uncertainty(result, refit, known: dict):
         d = np.where(np.isfinite(d), d, 0.0)
         cov = cov + np.outer(d, d)
         shifts[name] = {"stderr": float(se), "shift_per_se": dict(zip(result.names, d.tolist()))}
-    stderr = np.sqrt(np.clip(np.diag(cov), 0, None))
-    s = np.where(stderr > 0, stderr, np.nan)
-    corr = cov / np.outer(s, s)
-    for a in (cov, stderr, corr):
-        a.setflags(write=False)
+    cov.setflags(write=False)
     options = MappingProxyType({**dict(result.options), "known_uncertainty": shifts})
-    return replace(result, cov=cov, stderr=stderr, corr=corr, options=options)
+    return replace(result, cov=cov, options=options)  # stderr, corr and derived follow from cov

@@ -22,6 +22,7 @@ import numpy as np
 from .channels import OUTPUTS, SIGNALS, display_unit
 from .channels import REQUIRED as REQUIRED_SIGNALS
 from .errors import RecordError
+from .jsoncodec import SKIP, Codec, Spec, floats
 from .outputs import atomic_write_text
 
 __all__ = ["Record", "read_csv", "add_noise", "noise_stds", "uniform_interval", "SIGNALS", "REQUIRED_SIGNALS"]
@@ -51,8 +52,18 @@ _SLOW_RECORD_MAX_S = 3600.0
 _TIME_UNITS = (("milliseconds", 1e-3), ("microseconds", 1e-6))
 
 
+#: How trim is removed (:meth:`Record.remove_trim`): the first sample, a leading mean, or not at all.
+TRIM_MODES = ("first", "mean", "none")
+
+
+def _signals_field(f, key: str, done: dict) -> dict:
+    """The signals of a record in JSON, each as long as its time."""
+    sub = f.sub(key)
+    return {k: sub.floats(k, (len(done["t"]),)) for k in sub.doc}
+
+
 @dataclass(frozen=True)
-class Record:
+class Record(Codec):
     """A uniformly sampled flight record in SI units.
 
     Parameters
@@ -78,6 +89,29 @@ class Record:
     meta: Mapping = field(default_factory=dict)
     check_units: bool = True
     require: tuple = REQUIRED_SIGNALS
+
+    json_fields = {"t": floats(None), "signals": Spec(_signals_field), "check_units": SKIP, "require": SKIP}
+    json_source = "record"
+
+    @classmethod
+    def from_fields(cls, f, **given) -> "Record":
+        """A record from the fields of its JSON object (:meth:`to_dict`), every key checked.
+
+        Its units were checked when it was made, so they are not checked again.
+
+        Parameters
+        ----------
+        f : fdml.jsoncodec.Fields
+            The fields of ``{"t", "signals", "name", "meta"}``.
+        **given
+            Other field values.
+
+        Returns
+        -------
+        Record
+            The record.
+        """
+        return super().from_fields(f, **{"check_units": False, **given})
 
     def __post_init__(self) -> None:
         t = np.asarray(self.t, dtype=float)

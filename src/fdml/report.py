@@ -96,7 +96,7 @@ def write_report(
     with staged:
         for i, spec in enumerate(res.spectra):
             sfx = f"_{i}" if multi else ""
-            rname = spec["name"]
+            rname = spec.name
             n_out = len(res.outputs)
             fig = _figure((4.2 * n_out, 6.4), dpi)
             axes = fig.subplots(2, n_out, sharex=True, squeeze=False)
@@ -111,7 +111,7 @@ def write_report(
             figures.append(
                 (rname, "Measured against fitted spectra with the 2-sigma Cramer-Rao band", f"spectra{sfx}.png")
             )
-            if i < len(res.time_records) and res.time_records[i] is not None:
+            if spec.record is not None:
                 try:
                     fig = _figure((8, 2.0 * 4 + 1.0), dpi)
                     axes = fig.subplots(4, 1, sharex=True, squeeze=False)

@@ -10,9 +10,10 @@ versioned JSON without loss (:meth:`FitResult.to_json`, :func:`load_result`).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import TYPE_CHECKING
@@ -22,19 +23,22 @@ import numpy as np
 from .channels import OUTPUTS
 from .errors import FdmlError
 from .findings import Finding
-from .jsoncodec import Fields, dumps, read_json, to_jsonable, write_json
+from .fit_options import FitOptions
+from .jsoncodec import Codec, Fields, Spec, dumps, floats, integer, nested_list, numbers, read_json, texts, write_json
 from .models.measurement import BOUNDARY_NAMES, INPUT_BIAS_NAME, NUISANCE_NAMES, STATE_BIAS_NAMES, Nuisance
 from .parameters import Role, Slot
+from .record import Record
+from .spectral import FrequencyData
 from .warning_log import RecordedWarning, as_recorded
 
 if TYPE_CHECKING:
     from .adequacy import Adequacy
     from .models.base import Model
 
-__all__ = ["FitResult", "IterationInfo", "frozen", "load_result", "RESULT_FORMAT"]
+__all__ = ["FitResult", "IterationInfo", "correlation", "frozen", "load_result", "RESULT_FORMAT"]
 
 #: JSON format identifier and version of saved results.
-RESULT_FORMAT = ("fdml.FitResult", 1)
+RESULT_FORMAT = ("fdml.FitResult", 2)
 
 
 @dataclass(frozen=True)
@@ -100,11 +104,16 @@ def frozen(value):
 
 
 def _thawed(value):
-    """Mapping proxies back to dicts (they cannot be pickled); the rest as is."""
+    """Mapping proxies back to dicts (they cannot be pickled), also in spectra and their records; the rest as is."""
     if isinstance(value, MappingProxyType):
         return {k: _thawed(v) for k, v in value.items()}
     if isinstance(value, tuple) and not hasattr(value, "_fields"):
         return tuple(_thawed(v) for v in value)
+    if isinstance(value, FrequencyData):
+        rec = value.record
+        if rec is not None:
+            rec = replace(rec, signals=dict(rec.signals), meta=_thawed(rec.meta))
+        return replace(value, meta=_thawed(value.meta), record=rec)
     return value
 
 
@@ -135,14 +144,108 @@ class ByName:
         return dict(zip(self.names, self.stderr.tolist()))
 
 
+# --- the JSON of the fields that need more than their annotation -----------------------------------
+def _slots_field(f: Fields, key: str, done: dict) -> tuple:
+    """The saved slots (null in files from before they existed: empty, rebuilt from the names)."""
+    if f.raw(key) is None:
+        return ()
+    items = f.items(key)
+    if len(items) != len(done["names"]):
+        raise f.error(key, f"has {len(items)} entries for {len(done['names'])} names")
+    return tuple(Slot.from_fields(x, n) for n, x in zip(done["names"], items))
+
+
+def _warnings_field(f: Fields, key: str, done: dict) -> tuple:
+    """Recorded warnings: ``{category, message}`` objects, or the strings of files from before."""
+    items = f.raw(key) or []
+    if not isinstance(items, list):
+        raise f.error(key, "must be a list of warnings")
+    out = []
+    for i, w in enumerate(items):
+        if isinstance(w, str):
+            out.append(RecordedWarning.from_value(w))
+            continue
+        if not isinstance(w, dict):
+            raise f.error(key, f"entry {i} is neither a string nor a {{category, message}} object")
+        out.append(RecordedWarning.from_fields(Fields(w, f.source, f"{f.name(key)}[{i}].")))
+    return tuple(out)
+
+
+def _options_field(f: Fields, key: str, done: dict) -> dict:
+    """The fit's options: an object whose fit options are checked (:class:`~fdml.fit_options.FitOptions`)."""
+    opts = f.mapping(key)
+    FitOptions.from_fields(f.sub(key))  # a bad option names the file and the key
+    return opts
+
+
+def _r_field(f: Fields, key: str, done: dict) -> np.ndarray:
+    """R over the fitted outputs (their number from the options)."""
+    k = len(FitOptions.from_dict(done["options"]).outputs)
+    return f.complexes(key, (k, k))
+
+
+def _model_dict(model) -> dict:
+    from .models import model_to_dict
+
+    return model_to_dict(model)
+
+
+def _model_field(f: Fields, key: str, done: dict):
+    """The saved model, checked key by key, then built by :func:`fdml.models.model_from_dict`."""
+    from .models import model_from_dict
+
+    m = f.sub(key)
+    kind = m.string("kind")
+    options = m.mapping("options", default={})
+    aircraft = None if m.raw("aircraft", None) is None else m.mapping("aircraft")
+    params = []
+    for p in m.items("parameters"):
+        params.append(
+            {
+                "name": p.string("name"),
+                "value": p.number("value"),
+                "free": p.boolean("free", default=True),
+                "lower": p.number("lower", default=None, allow_none=True),
+                "upper": p.number("upper", default=None, allow_none=True),
+                "unit": p.string("unit", default=""),
+                "description": p.string("description", default=""),
+            }
+        )
+    effects = list(m.strings("effects", default=()))  # effect keys (H1, issue 8)
+    try:
+        return model_from_dict(
+            {"kind": kind, "options": options, "aircraft": aircraft, "parameters": params, "effects": effects}
+        )
+    except FdmlError as exc:
+        raise f.error(key, f"does not describe a model: {exc}") from None
+    except (TypeError, ValueError, LookupError, AttributeError, ArithmeticError) as exc:
+        raise f.error(key, f"does not describe a model: {type(exc).__name__}: {exc}") from None
+
+
+def _adequacy_field(f: Fields, key: str, done: dict):
+    """The saved adequacy check (null in files from before it existed: None)."""
+    if f.raw(key) is None:
+        return None
+    from .adequacy import Adequacy
+
+    return Adequacy.from_fields(f.sub(key))
+
+
 @dataclass(frozen=True)
-class FitResult(ByName):
+class FitResult(ByName, Codec):
     """The outcome of :func:`fdml.fit`.
 
     Each parameter is the attribute of the same name.
     Every array is read-only and every mapping immutable (lists become
     tuples): a result is a record of a fit, and ``res.values[0] = 99``
     raises.  :func:`dataclasses.replace` gives a changed copy.
+
+    A result keeps what cannot be derived; the rest are properties derived
+    from it when read: ``stderr`` and ``corr`` from ``cov``, ``derived`` by
+    the delta method from ``cov`` and the model, ``fixed`` from the model,
+    ``outputs``, ``boundary``, ``cov_type``, ``method`` and ``stop`` from
+    ``options``, ``band``, ``n_freq``, ``records`` and ``time_records`` from
+    ``spectra`` (see each property).
 
     Parameters
     ----------
@@ -153,13 +256,21 @@ class FitResult(ByName):
         (output biases ``bias_*``, boundary values ``x0_*``, ``xT_*``).
     values : ndarray
         Estimates, in the units of each parameter.
-    stderr : ndarray
-        Standard errors (``cov_type``; inf for an unidentifiable parameter).
-    cov, corr : ndarray
-        Covariance and correlation of the estimates.
+    cov : ndarray
+        Covariance of the estimates (``cov_type``; inf on the diagonal for an
+        unidentifiable parameter).
     cov_naive : ndarray
         ``(2 Re sum A^H R^-1 A)^-1``, the Cramer-Rao bound if every frequency
         were independent.
+    options : mapping
+        Every option the fit was run with, as resolved
+        (:meth:`fdml.fit_options.FitOptions.to_dict`: ``sensitivity`` and
+        ``biases`` as chosen, the spectra's ``band`` and ``trim``), and how
+        white noise reached the covariance per record (``noise_covariance``)
+        and, when known parameters were fixed, their uncertainty
+        (``known_uncertainty``, :mod:`fdml.propagate`).
+        :func:`fdml.plotting.simulate_fit` and :func:`fdml.report.write_report`
+        need nothing supplied again.
     R : ndarray, complex
         Residual covariance (Eq. 24) over the fitted outputs.
     cost_history : tuple of float
@@ -170,22 +281,12 @@ class FitResult(ByName):
         Whether the stopping rule (``stop``) was met.
     message : str
         How the fit ended, in words.
-    derived : dict
-        Alternate set, ``{name: (value, stderr)}``, delta method.
-    fixed : dict
-        Fixed model parameters and their values.
     at_bound : tuple of str
         Parameters that ended on a bound.
-    outputs : tuple of str
-        Fitted outputs.
-    band : tuple or None
-        (lo, hi, step) rad/s.
-    n_freq : int
-        Frequencies used (summed over records).
-    records : tuple of str
-        Names of the records fitted.
-    boundary, cov_type, method, stop : str
-        Options used.
+    spectra : tuple of FrequencyData
+        The fitted spectra of every record, each with its time-domain record
+        (``record``, None when the fit was given spectra), for plots, reports
+        and :meth:`record`.
     stopped : bool
         Whether a progress callback stopped the fit.
     warnings : tuple of RecordedWarning
@@ -193,17 +294,6 @@ class FitResult(ByName):
         (:mod:`fdml.warning_log`), in the order first raised.
     elapsed : float
         Wall-clock time of the fit, s.
-    spectra : tuple of dict
-        The fitted spectra (``omega``, ``z``, ``u``, ``inputs``, ...) per record,
-        for plots and reports.
-    time_records : tuple of dict
-        The time-domain records as given to the fit (``name``, ``t``,
-        ``signals``, ``meta``, ``trim_mode``), when the fit was given records;
-        see :meth:`record`.
-    nuisance : dict
-        Which nuisance terms the fit used: ``boundary`` (estimated, measured or
-        none), ``output_biases`` (outputs with an estimated bias),
-        ``state_biases`` and ``input_bias`` (bool), ``trim`` (per record).
     findings : tuple of Finding
         What the data check (:func:`fdml.datacheck.check_data`) found in the
         records, each with a stable code; see :mod:`fdml.findings`.
@@ -219,53 +309,53 @@ class FitResult(ByName):
     slots : tuple of Slot
         What each estimate is (:class:`~fdml.parameters.Role`) and, for a
         nuisance term, which record it belongs to; in the order of ``names``.
-    options : mapping
-        Every option the fit was run with (``trim``, ``trim_window``,
-        ``end_correction``, ``sensitivity`` as resolved, ``tol``,
-        ``max_iter``, ``bounds``, ``noise`` band edges, ``band``, ``free``,
-        ``fix``, ...), so that :func:`fdml.plotting.simulate_fit` and
-        :func:`fdml.report.write_report` need nothing supplied again.
     """
 
     model: Model
     names: tuple
     values: np.ndarray
-    stderr: np.ndarray
     cov: np.ndarray
-    corr: np.ndarray
     cov_naive: np.ndarray
+    options: Mapping  # before R: R's shape follows the fitted outputs
     R: np.ndarray
     cost_history: tuple
     iterations: int
     converged: bool
     message: str
-    derived: Mapping
-    fixed: Mapping
-    at_bound: tuple
-    outputs: tuple
-    band: tuple | None
-    n_freq: int
-    records: tuple
-    boundary: str
-    cov_type: str
-    method: str = "lm"
-    stop: str = "converge"
+    at_bound: tuple = ()
+    spectra: tuple = field(default=(), repr=False)
     stopped: bool = False
     warnings: tuple = ()
     elapsed: float = 0.0
-    spectra: tuple = field(default=(), repr=False)
-    time_records: tuple = field(default=(), repr=False)
-    nuisance: Mapping = field(default_factory=dict)
     findings: tuple = ()
     adequacy: Adequacy | None = None
     provenance: Mapping = field(default_factory=dict)
     slots: tuple = ()
-    options: Mapping = field(default_factory=dict)
+
+    json_fields = {
+        "model": Spec(_model_field, write=_model_dict),
+        "names": texts(),
+        "values": floats("names"),
+        "cov": floats("names", "names"),
+        "cov_naive": floats("names", "names"),
+        "options": Spec(_options_field),
+        "R": Spec(_r_field),
+        "cost_history": numbers(min_length=1),
+        "iterations": integer(0),
+        "at_bound": texts(),
+        "spectra": nested_list(FrequencyData),
+        "warnings": Spec(_warnings_field),
+        "findings": nested_list(Finding),
+        "adequacy": Spec(_adequacy_field),
+        "slots": Spec(_slots_field),
+    }
+    json_source = "fdml result"
 
     def __post_init__(self) -> None:
         for f in fields(self):
-            if f.name not in ("model", "adequacy", "findings", "warnings", "slots"):
+            if f.name not in ("model", "adequacy", "findings", "warnings", "slots", "spectra"):
                 object.__setattr__(self, f.name, frozen(getattr(self, f.name)))
+        object.__setattr__(self, "spectra", tuple(_frozen_spectrum(d) for d in self.spectra))
         object.__setattr__(self, "warnings", as_recorded(self.warnings))
         if not self.slots or len(self.slots) != len(self.names):
             object.__setattr__(self, "slots", _legacy_slots(self.names, self.model, self.records))
@@ -275,27 +365,7 @@ class FitResult(ByName):
 
     # --- construction -------------------------------------------------------------------
     @classmethod
-    def build(
-        cls,
-        *,
-        prob,
-        model,
-        theta,
-        cov,
-        cov_naive,
-        stderr,
-        corr,
-        R,
-        history,
-        iterations,
-        converged,
-        message,
-        cov_type,
-        elapsed,
-        stopped,
-        method,
-        stop,
-    ) -> "FitResult":
+    def build(cls, *, prob, model, theta, history, options, **state) -> "FitResult":
         """Assemble the result of a finished fit from the estimator's state (used by :func:`fdml.fit`).
 
         Parameters
@@ -306,86 +376,134 @@ class FitResult(ByName):
             The model with its parameters set to the estimates.
         theta : numpy.ndarray
             The estimates, in the order of ``prob.names``.
-        cov, cov_naive : numpy.ndarray
-            Covariance of the estimates (``cov_type``) and the naive Cramer-Rao bound.
-        stderr : numpy.ndarray
-            Standard errors of the estimates.
-        corr : numpy.ndarray
-            Correlation of the estimates.
-        R : numpy.ndarray
-            Residual covariance (Eq. 24), complex.
         history : sequence of float
             J = det R (Eq. 25) at the start and after every iteration.
-        iterations : int
-            Iterations taken.
-        converged : bool
-            Whether the stopping rule was met.
-        message : str
-            How the fit ended.
-        cov_type : str
-            The covariance used for ``cov``.
-        elapsed : float
-            Wall-clock time of the fit, s.
-        stopped : bool
-            Whether a progress callback stopped the fit.
-        method, stop : str
-            The optimiser and the stopping rule used.
+        options : mapping
+            The options as resolved (:attr:`options`).
+        **state
+            The other fields, by name: ``cov``, ``cov_naive``, ``R``, ``iterations``,
+            ``converged``, ``message``, ``elapsed``, ``stopped``.
 
         Returns
         -------
         FitResult
             The result.
         """
-        names = prob.names
         slots = tuple(
             Slot(s.name, s.base, s.role, None if s.record < 0 else prob.data[s.record].name) for s in prob.slots
         )
-        fixed = {p.name: p.value for p in model.parameters if not p.free}
-        band = None
-        if prob.data[0].band is not None:
-            band = tuple(prob.data[0].band)
-        spectra = tuple(_spectrum_fields(d) for d in prob.data)
-        time_records = tuple(_time_record_fields(d) for d in prob.data)
-        if all(r is None for r in time_records):
-            time_records = ()
-        nuisance = {
-            "boundary": prob.boundary,
-            "output_biases": list(dict.fromkeys(s.base[len("bias_") :] for s in slots if s.role is Role.OUTPUT_BIAS)),
-            "state_biases": bool(getattr(prob, "state_biases", False)),
-            "input_bias": bool(getattr(prob, "input_bias", False)),
-            "trim": [d.trim_mode for d in prob.data],
-        }
         return cls(
-            nuisance=nuisance,
-            slots=slots,
-            time_records=time_records,
             model=model,
-            names=tuple(names),
+            names=tuple(prob.names),
             values=np.asarray(theta, float),
-            stderr=np.asarray(stderr),
-            cov=cov,
-            corr=corr,
-            cov_naive=cov_naive,
-            R=R,
+            options=options,
             cost_history=tuple(history),
-            iterations=iterations,
-            converged=converged,
-            message=message,
-            derived=_derived(prob, model, cov),
-            fixed=fixed,
             at_bound=_at_bound(prob, theta),
-            outputs=tuple(OUTPUTS[k] for k in prob.out_idx),
-            band=band,
-            n_freq=prob.N,
-            records=tuple(d.name for d in prob.data),
-            boundary=prob.boundary,
-            cov_type=cov_type,
-            method=method,
-            stop=stop,
-            stopped=stopped,
-            elapsed=elapsed,
-            spectra=spectra,
+            spectra=tuple(prob.data),
+            slots=slots,
+            **state,
         )
+
+    # --- derived ------------------------------------------------------------------------
+    @functools.cached_property
+    def stderr(self) -> np.ndarray:  # type: ignore[override]  # ByName's attribute, derived here
+        """Standard errors, the square roots of the diagonal of ``cov`` (inf: unidentifiable); read-only."""
+        out = np.sqrt(np.diag(np.asarray(self.cov, float)))
+        out.setflags(write=False)
+        return out
+
+    @functools.cached_property
+    def corr(self) -> np.ndarray:
+        """Correlation of the estimates (:func:`correlation` of ``cov``); read-only."""
+        out = correlation(self.cov)
+        out.setflags(write=False)
+        return out
+
+    @functools.cached_property
+    def derived(self) -> Mapping:
+        """Alternate set, ``{name: (value, stderr)}``: the model's derived quantities, delta method on ``cov``."""
+        return frozen(_derived(self.model, self.slots, self.cov))
+
+    @property
+    def fixed(self) -> Mapping:
+        """Fixed model parameters and their values."""
+        return MappingProxyType({p.name: p.value for p in self.model.parameters if not p.free})
+
+    @functools.cached_property
+    def fit_options(self) -> FitOptions:
+        """:attr:`options` as :class:`~fdml.fit_options.FitOptions` (the defaults for keys an old file lacks)."""
+        return FitOptions.from_dict(self.options, source="the result's options")
+
+    @property
+    def outputs(self) -> tuple:
+        """Fitted outputs."""
+        return self.fit_options.outputs
+
+    @property
+    def boundary(self) -> str:
+        """The boundary terms: ``estimated``, ``measured`` or ``none``."""
+        return self.fit_options.boundary
+
+    @property
+    def cov_type(self) -> str:
+        """The covariance of ``cov``: ``white``, ``colored`` or ``naive``."""
+        return self.fit_options.cov_type
+
+    @property
+    def method(self) -> str:
+        """The iteration: ``lm`` or ``gauss-newton``."""
+        return self.fit_options.method
+
+    @property
+    def stop(self) -> str:
+        """The stopping rule: ``converge`` or ``paper``."""
+        return self.fit_options.stop
+
+    @property
+    def band(self) -> tuple | None:
+        """(lo, hi, step) rad/s of the (first record's) spectra; None for frequencies given as such."""
+        return self.spectra[0].band if self.spectra else None
+
+    @property
+    def n_freq(self) -> int:
+        """Frequencies used, summed over records."""
+        return int(sum(d.m for d in self.spectra))
+
+    @property
+    def records(self) -> tuple:
+        """Names of the records fitted."""
+        return tuple(d.name for d in self.spectra)
+
+    @property
+    def time_records(self) -> tuple:
+        """The time-domain records as given to the fit (None for spectra given as such); () when none is kept."""
+        out = tuple(d.record for d in self.spectra)
+        return out if any(r is not None for r in out) else ()
+
+    @property
+    def nuisance(self) -> Mapping:
+        """The nuisance terms used: ``boundary``, ``output_biases``, ``state_biases``, ``input_bias``, ``trim``."""
+        o = self.fit_options
+        biased = dict.fromkeys(s.base[len("bias_") :] for s in self.slots if s.role is Role.OUTPUT_BIAS)
+        return MappingProxyType(
+            {
+                "boundary": o.boundary,
+                "output_biases": tuple(biased),
+                "state_biases": o.state_biases,
+                "input_bias": o.input_bias,
+                "trim": tuple(d.trim_mode for d in self.spectra),
+            }
+        )
+
+    def without_records(self) -> "FitResult":
+        """A copy whose spectra keep no time-domain records (what ``to_json(include_data=False)`` writes).
+
+        Returns
+        -------
+        FitResult
+            The copy; :meth:`record` of it refuses.
+        """
+        return replace(self, spectra=tuple(replace(d, record=None) for d in self.spectra))
 
     # --- accessors ----------------------------------------------------------------------
 
@@ -455,7 +573,7 @@ class FitResult(ByName):
         spectra minus :meth:`fitted_spectra`, for the fitted outputs.
         """
         idx = [OUTPUTS.index(o) for o in self.outputs]
-        parts = [(s["z"] - self.fitted_spectra(r))[:, idx] for r, s in enumerate(self.spectra)]
+        parts = [(s.z - self.fitted_spectra(r))[:, idx] for r, s in enumerate(self.spectra)]
         out = np.concatenate(parts) if parts else np.zeros((0, len(idx)), complex)
         out.setflags(write=False)
         return out
@@ -598,14 +716,16 @@ class FitResult(ByName):
         return out
 
     def to_dict(self, include_data: bool = True) -> dict:
-        """JSON-ready dict (format ``fdml.FitResult`` version 1), through :func:`fdml.jsoncodec.to_jsonable`.
+        """JSON-ready dict (format ``fdml.FitResult`` version 2) of the fields (:class:`~fdml.jsoncodec.Codec`).
 
         Float arrays are nested lists, complex arrays ``{"re": ..., "im": ...}``,
-        non-finite numbers the strings ``"nan"``, ``"inf"``, ``"-inf"``.
-        ``include_data=False`` leaves out the time-domain records (most of
-        a result's size; :meth:`record` and :func:`fdml.plotting.simulate_fit`
-        need them); the spectra stay, so :attr:`resid` and the plots of the
-        fit still work.
+        non-finite numbers the strings ``"nan"``, ``"inf"``, ``"-inf"``; each
+        record's spectra hold its time-domain record.  ``include_data=False``
+        leaves out the time-domain records (most of a result's size;
+        :meth:`record` and :func:`fdml.plotting.simulate_fit` need them); the
+        spectra stay, so :attr:`resid` and the plots of the fit still work.
+        What is derived (:attr:`stderr`, :attr:`corr`, :attr:`derived`, ...)
+        is not written.
 
         Parameters
         ----------
@@ -617,80 +737,8 @@ class FitResult(ByName):
         dict
             JSON-ready.
         """
-        from .models import model_to_dict
-
-        def f(a):
-            return np.asarray(a, float)
-
-        def c(a):
-            return np.asarray(a, complex)
-
-        return to_jsonable(
-            {
-                "format": RESULT_FORMAT[0],
-                "version": RESULT_FORMAT[1],
-                "model": model_to_dict(self.model),
-                "names": list(self.names),
-                "values": f(self.values),
-                "stderr": f(self.stderr),
-                "cov": f(self.cov),
-                "corr": f(self.corr),
-                "cov_naive": f(self.cov_naive),
-                "R": c(self.R),
-                "cost_history": [float(x) for x in self.cost_history],
-                "iterations": int(self.iterations),
-                "converged": bool(self.converged),
-                "message": self.message,
-                "derived": {k: [float(v), float(s)] for k, (v, s) in self.derived.items()},
-                "fixed": {k: float(v) for k, v in self.fixed.items()},
-                "at_bound": list(self.at_bound),
-                "outputs": list(self.outputs),
-                "band": None if self.band is None else [float(x) for x in self.band],
-                "n_freq": int(self.n_freq),
-                "records": list(self.records),
-                "boundary": self.boundary,
-                "cov_type": self.cov_type,
-                "method": self.method,
-                "stop": self.stop,
-                "stopped": bool(self.stopped),
-                "warnings": [w.to_dict() for w in self.warnings],
-                "elapsed": float(self.elapsed),
-                "slots": [x.to_dict() for x in self.slots],
-                "options": self.options,
-                "spectra": [
-                    {
-                        "name": s["name"],
-                        "omega": f(s["omega"]),
-                        "z": c(s["z"]),
-                        "u": c(s["u"]),
-                        "inputs": list(s["inputs"]),
-                        "x0": f(s["x0"]),
-                        "xT": f(s["xT"]),
-                        "T": float(s["T"]),
-                        "dt": float(s["dt"]),
-                        "n": int(s["n"]),
-                        "ones": c(s["ones"]),
-                    }
-                    for s in self.spectra
-                ],
-                "nuisance": self.nuisance,
-                "findings": [x.to_dict() for x in self.findings],
-                "adequacy": None if self.adequacy is None else self.adequacy.to_dict(),
-                "provenance": self.provenance,
-                "time_records": [
-                    None
-                    if r is None
-                    else {
-                        "name": r["name"],
-                        "t": f(r["t"]),
-                        "signals": {k: f(v) for k, v in r["signals"].items()},
-                        "meta": r["meta"],
-                        "trim_mode": r["trim_mode"],
-                    }
-                    for r in (self.time_records if include_data else ())
-                ],
-            }
-        )
+        res = self if include_data else self.without_records()
+        return {"format": RESULT_FORMAT[0], "version": RESULT_FORMAT[1], **Codec.to_dict(res)}
 
     def to_json(self, path: str | Path | None = None, indent: int = 1, *, inputs=(), include_data: bool = True):
         """JSON text, or, given ``path``, write it atomically there and return the path.
@@ -721,8 +769,8 @@ class FitResult(ByName):
         return write_json(path, doc, inputs=inputs, indent=indent)
 
     @classmethod
-    def from_dict(cls, d: dict, *, source: str = "fdml result") -> "FitResult":
-        """Inverse of :meth:`to_dict`.
+    def from_dict(cls, d, *, source: str | None = "fdml result", **given) -> "FitResult":
+        """Inverse of :meth:`to_dict`; files of version 1 are read too (:func:`_from_version_1`).
 
         Every key is checked for presence, type and shape; a problem raises
         :class:`~fdml.errors.FdmlError` ``"<source>: key '<key>' ..."``
@@ -734,64 +782,23 @@ class FitResult(ByName):
             A dict as written by :meth:`to_dict`.
         source : str, optional
             What and where, for the messages.
+        **given
+            Field values the dict does not hold.
 
         Returns
         -------
         FitResult
             The result.
         """
-        f = Fields(d, source)
+        f = Fields(d, cls.json_source if source is None else source)
         fmt = f.raw("format", None)
         if fmt is None:
             raise f.error("format", "is missing: not an fdml result file")
         if fmt != RESULT_FORMAT[0]:
             raise f.error("format", f"is {str(fmt)[:40]!r}, not {RESULT_FORMAT[0]!r}: not an fdml result file")
-        f.version("version", RESULT_FORMAT[1])
-        model = _model_from_fields(f)
-        names = f.strings("names")
-        n = len(names)
-        outputs = f.strings("outputs", choices=OUTPUTS)
-        k = len(outputs)
-        spectra = tuple(_spectrum_from_fields(s) for s in f.items("spectra", default=[]))
-        return cls(
-            model=model,
-            names=names,
-            values=f.floats("values", (n,)),
-            stderr=f.floats("stderr", (n,)),
-            cov=f.floats("cov", (n, n)),
-            corr=f.floats("corr", (n, n)),
-            cov_naive=f.floats("cov_naive", (n, n)),
-            R=f.complexes("R", (k, k)),
-            cost_history=f.numbers("cost_history", min_length=1),
-            iterations=f.integer("iterations", minimum=0),
-            converged=f.boolean("converged"),
-            message=f.string("message"),
-            derived=_derived_from_fields(f),
-            fixed={name: _number_in(f, "fixed", name, v) for name, v in f.mapping("fixed").items()},
-            at_bound=f.strings("at_bound"),
-            outputs=outputs,
-            band=None if f.raw("band") is None else f.numbers("band", length=3),
-            n_freq=f.integer("n_freq", minimum=0),
-            records=f.strings("records"),
-            boundary=f.string("boundary"),
-            cov_type=f.string("cov_type"),
-            method=f.string("method", default="lm"),
-            stop=f.string("stop", default="converge"),
-            stopped=f.boolean("stopped", default=False),
-            warnings=_warnings_from_fields(f),
-            elapsed=f.number("elapsed", default=0.0),
-            slots=_slots_from_fields(f, names),
-            options=f.mapping("options", default={}),
-            spectra=spectra,
-            nuisance=f.mapping("nuisance", default={}),
-            findings=tuple(Finding.from_fields(x) for x in f.items("findings", default=[])),
-            adequacy=_adequacy_from_fields(f),
-            provenance=f.mapping("provenance", default={}),
-            time_records=tuple(
-                None if r is None else _time_record_from_fields(r)
-                for r in f.items("time_records", default=[], allow_none=True)
-            ),
-        )
+        if f.version("version", RESULT_FORMAT[1], older=(1,)) == 1:
+            return _from_version_1(cls, f, given)
+        return cls.from_fields(f, **given)
 
     def record(self, index: int = 0):
         """The time-domain record ``index`` as given to the fit (a :class:`~fdml.record.Record`).
@@ -804,20 +811,12 @@ class FitResult(ByName):
         Returns
         -------
         Record
-            The record.
+            The record (its arrays read-only).
         """
-        from .record import Record
-
-        if not self.time_records or self.time_records[index] is None:
+        rec = self.spectra[index].record
+        if rec is None:
             raise FdmlError(f"this result holds no time-domain records for record {index} (the fit was given spectra)")
-        r = self.time_records[index]
-        return Record(
-            np.asarray(r["t"], float),
-            {k: np.asarray(v, float) for k, v in r["signals"].items()},
-            name=r["name"],
-            meta=_thawed(r["meta"]),  # a plain dict, as the record had
-            check_units=False,
-        )
+        return rec
 
     def nuisance_values(self, record: int = 0):
         """Nuisance values of record ``record`` as arrays (:class:`fdml.models.measurement.Nuisance`).
@@ -837,8 +836,8 @@ class FitResult(ByName):
             The record's nuisance terms.
         """
         s = self.spectra[record]
-        eta = np.concatenate([self.model.biases(), s["x0"], s["xT"], np.zeros(3)])  # NUISANCE_NAMES order
-        own = [(x, float(v)) for x, v in zip(self.slots, self.values) if x.role.nuisance and x.record == s["name"]]
+        eta = np.concatenate([self.model.biases(), s.x0, s.xT, np.zeros(3)])  # NUISANCE_NAMES order
+        own = [(x, float(v)) for x, v in zip(self.slots, self.values) if x.role.nuisance and x.record == s.name]
         for x, v in own:
             eta[NUISANCE_NAMES.index(x.base)] = v
         roles = {x.role for x, _ in own}
@@ -853,7 +852,7 @@ class FitResult(ByName):
         """Model output spectra at the estimate for record ``record``, shape (m, 3).
 
         Includes the estimated (or measured) boundary terms and biases, so that
-        it is directly comparable with the measured ``spectra[record]["z"]``:
+        it is directly comparable with the measured ``spectra[record].z``:
         :func:`fdml.models.measurement.predict`, as in the fit.
 
         Parameters
@@ -869,15 +868,34 @@ class FitResult(ByName):
         from .models.measurement import end_shift, predict
 
         s = self.spectra[record]
-        resp = self.model.evaluate(s["omega"])
+        resp = self.model.evaluate(s.omega)
         nu = self.nuisance_values(record)
-        u = s["u"][:, : resp.G.shape[2]]
-        return predict(
-            resp, u, s["ones"], nu.boundary(end_shift(s["omega"], s["T"])), nu.biases, nu.state_biases, nu.input_bias
-        )
+        u = s.u[:, : resp.G.shape[2]]
+        return predict(resp, u, s.ones, nu.boundary(end_shift(s.omega, s.T)), nu.biases, nu.state_biases, nu.input_bias)
 
 
-#: Roles of the per-record nuisance terms that are not model parameters, by base name.
+def correlation(cov) -> np.ndarray:
+    """Correlation of estimates from their covariance: NaN where a standard error is 0 or not finite, 1 on the diagonal.
+
+    Parameters
+    ----------
+    cov : array_like
+        Covariance, shape (n, n).
+
+    Returns
+    -------
+    numpy.ndarray
+        Correlations, shape (n, n).
+    """
+    cov = np.asarray(cov, float)
+    se = np.sqrt(np.diag(cov))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        corr = cov / np.outer(se, se)
+    corr[~np.isfinite(corr)] = np.nan
+    np.fill_diagonal(corr, 1.0)
+    return corr
+
+
 def _at_bound(prob, theta) -> tuple:
     """The names of the estimates on (or past) a finite bound."""
     lo, hi = prob.bounds()
@@ -888,15 +906,15 @@ def _at_bound(prob, theta) -> tuple:
     )
 
 
-def _derived(prob, model, cov) -> dict:
+def _derived(model, slots, cov) -> dict:
     """Derived quantities ``{name: (value, standard error)}`` by the delta method (inf where it fails)."""
     dvals = model.derived()
-    mnames = [prob.slots[i].name for i in prob.model_slots]
+    idx = [i for i, s in enumerate(slots) if not s.role.nuisance]
+    mnames = [slots[i].name for i in idx]
     if not dvals or not mnames:
         return {k: (float(v), 0.0) for k, v in dvals.items()}
     keys, J = model.derived_jacobian(model.parameters.values, mnames)
-    idx = np.array(prob.model_slots)
-    C = cov[np.ix_(idx, idx)]
+    C = np.asarray(cov, float)[np.ix_(idx, idx)]
     with np.errstate(invalid="ignore"):
         dcov = J @ np.where(np.isfinite(C), C, 0.0) @ J.T  # delta method
     bad = ~np.all(np.isfinite(C), axis=0)
@@ -909,34 +927,25 @@ def _derived(prob, model, cov) -> dict:
     return derived
 
 
-def _spectrum_fields(d) -> dict:
-    """What a result keeps of one record's spectra (to replot and recheck the fit)."""
-    return {
-        "name": d.name,
-        "omega": d.omega,
-        "z": d.z,
-        "u": d.u,
-        "inputs": list(d.inputs),
-        "x0": d.x0,
-        "xT": d.xT,
-        "T": d.T,
-        "dt": d.dt,
-        "n": d.n,
-        "ones": d.ones,
-    }
+def _frozen_record(rec):
+    """A record with read-only arrays and immutable signals and meta (itself when it is so already)."""
+    if rec is None or isinstance(rec.signals, MappingProxyType):
+        return rec
+    out = replace(rec, t=frozen(rec.t))
+    object.__setattr__(out, "signals", MappingProxyType({k: frozen(v) for k, v in rec.signals.items()}))
+    object.__setattr__(out, "meta", frozen(rec.meta))
+    return out
 
 
-def _time_record_fields(d) -> dict | None:
-    """What a result keeps of one record's time history (None for spectra given without one)."""
-    if d.record is None:
-        return None
-    return {
-        "name": d.name,
-        "t": d.record.t,
-        "signals": dict(d.record.signals),
-        "meta": dict(d.record.meta),
-        "trim_mode": d.trim_mode,
-    }
+def _frozen_spectrum(d: FrequencyData) -> FrequencyData:
+    """Spectra with read-only arrays, an immutable meta and a frozen record (itself when they are so already)."""
+    arrays = {k: getattr(d, k) for k in ("omega", "z", "u", "x0", "xT", "ones", "end_offset")}
+    if all(not a.flags.writeable for a in arrays.values()) and isinstance(d.meta, MappingProxyType):
+        if d.record is None or isinstance(d.record.signals, MappingProxyType):
+            return d
+    return replace(
+        d, **{k: frozen(np.asarray(a)) for k, a in arrays.items()}, meta=frozen(d.meta), record=_frozen_record(d.record)
+    )
 
 
 _NUISANCE_ROLE = {
@@ -960,114 +969,37 @@ def _legacy_slots(names, model, records) -> tuple[Slot, ...]:
     return tuple(out)
 
 
-def _slots_from_fields(f: Fields, names) -> tuple:
-    """The saved slots (absent in files from before they existed: empty, rebuilt from the names)."""
-    if f.raw("slots", None) is None:
-        return ()
-    items = f.items("slots")
-    if len(items) != len(names):
-        raise f.error("slots", f"has {len(items)} entries for {len(names)} names")
-    return tuple(Slot.from_fields(x, n) for n, x in zip(names, items))
+def _from_version_1(cls, f: Fields, given: Mapping) -> FitResult:
+    """A result from a file of version 1, the one converter of old files.
 
-
-def _warnings_from_fields(f: Fields) -> tuple:
-    """Recorded warnings: ``{category, message}`` objects, or the strings of files from before."""
-    items = f.raw("warnings", None) or []
-    if not isinstance(items, list):
-        raise f.error("warnings", "must be a list of warnings")
-    out = []
-    for i, w in enumerate(items):
-        if isinstance(w, str):
-            out.append(RecordedWarning.from_value(w))
-            continue
-        if not isinstance(w, dict):
-            raise f.error("warnings", f"entry {i} is neither a string nor a {{category, message}} object")
-        out.append(RecordedWarning.from_fields(Fields(w, f.source, f"{f.name('warnings')}[{i}].")))
-    return tuple(out)
-
-
-def _number_in(f: Fields, key: str, name: str, v) -> float:
-    """A number inside the object ``key`` (for messages ``key 'fixed.Cm_a' ...``)."""
-    return Fields({name: v}, f.source, f"{f.name(key)}.").number(name)
-
-
-def _derived_from_fields(f: Fields) -> dict:
-    out = {}
-    for name, v in f.mapping("derived").items():
-        pair = Fields({name: v}, f.source, f"{f.name('derived')}.").numbers(name, length=2)
-        out[name] = (pair[0], pair[1])
-    return out
-
-
-def _model_from_fields(f: Fields):
-    """The saved model, checked key by key, then built by :func:`fdml.models.model_from_dict`."""
-    from .models import model_from_dict
-
-    m = f.sub("model")
-    kind = m.string("kind")
-    options = m.mapping("options", default={})
-    aircraft = None if m.raw("aircraft", None) is None else m.mapping("aircraft")
-    params = []
-    for p in m.items("parameters"):
-        params.append(
-            {
-                "name": p.string("name"),
-                "value": p.number("value"),
-                "free": p.boolean("free", default=True),
-                "lower": p.number("lower", default=None, allow_none=True),
-                "upper": p.number("upper", default=None, allow_none=True),
-                "unit": p.string("unit", default=""),
-                "description": p.string("description", default=""),
-            }
+    Version 1 kept the fitted outputs, the boundary terms, the covariance type, the
+    iteration and the stopping rule beside the options, the band beside the spectra
+    and the time-domain records apart from them; and it kept what is now derived
+    (``stderr``, ``corr``, ``derived``, ``fixed``, ``n_freq``, ``records``,
+    ``nuisance``), which is read no more.  Errors name the file's own keys.
+    """
+    opts = {k: f.raw(k) for k in ("outputs", "boundary", "cov_type", "method", "stop") if k in f}
+    opts.update(f.mapping("options", default={}))
+    band = None if f.raw("band") is None else f.numbers("band", length=3)
+    records = [None if r is None else Record.from_fields(r) for r in f.items("time_records", [], allow_none=True)]
+    trims = list(f.mapping("nuisance", default={}).get("trim") or [])
+    trims += [r.raw("trim_mode", "first") if r is not None else "first" for r in f.items("time_records", [], True)]
+    spectra = []
+    for i, s in enumerate(f.items("spectra", default=[])):
+        mode = trims[i] if i < len(trims) else opts.get("trim", "first")
+        dt = s.number("dt")
+        lead = {"none": 0, "first": 1}.get(mode) or int(round(float(opts.get("trim_window") or 0.5) / dt)) + 1
+        spectra.append(
+            FrequencyData.from_fields(
+                s,
+                band=band,
+                trim_mode=mode,
+                trim_samples=lead,
+                end_correction=opts.get("end_correction", "cubic"),
+                record=records[i] if i < len(records) else None,
+            )
         )
-    effects = list(m.strings("effects", default=()))  # effect keys (H1, issue 8)
-    try:
-        return model_from_dict(
-            {"kind": kind, "options": options, "aircraft": aircraft, "parameters": params, "effects": effects}
-        )
-    except FdmlError as exc:
-        raise f.error("model", f"does not describe a model: {exc}") from None
-    except (TypeError, ValueError, LookupError, AttributeError, ArithmeticError) as exc:
-        raise f.error("model", f"does not describe a model: {type(exc).__name__}: {exc}") from None
-
-
-def _spectrum_from_fields(s: Fields) -> dict:
-    omega = s.floats("omega", (None,))
-    m = omega.size
-    return {
-        "name": s.string("name"),
-        "omega": omega,
-        "z": s.complexes("z", (m, None)),
-        "u": s.complexes("u", (m, None)),
-        "inputs": list(s.strings("inputs")),
-        "x0": s.floats("x0", (2,)),
-        "xT": s.floats("xT", (2,)),
-        "T": s.number("T"),
-        "dt": s.number("dt"),
-        "n": s.integer("n", minimum=0),
-        "ones": s.complexes("ones", (m,)),
-    }
-
-
-def _time_record_from_fields(r: Fields) -> dict:
-    t = r.floats("t", (None,))
-    sig = r.sub("signals")
-    return {
-        "name": r.string("name"),
-        "t": t,
-        "signals": {k: sig.floats(k, (t.size,)) for k in sig.doc},
-        "meta": r.mapping("meta"),
-        "trim_mode": r.string("trim_mode"),
-    }
-
-
-def _adequacy_from_fields(f: Fields):
-    """The saved adequacy check (absent or null in files from before it existed: None)."""
-    if f.raw("adequacy", None) is None:
-        return None
-    from .adequacy import Adequacy
-
-    return Adequacy.from_fields(f.sub("adequacy"))
+    return cls.from_fields(f, **{"options": opts, "spectra": tuple(spectra), **given})
 
 
 def load_result(path: str | Path) -> FitResult:

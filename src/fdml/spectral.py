@@ -20,7 +20,8 @@ import numpy as np
 from . import fourier
 from .channels import GUST, INPUTS, OUTPUTS
 from .errors import BandError, RecordError
-from .record import Record
+from .jsoncodec import Codec, complexes, floats, integer, nested, numbers, text, texts
+from .record import TRIM_MODES, Record
 
 __all__ = ["FrequencyData", "spectra", "parse_band", "band_numbers", "DEFAULT_BAND", "DEFAULT_STEP"]
 
@@ -114,7 +115,7 @@ def band_numbers(band, sizes: tuple[int, ...], *, what: str = "band", example: s
 
 
 @dataclass(frozen=True)
-class FrequencyData:
+class FrequencyData(Codec):
     """Spectra of one record at a set of frequencies.
 
     Parameters
@@ -177,6 +178,24 @@ class FrequencyData:
     end_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
     meta: dict = field(default_factory=dict)
     record: Record | None = field(default=None, repr=False, compare=False)
+
+    json_fields = {
+        "omega": floats(None),
+        "z": complexes("omega", None),
+        "u": complexes("omega", None),
+        "inputs": texts(),
+        "x0": floats(2),
+        "xT": floats(2),
+        "n": integer(0),
+        "ones": complexes("omega"),
+        "trim_mode": text(TRIM_MODES),
+        "trim_samples": integer(0),
+        "end_correction": text(fourier.END_CORRECTIONS),
+        "band": numbers(3, none=True),
+        "end_offset": floats(None),
+        "record": nested(Record, none=True),
+    }
+    json_source = "spectra"
 
     @property
     def m(self) -> int:

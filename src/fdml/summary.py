@@ -478,16 +478,14 @@ def _header(res) -> list[tuple[str, str]]:
             f"{res.n_freq} frequencies"
         )
     elif res.spectra:
-        w = np.concatenate([np.asarray(s["omega"], float) for s in res.spectra])
+        w = np.concatenate([s.omega for s in res.spectra])
         band = f"{w.min():.4g}-{w.max():.4g} rad/s (given frequencies); {res.n_freq} frequencies"
     else:
         band = f"{res.n_freq} frequencies"
     h.append(("band", band))
     h.append(("boundary terms", res.boundary))
     h.append(("biases", "; ".join(_biases_used(res)) or "no biases"))
-    trims = (getattr(res, "nuisance", None) or {}).get("trim") or [
-        r["trim_mode"] for r in res.time_records if r is not None
-    ]
+    trims = [d.trim_mode for d in getattr(res, "spectra", ())]
     if trims:
         h.append(("trim", ",".join(dict.fromkeys(str(t) for t in trims))))
     h.append(("standard errors", f"{res.cov_type}: {_COV_TYPES.get(res.cov_type, res.cov_type)}"))
