@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from .errors import FdmlError
-from .jsoncodec import Codec, Fields, Spec, mapping, text, texts
+from .jsoncodec import Codec, Spec, integer, mapping, nested, nested_list, number_map, text, texts
 from .score import (
     ScreenContext,
     chi2_sf,
@@ -136,7 +136,7 @@ def within_diagnosis():
 
 
 @dataclass(frozen=True)
-class EffectTest:
+class EffectTest(Codec):
     """The score screen of one library effect at the base fit.
 
     Parameters
@@ -171,6 +171,14 @@ class EffectTest:
     expected: dict
     units: dict
 
+    json_fields = {
+        "df": integer(0),
+        "null": text(("chi2", "chibar", "davies")),
+        "expected": number_map(),
+        "units": Spec(lambda f, k, done: {n: str(v) for n, v in f.mapping(k, default={}).items()}),
+    }
+    json_source = "effect test"
+
     @property
     def option(self) -> str:
         """The ``--effect`` value that adds it: ``time_delay:alpha``."""
@@ -189,7 +197,7 @@ class EffectTest:
 
 
 @dataclass(frozen=True)
-class ResidualCheck:
+class ResidualCheck(Codec):
     """A residual check (``coherence`` or ``whiteness``), Bonferroni over its cells.
 
     ``worst`` names the cell with the smallest p-value (``record/channel band lo-hi rad/s``);
@@ -219,6 +227,9 @@ class ResidualCheck:
     p_holm: float
     cells: int
     worst: str
+
+    json_fields = {"name": text(("whiteness", "coherence")), "cells": integer(0)}
+    json_source = "residual check"
 
 
 @dataclass(frozen=True)
@@ -283,7 +294,7 @@ class Verdict(Codec):
 
 
 @dataclass(frozen=True)
-class Adequacy:
+class Adequacy(Codec):
     """The adequacy check of one fit (:func:`check`).
 
     Parameters
@@ -309,6 +320,18 @@ class Adequacy:
     coherence: ResidualCheck
     elapsed: float = 0.0
     verdict: Verdict | None = None
+
+    json_fields = {
+        "effects": nested_list(EffectTest),
+        "skipped": Spec(
+            lambda f, k, done: tuple((x.string("key"), x.string("reason")) for x in f.items(k, default=[])),
+            write=lambda skipped: [{"key": k, "reason": r} for k, r in skipped],
+        ),
+        "whiteness": nested(ResidualCheck),
+        "coherence": nested(ResidualCheck),
+        "verdict": nested(Verdict, none=True),
+    }
+    json_source = "adequacy check"
 
     @property
     def flagged(self) -> tuple:
@@ -336,71 +359,11 @@ class Adequacy:
         return {
             "adequate": self.adequate,
             "alpha": self.alpha,
-            "flagged": [_effect_dict(e) for e in self.flagged],
+            "flagged": [e.to_dict() for e in self.flagged],
             "verdict": None if self.verdict is None else self.verdict.to_dict(),
-            "whiteness": _check_dict(self.whiteness),
-            "coherence": _check_dict(self.coherence),
+            "whiteness": self.whiteness.to_dict(),
+            "coherence": self.coherence.to_dict(),
         }
-
-    def to_dict(self) -> dict:
-        """The adequacy check as plain JSON data.
-
-        Returns
-        -------
-        dict
-            Every field by name, effects and checks as dicts.
-        """
-        return {
-            "alpha": self.alpha,
-            "effects": [_effect_dict(e) for e in self.effects],
-            "skipped": [{"key": k, "reason": r} for k, r in self.skipped],
-            "whiteness": _check_dict(self.whiteness),
-            "coherence": _check_dict(self.coherence),
-            "elapsed": self.elapsed,
-            "verdict": None if self.verdict is None else self.verdict.to_dict(),
-        }
-
-    @classmethod
-    def from_fields(cls, f: Fields) -> Adequacy:
-        """Inverse of :meth:`to_dict`, every key checked.
-
-        Parameters
-        ----------
-        f : fdml.jsoncodec.Fields
-            The fields of the JSON object.
-
-        Returns
-        -------
-        Adequacy
-            The adequacy check.
-        """
-        return cls(
-            alpha=f.number("alpha"),
-            effects=tuple(_effect_from(e) for e in f.items("effects")),
-            skipped=tuple((x.string("key"), x.string("reason")) for x in f.items("skipped", default=[])),
-            whiteness=_check_from(f.sub("whiteness")),
-            coherence=_check_from(f.sub("coherence")),
-            elapsed=f.number("elapsed", default=0.0),
-            verdict=None if f.raw("verdict", None) is None else Verdict.from_fields(f.sub("verdict")),
-        )
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "adequacy check") -> Adequacy:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        Adequacy
-            The adequacy check.
-        """
-        return cls.from_fields(Fields(d, source))
 
     def lines(self) -> list:
         """Text lines of the summary's adequacy section.
@@ -435,61 +398,6 @@ def _fmt(v: float, unit: str) -> str:
     if unit == "s" and abs(v) < 1.0:
         return f"{v * 1e3:.3g} ms"
     return f"{v:.3g} {unit}".rstrip()
-
-
-def _effect_dict(e: EffectTest) -> dict:
-    return {
-        "key": e.key,
-        "effect": e.effect,
-        "channel": e.channel,
-        "statistic": e.statistic,
-        "lm": e.lm,
-        "df": e.df,
-        "null": e.null,
-        "p_value": e.p_value,
-        "p_holm": e.p_holm,
-        "expected": dict(e.expected),
-        "units": dict(e.units),
-    }
-
-
-def _effect_from(f: Fields) -> EffectTest:
-    exp = f.mapping("expected")
-    return EffectTest(
-        key=f.string("key"),
-        effect=f.string("effect"),
-        channel=f.string("channel"),
-        statistic=f.number("statistic"),
-        lm=f.number("lm"),
-        df=f.integer("df", minimum=0),
-        null=f.string("null", choices=("chi2", "chibar", "davies")),
-        p_value=f.number("p_value"),
-        p_holm=f.number("p_holm"),
-        expected={k: Fields(exp, f.source, f"{f.name('expected')}.").number(k) for k in exp},
-        units={k: str(v) for k, v in f.mapping("units", default={}).items()},
-    )
-
-
-def _check_dict(c: ResidualCheck) -> dict:
-    return {
-        "name": c.name,
-        "statistic": c.statistic,
-        "p_value": c.p_value,
-        "p_holm": c.p_holm,
-        "cells": c.cells,
-        "worst": c.worst,
-    }
-
-
-def _check_from(f: Fields) -> ResidualCheck:
-    return ResidualCheck(
-        name=f.string("name", choices=("whiteness", "coherence")),
-        statistic=f.number("statistic"),
-        p_value=f.number("p_value"),
-        p_holm=f.number("p_holm"),
-        cells=f.integer("cells", minimum=0),
-        worst=f.string("worst"),
-    )
 
 
 # --- the check ------------------------------------------------------------------------------------
