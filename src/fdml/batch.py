@@ -223,14 +223,10 @@ class ModelSpec(Codec):
             from .aircraft import Aircraft, load_aircraft
 
             ac = Aircraft.from_dict(ac).to_dict() if isinstance(ac, Mapping) else load_aircraft(ac).to_dict()
-        from .parameters import as_names, check_fix_free
+        from .parameters import as_names, check_fix_free, fixed_values
 
         check_fix_free(self.fix, self.free)  # a str is one name; both fixed and freed is an error
-        fix = (
-            {str(k): float(v) for k, v in self.fix.items()}
-            if isinstance(self.fix, Mapping)
-            else as_names(self.fix, "fix")
-        )
+        fix = fixed_values(self.fix)
         return ModelSpec(
             kind=str(self.kind),
             aircraft=ac,

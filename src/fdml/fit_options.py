@@ -37,7 +37,7 @@ import numpy as np
 from .channels import OUTPUTS
 from .errors import FdmlError, ParameterError
 from .fourier import END_CORRECTIONS
-from .parameters import as_names, check_fix_free
+from .parameters import as_names, check_fix_free, fixed_values
 from .record import TRIM_MODES
 from .spectral import parse_band
 
@@ -203,17 +203,8 @@ def _omega(value) -> tuple | None:
 
 
 def _fix(value):
-    if isinstance(value, Mapping):
-        out = {}
-        for k, v in value.items():
-            if not isinstance(k, str):
-                raise ParameterError(f"fix must map parameter names (str) to values, got the key {k!r}")
-            try:
-                out[k] = float(v)
-            except (TypeError, ValueError):
-                raise ParameterError(f"fix: the value of {k} must be a number, got {v!r}") from None
-        return MappingProxyType(out)
-    return tuple(as_names(value, "fix"))
+    fix = fixed_values(value)
+    return MappingProxyType(fix) if isinstance(fix, dict) else tuple(fix)
 
 
 def _side(name: str, x) -> float | None:

@@ -17,7 +17,7 @@ import numpy as np
 from .errors import ParameterError
 from .jsoncodec import SKIP, Codec, choice
 
-__all__ = ["NUISANCE_ROLES", "Parameter", "Parameters", "Role", "Slot", "as_names", "check_fix_free"]
+__all__ = ["NUISANCE_ROLES", "Parameter", "Parameters", "Role", "Slot", "as_names", "check_fix_free", "fixed_values"]
 
 
 class Role(str, Enum):
@@ -462,6 +462,32 @@ def as_names(value, what: str) -> list[str]:
     if bad:
         raise ParameterError(f"{what} must be parameter names (str), got {bad[0]!r}")
     return names
+
+
+def fixed_values(value) -> dict[str, float] | list[str]:
+    """``fix`` normalised: a ``{name: value}`` mapping as a dict of floats, else the names (:func:`as_names`).
+
+    Parameters
+    ----------
+    value : None, str, iterable of str or mapping
+        The parameters to fix (a mapping also sets their values).
+
+    Returns
+    -------
+    dict of str to float, or list of str
+        The values by name, or the names.
+    """
+    if not isinstance(value, Mapping):
+        return as_names(value, "fix")
+    out = {}
+    for k, v in value.items():
+        if not isinstance(k, str):
+            raise ParameterError(f"fix must map parameter names (str) to values, got the key {k!r}")
+        try:
+            out[k] = float(v)
+        except (TypeError, ValueError):
+            raise ParameterError(f"fix: the value of {k} must be a number, got {v!r}") from None
+    return out
 
 
 def check_fix_free(fix, free) -> None:
