@@ -205,3 +205,42 @@ def test_an_alias_the_data_cannot_separate_is_ambiguous_in_both():
     else:  # separated, by the physics of the derivatives only
         assert first == "sensor_offset@alpha"
     assert math.isfinite(rep.recommended.params["Z_de"])
+
+
+# --- a fixed parameter known to a standard error ---------------------------------------------------------------
+
+
+def test_known_uncertainty_is_carried_exactly_for_a_linear_estimator():
+    """theta_hat(psi) = theta0 + J (psi - psi0): the covariance grows by J s^2 J^T, exactly."""
+    from dataclasses import dataclass, field
+    from types import SimpleNamespace
+
+    from fdml.propagate import with_known_uncertainty
+
+    @dataclass(frozen=True)
+    class Result:
+        names: tuple
+        values: np.ndarray
+        cov: np.ndarray
+        stderr: np.ndarray
+        corr: np.ndarray
+        model: object
+        options: dict = field(default_factory=dict)
+
+        @property
+        def params(self):
+            return dict(zip(self.names, self.values))
+
+    theta0, J, psi0, s = np.array([1.0, -2.0, 0.5]), np.array([0.3, -1.2, 0.0]), 13.0, 0.4
+    cov = np.diag([0.01, 0.04, 0.09])
+    model = SimpleNamespace(parameters=SimpleNamespace(values={"x_alpha": psi0}))
+
+    def refit(values):
+        return Result(("a", "b", "c"), theta0 + J * (values["x_alpha"] - psi0), cov, np.sqrt(np.diag(cov)), cov, model)
+
+    res = Result(("a", "b", "c"), theta0, cov, np.sqrt(np.diag(cov)), cov, model)
+    out = with_known_uncertainty(res, refit, {"x_alpha": s})
+    np.testing.assert_allclose(out.cov, cov + s**2 * np.outer(J, J), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(out.stderr, np.sqrt(np.diag(cov) + (s * J) ** 2), rtol=1e-12)
+    assert out.stderr[2] == pytest.approx(0.3)  # a parameter the known one does not move keeps its error
+    assert out.options["known_uncertainty"]["x_alpha"]["stderr"] == s
