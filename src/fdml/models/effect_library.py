@@ -39,8 +39,7 @@ from typing import Any
 
 import numpy as np
 
-from ..channels import INPUT, OUTPUTS
-from ..constants import G0
+from ..channels import INPUT, OUTPUTS, STATIONS
 from ..errors import ParameterError
 from .augment import (
     Effect,
@@ -56,10 +55,8 @@ from .kinds import make_model
 from .realization import (
     _pad_states,
     add_mode,
-    add_output_rate,
     delay_output,
     filter_input,
-    mix_output,
     scale_output,
 )
 from .wells_keskar import SteadyModel
@@ -700,31 +697,13 @@ ACTUATOR_LAG = OutputEffect(
 # --- sensor position ---------------------------------------------------------------------------
 
 
-def _accel_offset(s, p, G, H, P, root):
-    k = -p["x_az"] / G0  # a_z at x ahead of the c.g. = a_z - x q_dot / g
-    G, H, P = G.copy(), H.copy(), P.copy()
-    G[:, 2] = G[:, 2] + k * s[:, None] * G[:, 1]
-    P[:, 2] = P[:, 2] + k * s[:, None] * P[:, 1]
-    H[:, 2] = H[:, 2] + k * s[:, None] * H[:, 1]
-    H[:, 2, 1] = H[:, 2, 1] - k  # finite transform of q_dot is s q~ - d_q (Klein boundary term)
+def _at_station(s, p, G, H, P, root):
+    """Unchanged: a sensor's station is a term of its output's row (fdml.channels.OUTPUT_TABLE), which reads it."""
     return G, H, P
 
 
-def _vane_offset(s, p, G, H, P, root):
-    k = -p["x_alpha"] / root.U  # alpha at x ahead of the c.g. = alpha - x q / U
-    G, H, P = G.copy(), H.copy(), P.copy()
-    G[:, 0] = G[:, 0] + k * G[:, 1]
-    H[:, 0] = H[:, 0] + k * H[:, 1]
-    P[:, 0] = P[:, 0] + k * P[:, 1]
-    return G, H, P
-
-
-def _accel_offset_realize(sys, p, root):
-    return add_output_rate(sys, 2, 1, -p["x_az"] / G0)  # a_z - x q_dot / g
-
-
-def _vane_offset_realize(sys, p, root):
-    return mix_output(sys, 0, 1, -p["x_alpha"] / root.U)  # alpha - x q / U
+def _at_station_realize(sys, p, root):
+    return sys  # the realisation's rows read the station too (fdml.models.realization._observed)
 
 
 def _lever_arm(name: str, sensor: str, plausible: float, why: str) -> Param:
@@ -744,18 +723,18 @@ def _lever_arm(name: str, sensor: str, plausible: float, why: str) -> Param:
 SENSOR_OFFSET_AZ = OutputEffect(
     "sensor_offset",
     "az",
-    (_lever_arm("x_az", "accelerometer", 8.0, "an accelerometer package sits within a few metres of the c.g."),),
-    _accel_offset,
+    (_lever_arm(STATIONS["az"], "accelerometer", 8.0, "an accelerometer package sits within metres of the c.g."),),
+    _at_station,
     signature="a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
-    realize=_accel_offset_realize,
+    realize=_at_station_realize,
 )
 SENSOR_OFFSET_ALPHA = OutputEffect(
     "sensor_offset",
     "alpha",
-    (_lever_arm("x_alpha", "alpha vane", 25.0, "a nose-boom vane can sit 20 m ahead on a transport aircraft"),),
-    _vane_offset,
+    (_lever_arm(STATIONS["alpha"], "alpha vane", 25.0, "a nose-boom vane can sit 20 m ahead on a transport aircraft"),),
+    _at_station,
     signature="alpha picks up -x q/U: phase change on alpha",
-    realize=_vane_offset_realize,
+    realize=_at_station_realize,
 )
 
 
