@@ -259,3 +259,25 @@ def test_descriptor_sensitivities_equal_differences_of_the_response(kind, opts):
         for got, a, b in ((dG[i], up.G, dn.G), (dH[i], up.H, dn.H), (dP[i], up.P, dn.P)):
             ref = (a - b) / (2 * h)
             assert np.abs(got - ref).max() <= 1e-7 * max(np.abs(ref).max(), np.abs(resp.G).max()), n
+
+
+def test_figures_draw_theta_and_qdot(noisy_record):
+    from matplotlib.figure import Figure
+
+    from fdml.plotting import plot_residual_spectra, plot_spectra, plot_time_histories, simulate_fit
+
+    _, rec = noisy_record
+    res = fdml.fit(rec, make_model("dimensional", "sundowner"), band=(0.3, 10, 0.1), outputs="alpha,q,theta,qdot")
+    sim = simulate_fit(res)
+    assert {"theta", "qdot"} <= set(sim.signals)
+    # the model's time history from the estimate: theta within a few noise levels of the measured one
+    assert np.sqrt(np.mean((sim["theta"] - rec["theta"]) ** 2)) < 3 * rec.meta["noise_std"]["theta"]
+    fig, axes = plot_spectra(res)
+    assert isinstance(fig, Figure) and axes.shape == (2, 4) and axes[0, 2].get_title() == "theta"
+    fig, axes = plot_time_histories(res, outputs=["q", "theta", "qdot"])
+    assert axes.shape == (4,) and r"$\theta$ (deg)" == axes[2].get_ylabel() and "deg/s^2" in axes[3].get_ylabel()
+    fig, axes = plot_residual_spectra(res)
+    assert axes.shape == (4,)
+    plain = fdml.fit(rec, make_model("dimensional", "sundowner"), band=(0.3, 10, 0.1))
+    with pytest.raises(ValueError, match="the fit has no theta spectra"):
+        plot_spectra(plain, outputs=["theta"])

@@ -471,7 +471,8 @@ def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
     if model.gust:
         inputs["alpha_w"] = trimmed["alpha_w"]
     zero_bias = {f"bias_{o}": 0.0 for o in rows}
-    forced = simulate(model, raw.t, inputs, zero_bias)
+    t = raw.t[0] + raw.dt * np.arange(raw.n)  # the simulator needs an exact grid; records are uniform to 1e-3 dt
+    forced = simulate(model, t, inputs, zero_bias)
     y = np.column_stack([forced[o] for o in rows])
     state = "none"
     if np.any(x0 != 0) or np.any(sb != 0):
@@ -482,7 +483,7 @@ def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
             real = realize(model, {**zero_bias, "F": 0.0})
             state = "approximate: the F term is left out of the free response"
         rates = output_rows(rows, model.U, model.parameters.values)[1]  # rows of the states' rates
-        y = y + _free_response(real, raw.t - raw.t[0], x0, sb, rates)
+        y = y + _free_response(real, t - t[0], x0, sb, rates)
     y = y + b[None, :] + np.array([trim.get(o, 0.0) for o in rows])[None, :]
     signals = {"de": raw["de"], **{o: y[:, i] for i, o in enumerate(rows)}}
     if raw.has("alpha_w"):
