@@ -166,8 +166,8 @@ def row_space(outputs=None) -> tuple[str, ...]:
 
     Parameters
     ----------
-    outputs : iterable of str, optional
-        Output names of :data:`ALL_OUTPUTS` (None: :data:`OUTPUTS`).
+    outputs : iterable of str or str, optional
+        Output names of :data:`ALL_OUTPUTS`, or ``"theta,qdot"`` (None: :data:`OUTPUTS`).
 
     Returns
     -------
@@ -179,6 +179,8 @@ def row_space(outputs=None) -> tuple[str, ...]:
     ValueError
         An unknown name (callers turn it into their own error class).
     """
+    if isinstance(outputs, str):
+        outputs = [o.strip() for o in outputs.split(",") if o.strip()]
     wanted = set(outputs or ())
     bad = sorted(wanted - set(ALL_OUTPUTS))
     if bad:

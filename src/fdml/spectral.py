@@ -427,8 +427,6 @@ def spectra(
 
 def _rows(record: Record, outputs) -> tuple[str, ...]:
     """:func:`fdml.channels.row_space` of ``outputs``, each held by ``record`` (else a RecordError naming it)."""
-    if isinstance(outputs, str):  # "alpha,q,theta"
-        outputs = [o.strip() for o in outputs.split(",")]
     try:
         rows = row_space(outputs)
     except ValueError as exc:

@@ -168,10 +168,10 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
     P : ndarray, shape (n, n_y, 2)
         Outputs per unit forcing of each state equation.
     """
-    return _observed(s, _inverse(s, M), B, E, rows)
+    return _response_rows(s, _inverse(s, M), B, E, rows)
 
 
-def _observed(s: np.ndarray, inv: np.ndarray, B: np.ndarray, E: np.ndarray, rows):
+def _response_rows(s: np.ndarray, inv: np.ndarray, B: np.ndarray, E: np.ndarray, rows):
     """(G, H, P) of :func:`solve_short_period` from ``inv`` = M^-1, (n, 2, 2)."""
     coef = [c.tolist() for c in rows]  # value, rate, integral: (n_y, 2) each
     ny = len(coef[0])
@@ -264,9 +264,7 @@ def _responded(resp: ModelResponse, u: np.ndarray, boundary, forcing) -> np.ndar
 
 
 def _row_space(outputs) -> tuple[str, ...]:
-    """:func:`fdml.channels.row_space` of a sequence or a ``"theta,qdot"`` string (an unknown name: ParameterError)."""
-    if isinstance(outputs, str):
-        outputs = [o.strip() for o in outputs.split(",") if o.strip()]
+    """:func:`fdml.channels.row_space`, an unknown name a ParameterError."""
     try:
         return row_space(outputs)
     except ValueError as exc:
@@ -602,7 +600,7 @@ class Model:
         """:meth:`_forced_matrices`, M^-1 and :func:`solve_short_period`'s (G, H, P) for the model's outputs."""
         s, M, Bd, E, Dl = self._forced_matrices(omega, p)
         inv = _inverse(s, M)
-        return s, M, Bd, E, Dl, inv, _observed(s, inv, Bd, E, output_rows(self.outputs, self.U, p))
+        return s, M, Bd, E, Dl, inv, _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, p))
 
     def _derivative_stack(self, s, p, names, Bd, Dl):
         """dM (k, n, 2, 2), d(B with delays) (k, n, 2, n_in) and dE (k, 1, 2, 2), one row per name.
@@ -893,10 +891,9 @@ class DescriptorModel(Model):
     Subclasses write the descriptor once, in :meth:`_descriptor`; the frequency
     response (``M = s E - A``, ``B = B0 + s B1``), the sensitivities, the
     realisation (:func:`fdml.models.realization.realize`) and the export
-    (:func:`fdml.export.descriptor_matrices`) all read it.  Every parameter a
-    subclass lists in :attr:`closed_form_parameters` enters ``E, A, B0, B1``
-    affinely, so the difference of the descriptor over a unit step is its exact
-    derivative (to rounding).
+    (:func:`fdml.export.descriptor_matrices`) all read it.  Every entry of
+    ``E, A, B0, B1`` is affine in the parameters (jointly), so its derivatives are
+    constants of the model, read once from unit steps (:meth:`_jacobian`).
 
     Parameters
     ----------

@@ -703,7 +703,7 @@ def _at_station(s, p, G, H, P, root):
 
 
 def _at_station_realize(sys, p, root):
-    return sys  # the realisation's rows read the station too (fdml.models.realization._observed)
+    return sys  # the realisation's rows read the station too (fdml.models.realization._with_outputs)
 
 
 def _lever_arm(name: str, sensor: str, plausible: float, why: str) -> Param:

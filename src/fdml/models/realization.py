@@ -66,7 +66,7 @@ class _System:
     outputs: tuple = OUTPUTS
 
 
-def _observed(A, B, bF, value, rate, rows, U, p) -> dict:
+def _with_outputs(A, B, bF, value, rate, rows, U, p) -> dict:
     """The output rows of ``rows`` (:func:`fdml.models.base.output_rows`) on ``x' = A x + B u + bF eps_F``.
 
     ``value`` and ``rate`` (2, ns + 2 nu + 1) are the linear forms of (alpha, q) and
@@ -115,7 +115,7 @@ def _from_descriptor(d: Descriptor, model, p) -> _System:
     value = np.hstack([np.eye(n)[:2], D12[:2], np.zeros((2, nu + 1))])
     rate = np.hstack([Ax[:2], Bx[:2], D12[:2], np.zeros((2, 1))])
     zeros = np.zeros(n)
-    out = _observed(Ax, Bx, zeros, value, rate, model.outputs, model.U, p)
+    out = _with_outputs(Ax, Bx, zeros, value, rate, model.outputs, model.U, p)
     rx = np.zeros(out["A"].shape[0])
     return _System(channels=tuple(d.channels), rx=rx, ru=np.zeros(nu), **out)
 
@@ -202,7 +202,7 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
     T, kappa = _downwash_pole(l, c, U, eps_ss, F)
     # (alpha, q) and their rates over [x | u | u' | eps_F]: no input rates in this form
     value, rate = (np.insert(f, [ns + nu] * nu, 0.0, axis=1) for f in (np.array([alpha, q]), rows[:2]))
-    out = _observed(rows[:, :ns], rows[:, ns : ns + nu], rows[:, -1], value, rate, model.outputs, U, p)
+    out = _with_outputs(rows[:, :ns], rows[:, ns : ns + nu], rows[:, -1], value, rate, model.outputs, U, p)
     rx = np.zeros(out["A"].shape[0])
     rx[:ns] = dyn["alpha"][:ns]
     sys = _System(
