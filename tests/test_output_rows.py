@@ -281,3 +281,25 @@ def test_figures_draw_theta_and_qdot(noisy_record):
     plain = fdml.fit(rec, make_model("dimensional", "sundowner"), band=(0.3, 10, 0.1))
     with pytest.raises(ValueError, match="the fit has no theta spectra"):
         plot_spectra(plain, outputs=["theta"])
+
+
+@pytest.mark.parametrize(
+    "rel",
+    ["twin_otter/totter_lon_020213f1_017.mat", "hfb320/hfb320_1_10.asc", "attas/fAttasElv1.mat"],
+)
+def test_readers_give_theta_and_qdot_in_the_registry_units_and_signs(rel):
+    from fdml.io import data_path, load_record
+
+    rec = load_record(data_path(rel))
+    assert {"theta", "qdot"} <= set(rec.signals)
+
+    def slope(y, x):
+        x, y = x - x.mean(), y - y.mean()
+        return float(x @ y / (x @ x)), float(np.corrcoef(x, y)[0, 1])
+
+    # theta_dot = q (wings level) and d q/dt = q_dot, from the recorded signals themselves: a degree
+    # left unconverted would give 57 or 1/57, a sign -1; measured 0.89-1.01 (Twin Otter's theta:
+    # 0.89, correlation 0.99, a scale or a bank angle the reader cannot know)
+    for y, x in ((np.gradient(rec["theta"], rec.dt), rec["q"]), (np.gradient(rec["q"], rec.dt), rec["qdot"])):
+        b, r = slope(y, x)
+        assert 0.85 < b < 1.15 and r > 0.95, (rel, b, r)
