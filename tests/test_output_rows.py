@@ -21,7 +21,7 @@ from fdml.errors import FdmlError, ParameterError, RecordError
 from fdml.maneuvers import three_two_one_one, time_vector
 from fdml.models import DescriptorModel, make_model, model_from_dict, model_to_dict
 from fdml.models.measurement import nuisance_names, predict
-from fdml.record import Record, add_noise
+from fdml.record import add_noise
 from fdml.simulate import simulate
 from fdml.spectral import spectra
 
@@ -197,17 +197,19 @@ def test_the_fit_refuses_an_output_the_record_lacks():
     assert nuisance_names(row_space(MORE))[:5] == tuple(f"bias_{o}" for o in ALL_OUTPUTS)
 
 
-def test_command_line_fits_theta_from_a_csv_record(noisy_record, tmp_path, capsys):
-    _, rec = noisy_record
-    path = Record(rec.t, dict(rec.signals), name="r", meta={}).to_csv(tmp_path / "r.csv")
-    code = main(
-        ["fit", str(path), "--model", "dimensional", "--aircraft", "sundowner"]
-        + ["--outputs", "alpha,q,theta,az", "--band", "0.3:10:0.1", "--json"]
-    )
+def test_command_line_simulates_and_fits_theta_and_qdot(tmp_path, capsys):
+    rec = tmp_path / "r.csv"
+    args = ["--model", "dimensional", "--aircraft", "sundowner"]
+    code = main(["simulate", *args, "--outputs", "theta,qdot", "--noise", "0.02", "--seed", "4", "-o", str(rec)])
+    assert code == 0 and "signals de, alpha, q, az, theta, qdot" in capsys.readouterr().out
+    code = main(["fit", str(rec), *args, "--outputs", "alpha,q,theta,az", "--band", "0.3:10:0.1", "--json"])
     out = capsys.readouterr().out
     assert code == 0, out
     d = json.loads(out)
-    assert d["outputs"] == ["alpha", "q", "theta", "az"] and d["converged"]
+    assert d["outputs"] == ["alpha", "q", "theta", "az"] and d["converged"] and "xT_theta" in d["params"]
+    code = main(["simulate", *args, "--outputs", "pitch", "-o", str(tmp_path / "x.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and "unknown output(s) ['pitch']" in err
 
 
 # --- the one descriptor --------------------------------------------------------------------------------
