@@ -188,6 +188,14 @@ def test_a_fit_of_theta_and_qdot_recovers_the_truth(noisy_record, outputs):
     assert resid.shape[1] == len(res.outputs) and np.all(np.isfinite(resid))
 
 
+def test_a_fit_of_theta_with_an_effect(noisy_record):
+    truth, rec = noisy_record
+    model = make_model("dimensional", "sundowner", effects=["sensor_offset:az"])
+    res = fdml.fit(rec, model, band=(0.3, 10, 0.1), outputs="alpha,q,theta,az")
+    assert res.converged and res.model.outputs == ("alpha", "q", "az", "theta")
+    assert abs(res["x_az"]) < 4 * res.errors["x_az"]  # the truth's accelerometer is at the c.g.
+
+
 def test_the_fit_refuses_an_output_the_record_lacks():
     rec = simulate(make_model("dimensional", "sundowner"), time_vector(8.0, 0.02), {"de": np.zeros(401) + 0.01})
     with pytest.raises(RecordError, match="has no theta column"):

@@ -61,7 +61,7 @@ from .realization import (
 )
 from .wells_keskar import SteadyModel
 
-__all__ = ["Dispatch", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
+__all__ = ["Dispatch", "StationEffect", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
 
 #: R. T. Jones' one-term lift-lag rate for an AR 6 elliptic wing, per semichord
 #: (docs/theory.md section 2, [MEM]); used when the aircraft gives none.
@@ -697,13 +697,34 @@ ACTUATOR_LAG = OutputEffect(
 # --- sensor position ---------------------------------------------------------------------------
 
 
-def _at_station(s, p, G, H, P, root):
-    """Unchanged: a sensor's station is a term of its output's row (fdml.channels.OUTPUT_TABLE), which reads it."""
-    return G, H, P
+class StationEffect(MatrixEffect):
+    """A sensor's station, m ahead of the c.g.: a term of its output's row (:data:`fdml.channels.OUTPUT_TABLE`).
+
+    The model reads the parameter where it forms its output rows, in the frequency response and in
+    the realisation alike, so nothing acts here on the matrices or on a response, and the order of
+    the effects does not matter (the sensor sees the true motion).  Evaluated through the model as
+    a matrix-level effect is, never applied to a response by itself.
+
+    Parameters
+    ----------
+    channel : str
+        The output (a key of :data:`fdml.channels.STATIONS`).
+    param : Param
+        Its station, m.
+    signature : str
+        One line on where the effect shows, for reports.
+    """
+
+    def __init__(self, channel: str, param: Param, signature: str):
+        super().__init__("sensor_offset", channel, (param,), _unchanged, signature=signature, realize=_as_is)
 
 
-def _at_station_realize(sys, p, root):
-    return sys  # the realisation's rows read the station too (fdml.models.realization._with_outputs)
+def _unchanged(s, p, M, B, E, root):
+    return M, B, E
+
+
+def _as_is(target, p, root):
+    return target  # the realisation's rows read the station (fdml.models.realization._with_outputs)
 
 
 def _lever_arm(name: str, sensor: str, plausible: float, why: str) -> Param:
@@ -720,21 +741,15 @@ def _lever_arm(name: str, sensor: str, plausible: float, why: str) -> Param:
     )
 
 
-SENSOR_OFFSET_AZ = OutputEffect(
-    "sensor_offset",
+SENSOR_OFFSET_AZ = StationEffect(
     "az",
-    (_lever_arm(STATIONS["az"], "accelerometer", 8.0, "an accelerometer package sits within metres of the c.g."),),
-    _at_station,
-    signature="a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
-    realize=_at_station_realize,
+    _lever_arm(STATIONS["az"], "accelerometer", 8.0, "an accelerometer package sits within a few metres of the c.g."),
+    "a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
 )
-SENSOR_OFFSET_ALPHA = OutputEffect(
-    "sensor_offset",
+SENSOR_OFFSET_ALPHA = StationEffect(
     "alpha",
-    (_lever_arm(STATIONS["alpha"], "alpha vane", 25.0, "a nose-boom vane can sit 20 m ahead on a transport aircraft"),),
-    _at_station,
-    signature="alpha picks up -x q/U: phase change on alpha",
-    realize=_at_station_realize,
+    _lever_arm(STATIONS["alpha"], "alpha vane", 25.0, "a nose-boom vane can sit 20 m ahead on a transport aircraft"),
+    "alpha picks up -x q/U: phase change on alpha",
 )
 
 
