@@ -182,15 +182,20 @@ def test_simulation_error_is_second_order_in_the_step():
     assert np.log2(e1 / e2) > 1.7, (e1, e2)
 
 
-def test_simulate_needs_a_realisation_and_refuses_delay_before_mixing():
-    m = make_model("dimensional", "sundowner").with_effects("time_delay:q", "sensor_offset:alpha")
-    with pytest.raises(ParameterError, match="different output delays"):
-        m.with_values(tau_q=0.02).realize()
-    # the other order is realisable
-    m2 = make_model("dimensional", "sundowner").with_effects("sensor_offset:alpha", "time_delay:q")
-    G = m2.with_values(tau_q=0.02, x_alpha=2.0).frequency_response(OMEGA)
-    R = m2.with_values(tau_q=0.02, x_alpha=2.0).realize()
-    assert np.max(np.abs(R.frequency_response(OMEGA) - G)) < 1e-11 * np.max(np.abs(G))
+def test_a_sensor_station_is_a_term_of_its_row_whatever_the_order_of_the_effects():
+    # the station is part of the alpha row (fdml.channels.OUTPUT_TABLE): the vane sees the true q,
+    # alpha - x q/U, not the q sensor's delayed reading, so both orders are one model, realisable
+    vals = dict(tau_q=0.02, x_alpha=2.0)
+    base = make_model("dimensional", "sundowner")
+    G0 = base.frequency_response(OMEGA)
+    k = vals["x_alpha"] / base.U
+    for order in (("time_delay:q", "sensor_offset:alpha"), ("sensor_offset:alpha", "time_delay:q")):
+        m = base.with_effects(*order).with_values(vals)
+        G = m.frequency_response(OMEGA)
+        np.testing.assert_allclose(G[0], G0[0] - k * G0[1], rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(G[1], G0[1] * np.exp(-1j * OMEGA * vals["tau_q"]), rtol=1e-13, atol=1e-15)
+        R = m.realize()
+        assert np.max(np.abs(R.frequency_response(OMEGA) - G)) < 1e-11 * np.max(np.abs(G))
 
 
 # --- export --------------------------------------------------------------------------------------------

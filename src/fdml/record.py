@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .channels import OUTPUTS, SIGNALS, display_unit
+from .channels import ALL_OUTPUTS, SIGNALS, display_unit
 from .channels import REQUIRED as REQUIRED_SIGNALS
 from .errors import RecordError
 from .outputs import atomic_write_text
@@ -363,13 +363,13 @@ def add_noise(record: Record, noise, rng: np.random.Generator, *, relative: bool
     Returns
     -------
     Record
-        A copy with noisy ``alpha``, ``q``, ``az``; ``meta["noise_std"]`` holds
-        the standard deviations used.
+        A copy with noisy ``alpha``, ``q``, ``az`` (and ``theta``, ``qdot`` where
+        it has them); ``meta["noise_std"]`` holds the standard deviations used.
     """
     if not isinstance(rng, np.random.Generator):
         raise RecordError("add_noise needs a numpy Generator (np.random.default_rng(seed))")
     std = noise_stds(record, noise, relative=relative)
-    noisy = {k: record[k] + std[k] * rng.standard_normal(record.n) for k in OUTPUTS}
+    noisy = {k: record[k] + std[k] * rng.standard_normal(record.n) for k in std}
     return replace(record, signals={**record.signals, **noisy}, meta={**record.meta, "noise_std": std})
 
 
@@ -392,16 +392,17 @@ def noise_stds(record: Record, noise, *, relative: bool = False) -> dict[str, fl
     Returns
     -------
     dict of str to float
-        Standard deviation per output: alpha rad, q rad/s, az g.
+        Standard deviation per output the record has: alpha rad, q rad/s, az g[, theta rad, qdot rad/s^2].
     """
+    outputs = [k for k in ALL_OUTPUTS if record.has(k)]
     if isinstance(noise, Mapping):
-        unknown = set(noise) - set(OUTPUTS)
+        unknown = set(noise) - set(outputs)
         if unknown:
-            raise RecordError(f"noise given for unknown output(s) {sorted(unknown)}; outputs: alpha, q, az")
-        std = {k: float(noise.get(k, 0.0)) for k in OUTPUTS}
+            raise RecordError(f"noise given for unknown output(s) {sorted(unknown)}; outputs: {', '.join(outputs)}")
+        std = {k: float(noise.get(k, 0.0)) for k in outputs}
     else:
         try:
-            std = {k: float(noise) for k in OUTPUTS}
+            std = {k: float(noise) for k in outputs}
         except (TypeError, ValueError):
             raise RecordError(f"noise must be a number or a mapping of stds per output, got {noise!r}") from None
     if any(not math.isfinite(v) or v < 0 for v in std.values()):

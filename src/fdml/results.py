@@ -19,11 +19,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .channels import OUTPUTS
+from .channels import ALL_OUTPUTS
 from .errors import FdmlError
 from .findings import Finding
 from .jsoncodec import Fields, dumps, read_json, to_jsonable, write_json
-from .models.measurement import BOUNDARY_NAMES, INPUT_BIAS_NAME, NUISANCE_NAMES, STATE_BIAS_NAMES, Nuisance
+from .models.measurement import BOUNDARY_NAMES, INPUT_BIAS_NAME, STATE_BIAS_NAMES, Nuisance, nuisance_names
 from .parameters import Role, Slot
 from .warning_log import RecordedWarning, as_recorded
 
@@ -374,7 +374,7 @@ class FitResult(ByName):
             derived=_derived(prob, model, cov),
             fixed=fixed,
             at_bound=_at_bound(prob, theta),
-            outputs=tuple(OUTPUTS[k] for k in prob.out_idx),
+            outputs=prob.outputs,
             band=band,
             n_freq=prob.N,
             records=tuple(d.name for d in prob.data),
@@ -454,7 +454,7 @@ class FitResult(ByName):
         The ``v`` of Eq. 19 whose covariance is ``R`` (Eq. 24): the measured
         spectra minus :meth:`fitted_spectra`, for the fitted outputs.
         """
-        idx = [OUTPUTS.index(o) for o in self.outputs]
+        idx = [self.model.outputs.index(o) for o in self.outputs]
         parts = [(s["z"] - self.fitted_spectra(r))[:, idx] for r, s in enumerate(self.spectra)]
         out = np.concatenate(parts) if parts else np.zeros((0, len(idx)), complex)
         out.setflags(write=False)
@@ -750,7 +750,7 @@ class FitResult(ByName):
         model = _model_from_fields(f)
         names = f.strings("names")
         n = len(names)
-        outputs = f.strings("outputs", choices=OUTPUTS)
+        outputs = f.strings("outputs", choices=ALL_OUTPUTS)
         k = len(outputs)
         spectra = tuple(_spectrum_from_fields(s) for s in f.items("spectra", default=[]))
         return cls(
@@ -837,20 +837,22 @@ class FitResult(ByName):
             The record's nuisance terms.
         """
         s = self.spectra[record]
-        eta = np.concatenate([self.model.biases(), s["x0"], s["xT"], np.zeros(3)])  # NUISANCE_NAMES order
+        eta = np.concatenate([self.model.biases(), s["x0"], s["xT"], np.zeros(3)])  # nuisance_names order
         own = [(x, float(v)) for x, v in zip(self.slots, self.values) if x.role.nuisance and x.record == s["name"]]
+        names = nuisance_names(self.model.outputs)
         for x, v in own:
-            eta[NUISANCE_NAMES.index(x.base)] = v
+            eta[names.index(x.base)] = v
         roles = {x.role for x, _ in own}
         return Nuisance.from_vector(
             eta,
             boundary=self.boundary != "none",
             state_biases=Role.STATE_BIAS in roles,
             input_bias=Role.INPUT_BIAS in roles,
+            rows=self.model.outputs,
         )
 
     def fitted_spectra(self, record: int = 0) -> np.ndarray:
-        """Model output spectra at the estimate for record ``record``, shape (m, 3).
+        """Model output spectra at the estimate for record ``record``, shape (m, n_y) (the model's rows).
 
         Includes the estimated (or measured) boundary terms and biases, so that
         it is directly comparable with the measured ``spectra[record]["z"]``:
@@ -864,7 +866,7 @@ class FitResult(ByName):
         Returns
         -------
         numpy.ndarray
-            Complex spectra of alpha (rad s), q (rad), a_z (g s), shape (m, 3).
+            Complex spectra of alpha (rad s), q (rad), a_z (g s)[, theta (rad s), qdot (rad)], shape (m, n_y).
         """
         from .models.measurement import end_shift, predict
 
@@ -1040,8 +1042,8 @@ def _spectrum_from_fields(s: Fields) -> dict:
         "z": s.complexes("z", (m, None)),
         "u": s.complexes("u", (m, None)),
         "inputs": list(s.strings("inputs")),
-        "x0": s.floats("x0", (2,)),
-        "xT": s.floats("xT", (2,)),
+        "x0": s.floats("x0", (None,)),  # alpha, q[, theta]: the boundary channels of the model's outputs
+        "xT": s.floats("xT", (None,)),
         "T": s.number("T"),
         "dt": s.number("dt"),
         "n": s.integer("n", minimum=0),

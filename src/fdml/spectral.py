@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import fourier
-from .channels import GUST, INPUTS, OUTPUTS
+from .channels import GUST, INPUTS, OUTPUTS, boundary_channels, row_space
 from .errors import BandError, RecordError
 from .record import Record
 
@@ -123,15 +123,17 @@ class FrequencyData:
         Record name.
     omega : ndarray, shape (m,)
         Frequencies, rad/s.
-    z : ndarray, shape (m, 3)
-        Measured output transforms (alpha rad s, q rad, az g s).
+    z : ndarray, shape (m, n_y)
+        Measured output transforms, one column per output of ``outputs``
+        (alpha rad s, q rad, az g s[, theta rad s, qdot rad]).
     u : ndarray, shape (m, n_in)
         Input transforms (de[, alpha_w]), rad s.
     inputs : tuple of str
         Names of the columns of ``u``.
-    x0, xT : ndarray, shape (2,)
-        Measured alpha (rad) and q (rad/s) at the first and last sample, after
-        trim removal (for measured boundary terms).
+    x0, xT : ndarray, shape (n_b,)
+        Measured alpha (rad), q (rad/s)[, theta (rad)] at the first and last
+        sample, after trim removal (for measured boundary terms): the channels
+        of :func:`fdml.channels.boundary_channels`.
     T : float
         Record length (n - 1) dt, s.
     dt : float
@@ -150,10 +152,12 @@ class FrequencyData:
         End correction used by the transform.
     band : tuple
         (lo, hi, step), rad/s, when built from a band.
-    end_offset : ndarray, shape (3,)
+    end_offset : ndarray, shape (n_y,)
         ``|x(T) - trim| / max|x - trim|`` per output: how far from trim it ends.
     meta : dict
         The record's meta data (airspeed, source, trim values).
+    outputs : tuple of str
+        The outputs of the columns of ``z`` (:func:`fdml.channels.row_space`).
     record : Record or None
         The time-domain record as given (before trim removal), kept for
         time-domain cross-checks, plots and reports.
@@ -174,8 +178,9 @@ class FrequencyData:
     trim_samples: int = 1
     end_correction: str = "cubic"
     band: tuple | None = None
-    end_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    end_offset: np.ndarray = field(default_factory=lambda: np.zeros(len(OUTPUTS)))
     meta: dict = field(default_factory=dict)
+    outputs: tuple = OUTPUTS
     record: Record | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -184,12 +189,12 @@ class FrequencyData:
         return self.omega.size
 
     def boundary(self) -> np.ndarray:
-        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, 2) (docs/theory.md section 7).
+        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, n_b) (docs/theory.md section 7).
 
         Returns
         -------
         numpy.ndarray
-            Complex, shape (m, 2): the alpha (rad s) and q (rad) columns.
+            Complex, shape (m, n_b): the alpha (rad s), q (rad)[, theta (rad s)] columns.
         """
         from .models.measurement import boundary_vector, end_shift
 
@@ -339,6 +344,7 @@ def spectra(
     trim_window: float = 0.5,
     end_correction: str = "cubic",
     method: str = "auto",
+    outputs=None,
 ) -> FrequencyData:
     """Transform a record to the frequency domain.
 
@@ -359,6 +365,9 @@ def spectra(
         End correction of the finite Fourier integral (default cubic).
     method : {"auto", "czt", "direct"}, optional
         Transform algorithm.
+    outputs : sequence of str, optional
+        Outputs beyond alpha, q and a_z to transform (``theta``, ``qdot``:
+        :func:`fdml.channels.row_space`); the record must hold them.
 
     Returns
     -------
@@ -388,8 +397,9 @@ def spectra(
             f"({2 * math.pi / omega.max():.3g} s) of the highest band frequency {omega.max():g} rad/s: "
             "too few samples for this band"
         )
+    rows = _rows(record, outputs)
     rec = record.remove_trim(trim, window=trim_window)
-    outs = np.column_stack([rec[k] for k in OUTPUTS])
+    outs = np.column_stack([rec[k] for k in rows])
     inputs = INPUTS if rec.has(GUST) else INPUTS[:1]
     ins = np.column_stack([rec[k] for k in inputs])
     ones = np.ones(rec.n)
@@ -402,11 +412,11 @@ def spectra(
     return FrequencyData(
         name=rec.name,
         omega=omega,
-        z=X[:, :3],
-        u=X[:, 3 : 3 + len(inputs)],
+        z=X[:, : len(rows)],
+        u=X[:, len(rows) : len(rows) + len(inputs)],
         inputs=inputs,
-        x0=np.array([rec["alpha"][0], rec["q"][0]]),
-        xT=np.array([rec["alpha"][-1], rec["q"][-1]]),
+        x0=np.array([rec[c][0] for c in boundary_channels(rows)]),
+        xT=np.array([rec[c][-1] for c in boundary_channels(rows)]),
         T=rec.duration,
         dt=rec.dt,
         n=rec.n,
@@ -417,5 +427,18 @@ def spectra(
         band=band_t,
         end_offset=end_offset,
         meta=dict(rec.meta),
+        outputs=rows,
         record=record,
     )
+
+
+def _rows(record: Record, outputs) -> tuple[str, ...]:
+    """:func:`fdml.channels.row_space` of ``outputs``, each held by ``record`` (else a RecordError naming it)."""
+    try:
+        rows = row_space(outputs)
+    except ValueError as exc:
+        raise RecordError(str(exc)) from None
+    missing = [k for k in rows if not record.has(k)]
+    if missing:
+        raise RecordError(f"record {record.name!r} has no {', '.join(missing)} column: it cannot be fitted there")
+    return rows

@@ -18,8 +18,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 from scipy import optimize
 
+from .channels import ALL_OUTPUTS, OUTPUTS
 from .errors import FdmlError, RecordError
-from .models.base import OUTPUTS, Model
+from .models.base import Model
 from .record import Record
 from .results import ByName, frozen
 
@@ -108,7 +109,7 @@ def fit_time_domain(
     model : Model
         Starting values and free parameters (as for :func:`fdml.fit`).
     outputs : sequence of str or str, optional
-        Outputs in the fit (default alpha, q, az).
+        Outputs in the fit (default alpha, q, az; ``theta`` and ``qdot`` too).
     trim : {"first", "mean", "none"}, optional
         Trim removal, as in :func:`fdml.spectral.spectra`.
     biases : bool, optional
@@ -134,9 +135,10 @@ def fit_time_domain(
     if isinstance(outputs, str):
         outputs = [o.strip() for o in outputs.split(",") if o.strip()]
     outputs = tuple(outputs or OUTPUTS)
-    bad = [o for o in outputs if o not in OUTPUTS]
+    bad = [o for o in outputs if o not in ALL_OUTPUTS]
     if bad:
-        raise FdmlError(f"unknown output(s) {bad}; choose from {', '.join(OUTPUTS)}")
+        raise FdmlError(f"unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
+    model = model.with_outputs(outputs)  # the simulator returns them
     params = model.parameters
     if fix:
         params = params.fix(fix) if not isinstance(fix, (list, tuple)) else params.fix(list(fix))
@@ -159,7 +161,7 @@ def fit_time_domain(
     lo = np.concatenate([[params[n].lower for n in names], np.full(nb, -np.inf)])
     hi = np.concatenate([[params[n].upper for n in names], np.full(nb, np.inf)])
     base = params.values
-    for o in OUTPUTS:
+    for o in model.outputs:
         base[f"bias_{o}"] = 0.0  # biases are handled here, per fitted output
     nfev = 0
 

@@ -33,6 +33,7 @@ def register(sub) -> None:
     p.add_argument("--duration", type=float, default=10.0, help="record length, s (default 10)")
     p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
     O.add_noise_option(p)
+    p.add_argument("--outputs", help="outputs to simulate beyond alpha,q,az, comma-separated: theta, qdot")
     p.add_argument("--seed", type=seed_int, help="random seed (an integer >= 0)")
     O.add_output_option(p, kind="file", metavar="RECORD.csv", required=True, help="the simulated record (CSV)")
     O.add_json_option(p)
@@ -44,7 +45,7 @@ def run(args) -> int:
     from ..simulate import simulate_maneuver
 
     check_output(args.output, [args.aircraft], what="record file")  # before any work
-    model = make_model_from_args(args, assignments(args.set))
+    model = make_model_from_args(args, assignments(args.set)).with_outputs(args.outputs or ())
     kw = {} if args.amplitude is None else {"amplitude": args.amplitude}
     noise, _relative = _noise(args.noise)  # a number is a fraction of RMS in simulate_maneuver too
     rec = simulate_maneuver(

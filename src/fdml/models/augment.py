@@ -237,8 +237,8 @@ class Effect:
         """The effect on a time-domain realisation (see :func:`fdml.models.realization.realize`).
 
         Output-level effects act on the state space of the base model
-        (``fdml.simulate`` helpers ``delay_output``, ``scale_output``,
-        ``mix_output``, ``add_output_rate``, ``filter_input``, ``add_mode``);
+        (:mod:`fdml.models.realization` helpers ``delay_output``, ``scale_output``,
+        ``filter_input``, ``add_mode``);
         matrix-level effects on its descriptor form
         (:class:`fdml.models.realization.Descriptor`) or, on a Wells-Keskar base, on the
         options of its realisation.  An effect without one cannot be simulated.
@@ -304,6 +304,8 @@ class AugmentedModel(Model):
         Taken from ``root`` (the values given are replaced).
     parameters : Parameters, optional
         The parameter set; default the root's followed by the effects' (fixed at their nulls).
+    outputs : tuple of str, optional
+        Taken from ``root`` (the value given is replaced).
     root : Model
         The plain base model.
     effects : tuple of Effect, optional
@@ -323,6 +325,7 @@ class AugmentedModel(Model):
             raise ParameterError("AugmentedModel needs a plain fdml model as root")
         object.__setattr__(self, "gust", self.root.gust)
         object.__setattr__(self, "output_bias", self.root.output_bias)
+        object.__setattr__(self, "outputs", self.root.outputs)
         if self.parameters is None:
             items = list(self.root.parameters.items)
             for eff in self.effects:
@@ -343,6 +346,17 @@ class AugmentedModel(Model):
 
     def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
         return self.root._placeholder_sources()  # the effects start at their nulls: no placeholders
+
+    def with_outputs(self, outputs) -> Model:
+        root = self.root.with_outputs(outputs)
+        if root is self.root:
+            return self
+        # the root's new biases, and this model's own values of everything it keeps
+        keep = {p.name for p in self.parameters if p.role is not Role.OUTPUT_BIAS or p.name in root.parameters}
+        params = Parameters(tuple(p for p in self.parameters if p.name in keep)).extended(
+            p for p in root.parameters if p.name not in keep
+        )
+        return replace(self, root=root, parameters=params)
 
     @property
     def parts(self) -> tuple:
@@ -400,7 +414,7 @@ class AugmentedModel(Model):
         for eff in self.effects:
             if isinstance(eff, OutputEffect):
                 G, H, P = eff.output(s, p, G, H, P, self.root)
-        return ModelResponse(omega, G, H, P)
+        return ModelResponse(omega, G, H, P, self.outputs)
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         return self.root.derived(self._root_values(self.values(values)))
@@ -524,8 +538,9 @@ class OutputEffect(Effect):
         The parameters the effect adds.
     fn : callable
         ``fn(s, p, G, H, P, root) -> (G, H, P)``: ``s`` = j omega (n,), ``p``
-        all parameter values by name, ``G`` (n, 3, n_in), ``H`` and ``P``
-        (n, 3, 2), ``root`` the plain base model (for U, the aircraft).
+        all parameter values by name, ``G`` (n, n_y, n_in), ``H`` (n, n_y, n_b) and
+        ``P`` (n, n_y, 2), rows in ``root.outputs`` order (alpha, q, a_z first),
+        ``root`` the plain base model (for U, the aircraft).
         Must return the inputs unchanged when the effect's parameters are at
         their nulls.
     needs : tuple of str, optional
@@ -578,9 +593,9 @@ class OutputEffect(Effect):
         p : mapping of str to float
             All parameter values by name.
         G : numpy.ndarray
-            Outputs per input, shape (n, 3, n_in).
+            Outputs per input, shape (n, n_y, n_in).
         H, P : numpy.ndarray
-            Outputs per boundary term and per state-equation forcing, shape (n, 3, 2).
+            Outputs per boundary term and per state-equation forcing, shapes (n, n_y, n_b) and (n, n_y, 2).
         root : Model
             The plain base model.
 
@@ -683,9 +698,9 @@ class MatrixEffect(OutputEffect):
         p : mapping of str to float
             All parameter values by name.
         G : numpy.ndarray
-            Outputs per input, shape (n, 3, n_in).
+            Outputs per input, shape (n, n_y, n_in).
         H, P : numpy.ndarray
-            Outputs per boundary term and per state-equation forcing, shape (n, 3, 2).
+            Outputs per boundary term and per state-equation forcing, shapes (n, n_y, n_b) and (n, n_y, 2).
         root : Model
             The plain base model.
 
@@ -812,11 +827,11 @@ def scale_rows(G, H, P, row: int, factor):
     Parameters
     ----------
     G : numpy.ndarray
-        Outputs per input, shape (n, 3, n_in).
+        Outputs per input, shape (n, n_y, n_in).
     H, P : numpy.ndarray
-        Outputs per boundary term and per state-equation forcing, shape (n, 3, 2).
+        Outputs per boundary term and per state-equation forcing, shapes (n, n_y, n_b) and (n, n_y, 2).
     row : int
-        The output: 0 alpha, 1 q, 2 a_z.
+        The output's row: 0 alpha, 1 q, 2 a_z (then those of ``model.outputs``).
     factor : float or numpy.ndarray
         The factor, a scalar or one per frequency (n,).
 

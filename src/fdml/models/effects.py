@@ -284,7 +284,7 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
     """
     if not isinstance(model, AugmentedModel) or not model.requested:
         return []
-    rows = [OUTPUTS.index(o) for o in outputs]
+    rows = [model.outputs.index(o) for o in outputs]
     free = list(model.parameters.free_model_names)
     if not free:  # every parameter fixed (a prediction): nothing to confound
         return []
