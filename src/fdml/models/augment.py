@@ -370,7 +370,67 @@ class AugmentedModel(Model):
     def sensitivity(self, omega, values=None, names=(), parts=("G", "H", "P")):
         if not self.effects:  # only freed parameters of the root: its analytic sensitivities
             return self.root.sensitivity(omega, self._root_values(self.values(values)), names, parts)
-        return super().sensitivity(omega, values, names, parts)
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        p = self.values(values)
+        names = list(names)
+        own = {q.name for e in self.effects if not isinstance(e, MatrixEffect) for q in e.param_list(self.root)}
+        inner = [n for n in names if n not in own]  # through the solve: root, matrix-level and station parameters
+        outer = [n for n in names if n in own]  # output-level effects' own: differences of the effects alone
+        r, dG, dH, dP = self._matrix_sensitivity(omega, p, inner, ("G", "H", "P"))
+        s = 1j * r.omega
+        base = (r.G, r.H, r.P)
+        G, H, P, dG, dH, dP = self._through_outputs(s, p, base, (dG, dH, dP))
+        extra = [self._output_difference(s, p, base, n) for n in outer]
+        order = [inner.index(n) if n in inner else len(inner) + outer.index(n) for n in names]
+
+        def joined(a, i):
+            return np.concatenate([a] + [x[i][None] for x in extra])[order] if extra else a[order]
+
+        return ModelResponse(omega, G, H, P, self.outputs), joined(dG, 0), joined(dH, 1), joined(dP, 2)
+
+    def _output_difference(self, s, p, base: tuple, name: str) -> tuple:
+        """d(G, H, P)/d(name) of an output-level effect's parameter: central differences of the effects alone."""
+        v = p[name]
+        h = 1e-5 * max(abs(v), 1e-2)
+        up, dn = base, base
+        for eff in self.effects:
+            if isinstance(eff, OutputEffect) and not isinstance(eff, MatrixEffect):
+                up = eff.output(s, {**p, name: v + h}, *up, self.root)
+                dn = eff.output(s, {**p, name: v - h}, *dn, self.root)
+        return tuple((a - b) / (2 * h) for a, b in zip(up, dn))
+
+    def _through_outputs(self, s, p, resp: tuple, derivs: tuple) -> tuple:
+        """The output-level effects applied to a response and pushed along its derivatives.
+
+        The root parameters' derivatives come through the solve (:meth:`Model._matrix_sensitivity`);
+        an output effect maps (G, H, P) to an affine function of them, so its derivative along dG is
+        ``(T(G + e dG) - T(G - e dG)) / 2e``, exact for an affine T, all parameters in one call.
+        Returns (G, H, P, dG, dH, dP) after the effects.
+        """
+        outs = [e for e in self.effects if isinstance(e, OutputEffect) and not isinstance(e, MatrixEffect)]
+        G, H, P = resp
+        k = derivs[0].shape[0]
+        if not outs or k == 0:
+            for eff in outs:
+                G, H, P = eff.output(s, p, G, H, P, self.root)
+            return (G, H, P, *derivs)
+        scale = max(float(np.max(np.abs(G))), 1e-300)
+        eps = 1e-6 * scale / np.maximum(np.max(np.abs(derivs[0]), axis=(1, 2, 3)), 1e-300)  # one step per parameter
+        e = eps.reshape(k, 1, 1, 1)
+        st = np.tile(s, 2 * k + 1)
+        stacks = [
+            np.concatenate([x[None], x[None] + e * d, x[None] - e * d]).reshape((-1,) + x.shape[1:])
+            for x, d in zip(resp, derivs)
+        ]
+        for eff in outs:
+            stacks = list(eff.output(st, p, *stacks, self.root))
+        n = s.size
+        out = []
+        for x in stacks:
+            x = x.reshape((2 * k + 1, n) + x.shape[1:])
+            out.append((x[0], (x[1 : k + 1] - x[k + 1 :]) / (2 * e)))
+        (G, dG), (H, dH), (P, dP) = out
+        return G, H, P, dG, dH, dP
 
     @property
     def U(self) -> float:

@@ -28,7 +28,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..channels import INPUTS, OUTPUT_TABLE, OUTPUTS, SIGNALS, row_space
+from ..channels import INPUTS, OUTPUT_TABLE, OUTPUTS, SIGNALS, STATIONS, row_space
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters, Role
 
@@ -169,6 +169,10 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
         Outputs per unit forcing of each state equation.
     """
     return _response_rows(s, _inverse(s, M), B, E, rows)
+
+
+#: Parameters that place a sensor (they enter the output rows, :data:`fdml.channels.STATIONS`).
+_STATION_NAMES = frozenset(STATIONS.values())
 
 
 def _response_rows(s: np.ndarray, inv: np.ndarray, B: np.ndarray, E: np.ndarray, rows):
@@ -557,6 +561,10 @@ class Model:
         names = list(names)
         if type(self).evaluate is not Model.evaluate:
             return self._fd_sensitivity(omega, p, names)
+        return self._matrix_sensitivity(omega, p, names, parts)
+
+    def _matrix_sensitivity(self, omega, p, names, parts):
+        """:meth:`sensitivity` through the solve, for parameters that enter :meth:`_matrices` (or input delays)."""
         s, M, Bd, E, Dl, inv, (G, H, P) = self._solved(omega, p)
         X = inv @ Bd
         IE = inv if _is_identity(E) else inv @ np.broadcast_to(E, M.shape)
@@ -566,6 +574,16 @@ class Model:
         dG = P @ dBd - PdM @ X
         dH = _padded(P @ dE - PdM @ IE, H.shape[2]) if "H" in parts else None  # integral rows' own: constant
         dP = -(PdM @ inv) if "P" in parts else None
+        for i, nm in enumerate(names):  # a sensor's station enters its output row, not the matrices
+            if nm in _STATION_NAMES:
+                h = 1e-5 * max(abs(p[nm]), 1.0)  # the row is affine in the station: exact to rounding
+                up = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] + h}))
+                dn = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] - h}))
+                dG[i] = (up[0] - dn[0]) / (2 * h)
+                if dH is not None:
+                    dH[i] = (up[1] - dn[1]) / (2 * h)
+                if dP is not None:
+                    dP[i] = (up[2] - dn[2]) / (2 * h)
         return ModelResponse(omega, G, H, P, self.outputs), dG, dH, dP
 
     def forced_sensitivity(self, omega, values, names, u, boundary=None, forcing=None):
