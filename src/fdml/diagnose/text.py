@@ -225,8 +225,6 @@ def paragraph(rep) -> str:
                         f"It acts mostly on {top['channel']} {_where(top, whole)} ({100 * top['share']:.0f} % "
                         "of its footprint)."
                     )
-                if not s.get("plausible", True):
-                    out.append("Its fitted size lies outside the plausible range: it may be absorbing something else.")
         shifts = sel[0].get("parameter_shifts") or {}
         big = sorted(
             (
