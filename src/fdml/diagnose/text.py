@@ -109,7 +109,8 @@ def _flight_path_sentences(k: dict) -> list:
             if offset and any(p["name"] == "tau_alpha" for p in sig)
             else ""
         )
-        out.append(f"The flight-path reconstruction of {e['record']} (theta, V, h) finds {found}{note}.")
+        used = ", ".join(c for c in ("theta", "V", "h", "ax") if c not in e.get("missing", []))
+        out.append(f"The flight-path reconstruction of {e['record']} ({used}) finds {found}{note}.")
     missing = sorted({c for e in k.get("flight_path", []) for c in e.get("missing", [])})
     if missing:
         out.append(
