@@ -14,7 +14,7 @@ def register(sub) -> None:
         "demo", help="simulate a Navion 3-2-1-1, fit steady and unsteady, print the table and write a Bode figure"
     )
     O.add_output_option(
-        p, kind="folder", metavar="DIR", old=("--out",), help=f"the table, fits and figure (default ./{DEFAULT_OUTPUT})"
+        p, kind="folder", metavar="DIR", help=f"the table, fits and figure (default ./{DEFAULT_OUTPUT})"
     )
     p.add_argument("--seed", type=seed_int, default=1, help="noise seed (default 1)")
     O.add_noise_option(p, default=f"{_default_noise():g}")

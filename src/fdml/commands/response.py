@@ -15,7 +15,7 @@ def register(sub) -> None:
     )
     O.add_model_options(p, reads_records=False)
     O.add_set_option(p)
-    O.add_band_option(p, old=("--omega",), help=f"frequencies, rad/s (default {O.DEFAULT_BAND_TEXT}; LO may be 0)")
+    O.add_band_option(p, help=f"frequencies, rad/s (default {O.DEFAULT_BAND_TEXT}; LO may be 0)")
     O.add_json_option(p)
     p.set_defaults(func=run)
 
@@ -27,7 +27,7 @@ def run(args) -> int:
     from ..spectral import parse_band
 
     model = make_model_from_args(args, assignments(args.set))
-    omega = omega_band(*parse_band(args.band, what="--band/--omega", positive=False))
+    omega = omega_band(*parse_band(args.band, what="--band", positive=False))
     G = model.frequency_response(omega)
     if args.json:
         from ..cli import print_json
