@@ -28,8 +28,13 @@ __all__ = ["FrequencyData", "spectra", "parse_band", "band_numbers", "DEFAULT_BA
 DEFAULT_BAND = (0.1, 10.0, 0.1)
 
 
-def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[float, float, float]:
+def parse_band(
+    band, *, what: str = "band", positive: bool = True, default_step: float | None = None, dt: float | None = None
+) -> tuple[float, float, float]:
     """Normalise and check a band given as ``(lo, hi, step)`` or ``"LO:HI:STEP"`` (rad/s).
+
+    The one band parser of the commands and the library calls that take a
+    grid (the fit, the checks, the response, the experiment design).
 
     Parameters
     ----------
@@ -40,6 +45,12 @@ def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[floa
     positive : bool, optional
         Require ``lo > 0`` (default: a fit band; the output-bias regressor is
         singular at 0 rad/s).  ``fdml response`` accepts 0.
+    default_step : float, optional
+        Also accept ``LO:HI``, with this step, rad/s (the experiment design);
+        by default the step is required.
+    dt : float, optional
+        Sample interval, s: refuse a band whose upper edge is not below the
+        Nyquist frequency pi/dt.
 
     Returns
     -------
@@ -53,14 +64,24 @@ def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[floa
     Raises
     ------
     BandError
-        A malformed band, or one :func:`fdml.fourier.check_band` refuses
-        (non-finite, ``hi < lo``, ``step <= 0``, too many frequencies), so a
-        command can refuse it before any work starts.
+        A malformed band, one :func:`fdml.fourier.check_band` refuses
+        (non-finite, ``hi < lo``, ``step <= 0``, too many frequencies), or
+        one reaching the Nyquist frequency, so a command can refuse it
+        before any work starts.
     """
     if band is None:
         return DEFAULT_BAND
-    lo, hi, step = band_numbers(band, (3,), what=what, example="0.1:10:0.1")
+    if default_step is None:
+        lo, hi, step = band_numbers(band, (3,), what=what, example="0.1:10:0.1")
+    else:
+        lo, hi, *rest = band_numbers(band, (2, 3), what=what, example="0.5:10")
+        step = rest[0] if rest else default_step
     lo, hi, step, _ = fourier.check_band(lo, hi, step, what=what, positive=positive)
+    if dt is not None and hi >= math.pi / dt:
+        raise BandError(
+            f"{what} edge {hi:g} rad/s is not below the Nyquist frequency pi/dt = {math.pi / dt:.4g} rad/s; "
+            "lower the band or sample faster"
+        )
     return lo, hi, step
 
 
