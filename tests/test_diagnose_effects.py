@@ -204,6 +204,13 @@ def test_every_truth_at_its_null_is_the_base_record():
             assert np.max(np.abs(rec[ch] - plain[ch])) <= 1e-12 * np.max(np.abs(plain[ch])), (key, ch)
 
 
+def test_truth_noise_must_be_a_level():
+    from fdml.diagnose.truth import simulate_truth
+
+    with pytest.raises(ParameterError, match=">= 0"):
+        simulate_truth(fdml.make_model("steady", "navion"), None, duration=4.0, noise=-0.05)
+
+
 def test_coloured_noise_has_the_stated_low_frequency_excess():
     from fdml.diagnose.truth import COLOURED_LF_RATIO, sensor_noise
 

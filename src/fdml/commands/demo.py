@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from . import _options as O
-from ._common import seed_int
+from ._common import noise_option, seed_int
 
 #: Where the demo writes when -o is not given.
 DEFAULT_OUTPUT = "fdml-demo"
@@ -36,10 +36,9 @@ def run(args) -> int:
     from ..cli import print_json
     from ..demo import run_demo
     from ..errors import FdmlError
-    from .simulate import _noise
 
-    noise, relative = _noise(args.noise)
-    if noise is not None and not relative:
+    noise = noise_option(args.noise)
+    if isinstance(noise, dict):
         raise FdmlError(
             "fdml demo --noise takes a fraction of each output's RMS (e.g. 0.02); "
             "absolute stds go to fdml simulate --noise"

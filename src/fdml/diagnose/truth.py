@@ -402,7 +402,7 @@ def simulate_truth(
         signals["alpha_w"] = inputs["alpha_w"][keep]
     clean = Record(tr, signals, check_units=False)
     stds = noise_stds(clean, noise, relative=True)  # a fraction of each clean channel's RMS
-    if noise > 0:
+    if any(stds.values()):
         signals.update({ch: clean[ch] + stds[ch] * sensor_noise(rng, tr.size, dt, noise_kind) for ch in OUTPUTS})
     meta = {
         "truth": key,
