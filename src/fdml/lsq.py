@@ -153,6 +153,6 @@ def relaxed_least_squares(
         J=res.jac * rescale[:, None],
         settled=settled,
         success=bool(res.success),
-        message=str(res.message),
+        message=str(res.message).rstrip("."),
         nfev=int(nfev),
     )
