@@ -471,67 +471,68 @@ def _integrate(a, th, V, dt, q, az, ax, Vin):
 
     Inputs are arrays at the samples and the midpoints (index 2k and 2k+1);
     ``ax`` None means a_x = sin(theta) (steady flight), ``Vin`` not None
-    means the airspeed is an input rather than a state.  theta_dot = q needs
-    no other state, so theta and its stage values are summed first; the loop
-    carries alpha, V and h (from 0) in scalars, with cos and sin of theta -
-    alpha expanded so that a stage takes one cos and one sin of alpha.  This
-    loop is the check's whole cost.
+    means the airspeed is an input rather than a state; h starts at 0.
+    Written out in scalars: this loop is the check's whole cost.
     """
-    g, hdt, sixth = G0, 0.5 * dt, dt / 6.0
-
-    def ends(x):  # an input per step: at its start, middle and end
-        return x[0:-1:2].tolist(), x[1::2].tolist(), x[2::2].tolist()
-
-    q0, q1, q2 = q[0:-1:2], q[1::2], q[2::2]
-    TH = th + np.concatenate([[0.0], np.cumsum(sixth * (q0 + 4.0 * q1 + q2))])
-    stages = (TH[:-1], TH[:-1] + hdt * q0, TH[:-1] + hdt * q1, TH[:-1] + dt * q1)  # theta at the RK4 stages
-    cs = [f(st).tolist() for st in stages for f in (np.cos, np.sin)]
-    if ax is None:  # a_x = sin(theta)
-        xs = cs[1::2]
-    else:
-        x0, xm, x2 = ends(ax)
-        xs = [x0, xm, xm, x2]
-    vstate = Vin is None
-    vs = ends(np.zeros_like(q)) if vstate else ends(Vin)
-    A, VV, HH = [a], [V], [0.0]
-    h = 0.0
+    g = G0
     cos, sin = math.cos, math.sin
-    for Q0, Q1, Q2, Z0, Z1, Z2, X1, X2, X3, X4, c1, s1, c2, s2, c3, s3, c4, s4, W1, Wm, W4 in zip(
-        *ends(q), *ends(az), *xs, *cs, *vs
-    ):
-        # a stage: alpha_dot = q + g/v (a_z cos a - a_x sin a + cos(theta - a)), V_dot, h_dot = v sin(theta - a)
-        ca, sa = cos(a), sin(a)
-        v1 = V if vstate else W1
-        da1 = Q0 + g / v1 * (Z0 * ca - X1 * sa + c1 * ca + s1 * sa)
-        dV1 = g * (X1 * ca + Z0 * sa - s1 * ca + c1 * sa) if vstate else 0.0
-        dh1 = v1 * (s1 * ca - c1 * sa)
+    n = (len(q) + 1) // 2
+    q, az = q.tolist(), az.tolist()
+    ax = None if ax is None else ax.tolist()
+    Vin = None if Vin is None else Vin.tolist()
+    A = [a] * n
+    TH = [th] * n
+    VV = [V] * n
+    HH = [0.0] * n
+    h = 0.0
+    hdt = 0.5 * dt
+    sixth = dt / 6.0
+    vstate = Vin is None
+
+    def rates(a, v, th, q, z, x):
+        """alpha_dot, V_dot (0 when V is an input) and h_dot of the kinematics at one RK4 stage."""
+        ca, sa, gm = cos(a), sin(a), th - a
+        return (
+            q + g / v * (z * ca - x * sa + cos(gm)),
+            (g * (x * ca + z * sa - sin(gm)) if vstate else 0.0),
+            v * sin(gm),
+        )
+
+    for k in range(n - 1):
+        i0 = 2 * k
+        q0, q1, q2 = q[i0], q[i0 + 1], q[i0 + 2]
+        z0, z1, z2 = az[i0], az[i0 + 1], az[i0 + 2]
+        # theta depends on q only
+        t1, t2, t3, t4 = th, th + hdt * q0, th + hdt * q1, th + dt * q1
+        if ax is None:
+            x0, x1a, x1b, x2 = sin(t1), sin(t2), sin(t3), sin(t4)
+        else:
+            x0, x1a, x1b, x2 = ax[i0], ax[i0 + 1], ax[i0 + 1], ax[i0 + 2]
+        if vstate:
+            v1 = V
+        else:
+            v1, vm, v4 = Vin[i0], Vin[i0 + 1], Vin[i0 + 2]
+        da1, dV1, dh1 = rates(a, v1, t1, q0, z0, x0)
         a2 = a + hdt * da1
-        v2 = V + hdt * dV1 if vstate else Wm
-        ca, sa = cos(a2), sin(a2)
-        da2 = Q1 + g / v2 * (Z1 * ca - X2 * sa + c2 * ca + s2 * sa)
-        dV2 = g * (X2 * ca + Z1 * sa - s2 * ca + c2 * sa) if vstate else 0.0
-        dh2 = v2 * (s2 * ca - c2 * sa)
+        v2 = V + hdt * dV1 if vstate else vm
+        da2, dV2, dh2 = rates(a2, v2, t2, q1, z1, x1a)
         a3 = a + hdt * da2
-        v3 = V + hdt * dV2 if vstate else Wm
-        ca, sa = cos(a3), sin(a3)
-        da3 = Q1 + g / v3 * (Z1 * ca - X3 * sa + c3 * ca + s3 * sa)
-        dV3 = g * (X3 * ca + Z1 * sa - s3 * ca + c3 * sa) if vstate else 0.0
-        dh3 = v3 * (s3 * ca - c3 * sa)
+        v3 = V + hdt * dV2 if vstate else vm
+        da3, dV3, dh3 = rates(a3, v3, t3, q1, z1, x1b)
         a4 = a + dt * da3
-        v4 = V + dt * dV3 if vstate else W4
-        ca, sa = cos(a4), sin(a4)
-        da4 = Q2 + g / v4 * (Z2 * ca - X4 * sa + c4 * ca + s4 * sa)
-        dV4 = g * (X4 * ca + Z2 * sa - s4 * ca + c4 * sa) if vstate else 0.0
-        dh4 = v4 * (s4 * ca - c4 * sa)
+        vv4 = V + dt * dV3 if vstate else v4
+        da4, dV4, dh4 = rates(a4, vv4, t4, q2, z2, x2)
         a += sixth * (da1 + 2 * da2 + 2 * da3 + da4)
-        V = V + sixth * (dV1 + 2 * dV2 + 2 * dV3 + dV4) if vstate else W4
+        th += sixth * (q0 + 4 * q1 + q2)
+        if vstate:
+            V += sixth * (dV1 + 2 * dV2 + 2 * dV3 + dV4)
+        else:
+            V = v4
         h += sixth * (dh1 + 2 * dh2 + 2 * dh3 + dh4)
         if not (-10.0 < a < 10.0 and 0.0 < V < 1e5):
             raise FloatingPointError("kinematic integration diverged")
-        A.append(a)
-        VV.append(V)
-        HH.append(h)
-    return np.array(A), TH, np.array(VV), np.array(HH)
+        A[k + 1], TH[k + 1], VV[k + 1], HH[k + 1] = a, th, V, h
+    return np.array(A), np.array(TH), np.array(VV), np.array(HH)
 
 
 #: The parameters the integration depends on (the others act on its outputs).
@@ -626,7 +627,7 @@ class _Problem:
             self._cache[name] = self._spline(name)(self.tt)
         return self._cache[name]
 
-    def _integrated(self, p) -> _Run:
+    def _run(self, p) -> _Run:
         """The kinematics integrated from the corrected inputs, reusing the last runs.
 
         The weights do not enter the integration, and K_alpha, b_alpha,
@@ -637,13 +638,13 @@ class _Problem:
         before ended, repeats no integration.
         """
         key = tuple(float(p.get(k, 0.0)) for k in _INTEGRATION_INPUTS)
-        run = self._runs.pop(key, None) or self._integrate(p)
+        run = self._runs.pop(key, None) or self._new_run(p)
         self._runs[key] = run  # the most recent last
         if len(self._runs) > len(self.names) + 2:
             del self._runs[next(iter(self._runs))]
         return run
 
-    def _integrate(self, p) -> _Run:
+    def _new_run(self, p) -> _Run:
         """One integration from the inputs corrected by the sensor parameters in ``p``."""
         q = (self._mid("q") - p["b_q"]) / p["K_q"]
         if p["tau_az"] != 0.0:
@@ -667,7 +668,7 @@ class _Problem:
 
     def simulate(self, p) -> dict:
         """Integrate the kinematics; returns the simulated outputs (as measured, sensor models applied)."""
-        run = self._integrated(p)
+        run = self._run(p)
         out = {"alpha": p["K_alpha"] * run.delayed("A", p["tau_alpha"]) + p["b_alpha"]}
         if self.has_theta:
             out["theta"] = run.delayed("TH", p["tau_theta"])
