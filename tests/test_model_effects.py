@@ -320,7 +320,7 @@ def test_cli_response_and_batch_and_montecarlo(record, capsys, tmp_path):
         "time_delay:alpha",
         "--set",
         "tau_alpha=0.1",
-        "--omega",
+        "--band",
         "1:2:1",
         "--json",
     )
@@ -344,7 +344,7 @@ def test_cli_response_and_batch_and_montecarlo(record, capsys, tmp_path):
         "--serial",
         "--band",
         "0.3:12:0.05",
-        "--out",
+        "--output",
         str(tmp_path / "b"),
         "--json",
     )

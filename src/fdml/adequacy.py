@@ -754,17 +754,12 @@ def _root(model):
 
 def _output_effect_on(model, base):
     """The output-level effect ``model`` adds on top of ``base`` (None when it is not just that)."""
-    from .models.effects import (
-        AugmentedModel,
-        MatrixEffect,
-        OutputEffect,
-        applied_effects,
-    )
+    from .models.effects import AugmentedModel, OutputEffect, applied_effects
 
     if not isinstance(model, AugmentedModel) or not model.effects:
         return None
     eff = model.effects[-1]
-    if not isinstance(eff, OutputEffect) or isinstance(eff, MatrixEffect):
+    if not isinstance(eff, OutputEffect):
         return None
     if tuple(model.effects[:-1]) != tuple(applied_effects(base)):
         return None

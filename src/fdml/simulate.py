@@ -42,11 +42,11 @@ from collections.abc import Mapping
 import numpy as np
 from scipy import interpolate, linalg, signal
 
-from .channels import INPUTS, SIGNALS
+from .channels import INPUTS
 from .errors import ParameterError, RecordError
 from .maneuvers import DEFAULT_AMPLITUDE, DRYDEN_L, dryden_gust, make_input, time_vector
 from .models.realization import Realization, _System, _system, realize
-from .record import Record, add_noise, uniform_interval
+from .record import Record, add_noise, check_noise, uniform_interval
 
 __all__ = [
     "simulate",
@@ -299,39 +299,19 @@ def _check_inputs(model, t: np.ndarray, inputs) -> dict[str, np.ndarray]:
     return out
 
 
-def _noise_fraction(noise) -> float | None:
-    """``noise`` as a fraction of RMS (a number), or None for a mapping of standard deviations or None."""
-    if noise is None or isinstance(noise, Mapping):
-        return None
-    if isinstance(noise, bool) or not isinstance(noise, (int, float, np.integer, np.floating)):
-        raise ParameterError(
-            f"noise must be a fraction of each output's RMS (a number such as 0.02) or a "
-            f"mapping {{'alpha': rad, 'q': rad/s, 'az': g}} of standard deviations, got {noise!r}"
-        )
-    if not (math.isfinite(noise) and noise >= 0):
-        raise ParameterError(f"noise fraction must be finite and >= 0, got {noise!r}")
-    return float(noise)
-
-
 def _check_noise(noise, rng, outputs):
+    """simulate's absolute noise: a mapping of standard deviations (:func:`fdml.record.check_noise`) of
+    the model's outputs, and a generator."""
     if noise is None:
         return None
     if not isinstance(noise, Mapping):
         raise ParameterError("noise must be a mapping {'alpha': rad, 'q': rad/s, 'az': g} of standard deviations")
-    bad = [k for k in noise if k not in outputs]
+    out = check_noise(noise)
+    bad = [k for k in out if k not in outputs]
     if bad:
         raise ParameterError(
             f"unknown noise channel(s) {', '.join(map(str, bad))}; channels of this model: {', '.join(outputs)}"
         )
-    out = {}
-    for k, v in noise.items():
-        try:
-            s = float(v)
-        except (TypeError, ValueError):
-            raise ParameterError(f"noise std for {k} must be a number ({SIGNALS[k]}), got {v!r}") from None
-        if not (math.isfinite(s) and s >= 0):
-            raise ParameterError(f"noise std for {k} must be finite and >= 0 ({SIGNALS[k]}), got {v!r}")
-        out[k] = s
     if rng is None or not isinstance(rng, np.random.Generator):
         raise ParameterError("noise needs rng, a numpy Generator (np.random.default_rng(seed))")
     return out
@@ -555,8 +535,9 @@ def simulate_maneuver(
         )
     elif gust_std > 0:
         raise ParameterError("gust_std > 0 needs a model with a gust input (make_model(..., gust=True))")
-    fraction = _noise_fraction(noise)
-    absolute = None if fraction is not None else noise
+    level = None if noise is None else check_noise(noise)
+    fraction = None if isinstance(level, dict) else level  # a number is a fraction of each output's RMS
+    absolute = level if isinstance(level, dict) else None
     rec = simulate(
         model, t, inputs, values, noise=absolute, rng=rng if absolute else None, name=f"{maneuver} simulation"
     )

@@ -30,11 +30,16 @@ DEFAULT_BAND = (0.1, 10.0, 0.1)
 DEFAULT_STEP = DEFAULT_BAND[2]
 
 
-def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[float, float, float]:
+def parse_band(
+    band, *, what: str = "band", positive: bool = True, dt: float | None = None
+) -> tuple[float, float, float]:
     """Normalise and check a band given as ``"LO:HI[:STEP]"`` or ``(lo, hi[, step])`` (rad/s).
 
     fdml's one band syntax, for every command and call that takes a band: without a
     step, the step is :data:`DEFAULT_STEP` (0.1 rad/s, the default band's).
+
+    The one band parser of the commands and the library calls that take a
+    grid (the fit, the checks, the response, the experiment design).
 
     Parameters
     ----------
@@ -45,6 +50,9 @@ def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[floa
     positive : bool, optional
         Require ``lo > 0`` (default: a fit band; the output-bias regressor is
         singular at 0 rad/s).  ``fdml response`` accepts 0.
+    dt : float, optional
+        Sample interval, s: refuse a band whose upper edge is not below the
+        Nyquist frequency pi/dt.
 
     Returns
     -------
@@ -58,15 +66,21 @@ def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[floa
     Raises
     ------
     BandError
-        A malformed band, or one :func:`fdml.fourier.check_band` refuses
-        (non-finite, ``hi < lo``, ``step <= 0``, too many frequencies), so a
-        command can refuse it before any work starts.
+        A malformed band, one :func:`fdml.fourier.check_band` refuses
+        (non-finite, ``hi < lo``, ``step <= 0``, too many frequencies), or
+        one reaching the Nyquist frequency, so a command can refuse it
+        before any work starts.
     """
     if band is None:
         return DEFAULT_BAND
     lo, hi, *given = band_numbers(band, (2, 3), what=what, example="0.1:10:0.1")
     step = given[0] if given else DEFAULT_STEP
     lo, hi, step, _ = fourier.check_band(lo, hi, step, what=what, positive=positive)
+    if dt is not None and hi >= math.pi / dt:
+        raise BandError(
+            f"{what} edge {hi:g} rad/s is not below the Nyquist frequency pi/dt = {math.pi / dt:.4g} rad/s; "
+            "lower the band or sample faster"
+        )
     return lo, hi, step
 
 

@@ -98,6 +98,14 @@ class Effect:
     :attr:`channel` (``alpha``, ``q``, ``az``, ``de``, ``alpha_w`` or a comma
     list), :attr:`params` and implement :meth:`augment`.
 
+    The diagnosis is validated on records simulated with one withheld effect.
+    Those truths are written independently of the effects' code, on purpose (a
+    truth that shared the candidate's code would confirm its mistakes): an
+    effect that frees a model parameter is simulated as the plain model, the
+    others by their entry in :data:`fdml.diagnose.truth.TRUTHS`.  An effect
+    without one (a new effect; the lags of the dimensional and derivatives
+    models) can be fitted and diagnosed, but it cannot be a validation truth.
+
     Attributes
     ----------
     name : str
@@ -208,30 +216,6 @@ class Effect:
         for p in self.param_list(model):
             out[p.name] = vals.get(p.name, 0.0) if p.null is None else float(p.null)
         return out
-
-    def simulate(self, t, signals: dict, values: Mapping[str, float], model: Model) -> dict:
-        """Apply the effect to noise-free time histories (for truth generation).
-
-        Built-in effects implement it in :mod:`fdml.diagnose.truth`; a user
-        effect without a time-domain form cannot be used as a validation truth.
-
-        Parameters
-        ----------
-        t : numpy.ndarray
-            Time, s, shape (N,).
-        signals : dict
-            Channel name -> noise-free time history, shape (N,).
-        values : mapping of str to float
-            Parameter values by name.
-        model : Model
-            The augmented model.
-
-        Returns
-        -------
-        dict
-            The signals with the effect applied.
-        """
-        raise FdmlError(f"effect {self.key} has no time-domain form for validation truths")
 
     def realize(self, target, p: Mapping[str, float], root: Model):
         """The effect on a time-domain realisation (see :func:`fdml.models.realization.realize`).
@@ -373,7 +357,7 @@ class AugmentedModel(Model):
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         p = self.values(values)
         names = list(names)
-        own = {q.name for e in self.effects if not isinstance(e, MatrixEffect) for q in e.param_list(self.root)}
+        own = {q.name for e in self.effects if isinstance(e, OutputEffect) for q in e.param_list(self.root)}
         inner = [n for n in names if n not in own]  # through the solve: root, matrix-level and station parameters
         outer = [n for n in names if n in own]  # output-level effects' own: differences of the effects alone
         r, dG, dH, dP = self._matrix_sensitivity(omega, p, inner, ("G", "H", "P"))
@@ -394,9 +378,9 @@ class AugmentedModel(Model):
         h = 1e-5 * max(abs(v), 1e-2)
         up, dn = base, base
         for eff in self.effects:
-            if isinstance(eff, OutputEffect) and not isinstance(eff, MatrixEffect):
-                up = eff.output(s, {**p, name: v + h}, *up, self.root)
-                dn = eff.output(s, {**p, name: v - h}, *dn, self.root)
+            if isinstance(eff, OutputEffect):
+                up = eff.output(s, {**p, name: v + h}, up[0], up[1], up[2], self.root)
+                dn = eff.output(s, {**p, name: v - h}, dn[0], dn[1], dn[2], self.root)
         return tuple((a - b) / (2 * h) for a, b in zip(up, dn))
 
     def _through_outputs(self, s, p, resp: tuple, derivs: tuple) -> tuple:
@@ -407,7 +391,7 @@ class AugmentedModel(Model):
         ``(T(G + e dG) - T(G - e dG)) / 2e``, exact for an affine T, all parameters in one call.
         Returns (G, H, P, dG, dH, dP) after the effects.
         """
-        outs = [e for e in self.effects if isinstance(e, OutputEffect) and not isinstance(e, MatrixEffect)]
+        outs = [e for e in self.effects if isinstance(e, OutputEffect)]
         G, H, P = resp
         k = derivs[0].shape[0]
         if not outs or k == 0:
@@ -423,7 +407,8 @@ class AugmentedModel(Model):
             for x, d in zip(resp, derivs)
         ]
         for eff in outs:
-            stacks = list(eff.output(st, p, *stacks, self.root))
+            sG, sH, sP = stacks
+            stacks = list(eff.output(st, p, sG, sH, sP, self.root))
         n = s.size
         out = []
         for x in stacks:
@@ -587,7 +572,53 @@ def with_gust(model: Model) -> Model:
 # --- effect kinds ----------------------------------------------------------------------
 
 
-class OutputEffect(Effect):
+class _AppliedEffect(Effect):
+    """What output- and matrix-level effects share: a function ``fn`` a model applies to its response.
+
+    The two kinds differ only in where ``fn`` acts (:class:`OutputEffect`: the
+    frequency response; :class:`MatrixEffect`: the matrices before the solve);
+    both are appended to the model's effects by :meth:`augment`.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        channel: str,
+        params: Sequence[Param],
+        fn: Callable,
+        *,
+        needs: Sequence[str] = (),
+        signature: str = "",
+        nuisance_grid: dict | None = None,
+        applies: Callable | None = None,
+        realize: Callable | None = None,
+    ):
+        self._realize = realize
+        self.name = name
+        self.channel = channel
+        self.params = tuple(params)
+        self._fn = fn
+        self.needs = tuple(needs)
+        self.signature = signature
+        self.nuisance_grid = nuisance_grid
+        self._applies = applies
+
+    def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
+        why = super().applicable(model, inputs, outputs)
+        if why is None and self._applies is not None:
+            why = self._applies(root_model(model))
+        return why
+
+    def augment(self, model: Model) -> Model:
+        return _append(model, self)
+
+    def realize(self, target, p, root):
+        if self._realize is None:
+            return super().realize(target, p, root)
+        return self._realize(target, p, root)
+
+
+class OutputEffect(_AppliedEffect):
     """An effect on the model's frequency response (G, H, P), for any fdml model.
 
     Parameters
@@ -612,36 +643,9 @@ class OutputEffect(Effect):
     applies : callable, optional
         ``applies(model) -> str | None``: a reason the effect cannot be tested
         on this base model (e.g. no chord for a lift lag), or None.
-    simulate : callable, optional
-        The time-domain form, with the signature of :meth:`Effect.simulate` (without ``self``).
     realize : callable, optional
         The effect on a realisation, with the signature of :meth:`Effect.realize` (without ``self``).
     """
-
-    def __init__(
-        self,
-        name: str,
-        channel: str,
-        params: Sequence[Param],
-        fn: Callable,
-        *,
-        needs: Sequence[str] = (),
-        signature: str = "",
-        nuisance_grid: dict | None = None,
-        applies: Callable | None = None,
-        simulate: Callable | None = None,
-        realize: Callable | None = None,
-    ):
-        self._realize = realize
-        self.name = name
-        self.channel = channel
-        self.params = tuple(params)
-        self._fn = fn
-        self.needs = tuple(needs)
-        self.signature = signature
-        self.nuisance_grid = nuisance_grid
-        self._applies = applies
-        self._simulate = simulate
 
     def output(self, s, p, G, H, P, root):
         """Apply the effect to the output matrices at ``s = j omega``; returns ``(G, H, P)``.
@@ -670,27 +674,8 @@ class OutputEffect(Effect):
         """
         return self._fn(s, p, G, H, P, root)
 
-    def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
-        why = super().applicable(model, inputs, outputs)
-        if why is None and self._applies is not None:
-            why = self._applies(root_model(model))
-        return why
 
-    def augment(self, model: Model) -> Model:
-        return _append(model, self)
-
-    def realize(self, target, p, root):
-        if self._realize is None:
-            return super().realize(target, p, root)
-        return self._realize(target, p, root)
-
-    def simulate(self, t, signals, values, model):
-        if self._simulate is None:
-            return super().simulate(t, signals, values, model)
-        return self._simulate(t, signals, values, model)
-
-
-class MatrixEffect(OutputEffect):
+class MatrixEffect(_AppliedEffect):
     """An effect on the short-period matrices (M, B, E) before the solve.
 
     ``fn(s, p, M, B, E, root) -> (M, B, E)`` with ``M`` (n, 2, 2) = sE - A(s),
@@ -713,8 +698,6 @@ class MatrixEffect(OutputEffect):
         ``{param name: grid function}`` for parameters not identified under the null.
     applies : callable, optional
         ``applies(model) -> str | None``: a reason the effect cannot be tested, or None.
-    simulate : callable, optional
-        The time-domain form, with the signature of :meth:`Effect.simulate` (without ``self``).
     realize : callable, optional
         The effect on a realisation, with the signature of :meth:`Effect.realize` (without ``self``).
     """
@@ -748,33 +731,6 @@ class MatrixEffect(OutputEffect):
         """
         return self._fn(s, p, M, B, E, root)
 
-    def output(self, s, p, G, H, P, root):  # pragma: no cover - never called for matrix effects
-        """Leave the outputs unchanged: a matrix effect acts through :meth:`matrices`.
-
-        Parameters
-        ----------
-        s : numpy.ndarray
-            The Laplace variable j omega, rad/s, shape (n,).
-        p : mapping of str to float
-            All parameter values by name.
-        G : numpy.ndarray
-            Outputs per input, shape (n, n_y, n_in).
-        H, P : numpy.ndarray
-            Outputs per boundary term and per state-equation forcing, shapes (n, n_y, n_b) and (n, n_y, 2).
-        root : Model
-            The plain base model.
-
-        Returns
-        -------
-        G : numpy.ndarray
-            Outputs per input, unchanged.
-        H : numpy.ndarray
-            Outputs per boundary term, unchanged.
-        P : numpy.ndarray
-            Outputs per state-equation forcing, unchanged.
-        """
-        return G, H, P
-
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)
         if why is None and not hasattr(root_model(model), "_matrices"):
@@ -801,8 +757,6 @@ class FreeParameterEffect(Effect):
         Record channels required.
     signature : str, optional
         One line on where the effect shows, for reports.
-    simulate : callable, optional
-        The time-domain form, with the signature of :meth:`Effect.simulate` (without ``self``).
     bounds : tuple of float, optional
         (lower, upper) bounds of the freed parameter, widened to include its null; default the Param's.
     """
@@ -817,7 +771,6 @@ class FreeParameterEffect(Effect):
         convert: Callable | None = None,
         needs: Sequence[str] = (),
         signature: str = "",
-        simulate: Callable | None = None,
         bounds: tuple | None = None,
     ):
         self.name = name
@@ -827,7 +780,6 @@ class FreeParameterEffect(Effect):
         self._convert = convert
         self.needs = tuple(needs)
         self.signature = signature
-        self._simulate = simulate
         self._bounds = bounds
 
     def _target_root(self, model: Model) -> Model:
@@ -874,11 +826,6 @@ class FreeParameterEffect(Effect):
             cur = params[par.name]
             params = params.bound(par.name, min(lo, cur.value), max(hi, cur.value))
         return new.with_parameters(params)
-
-    def simulate(self, t, signals, values, model):
-        if self._simulate is None:
-            return super().simulate(t, signals, values, model)
-        return self._simulate(t, signals, values, model)
 
 
 def scale_rows(G, H, P, row: int, factor):

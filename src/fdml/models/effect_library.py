@@ -29,6 +29,12 @@ unmeasured_gust        alpha,q,az turbulence sigma_w along the model's gust colu
 Effect sizes are in physical units (s, m, -, rad/s per rad ...); each
 parameter carries a plausible range used by the identifiability screen
 (minimum detectable effect) and the plausibility check.
+
+Each effect's validation truth, the time-domain simulation the diagnosis is
+checked against, is written independently of the code here, on purpose: see
+:data:`fdml.diagnose.truth.TRUTHS`, keyed like the registry (an effect that
+frees a model parameter is simulated as that model; the lags of the
+dimensional and derivatives models have no truth).
 """
 
 from __future__ import annotations
@@ -125,9 +131,6 @@ class Dispatch(Effect):
 
     def augment(self, model):
         return self.impl(model).augment(model)
-
-    def simulate(self, t, signals, values, model):
-        return self.impl(model).simulate(t, signals, values, model)
 
 
 # --- base-model helpers ----------------------------------------------------------------------
