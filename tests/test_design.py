@@ -231,7 +231,7 @@ def test_design_refusals():
         ("10:0.5", "hi = 0.5 rad/s is below lo = 10 rad/s"),
         ("0.5:10:0", "step = 0 rad/s must be positive"),
         ("0:10", "lo = 0 rad/s must be positive"),
-        ("0.5:10:0.1:1", "must be LO:HI in rad/s"),
+        ("0.5:10:0.1:1", "must be LO:HI[:STEP] in rad/s"),
         ("0.5:200", "band edge 200 rad/s is not below the Nyquist frequency pi/dt = 157.1 rad/s"),
     ],
 )

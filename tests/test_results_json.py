@@ -77,8 +77,8 @@ def _stalled_branch(clean, model):
     (converged by the step rule) lies a narrow range of noise levels where the cost neither
     improves nor is at its rounding floor; a few (level, seed) pairs are tried.
     """
-    for level in (3e-8, 5e-8, 2e-8):
-        for seed in range(1, 6):
+    for level in (3e-8, 5e-8, 2e-8, 1e-8):
+        for seed in range(1, 8):
             res = _fit(add_noise(clean, level, np.random.default_rng(seed), relative=True), model)
             if res.message == "stalled: no step decreases det R":
                 return res

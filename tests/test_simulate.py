@@ -455,7 +455,7 @@ def test_simulate_maneuver_noise_fraction_as_the_command_line():
         (float("nan"), "noise must be finite and >= 0, got nan"),
         ("0.02", "noise must be a fraction of each output's RMS"),
         (True, "noise must be a fraction of each output's RMS"),
-        ({"theta": 0.01}, "unknown noise channel(s) theta; channels: alpha, q, az"),
+        ({"beta": 0.01}, "unknown noise channel(s) beta; channels: alpha, q, az, theta, qdot"),
         ({"q": -1.0}, "noise std for q must be finite and >= 0 (rad/s), got -1.0"),
         ({"az": "x"}, "noise std for az must be a number (g), got 'x'"),
     ],
