@@ -130,11 +130,11 @@ def test_cli_json_and_the_quoted_command(tmp_path, capsys, delayed_fit):
     assert out["adequacy"]["flagged"][0]["expected"]["tau_alpha"] > 0
     # the warning quotes the running command with --effect added, and the diagnosis of the same records
     with invocation(
-        ["fdml", "fit", str(path), "--model", "derivatives"], ["fdml", "diagnose", str(path), "--base", "derivatives"]
+        ["fdml", "fit", str(path), "--model", "derivatives"], ["fdml", "diagnose", str(path), "--model", "derivatives"]
     ):
         msg = advice(delayed_fit[1].adequacy)
     assert f"fdml fit {path} --model derivatives --effect time_delay:alpha" in msg
-    assert f"fdml diagnose {path} --base derivatives" in msg
+    assert f"fdml diagnose {path} --model derivatives" in msg
 
 
 def _bench():

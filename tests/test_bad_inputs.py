@@ -111,7 +111,7 @@ CASES = [
             "Cm_de=-1.4",
             "--free",
             "Cm_de",
-            "--out",
+            "--output",
             "{dir}/b1",
             "--serial",
             "--no-progress",
@@ -159,10 +159,10 @@ CASES = [
     ),
     (
         "four-part-band-batch",
-        ["batch", "{a}", *STEADY, "--band", "1:2:0.1:4", "--out", "{dir}/b2", "--serial", "--no-progress"],
+        ["batch", "{a}", *STEADY, "--band", "1:2:0.1:4", "--output", "{dir}/b2", "--serial", "--no-progress"],
         ["--band", "LO:HI[:STEP]"],
     ),
-    ("inverted-omega-response", ["response", *STEADY, "--omega", "10:1:1"], ["--omega"]),
+    ("inverted-band-response", ["response", *STEADY, "--band", "10:1:1"], ["--band"]),
     ("negative-seed", ["simulate", *STEADY, "--seed", "-1", "-o", "{dir}/s.csv"], ["--seed", "-1"]),
     (
         "negative-workers-montecarlo",
@@ -171,7 +171,7 @@ CASES = [
     ),
     (
         "zero-workers-batch",
-        ["batch", "{a}", *STEADY, "--workers", "0", "--out", "{dir}/b3", "--no-progress"],
+        ["batch", "{a}", *STEADY, "--workers", "0", "--output", "{dir}/b3", "--no-progress"],
         ["--workers"],
     ),
 ]

@@ -319,7 +319,7 @@ def test_batch_command(tmp_path, records, capsys):
             "navion",
             "--model",
             "steady",
-            "--out",
+            "--output",
             str(out),
             "--serial",
             "--json",
@@ -337,7 +337,7 @@ def test_batch_command(tmp_path, records, capsys):
             "navion",
             "--model",
             "steady",
-            "--out",
+            "--output",
             str(out),
             "--serial",
             "--json",
@@ -345,7 +345,7 @@ def test_batch_command(tmp_path, records, capsys):
     )
     d = json.loads(capsys.readouterr().out)
     assert code == 0 and d["reused"] == 5 and d["fitted"] == 0
-    assert main(["batch", str(records[0]), "--model", "steady", "--out", str(out)]) == 2
+    assert main(["batch", str(records[0]), "--model", "steady", "--output", str(out)]) == 2
     assert "--aircraft" in capsys.readouterr().err
 
 

@@ -113,7 +113,7 @@ def test_fit_fix_free_and_dimensional(tmp_path, capsys):
 
 def test_response_json(capsys):
     code, out, _ = run(
-        capsys, "response", "--aircraft", "sundowner", "--model", "steady", "--gust", "--omega", "0.5:2:0.5", "--json"
+        capsys, "response", "--aircraft", "sundowner", "--model", "steady", "--gust", "--band", "0.5:2:0.5", "--json"
     )
     d = json.loads(out)
     assert code == 0 and d["shape"] == [3, 2, 4]

@@ -139,26 +139,26 @@ CASES = [
     ("diagnose-bands-text", ["diagnose", "{a}", *STEADY, "--bands", "x,y"], ["--bands"]),
     ("diagnose-flat-elevator", ["diagnose", "{flat}", *STEADY], ["'flat'", "no power in the band"]),
     # batch
-    ("batch-no-records", ["batch", *STEADY, "--out", "{dir}/b_none", "--serial", "--no-progress"], ["required"]),
+    ("batch-no-records", ["batch", *STEADY, "--output", "{dir}/b_none", "--serial", "--no-progress"], ["required"]),
     (
         "batch-duplicate-outputs",
-        ["batch", "{a}", *STEADY, "--outputs", "alpha,alpha", "--out", "{dir}/b_dup", "--serial", "--no-progress"],
+        ["batch", "{a}", *STEADY, "--outputs", "alpha,alpha", "--output", "{dir}/b_dup", "--serial", "--no-progress"],
         ["alpha"],
     ),
     (
         "batch-fix-not-number",
-        ["batch", "{a}", *STEADY, "--fix", "Cm_de=abc", "--out", "{dir}/b_fix", "--serial", "--no-progress"],
+        ["batch", "{a}", *STEADY, "--fix", "Cm_de=abc", "--output", "{dir}/b_fix", "--serial", "--no-progress"],
         ["Cm_de=abc"],
     ),
-    ("batch-out-is-a-file", ["batch", "{a}", *STEADY, "--out", "{a}", "--serial", "--no-progress"], ["{a}"]),
+    ("batch-out-is-a-file", ["batch", "{a}", *STEADY, "--output", "{a}", "--serial", "--no-progress"], ["{a}"]),
     (
         "batch-band-at-zero",
-        ["batch", "{a}", *STEADY, "--band", "0:10:0.1", "--out", "{dir}/b_band", "--serial", "--no-progress"],
+        ["batch", "{a}", *STEADY, "--band", "0:10:0.1", "--output", "{dir}/b_band", "--serial", "--no-progress"],
         ["--band", "positive"],
     ),
     (
         "batch-unknown-trim",
-        ["batch", "{a}", *STEADY, "--trim", "median", "--out", "{dir}/b_trim", "--serial", "--no-progress"],
+        ["batch", "{a}", *STEADY, "--trim", "median", "--output", "{dir}/b_trim", "--serial", "--no-progress"],
         ["median"],
     ),
     # fit and simulate: the cases issue 9 lists

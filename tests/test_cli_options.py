@@ -74,14 +74,6 @@ MEANINGS = {
 }
 #: Shown flags that parse differently on purpose: simulate's --gust takes an optional STD (m/s).
 DIFFERENT = {("simulate", "--gust"): ("gust", "store", "?")}
-#: Hidden aliases (old spellings), per command: flag -> dest of the shown option.
-HIDDEN = {
-    "batch": {"--out": "output"},
-    "demo": {"--out": "output"},
-    "report": {"--out": "output"},
-    "diagnose": {"--base": "model", "--processes": "workers", "--noise": "noise_model"},
-    "response": {"--omega": "band"},
-}
 #: Options of the shared spec: their defaults are None, so the library's default applies.
 SHARED_DESTS = {
     "aircraft",
@@ -198,19 +190,26 @@ def test_shared_options_default_to_none(name):
 
 
 @pytest.mark.parametrize("name", sorted(PARSERS))
-def test_hidden_aliases_parse_to_the_same_dest(name):
-    p = PARSERS[name]
-    hidden = {a.option_strings[0]: a for a in _hidden(p)}
-    assert {f: a.dest for f, a in hidden.items()} == HIDDEN.get(name, {})
-    shown = {a.dest: a for a in _shown(p)}
-    samples = {"output": "x", "model": "steady", "workers": "2", "noise_model": "white", "band": "0.5:2:0.5"}
-    pos = {"report": ["r.json"], "batch": ["r.csv"]}.get(name, [])
-    for flag, a in hidden.items():
-        assert a.dest in shown, f"{name} {flag}: no shown option"
-        new = shown[a.dest].option_strings[-1]
-        old_ns = p.parse_args([*pos, flag, samples[a.dest]])
-        new_ns = p.parse_args([*pos, new, samples[a.dest]])
-        assert vars(old_ns) == vars(new_ns), f"{name} {flag}"
+def test_no_hidden_spellings(name):
+    """Issue 22: an option has the one spelling --help shows; the old hidden aliases are gone."""
+    assert [a.option_strings for a in _hidden(PARSERS[name])] == []
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["diagnose", "r.csv", "--base", "steady"],
+        ["diagnose", "--validate", "--processes", "2"],
+        ["response", "--omega", "0.5:2:0.5"],
+    ],
+)
+def test_old_spellings_are_refused(argv, capsys):
+    from fdml.cli import main
+
+    with pytest.raises(SystemExit) as exc:  # argparse's usage error: exit 2 through SystemExit
+        main(argv)
+    assert exc.value.code == 2
+    assert f"unrecognized arguments: {argv[-2]}" in capsys.readouterr().err
 
 
 def test_choices_and_band_default_come_from_the_library():

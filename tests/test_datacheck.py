@@ -321,12 +321,12 @@ def test_batch_table_carries_findings_and_strict_fails_the_record(tmp_path, navi
     navion_3211.to_csv(good)
     _corrupt(navion_3211, "az_ms2").to_csv(bad)
     common = [str(good), str(bad), "--aircraft", "navion", "--model", "dimensional", "--serial", "--no-progress"]
-    assert main(["batch", *common, "--out", str(tmp_path / "plain")]) == 0
+    assert main(["batch", *common, "--output", str(tmp_path / "plain")]) == 0
     with open(tmp_path / "plain" / "table.csv") as fh:
         rows = {r["key"]: r for r in csv.DictReader(fh)}
     assert rows["good"]["findings"] == "" and rows["bad"]["findings"] == "units.az"
     assert "bad: units.az" in capsys.readouterr().out
-    assert main(["batch", *common, "--out", str(tmp_path / "strict"), "--strict"]) == 1
+    assert main(["batch", *common, "--output", str(tmp_path / "strict"), "--strict"]) == 1
     with open(tmp_path / "strict" / "table.csv") as fh:
         rows = {r["key"]: r for r in csv.DictReader(fh)}
     assert rows["good"]["status"] == "ok"

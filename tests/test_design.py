@@ -225,6 +225,29 @@ def test_design_refusals():
         design(mu, band="0.5:200", duration=12.0)
 
 
+@pytest.mark.parametrize(
+    "band, message",
+    [
+        ("10:0.5", "hi = 0.5 rad/s is below lo = 10 rad/s"),
+        ("0.5:10:0", "step = 0 rad/s must be positive"),
+        ("0:10", "lo = 0 rad/s must be positive"),
+        ("0.5:10:0.1:1", "must be LO:HI[:STEP] in rad/s"),
+        ("0.5:200", "band edge 200 rad/s is not below the Nyquist frequency pi/dt = 157.1 rad/s"),
+    ],
+)
+def test_the_design_parses_bands_with_the_one_band_parser(band, message):
+    """Issue 22: design() and the input generators refuse a band with fdml.spectral.parse_band's messages."""
+    mu = make_model("unsteady", "navion")
+    for call in (lambda: design(mu, band=band, duration=12.0), lambda: classic_input("sweep", LIM, band)):
+        with pytest.raises(BandError) as exc:
+            call()
+        assert message in str(exc.value)
+
+
+def test_an_input_band_may_be_written_lo_hi():
+    assert np.array_equal(classic_input("sweep", LIM, "0.5:10").de, classic_input("sweep", LIM, (0.5, 10.0)).de)
+
+
 def test_discrimination_design_beats_the_classic_inputs():
     """Navion, 12 s, 1 deg, noise 10 % of the 3-2-1-1 response: a larger lambda than a 3-2-1-1 and a sweep."""
     d = design(

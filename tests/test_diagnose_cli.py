@@ -37,7 +37,7 @@ def test_cli_json_schema_and_holdout(capsys, tmp_path, delay_csv):
         str(a),
         "--aircraft",
         "navion",
-        "--base",
+        "--model",
         "steady",
         "--band",
         "0.3:12",
@@ -77,7 +77,7 @@ def test_cli_text_and_figure(capsys, tmp_path, delay_csv):
         str(a),
         "--aircraft",
         "navion",
-        "--base",
+        "--model",
         "steady",
         "--band",
         "0.3:12",
@@ -96,9 +96,9 @@ def test_cli_bad_input_exits_2_with_one_line(capsys, delay_csv):
     code, _, err = run(capsys, "diagnose")
     assert code == 2 and "RECORD" in err
     a, _ = delay_csv
-    code, _, err = run(capsys, "diagnose", str(a), "--base", "steady")
+    code, _, err = run(capsys, "diagnose", str(a), "--model", "steady")
     assert code == 2 and "--aircraft" in err
-    code, _, err = run(capsys, "diagnose", str(a), "--aircraft", "navion", "--base", "steady", "--band", "5:1")
+    code, _, err = run(capsys, "diagnose", str(a), "--aircraft", "navion", "--model", "steady", "--band", "5:1")
     assert code == 2 and "band" in err
     code, _, err = run(capsys, "diagnose", str(a), "--aircraft", "navion", "--library", "no_such_effect")
     assert code == 2 and "unknown effect" in err

@@ -7,10 +7,18 @@ import pytest
 
 import fdml
 from fdml.constants import G0
-from fdml.diagnose import OutputEffect, Param, get_effect, register_effect, registered_effects, scale_rows
 from fdml.errors import ParameterError
 from fdml.models.effect_library import to_unsteady_equivalent
-from fdml.models.effects import unregister_effect, with_gust
+from fdml.models.effects import (
+    OutputEffect,
+    Param,
+    get_effect,
+    register_effect,
+    registered_effects,
+    scale_rows,
+    unregister_effect,
+    with_gust,
+)
 
 OMEGA = np.linspace(0.3, 12.0, 40)
 
@@ -153,6 +161,54 @@ def test_time_domain_truth_matches_the_augmented_model(key, values):
     r_truth, r_base = rel(frozen_fit(data, aug, nb, opts)), rel(frozen_fit(data, base, nb, opts))
     assert np.max(r_truth) < 0.01
     assert np.max(r_base) > 5 * np.max(r_truth)
+
+
+@pytest.mark.parametrize("kind", ["steady", "unsteady"])
+def test_every_library_effect_has_an_independent_truth(kind):
+    """Issue 22: on the harness's base models each applicable effect is a validation truth: a plain model
+    (a freed parameter) or a time-domain form of its own in fdml.diagnose.truth.TRUTHS."""
+    from fdml.diagnose.truth import TRUTHS
+    from fdml.models.effects import root_model
+
+    base = fdml.make_model(kind, "navion")
+    missing = []
+    for eff in registered_effects():
+        if eff.kind != "deterministic" or eff.applicable(base) is not None:
+            continue
+        aug = eff.augment(base)
+        if root_model(aug) is not aug and eff.key not in TRUTHS:
+            missing.append(eff.key)
+    assert missing == []
+
+
+def test_every_truth_at_its_null_is_the_base_record():
+    """A truth form at its effect's null changes nothing: the record equals the base model's, sample for
+    sample (noise-free), so the withheld effect is the only difference a diagnosis can find."""
+    from fdml.diagnose.truth import TRUTHS, simulate_truth
+
+    base = fdml.make_model("steady", "navion")
+    plain = simulate_truth(base, None, maneuver="3211", duration=8.0, noise=0.0, seed=2)
+    for key in TRUTHS:
+        if key in ("vane_filter", "downwash_lag@tail"):
+            # outside the library (no null value); the textbook downwash delay has no null either
+            # (its closed-form check is tests/test_downwash_effect.py)
+            continue
+        eff = get_effect(key)
+        nulls = {p.name: 0.0 if p.null is None else p.null for p in eff.param_list(base)}
+        if key == "structural_mode@q,az":
+            nulls.update(omega_s=9.0, zeta_s=0.05)  # a mode with zero residues: r_q = r_az = 0
+        rec = simulate_truth(base, key, nulls, maneuver="3211", duration=8.0, noise=0.0, seed=2)
+        for ch in ("alpha", "q", "az"):
+            # a zero delay interpolates at the samples themselves and a zero residue adds lsim of nothing:
+            # equal to rounding (1e-12 of the signal)
+            assert np.max(np.abs(rec[ch] - plain[ch])) <= 1e-12 * np.max(np.abs(plain[ch])), (key, ch)
+
+
+def test_truth_noise_must_be_a_level():
+    from fdml.diagnose.truth import simulate_truth
+
+    with pytest.raises(ParameterError, match=">= 0"):
+        simulate_truth(fdml.make_model("steady", "navion"), None, duration=4.0, noise=-0.05)
 
 
 def test_coloured_noise_has_the_stated_low_frequency_excess():

@@ -38,7 +38,7 @@ def diagnosed(tmp_path_factory):
         rec,
         "--aircraft",
         "navion",
-        "--base",
+        "--model",
         "steady",
         "--band",
         "0.3:12",

@@ -7,13 +7,13 @@ import pytest
 from scipy import stats
 
 import fdml
-from fdml.diagnose import get_effect
 from fdml.diagnose.attribute import davies_bound, p_value
 from fdml.diagnose.data import analysis_data
 from fdml.diagnose.disturbance import gust_test
 from fdml.diagnose.likelihood import fit_model, likelihood_ratio, noise_bands
 from fdml.diagnose.locate import bh, default_bands, forced_response, gap_map, holm
 from fdml.diagnose.truth import simulate_truth
+from fdml.models.effects import get_effect
 from fdml.score import LR_EQUAL, equally
 
 BAND = (0.3, 12.0)

@@ -194,6 +194,32 @@ def test_fix_and_bad_arguments():
     assert check_compatibility(no_v, U=60.0).outputs == ("alpha",)
 
 
+def test_sensor_parameters_on_the_outputs_reuse_the_integration(monkeypatch):
+    """Issue 22: K_alpha, b_alpha, tau_alpha, tau_theta and h0 act on the integrated outputs, so their
+    Jacobian columns integrate nothing again; the outputs equal those of a fresh integration."""
+    import fdml.flightpath as fp
+
+    rec, _ = _measured(ERRORS, seed=4)
+    free, fixed, _ = fp._choose_free(rec, None, None)
+
+    def problem():
+        return fp._Problem(rec, free, fixed, fp.DEFAULT_MAX_SHIFT, 60.0)
+
+    prob = problem()
+    p = prob.unpack(fp._start(prob, free, fp.DEFAULT_MAX_SHIFT)[0])
+    changes = {"K_alpha": 1.02, "b_alpha": 0.01, "tau_alpha": 0.05, "tau_theta": -0.03, "h0": 1001.0, "b_q": 0.001}
+    fresh = {k: problem().simulate({**p, k: v}) for k, v in changes.items()}
+    real, calls = fp._integrate, []
+    monkeypatch.setattr(fp, "_integrate", lambda *args: calls.append(1) or real(*args))
+    prob.simulate(p)
+    for k, v in changes.items():
+        y = prob.simulate({**p, k: v})
+        assert len(calls) == (2 if k == "b_q" else 1), k  # b_q corrects an input of the integration
+        for out in y:
+            # a fresh problem computes the same way: equal to rounding
+            np.testing.assert_allclose(y[out], fresh[k][out], rtol=1e-13, atol=1e-12, err_msg=f"{k} {out}")
+
+
 def test_noise_level_estimator():
     rng = np.random.default_rng(8)
     t = np.arange(0, 100, 0.02)

@@ -182,15 +182,20 @@ def test_simulation_error_is_second_order_in_the_step():
     assert np.log2(e1 / e2) > 1.7, (e1, e2)
 
 
-def test_simulate_needs_a_realisation_and_refuses_delay_before_mixing():
-    m = make_model("dimensional", "sundowner").with_effects("time_delay:q", "sensor_offset:alpha")
-    with pytest.raises(ParameterError, match="different output delays"):
-        m.with_values(tau_q=0.02).realize()
-    # the other order is realisable
-    m2 = make_model("dimensional", "sundowner").with_effects("sensor_offset:alpha", "time_delay:q")
-    G = m2.with_values(tau_q=0.02, x_alpha=2.0).frequency_response(OMEGA)
-    R = m2.with_values(tau_q=0.02, x_alpha=2.0).realize()
-    assert np.max(np.abs(R.frequency_response(OMEGA) - G)) < 1e-11 * np.max(np.abs(G))
+def test_a_sensor_station_is_a_term_of_its_row_whatever_the_order_of_the_effects():
+    # the station is part of the alpha row (fdml.channels.OUTPUT_TABLE): the vane sees the true q,
+    # alpha - x q/U, not the q sensor's delayed reading, so both orders are one model, realisable
+    vals = dict(tau_q=0.02, x_alpha=2.0)
+    base = make_model("dimensional", "sundowner")
+    G0 = base.frequency_response(OMEGA)
+    k = vals["x_alpha"] / base.U
+    for order in (("time_delay:q", "sensor_offset:alpha"), ("sensor_offset:alpha", "time_delay:q")):
+        m = base.with_effects(*order).with_values(vals)
+        G = m.frequency_response(OMEGA)
+        np.testing.assert_allclose(G[0], G0[0] - k * G0[1], rtol=1e-13, atol=1e-15)
+        np.testing.assert_allclose(G[1], G0[1] * np.exp(-1j * OMEGA * vals["tau_q"]), rtol=1e-13, atol=1e-15)
+        R = m.realize()
+        assert np.max(np.abs(R.frequency_response(OMEGA) - G)) < 1e-11 * np.max(np.abs(G))
 
 
 # --- export --------------------------------------------------------------------------------------------
@@ -315,7 +320,7 @@ def test_cli_response_and_batch_and_montecarlo(record, capsys, tmp_path):
         "time_delay:alpha",
         "--set",
         "tau_alpha=0.1",
-        "--omega",
+        "--band",
         "1:2:1",
         "--json",
     )
@@ -339,7 +344,7 @@ def test_cli_response_and_batch_and_montecarlo(record, capsys, tmp_path):
         "--serial",
         "--band",
         "0.3:12:0.05",
-        "--out",
+        "--output",
         str(tmp_path / "b"),
         "--json",
     )
@@ -423,3 +428,19 @@ def test_identifiable_with_az_and_api_errors():
     assert [c[1] for c in confounded_effect_parameters(m, OMEGA, ("alpha", "q"))] == ["x_alpha"]
     assert confounded_effect_parameters(m, OMEGA, ("alpha", "q", "az")) == []
     assert confounded_effect_parameters(base.with_effects("time_delay:alpha"), OMEGA, ("alpha", "q")) == []
+
+
+@pytest.mark.parametrize("key, base", CASES)
+def test_sensitivities_through_the_solve_equal_differences_of_the_response(key, base):
+    """Every free parameter of a model with an effect: the sensitivities through the solve and the
+    effects (root and matrix-level parameters analytic, output-level ones by their own differences)
+    against central differences of the whole response.  Central differences with a relative step of
+    1e-5 carry a truncation error near 1e-10 relative; 1e-7 leaves a margin for the response's
+    curvature in the parameters."""
+    m, _ = _with(key, base)
+    names = [p.name for p in m.parameters if p.free]
+    resp, dG, dH, dP = m.sensitivity(OMEGA, None, names)
+    ref, rG, rH, rP = m._fd_sensitivity(OMEGA, m.values(), names)
+    np.testing.assert_allclose(resp.G, ref.G, rtol=1e-12, atol=1e-15)
+    for got, want in ((dG, rG), (dH, rH), (dP, rP)):
+        assert np.max(np.abs(got - want)) <= 1e-7 * max(np.max(np.abs(want)), 1e-300)

@@ -4,12 +4,12 @@ import numpy as np
 import pytest
 
 import fdml
-from fdml.diagnose import get_effect
 from fdml.diagnose.data import analysis_data
 from fdml.diagnose.likelihood import noise_bands
 from fdml.diagnose.truth import simulate_truth
 from fdml.errors import FdmlError
 from fdml.estimate import NoiseModel, fit, prepare
+from fdml.models.effects import get_effect
 
 BAND = (0.3, 12.0)
 

@@ -183,8 +183,8 @@ def fitted(tmp_path, record_bytes, capsys):
     [
         (["report", "{res}", "-o", "{res}"], "res", "input"),
         (["report", "{res}", "-o", "{rec}"], "rec", "not a folder"),
-        (["batch", "{dir}", *FIT, "--serial", "--no-progress", "--out", "{dir}"], "dir", "input"),
-        (["batch", "{rec}", *FIT, "--serial", "--no-progress", "--out", "{rec}"], "rec", "input"),
+        (["batch", "{dir}", *FIT, "--serial", "--no-progress", "--output", "{dir}"], "dir", "input"),
+        (["batch", "{rec}", *FIT, "--serial", "--no-progress", "--output", "{rec}"], "rec", "input"),
         (["diagnose", "{rec}", "--aircraft", "navion", "--figure", "{rec}"], "rec", "input"),
         (["diagnose", "{rec}", "--aircraft", "navion", "-o", "{res}", "--figure", "{rec}"], "rec", "input"),
         (["montecarlo", "--aircraft", "navion", "--model", "steady", "-n", "2", "-o", "{rec}"], "rec", "not a folder"),
@@ -206,7 +206,7 @@ def test_batch_refuses_a_record_named_like_its_table(tmp_path, record_bytes, cap
     src = tmp_path / "out"
     src.mkdir()
     (src / "table.csv").write_bytes(record_bytes)  # a record that the table would replace
-    code = main(["batch", str(src / "table.csv"), *FIT, "--serial", "--no-progress", "--out", str(src)])
+    code = main(["batch", str(src / "table.csv"), *FIT, "--serial", "--no-progress", "--output", str(src)])
     assert code == 2 and "table.csv" in capsys.readouterr().err
     assert (src / "table.csv").read_bytes() == record_bytes and not (src / "results").exists()
 
@@ -406,7 +406,7 @@ def test_closed_pipe_ends_quietly(how, tmp_path, record_bytes):
     if how == "closed before the output":
         argv = ["fit", str(rec), *FIT, "--json"]
     else:  # about 1.6 MB of JSON, far beyond a pipe's buffer: the writes after the first line fail
-        argv = ["response", "--aircraft", "navion", "--model", "steady", "--omega", "0.01:100:0.01", "--json"]
+        argv = ["response", "--aircraft", "navion", "--model", "steady", "--band", "0.01:100:0.01", "--json"]
     # block-buffered stdout as in a normal shell: with PYTHONUNBUFFERED a large write to a closed
     # pipe can end without an error, and the case would prove nothing
     env = {k: v for k, v in os.environ.items() if k != "PYTHONUNBUFFERED"} | {"MPLBACKEND": "Agg"}

@@ -163,7 +163,7 @@ def test_a_signal_ends_the_batch_and_its_workers(tmp_path, records, launched, si
             *MODEL,
             "--band",
             SLOW_BAND,
-            "--out",
+            "--output",
             str(out),
             "--workers",
             "2",
@@ -204,7 +204,7 @@ def test_sigkill_of_the_parent_ends_the_workers(tmp_path, records, launched):
             *MODEL,
             "--band",
             SLOW_BAND,
-            "--out",
+            "--output",
             str(tmp_path / "out"),
             "--workers",
             "2",
@@ -250,7 +250,7 @@ def test_sigterm_closes_the_dask_cluster_the_batch_started(tmp_path, records, la
             *MODEL,
             "--band",
             SLOW_BAND,
-            "--out",
+            "--output",
             str(tmp_path / "out"),
             "--workers",
             "2",
@@ -315,7 +315,7 @@ def test_a_rerun_after_a_signal_resumes_and_leaves_no_partial_file(tmp_path, rec
     signal_usable(signame)
     out = tmp_path / "out"
     items = windows(records, 60)
-    args = ["batch", *items, *MODEL, "--out", str(out), "--workers", "2", "--no-progress", "--json"]
+    args = ["batch", *items, *MODEL, "--output", str(out), "--workers", "2", "--no-progress", "--json"]
     proc = launched.fdml(args, tmp_path, "first")
     deadline = time.monotonic() + 60
     while len(list((out / "results").glob("*.json"))) < 3:
@@ -382,7 +382,7 @@ def test_two_batches_into_one_folder_at_once_both_finish(tmp_path, records, laun
         assert a.poll() is None and time.monotonic() < deadline, stderr_of(tmp_path, "a")
         time.sleep(0.02)
     b = launched.fdml(
-        ["batch", *map(str, records), *MODEL, "--out", str(out), "--workers", "2", "--no-progress", "--json"],
+        ["batch", *map(str, records), *MODEL, "--output", str(out), "--workers", "2", "--no-progress", "--json"],
         tmp_path,
         "b",
     )
@@ -502,7 +502,7 @@ def test_a_record_removed_or_truncated_during_the_run_gets_its_error_row(tmp_pat
             *MODEL,
             "--band",
             MEDIUM_BAND,
-            "--out",
+            "--output",
             str(out),
             "--workers",
             "1",

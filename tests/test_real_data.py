@@ -72,3 +72,19 @@ def test_twin_otter_repeats_and_joint_fit(records):
     assert joint.converged and "x0_alpha[totter_lon_020213f1_017]" in joint.names
     lo, hi = sorted([f17["M_a"], f18["M_a"]])
     assert lo - 0.3 < joint["M_a"] < hi + 0.3  # between the two manoeuvres
+
+
+def test_hfb320_fits_theta_and_qdot_as_the_dlr_book_does(records):
+    """Jategaonkar's HFB-320 case measures theta and q_dot too; fdml fits them as rows of its output table."""
+    rec = records["hfb"]
+    five = "alpha,q,theta,qdot,az"
+    fd = fit(rec, dimensional(rec), band=(0.3, 6.0, 0.05), outputs=five)
+    td = fit_time_domain(rec, dimensional(rec), outputs=five)
+    assert fd.converged and td.converged and fd.outputs == tuple(five.split(","))
+    assert {"x0_theta", "xT_theta"} <= set(fd.names) and "bias_theta" not in fd.names  # theta's own boundary
+    for n in DIM:  # the independent time-domain estimator, as for alpha, q and a_z above
+        assert abs(fd[n] - td[n]) < 2.0 * math.hypot(fd.errors[n], td.errors[n]), n
+    # what theta and q_dot change on this record: every derivative moves by less than one standard error
+    three = fit(rec, dimensional(rec), band=(0.3, 6.0, 0.05))
+    for n in DIM:
+        assert abs(fd[n] - three[n]) < max(fd.errors[n], three.errors[n]), n

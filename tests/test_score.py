@@ -123,12 +123,11 @@ def test_chi2_and_f_tails_equal_scipy_stats(df):
 
 
 def test_the_diagnosis_uses_the_same_implementation():
-    from fdml.diagnose import attribute, likelihood, locate
-    from fdml.diagnose import screen as dscreen
+    from fdml.diagnose import attribute, locate
 
-    assert dscreen.screen is score.screen and dscreen.ScreenContext is score.ScreenContext
+    assert attribute.screen is score.screen and attribute.ScreenContext is score.ScreenContext
     assert attribute.p_value is score.p_value and attribute.davies_bound is score.davies_bound
-    assert locate.holm is score.holm and locate.bh is score.bh and likelihood.whitener is score.whitener
+    assert locate.holm is score.holm and locate.bh is score.bh
 
 
 def test_a_fit_does_not_import_the_diagnosis():

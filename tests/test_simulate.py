@@ -448,6 +448,42 @@ def test_simulate_maneuver_noise_fraction_as_the_command_line():
             simulate_maneuver(model, "3211", noise=bad)
 
 
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (-0.1, "noise must be finite and >= 0, got -0.1"),
+        (float("nan"), "noise must be finite and >= 0, got nan"),
+        ("0.02", "noise must be a fraction of each output's RMS"),
+        (True, "noise must be a fraction of each output's RMS"),
+        ({"beta": 0.01}, "unknown noise channel(s) beta; channels: alpha, q, az, theta, qdot"),
+        ({"q": -1.0}, "noise std for q must be finite and >= 0 (rad/s), got -1.0"),
+        ({"az": "x"}, "noise std for az must be a number (g), got 'x'"),
+    ],
+)
+def test_one_noise_check_for_every_entry_point(bad, message):
+    """Issue 22: the simulator, add_noise, the design's prediction, Monte Carlo and the diagnosis' truths
+    refuse a bad noise level with the same error, from fdml.record.check_noise."""
+    from fdml.design.prediction import noise_stds as design_noise_stds
+    from fdml.diagnose.truth import simulate_truth
+    from fdml.montecarlo import monte_carlo
+    from fdml.record import add_noise
+
+    model = make_model("steady", "navion")
+    clean = simulate_maneuver(model, "3211", duration=4.0, dt=0.02, seed=1)
+    calls = [
+        lambda: simulate_maneuver(model, "3211", duration=4.0, noise=bad, seed=1),
+        lambda: add_noise(clean, bad, np.random.default_rng(0)),
+        lambda: design_noise_stds(clean, bad),
+        lambda: monte_carlo({"kind": "steady", "aircraft": "navion"}, n=5, noise=bad),
+    ]
+    if not isinstance(bad, dict):
+        calls.append(lambda: simulate_truth(model, None, duration=4.0, noise=bad))
+    for call in calls:
+        with pytest.raises(ParameterError) as exc:
+            call()
+        assert message in str(exc.value)
+
+
 def test_cli_simulate_noise_is_the_library_noise(tmp_path):
     """The command line passes --noise through: its record equals simulate_maneuver's, sample for sample."""
     from fdml.cli import main

@@ -70,8 +70,11 @@ def test_a_delay_below_a_quarter_sample_absorbs_a_model_error():
 
 def test_unphysical_derivatives_demote_a_candidate():
     eff = get_effect("sensor_offset@az")
-    why = judge(eff, {"x_az": (-13.0, 0.3)}, NAVION, {"Z_de": (0.63, 0.04)}, dt=0.04, U=129.0)
+    why = judge(eff, {"x_az": (-5.0, 0.3)}, NAVION, {"Z_de": (0.63, 0.04)}, dt=0.04, U=129.0)
     assert why is not None and "not physical" in why and "Z_de" in why
+    # 13 m behind the c.g.: no accelerometer package sits there; the size alone sets it aside
+    why = judge(eff, {"x_az": (-13.0, 0.3)}, NAVION, {"Z_de": (-0.1, 0.04)}, dt=0.04, U=129.0)
+    assert why is not None and "outside its plausible range" in why
 
 
 class _C:
@@ -79,14 +82,16 @@ class _C:
         self.lr, self.q_eff, self.plausible = lr, q, plausible
 
 
-def test_choose_among_ranks_by_bic_keeps_plausible_first_and_never_by_order():
+def test_choose_among_ranks_by_bic_and_never_by_order():
     a, b, c = _C(100.0), _C(90.0), _C(70.0)
-    best, amb = choose_among([c, b, a], n_obs=200)
-    assert best is a and amb == [b, a] or amb == [a, b]  # 10 < 15.4: equal; 30 > 15.4: told apart
-    assert set(map(id, amb)) == {id(a), id(b)}
-    implausible = _C(500.0, plausible=False)
-    best, amb = choose_among([implausible, c], n_obs=200)
-    assert best is c and amb == [c]
+    for order in ([c, b, a], [a, b, c], [b, c, a]):
+        best, amb = choose_among(order, n_obs=200)
+        # 10 < 15.4: a and b are one alias set; 30 > 15.4: c is told apart
+        assert best is a and set(map(id, amb)) == {id(a), id(b)}
+    # one more parameter costs ln(200) in BIC and 2 in the Akaike-penalised comparison
+    d = _C(104.0, q=2)
+    best, amb = choose_among([a, d], n_obs=200)
+    assert best is a and set(map(id, amb)) == {id(a), id(d)}
     assert choose_among([], n_obs=10) == (None, [])
 
 
@@ -205,3 +210,42 @@ def test_an_alias_the_data_cannot_separate_is_ambiguous_in_both():
     else:  # separated, by the physics of the derivatives only
         assert first == "sensor_offset@alpha"
     assert math.isfinite(rep.recommended.params["Z_de"])
+
+
+# --- a fixed parameter known to a standard error ---------------------------------------------------------------
+
+
+def test_known_uncertainty_is_carried_exactly_for_a_linear_estimator():
+    """theta_hat(psi) = theta0 + J (psi - psi0): the covariance grows by J s^2 J^T, exactly."""
+    from dataclasses import dataclass, field
+    from types import SimpleNamespace
+
+    from fdml.propagate import with_known_uncertainty
+
+    @dataclass(frozen=True)
+    class Result:
+        names: tuple
+        values: np.ndarray
+        cov: np.ndarray
+        stderr: np.ndarray
+        corr: np.ndarray
+        model: object
+        options: dict = field(default_factory=dict)
+
+        @property
+        def params(self):
+            return dict(zip(self.names, self.values))
+
+    theta0, J, psi0, s = np.array([1.0, -2.0, 0.5]), np.array([0.3, -1.2, 0.0]), 13.0, 0.4
+    cov = np.diag([0.01, 0.04, 0.09])
+    model = SimpleNamespace(parameters=SimpleNamespace(values={"x_alpha": psi0}))
+
+    def refit(values):
+        return Result(("a", "b", "c"), theta0 + J * (values["x_alpha"] - psi0), cov, np.sqrt(np.diag(cov)), cov, model)
+
+    res = Result(("a", "b", "c"), theta0, cov, np.sqrt(np.diag(cov)), cov, model)
+    out = with_known_uncertainty(res, refit, {"x_alpha": s})
+    np.testing.assert_allclose(out.cov, cov + s**2 * np.outer(J, J), rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(out.stderr, np.sqrt(np.diag(cov) + (s * J) ** 2), rtol=1e-12)
+    assert out.stderr[2] == pytest.approx(0.3)  # a parameter the known one does not move keeps its error
+    assert out.options["known_uncertainty"]["x_alpha"]["stderr"] == s

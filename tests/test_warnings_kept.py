@@ -67,7 +67,7 @@ def test_the_batch_command_shows_the_warnings(tmp_path, records, capsys):
 
     code = main(
         ["batch", *map(str, records), "--aircraft", "navion", "--model", "steady"]
-        + ["--out", str(tmp_path / "out"), "--serial"]
+        + ["--output", str(tmp_path / "out"), "--serial"]
     )
     out = capsys.readouterr().out
     assert code == 0 and "swapped: DataWarning: [channels.swapped]" in out

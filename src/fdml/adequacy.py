@@ -611,17 +611,12 @@ def _root(model):
 
 def _output_effect_on(model, base):
     """The output-level effect ``model`` adds on top of ``base`` (None when it is not just that)."""
-    from .models.effects import (
-        AugmentedModel,
-        MatrixEffect,
-        OutputEffect,
-        applied_effects,
-    )
+    from .models.effects import AugmentedModel, OutputEffect, applied_effects
 
     if not isinstance(model, AugmentedModel) or not model.effects:
         return None
     eff = model.effects[-1]
-    if not isinstance(eff, OutputEffect) or isinstance(eff, MatrixEffect):
+    if not isinstance(eff, OutputEffect):
         return None
     if tuple(model.effects[:-1]) != tuple(applied_effects(base)):
         return None
@@ -633,8 +628,6 @@ def _context(prob, model, theta, V, R, A=None):
 
     ``A``: the fit's sensitivities at ``theta`` (``prob.sensitivities(theta)``) when the caller has them.
     """
-    from .models.base import OUTPUTS
-
     K = _oversampling(prob)
     rows = np.concatenate([np.full(d.m, i) for i, d in enumerate(prob.data)])
     # the whitener of R K_i divides record i's rows by sqrt(K_i): the LM sum then counts independent frequencies
@@ -643,7 +636,7 @@ def _context(prob, model, theta, V, R, A=None):
     floor = 1.0 / np.sqrt(np.maximum(np.real(np.diag(R)), 1e-300))
     fw = floor[None, :] / np.sqrt(K[rows])[:, None]  # diagonal white-noise floors for aliasing and the MDE
     options = {
-        "outputs": [OUTPUTS[k] for k in prob.out_idx],
+        "outputs": list(prob.outputs),
         "boundary": prob.boundary,
         "biases": False,
         "state_biases": bool(prob.state_biases),
@@ -746,8 +739,6 @@ def _bands(n: int) -> list:
 
 def _residual_checks(prob, V) -> tuple[tuple, tuple]:
     """(coherence, whiteness) as (statistic, p, cells, worst) each, Bonferroni over cells."""
-    from .models.base import OUTPUTS
-
     coh, white = [], []
     off = 0
     for d in prob.data:
@@ -758,8 +749,7 @@ def _residual_checks(prob, V) -> tuple[tuple, tuple]:
         gain = d.noise_gain(include_trim=False)[idx]
         bands = _bands(idx.size)
         cells = [_coherence_cells(u[b], vi[b]) for b in bands]  # every output of a band at once
-        for j, k in enumerate(prob.out_idx):
-            ch = OUTPUTS[k]
+        for j, ch in enumerate(prob.outputs):
             for b, (c, p) in zip(bands, cells):
                 coh.append((c[j], p[j], (f"{d.name}/{ch}", d.omega[idx[b[0]]], d.omega[idx[b[-1]]])))
             if len(bands) >= 2:

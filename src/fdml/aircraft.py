@@ -19,6 +19,7 @@ from dataclasses import dataclass, field, replace
 from importlib import resources
 from pathlib import Path
 
+from .channels import STATIONS
 from .errors import AircraftError
 
 __all__ = [
@@ -580,7 +581,7 @@ def missing_lag_message(ac: Aircraft, kind: str = "unsteady") -> str:
 
 
 #: Channels whose sensor position an aircraft file can give, and the effect parameter each one sets.
-SENSOR_POSITIONS = {"alpha": "x_alpha", "az": "x_az"}
+SENSOR_POSITIONS = STATIONS
 #: Largest |x| of a sensor position, m: outside it no airframe has a sensor.
 MAX_SENSOR_X = 50.0
 

@@ -67,9 +67,7 @@ def loglik_contributions(res: FitResult) -> list[np.ndarray]:
     """
     if not res.spectra:
         raise FdmlError("the fit holds no spectra: the evidence needs the fitted spectra")
-    from .models.base import OUTPUTS
-
-    idx = [OUTPUTS.index(o) for o in res.outputs]
+    idx = [res.model.outputs.index(o) for o in res.outputs]
     V = [s.z[:, idx] - res.fitted_spectra(r)[:, idx] for r, s in enumerate(res.spectra)]
     allv = np.concatenate(V)
     R = allv.T @ allv.conj() / allv.shape[0]  # Eq. 24

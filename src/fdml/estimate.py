@@ -40,6 +40,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from . import fourier
+from .channels import STATES, boundary_channels
 from .errors import (
     BandError,
     BoundsWarning,
@@ -52,16 +53,14 @@ from .errors import (
 from .estimator_settings import SETTINGS, EstimatorSettings
 from .findings import emit, raise_if_strict
 from .fit_options import CHECKS, ITERATION, PROBLEM, SPECTRA, FitOptions, NoiseModel, parse_outputs, takes_options
-from .models.base import OUTPUTS, Model
+from .models.base import Model
 from .models.measurement import (
-    BOUNDARY_NAMES,
     INPUT_BIAS_NAME,
-    NUISANCE_NAMES,
-    OUTPUT_BIAS_NAMES,
     STATE_BIAS_NAMES,
     Nuisance,
     end_shift,
     nuisance_columns,
+    nuisance_names,
 )
 from .models.measurement import predict as _measure
 from .parameters import Role
@@ -72,14 +71,16 @@ from .warning_log import recording
 
 __all__ = ["SETTINGS", "EstimatorSettings", "FitOptions", "NoiseModel", "Problem", "fit", "parse_outputs", "prepare"]
 
-#: Base names of each nuisance role, by the slot's index (fdml.models.measurement order).
-_NUISANCE_BASE = {
-    Role.OUTPUT_BIAS: OUTPUT_BIAS_NAMES,
-    Role.BOUNDARY: BOUNDARY_NAMES,  # x(0), x(T) of alpha and q (docs/theory.md section 7)
-    Role.STATE_BIAS: STATE_BIAS_NAMES,  # constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations
-    Role.INPUT_BIAS: (INPUT_BIAS_NAME,),
-}
-_BOUNDARY_COLS = [NUISANCE_NAMES.index(n) for n in BOUNDARY_NAMES]
+
+def _nuisance_base(rows: tuple) -> dict:
+    """Base names of each nuisance role of outputs ``rows``, by the slot's index (fdml.models.measurement order)."""
+    names, ny, nb = nuisance_names(rows), len(rows), len(boundary_channels(rows))
+    return {
+        Role.OUTPUT_BIAS: names[:ny],
+        Role.BOUNDARY: names[ny : ny + 2 * nb],  # x(0), x(T) of alpha, q[, theta] (docs/theory.md section 7)
+        Role.STATE_BIAS: STATE_BIAS_NAMES,  # constants added to the alpha_dot (rad/s) and q_dot (rad/s^2) equations
+        Role.INPUT_BIAS: (INPUT_BIAS_NAME,),
+    }
 
 
 @dataclass(frozen=True)
@@ -90,7 +91,7 @@ class _Slot:
     fit of several records), ``base`` the parameter's own (``bias_q``),
     ``role`` what it is, ``record`` the record's index (-1 for the shared model
     parameters) and ``index`` its place among the base names of its role
-    (:data:`_NUISANCE_BASE`; -1 for model parameters).
+    (:func:`_nuisance_base`; -1 for model parameters).
     """
 
     name: str
@@ -114,7 +115,8 @@ class Problem:
     model : Model
         The model, its free parameters set.
     outputs : tuple of int
-        Indices of the fitted outputs in :data:`~fdml.models.base.OUTPUTS`.
+        Indices of the fitted outputs in the model's rows (``model.outputs``,
+        alpha, q, a_z first; :attr:`rows`).
     boundary : {"estimated", "measured", "none"}
         The boundary terms (see :func:`fit`).
     sensitivity : {"analytic", "fd", "central"}
@@ -137,6 +139,8 @@ class Problem:
     ):
         self.data = data
         self.model = model
+        #: The model's output rows, which the spectra's columns and the predictions follow.
+        self.rows = tuple(model.outputs)
         self.out_idx = np.array(outputs)
         self.boundary = boundary
         self.sensitivity = sensitivity
@@ -144,14 +148,15 @@ class Problem:
         slots: list[_Slot] = []
         for name in model.parameters.free_model_names:
             slots.append(_Slot(name, name, model.parameters[name].role))
+        bases = _nuisance_base(self.rows)
         for r, d in enumerate(data):
             suffix = f"[{d.name}]" if multi else ""
-            places = [(Role.OUTPUT_BIAS, k) for k in outputs if model.parameters[OUTPUT_BIAS_NAMES[k]].free]
-            places += [(Role.BOUNDARY, j) for j in range(len(BOUNDARY_NAMES)) if boundary == "estimated"]
+            places = [(Role.OUTPUT_BIAS, k) for k in outputs if model.parameters[bases[Role.OUTPUT_BIAS][k]].free]
+            places += [(Role.BOUNDARY, j) for j in range(len(bases[Role.BOUNDARY])) if boundary == "estimated"]
             places += [(Role.STATE_BIAS, j) for j in range(len(STATE_BIAS_NAMES)) if state_biases]
             places += [(Role.INPUT_BIAS, 0)] if input_bias else []
             for role, j in places:
-                base = _NUISANCE_BASE[role][j]
+                base = bases[role][j]
                 slots.append(_Slot(base + suffix, base, role, r, j))
         self.state_biases = state_biases
         self.input_bias = input_bias
@@ -162,7 +167,7 @@ class Problem:
         self._nu = []
         for r in range(len(data)):
             own = [i for i, s in enumerate(slots) if s.record == r]
-            cols = [NUISANCE_NAMES.index(slots[i].base) for i in own]
+            cols = [nuisance_names(self.rows).index(slots[i].base) for i in own]
             self._nu.append((np.array(own, int), np.array(cols, int)))
         self._shift = [end_shift(d.omega, d.T) for d in data]  # exp(-j w T) of each record
         self._eta0: tuple[Model | None, list[np.ndarray]] = (
@@ -171,9 +176,14 @@ class Problem:
         )  # (model, fixed nuisance values per record): see _nuisance
         self.N = sum(d.m for d in data)
         self._offsets = np.cumsum([0] + [d.m for d in data])  # first row of each record
-        self._all_outputs = list(outputs) == list(range(len(OUTPUTS)))
+        self._all_outputs = list(outputs) == list(range(len(self.rows)))
         self.n_out = len(outputs)
         self._steps: dict = {}
+
+    @property
+    def outputs(self) -> tuple[str, ...]:
+        """The fitted outputs' names, in the fit's order."""
+        return tuple(self.rows[k] for k in self.out_idx)
 
     @staticmethod
     def prepare(data, model: Model, **options) -> Problem:
@@ -217,7 +227,8 @@ class Problem:
                 out.append(0.0)
             else:
                 d = self.data[s.record]
-                out.append((d.x0 if s.index < 2 else d.xT)[s.index % 2])
+                nb = d.x0.size
+                out.append((d.x0 if s.index < nb else d.xT)[s.index % nb])
         return np.array(out, dtype=float)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -261,14 +272,18 @@ class Problem:
 
     def _nuisance(self, theta: np.ndarray, r: int) -> Nuisance:
         """Nuisance values of record r: estimates from theta, else the model's biases and measured x(0), x(T)."""
-        if self._eta0[0] is not self.model:  # NUISANCE_NAMES order; the model's biases (it may be swapped)
+        if self._eta0[0] is not self.model:  # nuisance_names order; the model's biases (it may be swapped)
             b = self.model.biases()
             self._eta0 = (self.model, [np.concatenate([b, d.x0, d.xT, np.zeros(3)]) for d in self.data])
         own, cols = self._nu[r]
         eta = self._eta0[1][r].copy()
         eta[cols] = theta[own]
         return Nuisance.from_vector(
-            eta, boundary=self.boundary != "none", state_biases=self.state_biases, input_bias=self.input_bias
+            eta,
+            boundary=self.boundary != "none",
+            state_biases=self.state_biases,
+            input_bias=self.input_bias,
+            rows=self.rows,
         )
 
     # --- predictions ---------------------------------------------------------------------
@@ -276,7 +291,7 @@ class Problem:
         return [self.model.evaluate(d.omega, vals) for d in self.data]
 
     def predict(self, theta: np.ndarray, responses=None) -> list[np.ndarray]:
-        """Predicted output spectra per record, shape (m_r, 3) (all outputs).
+        """Predicted output spectra per record, shape (m_r, n_y) (all the model's rows).
 
         Parameters
         ----------
@@ -288,7 +303,7 @@ class Problem:
         Returns
         -------
         list of numpy.ndarray
-            Complex spectra of alpha (rad s), q (rad), a_z (g s) per record, shape (m_r, 3).
+            Complex spectra of alpha (rad s), q (rad), a_z (g s), ... per record, shape (m_r, n_y).
         """
         if responses is None:
             responses = self._responses(self.model_values(theta))
@@ -306,7 +321,7 @@ class Problem:
         Without the output biases y is linear in (G, H, P) (Eqs. 18-19 with section 7's
         boundary terms at ``theta``), so this is ``dy`` for ``change`` = (dG, dH, dP), any
         object with ``G``, ``H``, ``P`` whose leading axes (one per parameter, say)
-        broadcast; shape (..., m_r, 3), all outputs.
+        broadcast; shape (..., m_r, n_y), all the model's rows.
 
         Parameters
         ----------
@@ -320,7 +335,7 @@ class Problem:
         Returns
         -------
         numpy.ndarray
-            The change of the predicted outputs, complex, shape (..., m_r, 3).
+            The change of the predicted outputs, complex, shape (..., m_r, n_y).
         """
         d = self.data[r]
         nu = self._nuisance(theta, r)
@@ -407,7 +422,7 @@ class Problem:
         return A
 
     def _fitted(self, y: np.ndarray, axis: int) -> np.ndarray:
-        """The fitted outputs of ``y``, whose ``axis`` runs over all three outputs."""
+        """The fitted outputs of ``y``, whose ``axis`` runs over all the model's rows."""
         return y if self._all_outputs else np.take(y, self.out_idx, axis=axis)
 
     def _eval_stacked(self, theta: np.ndarray) -> np.ndarray:
@@ -469,11 +484,16 @@ def _as_data(data, model: Model, opts: FitOptions) -> list[FrequencyData]:
     out = []
     for i, item in enumerate(items):
         if isinstance(item, Record):
-            item = spectra(item, opts.omega, **given)
-        elif isinstance(item, FrequencyData):
-            opts.refuse_inapplicable(item, i)  # a band (trim, ...) given with spectra made otherwise
-        else:
+            item = spectra(item, opts.omega, outputs=model.outputs, **given)
+        elif not isinstance(item, FrequencyData):
             raise RecordError(f"cannot fit a {type(item).__name__}: give an fdml Record or FrequencyData")
+        elif tuple(item.outputs) != tuple(model.outputs):
+            raise RecordError(
+                f"spectra {item.name!r} hold {', '.join(item.outputs)}, the fit needs {', '.join(model.outputs)}: "
+                "transform the record with fdml.spectra(record, outputs=...)"
+            )
+        else:
+            opts.refuse_inapplicable(item, i)  # a band (trim, ...) given with spectra made otherwise
         if model.gust and "alpha_w" not in item.inputs:
             raise RecordError(
                 f"record {item.name!r} has no alpha_w column but the model has a gust input; "
@@ -547,7 +567,7 @@ def _renamed(d: FrequencyData, name: str) -> FrequencyData:
 def _configure_model(model: Model, opts: FitOptions, biases: bool, out_idx) -> Model:
     params = model.parameters
     if biases:
-        params = params.free([f"bias_{OUTPUTS[k]}" for k in out_idx])
+        params = params.free([f"bias_{model.outputs[k]}" for k in out_idx])
     if opts.fix:
         params.check_names(list(opts.fix))
         params = params.fix(dict(opts.fix) if isinstance(opts.fix, Mapping) else list(opts.fix))
@@ -586,12 +606,15 @@ def prepare(data, model: Model, options: FitOptions | None = None, **keywords) -
     opts = FitOptions.of(options, **keywords)
     if not isinstance(model, Model):
         raise ParameterError(f"model must be an fdml Model, got {type(model).__name__}")
-    out_idx = tuple(OUTPUTS.index(o) for o in opts.outputs)
+    model = model.with_outputs(opts.outputs)  # the rows the spectra and the predictions follow
+    out_idx = tuple(model.outputs.index(o) for o in opts.outputs)
     fdata = _as_data(data, model, opts)
     _refuse_unexcited(fdata)
     biases = any(d.trim_mode != "none" for d in fdata) if opts.biases == "auto" else bool(opts.biases)
-    model = _configure_model(model, opts, biases, out_idx)
-    _check_model_effects(model, [OUTPUTS[i] for i in out_idx], fdata[0].omega)  # H1: effects vs outputs
+    # an integral output's bias is its own boundary values' (b 1(w) = (b - b e^{-jwT})/(jw)): estimated with them
+    own = set(boundary_channels(model.outputs)) - set(STATES) if opts.boundary == "estimated" else set()
+    model = _configure_model(model, opts, biases, [k for k in out_idx if model.outputs[k] not in own])
+    _check_model_effects(model, list(opts.outputs), fdata[0].omega)  # H1: effects vs outputs
     sensitivity = opts.sensitivity
     if sensitivity == "auto":
         # analytic where every free model parameter has a closed form, else Eq. 26
@@ -654,7 +677,7 @@ def _end_findings(prob: Problem) -> list:
     out = []
     if prob.boundary == "none":
         for d in prob.data:
-            far = [OUTPUTS[k] for k in (0, 1) if d.end_offset[k] > SETTINGS.end_offset_warn]
+            far = [prob.rows[k] for k in (0, 1) if d.end_offset[k] > SETTINGS.end_offset_warn]
             if far:
                 out.append(
                     Finding(
@@ -1202,7 +1225,9 @@ def _white_cov_g(
     dof = n_real / max(n_real - len(prob.slots), 1.0)
     Sigma = np.real(R) / np.mean(gains) * dof  # time-domain noise covariance per sample
     out_idx = list(prob.out_idx)
-    bchan = [(j, out_idx.index(j)) for j in (0, 1) if j in out_idx]  # measured alpha, q in the fit
+    # measured boundary channels (alpha, q[, theta]) in the fit: (their index, their fitted output's)
+    bounds = [prob.rows.index(c) for c in boundary_channels(prob.rows)]
+    bchan = [(j, out_idx.index(k)) for j, k in enumerate(bounds) if k in out_idx]
     cov = np.zeros((p, p))
     off = 0
     for d in prob.data:
@@ -1273,13 +1298,14 @@ def _boundary_noise(prob: Problem, d: FrequencyData, Cr: np.ndarray, bchan) -> t
     """Rows n of the noise map K where measured boundary values add to it, and what they add.
 
     v = z - y: the noise of the measured x(0), x(T) (samples 0 and n - 1 of the
-    fitted alpha and q, after trim removal) enters through y's exact boundary
-    columns.  Returns the sample indices (the trim samples, 0 and n - 1) and
-    E of shape (len(rows), p, n_out).
+    fitted alpha, q[, theta], after trim removal) enters through y's exact
+    boundary columns.  Returns the sample indices (the trim samples, 0 and
+    n - 1) and E of shape (len(rows), p, n_out).
     """
     X = nuisance_columns(prob.model.evaluate(d.omega, prob.model.parameters.values), end_shift(d.omega, d.T), d.ones)
-    CX = Cr @ X[:, prob.out_idx][:, :, _BOUNDARY_COLS]  # (m, p, 4): x0_alpha, x0_q, xT_alpha, xT_q
-    Q0, QT = -CX[:, :, :2].sum(axis=0), -CX[:, :, 2:].sum(axis=0)
+    ny, nb = len(prob.rows), d.x0.size
+    CX = Cr @ X[:, prob.out_idx][:, :, ny : ny + 2 * nb]  # (m, p, 2 n_b): x0_alpha, x0_q, ..., xT_alpha, ...
+    Q0, QT = -CX[:, :, :nb].sum(axis=0), -CX[:, :, nb:].sum(axis=0)
     ell = d.trim_vector()
     rows = np.unique(np.r_[0, d.n - 1, np.arange(0 if ell is None else d.trim_samples)])
     E = np.zeros((rows.size,) + Cr.shape[1:], complex)

@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .channels import OUTPUTS
 from .errors import ParameterError
+from .models.base import DescriptorModel, Model
 
 __all__ = ["to_frd", "to_statespace", "to_control", "ControlExport", "descriptor_matrices"]
 
@@ -32,8 +32,6 @@ _RATIONAL = ("steady", "derivatives", "dimensional")
 
 def _model_of(obj):
     """The model of a FitResult (at the estimate), or the model itself."""
-    from .models.base import Model
-
     if isinstance(obj, Model):
         return obj
     model = getattr(obj, "model", None)
@@ -77,17 +75,16 @@ def to_frd(result_or_model, omega=None, *, name: str | None = None):
         raise ParameterError("omega must hold finite positive frequencies (rad/s)")
     G = model.frequency_response(omega)
     return control.FrequencyResponseData(
-        G, omega, inputs=list(model.inputs), outputs=list(OUTPUTS), name=name or f"fdml {model.kind}"
+        G, omega, inputs=list(model.inputs), outputs=list(model.outputs), name=name or f"fdml {model.kind}"
     )
 
 
 def descriptor_matrices(model, values=None):
     """``E, A, B0, B1`` of ``E x' = A x + B0 u + B1 u'`` (x = [alpha, q]) for a rational model.
 
-    Read off the model's own ``M(s) = s E - A`` and ``B(s) = B0 + s B1`` at
-    s = 0 and 1, and checked at a third point (so a model whose matrices are
-    not affine in s is refused rather than misread).  Input delays are not
-    included.
+    A descriptor model's own descriptor (:meth:`fdml.models.base.DescriptorModel.descriptor`);
+    for the ``steady`` model its finite-state form ``x' = A x + B u`` (E = I,
+    :meth:`Model.realize`).  Input delays are not included.
 
     Parameters
     ----------
@@ -109,20 +106,11 @@ def descriptor_matrices(model, values=None):
     """
     if model.kind not in _RATIONAL:
         raise ParameterError(_not_rational(model))
-    p = model.values(values)
-    s = np.array([0.0, 1.0, -2.5 + 0.7j], dtype=complex)
-    M, B, E = model._matrices(s, p)
-    A = -M[0]
-    E_m = M[1] - M[0]
-    B0, B1 = B[0], B[1] - B[0]
-    scale = max(np.abs(M).max(), np.abs(B).max(), 1.0)
-    if (
-        np.abs(M[2] - (s[2] * E_m - A)).max() > 1e-12 * scale
-        or np.abs(B[2] - (B0 + s[2] * B1)).max() > 1e-12 * scale
-        or np.abs(np.asarray(E) - E_m).max() > 1e-12 * max(np.abs(E_m).max(), 1.0)
-    ):
-        raise ParameterError(f"the {model.kind} model's matrices are not affine in s: no state-space form")
-    return np.real(E_m), np.real(A), np.real(B0), np.real(B1)
+    if isinstance(model, DescriptorModel):
+        d = model.descriptor(values)
+        return d.E, d.A, d.B0, d.B1
+    real = model.with_outputs(()).realize(values)  # the steady model: x = [alpha, q], no input rates
+    return np.eye(2), real.A, real.B, np.zeros_like(real.B)
 
 
 def _not_rational(model) -> str:
@@ -197,7 +185,7 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
     sysname = name or f"fdml {model.kind}"
     chans = [f"u{j}" for j in range(len(real.channels))]
     plant = control.StateSpace(
-        real.A, real.B, real.C, real.D, inputs=chans, outputs=list(OUTPUTS), states=states, name=sysname
+        real.A, real.B, real.C, real.D, inputs=chans, outputs=list(real.outputs), states=states, name=sysname
     )
     delays = [d for _, d in real.channels] + list(real.output_delays)
     if any(delays) and pade is None:
@@ -210,10 +198,10 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
     # inputs -> channels: each channel is its signal through its delay (identity when undelayed)
     spread = np.array([[1.0 if nm == sig else 0.0 for sig in inputs] for nm, _ in real.channels])
     ind = _delay_block([d for _, d in real.channels], [f"{nm}_delay" for nm, _ in real.channels], pade)
-    outd = _delay_block(list(real.output_delays), [f"{o}_delay" for o in OUTPUTS], pade)
+    outd = _delay_block(list(real.output_delays), [f"{o}_delay" for o in real.outputs], pade)
     A, B, C, D, names = _series(ind, (plant.A, plant.B, plant.C, plant.D, states), outd)
     return control.StateSpace(
-        A, B @ spread, C, D @ spread, inputs=inputs, outputs=list(OUTPUTS), states=names, name=sysname
+        A, B @ spread, C, D @ spread, inputs=inputs, outputs=list(real.outputs), states=names, name=sysname
     )
 
 

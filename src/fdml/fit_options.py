@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .channels import OUTPUTS
+from .channels import ALL_OUTPUTS, row_space
 from .errors import FdmlError, ParameterError
 from .fourier import END_CORRECTIONS
 from .parameters import as_names, check_fix_free, fixed_values
@@ -51,7 +51,8 @@ __all__ = ["FitOptions", "NoiseModel", "parse_outputs"]
 def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
     """The fitted outputs as a tuple of names, from a sequence or ``"alpha,q,az"``.
 
-    None gives all of :data:`~fdml.channels.OUTPUTS`.  An unknown name, a
+    None gives :data:`~fdml.channels.OUTPUTS` (alpha, q, a_z); any of
+    :data:`~fdml.channels.ALL_OUTPUTS` (``theta``, ``qdot`` too) may be named.  An unknown name, a
     name given twice (``alpha,alpha``) or an empty list is an
     :class:`~fdml.errors.FdmlError` naming it (``what`` names the option).
 
@@ -68,18 +69,18 @@ def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
         The output names, in the order given.
     """
     if outputs is None:
-        return tuple(OUTPUTS)
+        return row_space()
     if isinstance(outputs, str):
         items = [o.strip() for o in outputs.split(",")]
     else:
         items = [str(o).strip() for o in outputs]
     if not items or not any(items):
-        raise FdmlError(f"{what}: empty; choose from {', '.join(OUTPUTS)}")
+        raise FdmlError(f"{what}: empty; choose from {', '.join(ALL_OUTPUTS)}")
     if "" in items:
         raise FdmlError(f"{what} {outputs!r}: an empty item; give names separated by commas")
-    bad = [o for o in items if o not in OUTPUTS]
+    bad = [o for o in items if o not in ALL_OUTPUTS]
     if bad:
-        raise FdmlError(f"{what}: unknown output(s) {bad}; choose from {', '.join(OUTPUTS)}")
+        raise FdmlError(f"{what}: unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
     dup = sorted({o for o in items if items.count(o) > 1})
     if dup:
         raise FdmlError(f"{what}: {', '.join(dup)} given more than once; name each output once")
@@ -261,10 +262,11 @@ class FitOptions:
         ``(lo, hi, step)`` rad/s or ``"LO:HI:STEP"``; default 0.1:10:0.1
         (time-domain records).
     outputs : sequence of str or str, optional
-        Outputs that enter the fit (default ``alpha, q, az``).
+        Outputs that enter the fit (default ``alpha, q, az``); ``theta`` and
+        ``qdot`` may be named too (:data:`fdml.channels.ALL_OUTPUTS`).
     boundary : {"estimated", "measured", "none"}, optional
-        Klein's boundary terms ``x(0) - x(T) exp(-jwT)`` for alpha and q
-        (docs/theory.md section 7): estimated as nuisance parameters (default),
+        Klein's boundary terms ``x(0) - x(T) exp(-jwT)`` for alpha, q (and
+        theta when fitted; docs/theory.md section 7): estimated as nuisance parameters (default),
         taken from the measured first and last samples, or omitted (then a
         record that ends far from trim triggers a :class:`~fdml.errors.DataWarning`).
     biases : {"auto", True, False}, optional

@@ -52,10 +52,10 @@ Which parameters the data determine depends on the channels present:
 The parameters are estimated by output error: the equations are integrated
 from the corrected inputs (q, a_z, a_x) by a fourth-order Runge-Kutta scheme
 on the sample grid, the outputs (alpha, theta, V, h, as present) are compared
-with the measurements, and a bounded Levenberg-Marquardt iteration minimises the
-residuals weighted by the inverse of each output's residual standard
-deviation, re-estimated until it settles (maximum likelihood with a diagonal
-noise covariance).  Standard errors come from the Gauss-Newton information
+with the measurements, and bounded least squares (:mod:`fdml.lsq`, scipy's
+trust-region reflective solver) minimises the residuals weighted by the
+inverse of each output's residual standard deviation, re-estimated until it
+settles (maximum likelihood with a diagonal noise covariance).  Standard errors come from the Gauss-Newton information
 matrix, corrected for coloured residuals (the residual autocorrelation,
 Bartlett-weighted up to a quarter of the record, enters the sandwich
 M^-1 (J^T Rvv J) M^-1 of Morelli & Klein); the white-noise bounds are kept
@@ -69,11 +69,13 @@ import warnings
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 
 from .channels import SIGNALS, display_unit
 from .constants import G0
 from .errors import FdmlError, IdentifiabilityWarning, RecordError
 from .jsoncodec import Fields
+from .lsq import RelaxedFit, relaxed_least_squares
 from .record import Record
 
 __all__ = ["check_compatibility", "CompatibilityResult", "ParameterEstimate", "PARAMETERS", "apply_corrections"]
@@ -436,8 +438,6 @@ def apply_corrections(record: Record, values: dict) -> Record:
     Record
         The corrected copy.
     """
-    from scipy.interpolate import CubicSpline
-
     v = {k: PARAMETERS[k][0] for k in PARAMETERS}
     unknown = set(values) - set(PARAMETERS)
     if unknown:
@@ -466,20 +466,25 @@ def apply_corrections(record: Record, values: dict) -> Record:
 
 
 # --- the estimator -------------------------------------------------------------------------------
-def _integrate(a, th, V, h, dt, n, q, az, ax, Vin):
+def _integrate(a, th, V, dt, q, az, ax, Vin):
     """Fourth-order Runge-Kutta integration of the kinematics on the sample grid.
 
-    Inputs are given at the samples and the midpoints (index 2k and 2k+1);
+    Inputs are arrays at the samples and the midpoints (index 2k and 2k+1);
     ``ax`` None means a_x = sin(theta) (steady flight), ``Vin`` not None
-    means the airspeed is an input rather than a state.  Written out in
-    scalars: this loop is the check's whole cost.
+    means the airspeed is an input rather than a state; h starts at 0.
+    Written out in scalars: this loop is the check's whole cost.
     """
     g = G0
     cos, sin = math.cos, math.sin
+    n = (len(q) + 1) // 2
+    q, az = q.tolist(), az.tolist()
+    ax = None if ax is None else ax.tolist()
+    Vin = None if Vin is None else Vin.tolist()
     A = [a] * n
     TH = [th] * n
     VV = [V] * n
-    HH = [h] * n
+    HH = [0.0] * n
+    h = 0.0
     hdt = 0.5 * dt
     sixth = dt / 6.0
     vstate = Vin is None
@@ -530,6 +535,30 @@ def _integrate(a, th, V, h, dt, n, q, az, ax, Vin):
     return np.array(A), np.array(TH), np.array(VV), np.array(HH)
 
 
+#: The parameters the integration depends on (the others act on its outputs).
+_INTEGRATION_INPUTS = ("b_q", "K_q", "tau_az", "b_az", "K_az", "b_ax", "K_V", "alpha0", "theta0", "V0")
+
+
+class _Run:
+    """One integration: time (s), alpha (rad), theta (rad), V (m/s) and h - h0 (m) at the samples.
+
+    ``delayed`` gives alpha or theta a time shift, from a spline built once per run.
+    """
+
+    def __init__(self, t, A, TH, VV, HH):
+        self.t, self.A, self.TH, self.VV, self.HH = t, A, TH, VV, HH
+        self._splines: dict = {}
+
+    def delayed(self, name: str, tau: float) -> np.ndarray:
+        """``name`` ("A" or "TH") at t - tau, by cubic interpolation."""
+        x = getattr(self, name)
+        if tau == 0.0:
+            return x
+        if name not in self._splines:
+            self._splines[name] = CubicSpline(self.t, x)
+        return self._splines[name](self.t - tau)
+
+
 class _Problem:
     """Kinematic simulation and residuals for one record."""
 
@@ -571,7 +600,11 @@ class _Problem:
                 f"of up to {max_shift:g} s ({self.n} samples)"
             )
         self.meas = {k: record[k] for k in outs}
+        self.tt = np.empty(2 * self.n - 1)  # the samples and the midpoints between them
+        self.tt[0::2], self.tt[1::2] = self.t, self.t[:-1] + 0.5 * self.dt
         self._cache: dict = {}
+        self._splines: dict = {}
+        self._runs: dict = {}
         self.V_meas = record["V"] if record.has("V") else np.full(self.n, U)
 
     def unpack(self, x):
@@ -579,59 +612,70 @@ class _Problem:
         p.update(zip(self.names, x))
         return p
 
-    def _mid(self, name: str, tt: np.ndarray) -> np.ndarray:
-        """A channel at samples and midpoints (cached: it does not depend on the parameters)."""
-        if name not in self._cache:
-            from scipy.interpolate import CubicSpline
+    def _spline(self, name: str) -> CubicSpline:
+        """The cubic spline through a channel (cached: no parameter changes it)."""
+        if name not in self._splines:
+            self._splines[name] = CubicSpline(self.t, self.V_meas if name == "V" else self.rec[name])
+        return self._splines[name]
 
-            x = self.V_meas if name == "V" else self.rec[name]
-            self._cache[name] = CubicSpline(self.t, x)(tt)
+    def _mid(self, name: str) -> np.ndarray:
+        """A channel at the samples and midpoints (cached), by cubic interpolation.
+
+        Fourth order, like the integrator; linear midpoints would bias slowly varying integrals.
+        """
+        if name not in self._cache:
+            self._cache[name] = self._spline(name)(self.tt)
         return self._cache[name]
 
-    def simulate(self, p) -> dict:
-        """Integrate the kinematics; returns the simulated outputs (as measured, sensor models applied)."""
-        from scipy.interpolate import CubicSpline
+    def _run(self, p) -> _Run:
+        """The kinematics integrated from the corrected inputs, reusing the last runs.
 
-        t, dt, n = self.t, self.dt, self.n
-        tt = np.empty(2 * n - 1)
-        tt[0::2] = t
-        tt[1::2] = t[:-1] + 0.5 * dt
-        rec = self.rec
-        # inputs at the samples and the midpoints, by cubic interpolation (fourth order,
-        # like the integrator; linear midpoints would bias slowly varying integrals)
-        q = (self._mid("q", tt) - p["b_q"]) / p["K_q"]
+        The weights do not enter the integration, and K_alpha, b_alpha,
+        tau_alpha, tau_theta and h0 act on its outputs only.  Keeping the
+        runs of one Jacobian (one per unknown and the point itself), a column
+        of one of those five reuses the run (and its splines) at the point,
+        and the first Jacobian of a weight pass, at the point where the pass
+        before ended, repeats no integration.
+        """
+        key = tuple(float(p.get(k, 0.0)) for k in _INTEGRATION_INPUTS)
+        run = self._runs.pop(key, None) or self._new_run(p)
+        self._runs[key] = run  # the most recent last
+        if len(self._runs) > len(self.names) + 2:
+            del self._runs[next(iter(self._runs))]
+        return run
+
+    def _new_run(self, p) -> _Run:
+        """One integration from the inputs corrected by the sensor parameters in ``p``."""
+        q = (self._mid("q") - p["b_q"]) / p["K_q"]
         if p["tau_az"] != 0.0:
-            az_src = CubicSpline(t, rec["az"])(np.clip(tt + p["tau_az"], t[0], t[-1]))
+            az_src = self._spline("az")(np.clip(self.tt + p["tau_az"], self.t[0], self.t[-1]))
         else:
-            az_src = self._mid("az", tt)
+            az_src = self._mid("az")
         az = (az_src - p["b_az"]) / p["K_az"]
-        ax = self._mid("ax", tt) - p["b_ax"] if self.has_ax else None
-        if not self.V_state:
-            Vin = self._mid("V", tt) / p["K_V"]
+        ax = self._mid("ax") - p["b_ax"] if self.has_ax else None
+        Vin = None if self.V_state else self._mid("V") / p["K_V"]
         A, TH, VV, HH = _integrate(
             float(p["alpha0"]),
             float(p["theta0"] if self.has_theta else p["alpha0"]),
-            float(p["V0"]) if self.V_state else float(Vin[0]),
-            float(p.get("h0", 0.0)),
-            dt,
-            n,
-            q.tolist(),
-            az.tolist(),
-            ax.tolist() if ax is not None else None,
-            None if self.V_state else Vin.tolist(),
+            float(p["V0"]) if Vin is None else float(Vin[0]),
+            self.dt,
+            q,
+            az,
+            ax,
+            Vin,
         )
-        out = {}
+        return _Run(self.t, A, TH, VV, HH)
 
-        def delay(x, tau):
-            return x if tau == 0.0 else CubicSpline(t, x)(t - tau)
-
-        out["alpha"] = p["K_alpha"] * delay(A, p["tau_alpha"]) + p["b_alpha"]
+    def simulate(self, p) -> dict:
+        """Integrate the kinematics; returns the simulated outputs (as measured, sensor models applied)."""
+        run = self._run(p)
+        out = {"alpha": p["K_alpha"] * run.delayed("A", p["tau_alpha"]) + p["b_alpha"]}
         if self.has_theta:
-            out["theta"] = delay(TH, p["tau_theta"])
+            out["theta"] = run.delayed("TH", p["tau_theta"])
         if self.V_state:
-            out["V"] = p["K_V"] * VV
+            out["V"] = p["K_V"] * run.VV
         if self.has_h:
-            out["h"] = HH
+            out["h"] = p.get("h0", 0.0) + run.HH
         return out
 
     def noise_covariance(self, J: np.ndarray, p: dict, sigma: dict) -> np.ndarray:
@@ -680,13 +724,10 @@ class _Problem:
             mid += s2 * (AJ[i].T @ AJ[i])
         return Minv @ mid @ Minv
 
-    def residuals(self, x, sigma) -> np.ndarray:
-        p = self.unpack(x)
-        try:
-            y = self.simulate(p)
-        except (FloatingPointError, ZeroDivisionError, OverflowError):
-            return np.full(self.n_used * len(self.outputs), 1e6)
-        return np.concatenate([(self.meas[k][self.sel] - y[k][self.sel]) / sigma[k] for k in self.outputs])
+    def errors(self, x) -> np.ndarray:
+        """Measured minus simulated outputs over the used samples, shape (outputs, n_used)."""
+        y = self.simulate(self.unpack(x))
+        return np.array([self.meas[k][self.sel] - y[k][self.sel] for k in self.outputs])
 
 
 def _default_free(record: Record) -> tuple[list[str], dict]:
@@ -770,7 +811,7 @@ def _choose_free(record: Record, estimate, fix) -> tuple[list[str], dict[str, fl
 
 
 def _start(prob: _Problem, free: list[str], max_shift: float):
-    """Start (nominal sensors, measured initial states), bounds and typical sizes of the unknowns."""
+    """Start (nominal sensors, measured initial states) and bounds of the unknowns."""
     record = prob.rec
     x0_list = [PARAMETERS[k][0] for k in free]
     x0_list.append(float(record["alpha"][0]))
@@ -788,34 +829,14 @@ def _start(prob: _Problem, free: list[str], max_shift: float):
             lo[i], hi[i] = -max_shift, max_shift
         elif PARAMETERS[k][1] == "-":  # a scale factor (K_*)
             lo[i], hi[i] = 0.2, 5.0
-    typ = np.array([_TYPICAL[PARAMETERS[k][1]] for k in free] + [_TYPICAL[_STATE_UNITS[k]] for k in prob.states])
-    return x0, lo, hi, typ
+    return x0, lo, hi
 
 
-def _solve(prob: _Problem, x0, lo, hi, typ):
-    """Levenberg-Marquardt passes, each output weighted by its residual RMS of the pass before.
-
-    Returns the estimate, the settled output weights (std per output), whether it converged, and why not.
-    """
-    record = prob.rec
-    sigma = {k: max(noise_level(record[k]), _sigma_floor(record[k])) for k in prob.outputs}
-    x = x0
-    converged = False
-    message = ""
-    for _ in range(_WEIGHT_PASSES):
-        x, r, J, ok, message = _levenberg_marquardt(lambda z: prob.residuals(z, sigma), x, lo, hi, typ)
-        new = {}
-        for j, k in enumerate(prob.outputs):
-            e = r[j * prob.n_used : (j + 1) * prob.n_used] * sigma[k]
-            new[k] = max(float(np.sqrt(np.mean(e**2))), _sigma_floor(record[k]))
-        change = max(abs(new[k] / sigma[k] - 1) for k in sigma)
-        sigma = new
-        if change < _WEIGHT_TOL:
-            converged = ok
-            break
-    else:
-        message = f"output weights still changing by {100 * change:.2g} % after {_WEIGHT_PASSES} passes"
-    return x, sigma, converged, message
+def _solve(prob: _Problem, x0, lo, hi) -> RelaxedFit:
+    """Least-squares passes, each output weighted by its residual RMS of the pass before (:mod:`fdml.lsq`)."""
+    floor = [_sigma_floor(prob.rec[k]) for k in prob.outputs]
+    start = np.maximum([noise_level(prob.rec[k]) for k in prob.outputs], floor)
+    return relaxed_least_squares(prob.errors, x0, (lo, hi), start, passes=_WEIGHT_PASSES, tol=_WEIGHT_TOL, floor=floor)
 
 
 def _uncertainty(prob: _Problem, J, r, x, sigma):
@@ -876,12 +897,10 @@ def check_compatibility(
     U = _checked_airspeed(record, U)
     free, fixed_vals, why = _choose_free(record, estimate, fix)
     prob = _Problem(record, free, fixed_vals, max_shift, U)
-    x0, lo, hi, typ = _start(prob, free, max_shift)
-    x, sigma, converged, message = _solve(prob, x0, lo, hi, typ)
-    # residuals and Jacobian at the settled weights
-    r = prob.residuals(x, sigma)
-    J = _jacobian(lambda z: prob.residuals(z, sigma), x, r, typ, hi)
-    se, se_w, corr = _uncertainty(prob, J, r, x, sigma)
+    x0, lo, hi = _start(prob, free, max_shift)
+    fit = _solve(prob, x0, lo, hi)
+    x, sigma = fit.x, dict(zip(prob.outputs, fit.sigma.tolist()))
+    se, se_w, corr = _uncertainty(prob, fit.J, fit.r, x, sigma)
     params = {}
     for i, k in enumerate(free):
         nom, unit, desc = PARAMETERS[k]
@@ -907,8 +926,8 @@ def check_compatibility(
         residual_rms=rms,
         sigma=dict(sigma),
         n_used=prob.n_used,
-        converged=converged,
-        message=str(message),
+        converged=fit.success and fit.settled,
+        message=fit.message if fit.settled else f"output weights still changing after {_WEIGHT_PASSES} passes",
         findings=tuple(findings),
     )
     if correct:
@@ -940,72 +959,6 @@ def noise_level(x: np.ndarray) -> float:
         return 0.0
     s = float(np.median(np.abs(d3)) / 0.6745 / math.sqrt(20.0))
     return max(s, _sigma_floor(x))
-
-
-#: Typical magnitude per unit: sets finite-difference steps (1e-6 of it).
-_TYPICAL = {"rad/s": 1e-2, "g": 1e-1, "-": 1.0, "s": 1e-1, "rad": 1e-1, "m/s": 10.0, "m": 100.0}
-
-
-def _jacobian(fun, x, r, typ, hi):
-    """Forward-difference Jacobian; steps of 1e-6 typical magnitudes, away from bounds."""
-    J = np.empty((r.size, x.size))
-    for i in range(x.size):
-        h = 1e-6 * typ[i]
-        if x[i] + h > hi[i]:
-            h = -h
-        xp = x.copy()
-        xp[i] += h
-        J[:, i] = (fun(xp) - r) / h
-    return J
-
-
-def _levenberg_marquardt(fun, x, lo, hi, typ, max_iter: int = 100):
-    """Bounded Levenberg-Marquardt on sum r^2 (normal equations; the problem has <= 16 unknowns).
-
-    Stops when no parameter moves by more than 1e-4 of its standard error
-    (estimated from the current Gauss-Newton matrix) or the cost changes by
-    less than 1e-12 relatively.  Returns (x, r, J, converged, message).
-    """
-    x = np.clip(np.asarray(x, float), lo, hi)
-    r = fun(x)
-    cost = float(r @ r)
-    lam = 1e-3
-    m, n = r.size, x.size
-    message = "iteration limit reached"
-    converged = False
-    J = _jacobian(fun, x, r, typ, hi)
-    for _ in range(max_iter):
-        g = J.T @ r
-        H = J.T @ J
-        D = np.diag(H).copy()
-        D[D <= 0] = 1.0
-        while True:
-            try:
-                step = np.linalg.solve(H + lam * np.diag(D), -g)
-            except np.linalg.LinAlgError:
-                step = np.zeros(n)
-            xn = np.clip(x + step, lo, hi)
-            rn = fun(xn)
-            cn = float(rn @ rn)
-            if cn < cost or lam > 1e12:
-                break
-            lam *= 4.0
-        if not cn < cost:
-            converged, message = True, "no further decrease of the cost"
-            break
-        dx = xn - x
-        rel = (cost - cn) / cost
-        x, r, cost = xn, rn, cn
-        lam = max(lam / 3.0, 1e-12)
-        J = _jacobian(fun, x, r, typ, hi)
-        try:
-            se = np.sqrt(np.clip(np.diag(np.linalg.pinv(J.T @ J)) * cost / max(m - n, 1), 1e-300, None))
-        except np.linalg.LinAlgError:
-            se = np.full(n, np.inf)
-        if np.all(np.abs(dx) < 1e-4 * se) or rel < 1e-12:
-            converged, message = True, "steps below 1e-4 standard errors"
-            break
-    return x, r, J, converged, message
 
 
 def _sigma_floor(x: np.ndarray) -> float:

@@ -166,7 +166,7 @@ def omega_band(lo=0.1, hi=10.0, step=0.1):
 def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False):
     """Validate a band (rad/s) before anything is built from it.
 
-    The one check behind every band fdml accepts (``--band``, ``--omega``,
+    The one check behind every band fdml accepts (``--band``,
     ``band=``): :func:`omega_band`, :func:`fdml.spectral.parse_band` and the
     diagnosis band parser all call it.
 

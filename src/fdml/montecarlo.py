@@ -32,9 +32,9 @@ from typing import Any
 import numpy as np
 
 from .batch import ModelSpec, canonical_json, check_fit_kwargs
-from .channels import OUTPUTS
 from .errors import FdmlError
 from .parallel import engine_name, execute, one_line
+from .record import check_noise
 from .warning_log import merged, recording
 
 __all__ = ["monte_carlo", "MonteCarloResult", "load_monte_carlo", "MC_FORMAT"]
@@ -503,21 +503,11 @@ def load_monte_carlo(path: str | Path) -> MonteCarloResult:
 
 
 def _check_noise(noise):
-    if isinstance(noise, Mapping):
-        unknown = set(noise) - set(OUTPUTS)
-        if unknown:
-            raise FdmlError(f"noise given for unknown output(s) {sorted(unknown)}; outputs: alpha, q, az")
-        out = {k: float(v) for k, v in noise.items()}
-        vals = list(out.values())
-    else:
-        try:
-            out = float(noise)
-        except (TypeError, ValueError):
-            raise FdmlError(f"noise must be a fraction of RMS or {{output: std}}, got {noise!r}") from None
-        vals = [out]
-    if not vals or any(not math.isfinite(v) or v < 0 for v in vals) or max(vals) <= 0:
+    """The noise level (:func:`fdml.record.check_noise`), refused when it is zero: the runs would all be one."""
+    level = check_noise(noise)
+    if max(level.values() if isinstance(level, dict) else [level], default=0.0) <= 0:
         raise FdmlError(f"noise must be finite, non-negative and not all zero, got {noise!r}")
-    return out
+    return level
 
 
 def monte_carlo(

@@ -163,11 +163,17 @@ def _in_order(pairs: Iterator[tuple[int, Any]]) -> Iterator[tuple[int, Any]]:
 
 
 def _serial_map(fn, tasks, on_error) -> Generator[tuple[int, Any], None, None]:
+    """Each task in this process, with one BLAS thread as in a pool worker (:func:`_worker_init`): the
+    order of a multi-threaded BLAS's sums would change the last digits, and the engines give the same
+    numbers."""
+    from threadpoolctl import threadpool_limits
+
     for i, task in enumerate(tasks):
-        try:
-            out = fn(task)
-        except Exception as exc:  # this task's failure, never the run's
-            out = on_error(task, exc)
+        with threadpool_limits(limits=1, user_api="blas"):
+            try:
+                out = fn(task)
+            except Exception as exc:  # this task's failure, never the run's
+                out = on_error(task, exc)
         yield i, out
 
 

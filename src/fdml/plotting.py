@@ -26,7 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .channels import OUTPUTS as _OUTPUTS
+from .channels import ALL_OUTPUTS, OUTPUTS, boundary_channels
 
 __all__ = [
     "plot_spectra",
@@ -40,7 +40,15 @@ __all__ = [
     "settle_layout",
 ]
 
-_LABELS = {"alpha": r"$\tilde\alpha$ (rad s)", "q": r"$\tilde q$ (rad)", "az": r"$\tilde a_z$ (g s)"}
+#: Each output's symbol and its transform's unit.
+_LABELS = {
+    "alpha": r"$\tilde\alpha$ (rad s)",
+    "q": r"$\tilde q$ (rad)",
+    "az": r"$\tilde a_z$ (g s)",
+    "theta": r"$\tilde\theta$ (rad s)",
+    "qdot": r"$\tilde{\dot q}$ (rad/s)",
+}
+_NAMES = {"alpha": r"$\alpha$", "q": r"$q$", "az": r"$a_z$", "theta": r"$\theta$", "qdot": r"$\dot q$"}
 _DEG = 180.0 / math.pi
 
 
@@ -172,11 +180,18 @@ def settle_layout(fig) -> None:
         fig.tight_layout()
 
 
+def _row(rows, out: str) -> int:
+    """The row of output ``out`` in a fit's ``rows`` (a ValueError naming it if the fit has none)."""
+    if out not in rows:
+        raise ValueError(f"the fit has no {out} spectra (it predicts {', '.join(rows)}); fit with outputs including it")
+    return rows.index(out)
+
+
 def _check_outputs(outputs) -> list[str]:
     outputs = list(outputs)
-    bad = [o for o in outputs if o not in _OUTPUTS]
+    bad = [o for o in outputs if o not in ALL_OUTPUTS]
     if bad or not outputs:
-        raise ValueError(f"unknown output(s) {bad or outputs}; choose from {', '.join(_OUTPUTS)}")
+        raise ValueError(f"unknown output(s) {bad or outputs}; choose from {', '.join(ALL_OUTPUTS)}")
     return outputs
 
 
@@ -216,9 +231,9 @@ def spectra_uncertainty(result, record: int = 0, *, rel_step: float = 1e-6):
 
     Returns
     -------
-    y : ndarray, complex, shape (m, 3)
-        Fitted spectra of alpha, q, a_z (as :meth:`FitResult.fitted_spectra`).
-    sigma : ndarray, shape (m, 3)
+    y : ndarray, complex, shape (m, n_y)
+        Fitted spectra of the model's outputs (as :meth:`FitResult.fitted_spectra`).
+    sigma : ndarray, shape (m, n_y)
         ``sqrt(Var y)``.  Parameters without a finite standard error (not
         identifiable) are left out of the sum.
     """
@@ -329,8 +344,9 @@ def plot_spectra(
     def mag(x):
         return 20 * np.log10(np.maximum(x, 1e-300)) if mag_unit == "dB" else x
 
+    rows = results[0].model.outputs
     for j, out in enumerate(outputs):
-        k = _OUTPUTS.index(out)
+        k = _row(rows, out)
         z = spec.z[:, k]
         ax_m, ax_p = axes[0, j], axes[1, j]
         if mag_unit == "abs":
@@ -426,13 +442,14 @@ def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
     Returns
     -------
     Record
-        Signals ``alpha`` (rad), ``q`` (rad/s), ``az`` (g) of the model, with
+        Signals ``alpha`` (rad), ``q`` (rad/s), ``az`` (g) of the model and the
+        fit's other outputs (``theta`` rad, ``qdot`` rad/s^2), with
         the measured inputs; ``meta`` holds ``trim`` (values added back),
         ``biases``, ``x0`` and ``initial_state`` ("exact", "none" or
         "approximate: ...").
     """
-    from .constants import G0
     from .errors import ParameterError
+    from .models.base import output_rows
     from .record import Record
     from .simulate import realize, simulate
 
@@ -448,13 +465,15 @@ def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
     b = nu.biases
     ib = 0.0 if nu.input_bias is None else nu.input_bias
     sb = np.zeros(2) if nu.state_biases is None else nu.state_biases
-    x0 = np.zeros(2) if nu.x0 is None else nu.x0
+    rows = model.outputs
+    x0 = np.zeros(len(boundary_channels(rows))) if nu.x0 is None else nu.x0
     inputs = {"de": trimmed["de"] + ib}
     if model.gust:
         inputs["alpha_w"] = trimmed["alpha_w"]
-    zero_bias = {f"bias_{o}": 0.0 for o in _OUTPUTS}
-    forced = simulate(model, raw.t, inputs, zero_bias)
-    y = np.column_stack([forced[o] for o in _OUTPUTS])
+    zero_bias = {f"bias_{o}": 0.0 for o in rows}
+    t = raw.t[0] + raw.dt * np.arange(raw.n)  # the simulator needs an exact grid; records are uniform to 1e-3 dt
+    forced = simulate(model, t, inputs, zero_bias)
+    y = np.column_stack([forced[o] for o in rows])
     state = "none"
     if np.any(x0 != 0) or np.any(sb != 0):
         try:
@@ -463,14 +482,15 @@ def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
         except ParameterError:
             real = realize(model, {**zero_bias, "F": 0.0})
             state = "approximate: the F term is left out of the free response"
-        y = y + _free_response(real, raw.t - raw.t[0], x0, sb, model.U / G0)
-    y = y + b[None, :] + np.array([trim.get(o, 0.0) for o in _OUTPUTS])[None, :]
-    signals = {"de": raw["de"], "alpha": y[:, 0], "q": y[:, 1], "az": y[:, 2]}
+        rates = output_rows(rows, model.U, model.parameters.values)[1]  # rows of the states' rates
+        y = y + _free_response(real, t - t[0], x0, sb, rates)
+    y = y + b[None, :] + np.array([trim.get(o, 0.0) for o in rows])[None, :]
+    signals = {"de": raw["de"], **{o: y[:, i] for i, o in enumerate(rows)}}
     if raw.has("alpha_w"):
         signals["alpha_w"] = raw["alpha_w"]
     meta = {
         "trim": trim,
-        "biases": dict(zip(_OUTPUTS, b.tolist())),
+        "biases": dict(zip(rows, b.tolist())),
         "x0": x0.tolist(),
         "state_biases": sb.tolist(),
         "elevator_bias": ib,
@@ -481,16 +501,18 @@ def simulate_fit(result, record: int = 0, *, trim_window: float | None = None):
     return Record(raw.t, signals, name=f"{raw.name} (model)", meta=meta, check_units=False)
 
 
-def _free_response(real, tau: np.ndarray, x0: np.ndarray, sb: np.ndarray, k: float) -> np.ndarray:
+def _free_response(real, tau: np.ndarray, x0: np.ndarray, sb: np.ndarray, rates: np.ndarray) -> np.ndarray:
     """Outputs from x(0) = x0 (lags at zero) under constant state-equation forcing sb, exact on ``tau``.
 
-    The forcing enters the first two states of every fdml realisation (the
-    alpha and q equations); a_z = (U/g)(alpha_dot - q) feels it directly.
+    ``x0`` holds the boundary channels (alpha, q[, theta]); the forcing enters
+    the first two states of every fdml realisation (the alpha and q equations),
+    and an output of the states' rates (``rates``, (n_y, 2): a_z, q_dot) feels it directly.
     """
     from scipy import linalg
 
     ns = real.A.shape[0]
-    xi0 = np.linalg.lstsq(real.C[:2], x0, rcond=None)[0]  # alpha, q = x0; every other state zero
+    at = [real.outputs.index(c) for c in boundary_channels(real.outputs)]
+    xi0 = np.linalg.lstsq(real.C[at], x0, rcond=None)[0]  # alpha, q[, theta] = x0; every other state zero
     bf = np.zeros(ns)
     bf[:2] = sb
     M = np.zeros((ns + 1, ns + 1))
@@ -502,9 +524,7 @@ def _free_response(real, tau: np.ndarray, x0: np.ndarray, sb: np.ndarray, k: flo
     z[0] = np.append(xi0, 1.0)
     for i in range(1, tau.size):
         z[i] = Phi @ z[i - 1]
-    y = z[:, :ns] @ real.C.T
-    y[:, 2] += k * float(real.C[0] @ bf)
-    return y
+    return z[:, :ns] @ real.C.T + rates @ sb
 
 
 def plot_time_histories(
@@ -556,15 +576,18 @@ def plot_time_histories(
     """
     if angle_unit not in ("deg", "rad"):
         raise ValueError(f"angle_unit must be 'deg' or 'rad', got {angle_unit!r}")
-    outputs = _check_outputs(outputs or _OUTPUTS)
+    outputs = _check_outputs(outputs or OUTPUTS)
+    for out in outputs:
+        _row(result.model.outputs, out)
     meas = result.record(record)
     model = simulate_fit(result, record, trim_window=trim_window)
     n = len(outputs) + (1 if inputs else 0)
     fig, arr, created = _axes_grid(axes, ax, (n, 1), (8, 2.0 * n + 0.6))
     arr = arr[:, 0]
     scale = _DEG if angle_unit == "deg" else 1.0
-    unit = {"alpha": angle_unit, "q": f"{angle_unit}/s", "az": "g", "de": angle_unit, "alpha_w": angle_unit}
-    sc = {"alpha": scale, "q": scale, "az": 1.0, "de": scale, "alpha_w": scale}
+    rate = f"{angle_unit}/s"
+    unit = {"q": rate, "qdot": f"{rate}^2", "az": "g", **dict.fromkeys(("alpha", "theta", "de", "alpha_w"), angle_unit)}
+    sc = {k: 1.0 if k == "az" else scale for k in unit}
     t = meas.t
     i0 = 0
     if inputs:
@@ -575,7 +598,7 @@ def plot_time_histories(
         a.set_ylabel(f"input ({unit['de']})")
         a.grid(True, alpha=0.3)
         i0 = 1
-    names = {"alpha": r"$\alpha$", "q": r"$q$", "az": r"$a_z$"}
+    names = _NAMES
     for j, out in enumerate(outputs):
         a = arr[i0 + j]
         ym, yf = sc[out] * meas[out], sc[out] * model[out]
@@ -645,7 +668,7 @@ def plot_residual_spectra(
     R = np.asarray(result.R)
     for j, out in enumerate(outputs):
         a = arr[j]
-        k = _OUTPUTS.index(out)
+        k = _row(result.model.outputs, out)
         a.semilogy(f, np.abs(v[:, k]), ".", ms=4, color="C3", label="|residual|")
         _plain_log_ticks(a.yaxis)
         if out in result.outputs:

@@ -19,13 +19,22 @@ from pathlib import Path
 
 import numpy as np
 
-from .channels import OUTPUTS, SIGNALS, display_unit
+from .channels import ALL_OUTPUTS, SIGNALS, display_unit
 from .channels import REQUIRED as REQUIRED_SIGNALS
-from .errors import RecordError
+from .errors import ParameterError, RecordError
 from .jsoncodec import SKIP, Codec, Spec, floats
 from .outputs import atomic_write_text
 
-__all__ = ["Record", "read_csv", "add_noise", "noise_stds", "uniform_interval", "SIGNALS", "REQUIRED_SIGNALS"]
+__all__ = [
+    "Record",
+    "read_csv",
+    "add_noise",
+    "noise_stds",
+    "check_noise",
+    "uniform_interval",
+    "SIGNALS",
+    "REQUIRED_SIGNALS",
+]
 
 
 #: Largest plausible perturbation magnitudes in SI units.  A larger value in a
@@ -397,13 +406,13 @@ def add_noise(record: Record, noise, rng: np.random.Generator, *, relative: bool
     Returns
     -------
     Record
-        A copy with noisy ``alpha``, ``q``, ``az``; ``meta["noise_std"]`` holds
-        the standard deviations used.
+        A copy with noisy ``alpha``, ``q``, ``az`` (and ``theta``, ``qdot`` where
+        it has them); ``meta["noise_std"]`` holds the standard deviations used.
     """
     if not isinstance(rng, np.random.Generator):
         raise RecordError("add_noise needs a numpy Generator (np.random.default_rng(seed))")
     std = noise_stds(record, noise, relative=relative)
-    noisy = {k: record[k] + std[k] * rng.standard_normal(record.n) for k in OUTPUTS}
+    noisy = {k: record[k] + std[k] * rng.standard_normal(record.n) for k in std}
     return replace(record, signals={**record.signals, **noisy}, meta={**record.meta, "noise_std": std})
 
 
@@ -426,23 +435,64 @@ def noise_stds(record: Record, noise, *, relative: bool = False) -> dict[str, fl
     Returns
     -------
     dict of str to float
-        Standard deviation per output: alpha rad, q rad/s, az g.
+        Standard deviation per output the record has: alpha rad, q rad/s, az g[, theta rad, qdot rad/s^2].
     """
-    if isinstance(noise, Mapping):
-        unknown = set(noise) - set(OUTPUTS)
-        if unknown:
-            raise RecordError(f"noise given for unknown output(s) {sorted(unknown)}; outputs: alpha, q, az")
-        std = {k: float(noise.get(k, 0.0)) for k in OUTPUTS}
-    else:
-        try:
-            std = {k: float(noise) for k in OUTPUTS}
-        except (TypeError, ValueError):
-            raise RecordError(f"noise must be a number or a mapping of stds per output, got {noise!r}") from None
-    if any(not math.isfinite(v) or v < 0 for v in std.values()):
-        raise RecordError(f"noise levels must be finite and non-negative, got {std}")
+    outputs = [k for k in ALL_OUTPUTS if record.has(k)]
+    level = check_noise(noise)
+    std = {k: level.get(k, 0.0) for k in outputs} if isinstance(level, dict) else dict.fromkeys(outputs, level)
     if relative:
         std = {k: v * float(np.std(record[k])) for k, v in std.items()}
     return std
+
+
+def check_noise(noise) -> float | dict[str, float]:
+    """A measurement-noise level, checked: one number, or standard deviations by output.
+
+    The one check of a noise level for every command and library call (the
+    simulator, :func:`add_noise`, Monte Carlo, the experiment design, the
+    diagnosis' truths); what one number means (a fraction of each output's
+    RMS, or one standard deviation) is the caller's.
+
+    Parameters
+    ----------
+    noise : float or mapping
+        One number, or ``{"alpha": rad, "q": rad/s, "az": g}``.
+
+    Returns
+    -------
+    float or dict of str to float
+        The number, or the standard deviation of each output given.
+
+    Raises
+    ------
+    ParameterError
+        An unknown output, a value that is not a number, or one that is
+        negative or not finite.
+    """
+    if isinstance(noise, Mapping):
+        bad = [k for k in noise if k not in ALL_OUTPUTS]
+        if bad:
+            raise ParameterError(
+                f"unknown noise channel(s) {', '.join(map(str, bad))}; channels: {', '.join(ALL_OUTPUTS)}"
+            )
+        return {k: _noise_level(v, f"noise std for {k}", f" ({SIGNALS[k]})") for k, v in noise.items()}
+    if isinstance(noise, bool) or not isinstance(noise, (int, float, np.integer, np.floating)):
+        raise ParameterError(
+            f"noise must be a fraction of each output's RMS (a number such as 0.02) or a "
+            f"mapping {{'alpha': rad, 'q': rad/s, 'az': g}} of standard deviations, got {noise!r}"
+        )
+    return _noise_level(noise, "noise", "")
+
+
+def _noise_level(value, what: str, unit: str) -> float:
+    """``value`` as a finite, non-negative float, or a ParameterError naming ``what`` (and its unit)."""
+    try:
+        level = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what} must be a number{unit}, got {value!r}") from None
+    if not (math.isfinite(level) and level >= 0):
+        raise ParameterError(f"{what} must be finite and >= 0{unit}, got {value!r}")
+    return level
 
 
 def _time_unit_problem(dt: float, duration: float) -> str | None:

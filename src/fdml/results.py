@@ -20,12 +20,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .channels import OUTPUTS
 from .errors import FdmlError
 from .findings import Finding
 from .fit_options import FitOptions
 from .jsoncodec import Codec, Fields, Spec, dumps, floats, integer, nested_list, numbers, read_json, texts, write_json
-from .models.measurement import BOUNDARY_NAMES, INPUT_BIAS_NAME, NUISANCE_NAMES, STATE_BIAS_NAMES, Nuisance
+from .models.measurement import BOUNDARY_NAMES, INPUT_BIAS_NAME, STATE_BIAS_NAMES, Nuisance, nuisance_names
 from .parameters import Role, Slot
 from .record import Record
 from .spectral import FrequencyData
@@ -174,8 +173,21 @@ def _warnings_field(f: Fields, key: str, done: dict) -> tuple:
 def _options_field(f: Fields, key: str, done: dict) -> dict:
     """The fit's options: an object whose fit options are checked (:class:`~fdml.fit_options.FitOptions`)."""
     opts = f.mapping(key)
-    FitOptions.from_fields(f.sub(key))  # a bad option names the file and the key
+    fitted = FitOptions.from_fields(f.sub(key)).outputs  # a bad option names the file and the key
+    rows = done["model"].outputs
+    if not set(fitted) <= set(rows):
+        raise f.error(f"{key}.outputs", f"is {list(fitted)}, but the model predicts {', '.join(rows)}")
     return opts
+
+
+def _spectra_field(f: Fields, key: str, done: dict) -> tuple:
+    """The fitted spectra, each holding the model's outputs (its rows)."""
+    out = tuple(FrequencyData.from_fields(x) for x in f.items(key))
+    rows = done["model"].outputs
+    for i, d in enumerate(out):
+        if d.outputs != rows:
+            raise f.error(f"{key}[{i}].outputs", f"is {list(d.outputs)}, but the model predicts {', '.join(rows)}")
+    return out
 
 
 def _r_field(f: Fields, key: str, done: dict) -> np.ndarray:
@@ -343,7 +355,7 @@ class FitResult(ByName, Codec):
         "cost_history": numbers(min_length=1),
         "iterations": integer(0),
         "at_bound": texts(),
-        "spectra": nested_list(FrequencyData),
+        "spectra": Spec(_spectra_field),
         "warnings": Spec(_warnings_field),
         "findings": nested_list(Finding),
         "adequacy": Spec(_adequacy_field),
@@ -572,7 +584,7 @@ class FitResult(ByName, Codec):
         The ``v`` of Eq. 19 whose covariance is ``R`` (Eq. 24): the measured
         spectra minus :meth:`fitted_spectra`, for the fitted outputs.
         """
-        idx = [OUTPUTS.index(o) for o in self.outputs]
+        idx = [self.model.outputs.index(o) for o in self.outputs]
         parts = [(s.z - self.fitted_spectra(r))[:, idx] for r, s in enumerate(self.spectra)]
         out = np.concatenate(parts) if parts else np.zeros((0, len(idx)), complex)
         out.setflags(write=False)
@@ -836,20 +848,22 @@ class FitResult(ByName, Codec):
             The record's nuisance terms.
         """
         s = self.spectra[record]
-        eta = np.concatenate([self.model.biases(), s.x0, s.xT, np.zeros(3)])  # NUISANCE_NAMES order
+        eta = np.concatenate([self.model.biases(), s.x0, s.xT, np.zeros(3)])  # nuisance_names order
         own = [(x, float(v)) for x, v in zip(self.slots, self.values) if x.role.nuisance and x.record == s.name]
+        names = nuisance_names(self.model.outputs)
         for x, v in own:
-            eta[NUISANCE_NAMES.index(x.base)] = v
+            eta[names.index(x.base)] = v
         roles = {x.role for x, _ in own}
         return Nuisance.from_vector(
             eta,
             boundary=self.boundary != "none",
             state_biases=Role.STATE_BIAS in roles,
             input_bias=Role.INPUT_BIAS in roles,
+            rows=self.model.outputs,
         )
 
     def fitted_spectra(self, record: int = 0) -> np.ndarray:
-        """Model output spectra at the estimate for record ``record``, shape (m, 3).
+        """Model output spectra at the estimate for record ``record``, shape (m, n_y) (the model's rows).
 
         Includes the estimated (or measured) boundary terms and biases, so that
         it is directly comparable with the measured ``spectra[record].z``:
@@ -863,7 +877,7 @@ class FitResult(ByName, Codec):
         Returns
         -------
         numpy.ndarray
-            Complex spectra of alpha (rad s), q (rad), a_z (g s), shape (m, 3).
+            Complex spectra of alpha (rad s), q (rad), a_z (g s)[, theta (rad s), qdot (rad)], shape (m, n_y).
         """
         from .models.measurement import end_shift, predict
 
@@ -978,6 +992,8 @@ def _from_version_1(cls, f: Fields, given: Mapping) -> FitResult:
     (``stderr``, ``corr``, ``derived``, ``fixed``, ``n_freq``, ``records``,
     ``nuisance``), which is read no more.  Errors name the file's own keys.
     """
+    model = given["model"] if "model" in given else _model_field(f, "model", {})
+    rows = list(model.outputs)  # the spectra's columns: version 1 kept them with the model only
     opts = {k: f.raw(k) for k in ("outputs", "boundary", "cov_type", "method", "stop") if k in f}
     opts.update(f.mapping("options", default={}))
     band = None if f.raw("band") is None else f.numbers("band", length=3)
@@ -991,7 +1007,7 @@ def _from_version_1(cls, f: Fields, given: Mapping) -> FitResult:
         lead = {"none": 0, "first": 1}.get(mode) or int(round(float(opts.get("trim_window") or 0.5) / dt)) + 1
         spectra.append(
             FrequencyData.from_fields(
-                s,
+                Fields({**s.doc, "outputs": rows}, s.source, s.prefix),
                 band=band,
                 trim_mode=mode,
                 trim_samples=lead,
@@ -999,7 +1015,7 @@ def _from_version_1(cls, f: Fields, given: Mapping) -> FitResult:
                 record=records[i] if i < len(records) else None,
             )
         )
-    return cls.from_fields(f, **{"options": opts, "spectra": tuple(spectra), **given})
+    return cls.from_fields(f, **{"options": opts, "spectra": tuple(spectra), **given, "model": model})
 
 
 def load_result(path: str | Path) -> FitResult:

@@ -1,8 +1,11 @@
 """Time-domain simulation of fdml's models, for cross-checking the frequency domain.
 
 Every model is linear; the simulation starts from rest (zero states, zero
-input history before the first sample) and returns alpha (rad), q (rad/s) and
-``a_z = (U/g)(alpha_dot - q)`` in g (docs/theory.md Eq. 5), plus the output biases.
+input history before the first sample) and returns the model's outputs
+(:data:`fdml.channels.OUTPUT_TABLE`): alpha (rad), q (rad/s) and
+``a_z = (U/g)(alpha_dot - q)`` in g (docs/theory.md Eq. 5), and theta (rad) and
+q_dot (rad/s^2) for a model asked for them (:meth:`fdml.models.Model.with_outputs`),
+plus the output biases.
 
 Two integrators, chosen by the model:
 
@@ -39,11 +42,11 @@ from collections.abc import Mapping
 import numpy as np
 from scipy import interpolate, linalg, signal
 
-from .channels import INPUTS, OUTPUTS, SIGNALS
+from .channels import INPUTS
 from .errors import ParameterError, RecordError
 from .maneuvers import DEFAULT_AMPLITUDE, DRYDEN_L, dryden_gust, make_input, time_vector
 from .models.realization import Realization, _System, _system, realize
-from .record import Record, add_noise, uniform_interval
+from .record import Record, add_noise, check_noise, uniform_interval
 
 __all__ = [
     "simulate",
@@ -296,37 +299,19 @@ def _check_inputs(model, t: np.ndarray, inputs) -> dict[str, np.ndarray]:
     return out
 
 
-def _noise_fraction(noise) -> float | None:
-    """``noise`` as a fraction of RMS (a number), or None for a mapping of standard deviations or None."""
-    if noise is None or isinstance(noise, Mapping):
-        return None
-    if isinstance(noise, bool) or not isinstance(noise, (int, float, np.integer, np.floating)):
-        raise ParameterError(
-            f"noise must be a fraction of each output's RMS (a number such as 0.02) or a "
-            f"mapping {{'alpha': rad, 'q': rad/s, 'az': g}} of standard deviations, got {noise!r}"
-        )
-    if not (math.isfinite(noise) and noise >= 0):
-        raise ParameterError(f"noise fraction must be finite and >= 0, got {noise!r}")
-    return float(noise)
-
-
-def _check_noise(noise, rng):
+def _check_noise(noise, rng, outputs):
+    """simulate's absolute noise: a mapping of standard deviations (:func:`fdml.record.check_noise`) of
+    the model's outputs, and a generator."""
     if noise is None:
         return None
     if not isinstance(noise, Mapping):
         raise ParameterError("noise must be a mapping {'alpha': rad, 'q': rad/s, 'az': g} of standard deviations")
-    bad = [k for k in noise if k not in OUTPUTS]
+    out = check_noise(noise)
+    bad = [k for k in out if k not in outputs]
     if bad:
-        raise ParameterError(f"unknown noise channel(s) {', '.join(map(str, bad))}; channels: alpha, q, az")
-    out = {}
-    for k, v in noise.items():
-        try:
-            s = float(v)
-        except (TypeError, ValueError):
-            raise ParameterError(f"noise std for {k} must be a number ({SIGNALS[k]}), got {v!r}") from None
-        if not (math.isfinite(s) and s >= 0):
-            raise ParameterError(f"noise std for {k} must be finite and >= 0 ({SIGNALS[k]}), got {v!r}")
-        out[k] = s
+        raise ParameterError(
+            f"unknown noise channel(s) {', '.join(map(str, bad))}; channels of this model: {', '.join(outputs)}"
+        )
     if rng is None or not isinstance(rng, np.random.Generator):
         raise ParameterError("noise needs rng, a numpy Generator (np.random.default_rng(seed))")
     return out
@@ -355,7 +340,8 @@ def simulate(
         Parameter values overriding the model's (``model.values(values)``).
     noise : mapping, optional
         White Gaussian measurement noise standard deviations by output:
-        ``{"alpha": rad, "q": rad/s, "az": g}``; needs ``rng``.
+        ``{"alpha": rad, "q": rad/s, "az": g}`` (and ``theta``, ``qdot`` of a model
+        that predicts them); needs ``rng``.
     rng : numpy.random.Generator, optional
         Noise source (the global RNG is never used).
     substeps : int, optional
@@ -371,8 +357,9 @@ def simulate(
     Returns
     -------
     Record
-        Signals de, alpha (rad), q (rad/s), az (g, positive down) and alpha_w
-        for a gust model, with output biases and noise added.  ``meta`` holds
+        Signals de, alpha (rad), q (rad/s), az (g, positive down), the model's
+        other outputs (theta rad, qdot rad/s^2) and alpha_w for a gust model,
+        with output biases and noise added.  ``meta`` holds
         ``model`` (kind), ``values`` (all parameters), ``noise``, ``U`` (m/s) and
         ``integration`` (method and internal step).
 
@@ -390,7 +377,7 @@ def simulate(
         raise ParameterError(f"substeps must be a positive integer, got {substeps!r}")
     if pole_steps is not None and (isinstance(pole_steps, bool) or int(pole_steps) != pole_steps or pole_steps < 2):
         raise ParameterError(f"pole_steps must be an integer >= 2, got {pole_steps!r}")
-    noise = _check_noise(noise, rng)
+    noise = _check_noise(noise, rng, model.outputs)
     p = model.values(values)
     for key in ("tau_de", "tau_alpha_w"):
         if key in p and not (math.isfinite(p[key]) and p[key] >= 0):
@@ -407,12 +394,12 @@ def simulate(
     else:
         y, integration = _simulate_memory(sys, tau, dt, sig, substeps, pole_steps)
     y = _delay_outputs(y, tau, sys.out_delay)
-    y = y + np.array([p[f"bias_{k}"] for k in OUTPUTS])
+    y = y + np.array([p[f"bias_{k}"] for k in sys.outputs])
     if noise:
-        for i, k in enumerate(OUTPUTS):  # fixed channel order: reproducible for a given seed
+        for i, k in enumerate(sys.outputs):  # fixed channel order: reproducible for a given seed
             if k in noise:
                 y[:, i] += noise[k] * rng.standard_normal(t.size)
-    signals = {"de": sig["de"], "alpha": y[:, 0], "q": y[:, 1], "az": y[:, 2]}
+    signals = {"de": sig["de"], **{k: y[:, i] for i, k in enumerate(sys.outputs)}}
     if model.gust:
         signals["alpha_w"] = sig["alpha_w"]
     meta = {"model": model.kind, "values": p, "noise": noise, "U": model.U, "integration": integration}
@@ -548,8 +535,9 @@ def simulate_maneuver(
         )
     elif gust_std > 0:
         raise ParameterError("gust_std > 0 needs a model with a gust input (make_model(..., gust=True))")
-    fraction = _noise_fraction(noise)
-    absolute = None if fraction is not None else noise
+    level = None if noise is None else check_noise(noise)
+    fraction = None if isinstance(level, dict) else level  # a number is a fraction of each output's RMS
+    absolute = level if isinstance(level, dict) else None
     rec = simulate(
         model, t, inputs, values, noise=absolute, rng=rng if absolute else None, name=f"{maneuver} simulation"
     )

@@ -18,9 +18,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import fourier
-from .channels import GUST, INPUTS, OUTPUTS
+from .channels import ALL_OUTPUTS, GUST, INPUTS, OUTPUTS, boundary_channels, row_space
 from .errors import BandError, RecordError
-from .jsoncodec import Codec, complexes, floats, integer, nested, numbers, text, texts
+from .jsoncodec import Codec, Spec, complexes, floats, integer, nested, numbers, text, texts
 from .record import TRIM_MODES, Record
 
 __all__ = ["FrequencyData", "spectra", "parse_band", "band_numbers", "DEFAULT_BAND", "DEFAULT_STEP"]
@@ -31,11 +31,16 @@ DEFAULT_BAND = (0.1, 10.0, 0.1)
 DEFAULT_STEP = DEFAULT_BAND[2]
 
 
-def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[float, float, float]:
+def parse_band(
+    band, *, what: str = "band", positive: bool = True, dt: float | None = None
+) -> tuple[float, float, float]:
     """Normalise and check a band given as ``"LO:HI[:STEP]"`` or ``(lo, hi[, step])`` (rad/s).
 
     fdml's one band syntax, for every command and call that takes a band: without a
     step, the step is :data:`DEFAULT_STEP` (0.1 rad/s, the default band's).
+
+    The one band parser of the commands and the library calls that take a
+    grid (the fit, the checks, the response, the experiment design).
 
     Parameters
     ----------
@@ -46,6 +51,9 @@ def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[floa
     positive : bool, optional
         Require ``lo > 0`` (default: a fit band; the output-bias regressor is
         singular at 0 rad/s).  ``fdml response`` accepts 0.
+    dt : float, optional
+        Sample interval, s: refuse a band whose upper edge is not below the
+        Nyquist frequency pi/dt.
 
     Returns
     -------
@@ -59,15 +67,21 @@ def parse_band(band, *, what: str = "band", positive: bool = True) -> tuple[floa
     Raises
     ------
     BandError
-        A malformed band, or one :func:`fdml.fourier.check_band` refuses
-        (non-finite, ``hi < lo``, ``step <= 0``, too many frequencies), so a
-        command can refuse it before any work starts.
+        A malformed band, one :func:`fdml.fourier.check_band` refuses
+        (non-finite, ``hi < lo``, ``step <= 0``, too many frequencies), or
+        one reaching the Nyquist frequency, so a command can refuse it
+        before any work starts.
     """
     if band is None:
         return DEFAULT_BAND
     lo, hi, *given = band_numbers(band, (2, 3), what=what, example="0.1:10:0.1")
     step = given[0] if given else DEFAULT_STEP
     lo, hi, step, _ = fourier.check_band(lo, hi, step, what=what, positive=positive)
+    if dt is not None and hi >= math.pi / dt:
+        raise BandError(
+            f"{what} edge {hi:g} rad/s is not below the Nyquist frequency pi/dt = {math.pi / dt:.4g} rad/s; "
+            "lower the band or sample faster"
+        )
     return lo, hi, step
 
 
@@ -114,6 +128,20 @@ def band_numbers(band, sizes: tuple[int, ...], *, what: str = "band", example: s
     return vals
 
 
+def _outputs_field(f, key: str, done: dict) -> tuple[str, ...]:
+    """The outputs of a spectra object in JSON, in row order, matching its ``z`` columns and ``x0``, ``xT``."""
+    rows = f.strings(key, choices=ALL_OUTPUTS)
+    if rows != row_space(rows):
+        raise f.error(key, f"is {list(rows)}: outputs in the order {', '.join(row_space(rows))} expected")
+    if done["z"].shape[1] != len(rows):
+        raise f.error("z", f"has {done['z'].shape[1]} columns for the {len(rows)} outputs {', '.join(rows)}")
+    nb = len(boundary_channels(rows))
+    for k in ("x0", "xT"):
+        if done[k].size != nb:
+            raise f.error(k, f"has {done[k].size} values for the {nb} boundary channels of outputs {', '.join(rows)}")
+    return rows
+
+
 @dataclass(frozen=True)
 class FrequencyData(Codec):
     """Spectra of one record at a set of frequencies.
@@ -124,15 +152,17 @@ class FrequencyData(Codec):
         Record name.
     omega : ndarray, shape (m,)
         Frequencies, rad/s.
-    z : ndarray, shape (m, 3)
-        Measured output transforms (alpha rad s, q rad, az g s).
+    z : ndarray, shape (m, n_y)
+        Measured output transforms, one column per output of ``outputs``
+        (alpha rad s, q rad, az g s[, theta rad s, qdot rad]).
     u : ndarray, shape (m, n_in)
         Input transforms (de[, alpha_w]), rad s.
     inputs : tuple of str
         Names of the columns of ``u``.
-    x0, xT : ndarray, shape (2,)
-        Measured alpha (rad) and q (rad/s) at the first and last sample, after
-        trim removal (for measured boundary terms).
+    x0, xT : ndarray, shape (n_b,)
+        Measured alpha (rad), q (rad/s)[, theta (rad)] at the first and last
+        sample, after trim removal (for measured boundary terms): the channels
+        of :func:`fdml.channels.boundary_channels`.
     T : float
         Record length (n - 1) dt, s.
     dt : float
@@ -151,10 +181,12 @@ class FrequencyData(Codec):
         End correction used by the transform.
     band : tuple
         (lo, hi, step), rad/s, when built from a band.
-    end_offset : ndarray, shape (3,)
+    end_offset : ndarray, shape (n_y,)
         ``|x(T) - trim| / max|x - trim|`` per output: how far from trim it ends.
     meta : dict
         The record's meta data (airspeed, source, trim values).
+    outputs : tuple of str
+        The outputs of the columns of ``z`` (:func:`fdml.channels.row_space`).
     record : Record or None
         The time-domain record as given (before trim removal), kept for
         time-domain cross-checks, plots and reports.
@@ -175,8 +207,9 @@ class FrequencyData(Codec):
     trim_samples: int = 1
     end_correction: str = "cubic"
     band: tuple | None = None
-    end_offset: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    end_offset: np.ndarray = field(default_factory=lambda: np.zeros(len(OUTPUTS)))
     meta: dict = field(default_factory=dict)
+    outputs: tuple = OUTPUTS
     record: Record | None = field(default=None, repr=False, compare=False)
 
     json_fields = {
@@ -184,8 +217,8 @@ class FrequencyData(Codec):
         "z": complexes("omega", None),
         "u": complexes("omega", None),
         "inputs": texts(),
-        "x0": floats(2),
-        "xT": floats(2),
+        "x0": floats(None),  # alpha, q[, theta]: the boundary channels of the outputs (checked with them)
+        "xT": floats(None),
         "n": integer(0),
         "ones": complexes("omega"),
         "trim_mode": text(TRIM_MODES),
@@ -193,6 +226,7 @@ class FrequencyData(Codec):
         "end_correction": text(fourier.END_CORRECTIONS),
         "band": numbers(3, none=True),
         "end_offset": floats(None),
+        "outputs": Spec(_outputs_field),
         "record": nested(Record, none=True),
     }
     json_source = "spectra"
@@ -203,12 +237,12 @@ class FrequencyData(Codec):
         return self.omega.size
 
     def boundary(self) -> np.ndarray:
-        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, 2) (docs/theory.md section 7).
+        """Measured boundary vector d = x(0) - x(T) exp(-j w T), shape (m, n_b) (docs/theory.md section 7).
 
         Returns
         -------
         numpy.ndarray
-            Complex, shape (m, 2): the alpha (rad s) and q (rad) columns.
+            Complex, shape (m, n_b): the alpha (rad s), q (rad)[, theta (rad s)] columns.
         """
         from .models.measurement import boundary_vector, end_shift
 
@@ -358,6 +392,7 @@ def spectra(
     trim_window: float = 0.5,
     end_correction: str = "cubic",
     method: str = "auto",
+    outputs=None,
 ) -> FrequencyData:
     """Transform a record to the frequency domain.
 
@@ -378,6 +413,9 @@ def spectra(
         End correction of the finite Fourier integral (default cubic).
     method : {"auto", "czt", "direct"}, optional
         Transform algorithm.
+    outputs : sequence of str, optional
+        Outputs beyond alpha, q and a_z to transform (``theta``, ``qdot``:
+        :func:`fdml.channels.row_space`); the record must hold them.
 
     Returns
     -------
@@ -407,8 +445,9 @@ def spectra(
             f"({2 * math.pi / omega.max():.3g} s) of the highest band frequency {omega.max():g} rad/s: "
             "too few samples for this band"
         )
+    rows = _rows(record, outputs)
     rec = record.remove_trim(trim, window=trim_window)
-    outs = np.column_stack([rec[k] for k in OUTPUTS])
+    outs = np.column_stack([rec[k] for k in rows])
     inputs = INPUTS if rec.has(GUST) else INPUTS[:1]
     ins = np.column_stack([rec[k] for k in inputs])
     ones = np.ones(rec.n)
@@ -421,11 +460,11 @@ def spectra(
     return FrequencyData(
         name=rec.name,
         omega=omega,
-        z=X[:, :3],
-        u=X[:, 3 : 3 + len(inputs)],
+        z=X[:, : len(rows)],
+        u=X[:, len(rows) : len(rows) + len(inputs)],
         inputs=inputs,
-        x0=np.array([rec["alpha"][0], rec["q"][0]]),
-        xT=np.array([rec["alpha"][-1], rec["q"][-1]]),
+        x0=np.array([rec[c][0] for c in boundary_channels(rows)]),
+        xT=np.array([rec[c][-1] for c in boundary_channels(rows)]),
         T=rec.duration,
         dt=rec.dt,
         n=rec.n,
@@ -436,5 +475,18 @@ def spectra(
         band=band_t,
         end_offset=end_offset,
         meta=dict(rec.meta),
+        outputs=rows,
         record=record,
     )
+
+
+def _rows(record: Record, outputs) -> tuple[str, ...]:
+    """:func:`fdml.channels.row_space` of ``outputs``, each held by ``record`` (else a RecordError naming it)."""
+    try:
+        rows = row_space(outputs)
+    except ValueError as exc:
+        raise RecordError(str(exc)) from None
+    missing = [k for k in rows if not record.has(k)]
+    if missing:
+        raise RecordError(f"record {record.name!r} has no {', '.join(missing)} column: it cannot be fitted there")
+    return rows

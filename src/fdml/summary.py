@@ -28,25 +28,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .channels import ALL_OUTPUTS, SIGNALS, boundary_channels
 from .estimator_settings import SETTINGS
-from .models.base import OUTPUTS
-from .models.measurement import OUTPUT_BIAS_NAMES
 from .parameters import NUISANCE_ROLES, Role
 
 __all__ = ["Summary", "Table", "Column", "fit_summary", "comparison_summary", "parameter_unit"]
 
 #: Units of the nuisance terms and derived quantities that are not model parameters.
 _EXTRA_UNITS = {
-    "bias_alpha": "rad",
-    "bias_q": "rad/s",
-    "bias_az": "g",
+    **{f"bias_{o}": SIGNALS[o] for o in ALL_OUTPUTS},
     "bias_de": "rad",
     "bias_alpha_dot": "rad/s",
     "bias_q_dot": "rad/s^2",
-    "x0_alpha": "rad",
-    "x0_q": "rad/s",
-    "xT_alpha": "rad",
-    "xT_q": "rad/s",
+    **{f"{end}_{c}": SIGNALS[c] for end in ("x0", "xT") for c in boundary_channels(ALL_OUTPUTS)},
     "Z_a": "1/s",
     "Z_q": "-",
     "Z_de": "1/s",
@@ -422,10 +416,7 @@ def _biases_used(res) -> list[str]:
     """Which bias terms a fit estimated, from the roles of its estimates and fixed parameters."""
     roles = {s.role for s in res.slots}
     out = []
-    outs = [
-        OUTPUTS[OUTPUT_BIAS_NAMES.index(b)]
-        for b in dict.fromkeys(s.base for s in res.slots if s.role is Role.OUTPUT_BIAS)
-    ]
+    outs = [b[len("bias_") :] for b in dict.fromkeys(s.base for s in res.slots if s.role is Role.OUTPUT_BIAS)]
     if outs:
         out.append("output biases " + ",".join(outs))
     if Role.STATE_BIAS in roles:

@@ -1,7 +1,7 @@
 """Time-domain output-error fit, the cross-check of the frequency-domain estimate.
 
 The same model is simulated in the time domain by :func:`fdml.simulate.simulate`
-and fitted to the measured time histories by ``scipy.optimize.least_squares``:
+and fitted to the measured time histories by ``scipy.optimize.least_squares`` (:mod:`fdml.lsq`):
 the classical output-error method (Maine and Iliff; SIDPAC ``oe``), with a
 diagonal measurement-noise covariance re-estimated between passes (the
 relaxation algorithm).  Standard errors are the Cramer-Rao bounds
@@ -10,16 +10,16 @@ relaxation algorithm).  Standard errors are the Cramer-Rao bounds
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
-from scipy import optimize
 
+from .channels import ALL_OUTPUTS, OUTPUTS
 from .errors import FdmlError, RecordError
-from .models.base import OUTPUTS, Model
+from .lsq import relaxed_least_squares
+from .models.base import Model
 from .record import Record
 from .results import ByName, frozen
 
@@ -108,7 +108,7 @@ def fit_time_domain(
     model : Model
         Starting values and free parameters (as for :func:`fdml.fit`).
     outputs : sequence of str or str, optional
-        Outputs in the fit (default alpha, q, az).
+        Outputs in the fit (default alpha, q, az; ``theta`` and ``qdot`` too).
     trim : {"first", "mean", "none"}, optional
         Trim removal, as in :func:`fdml.spectral.spectra`.
     biases : bool, optional
@@ -134,9 +134,10 @@ def fit_time_domain(
     if isinstance(outputs, str):
         outputs = [o.strip() for o in outputs.split(",") if o.strip()]
     outputs = tuple(outputs or OUTPUTS)
-    bad = [o for o in outputs if o not in OUTPUTS]
+    bad = [o for o in outputs if o not in ALL_OUTPUTS]
     if bad:
-        raise FdmlError(f"unknown output(s) {bad}; choose from {', '.join(OUTPUTS)}")
+        raise FdmlError(f"unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
+    model = model.with_outputs(outputs)  # the simulator returns them
     params = model.parameters
     if fix:
         params = params.fix(fix) if not isinstance(fix, (list, tuple)) else params.fix(list(fix))
@@ -159,43 +160,28 @@ def fit_time_domain(
     lo = np.concatenate([[params[n].lower for n in names], np.full(nb, -np.inf)])
     hi = np.concatenate([[params[n].upper for n in names], np.full(nb, np.inf)])
     base = params.values
-    for o in OUTPUTS:
+    for o in model.outputs:
         base[f"bias_{o}"] = 0.0  # biases are handled here, per fitted output
-    nfev = 0
 
     def predict(x):
-        nonlocal nfev
-        nfev += 1
         vals = dict(base, **dict(zip(names, x[: len(names)])))
         sim = simulate(model, t_sim, inputs, vals)
         y = np.column_stack([sim[o] for o in outputs])
         return y + (x[len(names) :] if nb else 0.0)
 
-    sigma = np.std(zmeas, axis=0) + 1e-300
-    x = np.clip(x0, lo, hi)
-    res = None
-    for _ in range(passes):
-        res = optimize.least_squares(
-            lambda xx: ((zmeas - predict(xx)) / sigma).ravel(),
-            x,
-            bounds=(lo, hi),
-            x_scale="jac",
-            max_nfev=max_nfev,
-            method="trf",
-        )
-        x = res.x
-        resid = zmeas - predict(x)
-        new_sigma = np.sqrt(np.mean(resid**2, axis=0)) + 1e-300
-        change = np.max(np.abs(new_sigma / sigma - 1))
-        sigma = new_sigma
-        if change < 1e-3:
-            break
-    assert res is not None  # at least one pass
-    resid_w = ((zmeas - predict(x)) / sigma).ravel()
-    # the Jacobian at the final weights (one finite-difference sweep)
-    J = _jacobian(lambda xx: ((zmeas - predict(xx)) / sigma).ravel(), x, resid_w)
+    fit = relaxed_least_squares(
+        lambda x: (zmeas - predict(x)).T,
+        x0,
+        (lo, hi),
+        np.std(zmeas, axis=0) + 1e-300,
+        passes=passes,
+        tol=1e-3,
+        floor=1e-300,
+        max_nfev=max_nfev,
+    )
+    x = fit.x
     with np.errstate(invalid="ignore"):
-        cov = np.linalg.pinv(J.T @ J)
+        cov = np.linalg.pinv(fit.J.T @ fit.J)
     se = np.sqrt(np.abs(np.diag(cov)))
     allnames = tuple(names) + tuple(f"bias_{o}" for o in outputs[:nb])
     est_model = model.with_values(dict(zip(names, x[: len(names)])))
@@ -203,22 +189,11 @@ def fit_time_domain(
         names=allnames,
         values=x,
         stderr=se,
-        sigma=sigma,
+        sigma=fit.sigma,
         outputs=outputs,
-        nfev=nfev,
-        converged=bool(res.success),
-        message=str(res.message),
+        nfev=fit.nfev,
+        converged=fit.success,
+        message=fit.message,
         elapsed=time.perf_counter() - t_start,
         model=est_model,
     )
-
-
-def _jacobian(fun, x, f0):
-    """Forward-difference Jacobian with steps sqrt(eps) relative (least_squares' own rule)."""
-    J = np.empty((f0.size, x.size))
-    for k in range(x.size):
-        h = math.sqrt(np.finfo(float).eps) * max(abs(x[k]), 1e-3)
-        xx = x.copy()
-        xx[k] += h
-        J[:, k] = (fun(xx) - f0) / h
-    return J

@@ -13,9 +13,10 @@ both use these rules, so that they give one answer (issue 19):
      significance it then absorbs an error of the model rather than naming one;
    * its sensor terms contradict the kinematics (undoing them fits the identity worse than not);
    * the derivatives it implies break a physical rule (:mod:`fdml.models.plausibility`);
+   * its size lies outside its plausible range (the effect's ``Param.plausible``): no verdict
+     and no advice names a size the library calls implausible;
 
-3. among the rest, a candidate whose size lies in its plausible range is preferred; the best is
-   the one of lowest BIC (``q ln n - LR``);
+3. among the rest the best is the one of lowest BIC (``q ln n - LR``);
 4. every eligible candidate that explains the data **equally** (:func:`fdml.score.equally`: its
    likelihood ratio, Akaike-penalised, within (2 x 1.96)^2 = 15.4 of the best's, i.e. the
    difference within 1.96 of its own sampling standard deviation) joins its alias set; with more
@@ -72,6 +73,11 @@ def judge(
         The reason, in words.
     """
     values = {k: v for k, (v, _) in params.items()}
+    for p in effect.param_list(model):
+        if p.name in values and p.plausible is not None and not p.nuisance:
+            lo, hi = p.plausible
+            if not lo <= values[p.name] <= hi:
+                return f"{p.name} = {values[p.name]:.3g} {p.unit} lies outside its plausible range {lo:g} .. {hi:g}"
     terms = sensor_terms(effect, values)
     if terms is not None:  # a sensor or timing effect: sizes below the data's resolution absorb model errors
         for p in effect.param_list(model):
@@ -104,19 +110,18 @@ def choose_among(cands: list, n_obs: float) -> tuple:
     Parameters
     ----------
     cands : list
-        Significant, refitted, not demoted candidates: objects with ``lr``, ``q_eff`` and
-        ``plausible``.
+        Significant, refitted, not demoted candidates: objects with ``lr`` and ``q_eff``.
     n_obs : float
         Real independent observations, n of BIC.
 
     Returns
     -------
     best : object or None
-        The candidate of lowest BIC, plausible ones first.
+        The candidate of lowest BIC.
     aliases : list
         The candidates these data do not tell apart from it (``best`` included).
     """
-    pool = [c for c in cands if c.plausible] or list(cands)
+    pool = list(cands)
     if not pool:
         return None, []
     logn = math.log(max(n_obs, 2))

@@ -34,6 +34,24 @@ def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
     return out
 
 
+def noise_option(text: str | None):
+    """``--noise``: ``0.02`` (a fraction of each output's RMS) or ``alpha=1e-3,q=2e-3,az=0.01`` (stds); None: not given.
+
+    The level is checked by :func:`fdml.record.check_noise`, the library's one check.
+    """
+    if text is None:
+        return None
+    from ..errors import RecordError
+    from ..record import check_noise
+
+    if "=" in text:
+        return check_noise(assignments(text.split(","), "alpha=STD,q=STD,az=STD"))
+    try:
+        return check_noise(float(text))
+    except ValueError:
+        raise RecordError(f"--noise {text!r}: give a fraction of RMS (0.02) or alpha=..,q=..,az=..") from None
+
+
 def add_effect_argument(p: argparse.ArgumentParser) -> None:
     """--effect NAME[:CHANNEL], repeatable (each occurrence adds effects; a comma list is several)."""
     p.add_argument(

@@ -8,10 +8,7 @@ checks that over every parser).  Rules:
   needs one, the command resolves it and its ``--help`` says which);
 * an option that can be given several times accumulates (``action="extend"``
   or ``"append"``): ``--fix A=1 --fix B=2`` fixes both;
-* old spellings stay as hidden aliases (``help=argparse.SUPPRESS``) that
-  write to the same ``dest``: ``--out`` (batch, demo, report), ``--base``
-  (diagnose), ``--omega`` (response), ``--processes`` (diagnose), ``--noise``
-  (diagnose: the noise model).
+* no hidden spellings: an option has the one spelling ``--help`` shows.
 
 ``--noise`` means measurement noise added to simulated records everywhere it
 is shown (demo, simulate, montecarlo): a fraction of each output's RMS, or
@@ -52,7 +49,6 @@ __all__ = [
     "add_workers_option",
     "default_model",
     "fit_kwargs",
-    "hidden_alias",
     "progress_wanted",
 ]
 
@@ -87,11 +83,6 @@ MODEL_RULE = "unsteady with --aircraft, else dimensional with --airspeed or the 
 MODEL_RULE_NO_RECORD = "unsteady with --aircraft, else dimensional with --airspeed"
 
 
-def hidden_alias(p, flag: str, dest: str, **kw) -> None:
-    """An old spelling of an option: parses to ``dest``, not shown in --help."""
-    p.add_argument(flag, dest=dest, default=argparse.SUPPRESS, help=argparse.SUPPRESS, **kw)
-
-
 def accumulating(p, *flags, **kw) -> None:
     """A repeatable list option: every occurrence adds its values (``action="extend"``, ``nargs="+"``)."""
     p.add_argument(*flags, action="extend", nargs="+", default=None, **kw)
@@ -99,13 +90,12 @@ def accumulating(p, *flags, **kw) -> None:
 
 # --- the model ---------------------------------------------------------------------------------
 def add_model_options(
-    p, *, gust: str = "flag", reads_records: bool = True, what: str = "model", old: tuple = (), kinds: bool = True
+    p, *, gust: str = "flag", reads_records: bool = True, what: str = "model", kinds: bool = True
 ) -> None:
     """--aircraft, --model, --gust, --airspeed, --effect.
 
     ``gust``: ``"flag"`` (the model gets the gust input alpha_w), ``"std"``
     (simulate: fly in turbulence, ``--gust [STD]``) or ``""`` (no option).
-    ``old``: hidden aliases of --model (diagnose: ``--base``).
     ``kinds=False``: no --model and --airspeed (compare: its models are fixed).
     """
     g = p.add_argument_group("model")
@@ -115,8 +105,6 @@ def add_model_options(
     rule = MODEL_RULE if reads_records else MODEL_RULE_NO_RECORD
     if kinds:
         g.add_argument("--model", choices=MODEL_CHOICES, default=None, help=f"{what} (default: {rule})")
-    for flag in old:
-        hidden_alias(g, flag, "model", choices=MODEL_CHOICES)
     if gust == "flag":
         g.add_argument(
             "--gust",
@@ -153,35 +141,28 @@ def add_set_option(p, help: str = "parameter values") -> None:
 
 
 # --- the band ----------------------------------------------------------------------------------
-def add_band_option(p, *, old: tuple = (), help: str | None = None) -> None:
+def add_band_option(p, *, help: str | None = None) -> None:
     """--band LO:HI[:STEP], rad/s (fdml's one band syntax, :func:`fdml.spectral.parse_band`).
 
     Without a step the step is :data:`fdml.spectral.DEFAULT_STEP`; ``help`` replaces
     the default text (diagnose, design: their own default band and use of the step).
-    ``old``: hidden aliases (response: ``--omega``).
     """
     if help is None:
         help = f"frequency band, rad/s (default {DEFAULT_BAND_TEXT}; without :STEP the step is {DEFAULT_STEP_TEXT})"
     p.add_argument("--band", metavar="LO:HI[:STEP]", default=None, help=help)
-    for flag in old:
-        hidden_alias(p, flag, "band")
 
 
 # --- outputs, parallelism, progress, json, strict ---------------------------------------------
-def add_output_option(p, *, kind: str, metavar: str, help: str, old: tuple = (), required: bool = False) -> None:
+def add_output_option(p, *, kind: str, metavar: str, help: str, required: bool = False) -> None:
     """-o/--output: where the output goes; ``kind`` ``"file"`` or ``"folder"`` is said in --help."""
     p.add_argument("-o", "--output", metavar=metavar, default=None, required=required, help=f"output {kind}: {help}")
-    for flag in old:
-        hidden_alias(p, flag, "output", metavar=metavar)
 
 
-def add_workers_option(p, *, old: tuple = ()) -> None:
-    """--workers N (local worker processes); ``old``: hidden aliases (``--processes``)."""
+def add_workers_option(p) -> None:
+    """--workers N (local worker processes)."""
     p.add_argument(
         "--workers", type=positive_int, metavar="N", default=None, help="local worker processes (default: all cores)"
     )
-    for flag in old:
-        hidden_alias(p, flag, "workers", type=positive_int, metavar="N")
 
 
 def add_progress_option(p, *, default_on: bool) -> None:

@@ -28,7 +28,6 @@ def register(sub) -> None:
         p,
         kind="folder",
         metavar="DIR",
-        old=("--out",),
         help="results/KEY.json and table.csv, table.json (default ./fdml-batch)",
     )
     O.add_workers_option(p)

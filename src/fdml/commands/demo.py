@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from . import _options as O
-from ._common import seed_int
+from ._common import noise_option, seed_int
 
 #: Where the demo writes when -o is not given.
 DEFAULT_OUTPUT = "fdml-demo"
@@ -14,7 +14,7 @@ def register(sub) -> None:
         "demo", help="simulate a Navion 3-2-1-1, fit steady and unsteady, print the table and write a Bode figure"
     )
     O.add_output_option(
-        p, kind="folder", metavar="DIR", old=("--out",), help=f"the table, fits and figure (default ./{DEFAULT_OUTPUT})"
+        p, kind="folder", metavar="DIR", help=f"the table, fits and figure (default ./{DEFAULT_OUTPUT})"
     )
     p.add_argument("--seed", type=seed_int, default=1, help="noise seed (default 1)")
     O.add_noise_option(p, default=f"{_default_noise():g}")
@@ -36,10 +36,9 @@ def run(args) -> int:
     from ..cli import print_json
     from ..demo import run_demo
     from ..errors import FdmlError
-    from .simulate import _noise
 
-    noise, relative = _noise(args.noise)
-    if noise is not None and not relative:
+    noise = noise_option(args.noise)
+    if isinstance(noise, dict):
         raise FdmlError(
             "fdml demo --noise takes a fraction of each output's RMS (e.g. 0.02); "
             "absolute stds go to fdml simulate --noise"

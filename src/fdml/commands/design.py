@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from . import _options as O
-from ._common import assignments, make_model_from_args
+from ._common import assignments, make_model_from_args, noise_option
 
 _CRITERIA = ("d-optimal", "a-optimal", "discriminate")
 
@@ -79,14 +79,6 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _noise(text):
-    from .simulate import _noise as parse
-
-    if text is None:
-        return 0.05
-    return parse(text)[0]
-
-
 def _names(items) -> list[str]:
     """'a,b' or ['a', 'b,c'] -> ['a', 'b', 'c']."""
     items = [items] if isinstance(items, str) else list(items or [])
@@ -120,7 +112,6 @@ def run(args) -> int:
         band=args.band,
         dt=args.dt,
         rate=math.inf if rate is None else rate,
-        noise=_noise(args.noise),
         targets=_names(args.targets),
         steady=args.steady,
         level=args.level,
@@ -128,6 +119,7 @@ def run(args) -> int:
         free=_names(args.free),
         refine=max(args.refine, 0),
         detect=_names(args.detect),
+        **({} if args.noise is None else {"noise": noise_option(args.noise)}),  # the library's default 0.05
     )
     if args.output is not None:
         import matplotlib

@@ -24,7 +24,7 @@ def register(sub) -> None:
         description="Diagnose the model-to-data gap of a base model.  Model rule: " + O.MODEL_RULE + ".",
     )
     p.add_argument("records", nargs="*", metavar="RECORD", help="record file(s), fitted jointly")
-    O.add_model_options(p, what="base model the effects are added to", old=("--base",))
+    O.add_model_options(p, what="base model the effects are added to")
     O.add_record_options(p)
     lo_hi = _default_lo_hi()
     O.add_band_option(
@@ -56,7 +56,6 @@ def register(sub) -> None:
     p.add_argument(
         "--noise-model", choices=("band", "white"), default=None, help="noise model of the likelihood (default band)"
     )
-    O.hidden_alias(p, "--noise", "noise_model", choices=("band", "white"))
     O.add_strict_option(
         p,
         "exit with code 2 before fitting when the data check finds anything "
@@ -87,7 +86,7 @@ def register(sub) -> None:
     v.add_argument(
         "--seed-base", type=int, default=None, help="first seed (default: the report range; 0 is the tuning range)"
     )
-    O.add_workers_option(v, old=("--processes",))
+    O.add_workers_option(v)
     O.add_progress_option(v, default_on=True)
     p.set_defaults(func=run)
 

@@ -114,7 +114,8 @@ def run(args) -> int:
     model, provenance = model_for_records(args, records)
     fixed = assignments(args.fix)
     trim = kwargs.pop("trim", None)
-    data = [spectra(r, band=band, **({} if trim is None else {"trim": trim})) for r in records]  # the front end
+    opts = {"outputs": kwargs.get("outputs"), **({} if trim is None else {"trim": trim})}
+    data = [spectra(r, band=band, **opts) for r in records]  # the front end
     t_transform = time.perf_counter()
     bar = _progress_callback(O.progress_wanted(args, default_on=False))
     from ..adequacy import invocation

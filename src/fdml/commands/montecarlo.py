@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from . import _options as O
-from ._common import assignments, check_band_option, model_spec_from_args, seed_int
+from ._common import assignments, check_band_option, model_spec_from_args, noise_option, seed_int
 
 #: Noise when --noise is not given: a fraction of each output's RMS.
 DEFAULT_NOISE = "0.03"
@@ -49,13 +49,12 @@ def run(args) -> int:
 
     from ..batch import ModelSpec
     from ..montecarlo import monte_carlo
-    from .simulate import _noise
 
     truth = model_spec_from_args(args, values=assignments(args.set))
     fit_model = None
     if args.fit_model and args.fit_model != truth.kind:
         fit_model = ModelSpec(kind=args.fit_model, aircraft=args.aircraft, options=truth.options, effects=truth.effects)
-    noise, relative = _noise(args.noise or DEFAULT_NOISE)
+    noise = noise_option(args.noise or DEFAULT_NOISE)
     band = args.band
     check_band_option(band)  # up front: a bad band would fail all N runs one by one
     if args.output:  # before any work: the folder and its three files

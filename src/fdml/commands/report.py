@@ -12,7 +12,6 @@ def register(sub) -> None:
         p,
         kind="folder",
         metavar="DIR",
-        old=("--out",),
         help="figures and report.md (default RESULT-report beside the file)",
     )
     p.add_argument("--hz", action="store_true", help="frequency axes in Hz (default rad/s)")

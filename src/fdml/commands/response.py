@@ -17,7 +17,6 @@ def register(sub) -> None:
     O.add_set_option(p)
     O.add_band_option(
         p,
-        old=("--omega",),
         help=f"frequencies, rad/s (default {O.DEFAULT_BAND_TEXT}; without :STEP the step is {O.DEFAULT_STEP_TEXT}; "
         "LO may be 0)",
     )
@@ -32,7 +31,7 @@ def run(args) -> int:
     from ..spectral import parse_band
 
     model = make_model_from_args(args, assignments(args.set))
-    omega = omega_band(*parse_band(args.band, what="--band/--omega", positive=False))
+    omega = omega_band(*parse_band(args.band, what="--band", positive=False))
     G = model.frequency_response(omega)
     if args.json:
         from ..cli import print_json

@@ -3,21 +3,7 @@
 from __future__ import annotations
 
 from . import _options as O
-from ._common import assignments, make_model_from_args, seed_int
-
-
-def _noise(text: str | None):
-    """'0.01' (fraction of RMS) or 'alpha=1e-3,q=2e-3,az=0.01' (absolute)."""
-    if text is None:
-        return None, False
-    if "=" in text:
-        return assignments(text.split(","), "alpha=STD,q=STD,az=STD"), False
-    from ..errors import RecordError
-
-    try:
-        return float(text), True
-    except ValueError:
-        raise RecordError(f"--noise {text!r}: give a fraction of RMS (0.02) or alpha=..,q=..,az=..") from None
+from ._common import assignments, make_model_from_args, noise_option, seed_int
 
 
 def register(sub) -> None:
@@ -33,6 +19,7 @@ def register(sub) -> None:
     p.add_argument("--duration", type=float, default=10.0, help="record length, s (default 10)")
     p.add_argument("--dt", type=float, default=0.02, help="sample interval, s (default 0.02)")
     O.add_noise_option(p)
+    p.add_argument("--outputs", help="outputs to simulate beyond alpha,q,az, comma-separated: theta, qdot")
     p.add_argument("--seed", type=seed_int, help="random seed (an integer >= 0)")
     O.add_output_option(p, kind="file", metavar="RECORD.csv", required=True, help="the simulated record (CSV)")
     O.add_json_option(p)
@@ -44,9 +31,8 @@ def run(args) -> int:
     from ..simulate import simulate_maneuver
 
     check_output(args.output, [args.aircraft], what="record file")  # before any work
-    model = make_model_from_args(args, assignments(args.set))
+    model = make_model_from_args(args, assignments(args.set)).with_outputs(args.outputs or ())
     kw = {} if args.amplitude is None else {"amplitude": args.amplitude}
-    noise, _relative = _noise(args.noise)  # a number is a fraction of RMS in simulate_maneuver too
     rec = simulate_maneuver(
         model,
         args.maneuver,
@@ -54,7 +40,7 @@ def run(args) -> int:
         dt=args.dt,
         gust_std=args.gust or 0.0,
         seed=args.seed,
-        noise=noise,
+        noise=noise_option(args.noise),  # a number is a fraction of RMS in simulate_maneuver too
         **kw,
     )
     rec.to_csv(args.output)

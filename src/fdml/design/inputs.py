@@ -20,6 +20,7 @@ from .. import maneuvers as mv
 from ..channels import INPUTS
 from ..errors import BandError, FdmlError, ParameterError
 from ..record import Record, read_csv
+from ..spectral import parse_band
 
 __all__ = ["DesignInput", "Limits", "CLASSIC_KINDS", "classic_input", "multisine_input", "read_input", "spectrum"]
 
@@ -147,17 +148,8 @@ def _time(lim: Limits) -> np.ndarray:
 
 
 def _check_band(band, lim: Limits) -> tuple[float, float]:
-    try:
-        lo, hi = float(band[0]), float(band[1])
-    except (TypeError, ValueError, IndexError):
-        raise BandError(f"band {band!r} must be (lo, hi) in rad/s") from None
-    if not (0 < lo < hi):
-        raise BandError(f"band {lo:g}:{hi:g} rad/s must satisfy 0 < lo < hi")
-    if hi >= lim.nyquist:
-        raise BandError(
-            f"band edge {hi:g} rad/s is not below the Nyquist frequency pi/dt = {lim.nyquist:.4g} rad/s; "
-            "lower the band or sample faster"
-        )
+    """The band's edges, rad/s (:func:`fdml.spectral.parse_band`), holding two harmonics of the record."""
+    lo, hi, _ = parse_band(band, dt=lim.dt)  # an input's band has no grid
     if hi - lo < 2 * math.pi / lim.duration:
         raise BandError(
             f"band {lo:g}:{hi:g} rad/s holds no two harmonics of 2 pi/T = {2 * math.pi / lim.duration:.3g} rad/s "

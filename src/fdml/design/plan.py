@@ -12,15 +12,16 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import BandError, FdmlError, ParameterError
+from ..errors import FdmlError, ParameterError
 from ..jsoncodec import Fields
 from ..models import make_model
+from ..spectral import parse_band
 from .discrimination import Detectable, Discrimination, discriminate, minimum_detectable
 from .inputs import DesignInput, Limits, classic_input, read_input
 from .optimize import CRITERIA, optimal_input
 from .prediction import Prediction, noise_stds, predict, response
 
-__all__ = ["Design", "design", "parse_design_band", "BASELINES"]
+__all__ = ["Design", "design", "BASELINES"]
 
 #: The classic inputs an optimised one is compared with (same duration and peak).
 BASELINES = ("3211", "sweep")
@@ -237,36 +238,6 @@ def _saved_input(f: Fields, name: str) -> DesignInput:
     return replace(inp, name=name)
 
 
-def parse_design_band(band, dt: float) -> tuple[float, float, float]:
-    """``"LO:HI[:STEP]"`` or a tuple, rad/s (:func:`fdml.spectral.parse_band`); HI must lie below pi/dt.
-
-    Parameters
-    ----------
-    band : str, tuple or None
-        The band (None: 0.5 to 10 rad/s).
-    dt : float
-        Sample interval, s.
-
-    Returns
-    -------
-    lo : float
-        Lowest frequency, rad/s.
-    hi : float
-        Highest frequency, rad/s.
-    step : float
-        Frequency step of the fit, rad/s.
-    """
-    from ..spectral import parse_band
-
-    lo, hi, step = parse_band((0.5, 10.0) if band is None else band)  # fdml's one band syntax and check
-    if not lo < hi:
-        raise BandError(f"band {band!r}: need LO < HI (rad/s)")
-    nyq = math.pi / dt
-    if hi >= nyq:
-        raise BandError(f"band edge {hi:g} rad/s is above the Nyquist frequency pi/dt = {nyq:.4g} rad/s")
-    return lo, hi, step
-
-
 def _steady_for(model, steady_kind: str):
     if model.kind != "unsteady":
         return None
@@ -339,7 +310,7 @@ def design(
         model = model.with_parameters(model.parameters.free(list(free)))
     if given is not None:
         dt, duration = float(given.t[1] - given.t[0]), float(given.t[-1])
-    fband = parse_design_band(band, dt)
+    fband = parse_band((0.5, 10.0) if band is None else band, dt=dt)
     lim = Limits(amplitude=amplitude, duration=duration, dt=dt, rate=rate)
     ms = _steady_for(model, steady)
     ref = classic_input("3211", lim, fband[:2]) if given is None else given

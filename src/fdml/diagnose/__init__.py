@@ -8,10 +8,9 @@ module                 job
 :mod:`.likelihood`     fits under a band-wise noise model; LR = 2 (C0 - C1) / K
 :mod:`.locate`         the gap map: coherent vs incoherent residual per channel x band,
                        noise floor, gain/phase error with bounds, F tests, Holm/BH
-:mod:`.screen`         score (LM) screen, aliasing, minimum detectable effect (in
-                       :mod:`fdml.score`, shared with every fit's adequacy check)
-:mod:`.attribute`      refits, chi2 / chi-bar-square / Davies nulls (:mod:`fdml.score`), Holm,
-                       BIC, ambiguity
+:mod:`.attribute`      screen, refits, Holm, BIC, ambiguity; the score (LM) screen and the
+                       chi2 / chi-bar-square / Davies nulls are :mod:`fdml.score`'s, shared
+                       with every fit's adequacy check
 :mod:`.disturbance`    unmeasured turbulence on the input-incoherent residual
 :mod:`.shrink`         shrink, footprint, compensation, parameter shifts, hold-out fits
 :mod:`.report`         labels, verdict, JSON; :mod:`.text` the paragraph; :mod:`.plots`
@@ -20,9 +19,10 @@ module                 job
 :mod:`.validation`     the validation harness
 =====================  =================================================================
 
-The candidate effects and their open registry are :mod:`fdml.models.augment` (what an effect
-is), :mod:`fdml.models.effect_library` (the built-in ones, lift_lag ... unmeasured_gust) and
-:mod:`fdml.models.effects` (the registry); the names a user needs are re-exported here.
+The candidate effects and their open registry are :mod:`fdml.models.effects` (their public
+home: the effect classes, the registry, ``register_effect``), built on
+:mod:`fdml.models.augment` (what an effect is) and :mod:`fdml.models.effect_library` (the
+built-in ones, lift_lag ... unmeasured_gust); their validation truths are in :mod:`.truth`.
 
 Example::
 
@@ -34,20 +34,6 @@ Example::
     rep.to_json("diagnosis.json"); rep.plot("diagnosis.png")
 """
 
-from ..models.effects import (
-    AugmentedModel,
-    Effect,
-    FreeParameterEffect,
-    MatrixEffect,
-    OutputEffect,
-    Param,
-    default_library,
-    get_effect,
-    register_effect,
-    registered_effects,
-    scale_rows,
-    unregister_effect,
-)
 from .core import diagnose
 from .report import JSON_KEYS, DiagnosisReport
 
@@ -70,21 +56,4 @@ def validate(*args, **kwargs):
     return _v(*args, **kwargs)
 
 
-__all__ = [
-    "diagnose",
-    "validate",
-    "DiagnosisReport",
-    "JSON_KEYS",
-    "Effect",
-    "OutputEffect",
-    "MatrixEffect",
-    "FreeParameterEffect",
-    "Param",
-    "AugmentedModel",
-    "register_effect",
-    "unregister_effect",
-    "get_effect",
-    "registered_effects",
-    "default_library",
-    "scale_rows",
-]
+__all__ = ["diagnose", "validate", "DiagnosisReport", "JSON_KEYS"]

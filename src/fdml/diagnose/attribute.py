@@ -248,7 +248,7 @@ def attribute_step(
         The current fit.
     effects : sequence of Effect
         The candidate library (only deterministic effects are tested).
-    bands : NoiseBands
+    bands : NoiseModel
         Noise bands of the likelihood.
     rows : numpy.ndarray of int
         Noise band of each stacked analysis row.

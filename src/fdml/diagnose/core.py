@@ -701,12 +701,12 @@ def recommended_fit(
     """
     from ..adequacy import within_diagnosis
     from ..estimate import fit as fdml_fit
+    from ..propagate import with_known_uncertainty
 
     model = base_model.with_effects(*effects) if effects else base_model
     if start is not None:
         sv = start.parameters.values
         model = model.with_values({k: v for k, v in sv.items() if k in model.parameters and math.isfinite(v)})
-    from ..propagate import with_known_uncertainty
 
     def refit(values=None, start_model=model, adequacy=True):
         m = start_model.with_values(values) if values else start_model

@@ -32,14 +32,10 @@ from ..estimate import NoiseModel, Problem, _cov_R, _logdet, prepare
 from ..estimate import fit as fdml_fit
 from ..models.base import Model
 from ..results import FitResult
-from ..score import whitener  # re-exported: the diagnosis's name for it
 from ..warning_log import merged, recording
 from .data import AnalysisData
 
-__all__ = ["DiagFit", "NoiseBands", "band_cost", "fit_model", "likelihood_ratio", "noise_bands", "whitener"]
-
-#: The diagnosis's noise bands are the estimator's band-wise noise model.
-NoiseBands = NoiseModel
+__all__ = ["DiagFit", "band_cost", "fit_model", "likelihood_ratio", "noise_bands"]
 
 
 def noise_bands(data: AnalysisData, *, mode: str = "band", min_independent: int = 20, max_bands: int = 4) -> NoiseModel:
@@ -238,7 +234,7 @@ def fit_model(
     return diag_fit(res, data, bands, stderr, log, outputs=outputs, boundary=boundary, biases=biases)
 
 
-def diag_fit(res, data: AnalysisData, bands: NoiseBands, stderr: dict, warned=(), **options) -> DiagFit:
+def diag_fit(res, data: AnalysisData, bands: NoiseModel, stderr: dict, warned=(), **options) -> DiagFit:
     """A :class:`DiagFit` of the fit ``res``: its problem rebuilt with ``options``, band-wise cost.
 
     ``warned``: the warnings recorded while ``res`` was fitted; kept in the DiagFit with the

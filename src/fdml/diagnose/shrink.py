@@ -22,10 +22,11 @@ import math
 import numpy as np
 
 from ..channels import OUTPUTS as CHANNELS
+from ..estimate import NoiseModel
 from ..estimate import fit as fdml_fit
 from ..warning_log import recording
 from .data import AnalysisData
-from .likelihood import DiagFit, NoiseBands, diag_fit
+from .likelihood import DiagFit, diag_fit
 from .locate import GapMap, forced_response, gap_map
 
 __all__ = ["fit_map", "shrink", "footprint", "compensation", "parameter_shifts", "frozen_fit"]
@@ -246,7 +247,7 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
     return out
 
 
-def frozen_fit(data: AnalysisData, model, bands: NoiseBands, options: dict) -> DiagFit:
+def frozen_fit(data: AnalysisData, model, bands: NoiseModel, options: dict) -> DiagFit:
     """The model with every model parameter frozen; only each record's nuisance terms are fitted (hold-out).
 
     Parameters

@@ -109,7 +109,8 @@ def _flight_path_sentences(k: dict) -> list:
             if offset and any(p["name"] == "tau_alpha" for p in sig)
             else ""
         )
-        out.append(f"The flight-path reconstruction of {e['record']} (theta, V, h) finds {found}{note}.")
+        used = ", ".join(c for c in ("theta", "V", "h", "ax") if c not in e.get("missing", []))
+        out.append(f"The flight-path reconstruction of {e['record']} ({used}) finds {found}{note}.")
     missing = sorted({c for e in k.get("flight_path", []) for c in e.get("missing", [])})
     if missing:
         out.append(
@@ -225,8 +226,6 @@ def paragraph(rep) -> str:
                         f"It acts mostly on {top['channel']} {_where(top, whole)} ({100 * top['share']:.0f} % "
                         "of its footprint)."
                     )
-                if not s.get("plausible", True):
-                    out.append("Its fitted size lies outside the plausible range: it may be absorbing something else.")
         shifts = sel[0].get("parameter_shifts") or {}
         big = sorted(
             (

@@ -34,6 +34,7 @@ level), with standard deviation a fraction of each clean channel's RMS.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import interpolate, signal
@@ -42,11 +43,12 @@ from ..channels import OUTPUTS
 from ..constants import G0
 from ..errors import ParameterError
 from ..maneuvers import dryden_gust, make_input, time_vector
+from ..models.base import Model
 from ..models.effects import get_effect, root_model
-from ..record import Record
+from ..record import Record, noise_stds
 from ..simulate import realize, simulate
 
-__all__ = ["simulate_truth", "truth_model", "sensor_noise", "OUT_OF_LIBRARY"]
+__all__ = ["simulate_truth", "truth_model", "sensor_noise", "TRUTHS", "OUT_OF_LIBRARY"]
 
 #: Effects outside the library that the harness can simulate.
 OUT_OF_LIBRARY = ("vane_filter",)
@@ -58,25 +60,6 @@ COLOURED_CORNER = 0.5
 GUST_FADE = 2.0
 #: Warm-up simulated before a turbulent record (the Dryden filter starts at rest; L/U is about 10 s), s.
 WARMUP = 40.0
-
-
-#: Output-level effects with a time-domain form here (the others are model parameters).
-_TIME_DOMAIN = (
-    "downwash_lag@tail",
-    "time_delay@alpha",
-    "time_delay@q",
-    "time_delay@az",
-    "time_delay@alpha,q",
-    "time_delay@alpha,az",
-    "time_delay@q,az",
-    "actuator_lag@de",
-    "sensor_offset@az",
-    "sensor_offset@alpha",
-    "structural_mode@q,az",
-    "sensor_scale@alpha",
-    "sensor_scale@q",
-    "sensor_scale@az",
-)
 
 
 def truth_model(base, key: str, values: dict):
@@ -101,7 +84,7 @@ def truth_model(base, key: str, values: dict):
     aug = eff.augment(base).with_values(values)
     if root_model(aug) is aug:
         return aug
-    if key not in _TIME_DOMAIN:
+    if key not in TRUTHS:
         raise ParameterError(f"no time-domain truth for {key} on the {base.kind} model")
     return base
 
@@ -177,6 +160,105 @@ def _qdot(model, values, t, inputs) -> np.ndarray:
     sys = signal.StateSpace(real.A, real.B, C2, D2)
     _, y, _ = signal.lsim(sys, u, t, interp=True)
     return np.asarray(y, float).reshape(t.size)
+
+
+# --- the library's output-level effects in the time domain, independent of their code ---------
+
+
+@dataclass(frozen=True)
+class _Run:
+    """One truth simulation: time grid (s), the model, its inputs (rad) and parameter values."""
+
+    t: np.ndarray
+    model: Model
+    inputs: dict
+    values: dict
+
+    def outputs(self, **replaced) -> dict[str, np.ndarray]:
+        """alpha, q, a_z from fdml's simulator, with the inputs ``replaced`` (by name)."""
+        rec = simulate(self.model, self.t, {**self.inputs, **replaced}, self.values or None)
+        return {k: rec[k].copy() for k in OUTPUTS}
+
+
+def _sensor_delay(group: tuple):
+    """A sensor group (alpha,az ...) recorded tau late: y(t - tau) on each of its channels."""
+
+    def form(run: _Run, v: dict) -> dict:
+        y = run.outputs()
+        for ch in group:
+            y[ch] = _delay(run.t, y[ch], v["tau_" + "_".join(group)])
+        return y
+
+    return form
+
+
+def _sensor_scale(ch: str):
+    """(1 + k) times the channel ``ch``."""
+
+    def form(run: _Run, v: dict) -> dict:
+        y = run.outputs()
+        y[ch] = (1.0 + v[f"k_{ch}"]) * y[ch]
+        return y
+
+    return form
+
+
+def _actuator_lag(run: _Run, v: dict) -> dict:
+    """The recorded elevator filtered by 1/(1 + T s) drives the simulation."""
+    return run.outputs(de=_lsim([1.0], [v["T_act"], 1.0], run.inputs["de"], run.t))
+
+
+def _accelerometer_offset(run: _Run, v: dict) -> dict:
+    """a_z - x q_dot/g, q_dot from the model's state equations."""
+    y = run.outputs()
+    y["az"] = y["az"] - v["x_az"] * _qdot(run.model, run.values or None, run.t, run.inputs) / G0
+    return y
+
+
+def _vane_offset(run: _Run, v: dict) -> dict:
+    """alpha - x q/U."""
+    y = run.outputs()
+    y["alpha"] = y["alpha"] - v["x_alpha"] * y["q"] / run.model.U
+    return y
+
+
+def _structural_mode(run: _Run, v: dict) -> dict:
+    """The modal responses r_q s w/D and r_az s^2/D to the elevator added to q and a_z."""
+    y = run.outputs()
+    w, z = v["omega_s"], v.get("zeta_s", 0.05)
+    den = [1.0, 2 * z * w, w * w]
+    y["q"] = y["q"] + v["r_q"] * _lsim([w, 0.0], den, run.inputs["de"], run.t)
+    y["az"] = y["az"] + v["r_az"] * _lsim([1.0, 0.0, 0.0], den, run.inputs["de"], run.t)
+    return y
+
+
+def _vane_filter(run: _Run, v: dict) -> dict:
+    """alpha through a vane's second-order filter w^2/(s^2 + 2 z w s + w^2) (outside the library)."""
+    y = run.outputs()
+    w, z = v.get("omega_f", 12.0), v.get("zeta_f", 0.3)
+    y["alpha"] = _lsim([w * w], [1.0, 2 * z * w, w * w], y["alpha"], run.t)
+    return y
+
+
+#: The time-domain truths of the library's output- and matrix-level effects, by effect key:
+#: ``form(run, values) -> {output: samples}`` (the module docstring's table).  Each is written
+#: from the physics, independently of the effect's frequency-domain code, on purpose: a truth
+#: that shared the candidate's code would confirm the candidate's own mistakes.  An effect that
+#: frees a model parameter needs no entry (its truth is the plain model: :func:`truth_model`);
+#: a new output-level effect without one cannot be a validation truth.
+TRUTHS = {
+    **{
+        f"time_delay@{','.join(g)}": _sensor_delay(g)
+        for g in (("alpha",), ("q",), ("az",), ("alpha", "q"), ("alpha", "az"), ("q", "az"))
+    },
+    "downwash_lag@tail": lambda run, v: _downwash_delay(run.model, run.t, run.inputs, v["tau_dw"]),
+    "actuator_lag@de": _actuator_lag,
+    "sensor_offset@az": _accelerometer_offset,
+    "sensor_offset@alpha": _vane_offset,
+    "structural_mode@q,az": _structural_mode,
+    **{f"sensor_scale@{ch}": _sensor_scale(ch) for ch in OUTPUTS},
+    "vane_filter": _vane_filter,
+}
 
 
 def sensor_noise(rng: np.random.Generator, n: int, dt: float, kind: str = "white") -> np.ndarray:
@@ -311,42 +393,17 @@ def simulate_truth(
         model = with_gust(base)
     elif key is not None and key not in OUT_OF_LIBRARY:
         model = truth_model(base, key, values)
-    sim_inputs = dict(inputs)
-    if key == "actuator_lag@de":
-        sim_inputs["de"] = _lsim([1.0], [values["T_act"], 1.0], de, t)
     mvals = {k: v for k, v in values.items() if k in model.parameters}
-    rec = simulate(model, t, sim_inputs, mvals or None)
-    y = {k: rec[k].copy() for k in OUTPUTS}
-    if key is not None and key.startswith("time_delay@") and key != "time_delay@de":
-        group = key.split("@")[1].split(",")  # a sensor group recorded tau late
-        for ch in group:
-            y[ch] = _delay(t, y[ch], values["tau_" + "_".join(group)])
-    elif key == "downwash_lag@tail":
-        y = _downwash_delay(model, t, sim_inputs, values["tau_dw"])
-    elif key == "sensor_offset@az":
-        y["az"] = y["az"] - values["x_az"] * _qdot(model, mvals or None, t, sim_inputs) / G0
-    elif key == "sensor_offset@alpha":
-        y["alpha"] = y["alpha"] - values["x_alpha"] * y["q"] / U
-    elif key == "structural_mode@q,az":
-        w, z = values["omega_s"], values.get("zeta_s", 0.05)
-        den = [1.0, 2 * z * w, w * w]
-        y["q"] = y["q"] + values["r_q"] * _lsim([w, 0.0], den, de, t)
-        y["az"] = y["az"] + values["r_az"] * _lsim([1.0, 0.0, 0.0], den, de, t)
-    elif key is not None and key.startswith("sensor_scale@"):
-        ch = key.split("@")[1]
-        y[ch] = (1.0 + values[f"k_{ch}"]) * y[ch]
-    elif key == "vane_filter":
-        w, z = values.get("omega_f", 12.0), values.get("zeta_f", 0.3)
-        y["alpha"] = _lsim([w * w], [1.0, 2 * z * w, w * w], y["alpha"], t)
+    run = _Run(t, model, inputs, mvals)
+    y = TRUTHS[key](run, values) if key in TRUTHS else run.outputs()
     keep = slice(n0, t.size)
-    y = {k: v[keep] for k, v in y.items()}
-    for ch in OUTPUTS:
-        if noise > 0:
-            y[ch] = y[ch] + noise * float(np.std(y[ch])) * sensor_noise(rng, tr.size, dt, noise_kind)
-    signals = {"de": de[keep], **y}
+    signals = {"de": de[keep], **{k: v[keep] for k, v in y.items()}}
     if base.gust:
         signals["alpha_w"] = inputs["alpha_w"][keep]
-    t = tr
+    clean = Record(tr, signals, check_units=False)
+    stds = noise_stds(clean, noise, relative=True)  # a fraction of each clean channel's RMS
+    if any(stds.values()):
+        signals.update({ch: clean[ch] + stds[ch] * sensor_noise(rng, tr.size, dt, noise_kind) for ch in OUTPUTS})
     meta = {
         "truth": key,
         "values": values,
@@ -358,4 +415,4 @@ def simulate_truth(
     }
     if "alpha_w" in inputs:
         meta["gust_rms_in_record"] = float(np.std(inputs["alpha_w"][keep]) * U)  # realised sigma_w, m/s
-    return Record(t, signals, name=name or f"{key or 'none'}-{maneuver}-{seed}", meta=meta, check_units=False)
+    return Record(tr, signals, name=name or f"{key or 'none'}-{maneuver}-{seed}", meta=meta, check_units=False)

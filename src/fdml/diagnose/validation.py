@@ -36,6 +36,7 @@ from ..jsoncodec import dumps, loads
 from ..parallel import execute, one_line
 from ..warning_log import merged, recording
 from .report import SHRINK_CONFIRM, UNEXPLAINED_RULE, label_for
+from .truth import OUT_OF_LIBRARY, simulate_truth
 
 __all__ = [
     "Scenario",
@@ -85,8 +86,6 @@ TRUTHS = {
     "unmeasured_gust": ({"sigma_w": 0.25}, {"sigma_w": 0.5}),
     "vane_filter": ({"omega_f": 10.0, "zeta_f": 0.3}, {"omega_f": 7.0, "zeta_f": 0.3}),
 }
-#: Truth cases outside the library.
-OUT_OF_LIBRARY = ("vane_filter",)
 #: Null cases: name -> noise kind.
 NULLS = {"none-white": "white", "none-coloured": "coloured"}
 
@@ -203,7 +202,6 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
         time (s) and the warnings.
     """
     from .core import diagnose
-    from .truth import simulate_truth
 
     base = _base(sc)
     kw: dict[str, Any] = dict(noise=sc.noise, noise_kind=sc.noise_kind, gust_std=GUST_STD)

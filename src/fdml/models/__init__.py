@@ -1,4 +1,4 @@
-"""fdml models: each gives G(j omega, theta) for outputs (alpha, q, a_z).
+"""fdml models: each gives G(j omega, theta) for outputs (alpha, q, a_z[, theta, q_dot]).
 
 =============  =========================================================
 kind           model
@@ -15,7 +15,7 @@ from __future__ import annotations
 from ..aircraft import Aircraft
 from ..errors import ParameterError
 from . import base as _base
-from .base import OUTPUTS, Model, ModelResponse, solve_short_period
+from .base import OUTPUTS, DescriptorModel, Model, ModelResponse, solve_short_period
 from .conventional import DerivativesModel, DimensionalModel, to_dimensional
 from .effects import AugmentedModel, assemble, with_effects
 from .kinds import MODEL_KINDS, make_model
@@ -29,6 +29,7 @@ _base.UPPER.update(with_effects=with_effects, realize=realize)
 __all__ = [
     "OUTPUTS",
     "Model",
+    "DescriptorModel",
     "ModelResponse",
     "MODEL_KINDS",
     "make_model",
@@ -69,9 +70,9 @@ def model_to_dict(model: Model) -> dict:
         )
     opts = {}
     for f in dataclasses.fields(base):
-        if f.name in ("aircraft", "parameters"):
-            continue
-        opts[f.name] = getattr(base, f.name)
+        if f.name in ("aircraft", "parameters") or (f.name == "outputs" and base.outputs == OUTPUTS):
+            continue  # the default outputs are not written: the files of three-output models stay as they were
+        opts[f.name] = list(base.outputs) if f.name == "outputs" else getattr(base, f.name)
     ac = getattr(base, "aircraft", None)
     out = {
         "kind": base.kind,

@@ -98,6 +98,14 @@ class Effect:
     :attr:`channel` (``alpha``, ``q``, ``az``, ``de``, ``alpha_w`` or a comma
     list), :attr:`params` and implement :meth:`augment`.
 
+    The diagnosis is validated on records simulated with one withheld effect.
+    Those truths are written independently of the effects' code, on purpose (a
+    truth that shared the candidate's code would confirm its mistakes): an
+    effect that frees a model parameter is simulated as the plain model, the
+    others by their entry in :data:`fdml.diagnose.truth.TRUTHS`.  An effect
+    without one (a new effect; the lags of the dimensional and derivatives
+    models) can be fitted and diagnosed, but it cannot be a validation truth.
+
     Attributes
     ----------
     name : str
@@ -209,36 +217,12 @@ class Effect:
             out[p.name] = vals.get(p.name, 0.0) if p.null is None else float(p.null)
         return out
 
-    def simulate(self, t, signals: dict, values: Mapping[str, float], model: Model) -> dict:
-        """Apply the effect to noise-free time histories (for truth generation).
-
-        Built-in effects implement it in :mod:`fdml.diagnose.truth`; a user
-        effect without a time-domain form cannot be used as a validation truth.
-
-        Parameters
-        ----------
-        t : numpy.ndarray
-            Time, s, shape (N,).
-        signals : dict
-            Channel name -> noise-free time history, shape (N,).
-        values : mapping of str to float
-            Parameter values by name.
-        model : Model
-            The augmented model.
-
-        Returns
-        -------
-        dict
-            The signals with the effect applied.
-        """
-        raise FdmlError(f"effect {self.key} has no time-domain form for validation truths")
-
     def realize(self, target, p: Mapping[str, float], root: Model):
         """The effect on a time-domain realisation (see :func:`fdml.models.realization.realize`).
 
         Output-level effects act on the state space of the base model
-        (``fdml.simulate`` helpers ``delay_output``, ``scale_output``,
-        ``mix_output``, ``add_output_rate``, ``filter_input``, ``add_mode``);
+        (:mod:`fdml.models.realization` helpers ``delay_output``, ``scale_output``,
+        ``filter_input``, ``add_mode``);
         matrix-level effects on its descriptor form
         (:class:`fdml.models.realization.Descriptor`) or, on a Wells-Keskar base, on the
         options of its realisation.  An effect without one cannot be simulated.
@@ -304,6 +288,8 @@ class AugmentedModel(Model):
         Taken from ``root`` (the values given are replaced).
     parameters : Parameters, optional
         The parameter set; default the root's followed by the effects' (fixed at their nulls).
+    outputs : tuple of str, optional
+        Taken from ``root`` (the value given is replaced).
     root : Model
         The plain base model.
     effects : tuple of Effect, optional
@@ -323,6 +309,7 @@ class AugmentedModel(Model):
             raise ParameterError("AugmentedModel needs a plain fdml model as root")
         object.__setattr__(self, "gust", self.root.gust)
         object.__setattr__(self, "output_bias", self.root.output_bias)
+        object.__setattr__(self, "outputs", self.root.outputs)
         if self.parameters is None:
             items = list(self.root.parameters.items)
             for eff in self.effects:
@@ -344,6 +331,17 @@ class AugmentedModel(Model):
     def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
         return self.root._placeholder_sources()  # the effects start at their nulls: no placeholders
 
+    def with_outputs(self, outputs) -> Model:
+        root = self.root.with_outputs(outputs)
+        if root is self.root:
+            return self
+        # the root's new biases, and this model's own values of everything it keeps
+        keep = {p.name for p in self.parameters if p.role is not Role.OUTPUT_BIAS or p.name in root.parameters}
+        params = Parameters(tuple(p for p in self.parameters if p.name in keep)).extended(
+            p for p in root.parameters if p.name not in keep
+        )
+        return replace(self, root=root, parameters=params)
+
     @property
     def parts(self) -> tuple:
         """The effects that make this model (as requested, else the applied ones)."""
@@ -356,7 +354,68 @@ class AugmentedModel(Model):
     def sensitivity(self, omega, values=None, names=(), parts=("G", "H", "P")):
         if not self.effects:  # only freed parameters of the root: its analytic sensitivities
             return self.root.sensitivity(omega, self._root_values(self.values(values)), names, parts)
-        return super().sensitivity(omega, values, names, parts)
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        p = self.values(values)
+        names = list(names)
+        own = {q.name for e in self.effects if isinstance(e, OutputEffect) for q in e.param_list(self.root)}
+        inner = [n for n in names if n not in own]  # through the solve: root, matrix-level and station parameters
+        outer = [n for n in names if n in own]  # output-level effects' own: differences of the effects alone
+        r, dG, dH, dP = self._matrix_sensitivity(omega, p, inner, ("G", "H", "P"))
+        s = 1j * r.omega
+        base = (r.G, r.H, r.P)
+        G, H, P, dG, dH, dP = self._through_outputs(s, p, base, (dG, dH, dP))
+        extra = [self._output_difference(s, p, base, n) for n in outer]
+        order = [inner.index(n) if n in inner else len(inner) + outer.index(n) for n in names]
+
+        def joined(a, i):
+            return np.concatenate([a] + [x[i][None] for x in extra])[order] if extra else a[order]
+
+        return ModelResponse(omega, G, H, P, self.outputs), joined(dG, 0), joined(dH, 1), joined(dP, 2)
+
+    def _output_difference(self, s, p, base: tuple, name: str) -> tuple:
+        """d(G, H, P)/d(name) of an output-level effect's parameter: central differences of the effects alone."""
+        v = p[name]
+        h = 1e-5 * max(abs(v), 1e-2)
+        up, dn = base, base
+        for eff in self.effects:
+            if isinstance(eff, OutputEffect):
+                up = eff.output(s, {**p, name: v + h}, up[0], up[1], up[2], self.root)
+                dn = eff.output(s, {**p, name: v - h}, dn[0], dn[1], dn[2], self.root)
+        return tuple((a - b) / (2 * h) for a, b in zip(up, dn))
+
+    def _through_outputs(self, s, p, resp: tuple, derivs: tuple) -> tuple:
+        """The output-level effects applied to a response and pushed along its derivatives.
+
+        The root parameters' derivatives come through the solve (:meth:`Model._matrix_sensitivity`);
+        an output effect maps (G, H, P) to an affine function of them, so its derivative along dG is
+        ``(T(G + e dG) - T(G - e dG)) / 2e``, exact for an affine T, all parameters in one call.
+        Returns (G, H, P, dG, dH, dP) after the effects.
+        """
+        outs = [e for e in self.effects if isinstance(e, OutputEffect)]
+        G, H, P = resp
+        k = derivs[0].shape[0]
+        if not outs or k == 0:
+            for eff in outs:
+                G, H, P = eff.output(s, p, G, H, P, self.root)
+            return (G, H, P, *derivs)
+        scale = max(float(np.max(np.abs(G))), 1e-300)
+        eps = 1e-6 * scale / np.maximum(np.max(np.abs(derivs[0]), axis=(1, 2, 3)), 1e-300)  # one step per parameter
+        e = eps.reshape(k, 1, 1, 1)
+        st = np.tile(s, 2 * k + 1)
+        stacks = [
+            np.concatenate([x[None], x[None] + e * d, x[None] - e * d]).reshape((-1,) + x.shape[1:])
+            for x, d in zip(resp, derivs)
+        ]
+        for eff in outs:
+            sG, sH, sP = stacks
+            stacks = list(eff.output(st, p, sG, sH, sP, self.root))
+        n = s.size
+        out = []
+        for x in stacks:
+            x = x.reshape((2 * k + 1, n) + x.shape[1:])
+            out.append((x[0], (x[1 : k + 1] - x[k + 1 :]) / (2 * e)))
+        (G, dG), (H, dH), (P, dP) = out
+        return G, H, P, dG, dH, dP
 
     @property
     def U(self) -> float:
@@ -400,7 +459,7 @@ class AugmentedModel(Model):
         for eff in self.effects:
             if isinstance(eff, OutputEffect):
                 G, H, P = eff.output(s, p, G, H, P, self.root)
-        return ModelResponse(omega, G, H, P)
+        return ModelResponse(omega, G, H, P, self.outputs)
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         return self.root.derived(self._root_values(self.values(values)))
@@ -513,34 +572,12 @@ def with_gust(model: Model) -> Model:
 # --- effect kinds ----------------------------------------------------------------------
 
 
-class OutputEffect(Effect):
-    """An effect on the model's frequency response (G, H, P), for any fdml model.
+class _AppliedEffect(Effect):
+    """What output- and matrix-level effects share: a function ``fn`` a model applies to its response.
 
-    Parameters
-    ----------
-    name, channel : str
-        Library name and the channel it applies to.
-    params : tuple of Param
-        The parameters the effect adds.
-    fn : callable
-        ``fn(s, p, G, H, P, root) -> (G, H, P)``: ``s`` = j omega (n,), ``p``
-        all parameter values by name, ``G`` (n, 3, n_in), ``H`` and ``P``
-        (n, 3, 2), ``root`` the plain base model (for U, the aircraft).
-        Must return the inputs unchanged when the effect's parameters are at
-        their nulls.
-    needs : tuple of str, optional
-        Record channels required.
-    signature : str, optional
-        One line on where the effect shows, for reports.
-    nuisance_grid : dict, optional
-        ``{param name: grid function}`` for parameters not identified under the null.
-    applies : callable, optional
-        ``applies(model) -> str | None``: a reason the effect cannot be tested
-        on this base model (e.g. no chord for a lift lag), or None.
-    simulate : callable, optional
-        The time-domain form, with the signature of :meth:`Effect.simulate` (without ``self``).
-    realize : callable, optional
-        The effect on a realisation, with the signature of :meth:`Effect.realize` (without ``self``).
+    The two kinds differ only in where ``fn`` acts (:class:`OutputEffect`: the
+    frequency response; :class:`MatrixEffect`: the matrices before the solve);
+    both are appended to the model's effects by :meth:`augment`.
     """
 
     def __init__(
@@ -554,7 +591,6 @@ class OutputEffect(Effect):
         signature: str = "",
         nuisance_grid: dict | None = None,
         applies: Callable | None = None,
-        simulate: Callable | None = None,
         realize: Callable | None = None,
     ):
         self._realize = realize
@@ -566,34 +602,6 @@ class OutputEffect(Effect):
         self.signature = signature
         self.nuisance_grid = nuisance_grid
         self._applies = applies
-        self._simulate = simulate
-
-    def output(self, s, p, G, H, P, root):
-        """Apply the effect to the output matrices at ``s = j omega``; returns ``(G, H, P)``.
-
-        Parameters
-        ----------
-        s : numpy.ndarray
-            The Laplace variable j omega, rad/s, shape (n,).
-        p : mapping of str to float
-            All parameter values by name.
-        G : numpy.ndarray
-            Outputs per input, shape (n, 3, n_in).
-        H, P : numpy.ndarray
-            Outputs per boundary term and per state-equation forcing, shape (n, 3, 2).
-        root : Model
-            The plain base model.
-
-        Returns
-        -------
-        G : numpy.ndarray
-            Outputs per input with the effect applied, same shape.
-        H : numpy.ndarray
-            Outputs per boundary term with the effect applied, same shape.
-        P : numpy.ndarray
-            Outputs per state-equation forcing with the effect applied, same shape.
-        """
-        return self._fn(s, p, G, H, P, root)
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)
@@ -609,13 +617,65 @@ class OutputEffect(Effect):
             return super().realize(target, p, root)
         return self._realize(target, p, root)
 
-    def simulate(self, t, signals, values, model):
-        if self._simulate is None:
-            return super().simulate(t, signals, values, model)
-        return self._simulate(t, signals, values, model)
+
+class OutputEffect(_AppliedEffect):
+    """An effect on the model's frequency response (G, H, P), for any fdml model.
+
+    Parameters
+    ----------
+    name, channel : str
+        Library name and the channel it applies to.
+    params : tuple of Param
+        The parameters the effect adds.
+    fn : callable
+        ``fn(s, p, G, H, P, root) -> (G, H, P)``: ``s`` = j omega (n,), ``p``
+        all parameter values by name, ``G`` (n, n_y, n_in), ``H`` (n, n_y, n_b) and
+        ``P`` (n, n_y, 2), rows in ``root.outputs`` order (alpha, q, a_z first),
+        ``root`` the plain base model (for U, the aircraft).
+        Must return the inputs unchanged when the effect's parameters are at
+        their nulls.
+    needs : tuple of str, optional
+        Record channels required.
+    signature : str, optional
+        One line on where the effect shows, for reports.
+    nuisance_grid : dict, optional
+        ``{param name: grid function}`` for parameters not identified under the null.
+    applies : callable, optional
+        ``applies(model) -> str | None``: a reason the effect cannot be tested
+        on this base model (e.g. no chord for a lift lag), or None.
+    realize : callable, optional
+        The effect on a realisation, with the signature of :meth:`Effect.realize` (without ``self``).
+    """
+
+    def output(self, s, p, G, H, P, root):
+        """Apply the effect to the output matrices at ``s = j omega``; returns ``(G, H, P)``.
+
+        Parameters
+        ----------
+        s : numpy.ndarray
+            The Laplace variable j omega, rad/s, shape (n,).
+        p : mapping of str to float
+            All parameter values by name.
+        G : numpy.ndarray
+            Outputs per input, shape (n, n_y, n_in).
+        H, P : numpy.ndarray
+            Outputs per boundary term and per state-equation forcing, shapes (n, n_y, n_b) and (n, n_y, 2).
+        root : Model
+            The plain base model.
+
+        Returns
+        -------
+        G : numpy.ndarray
+            Outputs per input with the effect applied, same shape.
+        H : numpy.ndarray
+            Outputs per boundary term with the effect applied, same shape.
+        P : numpy.ndarray
+            Outputs per state-equation forcing with the effect applied, same shape.
+        """
+        return self._fn(s, p, G, H, P, root)
 
 
-class MatrixEffect(OutputEffect):
+class MatrixEffect(_AppliedEffect):
     """An effect on the short-period matrices (M, B, E) before the solve.
 
     ``fn(s, p, M, B, E, root) -> (M, B, E)`` with ``M`` (n, 2, 2) = sE - A(s),
@@ -638,8 +698,6 @@ class MatrixEffect(OutputEffect):
         ``{param name: grid function}`` for parameters not identified under the null.
     applies : callable, optional
         ``applies(model) -> str | None``: a reason the effect cannot be tested, or None.
-    simulate : callable, optional
-        The time-domain form, with the signature of :meth:`Effect.simulate` (without ``self``).
     realize : callable, optional
         The effect on a realisation, with the signature of :meth:`Effect.realize` (without ``self``).
     """
@@ -673,33 +731,6 @@ class MatrixEffect(OutputEffect):
         """
         return self._fn(s, p, M, B, E, root)
 
-    def output(self, s, p, G, H, P, root):  # pragma: no cover - never called for matrix effects
-        """Leave the outputs unchanged: a matrix effect acts through :meth:`matrices`.
-
-        Parameters
-        ----------
-        s : numpy.ndarray
-            The Laplace variable j omega, rad/s, shape (n,).
-        p : mapping of str to float
-            All parameter values by name.
-        G : numpy.ndarray
-            Outputs per input, shape (n, 3, n_in).
-        H, P : numpy.ndarray
-            Outputs per boundary term and per state-equation forcing, shape (n, 3, 2).
-        root : Model
-            The plain base model.
-
-        Returns
-        -------
-        G : numpy.ndarray
-            Outputs per input, unchanged.
-        H : numpy.ndarray
-            Outputs per boundary term, unchanged.
-        P : numpy.ndarray
-            Outputs per state-equation forcing, unchanged.
-        """
-        return G, H, P
-
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)
         if why is None and not hasattr(root_model(model), "_matrices"):
@@ -726,8 +757,6 @@ class FreeParameterEffect(Effect):
         Record channels required.
     signature : str, optional
         One line on where the effect shows, for reports.
-    simulate : callable, optional
-        The time-domain form, with the signature of :meth:`Effect.simulate` (without ``self``).
     bounds : tuple of float, optional
         (lower, upper) bounds of the freed parameter, widened to include its null; default the Param's.
     """
@@ -742,7 +771,6 @@ class FreeParameterEffect(Effect):
         convert: Callable | None = None,
         needs: Sequence[str] = (),
         signature: str = "",
-        simulate: Callable | None = None,
         bounds: tuple | None = None,
     ):
         self.name = name
@@ -752,7 +780,6 @@ class FreeParameterEffect(Effect):
         self._convert = convert
         self.needs = tuple(needs)
         self.signature = signature
-        self._simulate = simulate
         self._bounds = bounds
 
     def _target_root(self, model: Model) -> Model:
@@ -800,11 +827,6 @@ class FreeParameterEffect(Effect):
             params = params.bound(par.name, min(lo, cur.value), max(hi, cur.value))
         return new.with_parameters(params)
 
-    def simulate(self, t, signals, values, model):
-        if self._simulate is None:
-            return super().simulate(t, signals, values, model)
-        return self._simulate(t, signals, values, model)
-
 
 def scale_rows(G, H, P, row: int, factor):
     """Multiply output row ``row`` of G, H and P by ``factor`` (scalar or (n,) array).
@@ -812,11 +834,11 @@ def scale_rows(G, H, P, row: int, factor):
     Parameters
     ----------
     G : numpy.ndarray
-        Outputs per input, shape (n, 3, n_in).
+        Outputs per input, shape (n, n_y, n_in).
     H, P : numpy.ndarray
-        Outputs per boundary term and per state-equation forcing, shape (n, 3, 2).
+        Outputs per boundary term and per state-equation forcing, shapes (n, n_y, n_b) and (n, n_y, 2).
     row : int
-        The output: 0 alpha, 1 q, 2 a_z.
+        The output's row: 0 alpha, 1 q, 2 a_z (then those of ``model.outputs``).
     factor : float or numpy.ndarray
         The factor, a scalar or one per frequency (n,).
 

@@ -1,21 +1,23 @@
-"""The common frame of every fdml model: a two-state short-period system.
+"""The common frame of every fdml model: a short-period system seen through a table of outputs.
 
 Each model supplies, per frequency, the matrices of
 
     E (s x~ - d) = A(s) x~ + B(s) u~,      x = [alpha, q],  d = x(0) - x(T) e^{-sT}
 
 (the finite-record transform of ``E xdot = A x + B u``; docs/theory.md section 7,
-Klein's boundary terms).  The outputs are alpha, q and
-``a_z = (U/g)(alpha_dot - q)`` (Eq. 5), whose finite transform is
-``(U/g)(s alpha~ - d_alpha - q~)``.  So
+Klein's boundary terms): a :class:`DescriptorModel` from its constant descriptor
+``E x' = A x + B0 u + B1 u'``, written once, the Wells-Keskar models from their
+transfer functions.  The measured outputs are the rows of :data:`fdml.channels.OUTPUT_TABLE`,
+``y = v.x + r.x' + i.int x``, whose transform is ``C(s) x~ - r.d (+ d_y/s)`` with
+``C(s) = v + s r + i/s`` (a_z of Eq. 5, theta = q/s with its own boundary term, q_dot = s q).  So
 
     G(s) = C(s) M(s)^-1 B(s),        M(s) = s E - A(s)        (Eq. 18)
-    H(s) = C(s) M(s)^-1 E - (U/g) e_az e_alpha^T
+    H(s) = [C(s) M(s)^-1 E - r,  1/s on each integral row's own boundary value]
     P(s) = C(s) M(s)^-1
 
-where H maps the boundary vector d to the outputs and P maps a forcing f~
-added to the right-hand side (a state-equation bias, ``E xdot = A x + B u + f``).  The 2 x 2 solve is done
-in closed form over all frequencies at once.
+where H maps the boundary vector to the outputs and P maps a forcing f~ added to
+the right-hand side (a state-equation bias, ``E xdot = A x + B u + f``).  The 2 x 2
+solve is done in closed form over all frequencies at once.
 """
 
 from __future__ import annotations
@@ -26,12 +28,11 @@ from typing import ClassVar
 
 import numpy as np
 
-from ..channels import INPUTS, OUTPUTS, SIGNALS
-from ..constants import G0
+from ..channels import INPUTS, OUTPUT_TABLE, OUTPUTS, SIGNALS, STATIONS, row_space
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters, Role
 
-__all__ = ["Model", "ModelResponse", "OUTPUTS", "solve_short_period"]
+__all__ = ["Descriptor", "DescriptorModel", "Model", "ModelResponse", "OUTPUTS", "solve_short_period"]
 
 #: The model operations that live above this module, by method: ``with_effects``
 #: (:func:`fdml.models.effects.with_effects`) and ``realize``
@@ -40,7 +41,8 @@ __all__ = ["Model", "ModelResponse", "OUTPUTS", "solve_short_period"]
 #: model's methods reach up without importing up.
 UPPER: dict[str, Callable] = {}
 
-#: Output channels of every model, in order: alpha (rad), q (rad/s), a_z (g).
+#: The table's rows by name.
+_ROWS = {o.name: o for o in OUTPUT_TABLE}
 
 
 @dataclass(frozen=True)
@@ -51,22 +53,98 @@ class ModelResponse:
     ----------
     omega : ndarray, shape (n,)
         Frequencies, rad/s.
-    G : ndarray, shape (n, 3, n_in)
-        Outputs (alpha, q, az) per input (de[, alpha_w]).
-    H : ndarray, shape (n, 3, 2)
-        Outputs per boundary term d = x(0) - x(T) e^{-sT}, x = [alpha, q].
-    P : ndarray, shape (n, 3, 2)
+    G : ndarray, shape (n, n_y, n_in)
+        Outputs (the rows ``outputs``) per input (de[, alpha_w]).
+    H : ndarray, shape (n, n_y, n_b)
+        Outputs per boundary term d = x(0) - x(T) e^{-sT} of each channel of
+        :func:`fdml.channels.boundary_channels` (alpha, q[, theta]).
+    P : ndarray, shape (n, n_y, 2)
         Outputs per state-equation forcing f~ (alpha_dot and q_dot equations).
+    outputs : tuple of str, optional
+        The rows: alpha (rad), q (rad/s), a_z (g)[, theta (rad), qdot (rad/s^2)].
     """
 
     omega: np.ndarray
     G: np.ndarray
     H: np.ndarray
     P: np.ndarray
+    outputs: tuple = OUTPUTS
 
 
-def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarray, U: float):
-    """Solve ``M x = B u`` (and ``M x = E d``) for all frequencies at once.
+@dataclass(frozen=True)
+class Descriptor:
+    """``E x' = A x + B0 u + B1 u'`` with x = [alpha, q, extra states...] and input channels.
+
+    The form a :class:`DescriptorModel` gives once (its frequency response, its
+    realisation and its export all read it), and the one matrix-level effects act
+    on in the time domain (:meth:`fdml.models.effects.MatrixEffect.realize`).
+
+    Parameters
+    ----------
+    E, A : numpy.ndarray
+        Shape (n, n): the descriptor and state matrices.
+    B0, B1 : numpy.ndarray
+        Shape (n, n_channels): input and input-rate matrices.
+    channels : tuple of (str, float)
+        Input channels: signal name and delay, s.
+    """
+
+    E: np.ndarray
+    A: np.ndarray
+    B0: np.ndarray
+    B1: np.ndarray
+    channels: tuple
+
+    def with_state(self, a_row: np.ndarray, a_col: np.ndarray) -> "Descriptor":
+        """One more state ``x_n`` with ``x_n' = a_row . [x, x_n]`` feeding ``A[:, n] = a_col`` (E_nn = 1).
+
+        Parameters
+        ----------
+        a_row : numpy.ndarray
+            Shape (n + 1,): the new state's row of A.
+        a_col : numpy.ndarray
+            Shape (n,): how the new state enters the old states' equations.
+
+        Returns
+        -------
+        Descriptor
+            The system with n + 1 states.
+        """
+        n = self.A.shape[0]
+        E = np.eye(n + 1)
+        E[:n, :n] = self.E
+        A = np.zeros((n + 1, n + 1))
+        A[:n, :n] = self.A
+        A[:n, n] = a_col
+        A[n] = a_row
+        pad = np.zeros((1, self.B0.shape[1]))
+        return Descriptor(E, A, np.vstack([self.B0, pad]), np.vstack([self.B1, pad]), self.channels)
+
+
+def output_rows(rows: Sequence[str], U: float, p: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The coefficients of ``rows`` on the states, their rates and their integrals (:data:`fdml.channels.OUTPUT_TABLE`).
+
+    Parameters
+    ----------
+    rows : sequence of str
+        Output names.
+    U : float
+        Airspeed, m/s.
+    p : mapping of str to float
+        Parameter values (the sensor stations, m).
+
+    Returns
+    -------
+    V, R, I : numpy.ndarray
+        Shape (n_y, 2) each: coefficients on (alpha, q), (alpha', q') and their integrals.
+    """
+    terms = [(_ROWS[r].value(U, p), _ROWS[r].rate(U, p), _ROWS[r].integral(U, p)) for r in rows]
+    V, R, I = (np.array([t[k] for t in terms], dtype=float).reshape(len(rows), 2) for k in range(3))
+    return V, R, I
+
+
+def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarray, rows):
+    """Solve ``M x = B u`` (and ``M x = E d``) for all frequencies at once and form the output rows.
 
     Parameters
     ----------
@@ -78,29 +156,67 @@ def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarra
         Input matrix, with input delays applied.
     E : ndarray, shape (2, 2) or (n, 2, 2)
         Matrix multiplying the state derivative.
-    U : float
-        Airspeed, m/s (for a_z in g, Eq. 5).
+    rows : tuple of (V, R, I)
+        The rows' coefficients (:func:`output_rows`).
 
     Returns
     -------
-    G : ndarray, shape (n, 3, n_in)
-        Outputs (alpha rad, q rad/s, a_z g) per unit input.
-    H : ndarray, shape (n, 3, 2)
-        Outputs per boundary term d = x(0) - x(T) e^{-sT}, x = [alpha, q].
-    P : ndarray, shape (n, 3, 2)
+    G : ndarray, shape (n, n_y, n_in)
+        Outputs per unit input.
+    H : ndarray, shape (n, n_y, n_b)
+        Outputs per boundary term of alpha, q and of each integral row.
+    P : ndarray, shape (n, n_y, 2)
         Outputs per unit forcing of each state equation.
     """
-    k = U / G0  # Eq. 5: a_z = (U/g)(alpha_dot - q), in g
-    P = np.empty((s.size, 3, 2), dtype=complex)
-    P[:, :2] = _adjugate(M) / _determinant(s, M)[:, None, None]  # M^-1: state per unit forcing of each equation
-    P[:, 2] = (k * s)[:, None] * P[:, 0] - k * P[:, 1]
-    G = P @ B  # (n, 3, n_in): alpha~, q~, a_z~ per unit input
-    if _is_identity(E):
-        H = P.copy()
-    else:
-        H = P @ np.broadcast_to(E, M.shape)  # state per boundary term: M^-1 E
-    H[:, 2, 0] -= k  # finite transform of alpha_dot is s alpha~ - d_alpha
+    return _response_rows(s, _inverse(s, M), B, E, rows)
+
+
+#: Parameters that place a sensor (they enter the output rows, :data:`fdml.channels.STATIONS`).
+_STATION_NAMES = frozenset(STATIONS.values())
+
+
+def _response_rows(s: np.ndarray, inv: np.ndarray, B: np.ndarray, E: np.ndarray, rows):
+    """(G, H, P) of :func:`solve_short_period` from ``inv`` = M^-1, (n, 2, 2)."""
+    coef = [c.tolist() for c in rows]  # value, rate, integral: (n_y, 2) each
+    ny = len(coef[0])
+    terms = [[(f, k, c) for f in range(3) for k in range(2) if (c := coef[f][r][k])] for r in range(ny)]
+    by_state = inv.transpose(1, 0, 2)  # row k of M^-1 over the frequencies, (2, n, 2)
+    factors = (None, s[:, None], 1.0 / s[:, None])
+    scaled: dict = {}  # s M^-1 and M^-1 / s rows, each formed once
+    P = np.empty((s.size, ny, 2), complex)  # C(s) M^-1, C(s) = V + s R + I/s: only the nonzero terms
+    for r in range(ny):
+        row = None
+        for f, k, c in terms[r]:
+            if f and (f, k) not in scaled:
+                scaled[f, k] = factors[f] * by_state[k]
+            x = scaled[f, k] if f else by_state[k]
+            x = x if c == 1.0 else c * x
+            row = x if row is None else row + x
+        P[:, r] = 0.0 if row is None else row
+    G = P[..., :1] * B[..., None, 0, :] + P[..., 1:] * B[..., None, 1, :]  # C(s) M^-1 B
+    H = P.copy() if _is_identity(E) else P @ np.broadcast_to(E, inv.shape)  # state per boundary term: M^-1 E
+    for r in range(ny):
+        for f, k, c in terms[r]:
+            if f == 1:
+                H[:, r, k] -= c  # the finite transform of x' is s x~ - d
+    own = [r for r in range(ny) if any(f == 2 for f, _, _ in terms[r])]  # integral rows: own boundary term d_y
+    if own:
+        Hown = np.zeros((s.size, ny, len(own)), complex)
+        Hown[:, own, np.arange(len(own))] = 1.0 / s[:, None]
+        H = np.concatenate([H, Hown], axis=2)
     return G, H, P
+
+
+def _inverse(s: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """M^-1 = adj(M) / det M per frequency, (n, 2, 2): state per unit forcing of each equation.
+
+    A view of a state-major array, so that each row of M^-1 over the frequencies is contiguous.
+    """
+    det = _determinant(s, M)
+    a = np.empty((2, s.size, 2), complex)
+    a[0, :, 0], a[0, :, 1], a[1, :, 0], a[1, :, 1] = M[:, 1, 1], -M[:, 0, 1], -M[:, 1, 0], M[:, 0, 0]
+    a /= det[None, :, None]
+    return a.transpose(1, 0, 2)
 
 
 def _determinant(s: np.ndarray, M: np.ndarray) -> np.ndarray:
@@ -112,13 +228,6 @@ def _determinant(s: np.ndarray, M: np.ndarray) -> np.ndarray:
     return det
 
 
-def _adjugate(M: np.ndarray) -> np.ndarray:
-    """adj(M) = [[m11, -m01], [-m10, m00]] per frequency, so that M^-1 = adj(M) / det M."""
-    return M[:, ::-1, ::-1].transpose(0, 2, 1) * _ADJ_SIGN
-
-
-#: Signs of the adjugate of a 2 x 2 matrix.
-_ADJ_SIGN = np.array([[1.0, -1.0], [-1.0, 1.0]])
 _EYE2 = np.eye(2)
 
 
@@ -142,19 +251,48 @@ def _inputs(B: np.ndarray, u: np.ndarray) -> np.ndarray:
 
 
 def _right_side(Bd: np.ndarray, E: np.ndarray, u: np.ndarray, boundary, forcing) -> np.ndarray:
-    """The right-hand side ``B u + E d + f`` of ``M x = ...`` per frequency, shape (n, 2)."""
+    """The right-hand side ``B u + E d + f`` of ``M x = ...`` per frequency, shape (n, 2) (d: the states' columns)."""
     r = _inputs(Bd, u)
     if boundary is not None:
-        r = r + (boundary if _is_identity(E) else _apply(E, boundary))
+        d = boundary[:, :2]
+        r = r + (d if _is_identity(E) else _apply(E, d))
     return r if forcing is None else r + forcing
 
 
 def _responded(resp: ModelResponse, u: np.ndarray, boundary, forcing) -> np.ndarray:
-    """``G u + H d + P f`` of a response (or of its derivatives, with a leading axis), shape (..., n, 3)."""
+    """``G u + H d + P f`` of a response (or of its derivatives, with a leading axis), shape (..., n, n_y)."""
     y = (resp.G @ u[:, :, None])[..., 0]
     if boundary is not None:
         y = y + (resp.H @ boundary[:, :, None])[..., 0]
     return y if forcing is None else y + (resp.P @ forcing[:, :, None])[..., 0]
+
+
+def _row_space(outputs) -> tuple[str, ...]:
+    """:func:`fdml.channels.row_space`, an unknown name a ParameterError."""
+    try:
+        return row_space(outputs)
+    except ValueError as exc:
+        raise ParameterError(str(exc)) from None
+
+
+def _bias_parameter(name: str, free: bool) -> Parameter:
+    """The output bias of output ``name``, in its unit."""
+    return Parameter(
+        f"bias_{name}", 0.0, free=free, unit=SIGNALS[name], description=f"output bias on {name}", role=Role.OUTPUT_BIAS
+    )
+
+
+def _rebiased(params: Parameters, rows: tuple, free: bool) -> Parameters:
+    """``params`` with one output bias per row of ``rows``: the others' dropped, the missing ones added."""
+    keep = tuple(q for q in params if not (q.role is Role.OUTPUT_BIAS and q.name[len("bias_") :] not in rows))
+    return Parameters(keep).extended(_bias_parameter(r, free) for r in rows if f"bias_{r}" not in params)
+
+
+def _padded(dH: np.ndarray, nb: int) -> np.ndarray:
+    """``dH`` of the states' boundary columns with zero columns for the integral rows' own, up to ``nb``."""
+    if dH.shape[-1] == nb:
+        return dH
+    return np.concatenate([dH, np.zeros(dH.shape[:-1] + (nb - dH.shape[-1],), complex)], axis=-1)
 
 
 #: Roles whose derivatives are not derivatives of the model matrices (M, B, E): input delays
@@ -176,14 +314,16 @@ class Model:
         If True the model has a second input, the vertical gust angle alpha_w
         (rad, positive for an up-gust).
     output_bias : bool, optional
-        If True the output biases ``bias_alpha, bias_q, bias_az`` are free
-        parameters (they are present, fixed at zero, otherwise).
+        If True the output biases ``bias_alpha, bias_q, bias_az`` (one per
+        output) are free parameters (they are present, fixed at zero, otherwise).
     parameters : Parameters, optional
         Overrides the default parameter set.
+    outputs : sequence of str, optional
+        The outputs the model predicts (:func:`fdml.channels.row_space`): alpha, q,
+        a_z, and those of ``theta``, ``qdot`` asked for (:meth:`with_outputs`).
     """
 
     kind: ClassVar[str] = "base"
-    outputs: ClassVar[tuple[str, ...]] = OUTPUTS
     #: Parameters whose matrix derivatives are coded in closed form.
     closed_form_parameters: ClassVar[frozenset] = frozenset(
         {"tau_de", "tau_alpha_w", "bias_alpha", "bias_q", "bias_az"}
@@ -192,8 +332,10 @@ class Model:
     gust: bool = False
     output_bias: bool = False
     parameters: Parameters = field(default=None)  # type: ignore[assignment]
+    outputs: tuple[str, ...] = OUTPUTS
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "outputs", _row_space(self.outputs))
         if self.parameters is None:
             params = self._default_parameters().extended(self._common_parameters())
             object.__setattr__(self, "parameters", params)
@@ -318,18 +460,7 @@ class Model:
             Parameter(n, 0.0, free=False, lower=0.0, unit="s", description=what[n], role=Role.DELAY)
             for n in self._delay_names()
         ]
-        for name in OUTPUTS:
-            out.append(
-                Parameter(
-                    f"bias_{name}",
-                    0.0,
-                    free=self.output_bias,
-                    unit=SIGNALS[name],
-                    description=f"output bias on {name}",
-                    role=Role.OUTPUT_BIAS,
-                )
-            )
-        return out
+        return out + [_bias_parameter(name, self.output_bias) for name in self.outputs]
 
     def _delay_names(self) -> tuple[str, ...]:
         """The input delays of B, one per input (``tau_de``, ``tau_alpha_w``)."""
@@ -378,7 +509,7 @@ class Model:
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         *_, (G, H, P) = self._solved(omega, self.values(values))
-        return ModelResponse(omega, G, H, P)
+        return ModelResponse(omega, G, H, P, self.outputs)
 
     def sensitivity(
         self,
@@ -390,9 +521,10 @@ class Model:
         """Response and its derivatives with respect to ``names``.
 
         Returns ``(resp, dG, dH, dP)`` with ``resp`` the :class:`ModelResponse`
-        and ``dG`` of shape (len(names), n, 3, n_in), ``dH`` and ``dP`` of shape
-        (len(names), n, 3, 2).  For the two-state models the derivatives are
-        propagated through the solve exactly,
+        and ``dG`` of shape (len(names), n, n_y, n_in), ``dH`` of shape
+        (len(names), n, n_y, n_b) and ``dP`` of shape (len(names), n, n_y, 2).
+        For the two-state models the derivatives are propagated through the
+        solve exactly,
 
             dG = P (dB - dM M^-1 B),  dH = P (dE - dM M^-1 E),  dP = -P dM M^-1,
 
@@ -419,26 +551,40 @@ class Model:
         resp : ModelResponse
             The response at ``omega``.
         dG : numpy.ndarray
-            Derivatives dG/d(name), shape (len(names), n, 3, n_in).
+            Derivatives dG/d(name), shape (len(names), n, n_y, n_in).
         dH, dP : numpy.ndarray or None
-            Derivatives dH/d(name) and dP/d(name), shape (len(names), n, 3, 2), or None when not in ``parts``.
+            Derivatives dH/d(name) and dP/d(name), shapes (len(names), n, n_y, n_b) and (len(names), n, n_y, 2),
+            or None when not in ``parts``.
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         p = self.values(values)
         names = list(names)
         if type(self).evaluate is not Model.evaluate:
             return self._fd_sensitivity(omega, p, names)
-        s, M, Bd, E, Dl, (G, H, P) = self._solved(omega, p)
-        inv = P[:, :2]  # M^-1
+        return self._matrix_sensitivity(omega, p, names, parts)
+
+    def _matrix_sensitivity(self, omega, p, names, parts):
+        """:meth:`sensitivity` through the solve, for parameters that enter :meth:`_matrices` (or input delays)."""
+        s, M, Bd, E, Dl, inv, (G, H, P) = self._solved(omega, p)
         X = inv @ Bd
         IE = inv if _is_identity(E) else inv @ np.broadcast_to(E, M.shape)
         dM, dBd, dE = self._derivative_stack(s, p, names, Bd, Dl)
         # all parameters at once: dG = P (dB - dM X), dH = P (dE - dM M^-1 E), dP = -P dM M^-1
         PdM = P @ dM
         dG = P @ dBd - PdM @ X
-        dH = (P @ dE - PdM @ IE) if "H" in parts else None
+        dH = _padded(P @ dE - PdM @ IE, H.shape[2]) if "H" in parts else None  # integral rows' own: constant
         dP = -(PdM @ inv) if "P" in parts else None
-        return ModelResponse(omega, G, H, P), dG, dH, dP
+        for i, nm in enumerate(names):  # a sensor's station enters its output row, not the matrices
+            if nm in _STATION_NAMES:
+                h = 1e-5 * max(abs(p[nm]), 1.0)  # the row is affine in the station: exact to rounding
+                up = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] + h}))
+                dn = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] - h}))
+                dG[i] = (up[0] - dn[0]) / (2 * h)
+                if dH is not None:
+                    dH[i] = (up[1] - dn[1]) / (2 * h)
+                if dP is not None:
+                    dP[i] = (up[2] - dn[2]) / (2 * h)
+        return ModelResponse(omega, G, H, P, self.outputs), dG, dH, dP
 
     def forced_sensitivity(self, omega, values, names, u, boundary=None, forcing=None):
         """The response and the derivatives of the outputs it gives for one forcing.
@@ -463,7 +609,7 @@ class Model:
         u : numpy.ndarray
             Input spectra (de rad s[, alpha_w rad s]), complex, shape (n, n_in).
         boundary : numpy.ndarray, optional
-            Boundary vector d (alpha rad s, q rad), complex, shape (n, 2); None for none.
+            Boundary vector d (alpha rad s, q rad[, theta rad s]), complex, shape (n, n_b); None for none.
         forcing : numpy.ndarray, optional
             State forcing f (transform of the alpha_dot and q_dot equations' constants), shape (n, 2).
 
@@ -472,7 +618,7 @@ class Model:
         resp : ModelResponse
             The response at ``omega``.
         dy : numpy.ndarray
-            Derivatives of the outputs (alpha rad s, q rad, a_z g s) per name, complex, shape (len(names), n, 3).
+            Derivatives of the outputs (alpha rad s, q rad, a_z g s, ...) per name, complex, shape (len(names), n, n_y).
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         names = list(names)
@@ -481,13 +627,13 @@ class Model:
             resp, dG, dH, dP = self.sensitivity(omega, values, names, parts)
             return resp, _responded(ModelResponse(omega, dG, dH, dP), u, boundary, forcing)
         p = self.values(values)
-        s, M, Bd, E, Dl, (G, H, P) = self._solved(omega, p)
-        x = _apply(P[:, :2], _right_side(Bd, E, u, boundary, forcing))  # the states M^-1 r
+        s, M, Bd, E, Dl, inv, (G, H, P) = self._solved(omega, p)
+        x = _apply(inv, _right_side(Bd, E, u, boundary, forcing))  # the states M^-1 r
         dM, dBd, dE = self._derivative_stack(s, p, names, Bd, Dl)
         w = _inputs(dBd, u) - _apply(dM, x)  # (k, n, 2)
         if boundary is not None and dE.any():
-            w = w + _apply(dE, boundary)
-        return ModelResponse(omega, G, H, P), _apply(P, w)
+            w = w + _apply(dE, boundary[:, :2])
+        return ModelResponse(omega, G, H, P, self.outputs), _apply(P, w)
 
     def _forced_matrices(self, omega, p):
         """s, M, B with input delays, E and the delay factors exp(-s tau), shape (n, n_in) (None: no delays)."""
@@ -500,9 +646,10 @@ class Model:
         return s, M, B * Dl[:, None, :], E, Dl  # pure input delays
 
     def _solved(self, omega, p):
-        """:meth:`_forced_matrices` and :func:`solve_short_period`'s (G, H, P)."""
+        """:meth:`_forced_matrices`, M^-1 and :func:`solve_short_period`'s (G, H, P) for the model's outputs."""
         s, M, Bd, E, Dl = self._forced_matrices(omega, p)
-        return s, M, Bd, E, Dl, solve_short_period(s, M, Bd, E, self.U)
+        inv = _inverse(s, M)
+        return s, M, Bd, E, Dl, inv, _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, p))
 
     def _derivative_stack(self, s, p, names, Bd, Dl):
         """dM (k, n, 2, 2), d(B with delays) (k, n, 2, n_in) and dE (k, 1, 2, 2), one row per name.
@@ -549,10 +696,9 @@ class Model:
     def _fd_sensitivity(self, omega, p, names):
         """Central differences of :meth:`evaluate` (for models without matrices)."""
         resp = self.evaluate(omega, p)
-        n = omega.size
         dG = np.zeros((len(names),) + resp.G.shape, complex)
-        dH = np.zeros((len(names), n, 3, 2), complex)
-        dP = np.zeros((len(names), n, 3, 2), complex)
+        dH = np.zeros((len(names),) + resp.H.shape, complex)
+        dP = np.zeros((len(names),) + resp.P.shape, complex)
         for k, nm in enumerate(names):
             v = p[nm]
             h = 1e-5 * max(abs(v), 1e-2)
@@ -564,10 +710,11 @@ class Model:
         return resp, dG, dH, dP
 
     def frequency_response(self, omega, values: Mapping[str, float] | None = None) -> np.ndarray:
-        """G(j omega, theta), shape (3 outputs, n_in inputs, n omega) (Eq. 18).
+        """G(j omega, theta), shape (n_y outputs, n_in inputs, n omega) (Eq. 18).
 
-        Outputs are alpha (rad), q (rad/s), a_z (g); inputs de (rad) and, for a
-        gust model, alpha_w (rad).  The layout follows python-control.
+        Outputs are the rows of :attr:`outputs`: alpha (rad), q (rad/s), a_z (g)
+        [, theta (rad), qdot (rad/s^2)]; inputs de (rad) and, for a gust model,
+        alpha_w (rad).  The layout follows python-control.
 
         Parameters
         ----------
@@ -579,7 +726,7 @@ class Model:
         Returns
         -------
         numpy.ndarray
-            Complex response, shape (3, n_in, n).
+            Complex response, shape (n_y, n_in, n).
 
         Raises
         ------
@@ -597,7 +744,7 @@ class Model:
         return G
 
     def biases(self, values: Mapping[str, float] | None = None) -> np.ndarray:
-        """Output biases (alpha rad, q rad/s, az g).
+        """Output biases (alpha rad, q rad/s, az g, ...), one per output of :attr:`outputs`.
 
         Parameters
         ----------
@@ -607,10 +754,28 @@ class Model:
         Returns
         -------
         numpy.ndarray
-            The three biases, shape (3,).
+            The biases, shape (n_y,).
         """
         p = self.values(values)
-        return np.array([p[f"bias_{n}"] for n in OUTPUTS])
+        return np.array([p[f"bias_{n}"] for n in self.outputs])
+
+    def with_outputs(self, outputs) -> "Model":
+        """This model predicting ``outputs`` too (:func:`fdml.channels.row_space`), with their output biases.
+
+        Parameters
+        ----------
+        outputs : sequence of str or str
+            Output names (``"theta"``, ``"qdot"``; alpha, q and a_z are always predicted).
+
+        Returns
+        -------
+        Model
+            The model; itself when it already predicts exactly these rows.
+        """
+        rows = _row_space(outputs)
+        if rows == self.outputs:
+            return self
+        return replace(self, outputs=rows, parameters=_rebiased(self.parameters, rows, self.output_bias))
 
     # --- functional updates --------------------------------------------------------
     def with_parameters(self, parameters: Parameters) -> "Model":
@@ -763,4 +928,83 @@ class Model:
         opts = ["gust" if self.gust else "elevator only"]
         if self.output_bias:
             opts.append("output biases")
+        if self.outputs != OUTPUTS:
+            opts.append("outputs " + ",".join(self.outputs))
         return f"{self.kind} model ({', '.join(opts)})"
+
+
+@dataclass(frozen=True, kw_only=True)
+class DescriptorModel(Model):
+    """A model given by its descriptor ``E x' = A x + B0 u + B1 u'`` over x = [alpha, q] (:class:`Descriptor`).
+
+    Subclasses write the descriptor once, in :meth:`_descriptor`; the frequency
+    response (``M = s E - A``, ``B = B0 + s B1``), the sensitivities, the
+    realisation (:func:`fdml.models.realization.realize`) and the export
+    (:func:`fdml.export.descriptor_matrices`) all read it.  Every entry of
+    ``E, A, B0, B1`` is affine in the parameters (jointly), so its derivatives are
+    constants of the model, read once from unit steps (:meth:`_jacobian`).
+
+    Parameters
+    ----------
+    gust, output_bias : bool, optional
+        Add the vertical-gust input alpha_w; free the output biases.
+    parameters : Parameters, optional
+        Overrides the default parameter set.
+    outputs : sequence of str, optional
+        The outputs predicted (see :class:`Model`).
+    """
+
+    def _descriptor(self, p: Mapping[str, float]) -> Descriptor:  # pragma: no cover - abstract
+        """The descriptor at parameter values ``p`` (x = [alpha, q]; channels de[, alpha_w] with their delays)."""
+        raise NotImplementedError
+
+    def descriptor(self, values: Mapping[str, float] | None = None) -> Descriptor:
+        """``E x' = A x + B0 u + B1 u'`` over x = [alpha, q], the model's equations.
+
+        Parameters
+        ----------
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+
+        Returns
+        -------
+        Descriptor
+            E, A (2, 2), B0, B1 (2, n_in) and the input channels with their delays.
+        """
+        return self._descriptor(self.values(values))
+
+    def _channels(self, p: Mapping[str, float]) -> tuple:
+        """The input channels with their delays: ``("de", tau_de)`` [, ``("alpha_w", tau_alpha_w)``]."""
+        return tuple((sig, p[tau]) for sig, tau in zip(self.inputs, self._delay_names()))
+
+    def _matrices(self, s, p):
+        d = self._descriptor(p)
+        M, B = _pencil(s, d.E, d.A, d.B0, d.B1)
+        if B.ndim == 2:  # constant: one (2, n_in) per frequency, writable (a matrix-level effect may change it)
+            B = np.repeat(B[None], s.size, axis=0)
+        return M, B, d.E
+
+    def _matrix_derivatives(self, s, p, names):
+        """The derivatives of the descriptor, constant: ``(dM, dB, dE)`` per name from :attr:`_jacobian`."""
+        out = {}
+        for nm in names:
+            dE, dA, dB0, dB1 = self._jacobian(nm)
+            out[nm] = _pencil(s, dE, dA, dB0, dB1) + (dE if dE.any() else None,)
+        return out
+
+    def _jacobian(self, name: str) -> tuple:
+        """``d(E, A, B0, B1)/d name``: every entry is affine in the parameters jointly, so a unit step from the
+        model's own values gives it exactly (to rounding), once per model."""
+        cache = self.__dict__.setdefault("_jacobians", {})  # frozen dataclass: the cache is not a field
+        if name not in cache:
+            p = self.values()
+            hi, lo = self._descriptor({**p, name: p[name] + 0.5}), self._descriptor({**p, name: p[name] - 0.5})
+            cache[name] = (hi.E - lo.E, hi.A - lo.A, hi.B0 - lo.B0, hi.B1 - lo.B1)
+        return cache[name]
+
+
+def _pencil(s: np.ndarray, E, A, B0, B1) -> tuple:
+    """``(s E - A, B0 + s B1)`` over the frequencies; a constant term stays (2, .) where it does not depend on s."""
+    S = s[:, None, None]
+    M = S * E - A if E.any() else -A
+    return M, (B0 + S * B1 if B1.any() else B0.astype(complex))

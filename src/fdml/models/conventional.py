@@ -20,7 +20,7 @@ import numpy as np
 from ..aircraft import MAX_AIRSPEED, Aircraft
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters
-from .base import _EYE2, Model
+from .base import Descriptor, DescriptorModel, Model
 from .wells_keskar import ALTERNATE_INPUTS, alternate_set, placeholder_sources
 
 __all__ = ["DerivativesModel", "DimensionalModel", "to_dimensional"]
@@ -57,7 +57,7 @@ def to_dimensional(d: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
 
 
 @dataclass(frozen=True, kw_only=True)
-class DerivativesModel(Model):
+class DerivativesModel(DescriptorModel):
     """Six non-dimensional derivatives, optionally with Cz_adot and Cm_adot.
 
     Equations (docs/theory.md section 6, "steady" model), with k_z = rho U S/(2m),
@@ -75,6 +75,8 @@ class DerivativesModel(Model):
         Add the vertical-gust input alpha_w; free the output biases.
     parameters : Parameters, optional
         Overrides the default parameter set.
+    outputs : sequence of str, optional
+        Outputs beyond alpha, q and a_z to predict (``theta``, ``qdot``; :meth:`Model.with_outputs`).
     aircraft : Aircraft
         Geometry, mass and flight condition (k_z, k_m, chord, airspeed).
     adot : bool, optional
@@ -122,57 +124,17 @@ class DerivativesModel(Model):
         ]
         return Parameters(tuple(items))
 
-    def _matrices(self, s, p):
+    def _descriptor(self, p) -> Descriptor:
+        """E, A, B0, B1 of the equations above; the gust enters as aerodynamic angle of attack, and its rate
+        in the alpha-dot terms."""
         ac = self.aircraft
         kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
-        n = s.size
         E = np.array([[1.0 - kz * p["Cz_adot"] * cu, 0.0], [-km * p["Cm_adot"] * cu, 1.0]])
         A = np.array([[kz * p["Cz_a"], 1.0 + kz * p["Cz_q"] * cu], [km * p["Cm_a"], km * p["Cm_q"] * cu]])
-        M = s[:, None, None] * E - A  # M = sE - A
-        n_in = 2 if self.gust else 1
-        B = np.empty((n, 2, n_in), dtype=complex)
-        B[:, 0, 0] = kz * p["Cz_de"]
-        B[:, 1, 0] = km * p["Cm_de"]
-        if self.gust:
-            B[:, 0, 1] = kz * (p["Cz_a"] + p["Cz_adot"] * cu * s)
-            B[:, 1, 1] = km * (p["Cm_a"] + p["Cm_adot"] * cu * s)
-        return M, B, E
-
-    def _matrix_derivatives(self, s, p, names):
-        """Closed forms: M = sE - A and B are linear in every derivative."""
-        ac = self.aircraft
-        kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
-        n, n_in = s.size, (2 if self.gust else 1)
-        # name -> (M entries (i, j, value), B entries (i, j, value), E entries (i, j, value))
-        table = {
-            "Cz_a": ([(0, 0, -kz)], [(0, 1, kz)], []),
-            "Cz_q": ([(0, 1, -kz * cu)], [], []),
-            "Cz_de": ([], [(0, 0, kz)], []),
-            "Cm_a": ([(1, 0, -km)], [(1, 1, km)], []),
-            "Cm_q": ([(1, 1, -km * cu)], [], []),
-            "Cm_de": ([], [(1, 0, km)], []),
-            "Cz_adot": ([(0, 0, -kz * cu * s)], [(0, 1, kz * cu * s)], [(0, 0, -kz * cu)]),
-            "Cm_adot": ([(1, 0, -km * cu * s)], [(1, 1, km * cu * s)], [(1, 0, -km * cu)]),
-        }
-        out = super()._matrix_derivatives(s, p, [nm for nm in names if nm not in table])
-        for nm in names:
-            if nm not in table:
-                continue
-            dM = np.zeros((n, 2, 2), complex)
-            dB = np.zeros((n, 2, n_in), complex)
-            ms, bs, es = table[nm]
-            for i, j, v in ms:
-                dM[:, i, j] = v
-            for i, j, v in bs:
-                if j < n_in:
-                    dB[:, i, j] = v
-            dE = None
-            if es:
-                dE = np.zeros((2, 2))
-                for i, j, v in es:
-                    dE[i, j] = v
-            out[nm] = (dM, dB, dE)
-        return out
+        B0 = np.array([[kz * p["Cz_de"], kz * p["Cz_a"]], [km * p["Cm_de"], km * p["Cm_a"]]])
+        B1 = np.array([[0.0, kz * p["Cz_adot"] * cu], [0.0, km * p["Cm_adot"] * cu]])
+        n_in = len(self.inputs)
+        return Descriptor(E, A, B0[:, :n_in], B1[:, :n_in], self._channels(p))
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         """Dimensional equivalents Z_a, Z_q, Z_de, M_a, M_q, M_de.
@@ -191,7 +153,7 @@ class DerivativesModel(Model):
 
 
 @dataclass(frozen=True, kw_only=True)
-class DimensionalModel(Model):
+class DimensionalModel(DescriptorModel):
     """Dimensional short-period model (SIDPAC / Jategaonkar form).
 
     Parameters
@@ -200,6 +162,8 @@ class DimensionalModel(Model):
         Add the vertical-gust input alpha_w; free the output biases.
     parameters : Parameters, optional
         Overrides the default parameter set.
+    outputs : sequence of str, optional
+        Outputs beyond alpha, q and a_z to predict (``theta``, ``qdot``; :meth:`Model.with_outputs`).
     airspeed : float, optional
         Airspeed U, m/s (needed for a_z, Eq. 5); without it, the
         ``aircraft``'s U.
@@ -246,46 +210,11 @@ class DimensionalModel(Model):
         units = {"Z_a": "1/s", "Z_q": "-", "Z_de": "1/s", "M_a": "1/s^2", "M_q": "1/s", "M_de": "1/s^2"}
         return Parameters(tuple(Parameter(k, start[k], unit=units[k]) for k in _GENERIC_DIMENSIONAL))
 
-    def _matrices(self, s, p):
-        n = s.size
+    def _descriptor(self, p) -> Descriptor:
+        """E = I, A, B0 of the equations above (B1 = 0); the gust enters like alpha."""
         A = np.array([[p["Z_a"], 1.0 + p["Z_q"]], [p["M_a"], p["M_q"]]])
-        M = s[:, None, None] * _EYE2 - A
-        n_in = 2 if self.gust else 1
-        B = np.empty((n, 2, n_in), dtype=complex)
-        B[:, 0, 0] = p["Z_de"]
-        B[:, 1, 0] = p["M_de"]
-        if self.gust:
-            B[:, 0, 1] = p["Z_a"]
-            B[:, 1, 1] = p["M_a"]
-        return M, B, np.eye(2)
-
-    def _matrix_derivatives(self, s, p, names):
-        """Closed forms: M = sI - A and B hold the derivatives themselves."""
-        n, n_in = s.size, (2 if self.gust else 1)
-        table = {
-            "Z_a": ((0, 0), (0, 1)),
-            "Z_q": ((0, 1), None),
-            "Z_de": (None, (0, 0)),
-            "M_a": ((1, 0), (1, 1)),
-            "M_q": ((1, 1), None),
-            "M_de": (None, (1, 0)),
-        }
-        out = super()._matrix_derivatives(s, p, [nm for nm in names if nm not in table])
-        for nm in names:
-            if nm not in table:
-                continue
-            dM = np.zeros((n, 2, 2), complex)
-            dB = np.zeros((n, 2, n_in), complex)
-            mi, bi = table[nm]
-            if mi is not None:
-                dM[:, mi[0], mi[1]] = -1.0
-            if nm in ("Z_a", "M_a"):
-                if self.gust:
-                    dB[:, bi[0], bi[1]] = 1.0  # the gust enters like alpha
-            elif bi is not None:
-                dB[:, bi[0], bi[1]] = 1.0
-            out[nm] = (dM, dB, None)
-        return out
+        B0 = np.array([[p["Z_de"], p["Z_a"]], [p["M_de"], p["M_a"]]])[:, : len(self.inputs)]
+        return Descriptor(np.eye(2), A, B0, np.zeros_like(B0), self._channels(p))
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         """Non-dimensional derivatives when an aircraft is attached, else empty.

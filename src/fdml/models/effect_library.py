@@ -29,6 +29,12 @@ unmeasured_gust        alpha,q,az turbulence sigma_w along the model's gust colu
 Effect sizes are in physical units (s, m, -, rad/s per rad ...); each
 parameter carries a plausible range used by the identifiability screen
 (minimum detectable effect) and the plausibility check.
+
+Each effect's validation truth, the time-domain simulation the diagnosis is
+checked against, is written independently of the code here, on purpose: see
+:data:`fdml.diagnose.truth.TRUTHS`, keyed like the registry (an effect that
+frees a model parameter is simulated as that model; the lags of the
+dimensional and derivatives models have no truth).
 """
 
 from __future__ import annotations
@@ -39,8 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from ..channels import INPUT, OUTPUTS
-from ..constants import G0
+from ..channels import INPUT, OUTPUTS, STATIONS
 from ..errors import ParameterError
 from .augment import (
     Effect,
@@ -56,15 +61,13 @@ from .kinds import make_model
 from .realization import (
     _pad_states,
     add_mode,
-    add_output_rate,
     delay_output,
     filter_input,
-    mix_output,
     scale_output,
 )
 from .wells_keskar import SteadyModel
 
-__all__ = ["Dispatch", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
+__all__ = ["Dispatch", "StationEffect", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
 
 #: R. T. Jones' one-term lift-lag rate for an AR 6 elliptic wing, per semichord
 #: (docs/theory.md section 2, [MEM]); used when the aircraft gives none.
@@ -128,9 +131,6 @@ class Dispatch(Effect):
 
     def augment(self, model):
         return self.impl(model).augment(model)
-
-    def simulate(self, t, signals, values, model):
-        return self.impl(model).simulate(t, signals, values, model)
 
 
 # --- base-model helpers ----------------------------------------------------------------------
@@ -700,31 +700,34 @@ ACTUATOR_LAG = OutputEffect(
 # --- sensor position ---------------------------------------------------------------------------
 
 
-def _accel_offset(s, p, G, H, P, root):
-    k = -p["x_az"] / G0  # a_z at x ahead of the c.g. = a_z - x q_dot / g
-    G, H, P = G.copy(), H.copy(), P.copy()
-    G[:, 2] = G[:, 2] + k * s[:, None] * G[:, 1]
-    P[:, 2] = P[:, 2] + k * s[:, None] * P[:, 1]
-    H[:, 2] = H[:, 2] + k * s[:, None] * H[:, 1]
-    H[:, 2, 1] = H[:, 2, 1] - k  # finite transform of q_dot is s q~ - d_q (Klein boundary term)
-    return G, H, P
+class StationEffect(MatrixEffect):
+    """A sensor's station, m ahead of the c.g.: a term of its output's row (:data:`fdml.channels.OUTPUT_TABLE`).
+
+    The model reads the parameter where it forms its output rows, in the frequency response and in
+    the realisation alike, so nothing acts here on the matrices or on a response, and the order of
+    the effects does not matter (the sensor sees the true motion).  Evaluated through the model as
+    a matrix-level effect is, never applied to a response by itself.
+
+    Parameters
+    ----------
+    channel : str
+        The output (a key of :data:`fdml.channels.STATIONS`).
+    param : Param
+        Its station, m.
+    signature : str
+        One line on where the effect shows, for reports.
+    """
+
+    def __init__(self, channel: str, param: Param, signature: str):
+        super().__init__("sensor_offset", channel, (param,), _unchanged, signature=signature, realize=_as_is)
 
 
-def _vane_offset(s, p, G, H, P, root):
-    k = -p["x_alpha"] / root.U  # alpha at x ahead of the c.g. = alpha - x q / U
-    G, H, P = G.copy(), H.copy(), P.copy()
-    G[:, 0] = G[:, 0] + k * G[:, 1]
-    H[:, 0] = H[:, 0] + k * H[:, 1]
-    P[:, 0] = P[:, 0] + k * P[:, 1]
-    return G, H, P
+def _unchanged(s, p, M, B, E, root):
+    return M, B, E
 
 
-def _accel_offset_realize(sys, p, root):
-    return add_output_rate(sys, 2, 1, -p["x_az"] / G0)  # a_z - x q_dot / g
-
-
-def _vane_offset_realize(sys, p, root):
-    return mix_output(sys, 0, 1, -p["x_alpha"] / root.U)  # alpha - x q / U
+def _as_is(target, p, root):
+    return target  # the realisation's rows read the station (fdml.models.realization._with_outputs)
 
 
 def _lever_arm(name: str, sensor: str, plausible: float, why: str) -> Param:
@@ -741,21 +744,15 @@ def _lever_arm(name: str, sensor: str, plausible: float, why: str) -> Param:
     )
 
 
-SENSOR_OFFSET_AZ = OutputEffect(
-    "sensor_offset",
+SENSOR_OFFSET_AZ = StationEffect(
     "az",
-    (_lever_arm("x_az", "accelerometer", 8.0, "an accelerometer package sits within a few metres of the c.g."),),
-    _accel_offset,
-    signature="a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
-    realize=_accel_offset_realize,
+    _lever_arm(STATIONS["az"], "accelerometer", 8.0, "an accelerometer package sits within a few metres of the c.g."),
+    "a_z picks up -x q_dot/g: phase lead and rising magnitude on a_z",
 )
-SENSOR_OFFSET_ALPHA = OutputEffect(
-    "sensor_offset",
+SENSOR_OFFSET_ALPHA = StationEffect(
     "alpha",
-    (_lever_arm("x_alpha", "alpha vane", 25.0, "a nose-boom vane can sit 20 m ahead on a transport aircraft"),),
-    _vane_offset,
-    signature="alpha picks up -x q/U: phase change on alpha",
-    realize=_vane_offset_realize,
+    _lever_arm(STATIONS["alpha"], "alpha vane", 25.0, "a nose-boom vane can sit 20 m ahead on a transport aircraft"),
+    "alpha picks up -x q/U: phase change on alpha",
 )
 
 

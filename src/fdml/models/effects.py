@@ -26,7 +26,7 @@ unsteady model with every lag switched off, which is the same model
 
 A user adds an effect in a few lines::
 
-    from fdml.diagnose import OutputEffect, Param, register_effect
+    from fdml.models.effects import OutputEffect, Param, register_effect, scale_rows
 
     def gyro_lag(s, p, G, H, P, model):
         f = 1.0 / (1.0 + s * p["T_gyro"])
@@ -36,9 +36,11 @@ A user adds an effect in a few lines::
                     plausible=(0.0, 0.1), unit="s"),), gyro_lag))
 
 Everything here is a pure function of ``s = j omega`` (rad/s) vectorised over
-frequency.  The effect classes live in :mod:`fdml.models.augment` (re-exported here), the
-built-in effects in :mod:`fdml.models.effect_library`; this module holds the registry and fills
-it from the library once, at import.
+frequency.  This module is the effects' one public home: the classes, defined in
+:mod:`fdml.models.augment` below the library, are published here beside the registry, which it
+fills from the built-in effects of :mod:`fdml.models.effect_library` once, at import.  Each
+built-in effect's validation truth is simulated independently of its code, on purpose, in
+:mod:`fdml.diagnose.truth` (see :class:`Effect`).
 """
 
 from __future__ import annotations
@@ -223,7 +225,7 @@ def assemble(root: Model, keys: Sequence[str]) -> Model:
         if impl is None:
             raise ParameterError(f"effect {eff.key} is not defined for the {root.kind} model")
         parts.append(impl)
-        if isinstance(impl, OutputEffect):
+        if isinstance(impl, (OutputEffect, MatrixEffect)):  # applied; a freed parameter is in root
             applied.append(impl)
     if not parts:
         return root
@@ -284,7 +286,7 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
     """
     if not isinstance(model, AugmentedModel) or not model.requested:
         return []
-    rows = [OUTPUTS.index(o) for o in outputs]
+    rows = [model.outputs.index(o) for o in outputs]
     free = list(model.parameters.free_model_names)
     if not free:  # every parameter fixed (a prediction): nothing to confound
         return []

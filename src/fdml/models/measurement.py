@@ -4,18 +4,21 @@ The output spectra of one record are modelled as (docs/theory.md Eqs. 18-19, wit
 Klein's boundary terms of section 7)
 
     y(w) = G(w) u(w) + H(w) d(w) + b 1(w) + P(w) f 1(w) + G_de(w) b_de 1(w),
-    d(w) = x(0) - x(T) exp(-j w T),        x = [alpha, q],
+    d(w) = x(0) - x(T) exp(-j w T),        x = [alpha, q (, theta)],
 
 with ``G``, ``H``, ``P`` a :class:`~fdml.models.base.ModelResponse`, ``u`` the
 input spectra, ``1(w)`` the transform of a unit constant over the record
-(``FrequencyData.ones``), ``b`` the output biases (alpha rad, q rad/s, a_z g),
+(``FrequencyData.ones``), ``b`` the output biases (alpha rad, q rad/s, a_z g, one per
+output of the response's rows),
 ``f`` the state-equation biases (constants added to the alpha_dot and q_dot
 equations, rad/s and rad/s^2), ``b_de`` an elevator offset (rad) and ``d`` the
-boundary vector.  The measured spectra are ``z = y + v`` (Eq. 19).
+boundary vector of the states and of each integral output (theta,
+:func:`fdml.channels.boundary_channels`).  The measured spectra are ``z = y + v`` (Eq. 19).
 
 Every nuisance quantity enters linearly, so its sensitivity is exact:
-:func:`nuisance_columns` gives ``dy/d eta`` for the ten per-record nuisance
-values ``eta`` in the order of :data:`NUISANCE_NAMES`, and :func:`predict`
+:func:`nuisance_columns` gives ``dy/d eta`` for the per-record nuisance
+values ``eta`` in the order of :func:`nuisance_names` (:data:`NUISANCE_NAMES` for the
+three outputs alpha, q, a_z: ten values), and :func:`predict`
 with ``biases=None`` is linear in the response, so the sensitivity of ``y`` to
 a model parameter is ``predict`` of the response's derivative.  The estimator
 (:class:`fdml.estimate.Problem`), the saved result
@@ -30,6 +33,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..channels import OUTPUTS, STATES, boundary_channels
+
 __all__ = [
     "BOUNDARY_NAMES",
     "INPUT_BIAS_NAME",
@@ -40,19 +45,41 @@ __all__ = [
     "boundary_vector",
     "end_shift",
     "nuisance_columns",
+    "nuisance_names",
     "predict",
 ]
 
-#: Output biases b: alpha (rad), q (rad/s), a_z (g).
-OUTPUT_BIAS_NAMES = ("bias_alpha", "bias_q", "bias_az")
-#: Boundary values of section 7: x(0) and x(T) of alpha (rad) and q (rad/s).
-BOUNDARY_NAMES = ("x0_alpha", "x0_q", "xT_alpha", "xT_q")
 #: State-equation biases f: alpha_dot (rad/s) and q_dot (rad/s^2) equations.
-STATE_BIAS_NAMES = ("bias_alpha_dot", "bias_q_dot")
+STATE_BIAS_NAMES = tuple(f"bias_{x}_dot" for x in STATES)
 #: Elevator offset b_de (rad).
 INPUT_BIAS_NAME = "bias_de"
-#: Per-record nuisance values, in the column order of :func:`nuisance_columns`.
-NUISANCE_NAMES = OUTPUT_BIAS_NAMES + BOUNDARY_NAMES + STATE_BIAS_NAMES + (INPUT_BIAS_NAME,)
+
+
+def nuisance_names(rows=OUTPUTS) -> tuple[str, ...]:
+    """The per-record nuisance values of outputs ``rows``, in the column order of :func:`nuisance_columns`.
+
+    Parameters
+    ----------
+    rows : sequence of str, optional
+        The output rows (default alpha, q, a_z).
+
+    Returns
+    -------
+    tuple of str
+        Output biases ``bias_<output>``, boundary values ``x0_<channel>`` then ``xT_<channel>``
+        (:func:`fdml.channels.boundary_channels`), :data:`STATE_BIAS_NAMES`, :data:`INPUT_BIAS_NAME`.
+    """
+    bounds = boundary_channels(rows)
+    ends = tuple(f"{end}_{c}" for end in ("x0", "xT") for c in bounds)
+    return tuple(f"bias_{o}" for o in rows) + ends + STATE_BIAS_NAMES + (INPUT_BIAS_NAME,)
+
+
+#: Per-record nuisance values of alpha, q and a_z, in the column order of :func:`nuisance_columns`.
+NUISANCE_NAMES = nuisance_names()
+#: Output biases b: alpha (rad), q (rad/s), a_z (g).
+OUTPUT_BIAS_NAMES = NUISANCE_NAMES[: len(OUTPUTS)]
+#: Boundary values of section 7: x(0) and x(T) of alpha (rad) and q (rad/s).
+BOUNDARY_NAMES = NUISANCE_NAMES[len(OUTPUTS) : len(OUTPUTS) + 2 * len(STATES)]
 
 
 class Nuisance(NamedTuple):
@@ -60,11 +87,11 @@ class Nuisance(NamedTuple):
 
     Parameters
     ----------
-    biases : ndarray, shape (3,)
-        Output biases b (alpha rad, q rad/s, a_z g).
-    x0, xT : ndarray, shape (2,), or None, optional
-        Boundary values x(0), x(T) of [alpha rad, q rad/s]; None without
-        boundary terms (``boundary="none"``).
+    biases : ndarray, shape (n_y,)
+        Output biases b (alpha rad, q rad/s, a_z g, ...).
+    x0, xT : ndarray, shape (n_b,), or None, optional
+        Boundary values x(0), x(T) of [alpha rad, q rad/s (, theta rad)]; None
+        without boundary terms (``boundary="none"``).
     state_biases : ndarray, shape (2,), or None, optional
         State-equation biases f (rad/s, rad/s^2); None when not in the model.
     input_bias : float or None, optional
@@ -78,19 +105,23 @@ class Nuisance(NamedTuple):
     input_bias: float | None = None
 
     @classmethod
-    def from_vector(cls, eta: np.ndarray, *, boundary: bool, state_biases: bool, input_bias: bool) -> Nuisance:
-        """From the ten values ``eta`` in :data:`NUISANCE_NAMES` order; flags say which terms are on.
+    def from_vector(
+        cls, eta: np.ndarray, *, boundary: bool, state_biases: bool, input_bias: bool, rows=OUTPUTS
+    ) -> Nuisance:
+        """From the values ``eta`` in :func:`nuisance_names` order; flags say which terms are on.
 
         Parameters
         ----------
         eta : numpy.ndarray
-            The ten nuisance values, shape (10,), each in its unit.
+            The nuisance values of ``rows``, each in its unit (ten for alpha, q, a_z).
         boundary : bool
             Keep the boundary values x(0), x(T).
         state_biases : bool
             Keep the state-equation biases.
         input_bias : bool
             Keep the elevator offset.
+        rows : sequence of str, optional
+            The output rows (default alpha, q, a_z).
 
         Returns
         -------
@@ -98,12 +129,14 @@ class Nuisance(NamedTuple):
             The values, None for the terms that are off.
         """
         eta = np.asarray(eta, float)
+        ny, nb = len(rows), len(boundary_channels(rows))
+        b = ny + 2 * nb  # first state bias
         return cls(
-            biases=eta[0:3],
-            x0=eta[3:5] if boundary else None,
-            xT=eta[5:7] if boundary else None,
-            state_biases=eta[7:9] if state_biases else None,
-            input_bias=float(eta[9]) if input_bias else None,
+            biases=eta[:ny],
+            x0=eta[ny : ny + nb] if boundary else None,
+            xT=eta[ny + nb : b] if boundary else None,
+            state_biases=eta[b : b + 2] if state_biases else None,
+            input_bias=float(eta[b + 2]) if input_bias else None,
         )
 
     def boundary(self, shift: np.ndarray) -> np.ndarray | None:
@@ -117,7 +150,7 @@ class Nuisance(NamedTuple):
         Returns
         -------
         numpy.ndarray or None
-            The boundary vector, complex, shape (m, 2).
+            The boundary vector, complex, shape (m, n_b).
         """
         return None if self.x0 is None or self.xT is None else boundary_vector(self.x0, self.xT, shift)
 
@@ -145,15 +178,15 @@ def boundary_vector(x0: np.ndarray, xT: np.ndarray, shift: np.ndarray) -> np.nda
 
     Parameters
     ----------
-    x0, xT : ndarray, shape (2,)
-        The states alpha (rad) and q (rad/s) at t = 0 and t = T.
+    x0, xT : ndarray, shape (n_b,)
+        The boundary channels alpha (rad), q (rad/s)[, theta (rad)] at t = 0 and t = T.
     shift : ndarray, complex, shape (m,)
         ``exp(-j w T)`` (:func:`end_shift`).
 
     Returns
     -------
-    ndarray, complex, shape (m, 2)
-        The boundary vector, alpha (rad) and q (rad/s) per frequency.
+    ndarray, complex, shape (m, n_b)
+        The boundary vector per frequency, in the channels' units.
     """
     return x0[None, :] - xT[None, :] * shift[:, None]
 
@@ -172,7 +205,7 @@ def predict(
     Parameters
     ----------
     response : ModelResponse or any object with ``G``, ``H``, ``P``
-        ``G`` of shape (..., m, 3, n_in), ``H`` and ``P`` (..., m, 3, 2); any
+        ``G`` of shape (..., m, n_y, n_in), ``H`` (..., m, n_y, n_b) and ``P`` (..., m, n_y, 2); any
         leading axes (e.g. one per parameter for derivatives of the response)
         broadcast.  ``H`` is read only with ``boundary``, ``P`` only with
         ``state_biases``.
@@ -180,10 +213,10 @@ def predict(
         Input spectra (elevator rad s, gust angle rad s).
     ones : ndarray, complex, shape (m,)
         Transform of a unit constant over the record, s.
-    boundary : ndarray, complex, shape (m, 2), optional
+    boundary : ndarray, complex, shape (m, n_b), optional
         Boundary vector d (:func:`boundary_vector`); None for no boundary terms.
-    biases : ndarray, shape (3,), optional
-        Output biases (alpha rad, q rad/s, a_z g).  Leave None for the
+    biases : ndarray, shape (n_y,), optional
+        Output biases (alpha rad, q rad/s, a_z g, ...).  Leave None for the
         derivative of ``y`` with respect to a model parameter: the result is
         then linear in ``response``.
     state_biases : ndarray, shape (2,), optional
@@ -194,8 +227,8 @@ def predict(
 
     Returns
     -------
-    ndarray, complex, shape (..., m, 3)
-        The output spectra alpha (rad s), q (rad), a_z (g s).
+    ndarray, complex, shape (..., m, n_y)
+        The output spectra alpha (rad s), q (rad), a_z (g s), ...
     """
     G = response.G
     y = (G @ u[:, :, None])[..., 0]
@@ -213,7 +246,7 @@ def predict(
 def nuisance_columns(response, shift: np.ndarray, ones: np.ndarray) -> np.ndarray:
     """Exact sensitivities ``dy/d eta`` of :func:`predict` to the nuisance values.
 
-    Columns in :data:`NUISANCE_NAMES` order: output biases ``e_k 1(w)``;
+    Columns in :func:`nuisance_names` order of the response's rows: output biases ``e_k 1(w)``;
     x(0): ``H``; x(T): ``-H exp(-j w T)`` (from ``d = x(0) - x(T) exp(-j w T)``);
     state-equation biases ``P 1(w)``; elevator offset ``G_de 1(w)``.  Every
     term is linear in its value, so ``predict`` with nuisance values ``eta``
@@ -222,7 +255,7 @@ def nuisance_columns(response, shift: np.ndarray, ones: np.ndarray) -> np.ndarra
     Parameters
     ----------
     response : ModelResponse
-        ``G`` (m, 3, n_in), ``H`` and ``P`` (m, 3, 2).
+        ``G`` (m, n_y, n_in), ``H`` (m, n_y, n_b) and ``P`` (m, n_y, 2).
     shift : ndarray, complex, shape (m,)
         ``exp(-j w T)`` (:func:`end_shift`).
     ones : ndarray, complex, shape (m,)
@@ -230,15 +263,17 @@ def nuisance_columns(response, shift: np.ndarray, ones: np.ndarray) -> np.ndarra
 
     Returns
     -------
-    ndarray, complex, shape (m, 3, 10)
+    ndarray, complex, shape (m, n_y, n_y + 2 n_b + 3)
         Per frequency and output, the derivative with respect to each nuisance value.
     """
     m = shift.size
-    C = np.zeros((m, 3, len(NUISANCE_NAMES)), complex)
-    k = np.arange(3)
+    ny, nb = response.H.shape[1:]
+    b = ny + 2 * nb  # first state bias
+    C = np.zeros((m, ny, b + 3), complex)
+    k = np.arange(ny)
     C[:, k, k] = ones[:, None]
-    C[:, :, 3:5] = response.H
-    C[:, :, 5:7] = -response.H * shift[:, None, None]
-    C[:, :, 7:9] = response.P * ones[:, None, None]
-    C[:, :, 9] = response.G[:, :, 0] * ones[:, None]
+    C[:, :, ny : ny + nb] = response.H
+    C[:, :, ny + nb : b] = -response.H * shift[:, None, None]
+    C[:, :, b : b + 2] = response.P * ones[:, None, None]
+    C[:, :, b + 2] = response.G[:, :, 0] * ones[:, None]
     return C

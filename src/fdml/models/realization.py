@@ -1,13 +1,15 @@
 """Finite-state realisation of a model, composed through its effects.
 
 The state space every model kind and effect builds (:class:`Realization`,
-:func:`realize`): the base model's (the conventional descriptor form, the
-Wells-Keskar finite-state form of docs/theory.md section 4 with the gust lags of
-section 8), the matrix-level effects inside it, then the output-level effects
-by the state-space algebra below (docs/theory.md Eq. 5 for a_z).  It lives in the
-model layer, below :mod:`fdml.models.effects` and :mod:`fdml.simulate` (the
-time-domain simulator that integrates it), so that the effects and the models
-reach it without importing upward.
+:func:`realize`): the base model's (the descriptor a
+:class:`~fdml.models.base.DescriptorModel` gives, the Wells-Keskar finite-state form
+of docs/theory.md section 4 with the gust lags of section 8), the matrix-level
+effects inside it, the output rows of :data:`fdml.channels.OUTPUT_TABLE` (an
+integrator state per integral output, theta), then the output-level effects by the
+state-space algebra below.  It lives in the model layer, below
+:mod:`fdml.models.effects` and :mod:`fdml.simulate` (the time-domain simulator
+that integrates it), so that the effects and the models reach it without
+importing upward.
 """
 
 from __future__ import annotations
@@ -17,19 +19,18 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..aero import get_indicial
-from ..constants import G0
+from ..channels import OUTPUTS
 from ..errors import ParameterError
 from .augment import MatrixEffect, applied_effects, root_model
+from .base import Descriptor, output_rows
 
 __all__ = [
     "Descriptor",
     "Realization",
     "realize",
     "add_mode",
-    "add_output_rate",
     "delay_output",
     "filter_input",
-    "mix_output",
     "scale_output",
 ]
 
@@ -39,7 +40,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class _System:
-    """``x' = A x + B u + bF eps_F``, ``y = C x + D u + Dd u' + dF eps_F`` (y = alpha, q, a_z).
+    """``x' = A x + B u + bF eps_F``, ``y = C x + D u + Dd u' + dF eps_F`` (y: the rows ``outputs``).
 
     ``u`` are the input channels ``(signal name, delay s)``.  When ``kappa`` is
     nonzero, ``eps_F = kappa PV int alpha_dot(tau)/(t - tau - T) dtau`` with
@@ -59,67 +60,51 @@ class _System:
     rF: float = 0.0
     T: float = 0.0
     kappa: float = 0.0
-    #: Pure delays of the output channels (alpha, q, a_z), s: y_i(t) = (C x + D u + ...)_i(t - d_i).
+    #: Pure delays of the outputs, s: y_i(t) = (C x + D u + ...)_i(t - d_i).
     out_delay: tuple = (0.0, 0.0, 0.0)
+    #: The output rows, in order.
+    outputs: tuple = OUTPUTS
 
 
-@dataclass(frozen=True)
-class Descriptor:
-    """``E x' = A x + B0 u + B1 u'`` with x = [alpha, q, extra states...] and input channels.
+def _with_outputs(A, B, bF, value, rate, rows, U, p) -> dict:
+    """The output rows of ``rows`` (:func:`fdml.models.base.output_rows`) on ``x' = A x + B u + bF eps_F``.
 
-    The form of the conventional models (and of the matrix-level effects that
-    act on them, :meth:`fdml.models.effects.MatrixEffect.realize`); the outputs
-    are alpha = x_0, q = x_1 and a_z = (U/g)(alpha' - q) (docs/theory.md Eq. 5).
-
-    Parameters
-    ----------
-    E, A : numpy.ndarray
-        Shape (n, n): the descriptor and state matrices.
-    B0, B1 : numpy.ndarray
-        Shape (n, n_channels): input and input-rate matrices.
-    channels : tuple of (str, float)
-        Input channels: signal name and delay, s.
+    ``value`` and ``rate`` (2, ns + 2 nu + 1) are the linear forms of (alpha, q) and
+    of (alpha', q') over [x | u | u' | eps_F].  Each integral row gets a state
+    ``z' = i . (alpha, q)`` from rest, appended after the others.  Returns the
+    ``_System`` fields A, B, bF, C, D, Dd, dF, out_delay, outputs.
     """
-
-    E: np.ndarray
-    A: np.ndarray
-    B0: np.ndarray
-    B1: np.ndarray
-    channels: tuple
-
-    def with_state(self, a_row: np.ndarray, a_col: np.ndarray) -> "Descriptor":
-        """One more state ``x_n`` with ``x_n' = a_row . [x, x_n]`` feeding ``A[:, n] = a_col`` (E_nn = 1).
-
-        Parameters
-        ----------
-        a_row : numpy.ndarray
-            Shape (n + 1,): the new state's row of A.
-        a_col : numpy.ndarray
-            Shape (n,): how the new state enters the old states' equations.
-
-        Returns
-        -------
-        Descriptor
-            The system with n + 1 states.
-        """
-        n = self.A.shape[0]
-        E = np.eye(n + 1)
-        E[:n, :n] = self.E
-        A = np.zeros((n + 1, n + 1))
-        A[:n, :n] = self.A
-        A[:n, n] = a_col
-        A[n] = a_row
-        pad = np.zeros((1, self.B0.shape[1]))
-        return Descriptor(E, A, np.vstack([self.B0, pad]), np.vstack([self.B1, pad]), self.channels)
+    ns, nu = B.shape
+    V, R, I = output_rows(rows, U, p)
+    Y = V @ value + R @ rate
+    own = np.flatnonzero(I.any(axis=1))
+    Z = I[own] @ value  # the integrators' derivatives, over [x | u | u' | eps_F] (no u', no eps_F)
+    k = own.size
+    A2 = np.zeros((ns + k, ns + k))
+    A2[:ns, :ns] = A
+    A2[ns:, :ns] = Z[:, :ns]
+    Cz = np.zeros((len(rows), k))
+    Cz[own, np.arange(k)] = 1.0
+    return dict(
+        A=A2,
+        B=np.vstack([B, Z[:, ns : ns + nu]]),
+        bF=np.concatenate([bF, np.zeros(k)]),
+        C=np.hstack([Y[:, :ns], Cz]),
+        D=Y[:, ns : ns + nu],
+        Dd=Y[:, ns + nu : ns + 2 * nu],
+        dF=Y[:, -1],
+        out_delay=(0.0,) * len(rows),
+        outputs=tuple(rows),
+    )
 
 
-def _from_descriptor(d: Descriptor, U: float) -> _System:
-    """Proper state space of ``E x' = A x + B0 u + B1 u'`` (x_0 = alpha, x_1 = q).
+def _from_descriptor(d: Descriptor, model, p) -> _System:
+    """Proper state space of ``E x' = A x + B0 u + B1 u'`` (x_0 = alpha, x_1 = q) with ``model``'s outputs.
 
     With ``xi = x - E^-1 B1 u``: ``xi' = E^-1 A xi + E^-1 (B0 + A E^-1 B1) u``,
-    so the states never see u' (and are alpha, q themselves when B1 = 0).
-    Only a_z = (U/g)(alpha' - q) keeps a direct feedthrough
-    ``(U/g) e_alpha^T E^-1 B1 u'`` when B1 has an alpha row.
+    so the states never see u' (and are alpha, q themselves when B1 = 0).  Only
+    an output of the states' rates (a_z, q_dot) keeps a direct feedthrough of u'
+    when B1 is nonzero.
     """
     E, A, B0, B1 = d.E, d.A, d.B0, d.B1
     Ei = np.linalg.inv(E)
@@ -127,50 +112,20 @@ def _from_descriptor(d: Descriptor, U: float) -> _System:
     Ax = Ei @ A
     D12 = Ei @ B1  # x = xi + D12 u
     Bx = Ei @ (B0 + A @ D12)
-    k = U / G0  # Eq. 5
-    C = np.zeros((3, n))
-    D = np.zeros((3, nu))
-    Dd = np.zeros((3, nu))
-    C[:2] = np.eye(n)[:2]
-    D[:2] = D12[:2]
-    C[2] = k * (Ax[0] - C[1])
-    D[2] = k * (Bx[0] - D[1])
-    Dd[2] = k * D12[0]
+    value = np.hstack([np.eye(n)[:2], D12[:2], np.zeros((2, nu + 1))])
+    rate = np.hstack([Ax[:2], Bx[:2], D12[:2], np.zeros((2, 1))])
     zeros = np.zeros(n)
-    return _System(Ax, Bx, C, D, Dd, tuple(d.channels), zeros, np.zeros(3), zeros, np.zeros(nu))
+    out = _with_outputs(Ax, Bx, zeros, value, rate, model.outputs, model.U, p)
+    rx = np.zeros(out["A"].shape[0])
+    return _System(channels=tuple(d.channels), rx=rx, ru=np.zeros(nu), **out)
 
 
 def _conventional_system(model, p, matrix_effects=()) -> _System:
-    """``dimensional`` and ``derivatives`` models (models/conventional.py), with matrix-level effects."""
-    d = _conventional_descriptor(model, p)
+    """A :class:`~fdml.models.base.DescriptorModel`'s own descriptor, with matrix-level effects."""
+    d = model._descriptor(p)
     for eff in matrix_effects:
         d = eff.realize(d, p, model)
-    return _from_descriptor(d, model.U)
-
-
-def _conventional_descriptor(model, p) -> Descriptor:
-    """E, A, B0, B1 of the ``dimensional`` and ``derivatives`` models (models/conventional.py)."""
-    gust = model.gust
-    channels = [("de", p["tau_de"])] + ([("alpha_w", p["tau_alpha_w"])] if gust else [])
-    nu = len(channels)
-    B0 = np.zeros((2, nu))
-    B1 = np.zeros((2, nu))
-    if model.kind == "dimensional":
-        E = np.eye(2)
-        A = np.array([[p["Z_a"], 1.0 + p["Z_q"]], [p["M_a"], p["M_q"]]])
-        B0[:, 0] = p["Z_de"], p["M_de"]
-        if gust:
-            B0[:, 1] = p["Z_a"], p["M_a"]
-    else:
-        ac = model.aircraft
-        kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
-        E = np.array([[1.0 - kz * p["Cz_adot"] * cu, 0.0], [-km * p["Cm_adot"] * cu, 1.0]])
-        A = np.array([[kz * p["Cz_a"], 1.0 + kz * p["Cz_q"] * cu], [km * p["Cm_a"], km * p["Cm_q"] * cu]])
-        B0[:, 0] = kz * p["Cz_de"], km * p["Cm_de"]
-        if gust:  # the gust enters as aerodynamic angle of attack, and its rate in the adot terms
-            B0[:, 1] = kz * p["Cz_a"], km * p["Cm_a"]
-            B1[:, 1] = kz * p["Cz_adot"] * cu, km * p["Cm_adot"] * cu
-    return Descriptor(E, A, B0, B1, tuple(channels))
+    return _from_descriptor(d, model, p)
 
 
 class _Rows:
@@ -244,22 +199,20 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
     dyn["x_t"] = lam_t * (beta - X("x_t"))
     dyn["x_G"] = lam_G * (alpha - X("x_G"))
     rows = np.array([dyn[n] for n in names])
-    out = np.array([alpha, q, (U / G0) * kz * Cz])  # Eq. 5: a_z = (U/g)(alpha_dot - q) = (U/g) k_z C_z
     T, kappa = _downwash_pole(l, c, U, eps_ss, F)
+    # (alpha, q) and their rates over [x | u | u' | eps_F]: no input rates in this form
+    value, rate = (np.insert(f, [ns + nu] * nu, 0.0, axis=1) for f in (np.array([alpha, q]), rows[:2]))
+    out = _with_outputs(rows[:, :ns], rows[:, ns : ns + nu], rows[:, -1], value, rate, model.outputs, U, p)
+    rx = np.zeros(out["A"].shape[0])
+    rx[:ns] = dyn["alpha"][:ns]
     sys = _System(
-        A=rows[:, :ns],
-        B=rows[:, ns : ns + nu],
-        C=out[:, :ns],
-        D=out[:, ns : ns + nu],
-        Dd=np.zeros((3, nu)),
         channels=tuple(channels),
-        bF=rows[:, -1],
-        dF=out[:, -1],
-        rx=dyn["alpha"][:ns],
+        rx=rx,
         ru=dyn["alpha"][ns : ns + nu],
         rF=float(dyn["alpha"][-1]),
         T=T,
         kappa=kappa,
+        **out,
     )
     for fn in post:
         sys = fn(sys)
@@ -356,7 +309,7 @@ def _system(model, p) -> _System:
     return sys
 
 
-# --- state-space algebra of the output-level effects (docs/theory.md Eq. 5 for a_z) -------------------
+# --- state-space algebra of the output-level effects ---------------------------------------------
 
 
 def _pad_states(sys: _System, k: int) -> _System:
@@ -369,17 +322,10 @@ def _pad_states(sys: _System, k: int) -> _System:
         sys,
         A=A,
         B=np.vstack([sys.B, np.zeros((k, nu))]),
-        C=np.hstack([sys.C, np.zeros((3, k))]),
+        C=np.hstack([sys.C, np.zeros((sys.C.shape[0], k))]),
         bF=np.concatenate([sys.bF, z]),
         rx=np.concatenate([sys.rx, z]),
     )
-
-
-def _same_delay(sys: _System, rows, what: str) -> None:
-    if len({sys.out_delay[r] for r in rows}) > 1:
-        raise ParameterError(
-            f"{what}: the channels it combines carry different output delays; list the time_delay effect after it"
-        )
 
 
 def delay_output(sys: _System, row: int, tau: float) -> _System:
@@ -390,7 +336,7 @@ def delay_output(sys: _System, row: int, tau: float) -> _System:
     sys : _System
         The finite-state system.
     row : int
-        Output index (0 alpha, 1 q, 2 a_z).
+        Output index (0 alpha, 1 q, 2 a_z, ... in ``sys.outputs``).
     tau : float
         Delay, s.
 
@@ -412,7 +358,7 @@ def scale_output(sys: _System, row: int, factor: float) -> _System:
     sys : _System
         The finite-state system.
     row : int
-        Output index (0 alpha, 1 q, 2 a_z).
+        Output index (0 alpha, 1 q, 2 a_z, ... in ``sys.outputs``).
     factor : float
         Scale factor, dimensionless.
 
@@ -424,58 +370,6 @@ def scale_output(sys: _System, row: int, factor: float) -> _System:
     C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
     for a in (C, D, Dd, dF):
         a[row] = a[row] * factor
-    return replace(sys, C=C, D=D, Dd=Dd, dF=dF)
-
-
-def mix_output(sys: _System, dst: int, src: int, k: float) -> _System:
-    """Output ``dst`` plus ``k`` times output ``src``.
-
-    Parameters
-    ----------
-    sys : _System
-        The finite-state system.
-    dst, src : int
-        Output indices (0 alpha, 1 q, 2 a_z); both must have the same delay.
-    k : float
-        Gain, unit of ``dst`` per unit of ``src``.
-
-    Returns
-    -------
-    _System
-        The changed copy.
-    """
-    _same_delay(sys, (dst, src), "mixing two outputs")
-    C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
-    for a in (C, D, Dd, dF):
-        a[dst] = a[dst] + k * a[src]
-    return replace(sys, C=C, D=D, Dd=Dd, dF=dF)
-
-
-def add_output_rate(sys: _System, dst: int, src: int, k: float) -> _System:
-    """Output ``dst`` plus ``k`` times the time derivative of output ``src`` (x' = A x + B u + bF eps_F).
-
-    Parameters
-    ----------
-    sys : _System
-        The finite-state system.
-    dst, src : int
-        Output indices (0 alpha, 1 q, 2 a_z); both must have the same delay.
-    k : float
-        Gain, unit of ``dst`` per unit of ``src`` per second.
-
-    Returns
-    -------
-    _System
-        The changed copy.
-    """
-    _same_delay(sys, (dst, src), "adding an output rate")
-    if np.any(sys.Dd[src]) or sys.dF[src] != 0.0:
-        raise ParameterError("the rate of this output needs the second derivative of an input: no realisation")
-    C, D, Dd, dF = sys.C.copy(), sys.D.copy(), sys.Dd.copy(), sys.dF.copy()
-    C[dst] = C[dst] + k * (sys.C[src] @ sys.A)
-    D[dst] = D[dst] + k * (sys.C[src] @ sys.B)
-    Dd[dst] = Dd[dst] + k * sys.D[src]
-    dF[dst] = dF[dst] + k * (sys.C[src] @ sys.bF)
     return replace(sys, C=C, D=D, Dd=Dd, dF=dF)
 
 
@@ -557,14 +451,14 @@ def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -
     C[1, n + 1] += r_q / omega
     C[2, n] -= r_az
     C[2, n + 1] -= 2.0 * zeta * r_az / omega
-    D = np.hstack([sys.D, np.zeros((3, 1))])
+    D = np.hstack([sys.D, np.zeros((sys.D.shape[0], 1))])
     D[2, nu] = r_az
     return replace(
         s2,
         B=B,
         C=C,
         D=D,
-        Dd=np.hstack([sys.Dd, np.zeros((3, 1))]),
+        Dd=np.hstack([sys.Dd, np.zeros((sys.Dd.shape[0], 1))]),
         ru=np.concatenate([sys.ru, [0.0]]),
         channels=sys.channels + (("de", 0.0),),
     )
@@ -574,7 +468,9 @@ def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -
 class Realization:
     """Finite-state realisation of a model: ``x' = A x + B u``, ``y = C x + D u + Dd u'``.
 
-    Outputs y are (alpha rad, q rad/s, a_z g); the inputs u are the delayed
+    Outputs y are the rows ``outputs`` (alpha rad, q rad/s, a_z g[, theta rad,
+    qdot rad/s^2]); an integral output (theta) has its own integrator state,
+    from rest.  The inputs u are the delayed
     input channels ``(signal, delay s)``, u_i(t) = signal(t - delay), so that
     ``G(s) = [C (sI - A)^-1 B + D + s Dd] diag(exp(-s delay))``.
 
@@ -586,8 +482,10 @@ class Realization:
     channels : tuple of (str, float)
         Input channels: signal name (``de`` or ``alpha_w``) and delay, s.
     output_delays : tuple of float
-        Pure delays of the outputs (alpha, q, a_z), s (sensor delays):
-        ``G_i(s)`` is multiplied by ``exp(-s d_i)``.
+        Pure delays of the outputs, s (sensor delays): ``G_i(s)`` is
+        multiplied by ``exp(-s d_i)``.
+    outputs : tuple of str
+        The output rows, in order.
 
     Attributes
     ----------
@@ -602,6 +500,7 @@ class Realization:
     Dd: np.ndarray
     channels: tuple
     output_delays: tuple = (0.0, 0.0, 0.0)
+    outputs: tuple = OUTPUTS
 
     @property
     def states(self) -> int:
@@ -609,7 +508,7 @@ class Realization:
         return self.A.shape[0]
 
     def frequency_response(self, omega) -> np.ndarray:
-        """Transfer matrix per model input (de[, alpha_w]), shape (3, n_in, n omega).
+        """Transfer matrix per model input (de[, alpha_w]), shape (n_y, n_in, n omega).
 
         Parameters
         ----------
@@ -619,18 +518,18 @@ class Realization:
         Returns
         -------
         numpy.ndarray
-            Complex, shape (3, n_in, n omega): outputs (alpha rad, q rad/s,
-            a_z g) per rad of elevator (or per rad of gust angle alpha_w).
+            Complex, shape (n_y, n_in, n omega): the outputs (alpha rad, q rad/s,
+            a_z g, ...) per rad of elevator (or per rad of gust angle alpha_w).
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         s = 1j * omega
         I = np.eye(self.states)
         X = np.linalg.solve(s[:, None, None] * I - self.A, np.broadcast_to(self.B, (s.size,) + self.B.shape))
-        Gc = self.C @ X + self.D + s[:, None, None] * self.Dd  # (n, 3, channels)
+        Gc = self.C @ X + self.D + s[:, None, None] * self.Dd  # (n, n_y, channels)
         Gc = Gc * np.exp(-np.outer(s, [d for _, d in self.channels]))[:, None, :]
         Gc = Gc * np.exp(-np.outer(s, self.output_delays))[:, :, None]
         names = list(dict.fromkeys(nm for nm, _ in self.channels))
-        G = np.zeros((s.size, 3, len(names)), dtype=complex)
+        G = np.zeros((s.size, len(self.outputs), len(names)), dtype=complex)
         for j, (nm, _d) in enumerate(self.channels):
             G[:, :, names.index(nm)] += Gc[:, :, j]
         return np.moveaxis(G, 0, -1)
@@ -657,4 +556,4 @@ def realize(model, values=None) -> Realization:
         raise ParameterError(
             "the unsteady model with F != 0 has no finite-state realisation (docs/theory.md section 4)"
         )
-    return Realization(sys.A, sys.B, sys.C, sys.D, sys.Dd, sys.channels, tuple(sys.out_delay))
+    return Realization(sys.A, sys.B, sys.C, sys.D, sys.Dd, sys.channels, tuple(sys.out_delay), sys.outputs)

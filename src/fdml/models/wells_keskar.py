@@ -220,6 +220,8 @@ class UnsteadyModel(_WKBase):
         Free the output biases.
     parameters : Parameters, optional
         Overrides the default parameter set.
+    outputs : sequence of str, optional
+        Outputs beyond alpha, q and a_z to predict (``theta``, ``qdot``; :meth:`Model.with_outputs`).
     aircraft : Aircraft
         Geometry, mass, flight condition and default constants.
     tail_lag_chord : {"c_w", "c_t"}, optional
@@ -341,6 +343,8 @@ class SteadyModel(_WKBase):
         Free the output biases.
     parameters : Parameters, optional
         Overrides the default parameter set.
+    outputs : sequence of str, optional
+        Outputs beyond alpha, q and a_z to predict (``theta``, ``qdot``; :meth:`Model.with_outputs`).
     aircraft : Aircraft
         Geometry, mass, flight condition and default constants.
     """
