@@ -198,3 +198,16 @@ def test_a_scale_error_is_settled_and_the_ratios_reported():
         [spectra(rec, band=(0.3, 10.0, 0.05), trim="first")], U, known=SensorTerms(scales=(0.95, 1.0, 1.0))
     )
     assert not known.settled
+
+
+def test_a_wrong_airspeed_is_an_a_z_scale_and_is_named_as_one():
+    """Eq. 5 holds with the true U; given U_g = U / 1.08, the identity needs a_z scaled by
+    g/U against g/U_g: k_az = U/U_g - 1 = 0.08 (closed form), and the text names the airspeed."""
+    rec = _record(21)
+    U_given = U / 1.08
+    ev = kinematic_evidence([spectra(rec, band=(0.3, 10.0, 0.05), trim="first")], U_given)
+    assert [m.key for m in ev.settled] == ["sensor_scale@az"]
+    k = ev.settled[0]
+    assert abs(k.value - 0.08) < 3 * k.stderr
+    line = next(s for s in ev.lines() if "airspeed" in s)
+    assert f"{U_given * (1 + k.value):.4g} m/s" in line and abs(U_given * (1 + k.value) - U) < 3 * U_given * k.stderr

@@ -61,14 +61,13 @@ from .errors import FdmlError
 from .jsoncodec import Codec, Spec, integer, mapping, nested, nested_list, number_map, text, texts
 from .score import (
     ScreenContext,
-    chi2_sf,
-    f_sf,
     grid_variation,
     holm,
     null_kind,
     p_value,
     screen_all,
 )
+from .tails import chi2_sf, f_sf
 from .verdict import LEVEL
 
 __all__ = [
@@ -397,7 +396,7 @@ class Adequacy(Codec):
 def _fmt(v: float, unit: str) -> str:
     if unit == "s" and abs(v) < 1.0:
         return f"{v * 1e3:.3g} ms"
-    return f"{v:.3g} {unit}".rstrip()
+    return f"{v:.3g} {unit if unit != '-' else ''}".rstrip()  # "-": dimensionless
 
 
 # --- the check ------------------------------------------------------------------------------------
@@ -1043,6 +1042,14 @@ def _option(key: str) -> str:
     return f"{name}:{channel}"
 
 
+def _airspeed_alias(v: Verdict) -> str:
+    """A scale of a_z relative to q is what a wrong airspeed gives (fdml.kinematics, Eq. 5): say so."""
+    if v.key != "sensor_scale@az":
+        return ""
+    k = v.params["k_az"][0]
+    return f" (or the airspeed given is {1 + k:.4g} times too small: the identity scales a_z by g/U)"
+
+
 def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) -> str:
     """The warning when the check ranked the flagged effects as the diagnosis would (:func:`rank`).
 
@@ -1060,7 +1067,7 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
     if v.source == "kinematics":
         what = (
             f"the kinematics (alpha, q and a_z against the short-period identity, whatever the aerodynamics) "
-            f"settle {v.describe()}{also}; the refit holds it at that value. Refit with it: {refit}"
+            f"settle {v.describe()}{_airspeed_alias(v)}{also}; the refit holds it at that value. Refit with it: {refit}"
         )
     elif v.ambiguous:
         what = (

@@ -63,7 +63,8 @@ import numpy as np
 
 from .channels import OUTPUTS
 from .constants import G0
-from .score import chi2_sf, equally
+from .score import equally
+from .tails import chi2_sf
 
 __all__ = [
     "LEVEL",
@@ -994,6 +995,8 @@ class KinematicEvidence:
         out = [f"kinematics ({self.source}):"]
         for m in self.settled:
             out.append(f"  settled: {m.describe()}: {m.finding.describe()}")
+            if m.key == "sensor_scale@az":  # kappa_az (g/U) a_z: a wrong U is the same pattern (module doc)
+                out.append(f"    or the airspeed is {self.airspeed * (1 + m.value):.4g} m/s, not {self.airspeed:.4g}")
         for a in self.aliases:
             out.append(f"  not separable by the kinematics: {' or '.join(m.describe() for m in a)}")
         for m in self.implausible:

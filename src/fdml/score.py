@@ -58,9 +58,8 @@ Null distributions
   total variation of sqrt(LM) along the frequency grid, capped by Bonferroni
   over the grid.
 
-The chi-square tail is evaluated with :mod:`scipy.special` exactly as
-:meth:`scipy.stats.chi2.logsf` does (the same branches, without its per-call
-argument handling, which cost more than the rest of an adequacy check).
+The chi-square and F tails are the closed forms for whole degrees of freedom in
+:mod:`fdml.tails` (no scipy.special or scipy.stats import on the fit path, issue 20).
 """
 
 from __future__ import annotations
@@ -70,11 +69,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import special
 
 from .errors import FdmlError
 from .models.base import Model
 from .models.effects import Effect
+from .tails import chi2_logsf, chi2_sf, noncentrality
 
 __all__ = [
     "ALIAS_LIMIT",
@@ -83,10 +82,7 @@ __all__ = [
     "ScreenContext",
     "ScreenResult",
     "bh",
-    "chi2_logsf",
-    "chi2_sf",
     "davies_bound",
-    "f_sf",
     "grid_variation",
     "holm",
     "null_kind",
@@ -101,81 +97,17 @@ __all__ = [
 ALIAS_LIMIT = 0.99
 
 
-# --- distributions ----------------------------------------------------------------------------
-
-
-def chi2_sf(x: float, df: float) -> float:
-    """P(chi2_df > x) (``scipy.stats.chi2.sf``).
-
-    Parameters
-    ----------
-    x : float
-        The value of the statistic.
-    df : float
-        Degrees of freedom.
-
-    Returns
-    -------
-    float
-        The tail probability, 1 for x <= 0.
-    """
-    return 1.0 if x <= 0 else float(special.chdtrc(df, x))
-
-
-def chi2_logsf(x: float, df: float) -> float:
-    """The log tail probability log P(chi2_df > x), by the branches of ``scipy.stats.chi2.logsf``.
-
-    Above the median ``log(sf)``, below it ``log1p(-cdf)`` (accurate where the
-    tail probability is close to 1); -inf where the tail underflows.
-
-    Parameters
-    ----------
-    x : float
-        The value of the statistic.
-    df : float
-        Degrees of freedom.
-
-    Returns
-    -------
-    float
-        The log tail probability, 0 for x <= 0.
-    """
-    if x <= 0:
-        return 0.0
-    if x > 2.0 * special.gammaincinv(0.5 * df, 0.5):  # the median of chi2_df
-        with np.errstate(divide="ignore"):
-            return float(np.log(special.chdtrc(df, x)))
-    return float(np.log1p(-special.chdtr(df, x)))
-
-
-def f_sf(x: float, dfn: float, dfd: float) -> float:
-    """P(F(dfn, dfd) > x) (``scipy.stats.f.sf``).
-
-    Parameters
-    ----------
-    x : float
-        The value of the statistic.
-    dfn, dfd : float
-        Degrees of freedom of the numerator and the denominator.
-
-    Returns
-    -------
-    float
-        The tail probability, 1 for x <= 0.
-    """
-    return 1.0 if x <= 0 else float(special.fdtrc(dfn, dfd, x))
+# --- distributions (fdml.tails) -------------------------------------------------------------
 
 
 @functools.lru_cache(maxsize=256)  # a root search of ncx2.sf: the same (level, df) for every candidate
 def power_noncentrality(level: float, df: int = 1, power: float = 0.8) -> float:
     """Non-centrality lambda* of a chi-square(df) test at ``level`` with the given power.
 
-    The root of ``ncx2.sf(chi2.isf(level, df), df, lambda) = power``, by scipy.special's inverse
-    of the non-central chi-square distribution in its non-centrality (no scipy.stats or
-    scipy.optimize on the fit path: importing them costs more than the fit, issue 20).
+    The root of ``ncx2.sf(chi2.isf(level, df), df, lambda) = power`` (:func:`fdml.tails.noncentrality`),
+    cached: every candidate of a screen asks for the same (level, df).
     """
-    crit = special.chdtri(df, level)
-    return float(special.chndtrinc(crit, df, 1.0 - power))
+    return noncentrality(level, int(df), power)
 
 
 def davies_bound(u: float, q: int, V: float) -> float:
@@ -202,7 +134,7 @@ def davies_bound(u: float, q: int, V: float) -> float:
         + 0.5 * (q - 1) * math.log(u)
         - 0.5 * u
         - 0.5 * q * math.log(2.0)
-        - special.gammaln(0.5 * q)
+        - math.lgamma(0.5 * q)
     )
     return float(chi2_sf(u, q) + math.exp(log_term))
 

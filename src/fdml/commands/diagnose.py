@@ -6,7 +6,6 @@ simulated with one withheld effect; see :mod:`fdml.diagnose.validation`).
 
 from __future__ import annotations
 
-from ..verdict import LEVEL
 from . import _options as O
 
 
@@ -47,10 +46,7 @@ def register(sub) -> None:
     )
     p.add_argument("--library", metavar="NAME,...", help="candidate effects (default: all registered)")
     p.add_argument(
-        "--alpha",
-        type=float,
-        default=LEVEL,
-        help=f"family-wise level (default {LEVEL:g}, as every fit's adequacy check)",
+        "--alpha", type=float, default=None, help="family-wise level (default: every fit's adequacy check's, 0.01)"
     )
     p.add_argument("--max-effects", type=int, default=2, help="greedy forward selection limit (default 2)")
     p.add_argument(
