@@ -49,7 +49,7 @@ def _log_erfc(z: float) -> float:
 
 
 def chi2_logsf(x: float, df: float) -> float:
-    """ln P(chi2_df > x), whole ``df`` (module doc); 0 for x <= 0.
+    """The log tail ln P(chi2_df > x), whole ``df`` (module doc); 0 for x <= 0.
 
     Parameters
     ----------
@@ -209,7 +209,7 @@ def noncentrality(level: float, df: int = 1, power: float = 0.8) -> float:
     Returns
     -------
     float
-        lambda with ``ncx2_sf(chi2_isf(level, df), df, lambda) = power``.
+        The non-centrality lambda with ``ncx2_sf(chi2_isf(level, df), df, lambda) = power``.
     """
     crit = chi2_isf(level, df)
     hi = 1.0
