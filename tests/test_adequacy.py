@@ -11,7 +11,7 @@ import pytest
 from scipy import stats
 
 import fdml
-from fdml.adequacy import ALPHA, advice, invocation
+from fdml.adequacy import ALPHA, advice
 from fdml.cli import main
 from fdml.errors import AdequacyWarning, FdmlError
 from fdml.io import data_path, load_record
@@ -128,13 +128,17 @@ def test_cli_json_and_the_quoted_command(tmp_path, capsys, delayed_fit):
     assert out["adequacy"]["adequate"] is False
     assert out["adequacy"]["flagged"][0]["key"] == "time_delay@alpha"
     assert out["adequacy"]["flagged"][0]["expected"]["tau_alpha"] > 0
-    # the warning quotes the running command with --effect added, and the diagnosis of the same records
-    with invocation(
-        ["fdml", "fit", str(path), "--model", "derivatives"], ["fdml", "diagnose", str(path), "--model", "derivatives"]
-    ):
-        msg = advice(delayed_fit[1].adequacy)
-    assert f"fdml fit {path} --model derivatives --effect time_delay:alpha" in msg
-    assert f"fdml diagnose {path} --model derivatives" in msg
+    # the result's warning quotes the running command with --effect added, and the diagnosis of the same records
+    (msg,) = [w["message"] for w in out["warnings"] if w["category"] == "AdequacyWarning"]
+    assert f"fdml fit {path} --aircraft navion --model derivatives --effect time_delay:alpha" in msg, msg
+    assert f"fdml diagnose {path} --aircraft navion --model derivatives" in msg, msg
+    # the advice is a function of its arguments: the library's fit gives the generic command and the Python call
+    generic = advice(delayed_fit[1].adequacy)
+    assert "fdml fit RECORD ... --effect time_delay:alpha" in generic and "fdml.diagnose.diagnose" in generic
+    quoted = advice(
+        delayed_fit[1].adequacy, fit_argv=["fdml", "fit", "r.csv"], diagnose_argv=["fdml", "diagnose", "r.csv"]
+    )
+    assert "fdml fit r.csv --effect time_delay:alpha" in quoted and "fdml diagnose r.csv" in quoted
 
 
 def _bench():

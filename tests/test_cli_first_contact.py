@@ -211,20 +211,19 @@ def _adequacy(whiteness: bool, coherence: bool):
 
 
 def test_residual_advice_spells_cov_type_as_run_and_only_where_it_helps():
-    from fdml.adequacy import advice, invocation, within_diagnosis
+    from fdml.adequacy import advice
 
+    argv = {"fit_argv": ["fdml", "fit", "r.csv"], "diagnose_argv": ["fdml", "diagnose", "r.csv"]}
     white = _adequacy(whiteness=True, coherence=False)
-    with invocation(["fdml", "fit", "r.csv"], ["fdml", "diagnose", "r.csv"]):
-        on_cli = advice(white)
-        given = advice(white, cov_type="colored")
-        coherence = advice(_adequacy(whiteness=False, coherence=True))
+    on_cli = advice(white, **argv)
+    given = advice(white, cov_type="colored", **argv)
+    coherence = advice(_adequacy(whiteness=False, coherence=True), **argv)
     assert "--cov-type colored" in on_cli and "cov_type" not in on_cli
     _assert_named_options_exist(on_cli, "fit")
     assert "try" not in given and "--cov-type" not in given  # already given: not suggested again
     assert "colored" not in coherence  # a coherence with the input is model error: coloured bounds do not help
     assert 'cov_type="colored"' in advice(white)  # in Python, the keyword (and the option beside it)
-    with within_diagnosis():  # the diagnosis's own fits do not send the user to the diagnosis
-        assert "diagnos" not in advice(white)
+    assert "diagnos" not in advice(white, in_diagnosis=True)  # the diagnosis's own fits: not to the diagnosis
 
 
 def test_the_diagnosis_does_not_advise_running_the_diagnosis(tmp_path, capsys):

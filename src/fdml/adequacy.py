@@ -45,8 +45,6 @@ both use).
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import itertools
 import math
 import shlex
@@ -78,9 +76,8 @@ __all__ = [
     "Verdict",
     "advice",
     "check",
-    "invocation",
     "rank",
-    "within_diagnosis",
+    "reworded",
 ]
 
 #: Family-wise level of the adequacy check (every fit runs it: 1 in 100 adequate fits warns); the
@@ -90,48 +87,8 @@ ALPHA = LEVEL
 MAX_BANDS = 4
 MIN_BAND = 6
 
-_COMMAND: contextvars.ContextVar = contextvars.ContextVar("fdml_adequacy_command", default=None)
-#: True within the diagnosis's own fits (:func:`within_diagnosis`): their warnings send no one to the diagnosis.
-_IN_DIAGNOSIS: contextvars.ContextVar = contextvars.ContextVar("fdml_adequacy_in_diagnosis", default=False)
 #: Output effects whose function evaluates a nuisance grid at once (checked once each, see _Context._agrees).
 _VECTORISES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-@contextlib.contextmanager
-def invocation(fit_argv, diagnose_argv=None):
-    """Within the block, warnings quote these commands (argv lists, ``fdml fit ...`` and ``fdml diagnose ...``).
-
-    Parameters
-    ----------
-    fit_argv : sequence of str
-        The running ``fdml fit`` command line.
-    diagnose_argv : sequence of str, optional
-        The matching ``fdml diagnose`` command line.
-
-    Yields
-    ------
-    None
-    """
-    token = _COMMAND.set((list(fit_argv), None if diagnose_argv is None else list(diagnose_argv)))
-    try:
-        yield
-    finally:
-        _COMMAND.reset(token)
-
-
-@contextlib.contextmanager
-def within_diagnosis():
-    """Within the block (the diagnosis's own fits), the warnings do not suggest running the diagnosis.
-
-    Yields
-    ------
-    None
-    """
-    token = _IN_DIAGNOSIS.set(True)
-    try:
-        yield
-    finally:
-        _IN_DIAGNOSIS.reset(token)
 
 
 @dataclass(frozen=True)
@@ -980,15 +937,21 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
 # --- the warning ----------------------------------------------------------------------------------
 
 
-def advice(adequacy: Adequacy, cov_type: str | None = None) -> str | None:
+def advice(
+    adequacy: Adequacy,
+    cov_type: str | None = None,
+    *,
+    fit_argv: list[str] | None = None,
+    diagnose_argv: list[str] | None = None,
+    in_diagnosis: bool = False,
+) -> str | None:
     """The warning text for a flagged fit (None when nothing is flagged).
 
     It names the most significant flagged effect and the command that refits
-    with it (the running ``fdml fit`` command with ``--effect NAME:CHANNEL``
-    when the command line set one with :func:`invocation`), or runs the
-    diagnosis (not within the diagnosis itself, :func:`within_diagnosis`).
-    Every suggestion is spelled as it is run: command-line options on the
-    command line, keywords in Python.
+    with it, or runs the diagnosis. Every suggestion is spelled as it is run:
+    command-line options on the command line, keywords in Python. The text
+    depends on its arguments alone: the command layer passes the running
+    command (:func:`reworded`).
 
     Parameters
     ----------
@@ -996,6 +959,15 @@ def advice(adequacy: Adequacy, cov_type: str | None = None) -> str | None:
         The check of a fit.
     cov_type : str, optional
         The fit's covariance type; ``"colored"`` is not suggested again.
+    fit_argv : list of str, optional
+        The running ``fdml fit`` command line; the advice quotes it with
+        ``--effect NAME:CHANNEL`` added. Without it the advice gives the
+        generic command and the Python call.
+    diagnose_argv : list of str, optional
+        The matching ``fdml diagnose`` command line.
+    in_diagnosis : bool
+        The fit is the diagnosis's own: the advice does not send the user to
+        the diagnosis.
 
     Returns
     -------
@@ -1004,12 +976,12 @@ def advice(adequacy: Adequacy, cov_type: str | None = None) -> str | None:
     """
     if adequacy.adequate:
         return None
-    cmd = _COMMAND.get()
-    fit_argv, diag_argv = cmd if cmd is not None else (None, None)
     diag = (
-        shlex.join(diag_argv) if diag_argv else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
+        shlex.join(diagnose_argv)
+        if diagnose_argv
+        else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
     )
-    diagnosis = "" if _IN_DIAGNOSIS.get() else f"run the full diagnosis: {diag}"
+    diagnosis = "" if in_diagnosis else f"run the full diagnosis: {diag}"
     v = adequacy.verdict
     if v is not None:
         return _verdict_advice(adequacy, v, fit_argv, diagnosis)
@@ -1077,6 +1049,47 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
     else:
         what = f"the fit's residuals carry {v.describe()}{also}. Refit with it: {refit}"
     return what + (f"; or {diagnosis}" if diagnosis else "")
+
+
+def reworded(
+    result: Any,
+    *,
+    fit_argv: list[str] | None = None,
+    diagnose_argv: list[str] | None = None,
+    in_diagnosis: bool = False,
+) -> Any:
+    """``result`` with its adequacy warning worded for where the fit ran (:func:`advice`).
+
+    A fit warns with the generic advice (the library knows no command line); the
+    command line re-words it to quote the running command, and the diagnosis
+    to leave out the advice to run the diagnosis. Only the warning that
+    :func:`advice` gave is replaced; other warnings are kept as they are.
+
+    Parameters
+    ----------
+    result : FitResult
+        A fit with its adequacy check (``result.adequacy``).
+    fit_argv, diagnose_argv, in_diagnosis
+        As for :func:`advice`.
+
+    Returns
+    -------
+    FitResult
+        ``result`` with the re-worded warning (itself when there is none).
+    """
+    from dataclasses import replace
+
+    found = getattr(result, "adequacy", None)
+    if found is None or found.adequate:
+        return result
+    cov_type = getattr(result, "cov_type", None)
+    generic = advice(found, cov_type)
+    text = advice(found, cov_type, fit_argv=fit_argv, diagnose_argv=diagnose_argv, in_diagnosis=in_diagnosis)
+    kept = tuple(
+        replace(w, message=text) if w.category == "AdequacyWarning" and w.message == generic else w
+        for w in result.warnings
+    )
+    return replace(result, warnings=kept)
 
 
 def attach(prob, result, V, sensitivities=None, refit=None):

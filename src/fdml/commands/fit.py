@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
-
 from . import _options as O
 from ._common import assignments, check_band_option, model_for_records
 
@@ -32,14 +30,11 @@ def register(sub) -> None:
     )
     O.add_json_option(p)
     O.add_progress_option(p, default_on=False)
-    p.set_defaults(func=run)
-    global _SUBPARSERS
-    _SUBPARSERS = sub  # for the commands quoted by the adequacy warning (_commands)
+    p.set_defaults(func=run, parsers=sub)  # the parsers: for the commands the adequacy warning quotes (_commands)
 
 
-_SUBPARSERS: argparse._SubParsersAction | None = None  # set by register()
 #: Options the quoted commands leave out: where results go and how they are shown.
-_NOT_QUOTED = ("output", "json", "progress", "func", "command", "verbose")
+_NOT_QUOTED = ("output", "json", "progress", "func", "parsers", "command", "verbose")
 
 
 def _argv_of(parser, args, *, rename=None) -> list:
@@ -69,9 +64,8 @@ def _argv_of(parser, args, *, rename=None) -> list:
 
 def _commands(args) -> tuple[list, list | None]:
     """(this ``fdml fit`` command, the ``fdml diagnose`` command for the same records and model)."""
-    assert _SUBPARSERS is not None  # register() has run
-    fit_argv = ["fdml", "fit", *_argv_of(_SUBPARSERS.choices["fit"], args)]
-    diag = _SUBPARSERS.choices.get("diagnose")
+    fit_argv = ["fdml", "fit", *_argv_of(args.parsers.choices["fit"], args)]
+    diag = args.parsers.choices.get("diagnose")
     diag_argv = None if diag is None else ["fdml", "diagnose", *_argv_of(diag, args)]
     return fit_argv, diag_argv
 
@@ -118,22 +112,23 @@ def run(args) -> int:
     data = [spectra(r, band=band, **opts) for r in records]  # the front end
     t_transform = time.perf_counter()
     bar = _progress_callback(O.progress_wanted(args, default_on=False))
-    from ..adequacy import invocation
+    from ..adequacy import reworded
 
     try:
-        with invocation(*_commands(args)):  # the adequacy warning quotes this command with --effect added
-            res = fit(
-                data if len(data) > 1 else data[0],
-                model,
-                fix=fixed,
-                free=args.free or [],
-                callback=bar,
-                strict=bool(args.strict),
-                **kwargs,
-            )
+        res = fit(
+            data if len(data) > 1 else data[0],
+            model,
+            fix=fixed,
+            free=args.free or [],
+            callback=bar,
+            strict=bool(args.strict),
+            **kwargs,
+        )
     finally:
         if bar is not None:
             bar.close()
+    fit_argv, diagnose_argv = _commands(args)
+    res = reworded(res, fit_argv=fit_argv, diagnose_argv=diagnose_argv)  # the advice quotes this command
     res = attach_conditions(res, model, records, provenance)
     t_fit = time.perf_counter()
     if args.output:

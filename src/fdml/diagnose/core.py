@@ -696,10 +696,11 @@ def recommended_fit(
     Returns
     -------
     FitResult or None
-        Its warnings are raised to the caller (:func:`diagnose` keeps them in
-        the report).
+        Its warnings are in its ``warnings``, the adequacy advice worded for
+        the diagnosis (:func:`fdml.adequacy.reworded`); :func:`diagnose` keeps
+        them in the report.
     """
-    from ..adequacy import within_diagnosis
+    from ..adequacy import reworded
     from ..estimate import fit as fdml_fit
     from ..propagate import with_known_uncertainty
 
@@ -715,13 +716,12 @@ def recommended_fit(
         )
 
     try:  # the diagnosis has checked the records
-        with within_diagnosis():  # its adequacy warning does not send the user to the diagnosis that runs it
-            res = refit()
-            if settled:
-                with recording(reemit=False):  # the two refits' warnings repeat the fit's
-                    res = with_known_uncertainty(
-                        res, lambda v: refit(v, res.model, adequacy=False), {s.param: s.stderr for s in settled}
-                    )
+        with recording(reemit=False):  # kept in res.warnings
+            res = reworded(refit(), in_diagnosis=True)  # its advice does not send the user to this diagnosis
+            if settled:  # the two refits' warnings repeat the fit's
+                res = with_known_uncertainty(
+                    res, lambda v: refit(v, res.model, adequacy=False), {s.param: s.stderr for s in settled}
+                )
         return res
     except FdmlError as exc:
         logger.warning("the recommended model could not be fitted: %s", exc)
