@@ -148,6 +148,7 @@ def _bench():
     return mod
 
 
+@pytest.mark.slow
 def test_false_alarm_rate_is_consistent_with_the_level():
     """60 time-domain records from the fitted model (benchmarks/adequacy_false_alarms.py has 500+).
 

@@ -197,6 +197,7 @@ def test_process_pool_and_serial_give_identical_numbers(tmp_path, records):
     ]
 
 
+@pytest.mark.slow
 def test_process_pool_beside_threads_and_in_unguarded_scripts(tmp_path, records):
     """With another thread alive the pool uses forkserver; a script without a main guard works."""
     import threading
@@ -289,6 +290,7 @@ def always_die(task):
     return {"index": task["index"], "ok": True}
 
 
+@pytest.mark.slow
 def test_process_engine_survives_dead_workers(tmp_path):
     def on_error(task, exc):
         return {"index": task["index"], "ok": False, "error": str(exc)}

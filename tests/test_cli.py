@@ -126,6 +126,7 @@ def test_response_json(capsys):
     assert np.allclose(G, ref, rtol=1e-15)
 
 
+@pytest.mark.slow
 def test_demo_writes_table_and_figure(tmp_path, capsys):
     code, out, _ = run(capsys, "demo", "-o", str(tmp_path / "demo"))
     assert code == 0

@@ -87,6 +87,7 @@ def test_batch_model_spec_with_lag_constants_by_fix_builds_the_aircrafts_model(n
 
 
 # --- item 3: a noise-free record converges at the floating-point floor -----------------------------
+@pytest.mark.slow
 def test_noise_free_fit_converges_at_the_floor_saves_reports_and_exits_0(tmp_path, capsys):
     from fdml.models import make_model
     from fdml.results import load_result

@@ -167,6 +167,7 @@ def test_comparison_round_trip_summary_and_plot(comparison):
     plt.close(fig)
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore")  # the misspecified unsteady fits warn, as they should
 def test_false_alarms_on_steady_truth_records():
     # 24 independent periodic records (an implementation outside fdml) with a steady truth.
@@ -202,6 +203,7 @@ def test_demo_prints_the_evidence(tmp_path, capsys):
 
 
 # --- the command ---------------------------------------------------------------------------------
+@pytest.mark.slow
 def test_compare_json_and_files(tmp_path, record_csv, capsys):
     code, out, _ = run(capsys, "compare", record_csv, "--aircraft", "navion", "-o", tmp_path / "c", "--json")
     d = json.loads(out)

@@ -50,6 +50,7 @@ def cluster_client():
         cluster.close()
 
 
+@pytest.mark.slow
 def test_killing_a_worker_mid_batch_loses_and_duplicates_nothing(tmp_path, cluster_client):
     cluster, client = cluster_client
     folder = tmp_path / "records"
@@ -105,6 +106,7 @@ def test_killing_a_worker_mid_batch_loses_and_duplicates_nothing(tmp_path, clust
     assert wall < 60
 
 
+@pytest.mark.slow
 def test_resume_and_monte_carlo_on_dask(tmp_path, cluster_client):
     _, client = cluster_client
     folder = tmp_path / "records"

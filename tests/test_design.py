@@ -109,6 +109,7 @@ N_TRIALS = 30
 ALPHA = 1e-3
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", ["unsteady", "steady"])
 @pytest.mark.parametrize("inp_kind", ["3211", "min-crest"])
 def test_predicted_stderr_matches_monte_carlo(kind, inp_kind):
@@ -205,6 +206,7 @@ def test_minimum_detectable_delay_is_detected_at_the_stated_power():
     assert lam == pytest.approx(expected, rel=0.05)  # local (Fisher) against nonlinear: the delay's curvature
 
 
+@pytest.mark.slow
 def test_design_gains_over_3211():
     d = design(make_model("unsteady", "navion"), criterion="d-optimal", duration=12.0, band="0.5:10", refine=6)
     assert set(d.baselines) == {"3211", "sweep"}
@@ -248,6 +250,7 @@ def test_an_input_band_may_be_written_lo_hi():
     assert np.array_equal(classic_input("sweep", LIM, "0.5:10").de, classic_input("sweep", LIM, (0.5, 10.0)).de)
 
 
+@pytest.mark.slow
 def test_discrimination_design_beats_the_classic_inputs():
     """Navion, 12 s, 1 deg, noise 10 % of the 3-2-1-1 response: a larger lambda than a 3-2-1-1 and a sweep."""
     d = design(
@@ -258,6 +261,7 @@ def test_discrimination_design_beats_the_classic_inputs():
     assert d.input.report()["within_limits"]
 
 
+@pytest.mark.slow
 def test_a_optimal_design_names_its_targets():
     d = design(make_model("unsteady", "navion"), criterion="a-optimal", targets=["Cm_de"], duration=12.0, refine=4)
     assert d.criterion == "a-optimal" and "Cm_de" in d.predicted.to_dict()

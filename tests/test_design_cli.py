@@ -32,6 +32,7 @@ def designed(tmp_path_factory):
     return d, _run(args + ["--json"], d)
 
 
+@pytest.mark.slow
 def test_design_writes_csv_and_figure_and_json(designed):
     d, proc = designed
     assert proc.returncode == 0, proc.stderr
@@ -51,6 +52,7 @@ def test_design_writes_csv_and_figure_and_json(designed):
     assert 0 <= disc["3211"]["probability"] <= 1 and disc["3211"]["df"] == 1
 
 
+@pytest.mark.slow
 def test_design_predicts_for_a_given_input(designed, tmp_path):
     d, _ = designed
     proc = _run(["design", "--aircraft", "navion", "--input", str(d / "in.csv"), "--band", "0.5:10", "--json"], d)
@@ -60,6 +62,7 @@ def test_design_predicts_for_a_given_input(designed, tmp_path):
     assert out["discrimination"]["in"]["noncentrality"] > 0
 
 
+@pytest.mark.slow
 def test_design_prints_a_table(tmp_path, capsys):
     args = ["--criterion", "discriminate", "--band", "0.5:8", "--detect", "time_delay:alpha"]
     code = main(NAVION + args + ["-o", str(tmp_path / "x.csv")])
@@ -69,6 +72,7 @@ def test_design_prints_a_table(tmp_path, capsys):
     assert (tmp_path / "x.csv").exists() and (tmp_path / "x.png").exists()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "extra, expected",
     [

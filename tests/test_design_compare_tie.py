@@ -20,6 +20,7 @@ from fdml.simulate import simulate_maneuver
 DURATION, DT, AMPLITUDE = 12.0, 0.02, math.radians(1.0)
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore")  # misspecified steady fits of unsteady data warn, as they should
 @pytest.mark.parametrize("maneuver, noise", [("3211", 0.1), ("doublet", 0.1)])
 def test_predicted_compare_power_matches_the_comparisons(maneuver, noise):

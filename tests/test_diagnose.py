@@ -28,6 +28,7 @@ def run(key, values, *, maneuver="3211", noise=0.04, seed=1, holdout=True, base=
 # --- withheld effects are attributed (small-scale validation) -----------------------------------
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "key,values",
     [
@@ -51,6 +52,7 @@ def test_clear_effect_is_attributed_and_confirmed(key, values):
     assert not rep.unexplained
 
 
+@pytest.mark.slow
 def test_no_effect_records_rarely_fire():
     # 10 no-effect records (white noise).  Family-wise level 0.05 per record: P(>= 3 of 10 fire) =
     # 0.012 under the nominal rate, so more than 2 means the tests are miscalibrated.
@@ -225,6 +227,7 @@ def test_a_gap_over_the_whole_band_is_said_to_be_across_it_with_the_worst_cell()
     assert "q at 3-10 rad/s (measured/model +0.50 dB, -8.0 deg" in text and "across the band" not in text
 
 
+@pytest.mark.slow
 def test_figure_is_written(tmp_path):
     rep = run("actuator_lag@de", {"T_act": 0.05}, holdout=False, max_effects=1)
     path = tmp_path / "diag.png"

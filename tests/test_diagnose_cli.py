@@ -68,6 +68,7 @@ def test_cli_json_schema_and_holdout(capsys, tmp_path, delay_csv):
     assert d["holdout"]["records"] and json.loads(out_file.read_text())["verdict"] == "time_delay"
 
 
+@pytest.mark.slow
 def test_cli_text_and_figure(capsys, tmp_path, delay_csv):
     a, _ = delay_csv
     fig = tmp_path / "d.png"
@@ -104,6 +105,7 @@ def test_cli_bad_input_exits_2_with_one_line(capsys, delay_csv):
     assert code == 2 and "unknown effect" in err
 
 
+@pytest.mark.slow
 def test_cli_validate_prints_the_table(capsys, monkeypatch):
     import fdml.diagnose.validation as V
 

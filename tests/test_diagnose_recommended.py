@@ -72,6 +72,7 @@ def test_recommended_has_the_schema_of_fit_json(diagnosed):
     assert set(rec["params"]) == set(fit_json["params"])  # the base fit's estimates (tau_q is fixed)
 
 
+@pytest.mark.slow
 def test_recommended_file_reloads_and_reports(diagnosed, tmp_path):
     ((_, rep), _), fit_file = diagnosed
     res = load_result(fit_file)

@@ -93,6 +93,7 @@ def null_runs():
     return out
 
 
+@pytest.mark.slow
 def test_likelihood_ratio_null_distribution_counts_independent_frequencies(null_runs):
     # Interior one-parameter candidate on no-effect records: LR ~ chi2(1), mean 1, var 2.  Over 24
     # runs the mean has standard error sqrt(2/24) = 0.29; accept 1 +- 0.6 (about 2 s.e.).
@@ -132,6 +133,7 @@ def test_noise_floor_is_per_band_not_flat():
     assert ratio[1] > 3 * ratio[0]
 
 
+@pytest.mark.slow
 def test_turbulence_test_is_calibrated_on_coloured_sensor_noise():
     # DIAGNOSIS.md 2.6 rules 1-2: independent coloured sensor noise must not look like turbulence
     # (a flat residual-based noise model gave 87 % false turbulence calls in the prototype).  20 records:

@@ -117,6 +117,7 @@ def test_effect_needs_a_tail_model_and_is_listed():
         make_model("steady", "navion").with_effects("downwash_lag")  # q (G) or tail (delay): ambiguous
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("maneuver, seed", [("3211", 2000022), ("multisine", 2000034)])
 def test_diagnosis_names_a_textbook_downwash_lag(navion, maneuver, seed):
     """A transport-delay downwash (tau = l_t/U) simulated in the time domain at high SNR (0.3 % noise)

@@ -73,6 +73,7 @@ def test_recovers_dimensional_parameters(dimensional_case):
     assert np.all(np.isfinite(se) & (se > 0))
 
 
+@pytest.mark.slow
 def test_monte_carlo_scatter_matches_reported_stderr(dimensional_case):
     # 50 seeded records; the std of a std estimate from 50 samples is about 10 %,
     # so a correct covariance puts the ratio within 25 % of one with high probability.
@@ -335,6 +336,7 @@ def test_input_bias_with_estimated_boundary_and_output_biases_is_flagged(dimensi
     assert math.isinf(res.errors["bias_de"])
 
 
+@pytest.mark.slow
 def test_colored_bounds_follow_coloured_noise(dimensional_case):
     # band-pass noise where the short period lives (0.3-0.8 Hz): the white-noise form
     # understates the scatter, the coloured form (smoothed residual spectrum) much less so
@@ -398,6 +400,7 @@ def test_analytic_and_eq26_sensitivities_agree_to_six_figures(kind):
     assert np.allclose(a.stderr, f.stderr, rtol=1e-6, atol=0)
 
 
+@pytest.mark.slow
 def test_monte_carlo_unsteady_model_from_the_time_domain_simulator():
     # the unsteady model, F term included, simulated in the time domain (independent of the
     # frequency-domain model), 50 noise draws: scatter within 25 % of the mean standard error

@@ -67,6 +67,7 @@ def _phases(ax):
 # --- layout ---------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_report_figures_show_every_text_and_keep_legends_off_the_data(fit_with_effect, tmp_path):
     figs = _report_figures(fit_with_effect, tmp_path)
     assert set(figs) == {"spectra", "time_histories", "residual_spectra", "correlation"}
@@ -86,6 +87,7 @@ def test_compare_figure(record):
         assert np.max(np.abs(fits[0] - fits[1])) < 180 and np.max(np.abs(data - fits[0])) < 180
 
 
+@pytest.mark.slow
 def test_diagnose_figure_fits_its_text_and_explains_the_gap_map(tmp_path):
     from fdml.diagnose import diagnose
     from fdml.diagnose.truth import simulate_truth
@@ -101,6 +103,7 @@ def test_diagnose_figure_fits_its_text_and_explains_the_gap_map(tmp_path):
     assert "* significant" in text
 
 
+@pytest.mark.slow
 def test_design_figure_has_a_title_lambda_and_p_compare():
     from fdml.design import design, plot_design
 

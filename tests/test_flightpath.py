@@ -246,6 +246,7 @@ def test_standard_errors_match_the_scatter():
 
 
 # --- the real records ----------------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "rel",
     [
@@ -268,6 +269,7 @@ def test_real_records(rel):
         assert "no altitude" in res.fixed["b_alpha"][1]
 
 
+@pytest.mark.slow
 def test_twin_otter_matches_sidpacs_own_gyro_bias_correction():
     """fdata = fdatao + SIDPAC's corrections: the q offset between them is SIDPAC's gyro bias."""
     path = data_path("twin_otter/totter_lon_020213f1_017.mat")

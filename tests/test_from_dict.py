@@ -185,6 +185,7 @@ def _through_json(obj) -> dict:
     return json.loads(dumps(obj.to_dict()))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("cls", CLASSES, ids=lambda c: c.__name__)
 def test_round_trip_through_json(cls, instances):
     obj, kw, exact = instances[cls]

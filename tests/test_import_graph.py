@@ -116,6 +116,7 @@ def test_cycle_finder_finds_a_cycle():
     assert sorted(map(sorted, cycles(g))) == [["a", "b", "c"], ["d", "e"]]
 
 
+@pytest.mark.slow
 def test_the_graph_sees_the_imports():
     g = import_graph(deferred=False)
     assert "fdml.channels" in g["fdml.record"]  # from .channels import ...
@@ -144,6 +145,7 @@ def test_the_model_layer_does_not_import_upward():
     assert "fdml.estimate" not in full["fdml.summary"] | full["fdml.score"]
 
 
+@pytest.mark.slow
 def test_the_named_circles_are_gone():
     full = import_graph(deferred=True)
     # results -> summary -> compare -> estimate -> results: ALTERNATE_NAMES lives beside alternate_set
@@ -155,6 +157,7 @@ def test_the_named_circles_are_gone():
     assert not any({"fdml.commands._options", "fdml.commands._common"} <= c for c in cycles(full))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("order", ["sorted", "reversed"])
 def test_every_module_imports_in_a_fresh_interpreter(order):
     names = sorted(n for n in MODULES if not n.endswith("__main__"))

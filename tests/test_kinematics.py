@@ -109,6 +109,7 @@ def test_clean_records_settle_nothing():
     assert fired <= 2
 
 
+@pytest.mark.slow
 def test_an_alpha_lag_is_settled_and_its_standard_error_is_honest():
     """30 ms on alpha: settled as time_delay@alpha; over 30 records the scatter of the estimates
     matches the reported standard error (ratio within 0.6-1.6: the 95 % range of a standard

@@ -308,6 +308,7 @@ def test_cli_fit_with_repeated_effect(record, capsys, tmp_path):
     assert "tau_alpha" in back.names and "x_az" in back.names
 
 
+@pytest.mark.slow
 def test_cli_response_and_batch_and_montecarlo(record, capsys, tmp_path):
     code, out, _ = run(
         capsys,

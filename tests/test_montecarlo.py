@@ -23,6 +23,7 @@ def study():
     return monte_carlo(STEADY, n=50, duration=15.0, noise=0.03, seed=0, engine="process", workers=2)
 
 
+@pytest.mark.slow
 def test_scatter_matches_the_reported_crb(study):
     """The ML estimator is efficient: observed scatter / mean CRB within 25 % for every parameter.
 
@@ -130,6 +131,7 @@ def test_bad_arguments():
         monte_carlo(STEADY, {"Cm_dee": -1.0}, n=5)
 
 
+@pytest.mark.slow
 def test_montecarlo_command(tmp_path, capsys):
     code = main(
         [

@@ -222,6 +222,7 @@ def test_plot_correlation(res):
         plot_correlation(res, names=["Cz_a", "nope"])
 
 
+@pytest.mark.slow
 def test_overlay_of_a_joint_fit_with_an_elevator_bias():
     """Two records fitted together, each with its own nuisance terms; an elevator trim error."""
     from fdml.simulate import simulate

@@ -152,6 +152,7 @@ def signal_usable(signame: str):
 
 
 # --- signals to the parent ----------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("signame, status", [("SIGTERM", 128 + 15), ("SIGINT", 130), ("SIGHUP", 128 + 1)])
 def test_a_signal_ends_the_batch_and_its_workers(tmp_path, records, launched, signame, status):
     signal_usable(signame)
@@ -181,6 +182,7 @@ def test_a_signal_ends_the_batch_and_its_workers(tmp_path, records, launched, si
     assert not (out / "table.csv").exists()  # never a table of a batch that did not finish
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signame, status", [("SIGTERM", 128 + 15), ("SIGINT", 130)])
 def test_a_signal_ends_the_monte_carlo_study_and_its_workers(tmp_path, launched, signame, status):
     signal_usable(signame)
@@ -241,6 +243,7 @@ def test_sigkill_ends_forkserver_workers_too(tmp_path, records, launched):
     assert_all_ended(proc, kids, ENDS_WITHIN)
 
 
+@pytest.mark.slow
 def test_sigterm_closes_the_dask_cluster_the_batch_started(tmp_path, records, launched):
     pytest.importorskip("distributed")
     proc = launched.fdml(
@@ -266,6 +269,7 @@ def test_sigterm_closes_the_dask_cluster_the_batch_started(tmp_path, records, la
     assert proc.returncode == 128 + 15, stderr_of(tmp_path)[-2000:]
 
 
+@pytest.mark.slow
 def test_a_callers_dask_client_stays_open_and_its_futures_are_cancelled(tmp_path, records, launched):
     """An interrupted run on the caller's Client cancels what it submitted and leaves the Client open.
 
@@ -310,6 +314,7 @@ def test_a_callers_dask_client_stays_open_and_its_futures_are_cancelled(tmp_path
 
 
 # --- the run, the folder, the rerun ---------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("signame, status", [("SIGTERM", 128 + 15), ("SIGINT", 130)])
 def test_a_rerun_after_a_signal_resumes_and_leaves_no_partial_file(tmp_path, records, launched, signame, status):
     signal_usable(signame)
@@ -343,6 +348,7 @@ def test_a_rerun_after_a_signal_resumes_and_leaves_no_partial_file(tmp_path, rec
     assert not list(out.rglob("*.tmp"))  # the first run's temporaries (if any) are gone as well
 
 
+@pytest.mark.slow
 def test_two_batches_into_one_folder_at_once_both_finish(tmp_path, records, launched):
     """The second batch waits for the first; neither destroys a file of the other.
 

@@ -295,6 +295,7 @@ def test_sidpac_bytes(scratch, raw):
     assert rec is None or isinstance(rec, Record)
 
 
+@pytest.mark.slow
 @_FIXTURE_OK
 @given(data=st.data())
 def test_sidpac_structured(scratch, data):
@@ -390,6 +391,7 @@ def test_dlr_mat_bytes(scratch, data):
     assert rec is None or isinstance(rec, Record)
 
 
+@pytest.mark.slow
 @_FIXTURE_OK
 @given(data=st.data())
 def test_dlr_mat_structured(scratch, data):

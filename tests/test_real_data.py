@@ -36,6 +36,7 @@ def dimensional(rec):
     return make_model("dimensional", airspeed=rec.meta["U"])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(
     "key, opts, limit",
     [
@@ -74,6 +75,7 @@ def test_twin_otter_repeats_and_joint_fit(records):
     assert lo - 0.3 < joint["M_a"] < hi + 0.3  # between the two manoeuvres
 
 
+@pytest.mark.slow
 def test_hfb320_fits_theta_and_qdot_as_the_dlr_book_does(records):
     """Jategaonkar's HFB-320 case measures theta and q_dot too; fdml fits them as rows of its output table."""
     rec = records["hfb"]

@@ -46,6 +46,7 @@ def no_show(monkeypatch):
 # --- reports ------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_report_from_saved_json(res, tmp_path):
     path = tmp_path / "fit.json"
     res.to_json(path)
@@ -83,12 +84,14 @@ def test_report_is_atomic(res, tmp_path, monkeypatch):
     assert list((tmp_path / "r").iterdir()) == []
 
 
+@pytest.mark.slow
 def test_report_without_time_records_says_why(res, tmp_path):
     files = write_report(res.without_records(), tmp_path / "r", freq_unit="Hz", dpi=40)
     assert "time_histories" not in files
     assert "time histories not drawn" in files["report"].read_text()
 
 
+@pytest.mark.slow
 def test_cli_report(res, tmp_path, capsys):
     path = tmp_path / "fit.json"
     res.to_json(path)
@@ -102,6 +105,7 @@ def test_cli_report(res, tmp_path, capsys):
     assert code == 2 and err.startswith("fdml: error:") and "missing.json" in err and err.count("\n") == 1
 
 
+@pytest.mark.slow
 def test_report_gives_the_airspeed_and_its_source_and_each_warning_once(rec, tmp_path, capsys):
     """A fit whose adequacy check warns (a 40 ms alpha delay): report.md lists that warning once."""
     late = rec.with_signals(alpha=np.concatenate([np.full(2, rec["alpha"][0]), rec["alpha"][:-2]]))

@@ -99,12 +99,23 @@ BRANCHES = {
 
 
 @pytest.fixture(scope="module")
-def fits(model, clean, noisy):
+def step_fit(model, noisy):
+    return _fit(noisy, model)
+
+
+@pytest.fixture(scope="module")
+def floor_fit(model, clean):
+    return _fit(clean, model)  # issues 14 and 21: the noise-free record
+
+
+@pytest.fixture(scope="module")
+def fits(model, clean, noisy, step_fit, floor_fit):
+    """Every stopping branch (the searches for det_r and stalled take several seconds: slow tests only)."""
     return {
-        "step": _fit(noisy, model),
+        "step": step_fit,
         "det_r": _det_r_branch(clean, model),
         "stalled": _stalled_branch(clean, model),
-        "floor": _fit(clean, model),  # issues 14 and 21: the noise-free record
+        "floor": floor_fit,
         "max_iter": _fit(noisy, model, max_iter=1),
         "callback": _fit(noisy, model, callback=lambda info: info.iteration >= 2),
         "paper": _fit(noisy, model, stop="paper"),
@@ -224,6 +235,7 @@ FINDINGS = (
 
 
 # --- every stopping branch ---------------------------------------------------------------------
+@pytest.mark.slow
 @pytest.mark.parametrize("branch", list(BRANCHES))
 def test_every_branch_round_trips(fits, branch, tmp_path):
     res = fits[branch]
@@ -241,6 +253,7 @@ def test_every_branch_round_trips(fits, branch, tmp_path):
     assert_same(back, FitResult.from_dict(json.loads(res.to_json())))  # text and file agree
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("branch", ["det_r", "stalled", "floor", "callback"])
 def test_report_works_on_reloaded_result(fits, branch, tmp_path, capsys):
     path = fits[branch].to_json(tmp_path / "r.json")
@@ -540,9 +553,9 @@ EDITS = [
 
 
 @pytest.fixture(scope="module")
-def saved(fits):
+def saved(floor_fit):
     """The JSON dict of a real result (the noise-free fit, converged at the floating-point floor)."""
-    return fits["floor"].to_dict()
+    return floor_fit.to_dict()
 
 
 def _one_line(err: str) -> str:
@@ -594,10 +607,10 @@ def test_unreadable_result_file(tmp_path, capsys, content, expected):
     assert str(path) in line and expected in line
 
 
-def test_bom_is_accepted(fits, tmp_path):
+def test_bom_is_accepted(step_fit, tmp_path):
     path = tmp_path / "bom.json"
-    path.write_bytes(b"\xef\xbb\xbf" + fits["step"].to_json().encode())
-    assert_same(fits["step"], load_result(path))
+    path.write_bytes(b"\xef\xbb\xbf" + step_fit.to_json().encode())
+    assert_same(step_fit, load_result(path))
     with pytest.raises(FdmlError, match="no.json does not exist"):
         read_json(tmp_path / "no.json", what="aircraft file")
 
@@ -710,6 +723,7 @@ def scratch(tmp_path_factory):
 
 
 # ~100 examples in about 5 s here (limit for the suite: 15 s)
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_property_a_result_always_round_trips(small_fit, scratch, data):
@@ -746,6 +760,7 @@ def _load_or_fdml_error(path):
 
 
 # ~150 examples in about 5 s here
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_property_arbitrary_json_gives_result_or_fdml_error(small_fit, scratch, data):

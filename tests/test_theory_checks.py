@@ -224,6 +224,7 @@ def _ode_reference(t_eval, de, ag):
     return np.array([al, q, (U / G0) * (alpha_dot - q)])  # Eq. 5
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("which", ["de", "gust"])
 def test_b_closed_loop_matches_independent_ode(which):
     """(b) simulator vs solve_ivp (DOP853) of THEORY's equations, F = 0, with the tail delay."""

@@ -1069,8 +1069,12 @@ def reworded(
     ----------
     result : FitResult
         A fit with its adequacy check (``result.adequacy``).
-    fit_argv, diagnose_argv, in_diagnosis
-        As for :func:`advice`.
+    fit_argv : list of str, optional
+        The running ``fdml fit`` command line (:func:`advice`).
+    diagnose_argv : list of str, optional
+        The matching ``fdml diagnose`` command line.
+    in_diagnosis : bool
+        The fit is the diagnosis's own.
 
     Returns
     -------
