@@ -50,7 +50,7 @@ from ..channels import OUTPUTS
 from ..compare import span_of
 from ..errors import FdmlError, ParameterError
 from ..estimate import Problem, information, prepare
-from ..jsoncodec import Fields
+from ..jsoncodec import Codec, integer, number_map
 from .inputs import DesignInput
 from .prediction import noise_stds, predict, response
 
@@ -61,7 +61,7 @@ _GN_PASSES = 30
 
 
 @dataclass(frozen=True)
-class Discrimination:
+class Discrimination(Codec):
     """Expected steady-versus-unsteady statistic for one input.
 
     Parameters
@@ -91,50 +91,8 @@ class Discrimination:
     steady_values: dict
     df: int = 1
 
-    def to_dict(self) -> dict:
-        """JSON-ready dict.
-
-        Returns
-        -------
-        dict
-            Every field by name.
-        """
-        return {
-            "noncentrality": self.noncentrality,
-            "df": self.df,
-            "level": self.level,
-            "probability": self.probability,
-            "favoured": self.favoured,
-            "vuong": self.vuong,
-            "steady_values": self.steady_values,
-        }
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "discrimination") -> Discrimination:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        Discrimination
-            The expected statistic and probabilities.
-        """
-        f = Fields(d, source)
-        return cls(
-            noncentrality=f.number("noncentrality"),
-            level=f.number("level"),
-            probability=f.number("probability"),
-            favoured=f.number("favoured"),
-            vuong=f.number("vuong"),
-            steady_values=f.number_map("steady_values"),
-            df=f.integer("df", minimum=1),
-        )
+    json_source = "discrimination"
+    json_fields = {"steady_values": number_map(), "df": integer(1)}
 
 
 def detection_probability(lam: float, level: float = 0.05, df: int = 1) -> float:
@@ -335,7 +293,7 @@ def discriminate(
 
 
 @dataclass(frozen=True)
-class Detectable:
+class Detectable(Codec):
     """Smallest value of an effect parameter this input detects.
 
     Parameters
@@ -364,42 +322,7 @@ class Detectable:
     level: float
     unit: str = ""
 
-    def to_dict(self) -> dict:
-        """JSON-ready dict.
-
-        Returns
-        -------
-        dict
-            Every field by name.
-        """
-        return dict(self.__dict__)
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "detectable effect") -> Detectable:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        Detectable
-            The minimum detectable value (in the parameter's unit) and its setting.
-        """
-        f = Fields(d, source)
-        return cls(
-            effect=f.string("effect"),
-            parameter=f.string("parameter"),
-            stderr=f.number("stderr"),
-            minimum=f.number("minimum"),
-            power=f.number("power"),
-            level=f.number("level"),
-            unit=f.string("unit", default=""),
-        )
+    json_source = "detectable effect"
 
 
 def minimum_detectable(
