@@ -43,6 +43,7 @@ MEANINGS = {
     "--sensitivity": ("sensitivity", "store", None),
     "--state-biases": ("state_biases", "store_true", 0),
     "--input-bias": ("input_bias", "store_true", 0),
+    "--input-edges": ("input_edges", "store", None),
     "--format": ("format", "store", None),
     "--t0": ("t0", "store", None),
     "--t1": ("t1", "store", None),

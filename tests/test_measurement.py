@@ -82,7 +82,7 @@ def test_predict_is_linear_in_the_nuisance_values_with_columns_as_coefficients()
     omega, T, u, ones = resp.omega, 7.3, cplx(m, 1), cplx(m)
     shift = end_shift(omega, T)
     eta = rng.normal(size=len(NUISANCE_NAMES))
-    full = predict(resp, u, ones, boundary_vector(eta[3:5], eta[5:7], shift), eta[:3], eta[7:9], eta[9])
+    full = predict(resp, u, ones, boundary_vector(eta[3:5], eta[5:7], shift), eta[:3], eta[7:9], eta[9] * ones)
     bare = predict(resp, u, ones)
     # y - G u = C eta exactly (every term linear): only rounding, a few eps of |y|
     np.testing.assert_allclose(
@@ -100,9 +100,9 @@ def test_predict_of_derivatives_broadcasts_over_a_leading_axis():
     m, k = 30, 4
     G, H, P = (rng.normal(size=(k, m, 3, n)) + 1j * rng.normal(size=(k, m, 3, n)) for n in (1, 2, 2))
     u, ones, d = rng.normal(size=(m, 1)) + 0j, rng.normal(size=m) + 0j, rng.normal(size=(m, 2)) + 0j
-    many = predict(ModelResponse(None, G, H, P), u, ones, d, None, np.array([0.3, -0.2]), 0.1)
+    many = predict(ModelResponse(None, G, H, P), u, ones, d, None, np.array([0.3, -0.2]), 0.1 * ones)
     for i in range(k):
-        one = predict(ModelResponse(None, G[i], H[i], P[i]), u, ones, d, None, np.array([0.3, -0.2]), 0.1)
+        one = predict(ModelResponse(None, G[i], H[i], P[i]), u, ones, d, None, np.array([0.3, -0.2]), 0.1 * ones)
         np.testing.assert_array_equal(many[i], one)
 
 

@@ -597,6 +597,7 @@ def _context(prob, model, theta, V, R, A=None):
         "biases": False,
         "state_biases": bool(prob.state_biases),
         "input_bias": bool(prob.input_bias),
+        "input_edges": "estimated" if prob.input_edges else "none",
     }
     ctx = _Context(base, rows, 1, prob.data, options, fw, sensitivities=A)
     return ctx, K[rows]

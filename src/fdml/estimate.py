@@ -35,7 +35,7 @@ import math
 import time
 import warnings
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -58,6 +58,8 @@ from .models.measurement import (
     INPUT_BIAS_NAME,
     STATE_BIAS_NAMES,
     Nuisance,
+    edge_basis,
+    edge_names,
     end_shift,
     nuisance_columns,
     nuisance_names,
@@ -125,6 +127,9 @@ class Problem:
         Estimate the state-equation biases per record.
     input_bias : bool, optional
         Estimate the elevator offset per record.
+    input_edges : {"none", "estimated"}, optional
+        The timing of the elevator's steps between two samples, per record (section 7a):
+        not estimated, or each estimated.
     """
 
     def __init__(
@@ -136,6 +141,7 @@ class Problem:
         sensitivity: str,
         state_biases: bool = False,
         input_bias: bool = False,
+        input_edges: str = "none",
     ):
         self.data = data
         self.model = model
@@ -149,17 +155,22 @@ class Problem:
         for name in model.parameters.free_model_names:
             slots.append(_Slot(name, name, model.parameters[name].role))
         bases = _nuisance_base(self.rows)
+        # the step edges' elevator spectra per second of timing (section 7a), as the mode asks
+        self._edges = [edge_basis(d.omega, d.edges, d.edge_steps, input_edges) for d in data]
         for r, d in enumerate(data):
             suffix = f"[{d.name}]" if multi else ""
             places = [(Role.OUTPUT_BIAS, k) for k in outputs if model.parameters[bases[Role.OUTPUT_BIAS][k]].free]
             places += [(Role.BOUNDARY, j) for j in range(len(bases[Role.BOUNDARY])) if boundary == "estimated"]
             places += [(Role.STATE_BIAS, j) for j in range(len(STATE_BIAS_NAMES)) if state_biases]
             places += [(Role.INPUT_BIAS, 0)] if input_bias else []
+            places += [(Role.INPUT_EDGE, j) for j in range(self._edges[r].shape[1])]
+            edge_base = edge_names(self._edges[r].shape[1])
             for role, j in places:
-                base = bases[role][j]
+                base = edge_base[j] if role is Role.INPUT_EDGE else bases[role][j]
                 slots.append(_Slot(base + suffix, base, role, r, j))
         self.state_biases = state_biases
         self.input_bias = input_bias
+        self.input_edges = input_edges
         self.slots = slots
         self.names = tuple(s.name for s in slots)
         self.model_slots = [i for i, s in enumerate(slots) if not s.role.nuisance]
@@ -167,7 +178,8 @@ class Problem:
         self._nu = []
         for r in range(len(data)):
             own = [i for i, s in enumerate(slots) if s.record == r]
-            cols = [nuisance_names(self.rows).index(slots[i].base) for i in own]
+            names = nuisance_names(self.rows) + edge_names(self._edges[r].shape[1])
+            cols = [names.index(slots[i].base) for i in own]
             self._nu.append((np.array(own, int), np.array(cols, int)))
         self._shift = [end_shift(d.omega, d.T) for d in data]  # exp(-j w T) of each record
         self._eta0: tuple[Model | None, list[np.ndarray]] = (
@@ -223,7 +235,7 @@ class Problem:
         for s in self.slots:
             if not s.role.nuisance or s.role is Role.OUTPUT_BIAS:
                 out.append(p[s.base])
-            elif s.role in (Role.STATE_BIAS, Role.INPUT_BIAS):
+            elif s.role in (Role.STATE_BIAS, Role.INPUT_BIAS, Role.INPUT_EDGE):
                 out.append(0.0)
             else:
                 d = self.data[s.record]
@@ -247,6 +259,10 @@ class Problem:
                 par = self.model.parameters[s.name]
                 lo.append(par.lower)
                 hi.append(par.upper)
+            elif s.role is Role.INPUT_EDGE:  # the step happened within its sample interval
+                half = 0.5 * self.data[s.record].dt
+                lo.append(-half)
+                hi.append(half)
             else:
                 lo.append(-math.inf)
                 hi.append(math.inf)
@@ -274,7 +290,7 @@ class Problem:
         """Nuisance values of record r: estimates from theta, else the model's biases and measured x(0), x(T)."""
         if self._eta0[0] is not self.model:  # nuisance_names order; the model's biases (it may be swapped)
             b = self.model.biases()
-            self._eta0 = (self.model, [np.concatenate([b, d.x0, d.xT, np.zeros(3)]) for d in self.data])
+            self._eta0 = (self.model, [np.concatenate([b, d.x0, d.xT, np.zeros(3 + d.edges.size)]) for d in self.data])
         own, cols = self._nu[r]
         eta = self._eta0[1][r].copy()
         eta[cols] = theta[own]
@@ -284,6 +300,7 @@ class Problem:
             state_biases=self.state_biases,
             input_bias=self.input_bias,
             rows=self.rows,
+            edges=self._edges[r].shape[1],
         )
 
     # --- predictions ---------------------------------------------------------------------
@@ -311,7 +328,9 @@ class Problem:
         for r, (d, resp) in enumerate(zip(self.data, responses)):
             nu = self._nuisance(theta, r)  # Eqs. 18-19 with section 7's boundary terms
             out.append(
-                _measure(resp, d.u, d.ones, nu.boundary(self._shift[r]), nu.biases, nu.state_biases, nu.input_bias)
+                _measure(
+                    resp, d.u, d.ones, nu.boundary(self._shift[r]), nu.biases, nu.state_biases, self._elevator(nu, r)
+                )
             )
         return out
 
@@ -339,7 +358,11 @@ class Problem:
         """
         d = self.data[r]
         nu = self._nuisance(theta, r)
-        return _measure(change, d.u, d.ones, nu.boundary(self._shift[r]), None, nu.state_biases, nu.input_bias)
+        return _measure(change, d.u, d.ones, nu.boundary(self._shift[r]), None, nu.state_biases, self._elevator(nu, r))
+
+    def _elevator(self, nu: Nuisance, r: int) -> np.ndarray | None:
+        """What record r's nuisance terms add to its elevator spectrum (offset, step edges' timing)."""
+        return nu.elevator(self.data[r].ones, self._edges[r])
 
     def _forcing(self, nu: Nuisance, r: int):
         """Record r's inputs u (the elevator offset added), boundary vector d and state forcing f 1(w).
@@ -350,9 +373,10 @@ class Problem:
         """
         d = self.data[r]
         u = d.u
-        if nu.input_bias is not None:
+        extra = self._elevator(nu, r)
+        if extra is not None:
             u = u.copy()
-            u[:, 0] += nu.input_bias * d.ones
+            u[:, 0] += extra
         f = None if nu.state_biases is None else d.ones[:, None] * nu.state_biases[None, :]
         return u, nu.boundary(self._shift[r]), f
 
@@ -417,7 +441,7 @@ class Problem:
         for r, d in enumerate(self.data):
             own, cols = self._nu[r]
             if own.size:  # exact: every nuisance value enters linearly
-                C = self._fitted(nuisance_columns(responses[r], self._shift[r], d.ones), 1)
+                C = self._fitted(nuisance_columns(responses[r], self._shift[r], d.ones, self._edges[r]), 1)
                 A[offs[r] : offs[r + 1], :, own[0] : own[-1] + 1] = C[:, :, cols]  # a record's slots are adjacent
         return A
 
@@ -620,7 +644,16 @@ def prepare(data, model: Model, options: FitOptions | None = None, **keywords) -
         # analytic where every free model parameter has a closed form, else Eq. 26
         closed: frozenset = getattr(model, "closed_form_parameters", frozenset())
         sensitivity = "analytic" if all(n in closed for n in model.parameters.free_model_names) else "fd"
-    prob = Problem(fdata, model, out_idx, opts.boundary, sensitivity, opts.state_biases, opts.input_bias)
+    prob = Problem(
+        fdata,
+        model,
+        out_idx,
+        opts.boundary,
+        sensitivity,
+        opts.state_biases,
+        opts.input_bias,
+        "none" if opts.input_edges == "auto" else opts.input_edges,
+    )
     p = len(prob.slots)
     if p == 0:
         raise ParameterError("no free parameters: nothing to estimate")
@@ -868,6 +901,7 @@ def _stored_options(opts: FitOptions, prob: Problem) -> dict:
     """The options of a fit as plain data for :attr:`FitResult.options` (``auto`` choices as resolved)."""
     biases = any(s.role is Role.OUTPUT_BIAS for s in prob.slots)
     out = opts.resolved(prob.data, biases=biases, sensitivity=prob.sensitivity).to_dict()
+    out["input_edges"] = prob.input_edges  # "auto" as its score test decided
     if opts.cov_type != "naive":  # how white noise reached the covariance, per record
         out["noise_covariance"] = _noise_routes(prob)
     return out
@@ -876,18 +910,63 @@ def _stored_options(opts: FitOptions, prob: Problem) -> dict:
 def _fit(data, model: Model, opts: FitOptions, callback) -> tuple[FitResult, Problem]:
     """:func:`fit` after its options are checked: the result (without its warnings) and the problem."""
     t_start = time.perf_counter()
-    method, stop, tol, cov_type = opts.method, opts.stop, opts.tol, opts.cov_type
     prob = prepare(data, model, opts)
-    max_iter, noise = opts.max_iter, opts.noise
     found = (_data_findings(prob, opts.strict) if opts.check else []) + _end_findings(prob)
     emit(found, stacklevel=3)
-    theta = prob.initial()
+    state = _iterate(prob, prob.initial(), opts, callback)
+    if opts.input_edges == "auto" and state.converged:
+        edged = _edges_needed(prob, state)
+        if edged is not None:  # section 7a: the steps' timing is significant; go on with it estimated
+            start = _carried(prob, state.theta, edged)
+            prob, state = edged, replace(_iterate(edged, start, opts, callback), prior=state.history)
+    res = _finish(
+        prob,
+        state.theta,
+        state.V,
+        state.R,
+        state.prior + state.history,
+        state.it,
+        state.converged,
+        state.message,
+        opts.cov_type,
+        time.perf_counter() - t_start,
+        state.stopped,
+        _stored_options(opts, prob),
+        state.A,
+        state.rows,
+    )
+    found += _band_findings(prob, state.theta)
+    res = replace(res, findings=tuple(found)) if found else res
+    if opts.adequacy and state.converged:
+        res = _with_adequacy(prob, res, state.V, state.A, opts)
+    return res, prob
+
+
+@dataclass(frozen=True)
+class _State:
+    """Where the iteration of :func:`_iterate` ended."""
+
+    theta: np.ndarray
+    V: np.ndarray
+    R: np.ndarray
+    rows: np.ndarray | None
+    history: list
+    it: int
+    converged: bool
+    stopped: bool
+    message: str
+    A: np.ndarray | None
+    prior: list = field(default_factory=list)  # costs of an earlier problem (auto edges)
+
+
+def _iterate(prob: Problem, theta: np.ndarray, opts: FitOptions, callback) -> _State:
+    """The Levenberg-Marquardt (or Gauss-Newton) passes on ln det R from ``theta`` until a stop rule holds."""
+    method, stop, tol = opts.method, opts.stop, opts.tol
     lo, hi = prob.bounds()
     theta = _project(theta, lo, hi)
     full = method == "lm"
-    names = prob.names
     V = prob.residuals(theta)
-    rows = noise.rows(prob)  # band of each residual row (None: white)
+    rows = opts.noise.rows(prob)  # band of each residual row (None: white)
     R = _cov_R(V, rows)
     J = _logdet(R, rows)
     history = [math.exp(J)]
@@ -896,7 +975,7 @@ def _fit(data, model: Model, opts: FitOptions, callback) -> tuple[FitResult, Pro
     message = "maximum number of iterations reached"
     it = 0
     rel_prev = math.inf
-    for it in range(1, max_iter + 1):
+    for it in range(1, opts.max_iter + 1):
         # Eq. 26 columns settled to 1e-4 while far from the optimum; near it, tight central
         # differences, so the fixed point (and the bounds) match the analytic sensitivities
         tight = prob.sensitivity == "fd" and rel_prev < SETTINGS.tight_below
@@ -928,7 +1007,10 @@ def _fit(data, model: Model, opts: FitOptions, callback) -> tuple[FitResult, Pro
         history.append(math.exp(J))
         if callback is not None and callback(
             IterationInfo(
-                iteration=it, cost=math.exp(J), params=dict(zip(names, theta.tolist())), step_in_stderr=float(rel_step)
+                iteration=it,
+                cost=math.exp(J),
+                params=dict(zip(prob.names, theta.tolist())),
+                step_in_stderr=float(rel_step),
             )
         ):
             stopped = True
@@ -940,28 +1022,55 @@ def _fit(data, model: Model, opts: FitOptions, callback) -> tuple[FitResult, Pro
             converged, message = end
             break
     if not converged and not stopped:
-        warnings.warn(f"fit did not converge: {message}", ConvergenceWarning, stacklevel=3)
-    res = _finish(
-        prob,
-        theta,
-        V,
-        R,
-        history,
-        it,
-        converged,
-        message,
-        cov_type,
-        time.perf_counter() - t_start,
-        stopped,
-        _stored_options(opts, prob),
-        A_final,
-        rows,
+        warnings.warn(f"fit did not converge: {message}", ConvergenceWarning, stacklevel=4)
+    return _State(theta, V, R, rows, history, it, converged, stopped, message, A_final)
+
+
+def _edges_needed(prob: Problem, state: _State) -> Problem | None:
+    """The problem with the step edges' timing terms when the steps' timings differ, else None.
+
+    At the fit without them (docs/theory.md section 7a), the Lagrange-multiplier statistic
+    ``LM(S) = N g^T H1_S^-1 g / K`` of ln det R's gradient g and Eq. 23's matrix H1 over the fit's
+    slots and the columns S (K: the grid's oversampling, as in the adequacy check) is taken for
+    every step's timing and for a shift common to all; their difference is chi-squared with one
+    degree of freedom fewer than there are steps.  A common shift alone is an elevator delay,
+    which an input lag of the model resembles, so it does not count as evidence of steps apart.
+    """
+    from .tails import chi2_sf
+
+    if sum(d.edges.size for d in prob.data) < 2:  # one step: its timing is the common shift
+        return None
+    big = Problem(
+        prob.data,
+        prob.model,
+        tuple(prob.out_idx),
+        prob.boundary,
+        prob.sensitivity,
+        prob.state_biases,
+        prob.input_bias,
+        "estimated",
     )
-    found += _band_findings(prob, theta)
-    res = replace(res, findings=tuple(found)) if found else res
-    if opts.adequacy and converged:
-        res = _with_adequacy(prob, res, V, A_final, opts)
-    return res, prob
+    A = big.sensitivities(_carried(prob, state.theta, big))
+    edge = np.array([s.role is Role.INPUT_EDGE for s in big.slots])
+    common = np.concatenate([A[:, :, ~edge], A[:, :, edge].sum(axis=2, keepdims=True)], axis=2)
+    oversample = big.N / sum(d.independent_frequencies() for d in big.data)
+
+    def lm(cols: np.ndarray) -> float:
+        g, H1, _ = _grad_hess(cols, state.V, state.R, False, state.rows)
+        return big.N * float(g @ np.linalg.lstsq(H1, g, rcond=1e-12)[0]) / oversample
+
+    apart = lm(A) - lm(common)
+    return big if chi2_sf(apart, int(edge.sum()) - 1) < SETTINGS.edge_level else None
+
+
+def _carried(prob: Problem, theta: np.ndarray, other: Problem) -> np.ndarray:
+    """``other``'s start vector with the values of the slots it shares with ``prob`` taken from ``theta``."""
+    out = other.initial()
+    at = {n: i for i, n in enumerate(prob.names)}
+    for j, n in enumerate(other.names):
+        if n in at:
+            out[j] = theta[at[n]]
+    return out
 
 
 def _band_findings(prob: Problem, theta: np.ndarray) -> list:
@@ -1363,9 +1472,10 @@ def _naive_sigma(F: np.ndarray) -> np.ndarray:
 def _warn_at_bounds(prob: Problem, theta: np.ndarray) -> None:
     """A :class:`~fdml.errors.BoundsWarning` for every estimate that ended on one of its bounds."""
     lo, hi = prob.bounds()
+    edges = [s.role is Role.INPUT_EDGE for s in prob.slots]  # section 7a: their bounds are the physical interval
     for i, name in enumerate(prob.names):
         side = "lower" if theta[i] <= lo[i] else "upper" if theta[i] >= hi[i] else None
-        if side is not None:
+        if side is not None and not edges[i]:
             warnings.warn(
                 f"parameter {name} ended on its {side} bound {theta[i]:g}: the likelihood's optimum may lie "
                 "beyond it, and its standard error (an interior optimum's) does not hold; widen or drop the bound",

@@ -75,6 +75,11 @@ class EstimatorSettings:
         can make R numerically singular, where the likelihood is unbounded;
         1e-12 of the largest variance changes nothing at any realistic noise
         level.
+    edge_level : float
+        With ``input_edges="auto"``, the step edges' timing terms enter a fit
+        whose score test for them (chi-squared, one degree of freedom per
+        edge; docs/theory.md section 7a) falls below this level: 1 in 100 records
+        whose steps the interpolation does place right pays their variance.
     """
 
     settle_tol: float = 1e-4
@@ -95,6 +100,7 @@ class EstimatorSettings:
     gram_max: int = 1500
     end_offset_warn: float = 0.1
     r_floor: float = 1e-12
+    edge_level: float = 0.01
 
 
 #: The settings every fit uses.

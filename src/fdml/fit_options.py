@@ -284,6 +284,20 @@ class FitOptions:
         Estimate a constant elevator offset ``bias_de`` (rad) per record: the
         error of the elevator trim (a special case of state-equation biases
         along the elevator's input direction).
+    input_edges : {"auto", "estimated", "none"}, optional
+        Where the elevator steps between two samples (:func:`fdml.fourier.step_edges`),
+        the record does not keep the step's time: the transform puts it mid-interval.
+        ``"estimated"`` estimates each such step's timing ``edge_de_k`` (s, within
+        +-dt/2) per record (docs/theory.md section 7a); ``"none"`` (default) takes
+        the interpolated record as the input; ``"auto"`` fits without them,
+        then estimates them when the steps' timings differ: when their score test,
+        given a shift common to every step, rejects equal timing at
+        :attr:`~fdml.estimator_settings.EstimatorSettings.edge_level`.  A common
+        shift alone is an elevator delay, which the model's lags resemble: auto
+        leaves it to the model (``--effect time_delay:de``).  The result's
+        ``options`` say what was done.  Records without such steps are unaffected.
+        The terms also absorb part of a misfit of the model itself (a steady
+        model fitted to unsteady data), which is why they are not on by default.
     free : str or sequence of str, optional
         Names to free: one name (``free="Cm_de"``), several separated by
         commas, or a sequence.
@@ -375,6 +389,13 @@ class FitOptions:
     )
     input_bias: bool = _option(
         False, PROBLEM, cli="estimate a constant elevator offset per record (an elevator trim error)"
+    )
+    input_edges: str = _option(
+        "none",
+        PROBLEM,
+        choices=("auto", "estimated", "none"),
+        cli="timing of elevator steps between two samples, one term per step within +-dt/2 "
+        "(default none; auto: when their score test asks for it)",
     )
     free: tuple = _option((), PROBLEM, cli="free parameters (repeatable)", metavar="NAME", repeat=True)
     fix: Any = _option((), PROBLEM, cli="fix parameters at values (repeatable)", metavar="NAME=VALUE", repeat=True)

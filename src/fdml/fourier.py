@@ -57,6 +57,7 @@ __all__ = [
     "gram_form",
     "leading_transform",
     "transform_columns",
+    "step_edges",
 ]
 
 _METHODS = ("auto", "czt", "direct")
@@ -93,6 +94,11 @@ _MEMO_MAX_SETUP = 4096
 #: m = 256, so at most 16 MB in all (and as much again for the trim-corrected ones of
 #: :meth:`fdml.spectral.FrequencyData.noise_gram`).  Fit bands have about 100.
 _MEMO_MAX_GRAM = 256
+#: A sampled input steps between two samples when one interval carries more than this share of the
+#: absolute change over the three intervals around it (a spike that returns carries half).
+EDGE_SHARE = 0.8
+#: ... counted when the step is at least this share of the input's range (smaller ones are quantisation).
+EDGE_SIZE = 0.05
 
 
 def _lagrange_basis(nodes):
@@ -233,6 +239,35 @@ def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False)
             f"the {MAX_BAND_FREQUENCIES:,} fdml accepts; use a larger step or a narrower band"
         )
     return lo, hi, step, count + 1
+
+
+def step_edges(u) -> np.ndarray:
+    """The sample intervals in which a sampled input steps: its edges whose time the record does not keep.
+
+    The transform integrates the interpolant of the samples, which puts a step that happened
+    anywhere in the interval [t_k, t_k+1] at its middle, to first order in w dt (docs/theory.md
+    section 7a): the step's time is known only to +-dt/2.  An interval counts when its change is
+    at least :data:`EDGE_SIZE` of the input's range and more than :data:`EDGE_SHARE` of the absolute
+    change over the three intervals around it (a raised-cosine or ramped edge spread over several
+    samples does not count, nor does a one-sample spike).
+
+    Parameters
+    ----------
+    u : array_like
+        The input's samples, shape (n,).
+
+    Returns
+    -------
+    numpy.ndarray
+        Indices k of the intervals [t_k, t_k+1] that hold a step, increasing, int, shape (K,).
+    """
+    u = np.asarray(u, float)
+    if u.size < 4:
+        return np.zeros(0, int)
+    d = np.abs(np.diff(u))
+    big = d >= EDGE_SIZE * max(float(np.ptp(u)), 1e-300)
+    around = d + np.r_[0.0, d[:-1]] + np.r_[d[1:], 0.0]
+    return np.flatnonzero(big & (d > EDGE_SHARE * around))
 
 
 def _moments(theta):

@@ -63,6 +63,7 @@ import numpy as np
 
 from .channels import OUTPUTS
 from .constants import G0
+from .fourier import step_edges
 from .score import equally
 from .tails import chi2_sf
 
@@ -101,18 +102,12 @@ TIME_RESOLUTION = 0.25
 SCALE_RESOLUTION = 0.005
 
 
-#: An input edge is unresolved when one sample interval carries more than this share of the change over
-#: the three intervals around it: a step between two samples, whose time the record does not keep.
-EDGE_SHARE = 0.8
-#: ... counted when it is at least this share of the input's range (smaller steps are quantisation).
-EDGE_SIZE = 0.05
-
-
 def unresolved_edges(u: np.ndarray) -> int:
     """How many edges of a sampled input happen within one sample interval (a step between samples).
 
     Such an edge's time is known only to +-dt/2: a fit that interpolates the record puts it mid-way,
-    and an elevator delay of up to half a sample then stands for where the steps really were.
+    and an elevator delay of up to half a sample then stands for where the steps really were
+    (:func:`fdml.fourier.step_edges`).
 
     Parameters
     ----------
@@ -124,13 +119,7 @@ def unresolved_edges(u: np.ndarray) -> int:
     int
         The number of unresolved edges.
     """
-    u = np.asarray(u, float)
-    if u.size < 4:
-        return 0
-    d = np.diff(u)
-    big = np.abs(d) >= EDGE_SIZE * max(float(np.ptp(u)), 1e-300)
-    local = np.abs(u[np.minimum(np.arange(d.size) + 2, u.size - 1)] - u[np.maximum(np.arange(d.size) - 1, 0)])
-    return int(np.sum(big & (np.abs(d) > EDGE_SHARE * np.maximum(local, np.abs(d)))))
+    return int(step_edges(u).size)
 
 
 def input_resolution(records, dt: float) -> float:

@@ -28,7 +28,8 @@ class Role(str, Enum):
     an effect adds (:mod:`fdml.models.effects`); ``OUTPUT_BIAS``: a constant on
     a measured output (``bias_q``); ``STATE_BIAS``: a constant in a state
     equation (``bias_q_dot``); ``INPUT_BIAS``: an elevator offset
-    (``bias_de``); ``BOUNDARY``: a boundary value x(0) or x(T) of the finite
+    (``bias_de``); ``INPUT_EDGE``: the timing of an elevator step between two
+    samples (``edge_de_1``, s; docs/theory.md section 7a); ``BOUNDARY``: a boundary value x(0) or x(T) of the finite
     transform (``x0_alpha``, docs/theory.md section 7).  The value is the JSON
     form: ``Role("delay")`` is :attr:`Role.DELAY`.
     """
@@ -39,6 +40,7 @@ class Role(str, Enum):
     OUTPUT_BIAS = "output_bias"
     STATE_BIAS = "state_bias"
     INPUT_BIAS = "input_bias"
+    INPUT_EDGE = "input_edge"
     BOUNDARY = "boundary"
 
     @property
@@ -48,7 +50,7 @@ class Role(str, Enum):
 
 
 #: Roles of the nuisance terms: not part of the model's dynamics, not reported as its parameters.
-NUISANCE_ROLES = frozenset({Role.OUTPUT_BIAS, Role.STATE_BIAS, Role.INPUT_BIAS, Role.BOUNDARY})
+NUISANCE_ROLES = frozenset({Role.OUTPUT_BIAS, Role.STATE_BIAS, Role.INPUT_BIAS, Role.INPUT_EDGE, Role.BOUNDARY})
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,15 @@ from .errors import FdmlError
 from .findings import Finding
 from .fit_options import FitOptions
 from .jsoncodec import Codec, Fields, Spec, dumps, floats, integer, nested_list, numbers, read_json, texts, write_json
-from .models.measurement import BOUNDARY_NAMES, INPUT_BIAS_NAME, STATE_BIAS_NAMES, Nuisance, nuisance_names
+from .models.measurement import (
+    BOUNDARY_NAMES,
+    INPUT_BIAS_NAME,
+    STATE_BIAS_NAMES,
+    Nuisance,
+    edge_basis,
+    edge_names,
+    nuisance_names,
+)
 from .parameters import Role, Slot
 from .record import Record
 from .spectral import FrequencyData
@@ -494,8 +502,12 @@ class FitResult(ByName, Codec):
 
     @property
     def nuisance(self) -> Mapping:
-        """The nuisance terms used: ``boundary``, ``output_biases``, ``state_biases``, ``input_bias``, ``trim``."""
+        """The nuisance terms used: ``boundary``, ``output_biases``, ``state_biases``, ``input_bias``, ``trim``.
+
+        Also ``input_edges`` when any was: per record, how many elevator steps' timing was estimated.
+        """
         o = self.fit_options
+        edges = tuple(sum(x.role is Role.INPUT_EDGE and x.record == d.name for x in self.slots) for d in self.spectra)
         biased = dict.fromkeys(s.base[len("bias_") :] for s in self.slots if s.role is Role.OUTPUT_BIAS)
         return MappingProxyType(
             {
@@ -504,6 +516,7 @@ class FitResult(ByName, Codec):
                 "state_biases": o.state_biases,
                 "input_bias": o.input_bias,
                 "trim": tuple(d.trim_mode for d in self.spectra),
+                **({"input_edges": edges} if any(edges) else {}),
             }
         )
 
@@ -848,9 +861,10 @@ class FitResult(ByName, Codec):
             The record's nuisance terms.
         """
         s = self.spectra[record]
-        eta = np.concatenate([self.model.biases(), s.x0, s.xT, np.zeros(3)])  # nuisance_names order
         own = [(x, float(v)) for x, v in zip(self.slots, self.values) if x.role.nuisance and x.record == s.name]
-        names = nuisance_names(self.model.outputs)
+        edges = sum(x.role is Role.INPUT_EDGE for x, _ in own)
+        eta = np.concatenate([self.model.biases(), s.x0, s.xT, np.zeros(3 + edges)])  # nuisance_names order
+        names = nuisance_names(self.model.outputs) + edge_names(edges)
         for x, v in own:
             eta[names.index(x.base)] = v
         roles = {x.role for x, _ in own}
@@ -860,6 +874,7 @@ class FitResult(ByName, Codec):
             state_biases=Role.STATE_BIAS in roles,
             input_bias=Role.INPUT_BIAS in roles,
             rows=self.model.outputs,
+            edges=edges,
         )
 
     def fitted_spectra(self, record: int = 0) -> np.ndarray:
@@ -885,7 +900,9 @@ class FitResult(ByName, Codec):
         resp = self.model.evaluate(s.omega)
         nu = self.nuisance_values(record)
         u = s.u[:, : resp.G.shape[2]]
-        return predict(resp, u, s.ones, nu.boundary(end_shift(s.omega, s.T)), nu.biases, nu.state_biases, nu.input_bias)
+        basis = edge_basis(s.omega, s.edges, s.edge_steps, self.options.get("input_edges", "none"))
+        elevator = nu.elevator(s.ones, basis)
+        return predict(resp, u, s.ones, nu.boundary(end_shift(s.omega, s.T)), nu.biases, nu.state_biases, elevator)
 
 
 def correlation(cov) -> np.ndarray:

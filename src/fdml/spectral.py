@@ -187,6 +187,12 @@ class FrequencyData(Codec):
         The record's meta data (airspeed, source, trim values).
     outputs : tuple of str
         The outputs of the columns of ``z`` (:func:`fdml.channels.row_space`).
+    edges : ndarray, shape (K,)
+        Middles of the sample intervals in which the elevator steps
+        (:func:`fdml.fourier.step_edges`), s from the first sample: where the
+        transform puts steps whose time the record does not keep.
+    edge_steps : ndarray, shape (K,)
+        The elevator's change across each of those intervals, rad.
     record : Record or None
         The time-domain record as given (before trim removal), kept for
         time-domain cross-checks, plots and reports.
@@ -210,6 +216,8 @@ class FrequencyData(Codec):
     end_offset: np.ndarray = field(default_factory=lambda: np.zeros(len(OUTPUTS)))
     meta: dict = field(default_factory=dict)
     outputs: tuple = OUTPUTS
+    edges: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    edge_steps: np.ndarray = field(default_factory=lambda: np.zeros(0))
     record: Record | None = field(default=None, repr=False, compare=False)
 
     json_fields = {
@@ -227,6 +235,8 @@ class FrequencyData(Codec):
         "band": numbers(3, none=True),
         "end_offset": floats(None),
         "outputs": Spec(_outputs_field),
+        "edges": floats(None),
+        "edge_steps": floats("edges"),
         "record": nested(Record, none=True),
     }
     json_source = "spectra"
@@ -454,6 +464,7 @@ def spectra(
     X = fourier.finite_fourier_transform(
         np.column_stack([outs, ins, ones]), rec.dt, omega, method=method, end_correction=end_correction
     )
+    steps = fourier.step_edges(rec["de"])
     peak = np.max(np.abs(outs), axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         end_offset = np.where(peak > 0, np.abs(outs[-1]) / peak, 0.0)
@@ -476,6 +487,8 @@ def spectra(
         end_offset=end_offset,
         meta=dict(rec.meta),
         outputs=rows,
+        edges=(steps + 0.5) * rec.dt,
+        edge_steps=rec["de"][steps + 1] - rec["de"][steps],
         record=record,
     )
 

@@ -86,6 +86,8 @@ def parameter_unit(result, name: str) -> str:
         unit = params[base].unit
         if unit:
             return unit
+    if slot is not None and slot.role is Role.INPUT_EDGE:
+        return "s"  # a step's timing (docs/theory.md section 7a)
     return _EXTRA_UNITS.get(base, "")
 
 
@@ -423,6 +425,9 @@ def _biases_used(res) -> list[str]:
         out.append("state-equation biases")
     if Role.INPUT_BIAS in roles:
         out.append("elevator bias")
+    edges = [s.name for s in res.slots if s.role is Role.INPUT_EDGE]
+    if edges:
+        out.append(f"timing of {len(edges)} elevator step(s) between samples")
     params = res.model.parameters
     fixed = [k for k, v in res.fixed.items() if k in params and params[k].role.nuisance and v != 0.0]
     if fixed:

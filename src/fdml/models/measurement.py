@@ -3,15 +3,18 @@
 The output spectra of one record are modelled as (docs/theory.md Eqs. 18-19, with
 Klein's boundary terms of section 7)
 
-    y(w) = G(w) u(w) + H(w) d(w) + b 1(w) + P(w) f 1(w) + G_de(w) b_de 1(w),
+    y(w) = G(w) u(w) + H(w) d(w) + b 1(w) + P(w) f 1(w) + G_de(w) [b_de 1(w) + e(w)],
     d(w) = x(0) - x(T) exp(-j w T),        x = [alpha, q (, theta)],
+    e(w) = -sum_k s_k tau_k exp(-j w t_k)  (section 7a),
 
 with ``G``, ``H``, ``P`` a :class:`~fdml.models.base.ModelResponse`, ``u`` the
 input spectra, ``1(w)`` the transform of a unit constant over the record
 (``FrequencyData.ones``), ``b`` the output biases (alpha rad, q rad/s, a_z g, one per
 output of the response's rows),
 ``f`` the state-equation biases (constants added to the alpha_dot and q_dot
-equations, rad/s and rad/s^2), ``b_de`` an elevator offset (rad) and ``d`` the
+equations, rad/s and rad/s^2), ``b_de`` an elevator offset (rad), ``e`` the
+timing terms of the elevator's steps between samples (a step ``s_k`` rad that the
+transform puts mid-interval at ``t_k`` happened ``tau_k`` s later; :func:`edge_basis`) and ``d`` the
 boundary vector of the states and of each integral output (theta,
 :func:`fdml.channels.boundary_channels`).  The measured spectra are ``z = y + v`` (Eq. 19).
 
@@ -43,6 +46,8 @@ __all__ = [
     "STATE_BIAS_NAMES",
     "Nuisance",
     "boundary_vector",
+    "edge_basis",
+    "edge_names",
     "end_shift",
     "nuisance_columns",
     "nuisance_names",
@@ -74,6 +79,50 @@ def nuisance_names(rows=OUTPUTS) -> tuple[str, ...]:
     return tuple(f"bias_{o}" for o in rows) + ends + STATE_BIAS_NAMES + (INPUT_BIAS_NAME,)
 
 
+def edge_names(count: int) -> tuple[str, ...]:
+    """Names of the timing terms of a record's ``count`` elevator steps between samples: ``edge_de_1``, ...
+
+    Parameters
+    ----------
+    count : int
+        The record's step edges (:attr:`fdml.spectral.FrequencyData.edges`).
+
+    Returns
+    -------
+    tuple of str
+        One name per edge, in time order; they follow :func:`nuisance_names` in a record's nuisance vector.
+    """
+    return tuple(f"edge_de_{k + 1}" for k in range(count))
+
+
+def edge_basis(omega: np.ndarray, edges: np.ndarray, steps: np.ndarray, mode: str = "estimated") -> np.ndarray:
+    """The elevator spectrum per second of timing of each step edge: ``-s_k exp(-j w t_k)`` (section 7a).
+
+    A step ``s_k`` at ``t_k + tau_k`` has the transform ``s_k exp(-j w (t_k + tau_k)) / (j w)``; the
+    interpolating transform of the samples puts it at the interval's middle ``t_k``, so the true
+    elevator spectrum is the measured one plus ``-s_k tau_k exp(-j w t_k)`` to first order in
+    ``w tau_k`` (|tau_k| <= dt/2).
+
+    Parameters
+    ----------
+    omega : numpy.ndarray
+        Frequencies, rad/s, shape (m,).
+    edges : numpy.ndarray
+        Middles of the intervals holding a step, s from the first sample, shape (K,).
+    steps : numpy.ndarray
+        The elevator's change across each, rad, shape (K,).
+    mode : {"estimated", "none"}, optional
+        Every step's timing (K columns) or none (0: the record's transform taken as it is).
+
+    Returns
+    -------
+    numpy.ndarray
+        Complex, rad, shape (m, K), or (m, 0).
+    """
+    B = -np.asarray(steps, float)[None, :] * np.exp(-1j * np.outer(omega, np.asarray(edges, float)))
+    return B if mode == "estimated" else B[:, :0]
+
+
 #: Per-record nuisance values of alpha, q and a_z, in the column order of :func:`nuisance_columns`.
 NUISANCE_NAMES = nuisance_names()
 #: Output biases b: alpha (rad), q (rad/s), a_z (g).
@@ -96,6 +145,9 @@ class Nuisance(NamedTuple):
         State-equation biases f (rad/s, rad/s^2); None when not in the model.
     input_bias : float or None, optional
         Elevator offset b_de (rad); None when not in the model.
+    edges : ndarray, shape (K,), or None, optional
+        Timing tau_k of the elevator's steps between samples (s, later than mid-interval
+        positive; :func:`edge_basis`); None when not estimated.
     """
 
     biases: np.ndarray
@@ -103,10 +155,11 @@ class Nuisance(NamedTuple):
     xT: np.ndarray | None = None
     state_biases: np.ndarray | None = None
     input_bias: float | None = None
+    edges: np.ndarray | None = None
 
     @classmethod
     def from_vector(
-        cls, eta: np.ndarray, *, boundary: bool, state_biases: bool, input_bias: bool, rows=OUTPUTS
+        cls, eta: np.ndarray, *, boundary: bool, state_biases: bool, input_bias: bool, rows=OUTPUTS, edges: int = 0
     ) -> Nuisance:
         """From the values ``eta`` in :func:`nuisance_names` order; flags say which terms are on.
 
@@ -122,6 +175,8 @@ class Nuisance(NamedTuple):
             Keep the elevator offset.
         rows : sequence of str, optional
             The output rows (default alpha, q, a_z).
+        edges : int, optional
+            The step edges' timing terms that follow (:func:`edge_names`); 0: none.
 
         Returns
         -------
@@ -137,7 +192,29 @@ class Nuisance(NamedTuple):
             xT=eta[ny + nb : b] if boundary else None,
             state_biases=eta[b : b + 2] if state_biases else None,
             input_bias=float(eta[b + 2]) if input_bias else None,
+            edges=eta[b + 3 : b + 3 + edges] if edges else None,
         )
+
+    def elevator(self, ones: np.ndarray, basis: np.ndarray) -> np.ndarray | None:
+        """What the nuisance terms add to the elevator's spectrum: ``b_de 1(w) + e(w)``, or None.
+
+        Parameters
+        ----------
+        ones : numpy.ndarray
+            Transform of a unit constant over the record, s, shape (m,).
+        basis : numpy.ndarray
+            The record's :func:`edge_basis`, shape (m, K).
+
+        Returns
+        -------
+        numpy.ndarray or None
+            Complex, rad s, shape (m,); None when neither term is on.
+        """
+        out = None if self.input_bias is None else self.input_bias * ones
+        if self.edges is not None and self.edges.size:
+            e = basis @ self.edges
+            out = e if out is None else out + e
+        return out
 
     def boundary(self, shift: np.ndarray) -> np.ndarray | None:
         """The boundary vector d(w) (:func:`boundary_vector`), or None without boundary terms.
@@ -198,9 +275,9 @@ def predict(
     boundary: np.ndarray | None = None,
     biases: np.ndarray | None = None,
     state_biases: np.ndarray | None = None,
-    input_bias: float | None = None,
+    elevator: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Model output spectra ``y = G u + H d + b 1 + P f 1 + G_de b_de 1`` (Eqs. 18-19, section 7).
+    """Model output spectra ``y = G u + H d + b 1 + P f 1 + G_de (b_de 1 + e)`` (Eqs. 18-19, sections 7, 7a).
 
     Parameters
     ----------
@@ -222,8 +299,9 @@ def predict(
     state_biases : ndarray, shape (2,), optional
         Constants f added to the alpha_dot (rad/s) and q_dot (rad/s^2)
         equations: a constant forcing, whose transform is ``f 1(w)``.
-    input_bias : float, optional
-        Constant elevator offset, rad, entering through G's elevator column.
+    elevator : ndarray, complex, shape (m,), optional
+        What the nuisance terms add to the elevator's spectrum (an offset, the step
+        edges' timing: :meth:`Nuisance.elevator`), rad s, entering through G's elevator column.
 
     Returns
     -------
@@ -238,17 +316,18 @@ def predict(
         y = y + ones[:, None] * biases[None, :]
     if state_biases is not None:
         y = y + (response.P @ state_biases) * ones[:, None]  # f~ = f 1(w)
-    if input_bias is not None:
-        y = y + G[..., 0] * (input_bias * ones)[:, None]  # elevator de + b_de
+    if elevator is not None:
+        y = y + G[..., 0] * elevator[:, None]  # elevator de + b_de 1 + e
     return y
 
 
-def nuisance_columns(response, shift: np.ndarray, ones: np.ndarray) -> np.ndarray:
+def nuisance_columns(response, shift: np.ndarray, ones: np.ndarray, basis: np.ndarray | None = None) -> np.ndarray:
     """Exact sensitivities ``dy/d eta`` of :func:`predict` to the nuisance values.
 
     Columns in :func:`nuisance_names` order of the response's rows: output biases ``e_k 1(w)``;
     x(0): ``H``; x(T): ``-H exp(-j w T)`` (from ``d = x(0) - x(T) exp(-j w T)``);
-    state-equation biases ``P 1(w)``; elevator offset ``G_de 1(w)``.  Every
+    state-equation biases ``P 1(w)``; elevator offset ``G_de 1(w)``; then, with ``basis``,
+    the step edges' timing terms ``G_de basis_k`` (:func:`edge_names` order).  Every
     term is linear in its value, so ``predict`` with nuisance values ``eta``
     equals ``predict`` with none plus ``nuisance_columns @ eta``.
 
@@ -260,10 +339,12 @@ def nuisance_columns(response, shift: np.ndarray, ones: np.ndarray) -> np.ndarra
         ``exp(-j w T)`` (:func:`end_shift`).
     ones : ndarray, complex, shape (m,)
         Transform of a unit constant, s.
+    basis : ndarray, complex, shape (m, K), optional
+        The record's :func:`edge_basis` (rad per s of timing).
 
     Returns
     -------
-    ndarray, complex, shape (m, n_y, n_y + 2 n_b + 3)
+    ndarray, complex, shape (m, n_y, n_y + 2 n_b + 3 + K)
         Per frequency and output, the derivative with respect to each nuisance value.
     """
     m = shift.size
@@ -276,4 +357,6 @@ def nuisance_columns(response, shift: np.ndarray, ones: np.ndarray) -> np.ndarra
     C[:, :, ny + nb : b] = -response.H * shift[:, None, None]
     C[:, :, b : b + 2] = response.P * ones[:, None, None]
     C[:, :, b + 2] = response.G[:, :, 0] * ones[:, None]
+    if basis is not None and basis.shape[1]:  # the step edges' timing terms (section 7a)
+        C = np.concatenate([C, response.G[:, :, :1] * basis[:, None, :]], axis=2)
     return C
