@@ -28,7 +28,7 @@ confident wrong answers on smooth-edged records apart.
 
 Usage::
 
-    python benchmarks/sensor_alias_cases.py [--quick] [--seeds N] [--cases a,c] [--noise 0.03]
+    python benchmarks/sensor_alias_cases.py [--quick] [--seeds N] [--cases a,c] [--noise 0.03] [--input-edges auto]
 
 ``--quick``: seed 0 only (dt 0.02 s, 3-2-1-1), about 4 s a run.  Rows go to
 benchmarks/output/sensor_alias_cases.jsonl (not committed), one JSON line per run.
@@ -206,9 +206,9 @@ def effect_sizes(res) -> list:
     ]
 
 
-def _fit_part(rec, base) -> dict:
+def _fit_part(rec, base, input_edges: str = "none") -> dict:
     t0 = time.perf_counter()
-    res = fdml.fit(rec, base)
+    res = fdml.fit(rec, base, input_edges=input_edges)
     flagged = res.adequacy.flagged if res.adequacy is not None else ()
     verdict = res.adequacy.verdict if res.adequacy is not None else None
     tab, wz, wn = derivative_table(res)
@@ -229,9 +229,9 @@ def _fit_part(rec, base) -> dict:
     }
 
 
-def _diagnose_part(rec, base) -> dict:
+def _diagnose_part(rec, base, input_edges: str = "none") -> dict:
     t0 = time.perf_counter()
-    rep = diagnose(rec, base)
+    rep = diagnose(rec, base, input_edges=input_edges)
     elapsed = time.perf_counter() - t0
     tab, wz, wn = derivative_table(rep.recommended)
     return {
@@ -250,7 +250,15 @@ def _diagnose_part(rec, base) -> dict:
     }
 
 
-def run_case(case: str, seed: int, *, dt: float | None = None, kind: str | None = None, noise: float = 0.03) -> dict:
+def run_case(
+    case: str,
+    seed: int,
+    *,
+    dt: float | None = None,
+    kind: str | None = None,
+    noise: float = 0.03,
+    input_edges: str = "none",
+) -> dict:
     """Simulate one case, run plain fit and the diagnosis on it, and score them.
 
     Parameters
@@ -261,6 +269,8 @@ def run_case(case: str, seed: int, *, dt: float | None = None, kind: str | None 
         Seeds the record (see :func:`make_record`).
     dt, kind, noise : optional
         As in :func:`make_record`.
+    input_edges : {"none", "estimated", "auto"}, optional
+        The elevator steps' timing terms of the fit and the diagnosis (docs/theory.md section 7a).
 
     Returns
     -------
@@ -274,8 +284,8 @@ def run_case(case: str, seed: int, *, dt: float | None = None, kind: str | None 
     base = fdml.make_model("dimensional", "navion")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the fits' warnings are kept in their results
-        fit_part = _fit_part(rec, base)
-        diag_part = _diagnose_part(rec, base)
+        fit_part = _fit_part(rec, base, input_edges)
+        diag_part = _diagnose_part(rec, base, input_edges)
     names = CASES[case].names
     allowed = set().union(*names)
 
@@ -363,6 +373,9 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", type=int, default=6, help="seeds 0..N-1 per case (default 6: every dt and manoeuvre)")
     p.add_argument("--cases", default=",".join(CASES), help="comma-separated case keys")
     p.add_argument("--noise", type=float, default=0.03, help="noise, fraction of each channel's RMS")
+    p.add_argument(
+        "--input-edges", default="none", choices=("none", "estimated", "auto"), help="the steps' timing terms"
+    )
     a = p.parse_args(argv)
     cases = [c for c in a.cases.split(",") if c]
     bad = [c for c in cases if c not in CASES]
@@ -376,7 +389,7 @@ def main(argv=None) -> int:
     with OUT.open("w") as fh:
         for case in cases:
             for seed in seeds:
-                r = run_case(case, seed, noise=a.noise)
+                r = run_case(case, seed, noise=a.noise, input_edges=a.input_edges)
                 rows.append(r)
                 fh.write(json.dumps(r, default=float) + "\n")
                 fh.flush()

@@ -138,3 +138,17 @@ def test_a_record_without_steps_has_no_edge_terms_whatever_the_option():
     res = fit(rec, make_model("dimensional", "navion"), input_edges="estimated", adequacy=False)
     assert not any(n.startswith("edge_de_") for n in res.names)
     assert math.isfinite(res.cost)
+
+
+@pytest.mark.filterwarnings("ignore::fdml.FdmlWarning")
+def test_the_diagnosis_fits_every_model_with_the_steps_timing_its_base_fit_settled():
+    from fdml.diagnose import diagnose
+
+    rec, _ = _stepped(3, dt=0.04)
+    model = make_model("dimensional", "navion")
+    rep = diagnose(rec, model, input_edges="estimated", max_effects=1)
+    assert rep.recommended is not None
+    assert rep.recommended.options["input_edges"] == "estimated"
+    assert sum(n.startswith("edge_de_") for n in rep.recommended.names) == 5
+    plain = diagnose(rec, model, max_effects=1)  # the default keeps the record's interpolation
+    assert plain.recommended is None or not any(n.startswith("edge_de_") for n in plain.recommended.names)

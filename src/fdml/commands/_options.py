@@ -224,14 +224,23 @@ def add_fit_options(p, *, fix_free: bool = True) -> None:
     """
     g = p.add_argument_group("fit options (defaults: fdml.fit's)")
     for o in command_line_options():
-        if o["repeat"]:
-            if fix_free:
-                accumulating(g, o["flag"], metavar=o["metavar"], help=o["help"])
-        elif o["switch"]:
-            g.add_argument(o["flag"], action="store_true", default=None, help=o["help"])
-        else:
-            extra = {"metavar": o["metavar"]} if "metavar" in o else {}
-            g.add_argument(o["flag"], choices=o["choices"], default=None, help=o["help"], **extra)
+        if fix_free or not o["repeat"]:
+            _add_option(g, o)
+
+
+def add_fit_option(p, name: str) -> None:
+    """One of the fit options of :func:`add_fit_options` (by its name in FitOptions), as there."""
+    _add_option(p, next(o for o in command_line_options() if o["name"] == name))
+
+
+def _add_option(g, o: dict) -> None:
+    if o["repeat"]:
+        accumulating(g, o["flag"], metavar=o["metavar"], help=o["help"])
+    elif o["switch"]:
+        g.add_argument(o["flag"], action="store_true", default=None, help=o["help"])
+    else:
+        extra = {"metavar": o["metavar"]} if "metavar" in o else {}
+        g.add_argument(o["flag"], choices=o["choices"], default=None, help=o["help"], **extra)
 
 
 def fit_kwargs(args) -> dict:

@@ -51,7 +51,11 @@ def _resolve(records, base):
     if isinstance(base, FitResult):
         if records is None:
             records = [base.record(i) for i in range(len(base.time_records))]
-        opts = {"outputs": tuple(base.outputs), "boundary": base.boundary}
+        opts = {
+            "outputs": tuple(base.outputs),
+            "boundary": base.boundary,
+            "input_edges": base.options.get("input_edges", "none"),
+        }
         base = base.model
     if not isinstance(base, Model):
         raise ParameterError(f"base must be an fdml Model or FitResult, got {type(base).__name__}")
@@ -174,7 +178,7 @@ class _Setup:
     rows: np.ndarray  # noise band of each stacked analysis row
     edges: np.ndarray  # gap-map band edges, rad/s
     channels: tuple
-    options: dict  # outputs, boundary, biases (as fdml.fit)
+    options: dict  # outputs, boundary, biases, input_edges (as fdml.fit; edges as the base fit resolved them)
     effects: tuple
     alpha: float
     n_obs: int  # real independent observations (for BIC)
@@ -249,6 +253,7 @@ def diagnose(
     outputs=None,
     boundary: str = "estimated",
     biases="auto",
+    input_edges: str = "none",
     trim: str = "first",
     shrink_threshold: float = SHRINK_CONFIRM,
     check: bool = True,
@@ -293,6 +298,9 @@ def diagnose(
         Boundary terms, as in :func:`fdml.fit`.
     biases : {"auto", True, False}, optional
         Output biases, as in :func:`fdml.fit`.
+    input_edges : {"none", "estimated", "auto"}, optional
+        The elevator steps' timing terms, as in :func:`fdml.fit`: the base fit settles
+        ``"auto"``, and every later fit takes its choice (one input for every model compared).
     trim : {"first", "mean", "none"}, optional
         Trim removal, as in :func:`fdml.spectral.spectra`.
     shrink_threshold : float, optional
@@ -315,6 +323,7 @@ def diagnose(
     if outputs is None:
         outputs = fopts.get("outputs")
     boundary = fopts.get("boundary", boundary)
+    input_edges = fopts.get("input_edges", input_edges)
     if not (0 < alpha < 1):
         raise ParameterError(f"alpha must lie in (0, 1), got {alpha}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, (int, np.integer)) or max_effects < 0:
@@ -333,6 +342,7 @@ def diagnose(
         outputs=outputs,
         boundary=boundary,
         biases=biases,
+        input_edges=input_edges,
         trim=trim,
         shrink_threshold=shrink_threshold,
     )
@@ -343,6 +353,8 @@ def diagnose(
         base_fit = fit_model(su.data, model, su.nb, **su.options)
     except FdmlError as exc:
         return _empty("base_fit_failed", [f"the base model could not be fitted: {exc}"], su.settings, found)
+    if base_fit.result is not None:  # every later fit takes the steps' timing as the base fit settled it
+        su = replace(su, options={**su.options, "input_edges": base_fit.result.options.get("input_edges", "none")})
     if not base_fit.converged:
         return _empty(
             "base_not_converged",
@@ -399,6 +411,7 @@ def _setup(
     outputs,
     boundary,
     biases,
+    input_edges,
     trim,
     shrink_threshold,
 ) -> _Setup:
@@ -432,7 +445,7 @@ def _setup(
         rows=nb.assign(data.stacked_omega()),
         edges=edges,
         channels=channels,
-        options={"outputs": outputs, "boundary": boundary, "biases": biases},
+        options={"outputs": outputs, "boundary": boundary, "biases": biases, "input_edges": input_edges},
         effects=tuple(effects),
         alpha=alpha,
         n_obs=2 * data.n_dft * len(channels),
@@ -665,6 +678,7 @@ def recommended_fit(
     outputs=None,
     boundary: str = "estimated",
     biases="auto",
+    input_edges: str = "none",
 ):
     """:func:`fdml.fit` of ``base_model`` plus ``effects`` on the diagnosis's analysis grid.
 
@@ -692,6 +706,8 @@ def recommended_fit(
         Boundary terms, as in :func:`fdml.fit`.
     biases : {"auto", True, False}, optional
         Output biases, as in :func:`fdml.fit`.
+    input_edges : {"none", "estimated", "auto"}, optional
+        The elevator steps' timing terms, as in :func:`fdml.fit`.
 
     Returns
     -------
@@ -712,7 +728,14 @@ def recommended_fit(
     def refit(values=None, start_model=model, adequacy=True):
         m = start_model.with_values(values) if values else start_model
         return fdml_fit(
-            list(data.spectra), m, outputs=outputs, boundary=boundary, biases=biases, check=False, adequacy=adequacy
+            list(data.spectra),
+            m,
+            outputs=outputs,
+            boundary=boundary,
+            biases=biases,
+            input_edges=input_edges,
+            check=False,
+            adequacy=adequacy,
         )
 
     try:  # the diagnosis has checked the records

@@ -177,6 +177,7 @@ def fit_model(
     outputs=None,
     boundary: str = "estimated",
     biases="auto",
+    input_edges: str = "none",
     start: dict | None = None,
 ) -> DiagFit:
     """Fit ``model`` to ``data`` by :func:`fdml.fit` under the band-wise noise model ``bands``.
@@ -198,6 +199,8 @@ def fit_model(
         Boundary terms, as for :func:`fdml.fit`.
     biases : {"auto", True, False}, optional
         Output biases, as for :func:`fdml.fit`.
+    input_edges : {"none", "estimated", "auto"}, optional
+        The elevator steps' timing terms, as for :func:`fdml.fit`.
     start : dict, optional
         Start values by parameter name (clipped to the bounds).
 
@@ -224,6 +227,7 @@ def fit_model(
             outputs=outputs,
             boundary=boundary,
             biases=biases,
+            input_edges=input_edges,
             cov_type="colored",
             noise=bands,
             sensitivity="analytic",
@@ -231,7 +235,7 @@ def fit_model(
             adequacy=False,
         )
     stderr = dict(zip(res.names, np.asarray(res.stderr, float).tolist()))
-    return diag_fit(res, data, bands, stderr, log, outputs=outputs, boundary=boundary, biases=biases)
+    return diag_fit(res, data, bands, stderr, log, outputs=outputs, boundary=boundary, biases=biases)  # edges: res's
 
 
 def diag_fit(res, data: AnalysisData, bands: NoiseModel, stderr: dict, warned=(), **options) -> DiagFit:
@@ -253,7 +257,8 @@ def diag_fit(res, data: AnalysisData, bands: NoiseModel, stderr: dict, warned=()
     warned : iterable, optional
         Warnings recorded while ``res`` was fitted.
     **options
-        Fit options (``outputs``, ``boundary``, ``biases``) to rebuild the problem with.
+        Fit options (``outputs``, ``boundary``, ``biases``) to rebuild the problem with; the
+        elevator steps' timing terms are the fit's own (``input_edges`` as it resolved them).
 
     Returns
     -------
@@ -262,7 +267,7 @@ def diag_fit(res, data: AnalysisData, bands: NoiseModel, stderr: dict, warned=()
     """
     items = list(data.spectra)
     with recording(reemit=False) as log:
-        prob = prepare(items, res.model, **options)
+        prob = prepare(items, res.model, **{**options, "input_edges": res.options.get("input_edges", "none")})
     theta = np.array([res.params[n] for n in prob.names], float)
     V = prob.residuals(theta)
     C, Rs = band_cost(V, bands.assign(data.stacked_omega()), bands.n)
