@@ -228,9 +228,10 @@ def add_fit_options(p, *, fix_free: bool = True) -> None:
             _add_option(g, o)
 
 
-def add_fit_option(p, name: str) -> None:
-    """One of the fit options of :func:`add_fit_options` (by its name in FitOptions), as there."""
-    _add_option(p, next(o for o in command_line_options() if o["name"] == name))
+def add_fit_option(p, name: str, help: str | None = None) -> None:
+    """One fit option of :func:`add_fit_options` (its name in FitOptions), as there; ``help`` replaces its text."""
+    o = next(o for o in command_line_options() if o["name"] == name)
+    _add_option(p, o if help is None else {**o, "help": help})
 
 
 def _add_option(g, o: dict) -> None:

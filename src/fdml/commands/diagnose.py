@@ -44,7 +44,12 @@ def register(sub) -> None:
         default=None,
         help="outputs in the fit, comma-separated, each once (default alpha,q,az)",
     )
-    O.add_fit_option(p, "input_edges")
+    O.add_fit_option(
+        p,
+        "input_edges",
+        help="timing of elevator steps between two samples, one term per step within +-dt/2 (default: "
+        "estimated when it explains the gap better than the effects, by BIC; none; estimated; auto as fdml fit)",
+    )
     p.add_argument("--library", metavar="NAME,...", help="candidate effects (default: all registered)")
     p.add_argument(
         "--alpha", type=float, default=None, help="family-wise level (default: every fit's adequacy check's, 0.01)"
@@ -178,7 +183,7 @@ def run(args) -> int:
         alpha=args.alpha if args.alpha is not None else _level(),
         max_effects=args.max_effects,
         outputs=outputs,
-        input_edges=args.input_edges or "none",
+        input_edges=args.input_edges,
         trim="first",
         strict=bool(args.strict),
         **({} if args.noise_model is None else {"noise": args.noise_model}),

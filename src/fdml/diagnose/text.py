@@ -186,6 +186,8 @@ def paragraph(rep) -> str:
         "frequencies."
     ]
     out += _kinematics_sentences(rep)
+    if isinstance(st.get("input_edges"), str):  # the diagnosis estimated the elevator steps' timing itself
+        out.append(st["input_edges"])
     whole = st.get("band")
     flagged = [c for c in rep.location if c.get("significant")]
     if flagged:
