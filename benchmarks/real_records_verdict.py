@@ -84,6 +84,8 @@ def run(name: str, recs) -> dict:
     rep = diagnose(data, base)
     t_diag = time.perf_counter() - t0
     first = rep.selected[0]["key"] if rep.selected else rep.verdict
+    if "input_edges" in rep.settings:  # the diagnosis found the elevator steps' timing first (theory 7a)
+        first = "input_edges"
     return {
         "name": name,
         "fit_first": None if v is None else v.key,

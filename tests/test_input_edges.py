@@ -174,3 +174,20 @@ def test_when_the_steps_timing_explains_the_gap_best_the_diagnosis_estimates_it(
     assert rep.verdict == "none" and rep.recommended.options["input_edges"] == "estimated"
     z = max(abs(rep.recommended.params[k] - truth[k]) / rep.recommended.errors[k] for k in DERIVS)
     assert z < 3.0
+
+
+@pytest.mark.filterwarnings("ignore::fdml.FdmlWarning")
+def test_the_fits_adequacy_check_gives_the_same_answer_as_the_diagnosis():
+    # One question, one answer: on the record whose steps sit 8.3 ms early, the plain fit's check ranks
+    # the steps' timing first as the diagnosis does, and its advice runs as printed.
+    from fdml.adequacy import Verdict
+
+    rec, _ = _stepped(3, dt=0.02)
+    res = fit(rec, make_model("dimensional", "navion"))
+    v = res.adequacy.verdict
+    assert v is not None and v.source == "steps" and v.key == "input_edges"
+    warned = [w.message for w in res.warnings if w.category == "AdequacyWarning"]
+    assert len(warned) == 1 and "--input-edges estimated" in warned[0]
+    assert Verdict.from_dict(v.to_dict()) == v
+    again = fit(rec, make_model("dimensional", "navion"), input_edges="estimated")
+    assert again.adequacy.adequate  # with the steps' timing the check finds nothing left

@@ -201,8 +201,10 @@ class Verdict(Codec):
     units : dict
         Unit of every parameter.
     source : str
-        ``"kinematics"`` (settled by the short-period identity, :mod:`fdml.kinematics`) or ``"refit"``
-        (the flagged candidates, or the kinematics' alias set, refitted and ranked).
+        ``"kinematics"`` (settled by the short-period identity, :mod:`fdml.kinematics`), ``"refit"``
+        (the flagged candidates, or the kinematics' alias set, refitted and ranked) or ``"steps"``
+        (the timing of the elevator's steps between samples explains the residuals better than any
+        of them, by BIC: docs/theory.md section 7a; ``key`` is then ``"input_edges"``).
     aliases : tuple of str
         Every effect these data cannot tell apart from it (itself included).
     set_aside : tuple of (str, str)
@@ -222,7 +224,7 @@ class Verdict(Codec):
     json_fields = {
         "params": Spec(lambda f, k, done: {n: tuple(float(x) for x in v) for n, v in f.mapping(k).items()}),
         "units": mapping(),
-        "source": text(("kinematics", "refit")),
+        "source": text(("kinematics", "refit", "steps")),
         "aliases": texts(),
         "set_aside": Spec(lambda f, k, done: tuple(tuple(str(y) for y in x) for x in f.raw(k))),
     }
@@ -246,6 +248,8 @@ class Verdict(Codec):
             for k, (v, se) in self.params.items()
         )
         how = "settled by the kinematics" if self.source == "kinematics" else f"LR {self.lr:.3g}"
+        if self.source == "steps":
+            return f"the timing of the elevator's steps between samples ({how})"
         return f"{self.key} ({vals}; {how})"
 
 
@@ -927,12 +931,38 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
     eligible = [f for f in fits if f.p < level and f.demoted is None]
     best, aliases = choose_among(eligible, 2.0 * n_ind * len(prob.out_idx))
     aside = tuple((f.effect.key, f.demoted) for f in fits if f.demoted is not None and f.p < level)
+    steps = _steps_verdict(prob, result, refit, n_ind, best, level, aside)
+    if steps is not None:
+        return steps
     if best is None:
         return Verdict(None, {}, {}, "refit", (), aside, 0.0) if aside else None
     units = {x.name: x.unit for x in best.effect.param_list(result.model)}
     return Verdict(
         best.effect.key, dict(best.params), units, "refit", tuple(f.effect.key for f in aliases), aside, best.lr
     )
+
+
+def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside: tuple) -> Verdict | None:
+    """The steps' timing as the verdict when it explains the residuals better than ``best`` (or, with no
+    best, significantly): the fit's model refitted with every elevator step's timing (docs/theory.md
+    section 7a), compared by BIC (``q ln n - LR``) as :func:`fdml.verdict.choose_among` compares candidates;
+    None for records without steps between samples or a fit that estimated them."""
+    from .tails import chi2_sf
+
+    if getattr(prob, "input_edges", "none") != "none" or not any(d.edges.size for d in prob.data):
+        return None
+    try:
+        r = refit(result.model, input_edges="estimated")
+    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
+        return None
+    k = sum(d.edges.size for d in prob.data)
+    lr = max(2.0 * n_ind * (np.linalg.slogdet(result.R)[1] - np.linalg.slogdet(r.R)[1]), 0.0)
+    logn = math.log(max(2.0 * n_ind * len(prob.out_idx), 2.0))
+    if best is None:
+        better = chi2_sf(lr, k) < level
+    else:
+        better = k * logn - lr < best.q_eff * logn - best.lr
+    return Verdict("input_edges", {}, {}, "steps", (), aside, lr) if better and r.converged else None
 
 
 # --- the warning ----------------------------------------------------------------------------------
@@ -1032,6 +1062,18 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
     if v.key is None:
         why = "; ".join(f"{k}: {r}" for k, r in v.set_aside)
         return f"the fit's residuals flag effects that were all set aside ({why}){tail}"
+    if v.source == "steps":
+        args = ["--input-edges", "estimated"]
+        refit = (
+            shlex.join([*fit_argv, *args])
+            if fit_argv
+            else 'fdml fit RECORD ... --input-edges estimated (Python: input_edges="estimated")'
+        )
+        return (
+            f"the elevator steps between samples, and {v.describe()} explains the fit's residuals better "
+            f"than any flagged effect ({', '.join(e.key for e in adequacy.flagged) or 'none'}): the record "
+            f"does not keep when each step happened. Refit with it: {refit}{tail}"
+        )
     extra = [f"{k}={val:.6g}" for k, (val, _) in v.params.items()] if v.source == "kinematics" else []
     args = ["--effect", _option(v.key)] + [a for x in extra for a in ("--fix", x)]
     refit = shlex.join([*fit_argv, *args]) if fit_argv else "fdml fit RECORD ... " + shlex.join(args)

@@ -1168,10 +1168,10 @@ def _with_adequacy(prob, res, V, A_final, opts: FitOptions):
     """
     from .adequacy import attach
 
-    def refit(model):
+    def refit(model, **changes):
         # closed-form sensitivities where the model has them, else central differences (as the
         # diagnosis's fits): a refit starts near its optimum and needs no settled Eq. 26 columns
-        refit_opts = FitOptions.of(opts, adequacy=False, check=False, sensitivity="analytic")
+        refit_opts = FitOptions.of(opts, adequacy=False, check=False, sensitivity="analytic", **changes)
         with recording(reemit=False):  # the refits' warnings belong to them, not to this fit
             return _fit(prob.data, model, refit_opts, None)[0]
 

@@ -445,7 +445,9 @@ class _Record:
     A: np.ndarray
     Q: np.ndarray
     Z: np.ndarray
-    N: np.ndarray  # (m, 3) nuisance regressors: 1, exp(-sT), transform of a constant
+    # (m, 3 + K) nuisance regressors: 1, exp(-sT), transform of a constant, and exp(-s t_k) of each elevator
+    # step between samples (a_z jumps with the elevator; its transform puts the jump mid-interval: theory 7a)
+    N: np.ndarray
     K: float  # grid points per independent frequency
     block: int  # grid points per independent frequency, rounded (for Vuong's blocks)
 
@@ -458,7 +460,8 @@ def _records(spectra) -> list:
         s = 1j * om
         step = float(np.median(np.diff(om))) if om.size > 1 else 2 * math.pi / d.T
         K = max(1.0, 2 * math.pi / (d.T * step))
-        N = np.column_stack([np.ones_like(s), np.exp(-s * d.T), np.asarray(d.ones)[keep]])
+        steps = np.exp(-np.outer(s, np.asarray(getattr(d, "edges", ()), float)))
+        N = np.column_stack([np.ones_like(s), np.exp(-s * d.T), np.asarray(d.ones)[keep], steps])
         z = np.asarray(d.z)[keep]
         out.append(_Record(float(d.T), s, z[:, 0], z[:, 1], z[:, 2], N, K, max(int(round(K)), 1)))
     return out

@@ -900,8 +900,12 @@ class FitResult(ByName, Codec):
         resp = self.model.evaluate(s.omega)
         nu = self.nuisance_values(record)
         u = s.u[:, : resp.G.shape[2]]
-        basis = edge_basis(s.omega, s.edges, s.edge_steps, self.options.get("input_edges", "none"))
-        elevator = nu.elevator(s.ones, basis)
+        k = 0 if nu.edges is None else nu.edges.size  # the steps whose timing the fit estimated
+        if k not in (0, s.edges.size):
+            raise FdmlError(
+                f"record {s.name!r}: {k} step timing terms for its {s.edges.size} elevator steps between samples"
+            )
+        elevator = nu.elevator(s.ones, edge_basis(s.omega, s.edges, s.edge_steps)[:, :k])
         return predict(resp, u, s.ones, nu.boundary(end_shift(s.omega, s.T)), nu.biases, nu.state_biases, elevator)
 
 
