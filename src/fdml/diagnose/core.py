@@ -327,9 +327,9 @@ def diagnose(
     if input_edges is None and _steps_fit_better(rep, records, base, boundary, biases):
         again = _diagnose(**{**kwargs, "input_edges": "estimated"})
         note = (
-            "The elevator steps between samples, and their timing explains the gap better than the effects "
-            "(a lower BIC for the base model with every step's timing than for the model the diagnosis "
-            "chose without): every step's timing is estimated (--input-edges estimated; docs/theory.md "
+            "The elevator steps between samples, and their timing explains the gap (a lower BIC for the "
+            "base model, or the model the diagnosis chose, with every step's timing than for the chosen "
+            "model without): every step's timing is estimated (--input-edges estimated; docs/theory.md "
             "section 7a)."
         )
         rep = replace(again, settings={**again.settings, "input_edges": note})
@@ -344,8 +344,9 @@ def _paragraph(rep):
 
 
 def _steps_fit_better(rep: DiagnosisReport, records, base, boundary, biases) -> bool:
-    """Whether the base model with the timing of every elevator step between samples (docs/theory.md
-    section 7a) has a lower BIC than the final model of the diagnosis ``rep`` run without it.
+    """Whether the base model, or the diagnosis's final model, with the timing of every elevator step
+    between samples (docs/theory.md section 7a) has a lower BIC than the final model of the diagnosis
+    ``rep`` run without it.
 
     Only for records whose elevator steps between samples and a diagnosis that found a significant
     candidate (else there is no gap to explain).  BIC = 2 C / K + k ln n on the diagnosis's grid
@@ -361,24 +362,28 @@ def _steps_fit_better(rep: DiagnosisReport, records, base, boundary, biases) -> 
         return False
     st = rep.settings
     nb = NoiseModel(tuple(rep.noise["bands"]))
-    try:
-        edged = fit_model(
-            rep.details["data"],
-            rep.details["base_fit"].model,
-            nb,
-            outputs=st["outputs"],
-            boundary=boundary,
-            biases=biases,
-            input_edges="estimated",
-        )
-    except FdmlError:
-        return False
     K, logn = st["oversample"], math.log(max(2 * st["independent_frequencies"] * len(st["outputs"]), 2))
 
     def bic(f: DiagFit) -> float:
         return 2.0 * f.cost / K + len(f.names) * logn
 
-    return bool(edged.converged) and bic(edged) < bic(final)
+    base_model = rep.details["base_fit"].model
+    for model in (base_model,) if final.model is base_model else (base_model, final.model):  # instead, or beside
+        try:
+            edged = fit_model(
+                rep.details["data"],
+                model,
+                nb,
+                outputs=st["outputs"],
+                boundary=boundary,
+                biases=biases,
+                input_edges="estimated",
+            )
+        except FdmlError:
+            continue
+        if edged.converged and bic(edged) < bic(final):
+            return True
+    return False
 
 
 def _diagnose(
