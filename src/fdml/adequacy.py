@@ -211,6 +211,9 @@ class Verdict(Codec):
         Significant candidates that were set aside, with the reason.
     lr : float
         Its likelihood ratio against the fit.
+    with_steps : bool
+        The timing of the elevator's steps between samples belongs beside it (docs/theory.md section
+        7a): the advice refits with ``--input-edges estimated`` too.
     """
 
     key: str | None
@@ -220,6 +223,7 @@ class Verdict(Codec):
     aliases: tuple = ()
     set_aside: tuple = ()
     lr: float = 0.0
+    with_steps: bool = False
 
     json_fields = {
         "params": Spec(lambda f, k, done: {n: tuple(float(x) for x in v) for n, v in f.mapping(k).items()}),
@@ -918,51 +922,83 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
     if adequacy.adequate:
         return None
     kin = _kinematics(prob, result.model)
-    if kin is not None and kin.settled:
-        m = kin.settled[0]
-        return Verdict(
-            m.key, {m.param: (m.value, m.stderr)}, {m.param: m.unit}, "kinematics", (m.key,), (), m.finding.lr
-        )
     rows = _independent_rows(prob)
     n_ind = float(rows.size)
+    if kin is not None and kin.settled:
+        m = kin.settled[0]
+        beside = _steps_beside(prob, result, refit, n_ind, m)
+        return Verdict(
+            m.key, {m.param: (m.value, m.stderr)}, {m.param: m.unit}, "kinematics", (m.key,), (), m.finding.lr, beside
+        )
     raw = [_refit_one(eff, st, prob, result, refit, kin, n_ind) for eff, st in _candidates(adequacy, kin, result.model)]
     fits: list[_Refit] = [f for f in raw if f is not None]
     level = adequacy.alpha / max(len(fits), 1)
     eligible = [f for f in fits if f.p < level and f.demoted is None]
     best, aliases = choose_among(eligible, 2.0 * n_ind * len(prob.out_idx))
     aside = tuple((f.effect.key, f.demoted) for f in fits if f.demoted is not None and f.p < level)
-    steps = _steps_verdict(prob, result, refit, n_ind, best, level, aside)
-    if steps is not None:
-        return steps
+    steps, steps_lr = _steps_verdict(prob, result, refit, n_ind, best, level, aside)
+    if steps == "steps":
+        return Verdict("input_edges", {}, {}, "steps", (), aside, steps_lr)
     if best is None:
         return Verdict(None, {}, {}, "refit", (), aside, 0.0) if aside else None
     units = {x.name: x.unit for x in best.effect.param_list(result.model)}
-    return Verdict(
-        best.effect.key, dict(best.params), units, "refit", tuple(f.effect.key for f in aliases), aside, best.lr
-    )
+    keys = tuple(f.effect.key for f in aliases)
+    return Verdict(best.effect.key, dict(best.params), units, "refit", keys, aside, best.lr, steps == "beside")
 
 
-def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside: tuple) -> Verdict | None:
-    """The steps' timing as the verdict when it explains the residuals better than ``best`` (or, with no
-    best, significantly): the fit's model refitted with every elevator step's timing (docs/theory.md
-    section 7a), compared by BIC (``q ln n - LR``) as :func:`fdml.verdict.choose_among` compares candidates;
-    None for records without steps between samples or a fit that estimated them."""
+def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside: tuple):
+    """Where the timing of the elevator's steps between samples (docs/theory.md section 7a) enters the verdict.
+
+    The fit's model and, with a ``best`` candidate, its refit are refitted with every step's timing and
+    compared by BIC (``q ln n - LR``, as :func:`fdml.verdict.choose_among` compares candidates).  Returns
+    (``"steps"``, LR) when the timing alone explains the residuals best (or, with no best, significantly),
+    (``"beside"``, LR) when it lowers the BIC beside the best candidate, else (None, 0) (also for records
+    without such steps and for a fit that estimated them).
+    """
     from .tails import chi2_sf
 
     if getattr(prob, "input_edges", "none") != "none" or not any(d.edges.size for d in prob.data):
-        return None
-    try:
-        r = refit(result.model, input_edges="estimated")
-    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
-        return None
+        return None, 0.0
     k = sum(d.edges.size for d in prob.data)
-    lr = max(2.0 * n_ind * (np.linalg.slogdet(result.R)[1] - np.linalg.slogdet(r.R)[1]), 0.0)
     logn = math.log(max(2.0 * n_ind * len(prob.out_idx), 2.0))
+
+    def lr_with_steps(model) -> float | None:
+        try:
+            r = refit(model, input_edges="estimated")
+        except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
+            return None
+        if not r.converged:
+            return None
+        return max(2.0 * n_ind * (np.linalg.slogdet(result.R)[1] - np.linalg.slogdet(r.R)[1]), 0.0)
+
+    alone = lr_with_steps(result.model)
     if best is None:
-        better = chi2_sf(lr, k) < level
-    else:
-        better = k * logn - lr < best.q_eff * logn - best.lr
-    return Verdict("input_edges", {}, {}, "steps", (), aside, lr) if better and r.converged else None
+        return ("steps", alone) if alone is not None and chi2_sf(alone, k) < level else (None, 0.0)
+    beside = lr_with_steps(best.result.model)
+    bic = {"best": (best.q_eff * logn - best.lr, best.lr)}
+    if alone is not None:
+        bic["steps"] = (k * logn - alone, alone)
+    if beside is not None:
+        bic["beside"] = ((best.q_eff + k) * logn - beside, beside)
+    choice = min(bic, key=lambda n: bic[n][0])
+    return (None, 0.0) if choice == "best" else (choice, bic[choice][1])
+
+
+def _steps_beside(prob, result, refit, n_ind: float, m) -> bool:
+    """Whether the steps' timing lowers the BIC beside the sensor effect ``m`` the kinematics settled (held at
+    its kinematic value, as the advice refits it): :func:`_steps_verdict` for the kinematics' verdict."""
+    from .models.effects import get_effect
+
+    if getattr(prob, "input_edges", "none") != "none" or not any(d.edges.size for d in prob.data):
+        return False
+    model = result.model.with_effects(get_effect(m.key)).fix({m.param: m.value})
+    try:
+        r0, r1 = refit(model), refit(model, input_edges="estimated")
+    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
+        return False
+    k = sum(d.edges.size for d in prob.data)
+    lr = 2.0 * n_ind * (np.linalg.slogdet(r0.R)[1] - np.linalg.slogdet(r1.R)[1])
+    return bool(r1.converged and lr > k * math.log(max(2.0 * n_ind * len(prob.out_idx), 2.0)))
 
 
 # --- the warning ----------------------------------------------------------------------------------
@@ -1070,12 +1106,13 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
             else 'fdml fit RECORD ... --input-edges estimated (Python: input_edges="estimated")'
         )
         return (
-            f"the elevator steps between samples, and {v.describe()} explains the fit's residuals better "
+            f"the elevator steps between samples, and their timing (LR {v.lr:.3g}) explains the fit's residuals better "
             f"than any flagged effect ({', '.join(e.key for e in adequacy.flagged) or 'none'}): the record "
             f"does not keep when each step happened. Refit with it: {refit}{tail}"
         )
     extra = [f"{k}={val:.6g}" for k, (val, _) in v.params.items()] if v.source == "kinematics" else []
     args = ["--effect", _option(v.key)] + [a for x in extra for a in ("--fix", x)]
+    args += ["--input-edges", "estimated"] if v.with_steps else []
     refit = shlex.join([*fit_argv, *args]) if fit_argv else "fdml fit RECORD ... " + shlex.join(args)
     others = [e.key for e in adequacy.flagged if e.key not in v.aliases]
     also = f"; also flagged: {', '.join(others)}" if others else ""
@@ -1090,7 +1127,8 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
             f"(the best: {v.describe()}){also}; the diagnosis says what would separate them"
         )
     else:
-        what = f"the fit's residuals carry {v.describe()}{also}. Refit with it: {refit}"
+        steps = ", with the timing of the elevator's steps between samples" if v.with_steps else ""
+        what = f"the fit's residuals carry {v.describe()}{steps}{also}. Refit with it: {refit}"
     return what + (f"; or {diagnosis}" if diagnosis else "")
 
 

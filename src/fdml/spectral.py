@@ -128,6 +128,15 @@ def band_numbers(band, sizes: tuple[int, ...], *, what: str = "band", example: s
     return vals
 
 
+def _edge_steps_field(f, key: str, done: dict) -> np.ndarray:
+    """The steps' sizes of a spectra object in JSON: one per entry of ``edges`` (absent: none)."""
+    n = len(done.get("edges", ()))
+    steps = f.floats(key, (None,))
+    if steps.size != n:
+        raise f.error(key, f"has {steps.size} values for the {n} elevator steps of 'edges'")
+    return steps
+
+
 def _outputs_field(f, key: str, done: dict) -> tuple[str, ...]:
     """The outputs of a spectra object in JSON, in row order, matching its ``z`` columns and ``x0``, ``xT``."""
     rows = f.strings(key, choices=ALL_OUTPUTS)
@@ -236,7 +245,7 @@ class FrequencyData(Codec):
         "end_offset": floats(None),
         "outputs": Spec(_outputs_field),
         "edges": floats(None),
-        "edge_steps": floats("edges"),
+        "edge_steps": Spec(lambda f, k, done: _edge_steps_field(f, k, done)),
         "record": nested(Record, none=True),
     }
     json_source = "spectra"

@@ -344,9 +344,9 @@ def _paragraph(rep):
 
 
 def _steps_fit_better(rep: DiagnosisReport, records, base, boundary, biases) -> bool:
-    """Whether the base model, or the diagnosis's final model, with the timing of every elevator step
-    between samples (docs/theory.md section 7a) has a lower BIC than the final model of the diagnosis
-    ``rep`` run without it.
+    """Whether the base model, or a model along the diagnosis's selection, with the timing of every
+    elevator step between samples (docs/theory.md section 7a) has a lower BIC than the final model of
+    the diagnosis ``rep`` run without it.
 
     Only for records whose elevator steps between samples and a diagnosis that found a significant
     candidate (else there is no gap to explain).  BIC = 2 C / K + k ln n on the diagnosis's grid
@@ -367,8 +367,9 @@ def _steps_fit_better(rep: DiagnosisReport, records, base, boundary, biases) -> 
     def bic(f: DiagFit) -> float:
         return 2.0 * f.cost / K + len(f.names) * logn
 
-    base_model = rep.details["base_fit"].model
-    for model in (base_model,) if final.model is base_model else (base_model, final.model):  # instead, or beside
+    # the base and every model along the selection (step i's refit holds the effects accepted so far)
+    path = [rep.details["base_fit"].model] + [a.fit.model for a in rep.details.get("accepted", ()) if a.fit]
+    for model in path if final.model in path else [*path, final.model]:  # instead of the effects, or beside
         try:
             edged = fit_model(
                 rep.details["data"],
