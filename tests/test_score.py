@@ -25,7 +25,8 @@ def context():
     assert prob.names == res.names
     theta = np.asarray(res.values, float)
     model = prob.model.with_values(prob.model_values(theta))
-    ctx, _ = adequacy._context(prob, model, theta, prob.residuals(theta), res.R)
+    # the estimator's prepare for the screen's generic path, the reference of these tests
+    ctx, _ = adequacy._context(prob, model, theta, prob.residuals(theta), res.R, prepare=prepare)
     return ctx, model
 
 

@@ -587,10 +587,11 @@ def _output_effect_on(model, base):
     return eff
 
 
-def _context(prob, model, theta, V, R, A=None):
+def _context(prob, model, theta, V, R, A=None, prepare=None):
     """The screen's context on the fit's own grid: one R, each record's rows counted 1/K times.
 
-    ``A``: the fit's sensitivities at ``theta`` (``prob.sensitivities(theta)``) when the caller has them.
+    ``A``: the fit's sensitivities at ``theta`` (``prob.sensitivities(theta)``) when the caller has them;
+    ``prepare``: :func:`fdml.estimate.prepare` for the screen's generic path (its own never needs it).
     """
     K = _oversampling(prob)
     rows = np.concatenate([np.full(d.m, i) for i, d in enumerate(prob.data)])
@@ -605,9 +606,9 @@ def _context(prob, model, theta, V, R, A=None):
         "biases": False,
         "state_biases": bool(prob.state_biases),
         "input_bias": bool(prob.input_bias),
-        "input_edges": "estimated" if prob.input_edges else "none",
+        "input_edges": prob.input_edges,
     }
-    ctx = _Context(base, rows, 1, prob.data, options, fw, sensitivities=A)
+    ctx = _Context(base, rows, 1, prob.data, options, fw, sensitivities=A, prepare=prepare)
     return ctx, K[rows]
 
 

@@ -197,29 +197,6 @@ class Problem:
         """The fitted outputs' names, in the fit's order."""
         return tuple(self.rows[k] for k in self.out_idx)
 
-    @staticmethod
-    def prepare(data, model: Model, **options) -> Problem:
-        """:func:`prepare`, reached from a problem.
-
-        How code below this module (the generic candidate sensitivities of
-        :class:`fdml.score.ScreenContext`) sets up a fit of another model.
-
-        Parameters
-        ----------
-        data : Record, FrequencyData or sequence of them
-            The records or their spectra, as for :func:`prepare`.
-        model : Model
-            The model to fit.
-        **options
-            Keyword options of :func:`prepare` (band, outputs, sensitivity, ...).
-
-        Returns
-        -------
-        Problem
-            The prepared problem.
-        """
-        return prepare(data, model, **options)
-
     # --- parameter vector ------------------------------------------------------------
 
     def initial(self) -> np.ndarray:

@@ -423,6 +423,9 @@ class ScreenContext:
         Diagonal noise-floor whitening for aliasing and the MDE.
     sensitivities : ndarray, shape (N, n_out, p), optional
         ``fit.prob.sensitivities(fit.theta)`` when the caller has it.
+    prepare : callable, optional
+        :func:`fdml.estimate.prepare`, which sets up a candidate's problem; given by the caller
+        (this module sits below the estimator). Needed by :meth:`candidate_sensitivities` only.
     """
 
     #: Size of the screened family (the MDE's power is at level / family_size); callers set it per step.
@@ -437,8 +440,10 @@ class ScreenContext:
         fit_options: dict,
         floor_weights: np.ndarray | None = None,
         sensitivities: np.ndarray | None = None,
+        prepare=None,
     ):
         self.fit = fit
+        self._prepare = prepare
         self.rows = rows
         self.K = oversample
         self.spectra = list(spectra)
@@ -587,8 +592,9 @@ class ScreenContext:
         numpy.ndarray
             The sensitivities, complex, shape (N, n_out, q).
         """
-        # the fit's own problem sets up the candidate's (fdml.estimate.prepare; this module sits below it)
-        prob = self.fit.prob.prepare(self.spectra, model, sensitivity="central", **self.options)
+        if self._prepare is None:
+            raise FdmlError("the screen was built without fdml.estimate.prepare: it cannot set up a candidate")
+        prob = self._prepare(self.spectra, model, sensitivity="central", **self.options)
         theta = np.array([self.fit.params.get(n, model.parameters.values.get(n, 0.0)) for n in prob.names])
         idx = {n: i for i, n in enumerate(prob.names)}
         cols = []

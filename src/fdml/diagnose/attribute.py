@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..channels import OUTPUTS
+from ..estimate import prepare
 from ..kinematics import input_resolution
 from ..models.effects import Effect
 from ..parameters import Role
@@ -276,7 +277,7 @@ def attribute_step(
     skipped : list of Candidate
         Not applicable or not identifiable, with the reason.
     """
-    ctx = ScreenContext(cur, rows, data.oversample, data.spectra, options, floor_weights)
+    ctx = ScreenContext(cur, rows, data.oversample, data.spectra, options, floor_weights, prepare=prepare)
     tested, skipped = [], []
     usable = []
     for eff in effects:
