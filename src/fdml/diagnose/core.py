@@ -6,6 +6,8 @@ the design study this follows (and where it departs from it).
 
 from __future__ import annotations
 
+import functools
+import inspect
 import logging
 import math
 import time
@@ -237,6 +239,85 @@ class _Shrink:
     hold: dict | None  # the report's hold-out section
 
 
+def _paragraph(rep):
+    from .text import paragraph
+
+    return paragraph(rep)
+
+
+def _steps_fit_better(rep: DiagnosisReport, records, base, boundary, biases) -> bool:
+    """Whether the base model, or a model along the diagnosis's selection, with the timing of every
+    elevator step between samples (docs/theory.md section 7a) has a lower BIC than the final model of
+    the diagnosis ``rep`` run without it.
+
+    Only for records whose elevator steps between samples and a diagnosis that found a significant
+    candidate (else there is no gap to explain).  BIC = 2 C / K + k ln n on the diagnosis's grid
+    (C its band-wise cost, K its oversampling, k the estimates, n the real independent observations).
+    """
+    from ..fourier import step_edges
+
+    final = rep.details.get("final_fit")
+    if final is None or not any(r.get("significant") for r in rep.ranking):
+        return False
+    recs, _, _ = _resolve(records, base)
+    if not any(r.has("de") and step_edges(r["de"]).size for r in recs):
+        return False
+    st = rep.settings
+    nb = NoiseModel(tuple(rep.noise["bands"]))
+    K, logn = st["oversample"], math.log(max(2 * st["independent_frequencies"] * len(st["outputs"]), 2))
+
+    def bic(f: DiagFit) -> float:
+        return 2.0 * f.cost / K + len(f.names) * logn
+
+    # the base and every model along the selection (step i's refit holds the effects accepted so far)
+    path = [rep.details["base_fit"].model] + [a.fit.model for a in rep.details.get("accepted", ()) if a.fit]
+    for model in path if final.model in path else [*path, final.model]:  # instead of the effects, or beside
+        try:
+            edged = fit_model(
+                rep.details["data"],
+                model,
+                nb,
+                outputs=st["outputs"],
+                boundary=boundary,
+                biases=biases,
+                input_edges="estimated",
+            )
+        except FdmlError:
+            continue
+        if edged.converged and bic(edged) < bic(final):
+            return True
+    return False
+
+
+def _steps_compete(diag):
+    """``diag`` (:func:`diagnose`) letting the elevator steps' timing compete with the effects (theory 7a).
+
+    With ``input_edges=None`` (its default) the diagnosis runs without the steps' timing, and again with
+    it when that lowers the BIC of the model it chose (:func:`_steps_fit_better`); its report says so.
+    """
+    params = inspect.signature(diag).parameters
+
+    @functools.wraps(diag)
+    def run(records=None, base=None, **kw):
+        given = kw.get("input_edges")
+        rep = diag(records, base, **{**kw, "input_edges": given or "none"})
+        options = {k: kw.get(k, params[k].default) for k in ("boundary", "biases")}
+        if given is None and _steps_fit_better(rep, records, base, **options):
+            again = diag(records, base, **{**kw, "input_edges": "estimated"})
+            note = (
+                "The elevator steps between samples, and their timing explains the gap (a lower BIC for the "
+                "base model, or the model the diagnosis chose, with every step's timing than for the chosen "
+                "model without): every step's timing is estimated (--input-edges estimated; docs/theory.md "
+                "section 7a)."
+            )
+            rep = replace(again, settings={**again.settings, "input_edges": note})
+            rep = replace(rep, text=_paragraph(rep))
+        return rep
+
+    return run
+
+
+@_steps_compete
 def diagnose(
     records=None,
     base=None,
@@ -301,11 +382,11 @@ def diagnose(
     input_edges : {"none", "estimated", "auto"} or None, optional
         The elevator steps' timing terms, as in :func:`fdml.fit`: the base fit settles
         ``"auto"``, and every later fit takes its choice (one input for every model compared).
-        None (default): none, unless the records' elevator steps between samples and the
-        largest significant candidate is an elevator timing below the data's resolution
-        (half a sample there: where the steps were is not in the record); the diagnosis is then
-        run again with every step's timing estimated (docs/theory.md section 7a), and its
-        ``settings["input_edges"]`` says why.
+        None (default): none, unless the records' elevator steps between samples and, with a
+        significant gap, the base model or a model along the selection has a lower BIC with every
+        step's timing than the model chosen without (where the steps were is not in the record);
+        the diagnosis is then run again with every step's timing estimated (docs/theory.md
+        section 7a), and its ``settings["input_edges"]`` says why.
     trim : {"first", "mean", "none"}, optional
         Trim removal, as in :func:`fdml.spectral.spectra`.
     shrink_threshold : float, optional
@@ -322,94 +403,7 @@ def diagnose(
         Its ``recommended`` is :func:`fdml.fit` of the base model plus the
         accepted effects (see :func:`recommended_fit`).
     """
-    kwargs = dict(locals())
-    rep = _diagnose(**{**kwargs, "input_edges": input_edges or "none"})
-    if input_edges is None and _steps_fit_better(rep, records, base, boundary, biases):
-        again = _diagnose(**{**kwargs, "input_edges": "estimated"})
-        note = (
-            "The elevator steps between samples, and their timing explains the gap (a lower BIC for the "
-            "base model, or the model the diagnosis chose, with every step's timing than for the chosen "
-            "model without): every step's timing is estimated (--input-edges estimated; docs/theory.md "
-            "section 7a)."
-        )
-        rep = replace(again, settings={**again.settings, "input_edges": note})
-        rep = replace(rep, text=_paragraph(rep))
-    return rep
-
-
-def _paragraph(rep):
-    from .text import paragraph
-
-    return paragraph(rep)
-
-
-def _steps_fit_better(rep: DiagnosisReport, records, base, boundary, biases) -> bool:
-    """Whether the base model, or a model along the diagnosis's selection, with the timing of every
-    elevator step between samples (docs/theory.md section 7a) has a lower BIC than the final model of
-    the diagnosis ``rep`` run without it.
-
-    Only for records whose elevator steps between samples and a diagnosis that found a significant
-    candidate (else there is no gap to explain).  BIC = 2 C / K + k ln n on the diagnosis's grid
-    (C its band-wise cost, K its oversampling, k the estimates, n the real independent observations).
-    """
-    from ..fourier import step_edges
-
-    final = rep.details.get("final_fit")
-    if final is None or not any(r.get("significant") for r in rep.ranking):
-        return False
-    recs, _, _ = _resolve(records, base)
-    if not any(r.has("de") and step_edges(r["de"]).size for r in recs):
-        return False
-    st = rep.settings
-    nb = NoiseModel(tuple(rep.noise["bands"]))
-    K, logn = st["oversample"], math.log(max(2 * st["independent_frequencies"] * len(st["outputs"]), 2))
-
-    def bic(f: DiagFit) -> float:
-        return 2.0 * f.cost / K + len(f.names) * logn
-
-    # the base and every model along the selection (step i's refit holds the effects accepted so far)
-    path = [rep.details["base_fit"].model] + [a.fit.model for a in rep.details.get("accepted", ()) if a.fit]
-    for model in path if final.model in path else [*path, final.model]:  # instead of the effects, or beside
-        try:
-            edged = fit_model(
-                rep.details["data"],
-                model,
-                nb,
-                outputs=st["outputs"],
-                boundary=boundary,
-                biases=biases,
-                input_edges="estimated",
-            )
-        except FdmlError:
-            continue
-        if edged.converged and bic(edged) < bic(final):
-            return True
-    return False
-
-
-def _diagnose(
-    records=None,
-    base=None,
-    *,
-    holdout=None,
-    band=None,
-    bands=None,
-    library=None,
-    alpha: float = LEVEL,
-    max_effects: int = 2,
-    oversample: int = 2,
-    noise: str = "band",
-    refit_top: int = 4,
-    outputs=None,
-    boundary: str = "estimated",
-    biases="auto",
-    input_edges: str = "none",
-    trim: str = "first",
-    shrink_threshold: float = SHRINK_CONFIRM,
-    check: bool = True,
-    strict: bool = False,
-) -> DiagnosisReport:
-    """:func:`diagnose` with the elevator steps' timing terms as given (``input_edges`` not None)."""
+    input_edges = input_edges or "none"
     t0 = time.perf_counter()
     records, model, fopts = _resolve(records, base)
     found = _data_findings(list(records) + _as_list(holdout), model, band, strict) if check else []
