@@ -78,3 +78,16 @@ def test_the_row_scores_what_it_reports(rows):
     assert r["confident_wrong"] is expected
     assert r["diagnose_names_truth"] is (bool(d["accepted"]) and d["accepted"][0] == "sensor_offset@az")
     assert all(math.isfinite(v) for e in d["effects"] for v, _ in e["params"].values())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", CASES)
+@pytest.mark.parametrize("seed", [2, 4])
+def test_records_with_true_steps_between_samples(case, seed):
+    """Seeds 2 and 4 step the elevator between samples (dt 40 ms, steps anywhere in their intervals;
+    dt 10 ms, every step 4.4 ms late): no confident wrong answer and the truth named first by both
+    judges, the steps' timing weighed against the effects (docs/theory.md section 7a)."""
+    r = bench.run_case(case, seed)
+    assert r["truth"]["manoeuvre"]["edge"] == "step" and r["truth"]["step_offsets"]
+    assert r["confident_wrong"] is False, bench.format_row(r)
+    assert r["fit_names_truth"] and r["diagnose_names_truth"], bench.format_row(r)

@@ -245,32 +245,42 @@ def _paragraph(rep):
     return paragraph(rep)
 
 
-def _steps_fit_better(rep: DiagnosisReport, records, base, boundary, biases) -> bool:
-    """Whether the base model, or a model along the diagnosis's selection, with the timing of every
-    elevator step between samples (docs/theory.md section 7a) has a lower BIC than the final model of
-    the diagnosis ``rep`` run without it.
+def _steps_compared(rep: DiagnosisReport, records, base, boundary, biases) -> tuple[str | None, dict | None]:
+    """How the timing of every elevator step between samples (docs/theory.md section 7a) compares with the
+    model the diagnosis ``rep`` chose without it: ``("better", None)``, ``("equal", alternative)`` or
+    ``(None, None)``.
 
-    Only for records whose elevator steps between samples and a diagnosis that found a significant
-    candidate (else there is no gap to explain).  BIC = 2 C / K + k ln n on the diagnosis's grid
-    (C its band-wise cost, K its oversampling, k the estimates, n the real independent observations).
+    The base model and every model along the selection are refitted with the steps' timing.  "better":
+    one has a lower BIC (``2 C / K + k ln n`` on the diagnosis's grid: C its band-wise cost, K its
+    oversampling, k the estimates, n the real independent observations) than the chosen model.
+    "equal": none does, but some explain the gap as well as the chosen model by
+    :func:`fdml.score.equally` on Akaike-penalised LRs against the base fit; ``alternative`` is then the
+    entry for ``recommendation["alternatives"]`` of the one with the fewest effects.  Only for records
+    whose elevator steps between samples and a diagnosis that found a significant candidate (else there
+    is no gap to explain).
     """
     from ..fourier import step_edges
+    from ..score import equally
 
     final = rep.details.get("final_fit")
     if final is None or not any(r.get("significant") for r in rep.ranking):
-        return False
+        return None, None
     recs, _, _ = _resolve(records, base)
     if not any(r.has("de") and step_edges(r["de"]).size for r in recs):
-        return False
-    st = rep.settings
+        return None, None
+    st, base_fit = rep.settings, rep.details["base_fit"]
     nb = NoiseModel(tuple(rep.noise["bands"]))
     K, logn = st["oversample"], math.log(max(2 * st["independent_frequencies"] * len(st["outputs"]), 2))
 
     def bic(f: DiagFit) -> float:
         return 2.0 * f.cost / K + len(f.names) * logn
 
+    def aic_lr(f: DiagFit) -> float:  # against the base fit, Akaike-penalised
+        return 2.0 * (base_fit.cost - f.cost) / K - 2.0 * (len(f.names) - len(base_fit.names))
+
     # the base and every model along the selection (step i's refit holds the effects accepted so far)
-    path = [rep.details["base_fit"].model] + [a.fit.model for a in rep.details.get("accepted", ()) if a.fit]
+    path = [base_fit.model] + [a.fit.model for a in rep.details.get("accepted", ()) if a.fit]
+    fits = []
     for model in path if final.model in path else [*path, final.model]:  # instead of the effects, or beside
         try:
             edged = fit_model(
@@ -284,16 +294,34 @@ def _steps_fit_better(rep: DiagnosisReport, records, base, boundary, biases) -> 
             )
         except FdmlError:
             continue
-        if edged.converged and bic(edged) < bic(final):
-            return True
-    return False
+        if edged.converged:
+            fits.append(edged)
+    if not fits:
+        return None, None
+    if min(bic(f) for f in fits) < bic(final):
+        return "better", None
+    # of those the data cannot tell from the chosen model, the one with the fewest effects
+    tied = [f for f in fits if equally(max(aic_lr(final), aic_lr(f)), min(aic_lr(final), aic_lr(f)))]
+    if not tied:
+        return None, None
+    best = min(tied, key=lambda f: (len(applied_effects(f.model)), bic(f)))
+    root = [p.name for p in base_fit.model.parameters if p.free and p.role is Role.AERO]
+    return "equal", {
+        "effects": [e.key for e in applied_effects(best.model)],
+        "input_edges": "estimated",
+        "params": {},
+        "derivatives": {n: {"value": best.params[n], "stderr": best.stderr.get(n, math.nan)} for n in root},
+        "lr": 2.0 * (base_fit.cost - best.cost) / K,
+    }
 
 
 def _steps_compete(diag):
     """``diag`` (:func:`diagnose`) letting the elevator steps' timing compete with the effects (theory 7a).
 
     With ``input_edges=None`` (its default) the diagnosis runs without the steps' timing, and again with
-    it when that lowers the BIC of the model it chose (:func:`_steps_fit_better`); its report says so.
+    it when that lowers the BIC of the model it chose (:func:`_steps_compared`); when the data cannot
+    tell the two apart, the report is marked ambiguous with the steps' timing among its alternatives.
+    Its report says which.
     """
     params = inspect.signature(diag).parameters
 
@@ -301,8 +329,12 @@ def _steps_compete(diag):
     def run(records=None, base=None, **kw):
         given = kw.get("input_edges")
         rep = diag(records, base, **{**kw, "input_edges": given or "none"})
-        options = {k: kw.get(k, params[k].default) for k in ("boundary", "biases")}
-        if given is None and _steps_fit_better(rep, records, base, **options):
+        if given is not None:
+            return rep
+        how, alt = _steps_compared(
+            rep, records, base, **{k: kw.get(k, params[k].default) for k in ("boundary", "biases")}
+        )
+        if how == "better":
             again = diag(records, base, **{**kw, "input_edges": "estimated"})
             note = (
                 "The elevator steps between samples, and their timing explains the gap (a lower BIC for the "
@@ -311,10 +343,35 @@ def _steps_compete(diag):
                 "section 7a)."
             )
             rep = replace(again, settings={**again.settings, "input_edges": note})
-            rep = replace(rep, text=_paragraph(rep))
-        return rep
+        elif how == "equal":
+            rep = _with_steps_alternative(rep, alt)
+        else:
+            return rep
+        return replace(rep, text=_paragraph(rep))
 
     return run
+
+
+def _with_steps_alternative(rep: DiagnosisReport, alt: dict) -> DiagnosisReport:
+    """``rep`` marked ambiguous: the steps' timing ``alt`` explains the gap as well as the chosen model."""
+    rec = dict(rep.recommendation)
+    chosen = [s["key"] for s in rep.selected]
+    alts = list(rec.get("alternatives") or [])
+    if not alts:
+        derivs = {
+            n: {"value": v["recommended"][0], "stderr": v["recommended"][1]}
+            for n, v in rec.get("derivatives", {}).items()
+            if v.get("recommended")
+        }
+        alts = [{"effects": chosen, "params": {}, "derivatives": derivs, "lr": None}]
+    rec.update(ambiguous=True, alternatives=[*alts, alt])
+    with_ = "+".join(alt["effects"]) or "the base model"
+    note = (
+        f"The elevator steps between samples: {with_} with every step's timing explains the gap as well as "
+        f"{'+'.join(chosen) or 'the base model'} (these data cannot tell them apart; --input-edges estimated "
+        "fits the steps' timing; docs/theory.md section 7a)."
+    )
+    return replace(rep, recommendation=rec, settings={**rep.settings, "input_edges": note})
 
 
 @_steps_compete
