@@ -253,7 +253,7 @@ def _steps_compared(rep: DiagnosisReport, records, base, boundary, biases) -> tu
     The base model and every model along the selection are refitted with the steps' timing.  "better":
     one has a lower BIC (``2 C / K + k ln n`` on the diagnosis's grid: C its band-wise cost, K its
     oversampling, k the estimates, n the real independent observations) than the chosen model.
-    "equal": none does, but some explain the gap as well as the chosen model by
+    "equal": none does, but some with other effects than the chosen ones explain the gap as well as it by
     :func:`fdml.score.equally` on Akaike-penalised LRs against the base fit; ``alternative`` is then the
     entry for ``recommendation["alternatives"]`` of the one with the fewest effects.  Only for records
     whose elevator steps between samples and a diagnosis that found a significant candidate (else there
@@ -300,8 +300,15 @@ def _steps_compared(rep: DiagnosisReport, records, base, boundary, biases) -> tu
         return None, None
     if min(bic(f) for f in fits) < bic(final):
         return "better", None
-    # of those the data cannot tell from the chosen model, the one with the fewest effects
-    tied = [f for f in fits if equally(max(aic_lr(final), aic_lr(f)), min(aic_lr(final), aic_lr(f)))]
+    # of those that stand for other effects than the chosen ones (the steps' timing in place of some) and
+    # that the data cannot tell from the chosen model, the one with the fewest effects
+    chosen = {e.key for e in applied_effects(final.model)}
+    tied = [
+        f
+        for f in fits
+        if {e.key for e in applied_effects(f.model)} != chosen
+        and equally(max(aic_lr(final), aic_lr(f)), min(aic_lr(final), aic_lr(f)))
+    ]
     if not tied:
         return None, None
     best = min(tied, key=lambda f: (len(applied_effects(f.model)), bic(f)))
@@ -371,7 +378,7 @@ def _with_steps_alternative(rep: DiagnosisReport, alt: dict) -> DiagnosisReport:
         f"{'+'.join(chosen) or 'the base model'} (these data cannot tell them apart; --input-edges estimated "
         "fits the steps' timing; docs/theory.md section 7a)."
     )
-    return replace(rep, recommendation=rec, settings={**rep.settings, "input_edges": note})
+    return replace(rep, recommendation=rec, settings={**rep.settings, "input_edges_alternative": note})
 
 
 @_steps_compete

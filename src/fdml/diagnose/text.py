@@ -186,8 +186,9 @@ def paragraph(rep) -> str:
         "frequencies."
     ]
     out += _kinematics_sentences(rep)
-    if isinstance(st.get("input_edges"), str):  # the diagnosis estimated the elevator steps' timing itself
-        out.append(st["input_edges"])
+    for key in ("input_edges", "input_edges_alternative"):  # the elevator steps' timing (theory 7a)
+        if isinstance(st.get(key), str):
+            out.append(st[key])
     whole = st.get("band")
     flagged = [c for c in rep.location if c.get("significant")]
     if flagged:
