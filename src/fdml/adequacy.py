@@ -947,6 +947,22 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
     return Verdict(best.effect.key, dict(best.params), units, "refit", keys, aside, best.lr, steps == "beside")
 
 
+def _steps(prob, n_ind: float) -> tuple[int, float]:
+    """(k, ln n): the records' elevator steps between samples (0 when the fit estimated their timing or there
+    are none, docs/theory.md section 7a) and the log of the real independent observations of BIC."""
+    k = 0 if prob.input_edges != "none" else sum(d.edges.size for d in prob.data)
+    return k, math.log(max(2.0 * n_ind * len(prob.out_idx), 2.0))
+
+
+def _lr_of_steps(refit, model, R0: np.ndarray, n_ind: float) -> float | None:
+    """LR of ``model`` refitted with every step's timing against residual covariance ``R0`` (None: no fit)."""
+    try:
+        r = refit(model, input_edges="estimated")
+    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
+        return None
+    return max(2.0 * n_ind * (np.linalg.slogdet(R0)[1] - np.linalg.slogdet(r.R)[1]), 0.0) if r.converged else None
+
+
 def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside: tuple):
     """Where the timing of the elevator's steps between samples (docs/theory.md section 7a) enters the verdict.
 
@@ -958,24 +974,13 @@ def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside:
     """
     from .tails import chi2_sf
 
-    if getattr(prob, "input_edges", "none") != "none" or not any(d.edges.size for d in prob.data):
+    k, logn = _steps(prob, n_ind)
+    if not k:
         return None, 0.0
-    k = sum(d.edges.size for d in prob.data)
-    logn = math.log(max(2.0 * n_ind * len(prob.out_idx), 2.0))
-
-    def lr_with_steps(model) -> float | None:
-        try:
-            r = refit(model, input_edges="estimated")
-        except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
-            return None
-        if not r.converged:
-            return None
-        return max(2.0 * n_ind * (np.linalg.slogdet(result.R)[1] - np.linalg.slogdet(r.R)[1]), 0.0)
-
-    alone = lr_with_steps(result.model)
+    alone = _lr_of_steps(refit, result.model, result.R, n_ind)
     if best is None:
         return ("steps", alone) if alone is not None and chi2_sf(alone, k) < level else (None, 0.0)
-    beside = lr_with_steps(best.result.model)
+    beside = _lr_of_steps(refit, best.result.model, result.R, n_ind)
     bic = {"best": (best.q_eff * logn - best.lr, best.lr)}
     if alone is not None:
         bic["steps"] = (k * logn - alone, alone)
@@ -990,16 +995,16 @@ def _steps_beside(prob, result, refit, n_ind: float, m) -> bool:
     its kinematic value, as the advice refits it): :func:`_steps_verdict` for the kinematics' verdict."""
     from .models.effects import get_effect
 
-    if getattr(prob, "input_edges", "none") != "none" or not any(d.edges.size for d in prob.data):
+    k, logn = _steps(prob, n_ind)
+    if not k:
         return False
     model = result.model.with_effects(get_effect(m.key)).fix({m.param: m.value})
     try:
-        r0, r1 = refit(model), refit(model, input_edges="estimated")
+        r0 = refit(model)
     except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
         return False
-    k = sum(d.edges.size for d in prob.data)
-    lr = 2.0 * n_ind * (np.linalg.slogdet(r0.R)[1] - np.linalg.slogdet(r1.R)[1])
-    return bool(r1.converged and lr > k * math.log(max(2.0 * n_ind * len(prob.out_idx), 2.0)))
+    lr = _lr_of_steps(refit, model, r0.R, n_ind)
+    return lr is not None and lr > k * logn
 
 
 # --- the warning ----------------------------------------------------------------------------------

@@ -245,7 +245,7 @@ def _paragraph(rep):
     return paragraph(rep)
 
 
-def _steps_compared(rep: DiagnosisReport, records, base, boundary, biases) -> tuple[str | None, dict | None]:
+def _steps_compared(rep: DiagnosisReport, boundary, biases) -> tuple[str | None, dict | None]:
     """How the timing of every elevator step between samples (docs/theory.md section 7a) compares with the
     model the diagnosis ``rep`` chose without it: ``("better", None)``, ``("equal", alternative)`` or
     ``(None, None)``.
@@ -259,14 +259,12 @@ def _steps_compared(rep: DiagnosisReport, records, base, boundary, biases) -> tu
     whose elevator steps between samples and a diagnosis that found a significant candidate (else there
     is no gap to explain).
     """
-    from ..fourier import step_edges
     from ..score import equally
 
     final = rep.details.get("final_fit")
     if final is None or not any(r.get("significant") for r in rep.ranking):
         return None, None
-    recs, _, _ = _resolve(records, base)
-    if not any(r.has("de") and step_edges(r["de"]).size for r in recs):
+    if not any(d.edges.size for d in rep.details["data"].spectra):  # the steps the analysis spectra hold
         return None, None
     st, base_fit = rep.settings, rep.details["base_fit"]
     nb = NoiseModel(tuple(rep.noise["bands"]))
@@ -338,9 +336,7 @@ def _steps_compete(diag):
         rep = diag(records, base, **{**kw, "input_edges": given or "none"})
         if given is not None:
             return rep
-        how, alt = _steps_compared(
-            rep, records, base, **{k: kw.get(k, params[k].default) for k in ("boundary", "biases")}
-        )
+        how, alt = _steps_compared(rep, **{k: kw.get(k, params[k].default) for k in ("boundary", "biases")})
         if how == "better":
             again = diag(records, base, **{**kw, "input_edges": "estimated"})
             note = (
@@ -450,7 +446,9 @@ def diagnose(
         significant gap, the base model or a model along the selection has a lower BIC with every
         step's timing than the model chosen without (where the steps were is not in the record);
         the diagnosis is then run again with every step's timing estimated (docs/theory.md
-        section 7a), and its ``settings["input_edges"]`` says why.
+        section 7a), and its ``settings["input_edges"]`` says why.  When the two cannot be told
+        apart, the recommendation is marked ambiguous with the steps' timing among its
+        alternatives (``settings["input_edges_alternative"]``).
     trim : {"first", "mean", "none"}, optional
         Trim removal, as in :func:`fdml.spectral.spectra`.
     shrink_threshold : float, optional
