@@ -212,3 +212,34 @@ def test_a_wrong_airspeed_is_an_a_z_scale_and_is_named_as_one():
     assert abs(k.value - 0.08) < 3 * k.stderr
     line = next(s for s in ev.lines() if "airspeed" in s)
     assert f"{U_given * (1 + k.value):.4g} m/s" in line and abs(U_given * (1 + k.value) - U) < 3 * U_given * k.stderr
+
+
+# --- each pattern's profile against a brute-force search --------------------------------------------------------------
+
+
+def _dense(idn, pat, lo, hi, n):
+    """The least cost of ``pat`` on an n-point grid of [lo, hi]: brute force, independent of the profile."""
+    grid = np.linspace(lo, hi, n)
+    costs = idn.costs(pat.batch(SensorTerms(), grid))
+    i = int(np.argmin(costs))
+    return grid[i], costs[i], grid[1] - grid[0]
+
+
+def test_every_profile_finds_the_brute_force_minimum():
+    """An offset and a scale are found in closed form (the cost is quadratic in the offset and in 1/(1 + k)),
+    a lag by coarse and refined grids: each size and cost against 4,001 points over the bounds.  The grid's
+    own minimum lies within half its spacing of the true one, so a profile is at least as low as the grid's
+    point, to rounding, and its size within a spacing of it (the cost's curvature sets no tighter bound)."""
+    from fdml.kinematics import _identity, _profile, patterns
+
+    rec = _record(3, lags=(0.03, 0.0, 0.0), offset=1.2, scales=(1.0, 1.0, 0.96))
+    idn = _identity([spectra(rec, band=(0.3, 10.0, 0.05), trim="first")], U, SensorTerms())
+    for pat in patterns():
+        lo, hi = pat.bounds
+        x, cost, se = _profile(idn, SensorTerms(), pat)
+        if any(pat.lags):
+            lo = 2e-4 * (hi - lo)  # a lag of exactly zero drops the end columns (the profile starts above it)
+        xd, cd, h = _dense(idn, pat, lo, hi, 4001)
+        assert cost <= cd + 1e-9 * abs(cd), pat.keys
+        assert abs(x - xd) <= h + 1e-3 * se, pat.keys
+        assert 0.0 < se < math.inf

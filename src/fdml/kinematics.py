@@ -606,18 +606,55 @@ def _basis(r: _Record, w: np.ndarray) -> np.ndarray:
 
 
 def _profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int = 2) -> tuple[float, float, float]:
-    """(size, cost, standard error) of ``pat`` on top of ``base``: a grid, then ``refine`` finer grids."""
+    """(size, cost, standard error) of ``pat`` on top of ``base``."""
+    if any(pat.lags):
+        return _lag_profile(idn, base, pat, refine)
+    return _linear_profile(idn, base, pat)
+
+
+def _linear_profile(idn: _Identity, base: SensorTerms, pat: Pattern) -> tuple[float, float, float]:
+    """The profile of an offset or a scale pattern, exactly: the identity's residual is affine in the
+    offset, and in u = 1/(1 + size) for a scale (the output is divided by its scale factor; the end
+    columns move only with the lags), so the cost is a quadratic a u^2 + b u + c with a >= 0, known
+    from three points."""
     lo, hi = pat.bounds
-    grid = np.linspace(lo, hi, 51)
-    for _ in range(1 + refine):
+    to_u = (lambda k: k) if pat.scale is None else (lambda k: 1.0 / (1.0 + k))
+    u3 = np.array([to_u(lo), to_u(0.5 * (lo + hi)), to_u(hi)])
+    a, b, c = np.polyfit(u3, idn.costs(pat.batch(base, np.array([lo, 0.5 * (lo + hi), hi]))), 2)
+    ulo, uhi = sorted((u3[0], u3[2]))
+    u = (
+        float(np.clip(-b / (2 * a), ulo, uhi))
+        if a > 0
+        else (ulo if a * ulo**2 + b * ulo < a * uhi**2 + b * uhi else uhi)
+    )
+    x = u if pat.scale is None else 1.0 / u - 1.0
+    # cost'' in the size: d2/dk2 of a u^2 + b u with du/dk = -u^2, d2u/dk2 = 2 u^3 for a scale
+    curv = 2 * a if pat.scale is None else (2 * a * u + b) * 2 * u**3 + 2 * a * u**4
+    se = math.sqrt(2.0 / curv) if curv > 0 else math.inf  # cost = -2 ln L: var = 2 / cost''
+    return float(x), float(idn.terms_cost(base + pat.terms(x))), se
+
+
+def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -> tuple[float, float, float]:
+    """The profile of a lag: a grid fine enough for the records' highest frequency (the cost's shortest
+    period in the lag is 2 pi / omega_max; eight points to it), ``refine`` grids four times finer
+    around the best point, and the vertex of the parabola through the best point and its neighbours."""
+    lo, hi = pat.bounds
+    h = 1e-4 * (hi - lo)
+    lo += 2 * h  # at a lag of exactly zero the end columns vanish and the cost jumps up: start above it
+    w_max = max(float(np.max(np.abs(r.s))) for r in idn.recs) * max(np.abs(pat.lags))
+    grid = np.linspace(lo, hi, int(np.clip(math.ceil(8 * (hi - lo) * w_max / (2 * math.pi)) + 1, 11, 51)))
+    for level in range(1 + refine):
         costs = idn.costs(pat.batch(base, grid))
         i = int(np.argmin(costs))
-        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-        grid = np.linspace(a, b, 15)
-    x = float(grid[7]) if i not in (0,) else float(grid[0])
-    h = 1e-4 * (hi - lo)
-    x = float(np.clip(x, lo, hi))
-    cm, c0, cp = idn.costs(pat.batch(base, np.clip([x - h, x, x + h], lo, hi)))
+        if level < refine:
+            grid = np.linspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 9)
+    x = float(grid[i])
+    if 0 < i < grid.size - 1:
+        cm, c0, cp = costs[i - 1 : i + 2]
+        h = grid[1] - grid[0]
+        if cp - 2 * c0 + cm > 0:
+            x = float(np.clip(x - 0.5 * h * (cp - cm) / (cp - 2 * c0 + cm), grid[i - 1], grid[i + 1]))
+    cm, c0, cp = idn.costs(pat.batch(base, np.clip([x - h, x, x + h], lo - h, hi)))
     curv = (cp - 2 * c0 + cm) / h**2
     se = math.sqrt(2.0 / curv) if curv > 0 else math.inf  # cost = -2 ln L: var = 2 / cost''
     return x, float(c0), se
