@@ -37,6 +37,7 @@ import numpy as np
 import fdml
 from fdml.estimate import prepare
 from fdml.maneuvers import make_input, time_vector
+from fdml.models import realize
 from fdml.record import Record, add_noise
 from fdml.simulate import _delayed, _foh_march, _system
 from fdml.spectral import spectra
@@ -60,7 +61,7 @@ def periodic(model, T=12.0, dt=0.02, shift_input=0.0):
     """One period of the exact periodic response to a multisine (delayed by ``shift_input`` s): x(0) = x(T)."""
     t = np.arange(int(round(T / dt))) * dt
     de = make_input("multisine", t, np.deg2rad(1.0))
-    real = model.realize()
+    real = realize(model)
     s = 2j * np.pi * np.fft.rfftfreq(t.size, dt)
     U = np.fft.rfft(de) * np.exp(-s * shift_input)  # the periodic input, delayed exactly
     X = np.linalg.solve(s[:, None, None] * np.eye(real.states) - real.A, real.B[None] * U[:, None, None])[..., 0]
@@ -73,7 +74,7 @@ def periodic(model, T=12.0, dt=0.02, shift_input=0.0):
 def _state_space(model, pade=None):
     """(A, B, C, D) of the model's realisation (with Pade states of its delays when ``pade`` is given)."""
     if pade is None:
-        real = model.realize()
+        real = realize(model)
         return real.A, real.B, real.C, real.D
     from fdml.export import to_statespace
 
@@ -151,7 +152,7 @@ def main() -> None:
         for rec, x0, xT in (transient(model), periodic(model)):
             m, lag, shift = misfits(model, rec, x0, xT)
             rows.append((model, ac, rec, lag, shift))
-            n = model.realize().states
+            n = realize(model).states
             print(f"| {ac} unsteady, F = 0 | {rec.name} | {n} | {m[0]:.2e} | {m[1]:.2e} | {m[2]:.2e} |")
     with_f = fdml.make_model("unsteady", "navion")  # the preset's F term: a memory with no states
     rec = periodic_exact(with_f)

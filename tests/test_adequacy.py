@@ -15,6 +15,7 @@ from fdml.adequacy import ALPHA, advice
 from fdml.cli import main
 from fdml.errors import AdequacyWarning, FdmlError
 from fdml.io import data_path, load_record
+from fdml.models import with_effects
 from fdml.results import FitResult
 from fdml.simulate import simulate_maneuver
 from fdml.warning_log import RecordedWarning
@@ -86,7 +87,7 @@ def test_refit_with_the_flagged_effect_is_adequate(delayed_fit):
     rec, _, _ = delayed_fit
     with warnings.catch_warnings():
         warnings.simplefilter("error", AdequacyWarning)
-        res = fdml.fit(rec, NAVION.with_effects("time_delay:alpha"))
+        res = fdml.fit(rec, with_effects(NAVION, "time_delay:alpha"))
     assert res.adequacy.adequate
     assert "time_delay@alpha" not in {e.key for e in res.adequacy.effects}  # already in the model
     assert abs(res["tau_alpha"] - TAU) < 4 * res.errors["tau_alpha"]

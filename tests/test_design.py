@@ -27,7 +27,7 @@ from fdml.design.discrimination import _best_match, noncentrality, required_nonc
 from fdml.design.prediction import noise_stds, response
 from fdml.errors import BandError, FdmlError, ParameterError
 from fdml.estimate import prepare
-from fdml.models import make_model
+from fdml.models import make_model, with_effects
 from fdml.record import add_noise
 
 LIM = Limits(amplitude=math.radians(1.0), duration=12.0, dt=0.02)
@@ -195,7 +195,7 @@ def test_minimum_detectable_delay_is_detected_at_the_stated_power():
     inp = classic_input("3211", LIM)
     (det,) = minimum_detectable(base, "time_delay:alpha", inp, noise=0.05, power=0.9)
     assert det.parameter == "tau_alpha"
-    truth = base.with_effects(["time_delay:alpha"]).with_values({"tau_alpha": det.minimum})
+    truth = with_effects(base, ["time_delay:alpha"]).with_values({"tau_alpha": det.minimum})
     rec = response(base, inp)
     stds = noise_stds(rec, 0.05)  # the same sensor as the prediction
     lam = discriminate(truth, base, inp, noise=stds).noncentrality
@@ -285,7 +285,7 @@ def test_placeholders_are_the_values_nobody_gave():
     for k, why in steady.placeholders().items():
         assert steady.parameters[k].value == GENERIC_CONSTANTS[k] and f"{GENERIC_CONSTANTS[k]:g}" in why
     assert set(steady.with_values({"CLa_t": 3.9}).placeholders()) == {"deps_da", "Cz_de"}  # --set gives it
-    assert set(steady.with_effects("time_delay:alpha").placeholders()) == set(steady.placeholders())
+    assert set(with_effects(steady, "time_delay:alpha").placeholders()) == set(steady.placeholders())
     # the quasi-steady derivatives built from a placeholder are placeholders too; Cm_de is given
     assert set(make_model("derivatives", ac).placeholders()) == {"Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q"}
     assert set(make_model("dimensional", airspeed=50.0).placeholders()) == {"Z_a", "Z_q", "Z_de", "M_a", "M_q", "M_de"}

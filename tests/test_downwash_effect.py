@@ -18,7 +18,7 @@ from fdml.constants import G0
 from fdml.diagnose.truth import _downwash_delay, simulate_truth
 from fdml.fourier import finite_fourier_transform
 from fdml.maneuvers import doublet, time_vector
-from fdml.models import make_model
+from fdml.models import make_model, with_effects
 from fdml.simulate import simulate
 
 OMEGA = np.linspace(0.2, 10.0, 50)
@@ -53,7 +53,7 @@ def closed_form(model, omega, tau, g=1.0):
 def test_effect_response_is_the_delayed_downwash(navion):
     tau = navion.aircraft.l_t / navion.U  # the textbook l_t/U, 0.086 s
     for g in (1.0, 0.4):
-        m = navion.with_effects("downwash_lag:tail").with_values(g_dw=g, tau_dw=tau)
+        m = with_effects(navion, "downwash_lag:tail").with_values(g_dw=g, tau_dw=tau)
         G = m.frequency_response(OMEGA)[:, 0, :].T
         ref = closed_form(navion, OMEGA, tau, g)
         assert np.max(np.abs(G - ref)) < 1e-12 * np.max(np.abs(ref))  # same algebra, rounding only
@@ -61,7 +61,7 @@ def test_effect_response_is_the_delayed_downwash(navion):
     assert np.max(np.abs(closed_form(navion, OMEGA, tau) - closed_form(navion, OMEGA, tau, 0.0))) > 0.1 * np.max(
         np.abs(closed_form(navion, OMEGA, 0.0))
     )
-    m0 = navion.with_effects("downwash_lag:tail").with_values(g_dw=0.0, tau_dw=tau)
+    m0 = with_effects(navion, "downwash_lag:tail").with_values(g_dw=0.0, tau_dw=tau)
     np.testing.assert_array_equal(m0.frequency_response(OMEGA), navion.frequency_response(OMEGA))
 
 
@@ -92,7 +92,7 @@ def test_simulate_with_the_effect_matches_the_truth(navion):
     from fdml.maneuvers import make_input
 
     de = make_input("3211", t, np.radians(1.0), unit=0.4, rise=0.04)
-    m = navion.with_effects("downwash_lag:tail").with_values(g_dw=1.0, tau_dw=tau)
+    m = with_effects(navion, "downwash_lag:tail").with_values(g_dw=1.0, tau_dw=tau)
     rec = simulate(m, t, {"de": de})
     truth = _downwash_delay(navion, t, {"de": de}, tau)
     plain = simulate(navion, t, {"de": de})
@@ -110,11 +110,11 @@ def test_effect_needs_a_tail_model_and_is_listed():
     from fdml.models.effects import catalogue
 
     with pytest.raises(ParameterError, match="downwash_lag@tail"):
-        make_model("dimensional", "navion").with_effects("downwash_lag:tail")
+        with_effects(make_model("dimensional", "navion"), "downwash_lag:tail")
     entry = next(e for e in catalogue() if e["key"] == "downwash_lag@tail")
     assert set(entry["models"]) == {"steady", "unsteady"}
     with pytest.raises(ParameterError, match="give downwash_lag:CHANNEL"):
-        make_model("steady", "navion").with_effects("downwash_lag")  # q (G) or tail (delay): ambiguous
+        with_effects(make_model("steady", "navion"), "downwash_lag")  # q (G) or tail (delay): ambiguous
 
 
 @pytest.mark.slow

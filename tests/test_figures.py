@@ -15,6 +15,7 @@ from figure_checks import assert_layout  # noqa: E402
 
 import fdml  # noqa: E402
 import fdml.outputs  # noqa: E402
+from fdml.models import with_effects
 from fdml.plotting import plot_spectra  # noqa: E402
 from fdml.record import add_noise  # noqa: E402
 from fdml.report import write_report  # noqa: E402
@@ -40,7 +41,7 @@ def record():
 @pytest.fixture(scope="module")
 def fit_with_effect(record):
     """A fit whose correlation matrix has long row labels (tau_alpha, bias_alpha, x0_alpha)."""
-    model = fdml.make_model("derivatives", "navion").with_effects("time_delay:alpha")
+    model = with_effects(fdml.make_model("derivatives", "navion"), "time_delay:alpha")
     return fdml.fit(record, model, band=BAND)
 
 

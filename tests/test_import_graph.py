@@ -8,6 +8,7 @@ is imported in a fresh interpreter in sorted and in reversed order.
 """
 
 import ast
+import importlib
 import subprocess
 import sys
 from pathlib import Path
@@ -136,9 +137,12 @@ def test_deferred_imports_form_no_cycle_either():
 
 def test_the_model_layer_does_not_import_upward():
     full = import_graph(deferred=True)
-    # Model.with_effects / Model.realize reach fdml.models.effects and .realization through the
-    # entries fdml.models fills; the effect library builds on the realisation, not on the simulator
+    # with_effects and realize are functions above the model classes (no registry filled from above);
+    # make_model sits above the effects it applies; the effect library builds on the realisation
     assert full["fdml.models.base"] & {"fdml.models.effects", "fdml.models.realization", "fdml.simulate"} == set()
+    base = importlib.import_module("fdml.models.base")
+    assert not hasattr(base, "UPPER") and not hasattr(base.Model, "with_effects")
+    assert "fdml.models.effects" not in full["fdml.models.kinds"] and "fdml.models.effects" in full["fdml.models.build"]
     assert "fdml.simulate" not in full["fdml.models.effect_library"]
     assert "fdml.models" not in full["fdml.models.effects"] | full["fdml.models.effect_library"]
     # the estimator's thresholds and the score screen sit below the estimator

@@ -19,7 +19,7 @@ from fdml.cli import main
 from fdml.constants import G0
 from fdml.errors import FdmlError, ParameterError, RecordError
 from fdml.maneuvers import three_two_one_one, time_vector
-from fdml.models import DescriptorModel, make_model, model_from_dict, model_to_dict
+from fdml.models import DescriptorModel, make_model, model_from_dict, model_to_dict, realize, with_effects
 from fdml.models.measurement import nuisance_names, predict
 from fdml.record import add_noise
 from fdml.simulate import simulate
@@ -82,14 +82,14 @@ def test_boundary_columns_theta_its_own_and_qdot_the_rate_of_q(kind, opts):
 def test_az_at_a_station_is_az_minus_x_qdot_over_g():
     x = 3.0
     base = make_model("derivatives", "sundowner", outputs=("qdot",))
-    m = base.with_effects("sensor_offset:az").with_values(x_az=x)
+    m = with_effects(base, "sensor_offset:az").with_values(x_az=x)
     r0, r = base.evaluate(OMEGA), m.evaluate(OMEGA)
     qdot = r0.outputs.index("qdot")
     for a in ("G", "H", "P"):
         A0, A = getattr(r0, a), getattr(r, a)
         np.testing.assert_allclose(A[:, 2], A0[:, 2] - x / G0 * A0[:, qdot], rtol=1e-12, atol=1e-15)
         np.testing.assert_array_equal(np.delete(A, 2, axis=1), np.delete(A0, 2, axis=1))
-    R = m.realize()
+    R = realize(m)
     np.testing.assert_allclose(R.frequency_response(OMEGA), m.frequency_response(OMEGA), rtol=1e-11, atol=1e-14)
 
 
@@ -151,7 +151,7 @@ def test_realisation_export_and_saved_model_carry_the_outputs():
     from fdml.export import to_frd, to_statespace
 
     m = make_model("derivatives", "sundowner", outputs=("theta",))
-    R = m.realize()
+    R = realize(m)
     assert R.outputs == ("alpha", "q", "az", "theta") and R.states == 3  # theta's integrator
     ss = to_statespace(m)
     assert isinstance(ss, control.StateSpace) and ss.output_labels == list(R.outputs)

@@ -25,7 +25,7 @@ from fdml.errors import (
 )
 from fdml.estimate import SETTINGS, EstimatorSettings, fit
 from fdml.jsoncodec import loads
-from fdml.models import make_model
+from fdml.models import make_model, with_effects
 from fdml.parameters import Parameter, Parameters, Role, Slot
 from fdml.plotting import simulate_fit
 from fdml.record import Record, add_noise
@@ -79,7 +79,7 @@ def test_model_parameters_carry_their_role(model):
     assert p["Cm_de"].role is Role.AERO
     assert p["tau_de"].role is Role.DELAY
     assert p["bias_q"].role is Role.OUTPUT_BIAS
-    eff = model.with_effects("time_delay:alpha").parameters
+    eff = with_effects(model, "time_delay:alpha").parameters
     assert eff["tau_alpha"].role is Role.EFFECT
     assert Role.OUTPUT_BIAS.nuisance and Role.BOUNDARY.nuisance and not Role.DELAY.nuisance
 

@@ -34,6 +34,7 @@ _LAZY = {
     "MODEL_KINDS": "models",
     "Model": "models",
     "make_model": "models",
+    "with_effects": "models",
     "Parameter": "parameters",
     "Parameters": "parameters",
     "Role": "parameters",

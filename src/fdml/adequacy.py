@@ -855,10 +855,10 @@ def _independent_rows(prob) -> np.ndarray:
 
 
 def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Refit | None:
-    from .models.effects import root_model
+    from .models.effects import root_model, with_effects
     from .verdict import judge
 
-    model = result.model.with_effects(eff)
+    model = with_effects(result.model, eff)
     model = model.with_values({k: v for k, v in start.items() if k in model.parameters and math.isfinite(v)})
     try:
         r = refit(model)
@@ -993,12 +993,12 @@ def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside:
 def _steps_beside(prob, result, refit, n_ind: float, m) -> bool:
     """Whether the steps' timing lowers the BIC beside the sensor effect ``m`` the kinematics settled (held at
     its kinematic value, as the advice refits it): :func:`_steps_verdict` for the kinematics' verdict."""
-    from .models.effects import get_effect
+    from .models.effects import get_effect, with_effects
 
     k, logn = _steps(prob, n_ind)
     if not k:
         return False
-    model = result.model.with_effects(get_effect(m.key)).fix({m.param: m.value})
+    model = with_effects(result.model, get_effect(m.key)).fix({m.param: m.value})
     try:
         r0 = refit(model)
     except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
@@ -1064,7 +1064,7 @@ def advice(
         refit = (
             shlex.join([*fit_argv, "--effect", top.option])
             if fit_argv
-            else f"fdml fit RECORD ... --effect {top.option} (Python: model.with_effects({top.option!r}))"
+            else f"fdml fit RECORD ... --effect {top.option} (Python: fdml.with_effects(model, {top.option!r}))"
         )
         also = f"; also flagged: {', '.join(others)}" if others else ""
         return f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}" + (

@@ -288,12 +288,12 @@ class ModelSpec(Codec):
             given = {**self.values, **(self.fix if isinstance(self.fix, Mapping) else {})}
             ac = aircraft_for_lags(ac, self.free, given, source="the model spec's values or fix")
         model = make_model(self.kind, ac, **self._options_for(records))
-        if self.parameters is not None:  # a saved model: its base kind plus its effects, as model_to_dict
-            from .models.effects import assemble
+        from .models.effects import assemble, with_effects
 
+        if self.parameters is not None:  # a saved model: its base kind plus its effects, as model_to_dict
             model = assemble(model, self.effects).with_parameters(Parameters.from_list(self.parameters))
         elif self.effects:
-            model = model.with_effects(list(self.effects))
+            model = with_effects(model, list(self.effects))
         if self.values:
             model.parameters.check_names(self.values)
             model = model.with_values(self.values)

@@ -4,7 +4,7 @@
   model (the unsteady one and every effect included; delays exact), at given
   frequencies;
 * :func:`to_statespace` - a ``control.StateSpace`` of the model's own
-  finite-state realisation (:meth:`fdml.models.Model.realize`, composed through
+  finite-state realisation (:func:`fdml.models.realize`, composed through
   its effects), with named signals: outputs ``alpha`` (rad), ``q`` (rad/s),
   ``az`` (g); inputs ``de`` and, for a gust model, ``alpha_w`` (rad);
 * :func:`to_control` - either, with a record of how delays were treated
@@ -24,6 +24,7 @@ import numpy as np
 
 from .errors import ParameterError
 from .models.base import DescriptorModel, Model
+from .models.realization import realize
 
 __all__ = ["to_frd", "to_statespace", "to_control", "ControlExport", "descriptor_matrices"]
 
@@ -84,7 +85,7 @@ def descriptor_matrices(model, values=None):
 
     A descriptor model's own descriptor (:meth:`fdml.models.base.DescriptorModel.descriptor`);
     for the ``steady`` model its finite-state form ``x' = A x + B u`` (E = I,
-    :meth:`Model.realize`).  Input delays are not included.
+    :func:`fdml.models.realize`).  Input delays are not included.
 
     Parameters
     ----------
@@ -109,7 +110,7 @@ def descriptor_matrices(model, values=None):
     if isinstance(model, DescriptorModel):
         d = model.descriptor(values)
         return d.E, d.A, d.B0, d.B1
-    real = model.with_outputs(()).realize(values)  # the steady model: x = [alpha, q], no input rates
+    real = realize(model.with_outputs(()), values)  # the steady model: x = [alpha, q], no input rates
     return np.eye(2), real.A, real.B, np.zeros_like(real.B)
 
 
@@ -122,7 +123,7 @@ def _not_rational(model) -> str:
 
 
 def to_statespace(result_or_model, *, pade: int | None = None, name: str | None = None):
-    """A model as a ``control.StateSpace`` with named signals, from :meth:`Model.realize`.
+    """A model as a ``control.StateSpace`` with named signals, from :func:`fdml.models.realize`.
 
     The realisation is the one :func:`fdml.simulate.simulate` integrates,
     composed through the model's effects: for the conventional models the
@@ -167,7 +168,7 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
 
     model = _model_of(result_or_model)
     try:
-        real = model.realize()
+        real = realize(model)
     except ParameterError as exc:
         if "finite-state" in str(exc):
             raise ParameterError(_not_rational(model)) from None
@@ -308,7 +309,7 @@ def to_control(
 
 def _has_delays(model) -> bool:
     try:
-        real = model.realize()
+        real = realize(model)
     except ParameterError:
         return True  # no finite-state form (the F term): only the exact frequency response exists
     return any(d for _, d in real.channels) or any(real.output_delays)

@@ -104,7 +104,7 @@ def model_for_records(args, records, values: dict | None = None):
     """
     from ..aircraft import aircraft_for_lags
     from ..conditions import airspeed_rule, model_provenance
-    from ..models import make_model
+    from ..models import make_model, with_effects
 
     kind = default_model(args)
     check_model_rule(kind, args, bool(records), records)
@@ -120,7 +120,7 @@ def model_for_records(args, records, values: dict | None = None):
     model = make_model(kind, aircraft, **opts)
     effects = list(getattr(args, "effect", None) or ())
     if effects:
-        model = model.with_effects(effects)
+        model = with_effects(model, effects)
     if values:
         model.parameters.check_names(values)
         model = model.with_values(values)

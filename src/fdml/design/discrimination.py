@@ -51,6 +51,7 @@ from ..compare import span_of
 from ..errors import FdmlError, ParameterError
 from ..estimate import Problem, information, prepare
 from ..jsoncodec import Codec, integer, number_map
+from ..models.effects import with_effects
 from .inputs import DesignInput
 from .prediction import noise_stds, predict, response
 
@@ -358,7 +359,7 @@ def minimum_detectable(
     list of Detectable
         One per parameter the effect adds, its minimum detectable value in the parameter's unit.
     """
-    with_effect = model.with_effects([effect])
+    with_effect = with_effects(model, [effect])
     new = [n for n in with_effect.parameters.free_names if n not in model.parameters.free_names]
     if not new:
         raise FdmlError(f"effect {effect!r} adds no free parameter to the {model.kind} model: nothing to detect")

@@ -21,7 +21,7 @@ from ..estimate import NoiseModel
 from ..kinematics import KinematicEvidence, flight_path_findings, kinematic_evidence, known_terms
 from ..kinematics import members as _members_of
 from ..models.base import Model
-from ..models.effects import Effect, applied_effects, default_library, registered_effects, root_model
+from ..models.effects import Effect, applied_effects, default_library, registered_effects, root_model, with_effects
 from ..parameters import Role
 from ..record import Record
 from ..verdict import ABSORBS, LEVEL
@@ -167,7 +167,7 @@ def _settled_model(model, kin: KinematicEvidence | None):
     """``model`` with the sensor effects the kinematics settled, each fixed at its kinematic value."""
     if kin is None or not kin.settled:
         return model
-    m = model.with_effects(*[s.effect() for s in kin.settled])
+    m = with_effects(model, *[s.effect() for s in kin.settled])
     return m.fix({s.param: s.value for s in kin.settled})
 
 
@@ -831,7 +831,7 @@ def recommended_fit(
 ):
     """:func:`fdml.fit` of ``base_model`` plus ``effects`` on the diagnosis's analysis grid.
 
-    The model is built as a user would build it (``base_model.with_effects(*effects)``), so its result
+    The model is built as a user would build it (``with_effects(base_model, *effects)``), so its result
     saves and reloads like any fit; start values are the diagnosis's final estimates (``start``).
     Otherwise ``fdml fit``'s defaults: white noise, the ``white`` covariance.  None when it cannot be
     fitted (the reason is logged).
@@ -869,7 +869,7 @@ def recommended_fit(
     from ..estimate import fit as fdml_fit
     from ..propagate import with_known_uncertainty
 
-    model = base_model.with_effects(*effects) if effects else base_model
+    model = with_effects(base_model, *effects) if effects else base_model
     if start is not None:
         sv = start.parameters.values
         model = model.with_values({k: v for k, v in sv.items() if k in model.parameters and math.isfinite(v)})

@@ -14,17 +14,13 @@ from __future__ import annotations
 
 from ..aircraft import Aircraft
 from ..errors import ParameterError
-from . import base as _base
 from .base import OUTPUTS, DescriptorModel, Model, ModelResponse, solve_short_period
+from .build import make_model
 from .conventional import DerivativesModel, DimensionalModel, to_dimensional
 from .effects import AugmentedModel, assemble, with_effects
-from .kinds import MODEL_KINDS, make_model
+from .kinds import MODEL_KINDS
 from .realization import realize
 from .wells_keskar import SteadyModel, UnsteadyModel, alternate_set
-
-# Model.with_effects and Model.realize compose through the layers above the model class; they reach
-# them through these entries, filled here, where every model's package is first imported.
-_base.UPPER.update(with_effects=with_effects, realize=realize)
 
 __all__ = [
     "OUTPUTS",
@@ -40,6 +36,8 @@ __all__ = [
     "DimensionalModel",
     "alternate_set",
     "to_dimensional",
+    "with_effects",
+    "realize",
 ]
 
 
@@ -66,7 +64,7 @@ def model_to_dict(model: Model) -> dict:
     if isinstance(model, AugmentedModel) and not model.requested:
         raise ParameterError(
             f"{model.describe()}: built by the diagnosis, not with_effects; "
-            "rebuild it with model.with_effects(...) to save it"
+            "rebuild it with fdml.with_effects(model, ...) to save it"
         )
     opts = {}
     for f in dataclasses.fields(base):

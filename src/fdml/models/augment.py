@@ -300,7 +300,7 @@ class AugmentedModel(Model):
 
     root: Model = field(default=None)  # type: ignore[assignment]
     effects: tuple = ()
-    #: The effects as requested (:meth:`Model.with_effects`), free-parameter ones included; these
+    #: The effects as requested (:func:`fdml.models.with_effects`), free-parameter ones included; these
     #: describe and serialise the model.  Empty for the diagnosis' internal augmentations.
     requested: tuple = ()
 

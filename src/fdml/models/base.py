@@ -22,7 +22,7 @@ solve is done in closed form over all frequencies at once.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
@@ -33,13 +33,6 @@ from ..errors import ParameterError
 from ..parameters import Parameter, Parameters, Role
 
 __all__ = ["Descriptor", "DescriptorModel", "Model", "ModelResponse", "OUTPUTS", "solve_short_period"]
-
-#: The model operations that live above this module, by method: ``with_effects``
-#: (:func:`fdml.models.effects.with_effects`) and ``realize``
-#: (:func:`fdml.models.realization.realize`).  :mod:`fdml.models` fills it when it is
-#: imported, which Python does before any of its modules (this one included), so a
-#: model's methods reach up without importing up.
-UPPER: dict[str, Callable] = {}
 
 #: The table's rows by name.
 _ROWS = {o.name: o for o in OUTPUT_TABLE}
@@ -873,49 +866,10 @@ class Model:
             J[:, j] = [(du[k] - dd[k]) / (2 * h) for k in keys]
         return keys, J
 
-    def with_effects(self, *effects) -> "Model":
-        """This model plus effects: keys ``NAME``, ``NAME:CHANNEL``, ``NAME@CHANNEL`` or Effect objects.
-
-        Each effect's parameters are free at their null values (where the
-        model is unchanged); see :func:`fdml.models.effects.with_effects`.
-        ``model.with_effects("time_delay:alpha", "sensor_offset:az")``.
-
-        Parameters
-        ----------
-        *effects : str or Effect
-            Effect keys or objects (iterables of them are flattened).
-
-        Returns
-        -------
-        Model
-            The augmented model.
-        """
-        flat = [
-            e for item in effects for e in ([item] if isinstance(item, str) or not hasattr(item, "__iter__") else item)
-        ]
-        return UPPER["with_effects"](self, flat)
-
     @property
     def parts(self) -> tuple:
         """The effects this model is made of (none for a plain model)."""
         return ()
-
-    def realize(self, values: Mapping[str, float] | None = None):
-        """Finite-state realisation (:class:`fdml.models.realization.Realization`), composed through the effects.
-
-        The one the simulator integrates and :func:`fdml.export.to_statespace` exports.
-
-        Parameters
-        ----------
-        values : mapping of str to float, optional
-            Parameter values by name overriding the model's own.
-
-        Returns
-        -------
-        Realization
-            The finite-state realisation.
-        """
-        return UPPER["realize"](self, values)
 
     def describe(self) -> str:
         """One line naming the model and its options.

@@ -57,7 +57,6 @@ from .augment import (
     scale_rows,
 )
 from .base import Model
-from .kinds import make_model
 from .realization import (
     _pad_states,
     add_mode,
@@ -65,7 +64,7 @@ from .realization import (
     filter_input,
     scale_output,
 )
-from .wells_keskar import SteadyModel
+from .wells_keskar import SteadyModel, UnsteadyModel
 
 __all__ = ["Dispatch", "StationEffect", "UnmeasuredGust", "to_unsteady_equivalent", "JONES_Z"]
 
@@ -161,7 +160,7 @@ def to_unsteady_equivalent(root: Model) -> Model:
     assert isinstance(root, SteadyModel)  # the "steady" kind (a root model)
     ac = root.aircraft  # its lags are set to zero below: "none" is the source
     ac = ac if ac.lag_status else ac.with_changes(lag_constants="none")
-    u = make_model("unsteady", ac, gust=root.gust, output_bias=root.output_bias, tail_gust_delay=False)
+    u = UnsteadyModel(aircraft=ac, gust=root.gust, output_bias=root.output_bias, tail_gust_delay=False)
     vals = {k: v for k, v in root.parameters.values.items() if k in u.parameters}
     vals.update({"y_w": 0.0, "y_t": 0.0, "F": 0.0, "G": 0.0})
     if root.gust:

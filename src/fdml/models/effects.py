@@ -150,23 +150,25 @@ def resolve_effect(spec, model: Model | None = None) -> Effect:
     return variants[0]
 
 
-def with_effects(model: Model, effects) -> Model:
+def with_effects(model: Model, *effects) -> Model:
     """``model`` plus ``effects`` (keys or :class:`Effect` objects), each free at its null value.
 
-    The result describes itself by its parts and serialises as its base kind
-    plus its effects (:func:`fdml.models.model_to_dict`).
+    ``with_effects(model, "time_delay:alpha", "sensor_offset:az")``; sequences of them are
+    flattened, so ``with_effects(model, ["time_delay:alpha"])`` is the same.  The result
+    describes itself by its parts and serialises as its base kind plus its effects
+    (:func:`fdml.models.model_to_dict`).
 
     Parameters
     ----------
     model : Model
         The base model (plain or already augmented).
-    effects : sequence of str or Effect
+    *effects : str or Effect, or sequences of them
         Effect keys (``NAME``, ``NAME:CHANNEL``, ``NAME@CHANNEL``) or objects, in order.
 
     Returns
     -------
     Model
-        The augmented model.
+        The augmented model (``model`` itself when no effect is given).
 
     Raises
     ------
@@ -175,7 +177,8 @@ def with_effects(model: Model, effects) -> Model:
         reason from :meth:`Effect.applicable`), a noise-kind effect (it is
         not a part of the response) or an effect given twice.
     """
-    specs = [effects] if isinstance(effects, (str, Effect)) else list(effects or ())
+    one = [isinstance(item, str) or not hasattr(item, "__iter__") for item in effects]
+    specs = [e for item, o in zip(effects, one) for e in ([item] if o else item)]
     parts = list(model.parts) if isinstance(model, AugmentedModel) else []
     for spec in specs:
         eff = resolve_effect(spec, model)

@@ -1,18 +1,15 @@
-"""The model kinds by name (:data:`MODEL_KINDS`) and :func:`make_model`.
+"""The model kinds by name (:data:`MODEL_KINDS`).
 
 Below :mod:`fdml.models.effects` and the effect library, which build models
-by kind; :mod:`fdml.models` exports both.
+by kind; :func:`fdml.models.build.make_model` builds one with its effects.
 """
 
 from __future__ import annotations
 
-from ..aircraft import Aircraft, load_aircraft
-from ..errors import ParameterError
-from .base import Model
 from .conventional import DerivativesModel, DimensionalModel
 from .wells_keskar import SteadyModel, UnsteadyModel
 
-__all__ = ["MODEL_KINDS", "make_model"]
+__all__ = ["MODEL_KINDS"]
 
 MODEL_KINDS = {
     "unsteady": UnsteadyModel,
@@ -20,65 +17,3 @@ MODEL_KINDS = {
     "derivatives": DerivativesModel,
     "dimensional": DimensionalModel,
 }
-
-
-def make_model(kind: str, aircraft: Aircraft | str | None = None, *, effects=(), **options) -> Model:
-    """Build a model by name.
-
-    Parameters
-    ----------
-    kind : {"unsteady", "steady", "derivatives", "dimensional"}
-        The model: Wells-Keskar unsteady or steady, non-dimensional
-        derivatives, or dimensional derivatives.
-    aircraft : Aircraft or str, optional
-        An :class:`~fdml.aircraft.Aircraft`, a preset name or a JSON file path.
-        Required except for ``dimensional`` given ``airspeed=``.
-    effects : sequence, optional
-        Effects made part of the model (``"time_delay:alpha"``,
-        ``"sensor_offset@az"``, ``"actuator_lag"`` or Effect objects), each
-        free at its null value; ``fdml effects`` lists them.
-    **options
-        Model options (``gust``, ``output_bias``, ``adot``, ``airspeed``,
-        ``tail_lag_chord``, ``gust_lag``, ``tail_gust_delay``).
-
-    Returns
-    -------
-    Model
-        The model, with its default parameter set and the effects free at their nulls; the
-        aircraft's known sensor positions (its ``sensors`` entry) come first, as fixed
-        ``sensor_offset`` effects.
-    """
-    try:
-        cls = MODEL_KINDS[kind]
-    except KeyError:
-        raise ParameterError(f"unknown model {kind!r}; models: {', '.join(MODEL_KINDS)}") from None
-    if aircraft is not None:
-        aircraft = load_aircraft(aircraft)
-    try:
-        model = cls(aircraft=aircraft, **options)
-    except TypeError as exc:
-        raise ParameterError(f"bad option for the {kind} model: {exc}") from None
-    model = known_sensors(model)
-    return model.with_effects(effects) if effects else model
-
-
-def known_sensors(model: Model) -> Model:
-    """``model`` with its aircraft's known sensor positions applied: fixed ``sensor_offset`` effects.
-
-    Parameters
-    ----------
-    model : Model
-        A model whose aircraft may give ``sensors`` (:class:`~fdml.aircraft.Aircraft`).
-
-    Returns
-    -------
-    Model
-        The model, unchanged without known positions.
-    """
-    from ..aircraft import SENSOR_POSITIONS
-
-    sensors = getattr(getattr(model, "aircraft", None), "sensors", None) or {}
-    if not sensors:
-        return model
-    m = model.with_effects([f"sensor_offset:{ch}" for ch in sensors])
-    return m.fix({SENSOR_POSITIONS[ch]: float(pos["x"]) for ch, pos in sensors.items()})
