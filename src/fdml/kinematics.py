@@ -651,9 +651,9 @@ def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -
     x = float(grid[i])
     if 0 < i < grid.size - 1:
         cm, c0, cp = costs[i - 1 : i + 2]
-        h = grid[1] - grid[0]
         if cp - 2 * c0 + cm > 0:
-            x = float(np.clip(x - 0.5 * h * (cp - cm) / (cp - 2 * c0 + cm), grid[i - 1], grid[i + 1]))
+            half = 0.5 * (grid[1] - grid[0])
+            x = float(np.clip(x - half * (cp - cm) / (cp - 2 * c0 + cm), grid[i - 1], grid[i + 1]))
     cm, c0, cp = idn.costs(pat.batch(base, np.clip([x - h, x, x + h], lo - h, hi)))
     curv = (cp - 2 * c0 + cm) / h**2
     se = math.sqrt(2.0 / curv) if curv > 0 else math.inf  # cost = -2 ln L: var = 2 / cost''
