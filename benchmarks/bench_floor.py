@@ -33,7 +33,9 @@ Candidates, on the same data, each to fdml's convergence test (every step below
 
 And fdml itself: ``fdml.fit`` with the data and adequacy checks off, and with its
 defaults (both checks on), each as best of N interleaved with the floor so that
-load from other processes inflates both alike.  Then the pieces of one pass:
+load from other processes inflates both alike, and the part of the defaults that
+the adequacy check's kinematic evidence takes (:func:`fdml.kinematics.kinematic_evidence`
+on the fit's spectra, timed alone).  Then the pieces of one pass:
 the floor's pass against fdml's trial point, sensitivities (through
 ``Model.forced_sensitivity``, one batched solve, and the same by the derivative
 matrices as before), gradient and Hessian, and step, with the number of passes
@@ -300,6 +302,15 @@ def counted_fit(rec, model, omega):
     return res.iterations, calls["trial"]
 
 
+def kinematics_of(rec, model, omega):
+    """The short-period identity the defaults' adequacy check runs (fdml.kinematics), on the fit's spectra."""
+    from fdml.estimate import prepare
+    from fdml.kinematics import kinematic_evidence, known_terms
+
+    prob, known = prepare(rec, model, omega=omega), known_terms(model)
+    return lambda: kinematic_evidence(prob.data, float(model.U), known=known)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--reps", type=int, default=15)
@@ -323,6 +334,7 @@ def main() -> None:
             rec, model, omega=omega, check=False, adequacy=False
         ),
         "fdml.fit, defaults (target <= 3x)": lambda: fdml.fit(rec, model, omega=omega),
+        "  of which the adequacy check's kinematic evidence": kinematics_of(rec, model, omega),
     }
     best = interleaved(timed, args.reps)
     floor = best["floor, 10 passes (transform included)"]

@@ -243,3 +243,25 @@ def test_every_profile_finds_the_brute_force_minimum():
         assert cost <= cd + 1e-9 * abs(cd), pat.keys
         assert abs(x - xd) <= h + 1e-3 * se, pat.keys
         assert 0.0 < se < math.inf
+
+
+def test_a_pattern_not_significant_on_its_own_is_neither_settled_nor_an_alias():
+    """A clean record (the validation's null seed 1000241: Navion 3-2-1-1, 3 % white noise) whose best
+    pattern, a 1.3 ms lag of q and a_z, passes the level but lies below the quarter-sample resolution.
+    The a_z scale explains the identity equally (its LR within 15.4 of the best) with p = 0.009 alone.
+    It is the alias set's only resolved member, and it used to be settled for that reason: a false alarm."""
+    from fdml.diagnose.truth import simulate_truth
+    from fdml.diagnose.validation import BAND, GUST_STD
+    from fdml.kinematics import _alias_set, known_terms, members
+    from fdml.models import make_model
+
+    base = make_model("steady", "navion")
+    rec = simulate_truth(base, None, {}, maneuver="3211", seed=1000241, noise=0.03, gust_std=GUST_STD)
+    U = base.aircraft.U
+    ev = kinematic_evidence([spectra(rec, band=BAND)], U, known=known_terms(base))
+    alias = [m for f in _alias_set(list(ev.tested)) for m in members(f, rec.dt, U)]
+    best = ev.tested[0]
+    assert best.p < LEVEL and not any(m.resolved for m in members(best, rec.dt, U))  # the case is the one described
+    assert [m.key for m in alias if m.resolved] == ["sensor_scale@az"] and alias[0].finding.p < LEVEL
+    assert not ev.settled and not ev.aliases
+    assert [m.key for m in ev.unresolved] == ["time_delay@q,az"]  # the set-aside lag, not the patterns of chance

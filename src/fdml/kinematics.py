@@ -1108,7 +1108,9 @@ def kinematic_evidence(
             tested = list(found)
         if found[0].p >= level:
             break
-        members_ = [m for f in _alias_set(found) for m in members(f, dt, U)]
+        # only patterns significant on their own count: the best may be set aside (below the resolution)
+        # while the rest of its alias set is not significant at all, and none of those is a finding
+        members_ = [m for f in _alias_set(found) if f.p < level for m in members(f, dt, U)]
         implausible += [m for m in members_ if not m.plausible]
         unresolved += [m for m in members_ if m.plausible and not m.resolved]
         members_ = [m for m in members_ if m.plausible and m.resolved]
