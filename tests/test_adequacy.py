@@ -59,8 +59,12 @@ def delayed_fit():
 def test_twin_otter_plain_fit_flags_the_alpha_delay():
     rec = _twin_otter()
     model = fdml.make_model("dimensional", airspeed=float(rec.meta["U"]))
-    with pytest.warns(AdequacyWarning, match=r"time_delay@alpha.*--effect time_delay:alpha"):
+    # named first, alone or as the best of a set the data cannot split: on this record the short-period
+    # identity weighs the delay against a 1.4 m vane offset at its alias threshold (LRs 15.35 apart against
+    # 15.4), so "the delay, or a vane offset" is as honest an answer as "the delay"
+    with pytest.warns(AdequacyWarning, match=r"time_delay@alpha"):
         res = fdml.fit(rec, model, band=TO_BAND)
+    assert res.adequacy.verdict.key == "time_delay@alpha"
     flagged = {e.key: e for e in res.adequacy.flagged}
     assert "time_delay@alpha" in flagged
     e = flagged["time_delay@alpha"]

@@ -34,9 +34,12 @@ transform of a constant (biases of q and a_z), all real and per record.  The
 cost is the complex-Gaussian ``-2 ln L = 2 sum |e|^2 / v(omega)`` counted on
 independent frequencies (a grid ``K`` times finer than ``2 pi/T`` counts each
 one ``K`` times; :mod:`fdml.adequacy` does the same), with the equation error's
-variance ``v = a + b omega^2`` (white sensor noise on alpha enters times omega)
-estimated from the residuals of the best hypothesis and then held, so that
-cost differences are likelihood ratios.
+variance ``v = a + b omega^2`` (white sensor noise on alpha enters times omega;
+``a, b >= 0`` by maximum likelihood) estimated from the residuals of the best
+single pattern when that is significant, of no pattern otherwise, and then held,
+so that cost differences are likelihood ratios.  A lag moves the record's ends
+too; their measured values enter as known (:func:`_corrected`), so that a lag's
+likelihood ratio has its chi-bar-square law at zero lag.
 
 :func:`kinematic_evidence` tries every *sensor pattern* of the library -- each
 timing group of :data:`fdml.models.effect_library.TIMING_GROUPS` and the vane
@@ -61,7 +64,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .channels import OUTPUTS
+from .channels import OUTPUTS, boundary_channels
 from .constants import G0
 from .fourier import step_edges
 from .score import equally
@@ -448,6 +451,8 @@ class _Record:
     # (m, 3 + K) nuisance regressors: 1, exp(-sT), transform of a constant, and exp(-s t_k) of each elevator
     # step between samples (a_z jumps with the elevator; its transform puts the jump mid-interval: theory 7a)
     N: np.ndarray
+    # (3, 2) measured x(0), x(T) of alpha (rad), q (rad/s), a_z (g) after trim: the ends a lag moves
+    ends: np.ndarray
     K: float  # grid points per independent frequency
     block: int  # grid points per independent frequency, rounded (for Vuong's blocks)
 
@@ -463,7 +468,23 @@ def _records(spectra) -> list:
         steps = np.exp(-np.outer(s, np.asarray(getattr(d, "edges", ()), float)))
         N = np.column_stack([np.ones_like(s), np.exp(-s * d.T), np.asarray(d.ones)[keep], steps])
         z = np.asarray(d.z)[keep]
-        out.append(_Record(float(d.T), s, z[:, 0], z[:, 1], z[:, 2], N, K, max(int(round(K)), 1)))
+        out.append(_Record(float(d.T), s, z[:, 0], z[:, 1], z[:, 2], N, _ends(d), K, max(int(round(K)), 1)))
+    return out
+
+
+def _ends(d) -> np.ndarray:
+    """(3, 2): each output's first and last value after trim, from the spectra's boundary values (alpha,
+    q) and their record (a_z; zeros without one: a_z's lag then moves its ends by ``tau x`` in the
+    boundary nuisance's span, and only the second-order ``s tau^2`` part is left unmodelled)."""
+    out = np.zeros((3, 2))
+    rows = boundary_channels(d.outputs)
+    for j, c in enumerate(_OUTPUTS):
+        if c in rows:
+            out[j] = d.x0[rows.index(c)], d.xT[rows.index(c)]
+        elif d.record is not None and c in d.record.signals:
+            x = np.asarray(d.record[c], float)
+            trim = float(np.mean(x[: d.trim_samples])) if d.trim_mode != "none" and d.trim_samples else 0.0
+            out[j] = x[0] - trim, x[-1] - trim
     return out
 
 
@@ -475,35 +496,26 @@ def _shifts(r: _Record, lags: np.ndarray) -> list:
 def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scales: np.ndarray, shifts=None):
     """The spectra with sensor terms undone, for a batch of G hypotheses: alpha at the accelerometer's
     station, q, a_z, each of shape (G, m).  ``lags``, ``scales``: (G, 3); ``offset``: (G,), m;
-    ``shifts``: :func:`_shifts` of ``lags`` when the caller has them."""
-    shifts = _shifts(r, lags) if shifts is None else shifts
+    ``shifts``: :func:`_shifts` of ``lags`` when the caller has them.
 
-    def undo(x, j):  # the lag and scale of output j undone
+    A channel recorded tau late, x_m(t) = x(t - tau), has over the record ``x~ = exp(s tau) x~_m -
+    (exp(s tau) - 1)/s (x(0) - x(T) exp(-sT))`` to first order over the tau-long end pieces, with the
+    measured ends (:attr:`_Record.ends`) for x(0) and x(T): known values, not free coefficients, which
+    near tau = 0 would fit two directions of noise per lagged channel.
+    """
+    shifts = _shifts(r, lags) if shifts is None else shifts
+    eT = np.exp(-r.s * r.T)
+
+    def undo(x, j):  # the lag (with its record ends) and the scale of output j undone
         e = shifts[j]
-        return (e * x if e is not None else x[None, :]) / scales[:, j : j + 1]
+        if e is None:
+            return x[None, :] / scales[:, j : j + 1]
+        x0, xT = r.ends[j]
+        return (e * x - (e - 1.0) / r.s * (x0 - xT * eT)) / scales[:, j : j + 1]
 
     Q = undo(r.Q, 1)
     A = undo(r.A, 0) + (offset[:, None] * c / G0) * Q  # d/U = d c/g
     return A, Q, undo(r.Z, 2)
-
-
-def _end_columns(r: _Record, c: float, shifts: list) -> np.ndarray | None:
-    """Regressors of the record ends a lag moves, shape (G, m, k); None when no output lags.
-
-    A channel recorded tau late, x_m(t) = x(t - tau), has ``exp(s tau) x~_m = x~ + x(0)(exp(s tau) - 1)/s
-    - x(T) exp(-sT)(exp(s tau) - 1)/s`` to first order over the tau-long end pieces: the ends' values
-    enter with the two columns ``(exp(s tau) - 1)`` and ``(exp(s tau) - 1) exp(-sT)``, over s for q and
-    a_z (alpha's enters the identity times s), with free real coefficients (the ends' values).
-    """
-    cols = []
-    s = r.s[None, :]
-    eT = np.exp(-s * r.T)
-    for e, scale in zip(shifts, (1.0, -1.0 / s, -c / s)):
-        if e is None:
-            continue
-        f = (e - 1.0) * scale
-        cols += [f, f * eT]
-    return np.stack(np.broadcast_arrays(*cols), axis=-1) if cols else None
 
 
 def _batch(terms) -> tuple:
@@ -536,22 +548,11 @@ class _Identity:
         lags, off, sc = terms if isinstance(terms, tuple) else _batch(terms)
         out = []
         for r, w, B in zip(self.recs, self.weights, self.basis):
-            shifts = _shifts(r, lags)
-            A, Q, Z = _corrected(r, self.c, lags, off, sc, shifts)
+            A, Q, Z = _corrected(r, self.c, lags, off, sc)
             y = r.s * A - Q - self.c * Z
             ww = np.concatenate([w, w])
             yr = np.concatenate([y.real, y.imag], axis=1) * ww
-            yr = yr - (yr @ B) @ B.T
-            E = _end_columns(r, self.c, shifts)
-            if E is not None:  # Frisch-Waugh: the end columns, with the boundary nuisance projected out
-                Er = np.concatenate([E.real, E.imag], axis=1) * ww[None, :, None]
-                Er = Er - B @ (B.T @ Er)
-                Et = Er.transpose(0, 2, 1)
-                G = Et @ Er
-                ridge = 1e-12 * np.trace(G, axis1=1, axis2=2)[:, None, None] * np.eye(G.shape[1]) + 1e-300
-                coef = np.linalg.solve(G + ridge, Et @ yr[..., None])
-                yr = yr - (Er @ coef)[..., 0]
-            out.append(yr)
+            out.append(yr - (yr @ B) @ B.T)
         return out
 
     def costs(self, terms) -> np.ndarray:
@@ -590,12 +591,40 @@ def _identity(spectra, U: float, t: SensorTerms | None = None) -> _Identity:
     ws = []
     for r, e in zip(recs, flat.errors([t or SensorTerms()])):
         m = r.s.size
-        p = e[0, :m] ** 2 + e[0, m:] ** 2
-        B = np.column_stack([np.ones(m), np.abs(r.s) ** 2])
-        ab, *_ = np.linalg.lstsq(B, p, rcond=None)
-        floor = 1e-3 * max(float(np.median(p)), 1e-300)
-        ws.append(1.0 / np.sqrt(np.maximum(B @ np.maximum(ab, 0.0), floor)))
+        v = _variance(np.abs(r.s) ** 2, e[0, :m] ** 2 + e[0, m:] ** 2)
+        ws.append(1.0 / np.sqrt(v))
     return _Identity(recs, c, tuple(ws), tuple(_basis(r, w) for r, w in zip(recs, ws)))
+
+
+def _variance(w2: np.ndarray, p: np.ndarray, passes: int = 8) -> np.ndarray:
+    """v = a + b omega^2 (a, b >= 0) from the residual powers ``p`` at ``w2`` = omega^2: maximum likelihood.
+
+    ``p`` is exponentially distributed about v, so the fit is least squares weighted by 1/v^2, repeated
+    (Fisher scoring), each pass with a and b kept non-negative (:func:`_nonnegative_fit`).  A plain
+    least-squares fit often puts a below zero when the white part is small; cut to zero, it left v near
+    zero at the lowest frequencies, whose weight then inflated every likelihood ratio that reads them.
+    """
+    X = np.column_stack([np.ones_like(w2), w2])
+    floor = 1e-3 * max(float(np.median(p)), 1e-300)
+    v = np.full_like(p, max(float(np.mean(p)), floor))
+    for _ in range(passes):
+        ab = _nonnegative_fit(X / v[:, None], p / v)
+        v = np.maximum(X @ ab, floor)
+    return v
+
+
+def _nonnegative_fit(X: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """argmin ||X c - y|| over c >= 0 for two columns: the free fit, else the better one-column fit."""
+    c, *_ = np.linalg.lstsq(X, y, rcond=None)
+    if np.all(c >= 0):
+        return c
+    best, cost = np.zeros(2), float(y @ y)
+    for k in range(2):
+        ck = max(float(X[:, k] @ y) / max(float(X[:, k] @ X[:, k]), 1e-300), 0.0)
+        r = y - ck * X[:, k]
+        if r @ r < cost:
+            best, cost = np.eye(2)[k] * ck, float(r @ r)
+    return best
 
 
 def _basis(r: _Record, w: np.ndarray) -> np.ndarray:
@@ -1095,11 +1124,14 @@ def kinematic_evidence(
     """
     spectra = list(spectra)
     known = known or SensorTerms()
-    # the equation-error variance from the residuals of the best single pattern: estimated under no
-    # pattern at all it would hold the very misfit the patterns explain, and cap every LR
-    first = _search(_identity(spectra, U, known), known, 0, refine=0)[0]
+    # the equation-error variance from the residuals of the best single pattern when it is significant:
+    # estimated under no pattern it would hold the very misfit the patterns explain, and cap every LR;
+    # estimated after a pattern fitted to noise, it would lack that pattern's share and inflate them
+    idn = _identity(spectra, U, known)
+    first = _search(idn, known, 0, refine=0)[0]
+    if first.p < level:
+        idn = _identity(spectra, U, known + _pattern_of(first).terms(first.value))
     base = known
-    idn = _identity(spectra, U, known + _pattern_of(first).terms(first.value))
     settled, aliases, tested, implausible, unresolved = [], [], [], [], []
     dt = max(float(d.dt) for d in spectra)
     for rnd in range(max_rounds):
