@@ -643,8 +643,8 @@ def _profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int = 2) -
 
 def _linear_profile(idn: _Identity, base: SensorTerms, pat: Pattern) -> tuple[float, float, float]:
     """The profile of an offset or a scale pattern, exactly: the identity's residual is affine in the
-    offset, and in u = 1/(1 + size) for a scale (the output is divided by its scale factor; the end
-    columns move only with the lags), so the cost is a quadratic a u^2 + b u + c with a >= 0, known
+    offset, and in u = 1/(1 + size) for a scale (the output is divided by its scale factor; the
+    record's ends move only with the lags), so the cost is a quadratic a u^2 + b u + c with a >= 0, known
     from three points."""
     lo, hi = pat.bounds
     to_u = (lambda k: k) if pat.scale is None else (lambda k: 1.0 / (1.0 + k))
@@ -668,8 +668,6 @@ def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -
     period in the lag is 2 pi / omega_max; eight points to it), ``refine`` grids four times finer
     around the best point, and the vertex of the parabola through the best point and its neighbours."""
     lo, hi = pat.bounds
-    h = 1e-4 * (hi - lo)
-    lo += 2 * h  # at a lag of exactly zero the end columns vanish and the cost jumps up: start above it
     w_max = max(float(np.max(np.abs(r.s))) for r in idn.recs) * max(np.abs(pat.lags))
     grid = np.linspace(lo, hi, int(np.clip(math.ceil(8 * (hi - lo) * w_max / (2 * math.pi)) + 1, 11, 51)))
     for level in range(1 + refine):
@@ -683,7 +681,8 @@ def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -
         if cp - 2 * c0 + cm > 0:
             half = 0.5 * (grid[1] - grid[0])
             x = float(np.clip(x - half * (cp - cm) / (cp - 2 * c0 + cm), grid[i - 1], grid[i + 1]))
-    cm, c0, cp = idn.costs(pat.batch(base, np.clip([x - h, x, x + h], lo - h, hi)))
+    h = 1e-4 * (hi - lo)  # the cost is defined past the bounds (a lead): its curvature at x, at a bound too
+    cm, c0, cp = idn.costs(pat.batch(base, np.array([x - h, x, x + h])))
     curv = (cp - 2 * c0 + cm) / h**2
     se = math.sqrt(2.0 / curv) if curv > 0 else math.inf  # cost = -2 ln L: var = 2 / cost''
     return x, float(c0), se
