@@ -430,6 +430,17 @@ class AugmentedModel(Model):
         names = self.root.parameters.names
         return {k: p[k] for k in names}
 
+    def _matrix_derivatives(self, s, p, names):
+        """The root's own (closed-form where it has them) when no effect acts on the matrices; the
+        central differences of :meth:`Model._matrix_derivatives` for the rest (a matrix-level effect
+        maps the root's matrices, and its own parameters enter only through it)."""
+        if any(isinstance(e, MatrixEffect) for e in self.effects):
+            return super()._matrix_derivatives(s, p, names)
+        root = [n for n in names if n in self.root.parameters]
+        out = self.root._matrix_derivatives(s, self._root_values(p), root) if root else {}
+        rest = [n for n in names if n not in out]
+        return {**out, **(super()._matrix_derivatives(s, p, rest) if rest else {})}
+
     def _matrices(self, s, p):
         M, B, E = self.root._matrices(s, self._root_values(p))
         for eff in self.effects:
