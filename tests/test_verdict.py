@@ -251,3 +251,21 @@ def test_known_uncertainty_is_carried_exactly_for_a_linear_estimator():
     np.testing.assert_allclose(out.stderr, np.sqrt(np.diag(cov) + (s * J) ** 2), rtol=1e-12)
     assert out.stderr[2] == pytest.approx(0.3)  # a parameter the known one does not move keeps its error
     assert out.options["known_uncertainty"]["x_alpha"]["stderr"] == s
+
+
+def test_theta_beside_alpha_q_and_az_leaves_the_kinematics_in_the_fits_check():
+    """The fit's check reads the short-period identity whenever alpha, q and a_z are among the fitted
+    outputs, as the diagnosis does; it used to require exactly those three, so with theta fitted too it
+    fell back to refits and called an alias set what the diagnosis had settled."""
+    from fdml.models import with_effects
+    from fdml.simulate import simulate_maneuver
+
+    model = fdml.make_model("dimensional", "navion", outputs=("theta",))
+    truth = with_effects(model, "time_delay:alpha").with_values(tau_alpha=0.04)
+    rec = simulate_maneuver(truth, "3211", duration=20.0, dt=0.02, noise=0.03, seed=21)
+    assert "theta" in rec.signals
+    res = fdml.fit(rec, model, outputs="alpha,q,az,theta")
+    v = res.adequacy.verdict
+    assert v is not None and v.key == "time_delay@alpha" and v.source == "kinematics"
+    rep = diagnose(rec, model, outputs="alpha,q,az,theta")
+    assert rep.selected[0]["key"] == v.key and rep.selected[0]["source"] == "kinematics"

@@ -468,7 +468,8 @@ def _records(spectra) -> list:
         steps = np.exp(-np.outer(s, np.asarray(getattr(d, "edges", ()), float)))
         N = np.column_stack([np.ones_like(s), np.exp(-s * d.T), np.asarray(d.ones)[keep], steps])
         z = np.asarray(d.z)[keep]
-        out.append(_Record(float(d.T), s, z[:, 0], z[:, 1], z[:, 2], N, _ends(d), K, max(int(round(K)), 1)))
+        A, Q, Z = (z[:, list(d.outputs).index(c)] for c in _OUTPUTS)  # by name: theta or q_dot may be beside
+        out.append(_Record(float(d.T), s, A, Q, Z, N, _ends(d), K, max(int(round(K)), 1)))
     return out
 
 

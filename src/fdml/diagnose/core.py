@@ -18,6 +18,7 @@ import numpy as np
 from ..channels import OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..estimate import NoiseModel
+from ..fit_options import parse_outputs
 from ..kinematics import KinematicEvidence, flight_path_findings, kinematic_evidence, known_terms
 from ..kinematics import members as _members_of
 from ..models.base import Model
@@ -46,7 +47,9 @@ __all__ = ["diagnose", "recommended_fit"]
 logger = logging.getLogger(__name__)
 
 
-def _resolve(records, base):
+def _resolve(records, base, outputs=None):
+    """(records, base model, its fit options): a FitResult's model, records and options, and the model
+    predicting the fitted ``outputs`` (theta, q_dot beside alpha, q and a_z), as :func:`fdml.fit` has it."""
     from ..results import FitResult
 
     opts = {}
@@ -65,7 +68,10 @@ def _resolve(records, base):
         raise FdmlError("no records were given to diagnose")
     if isinstance(records, Record):
         records = [records]
-    return list(records), base, opts
+    outputs = opts.get("outputs") if outputs is None else outputs
+    if outputs:  # the rows the spectra and the predictions follow
+        base = base.with_outputs(parse_outputs(outputs))
+    return list(records), base, {**opts, "outputs": outputs}
 
 
 def _as_list(records) -> list:
@@ -467,10 +473,9 @@ def diagnose(
     """
     input_edges = input_edges or "none"
     t0 = time.perf_counter()
-    records, model, fopts = _resolve(records, base)
+    records, model, fopts = _resolve(records, base, outputs)
     found = _data_findings(list(records) + _as_list(holdout), model, band, strict) if check else []
-    if outputs is None:
-        outputs = fopts.get("outputs")
+    outputs = fopts["outputs"]
     boundary = fopts.get("boundary", boundary)
     input_edges = fopts.get("input_edges", input_edges)
     if not (0 < alpha < 1):
@@ -566,7 +571,7 @@ def _setup(
 ) -> _Setup:
     """Analysis data, noise bands, gap-map edges and the settings (bad options raise here)."""
     effects = _library(library)
-    data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust)
+    data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust, outputs=model.outputs)
     nb = noise_bands(data, mode=noise)
     channels = tuple(outputs.split(",") if isinstance(outputs, str) else (outputs or OUTPUTS))
     channels = tuple(c.strip() for c in channels)

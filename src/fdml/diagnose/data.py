@@ -150,7 +150,7 @@ def _grid(T: float, lo: float, hi: float, K: int) -> tuple[np.ndarray, np.ndarra
 
 
 def analysis_data(
-    records, band=None, *, oversample: int = 2, trim: str = "first", gust: bool | None = None
+    records, band=None, *, oversample: int = 2, trim: str = "first", gust: bool | None = None, outputs=None
 ) -> AnalysisData:
     """Transform records onto the analysis grid.
 
@@ -166,6 +166,8 @@ def analysis_data(
         Trim removal passed to :func:`fdml.spectral.spectra`.
     gust : bool, optional
         Keep the alpha_w input (default: when every record has it).
+    outputs : sequence of str, optional
+        The model's output rows (theta, q_dot beside alpha, q and a_z), as :func:`fdml.spectral.spectra`.
 
     Returns
     -------
@@ -192,7 +194,7 @@ def analysis_data(
                 f"(spacing 2 pi/T = {2 * math.pi / r.duration:.3g} rad/s) in the band {lo:g}-{hi:g} rad/s: "
                 "too short for a diagnosis in this band"
             )
-        d = spectra(r, omega, trim=trim)
+        d = spectra(r, omega, trim=trim, outputs=outputs)
         if names.count(r.name) > 1:
             from dataclasses import replace
 

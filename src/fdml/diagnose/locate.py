@@ -624,8 +624,9 @@ def gap_map(
     cells = []
     nb = edges.size - 1
     designs = {} if designs is None else designs
+    rows = tuple(data.spectra[0].outputs)  # the residual's columns: the spectra's output rows
     for ch in channels:
-        c = OUTPUTS.index(ch)
+        c = rows.index(ch)
         for b in range(nb):
             key = (ch, b)
             if key not in designs:
