@@ -219,6 +219,18 @@ def test_compare_json_and_files(tmp_path, record_csv, capsys):
     assert code == 0 and "evidence" in text and "Cm_q" in text
 
 
+def test_compare_fits_theta_when_asked_as_fit_does(tmp_path, capsys):
+    """``--outputs alpha,q,az,theta``: both fits take theta (the command transformed the records with
+    the default rows and stopped at "the spectra hold alpha, q, az")."""
+    truth = make_model("unsteady", "navion", outputs=("theta",))
+    path = tmp_path / "theta.csv"
+    simulate_maneuver(truth, "3211", duration=12.0, noise=0.02, seed=3).to_csv(path)
+    code, out, err = run(capsys, "compare", path, "--aircraft", "navion", "--outputs", "alpha,q,az,theta", "--json")
+    assert code == 0, err
+    d = json.loads(out)
+    assert d["unsteady"]["outputs"] == d["steady"]["outputs"] == ["alpha", "q", "az", "theta"]
+
+
 def test_compare_bad_input(tmp_path, record_csv, capsys):
     no_tail = {k: v for k, v in MINIMAL.items() if k != "S_t"}
     (tmp_path / "notail.json").write_text(json.dumps(no_tail))

@@ -87,7 +87,8 @@ def run(args) -> int:
     check_records_for_compare(records, gust=bool(args.gust))  # one aircraft first: its records' rates may differ too
     check_same_rate(records, args.records)
     trim = kwargs.pop("trim", None)
-    data = [spectra(r, band=args.band, **({} if trim is None else {"trim": trim})) for r in records]
+    given = {"outputs": kwargs.get("outputs"), **({} if trim is None else {"trim": trim})}  # the fitted rows
+    data = [spectra(r, band=args.band, **given) for r in records]
     steady, unsteady = _fit_both(args, records, data, kwargs)
     cmp = Comparison(steady=steady, unsteady=unsteady)
     files = _write(cmp, args.output) if args.output else {}
