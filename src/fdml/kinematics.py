@@ -483,8 +483,8 @@ def _ends(d) -> np.ndarray:
         if c in rows:
             out[j] = d.x0[rows.index(c)], d.xT[rows.index(c)]
         elif d.record is not None and c in d.record.signals:
-            x = np.asarray(d.record[c], float)
-            trim = float(np.mean(x[: d.trim_samples])) if d.trim_mode != "none" and d.trim_samples else 0.0
+            x, ell = np.asarray(d.record[c], float), d.trim_vector()  # the trim as the spectra removed it
+            trim = 0.0 if ell is None else float(ell @ x)
             out[j] = x[0] - trim, x[-1] - trim
     return out
 
@@ -494,17 +494,16 @@ def _shifts(r: _Record, lags: np.ndarray) -> list:
     return [np.exp(r.s[None, :] * lags[:, j : j + 1]) if np.any(lags[:, j]) else None for j in range(3)]
 
 
-def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scales: np.ndarray, shifts=None):
+def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scales: np.ndarray):
     """The spectra with sensor terms undone, for a batch of G hypotheses: alpha at the accelerometer's
-    station, q, a_z, each of shape (G, m).  ``lags``, ``scales``: (G, 3); ``offset``: (G,), m;
-    ``shifts``: :func:`_shifts` of ``lags`` when the caller has them.
+    station, q, a_z, each of shape (G, m).  ``lags``, ``scales``: (G, 3); ``offset``: (G,), m.
 
     A channel recorded tau late, x_m(t) = x(t - tau), has over the record ``x~ = exp(s tau) x~_m -
     (exp(s tau) - 1)/s (x(0) - x(T) exp(-sT))`` to first order over the tau-long end pieces, with the
     measured ends (:attr:`_Record.ends`) for x(0) and x(T): known values, not free coefficients, which
     near tau = 0 would fit two directions of noise per lagged channel.
     """
-    shifts = _shifts(r, lags) if shifts is None else shifts
+    shifts = _shifts(r, lags)
     eT = np.exp(-r.s * r.T)
 
     def undo(x, j):  # the lag (with its record ends) and the scale of output j undone
@@ -652,11 +651,7 @@ def _linear_profile(idn: _Identity, base: SensorTerms, pat: Pattern) -> tuple[fl
     u3 = np.array([to_u(lo), to_u(0.5 * (lo + hi)), to_u(hi)])
     a, b, c = np.polyfit(u3, idn.costs(pat.batch(base, np.array([lo, 0.5 * (lo + hi), hi]))), 2)
     ulo, uhi = sorted((u3[0], u3[2]))
-    u = (
-        float(np.clip(-b / (2 * a), ulo, uhi))
-        if a > 0
-        else (ulo if a * ulo**2 + b * ulo < a * uhi**2 + b * uhi else uhi)
-    )
+    u = float(np.clip(-b / (2 * a), ulo, uhi)) if a > 0 else min((ulo, uhi), key=lambda v: a * v**2 + b * v)
     x = u if pat.scale is None else 1.0 / u - 1.0
     # cost'' in the size: d2/dk2 of a u^2 + b u with du/dk = -u^2, d2u/dk2 = 2 u^3 for a scale
     curv = 2 * a if pat.scale is None else (2 * a * u + b) * 2 * u**3 + 2 * a * u**4
