@@ -151,9 +151,7 @@ class Problem:
         self.boundary = boundary
         self.sensitivity = sensitivity
         multi = len(data) > 1
-        slots: list[_Slot] = []
-        for name in model.parameters.free_model_names:
-            slots.append(_Slot(name, name, model.parameters[name].role))
+        slots = [_Slot(name, name, model.parameters[name].role) for name in model.parameters.free_model_names]
         bases = _nuisance_base(self.rows)
         # the step edges' elevator spectra per second of timing (section 7a), as the mode asks
         self._edges = [edge_basis(d.omega, d.edges, d.edge_steps, input_edges) for d in data]
@@ -182,10 +180,8 @@ class Problem:
             cols = [names.index(slots[i].base) for i in own]
             self._nu.append((np.array(own, int), np.array(cols, int)))
         self._shift = [end_shift(d.omega, d.T) for d in data]  # exp(-j w T) of each record
-        self._eta0: tuple[Model | None, list[np.ndarray]] = (
-            None,
-            [],
-        )  # (model, fixed nuisance values per record): see _nuisance
+        # (model, fixed nuisance values per record): see _nuisance
+        self._eta0: tuple[Model | None, list[np.ndarray]] = (None, [])
         self.N = sum(d.m for d in data)
         self._offsets = np.cumsum([0] + [d.m for d in data])  # first row of each record
         self._all_outputs = list(outputs) == list(range(len(self.rows)))
@@ -501,12 +497,12 @@ def _as_data(data, model: Model, opts: FitOptions) -> list[FrequencyData]:
                 "fit without --gust (Python: a model without gust=True) or supply the measured gust angle"
             )
         if not model.gust and item.u.shape[1] > 1:
-            item = _drop_gust(item)
+            item = replace(item, u=item.u[:, :1], inputs=("de",))
         out.append(item)
     _refuse_duplicates(out)
     names = [d.name for d in out]
     if len(set(names)) != len(names):
-        out = [_renamed(d, f"{d.name}#{i}") for i, d in enumerate(out)]
+        out = [replace(d, name=f"{d.name}#{i}") for i, d in enumerate(out)]
     return out
 
 
@@ -551,18 +547,6 @@ def _refuse_duplicates(items: list[FrequencyData]) -> None:
 def _label(d: FrequencyData) -> str:
     src = (d.record.meta.get("source") if d.record is not None else None) or d.meta.get("source")
     return f"{d.name!r}, {src}" if src else repr(d.name)
-
-
-def _drop_gust(d: FrequencyData) -> FrequencyData:
-    from dataclasses import replace
-
-    return replace(d, u=d.u[:, :1], inputs=("de",))
-
-
-def _renamed(d: FrequencyData, name: str) -> FrequencyData:
-    from dataclasses import replace
-
-    return replace(d, name=name)
 
 
 def _configure_model(model: Model, opts: FitOptions, biases: bool, out_idx) -> Model:
@@ -704,11 +688,18 @@ def _end_findings(prob: Problem) -> list:
     return out
 
 
+def _band_mean(fn: Callable[[np.ndarray], float], R: np.ndarray, rows: np.ndarray | None) -> float:
+    """``fn(R)``; for band-wise R_b (``rows``: band of each residual row), (1/N) sum_b N_b fn(R_b)."""
+    if rows is None:
+        return fn(R)
+    counts = np.bincount(rows, minlength=R.shape[0])
+    return sum(float(c) * fn(Rb) for c, Rb in zip(counts, R) if c) / rows.size
+
+
 def _logdet(R: np.ndarray, rows: np.ndarray | None = None) -> float:
     """ln det R (Eq. 25); for band-wise R_b (``rows``: band of each residual row), (1/N) sum_b N_b ln det R_b."""
     if rows is not None:
-        counts = np.bincount(rows, minlength=R.shape[0])
-        return sum(float(c) * _logdet(Rb) for c, Rb in zip(counts, R) if c) / rows.size
+        return _band_mean(_logdet, R, rows)
     sign, ld = np.linalg.slogdet(R)
     if sign == 0 or not np.isfinite(ld):
         raise FdmlError("the residual covariance R is singular: an output is fitted exactly or is all zero")
@@ -741,52 +732,32 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np
     With residual rows v_n and A_n = dy_n/dtheta (so dv = -A dtheta):
     g = -(2/N) Re sum A^H R^-1 v (the Eq. 23 right-hand side), H1 = (2/N) Re
     sum A^H R^-1 A (Eq. 23's matrix), and, for the concentrated likelihood,
-    H = H1 - tr(R^-1 dR_k R^-1 dR_l) with dR_k = -(1/N) sum (a_k v^H + v a_k^H).
-    One R (white noise) is taken out by its Cholesky factor R = L L^H: with
-    a~ = L^-1 a and w = L^-1 v every sum above is a plain product of the
-    whitened rows, and tr(R^-1 dR_k R^-1 dR_l) = tr(D_k D_l) with the Hermitian
-    D_k = L^-1 dR_k L^-H = -(1/N) sum (a~_k w^H + w a~_k^H).
+    H = H1 - sum_b (N_b/N) tr(R_b^-1 dR_bk R_b^-1 dR_bl) with dR_bk = -(1/N_b)
+    sum_{n in b} (a_k v^H + v a_k^H).  Each R_b is taken out by its Cholesky
+    factor R_b = L L^H: with a~ = L^-1 a and w = L^-1 v every sum above is a
+    plain product of the whitened rows, and the trace is tr(D_k D_l) with the
+    Hermitian D_k = L^-1 dR_k L^-H = -(1/N_b) sum (a~_k w^H + w a~_k^H).
     """
-    if rows is not None:
-        return _grad_hess_bands(A, V, R, full, rows)
     N, no, p = A.shape
-    Li = np.linalg.inv(np.linalg.cholesky(R))
-    Aw = (Li @ A.transpose(1, 0, 2).reshape(no, N * p)).reshape(no, N, p)
-    Vw = Li @ V.T  # (no, N)
-    Ar = Aw.reshape(no * N, p)
-    Ar = np.concatenate([Ar.real, Ar.imag])  # Re(a^H b) = a_r . b_r + a_i . b_i
-    H1 = (2.0 / N) * (Ar.T @ Ar)
-    g = -(2.0 / N) * (Ar.T @ np.concatenate([Vw.real.ravel(), Vw.imag.ravel()]))
-    if not full:
-        return g, H1, H1
-    S = (np.transpose(Aw, (2, 0, 1)).reshape(p * no, N) @ Vw.conj().T).reshape(p, no, no)  # sum_n a~_nk w_n^H
-    X = (-(S + np.conj(np.transpose(S, (0, 2, 1)))) / N).reshape(p, no * no)  # D_k, flattened
-    Hc = H1 - np.real(X @ X.conj().T)
-    return g, H1, 0.5 * (Hc + Hc.T)
-
-
-def _grad_hess_bands(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np.ndarray):
-    """:func:`_grad_hess` for one R_b per noise band (``rows``: band of each residual row)."""
-    N, no, p = A.shape
-    W = _weights(R, rows)
-    WA = W @ A  # (N, no, p); cost weights v^* R^-1 v with R = E{v v^*}
-    A2 = A.reshape(N * no, p)
-    WA2 = WA.reshape(N * no, p)
-    H1 = (2.0 / N) * np.real(A2.conj().T @ WA2)
-    g = -(2.0 / N) * np.real(WA2.conj().T @ V.reshape(-1))  # uses W Hermitian
-    if not full:
-        return g, H1, H1
+    bands = [(slice(None), R)] if rows is None else [(rows == b, Rb) for b, Rb in enumerate(R) if np.any(rows == b)]
+    Ar = np.empty((2, no, N, p))  # whitened sensitivities, real and imaginary parts
+    Vr = np.empty((2, no, N))
     H2 = np.zeros((p, p))
-    # the same term per band, weighted N_b / N
-    for b, Wb in enumerate(np.linalg.inv(R)):
-        sel = rows == b
-        Nb = int(np.sum(sel))
-        if Nb == 0:
-            continue
-        S = np.transpose(A[sel], (2, 1, 0)) @ V[sel].conj()  # sum_n a_nk v_n^H, shape (p, no, no)
-        dR = -(S + np.conj(np.transpose(S, (0, 2, 1)))) / Nb
-        X = Wb @ dR
-        H2 += (Nb / N) * np.real(X.reshape(p, no * no) @ np.transpose(X, (0, 2, 1)).reshape(p, no * no).T)
+    for sel, Rb in bands:
+        Li = np.linalg.inv(np.linalg.cholesky(Rb))
+        Aw = (Li @ A[sel].transpose(1, 0, 2).reshape(no, -1)).reshape(no, -1, p)
+        Vw = Li @ V[sel].T  # (no, N_b)
+        Ar[0][:, sel], Ar[1][:, sel], Vr[0][:, sel], Vr[1][:, sel] = Aw.real, Aw.imag, Vw.real, Vw.imag
+        if full:
+            Nb = Vw.shape[1]
+            S = (np.transpose(Aw, (2, 0, 1)).reshape(p * no, Nb) @ Vw.conj().T).reshape(p, no, no)
+            X = (-(S + np.conj(np.transpose(S, (0, 2, 1)))) / Nb).reshape(p, no * no)  # D_k, flattened
+            H2 += (Nb / N) * np.real(X @ X.conj().T)
+    Ar, Vr = Ar.reshape(-1, p), Vr.reshape(-1)  # Re(a^H b) = a_r . b_r + a_i . b_i
+    H1 = (2.0 / N) * (Ar.T @ Ar)
+    g = -(2.0 / N) * (Ar.T @ Vr)
+    if not full:
+        return g, H1, H1
     Hc = H1 - H2
     return g, H1, 0.5 * (Hc + Hc.T)
 
@@ -896,22 +867,7 @@ def _fit(data, model: Model, opts: FitOptions, callback) -> tuple[FitResult, Pro
         if edged is not None:  # section 7a: the steps' timing is significant; go on with it estimated
             start = _carried(prob, state.theta, edged)
             prob, state = edged, replace(_iterate(edged, start, opts, callback), prior=state.history)
-    res = _finish(
-        prob,
-        state.theta,
-        state.V,
-        state.R,
-        state.prior + state.history,
-        state.it,
-        state.converged,
-        state.message,
-        opts.cov_type,
-        time.perf_counter() - t_start,
-        state.stopped,
-        _stored_options(opts, prob),
-        state.A,
-        state.rows,
-    )
+    res = _finish(prob, state, opts.cov_type, time.perf_counter() - t_start, _stored_options(opts, prob))
     found += _band_findings(prob, state.theta)
     res = replace(res, findings=tuple(found)) if found else res
     if opts.adequacy and state.converged:
@@ -1064,10 +1020,10 @@ def _band_findings(prob: Problem, theta: np.ndarray) -> list:
     return [found]
 
 
-def _halving_step(prob, theta, step, lo, hi, J, rows):
+def _halving_step(prob, theta, step, lo, hi, J, rows, halvings=SETTINGS.gn_max_halvings):
     """A Gauss-Newton step, halved while the cost rises: (accepted, theta, V, R, J) as :func:`_try`."""
     accepted, t_new, V_new, R_new, J_new = False, theta, None, None, J
-    for _ in range(SETTINGS.gn_max_halvings):
+    for _ in range(halvings):
         accepted, t_new, V_new, R_new, J_new = _try(prob, theta, step, lo, hi, J, rows)
         if accepted:
             break
@@ -1106,8 +1062,7 @@ def _logdet_rounding(R: np.ndarray, rows: np.ndarray | None = None) -> float:
     makes ln det R uncertain far above eps.
     """
     if rows is not None:
-        counts = np.bincount(rows, minlength=R.shape[0])
-        return sum(float(c) * _logdet_rounding(Rb) for c, Rb in zip(counts, R) if c) / rows.size
+        return _band_mean(_logdet_rounding, R, rows)
     w = np.linalg.eigvalsh(R)
     return float(np.finfo(float).eps * w[-1] * np.sum(1.0 / w)) if w[0] > 0 else math.inf
 
@@ -1232,7 +1187,6 @@ def _hybrid_step(prob, theta, g, H1, J, active, lo, hi, rows=None, eig=None):
     (None: no finite Hc, straight to the last resort).
     """
     idx = np.flatnonzero(active)
-    last = None
     if idx.size and eig is not None:
         D, w, Q = eig
         gn = g[idx] / D
@@ -1246,16 +1200,8 @@ def _hybrid_step(prob, theta, g, H1, J, active, lo, hi, rows=None, eig=None):
             ok, *rest = _try(prob, theta, step, lo, hi, J, rows)
             if ok:
                 return (True, *rest)
-            last = rest
             mu = 4.0 * mu if mu > 0 else 1e-3 * top
-    step = _solve(H1, g, active)
-    for _ in range(SETTINGS.fallback_halvings):
-        ok, *rest = _try(prob, theta, step, lo, hi, J, rows)
-        if ok:
-            return (True, *rest)
-        last = rest
-        step = 0.5 * step  # step halving when the cost rises
-    return (False, *last)
+    return _halving_step(prob, theta, _solve(H1, g, active), lo, hi, J, rows, SETTINGS.fallback_halvings)
 
 
 def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
@@ -1461,8 +1407,9 @@ def _warn_at_bounds(prob: Problem, theta: np.ndarray) -> None:
             )
 
 
-def _finish(prob, theta, V, R, history, it, converged, message, cov_type, elapsed, stopped, options, A=None, rows=None):
-    names = prob.names
+def _finish(prob: Problem, state: _State, cov_type: str, elapsed: float, options: dict) -> FitResult:
+    """The fit's result at the iteration's end ``state``: covariance, identifiability and bound warnings."""
+    names, theta, V, R, rows, A = prob.names, state.theta, state.V, state.R, state.rows, state.A
     if A is None:  # Eq. 26 columns for the bounds are the tight central differences
         A = prob.sensitivities(theta, tol=SETTINGS.settle_tol_final)
     N = prob.N
@@ -1503,14 +1450,14 @@ def _finish(prob, theta, V, R, history, it, converged, message, cov_type, elapse
         prob=prob,
         model=model,
         theta=theta,
-        history=history,
+        history=state.prior + state.history,
         options=options,
         cov=cov,
         cov_naive=cov_naive,
         R=R if rows is None else _cov_R(V),
-        iterations=it,
-        converged=converged,
-        message=message,
+        iterations=state.it,
+        converged=state.converged,
+        message=state.message,
         elapsed=elapsed,
-        stopped=stopped,
+        stopped=state.stopped,
     )
