@@ -205,20 +205,13 @@ def _inverse(s: np.ndarray, M: np.ndarray) -> np.ndarray:
 
     A view of a state-major array, so that each row of M^-1 over the frequencies is contiguous.
     """
-    det = _determinant(s, M)
+    det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
+    if (det == 0).any():  # a pole on the grid
+        raise ParameterError(f"the model is singular at s = {s[det == 0][0]}: a pole lies on the frequency grid")
     a = np.empty((2, s.size, 2), complex)
     a[0, :, 0], a[0, :, 1], a[1, :, 0], a[1, :, 1] = M[:, 1, 1], -M[:, 0, 1], -M[:, 1, 0], M[:, 0, 0]
     a /= det[None, :, None]
     return a.transpose(1, 0, 2)
-
-
-def _determinant(s: np.ndarray, M: np.ndarray) -> np.ndarray:
-    """det M per frequency, shape (n,); a zero (a pole on the grid) is an error naming s."""
-    det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
-    if (det == 0).any():
-        bad = s[det == 0]
-        raise ParameterError(f"the model is singular at s = {bad[0]}: a pole lies on the frequency grid")
-    return det
 
 
 _EYE2 = np.eye(2)
@@ -237,10 +230,7 @@ def _apply(A: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 def _inputs(B: np.ndarray, u: np.ndarray) -> np.ndarray:
     """``B @ u`` per frequency for ``B`` (..., n, 2, n_in) and inputs ``u`` (n, n_in): shape (..., n, 2)."""
-    out = B[..., 0] * u[:, :1]
-    for j in range(1, u.shape[1]):
-        out = out + B[..., j] * u[:, j : j + 1]
-    return out
+    return sum(B[..., j] * u[:, j : j + 1] for j in range(u.shape[1]))
 
 
 def _right_side(Bd: np.ndarray, E: np.ndarray, u: np.ndarray, boundary, forcing) -> np.ndarray:
@@ -449,11 +439,10 @@ class Model:
 
     def _common_parameters(self) -> list[Parameter]:
         what = {"tau_de": "elevator time delay", "tau_alpha_w": "gust-angle time delay"}
-        out = [
+        return [
             Parameter(n, 0.0, free=False, lower=0.0, unit="s", description=what[n], role=Role.DELAY)
             for n in self._delay_names()
-        ]
-        return out + [_bias_parameter(name, self.output_bias) for name in self.outputs]
+        ] + [_bias_parameter(name, self.output_bias) for name in self.outputs]
 
     def _delay_names(self) -> tuple[str, ...]:
         """The input delays of B, one per input (``tau_de``, ``tau_alpha_w``)."""
@@ -572,11 +561,9 @@ class Model:
                 h = 1e-5 * max(abs(p[nm]), 1.0)  # the row is affine in the station: exact to rounding
                 up = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] + h}))
                 dn = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] - h}))
-                dG[i] = (up[0] - dn[0]) / (2 * h)
-                if dH is not None:
-                    dH[i] = (up[1] - dn[1]) / (2 * h)
-                if dP is not None:
-                    dP[i] = (up[2] - dn[2]) / (2 * h)
+                for dx, a, b in zip((dG, dH, dP), up, dn):
+                    if dx is not None:
+                        dx[i] = (a - b) / (2 * h)
         return ModelResponse(omega, G, H, P, self.outputs), dG, dH, dP
 
     def forced_sensitivity(self, omega, values, names, u, boundary=None, forcing=None):
@@ -689,18 +676,15 @@ class Model:
     def _fd_sensitivity(self, omega, p, names):
         """Central differences of :meth:`evaluate` (for models without matrices)."""
         resp = self.evaluate(omega, p)
-        dG = np.zeros((len(names),) + resp.G.shape, complex)
-        dH = np.zeros((len(names),) + resp.H.shape, complex)
-        dP = np.zeros((len(names),) + resp.P.shape, complex)
+        d = [np.zeros((len(names),) + x.shape, complex) for x in (resp.G, resp.H, resp.P)]
         for k, nm in enumerate(names):
             v = p[nm]
             h = 1e-5 * max(abs(v), 1e-2)
             rp = self.evaluate(omega, {**p, nm: v + h})
             rm = self.evaluate(omega, {**p, nm: v - h})
-            dG[k] = (rp.G - rm.G) / (2 * h)
-            dH[k] = (rp.H - rm.H) / (2 * h)
-            dP[k] = (rp.P - rm.P) / (2 * h)
-        return resp, dG, dH, dP
+            for dx, up, dn in zip(d, (rp.G, rp.H, rp.P), (rm.G, rm.H, rm.P)):
+                dx[k] = (up - dn) / (2 * h)
+        return (resp, *d)
 
     def frequency_response(self, omega, values: Mapping[str, float] | None = None) -> np.ndarray:
         """G(j omega, theta), shape (n_y outputs, n_in inputs, n omega) (Eq. 18).
@@ -860,9 +844,7 @@ class Model:
         J = np.zeros((len(keys), len(names)))
         for j, n in enumerate(names):
             h = 1e-6 * max(abs(base[n]), 1e-3)
-            up = dict(base, **{n: base[n] + h})
-            dn = dict(base, **{n: base[n] - h})
-            du, dd = self.derived(up), self.derived(dn)
+            du, dd = self.derived({**base, n: base[n] + h}), self.derived({**base, n: base[n] - h})
             J[:, j] = [(du[k] - dd[k]) / (2 * h) for k in keys]
         return keys, J
 

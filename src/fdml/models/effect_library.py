@@ -222,33 +222,21 @@ _LIFT_Y: dict[str, Any] = dict(
     lower=0.0, upper=1.0, plausible=(0.0, 0.6), unit="-", start=0.05, description="wing lift-lag amplitude (Eq. 1)"
 )
 
+_WK_LIFT_Y = FreeParameterEffect(
+    "lift_lag", "alpha", Param("y_w", None, **_LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
+)
+_LIFT_Z = MatrixEffect(
+    "lift_lag",
+    "alpha",
+    (Param("y_lift", 0.0, **_LIFT_Y),),
+    _lift_lag_matrix,
+    applies=_needs_chord,
+    realize=_lift_lag_realize,
+)
 LIFT_LAG = Dispatch(
     "lift_lag",
     "alpha",
-    {
-        "unsteady": FreeParameterEffect(
-            "lift_lag", "alpha", Param("y_w", None, **_LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
-        ),
-        "steady": FreeParameterEffect(
-            "lift_lag", "alpha", Param("y_w", None, **_LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
-        ),
-        "derivatives": MatrixEffect(
-            "lift_lag",
-            "alpha",
-            (Param("y_lift", 0.0, **_LIFT_Y),),
-            _lift_lag_matrix,
-            applies=_needs_chord,
-            realize=_lift_lag_realize,
-        ),
-        "dimensional": MatrixEffect(
-            "lift_lag",
-            "alpha",
-            (Param("y_lift", 0.0, **_LIFT_Y),),
-            _lift_lag_matrix,
-            applies=_needs_chord,
-            realize=_lift_lag_realize,
-        ),
-    },
+    {"unsteady": _WK_LIFT_Y, "steady": _WK_LIFT_Y, "derivatives": _LIFT_Z, "dimensional": _LIFT_Z},
     signature="lift builds up with a lag: alpha and a_z, magnitude dip and phase lag in the short-period band",
 )
 
@@ -361,14 +349,8 @@ def pade_delay(tau: float, n: int = DW_PADE):
     the realisation stays well conditioned for small tau.
     """
     k = np.arange(n + 1)
-    c = np.array(
-        [
-            math.factorial(2 * n - j)
-            * math.factorial(n)
-            / (math.factorial(2 * n) * math.factorial(j) * math.factorial(n - j))
-            for j in k
-        ]
-    )
+    f = math.factorial
+    c = np.array([f(2 * n - j) * f(n) / (f(2 * n) * f(j) * f(n - j)) for j in k])
     num, den = (c * (-1.0) ** k)[::-1] / c[n], c[::-1] / c[n]  # descending powers of sigma, monic
     # controller canonical form, as scipy.signal.tf2ss builds it (written here because importing
     # scipy.signal costs about 1 s on the fit path, issue 20): D the direct term, A the companion
@@ -462,10 +444,15 @@ DOWNWASH_DELAY = Dispatch(
 # --- gust lag ---------------------------------------------------------------------------------
 
 
-def _gust_lag_output(s, p, G, H, P, root):
-    G = G.copy()
-    G[:, :, 1] = G[:, :, 1] / (1.0 + s[:, None] * p["T_gust"])
-    return G, H, P
+def _input_lag(column: int, name: str):
+    """The response with input ``column`` (0 de, 1 alpha_w) through ``1/(1 + T s)``, T the parameter ``name``, s."""
+
+    def fn(s, p, G, H, P, root):
+        G = G.copy()
+        G[:, :, column] = G[:, :, column] / (1.0 + s[:, None] * p[name])
+        return G, H, P
+
+    return fn
 
 
 def _filter_realize(signal_name: str, name: str):
@@ -505,45 +492,27 @@ def _tail_applies(root):
 _B1: dict[str, Any] = dict(
     lower=0.0, upper=40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5, description="Kussner lag length (BS-12)"
 )
+_WK_GUST_B1 = FreeParameterEffect(
+    "gust_lag",
+    "alpha_w",
+    Param("b1", None, **_B1),
+    ("unsteady", "steady"),
+    convert=to_unsteady_equivalent,
+    needs=("alpha_w",),
+)
+_GUST_T = OutputEffect(
+    "gust_lag",
+    "alpha_w",
+    (Param("T_gust", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 0.5), unit="s", start=0.01),),
+    _input_lag(1, "T_gust"),
+    needs=("alpha_w",),
+    applies=_needs_gust,
+    realize=_filter_realize("alpha_w", "T_gust"),
+)
 GUST_LAG = Dispatch(
     "gust_lag",
     "alpha_w",
-    {
-        "unsteady": FreeParameterEffect(
-            "gust_lag",
-            "alpha_w",
-            Param("b1", None, **_B1),
-            ("unsteady", "steady"),
-            convert=to_unsteady_equivalent,
-            needs=("alpha_w",),
-        ),
-        "steady": FreeParameterEffect(
-            "gust_lag",
-            "alpha_w",
-            Param("b1", None, **_B1),
-            ("unsteady", "steady"),
-            convert=to_unsteady_equivalent,
-            needs=("alpha_w",),
-        ),
-        "derivatives": OutputEffect(
-            "gust_lag",
-            "alpha_w",
-            (Param("T_gust", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 0.5), unit="s", start=0.01),),
-            _gust_lag_output,
-            needs=("alpha_w",),
-            applies=_needs_gust,
-            realize=_filter_realize("alpha_w", "T_gust"),
-        ),
-        "dimensional": OutputEffect(
-            "gust_lag",
-            "alpha_w",
-            (Param("T_gust", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 0.5), unit="s", start=0.01),),
-            _gust_lag_output,
-            needs=("alpha_w",),
-            applies=_needs_gust,
-            realize=_filter_realize("alpha_w", "T_gust"),
-        ),
-    },
+    {"unsteady": _WK_GUST_B1, "steady": _WK_GUST_B1, "derivatives": _GUST_T, "dimensional": _GUST_T},
     needs=("alpha_w",),
     signature="gust lift builds up with a lag: alpha and a_z, coherent with alpha_w",
 )
@@ -560,29 +529,13 @@ _TAIL = (
         description="gust delay at the tail (BS-8)",
     ),
 )
+_GUST_TAIL = MatrixEffect(
+    "gust_lag", "tail", _TAIL, _tail_delay_matrix, needs=("alpha_w",), applies=_tail_applies, realize=_tail_realize
+)
 GUST_TAIL = Dispatch(
     "gust_lag",
     "tail",
-    {
-        "unsteady": MatrixEffect(
-            "gust_lag",
-            "tail",
-            _TAIL,
-            _tail_delay_matrix,
-            needs=("alpha_w",),
-            applies=_tail_applies,
-            realize=_tail_realize,
-        ),
-        "steady": MatrixEffect(
-            "gust_lag",
-            "tail",
-            _TAIL,
-            _tail_delay_matrix,
-            needs=("alpha_w",),
-            applies=_tail_applies,
-            realize=_tail_realize,
-        ),
-    },
+    {"unsteady": _GUST_TAIL, "steady": _GUST_TAIL},
     needs=("alpha_w",),
     signature="the gust reaches the tail l_t/U later: q, coherent with alpha_w",
 )
@@ -669,12 +622,6 @@ def _make_output_delay(channels: tuple) -> OutputEffect:
 # --- actuator lag ----------------------------------------------------------------------------
 
 
-def _actuator(s, p, G, H, P, root):
-    G = G.copy()
-    G[:, :, 0] = G[:, :, 0] / (1.0 + s[:, None] * p["T_act"])
-    return G, H, P
-
-
 ACTUATOR_LAG = OutputEffect(
     "actuator_lag",
     "de",
@@ -690,7 +637,7 @@ ACTUATOR_LAG = OutputEffect(
             description="first-order lag, recorded to effective elevator",
         ),
     ),
-    _actuator,
+    _input_lag(0, "T_act"),
     signature="phase lag and roll-off above 1/T on every output",
     realize=_filter_realize("de", "T_act"),
 )

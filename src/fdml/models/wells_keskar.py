@@ -7,6 +7,7 @@ length b1 are fixed by default and may be freed.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
@@ -29,6 +30,18 @@ _THETA = (
     ("deps_da", "-", "steady downwash gradient (d eps/d alpha)_ss"),
     ("Cm_de", "1/rad", "pitching moment per elevator"),
     ("Cz_de", "1/rad", "z force per elevator"),
+)
+
+
+#: The lag constants of Eqs. 1-2 and 17 (fixed by default): name, bounds and description.
+_LAG_CONSTANTS = (
+    ("y_w", 0.0, 1.0, "wing lift-lag amplitude"),
+    ("z_w", 0.0, math.inf, "wing lift-lag rate per semichord"),
+    ("y_t", 0.0, 1.0, "tail lift-lag amplitude"),
+    ("z_t", 0.0, math.inf, "tail lift-lag rate per semichord"),
+    ("F", -math.inf, math.inf, "downwash starting-vortex strength (Eq. 2)"),
+    ("G", -math.inf, math.inf, "downwash lag amplitude (Eq. 2)"),
+    ("H", 0.0, math.inf, "downwash lag rate (Eq. 2)"),
 )
 
 
@@ -114,8 +127,8 @@ class _WKBase(Model):
         return self.aircraft.U
 
     def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
-        names = self._default_parameters().names
-        return placeholder_sources(self._default_parameters(), self.aircraft, {n: (n,) for n in names})
+        start = self._default_parameters()
+        return placeholder_sources(start, self.aircraft, {n: (n,) for n in start.names})
 
     def _theta_parameters(self) -> list[Parameter]:
         c = self.aircraft.constants
@@ -254,30 +267,12 @@ class UnsteadyModel(_WKBase):
     def _default_parameters(self) -> Parameters:
         c = self.aircraft.constants
         fixed = [
-            Parameter(
-                "y_w", c["y_w"], free=False, lower=0.0, upper=1.0, unit="-", description="wing lift-lag amplitude"
-            ),
-            Parameter("z_w", c["z_w"], free=False, lower=0.0, unit="-", description="wing lift-lag rate per semichord"),
-            Parameter(
-                "y_t", c["y_t"], free=False, lower=0.0, upper=1.0, unit="-", description="tail lift-lag amplitude"
-            ),
-            Parameter("z_t", c["z_t"], free=False, lower=0.0, unit="-", description="tail lift-lag rate per semichord"),
-            Parameter("F", c["F"], free=False, unit="-", description="downwash starting-vortex strength (Eq. 2)"),
-            Parameter("G", c["G"], free=False, unit="-", description="downwash lag amplitude (Eq. 2)"),
-            Parameter("H", c["H"], free=False, lower=0.0, unit="-", description="downwash lag rate (Eq. 2)"),
-            self._tail_length_parameter(),
-        ]
+            Parameter(n, c[n], free=False, lower=lo, upper=hi, unit="-", description=what)
+            for n, lo, hi, what in _LAG_CONSTANTS
+        ] + [self._tail_length_parameter()]
         if self.gust and self.gust_lag == "bs12":
-            fixed.append(
-                Parameter(
-                    "b1",
-                    c["b1"],
-                    free=False,
-                    lower=0.0,
-                    unit="semichords",
-                    description="Kussner lag length, T* = c b1/(2U) (BS-12)",
-                )
-            )
+            what = "Kussner lag length, T* = c b1/(2U) (BS-12)"
+            fixed.append(Parameter("b1", c["b1"], free=False, lower=0.0, unit="semichords", description=what))
         return Parameters(tuple(self._theta_parameters() + fixed))
 
     def _gust_lag(self, s, p) -> np.ndarray:
