@@ -399,14 +399,8 @@ class AugmentedModel(Model):
             np.concatenate([x[None], x[None] + e * d, x[None] - e * d]).reshape((-1,) + x.shape[1:])
             for x, d in zip(resp, derivs)
         ]
-        stacks = self._outputs(np.tile(s, 2 * k + 1), p, *stacks)
-        n = s.size
-        out = []
-        for x in stacks:
-            x = x.reshape((2 * k + 1, n) + x.shape[1:])
-            out.append((x[0], (x[1 : k + 1] - x[k + 1 :]) / (2 * e)))
-        (G, dG), (H, dH), (P, dP) = out
-        return G, H, P, dG, dH, dP
+        out = [x.reshape((2 * k + 1, s.size) + x.shape[1:]) for x in self._outputs(np.tile(s, 2 * k + 1), p, *stacks)]
+        return (*(x[0] for x in out), *((x[1 : k + 1] - x[k + 1 :]) / (2 * e) for x in out))
 
     @property
     def U(self) -> float:
@@ -455,7 +449,8 @@ class AugmentedModel(Model):
             The response at ``omega``.
         """
         r = Model.evaluate(self, omega, values)  # input delays and the solve: written once, in Model
-        return ModelResponse(omega, *self._outputs(1j * r.omega, self.values(values), r.G, r.H, r.P), self.outputs)
+        G, H, P = self._outputs(1j * r.omega, self.values(values), r.G, r.H, r.P)
+        return ModelResponse(omega, G, H, P, self.outputs)
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
         return self.root.derived(self._root_values(self.values(values)))

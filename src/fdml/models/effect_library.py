@@ -184,6 +184,15 @@ def _needs_gust(root: Model) -> str | None:
     return None if root.gust else "needs the measured gust angle alpha_w in the model (--gust)"
 
 
+def _seconds(
+    name: str, null: float | None = 0.0, *, upper: float, plausible: float, start: float, description: str = ""
+):
+    """A delay or time constant, s: never negative, plausible up to ``plausible`` s."""
+    return Param(
+        name, null, lower=0.0, upper=upper, plausible=(0.0, plausible), unit="s", start=start, description=description
+    )
+
+
 # --- lift lag --------------------------------------------------------------------------------
 
 
@@ -503,7 +512,7 @@ _WK_GUST_B1 = FreeParameterEffect(
 _GUST_T = OutputEffect(
     "gust_lag",
     "alpha_w",
-    (Param("T_gust", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 0.5), unit="s", start=0.01),),
+    (_seconds("T_gust", upper=2.0, plausible=0.5, start=0.01),),
     _input_lag(1, "T_gust"),
     needs=("alpha_w",),
     applies=_needs_gust,
@@ -517,18 +526,7 @@ GUST_LAG = Dispatch(
     signature="gust lift builds up with a lag: alpha and a_z, coherent with alpha_w",
 )
 
-_TAIL = (
-    Param(
-        "tau_tail",
-        0.0,
-        lower=0.0,
-        upper=1.0,
-        plausible=(0.0, 0.3),
-        unit="s",
-        start=0.01,
-        description="gust delay at the tail (BS-8)",
-    ),
-)
+_TAIL = (_seconds("tau_tail", upper=1.0, plausible=0.3, start=0.01, description="gust delay at the tail (BS-8)"),)
 _GUST_TAIL = MatrixEffect(
     "gust_lag", "tail", _TAIL, _tail_delay_matrix, needs=("alpha_w",), applies=_tail_applies, realize=_tail_realize
 )
@@ -546,39 +544,11 @@ GUST_TAIL = Dispatch(
 TIME_DELAY_DE = FreeParameterEffect(
     "time_delay",
     "de",
-    Param(
-        "tau_de",
-        None,
-        lower=0.0,
-        upper=0.5,
-        plausible=(0.0, 0.15),
-        unit="s",
-        start=0.002,
-        description="elevator time delay",
-    ),
+    _seconds("tau_de", None, upper=0.5, plausible=0.15, start=0.002, description="elevator time delay"),
     ("unsteady", "steady", "derivatives", "dimensional"),
     signature="alpha, q and a_z respond tau after the recorded elevator (actuator or transport delay): phase "
     "lag growing with frequency on every output",
 )
-
-
-def _output_delay(rows: tuple, name: str):
-    def fn(s, p, G, H, P, root):
-        f = np.exp(-s * p[name])
-        for row in rows:
-            G, H, P = scale_rows(G, H, P, row, f)
-        return G, H, P
-
-    return fn
-
-
-def _delay_realize(rows: tuple, name: str):
-    def fn(sys, p, root):
-        for row in rows:
-            sys = delay_output(sys, row, p[name])
-        return sys
-
-    return fn
 
 
 def _spoken(channels) -> str:
@@ -597,25 +567,28 @@ def _make_output_delay(channels: tuple) -> OutputEffect:
     rows = tuple(OUTPUTS.index(c) for c in channels)
     name = "tau_" + "_".join(channels)
     others = _spoken([c for c in ("de", *OUTPUTS) if c not in channels])
+
+    def output(s, p, G, H, P, root):
+        f = np.exp(-s * p[name])
+        for row in rows:
+            G, H, P = scale_rows(G, H, P, row, f)
+        return G, H, P
+
+    def realize(sys, p, root):
+        for row in rows:
+            sys = delay_output(sys, row, p[name])
+        return sys
+
+    # plausible up to 0.25 s: air-data systems lag by up to 0.2 s and more (HFB-320's alpha)
+    what = f"{_spoken(channels)} recorded this long after {others}"
     return OutputEffect(
         "time_delay",
         ",".join(channels),
-        (
-            Param(
-                name,
-                0.0,
-                lower=0.0,
-                upper=0.5,
-                plausible=(0.0, 0.25),  # air-data systems lag by up to 0.2 s and more (HFB-320's alpha)
-                unit="s",
-                start=0.002,
-                description=f"{_spoken(channels)} recorded this long after {others}",
-            ),
-        ),
-        _output_delay(rows, name),
+        (_seconds(name, upper=0.5, plausible=0.25, start=0.002, description=what),),
+        output,
         signature=f"{_spoken(channels)} recorded tau after {others}: phase lag growing with frequency on "
         + ("it" if len(channels) == 1 else "them"),
-        realize=_delay_realize(rows, name),
+        realize=realize,
     )
 
 
@@ -626,13 +599,10 @@ ACTUATOR_LAG = OutputEffect(
     "actuator_lag",
     "de",
     (
-        Param(
+        _seconds(
             "T_act",
-            0.0,
-            lower=0.0,
             upper=1.0,
-            plausible=(0.0, 0.15),
-            unit="s",
+            plausible=0.15,
             start=0.002,
             description="first-order lag, recorded to effective elevator",
         ),
@@ -767,40 +737,27 @@ STRUCTURAL_MODE = OutputEffect(
 # --- sensor scale ----------------------------------------------------------------------------
 
 
-def _scale(row: int, name: str):
-    def fn(s, p, G, H, P, root):
+def _make_scale(ch: str) -> OutputEffect:
+    name, row = f"k_{ch}", OUTPUTS.index(ch)
+
+    def output(s, p, G, H, P, root):
         return scale_rows(G, H, P, row, 1.0 + p[name])
 
-    return fn
-
-
-def _scale_realize(row: int, name: str):
-    def fn(sys, p, root):
+    def realize(sys, p, root):
         return scale_output(sys, row, 1.0 + p[name])
 
-    return fn
-
-
-def _make_scale(ch: str) -> OutputEffect:
-    name = f"k_{ch}"
+    param = Param(
+        name,
+        0.0,
+        lower=-0.9,
+        upper=2.0,
+        plausible=(-0.2, 0.2),
+        unit="-",
+        start=0.005,
+        description=f"gain error of {ch}",
+    )
     return OutputEffect(
-        "sensor_scale",
-        ch,
-        (
-            Param(
-                name,
-                0.0,
-                lower=-0.9,
-                upper=2.0,
-                plausible=(-0.2, 0.2),
-                unit="-",
-                start=0.005,
-                description=f"gain error of {ch}",
-            ),
-        ),
-        _scale(OUTPUTS.index(ch), name),
-        signature=f"{ch} too large or small at every frequency",
-        realize=_scale_realize(OUTPUTS.index(ch), name),
+        "sensor_scale", ch, (param,), output, signature=f"{ch} too large or small at every frequency", realize=realize
     )
 
 
