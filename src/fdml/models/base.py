@@ -104,14 +104,12 @@ class Descriptor:
             The system with n + 1 states.
         """
         n = self.A.shape[0]
-        E = np.eye(n + 1)
-        E[:n, :n] = self.E
-        A = np.zeros((n + 1, n + 1))
-        A[:n, :n] = self.A
+        E, A = np.pad(self.E, (0, 1)), np.pad(self.A, (0, 1))  # one more row and column of zeros
+        E[n, n] = 1.0
         A[:n, n] = a_col
         A[n] = a_row
-        pad = np.zeros((1, self.B0.shape[1]))
-        return Descriptor(E, A, np.vstack([self.B0, pad]), np.vstack([self.B1, pad]), self.channels)
+        row = ((0, 1), (0, 0))
+        return Descriptor(E, A, np.pad(self.B0, row), np.pad(self.B1, row), self.channels)
 
 
 def output_rows(rows: Sequence[str], U: float, p: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

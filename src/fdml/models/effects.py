@@ -321,27 +321,19 @@ def catalogue() -> list[dict]:
     """
     out = []
     for eff in registered_effects():
-        impls = getattr(eff, "impls", None)
-        per = (
-            impls
-            if impls is not None
-            else {k: eff for k in MODEL_KINDS if not hasattr(eff, "models") or k in eff.models}
-        )
-        params = {}
-        for kind, imp in per.items():
-            params[kind] = [
+        per = getattr(eff, "impls", None)
+        if per is None:
+            per = {k: eff for k in MODEL_KINDS if not hasattr(eff, "models") or k in eff.models}
+        params = {
+            kind: [
                 {
-                    "name": p.name,
-                    "unit": p.unit,
-                    "null": p.null,
-                    "lower": p.lower,
-                    "upper": p.upper,
+                    **{f: getattr(p, f) for f in _CATALOGUE_FIELDS},
                     "plausible": list(p.plausible) if p.plausible else None,
-                    "nuisance": p.nuisance,
-                    "description": p.description,
                 }
                 for p in imp.params
             ]
+            for kind, imp in per.items()
+        }
         out.append(
             {
                 "key": eff.key,
@@ -355,6 +347,10 @@ def catalogue() -> list[dict]:
             }
         )
     return out
+
+
+#: The fields of a :class:`Param` in :func:`catalogue`, in order.
+_CATALOGUE_FIELDS = ("name", "unit", "null", "lower", "upper", "plausible", "nuisance", "description")
 
 
 # --- registry ---------------------------------------------------------------------------

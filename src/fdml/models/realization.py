@@ -80,8 +80,7 @@ def _with_outputs(A, B, bF, value, rate, rows, U, p) -> dict:
     own = np.flatnonzero(I.any(axis=1))
     Z = I[own] @ value  # the integrators' derivatives, over [x | u | u' | eps_F] (no u', no eps_F)
     k = own.size
-    A2 = np.zeros((ns + k, ns + k))
-    A2[:ns, :ns] = A
+    A2 = np.pad(A, (0, k))
     A2[ns:, :ns] = Z[:, :ns]
     Cz = np.zeros((len(rows), k))
     Cz[own, np.arange(k)] = 1.0
@@ -289,17 +288,13 @@ def _system(model, p) -> _System:
 
 def _pad_states(sys: _System, k: int) -> _System:
     """``sys`` with ``k`` more states, all zero (appended after the existing ones)."""
-    n, nu = sys.B.shape
-    A = np.zeros((n + k, n + k))
-    A[:n, :n] = sys.A
-    z = np.zeros(k)
     return replace(
         sys,
-        A=A,
-        B=np.vstack([sys.B, np.zeros((k, nu))]),
-        C=np.hstack([sys.C, np.zeros((sys.C.shape[0], k))]),
-        bF=np.concatenate([sys.bF, z]),
-        rx=np.concatenate([sys.rx, z]),
+        A=np.pad(sys.A, (0, k)),  # zeros after each axis
+        B=np.pad(sys.B, ((0, k), (0, 0))),
+        C=np.pad(sys.C, ((0, 0), (0, k))),
+        bF=np.pad(sys.bF, (0, k)),
+        rx=np.pad(sys.rx, (0, k)),
     )
 
 
@@ -417,8 +412,8 @@ def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -
         raise ParameterError("a structural mode after a q or a_z delay: list the time_delay effect after it")
     n, nu = sys.B.shape
     s2 = _pad_states(sys, 2)
-    B = np.hstack([s2.B, np.zeros((n + 2, 1))])
-    A, C = s2.A, s2.C
+    one_more = ((0, 0), (0, 1))  # a column for the undelayed elevator channel
+    A, B, C, D = s2.A, np.pad(s2.B, one_more), s2.C, np.pad(sys.D, one_more)
     A[n, n + 1] = 1.0
     A[n + 1, n] = -(omega**2)
     A[n + 1, n + 1] = -2.0 * zeta * omega
@@ -426,17 +421,9 @@ def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -
     C[1, n + 1] += r_q / omega
     C[2, n] -= r_az
     C[2, n + 1] -= 2.0 * zeta * r_az / omega
-    D = np.hstack([sys.D, np.zeros((sys.D.shape[0], 1))])
     D[2, nu] = r_az
-    return replace(
-        s2,
-        B=B,
-        C=C,
-        D=D,
-        Dd=np.hstack([sys.Dd, np.zeros((sys.Dd.shape[0], 1))]),
-        ru=np.concatenate([sys.ru, [0.0]]),
-        channels=sys.channels + (("de", 0.0),),
-    )
+    channels = sys.channels + (("de", 0.0),)
+    return replace(s2, B=B, C=C, D=D, Dd=np.pad(sys.Dd, one_more), ru=np.append(sys.ru, 0.0), channels=channels)
 
 
 @dataclass(frozen=True)
