@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
@@ -171,17 +170,19 @@ def to_unsteady_equivalent(root: Model) -> Model:
     return u.with_parameters(params)
 
 
-def _chord(root: Model) -> float | None:
-    ac = getattr(root, "aircraft", None)
-    return None if ac is None else float(ac.c_w)
-
-
 def _needs_chord(root: Model) -> str | None:
-    return None if _chord(root) is not None else "needs the wing chord (give an aircraft)"
+    return None if getattr(root, "aircraft", None) is not None else "needs the wing chord (give an aircraft)"
 
 
 def _needs_gust(root: Model) -> str | None:
     return None if root.gust else "needs the measured gust angle alpha_w in the model (--gust)"
+
+
+def _amplitude(name: str, null: float | None, plausible: float, description: str) -> Param:
+    """A lag's amplitude, -: from 0 to 1, plausible up to ``plausible``."""
+    return Param(
+        name, null, lower=0.0, upper=1.0, plausible=(0.0, plausible), unit="-", start=0.05, description=description
+    )
 
 
 def _seconds(
@@ -227,17 +228,14 @@ def _lift_lag_realize(d, p, root):
     return d
 
 
-_LIFT_Y: dict[str, Any] = dict(
-    lower=0.0, upper=1.0, plausible=(0.0, 0.6), unit="-", start=0.05, description="wing lift-lag amplitude (Eq. 1)"
-)
-
+_LIFT_Y = "wing lift-lag amplitude (Eq. 1)"
 _WK_LIFT_Y = FreeParameterEffect(
-    "lift_lag", "alpha", Param("y_w", None, **_LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
+    "lift_lag", "alpha", _amplitude("y_w", None, 0.6, _LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
 )
 _LIFT_Z = MatrixEffect(
     "lift_lag",
     "alpha",
-    (Param("y_lift", 0.0, **_LIFT_Y),),
+    (_amplitude("y_lift", 0.0, 0.6, _LIFT_Y),),
     _lift_lag_matrix,
     applies=_needs_chord,
     realize=_lift_lag_realize,
@@ -276,16 +274,7 @@ def _adot_realize(d, p, root):
 _WK_DOWNWASH_G = FreeParameterEffect(
     "downwash_lag",
     "q",
-    Param(
-        "G",
-        None,
-        lower=0.0,
-        upper=1.0,
-        plausible=(0.0, 1.0),
-        unit="-",
-        start=0.05,
-        description="downwash lag amplitude (Eq. 2)",
-    ),
+    _amplitude("G", None, 1.0, "downwash lag amplitude (Eq. 2)"),
     ("unsteady", "steady"),
     convert=to_unsteady_equivalent,
     bounds=(0.0, 1.0),
@@ -498,13 +487,13 @@ def _tail_applies(root):
     return None
 
 
-_B1: dict[str, Any] = dict(
-    lower=0.0, upper=40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5, description="Kussner lag length (BS-12)"
+_B1 = Param(
+    "b1", None, 0.0, 40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5, description="Kussner lag length (BS-12)"
 )
 _WK_GUST_B1 = FreeParameterEffect(
     "gust_lag",
     "alpha_w",
-    Param("b1", None, **_B1),
+    _B1,
     ("unsteady", "steady"),
     convert=to_unsteady_equivalent,
     needs=("alpha_w",),
@@ -699,21 +688,16 @@ STRUCTURAL_MODE = OutputEffect(
     "structural_mode",
     "q,az",
     (
-        Param(
-            "r_q",
-            0.0,
-            plausible=(-0.5, 0.5),
-            unit="rad/s per rad",
-            start=0.01,
-            description="mode residue on q (peak r/(2 zeta))",
-        ),
-        Param(
-            "r_az",
-            0.0,
-            plausible=(-0.5, 0.5),
-            unit="g per rad",
-            start=0.01,
-            description="mode residue on a_z (peak r/(2 zeta))",
+        *(
+            Param(
+                f"r_{ch}",
+                0.0,
+                plausible=(-0.5, 0.5),
+                unit=unit,
+                start=0.01,
+                description=f"mode residue on {on} (peak r/(2 zeta))",
+            )
+            for ch, on, unit in (("q", "q", "rad/s per rad"), ("az", "a_z", "g per rad"))
         ),
         Param("omega_s", 10.0, lower=0.1, upper=1e3, unit="rad/s", nuisance=True, description="mode frequency"),
         Param(
