@@ -177,8 +177,9 @@ def with_effects(model: Model, *effects) -> Model:
         reason from :meth:`Effect.applicable`), a noise-kind effect (it is
         not a part of the response) or an effect given twice.
     """
-    one = [isinstance(item, str) or not hasattr(item, "__iter__") for item in effects]
-    specs = [e for item, o in zip(effects, one) for e in ([item] if o else item)]
+    specs = [
+        e for item in effects for e in ([item] if isinstance(item, str) or not hasattr(item, "__iter__") else item)
+    ]
     parts = list(model.parts) if isinstance(model, AugmentedModel) else []
     for spec in specs:
         eff = resolve_effect(spec, model)

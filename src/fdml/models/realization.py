@@ -146,10 +146,7 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
         if tail_delay:
             channels.append(("alpha_w", p["tau_alpha_w"] + tail_tau))
     # --- states: alpha, q, the lift and downwash lags that are present, gust lags
-    names = ["alpha", "q"]
-    for name, amp in (("x_w", y_w), ("x_t", y_t), ("x_G", G)):
-        if amp != 0.0:
-            names.append(name)
+    names = ["alpha", "q"] + [name for name, amp in (("x_w", y_w), ("x_t", y_t), ("x_G", G)) if amp != 0.0]
     gust_terms = _gust_terms(model, p) if model.gust else (1.0, [])  # (unused without gust input)
     if model.gust:
         for s in ("w", "t") if tail_delay else ("w",):
