@@ -166,9 +166,7 @@ def kussner(s, b, U: float, c: float, weights=None):
     """
     s = np.asarray(s, dtype=complex)
     b = np.atleast_1d(np.asarray(b, dtype=float))
-    if weights is None:
-        weights = np.full(b.shape, 1.0 / b.size)
-    weights = np.asarray(weights, dtype=float)
+    weights = np.full(b.shape, 1.0 / b.size) if weights is None else np.asarray(weights, dtype=float)
     if weights.shape != b.shape:
         raise ParameterError("Kussner weights and lag lengths must have the same length")
     if abs(weights.sum() - 1.0) > 1e-9:

@@ -28,6 +28,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..aircraft import Aircraft
 from ..channels import INPUTS, OUTPUT_TABLE, OUTPUTS, SIGNALS, STATIONS, row_space
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters, Role
@@ -865,6 +866,28 @@ class Model:
         if self.outputs != OUTPUTS:
             opts.append("outputs " + ",".join(self.outputs))
         return f"{self.kind} model ({', '.join(opts)})"
+
+
+@dataclass(frozen=True, kw_only=True)
+class AircraftModel(Model):
+    """A model built on an :class:`~fdml.aircraft.Aircraft` (geometry and flight condition), which it requires.
+
+    Parameters
+    ----------
+    aircraft : Aircraft
+        Geometry, mass, flight condition and default constants; its airspeed is the model's U.
+    """
+
+    aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.aircraft, Aircraft):
+            raise ParameterError(f"the {self.kind} model needs an Aircraft (geometry and flight condition)")
+        super().__post_init__()
+
+    @property
+    def U(self) -> float:
+        return self.aircraft.U
 
 
 @dataclass(frozen=True, kw_only=True)

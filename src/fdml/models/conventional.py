@@ -13,14 +13,14 @@ Jategaonkar fit to records without geometry:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..aircraft import MAX_AIRSPEED, Aircraft
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters
-from .base import Descriptor, DescriptorModel, Model
+from .base import AircraftModel, Descriptor, DescriptorModel, Model
 from .wells_keskar import ALTERNATE_INPUTS, ALTERNATE_NAMES, alternate_set, placeholder_sources
 
 __all__ = ["DerivativesModel", "DimensionalModel", "to_dimensional"]
@@ -62,7 +62,7 @@ def to_dimensional(d: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
 
 
 @dataclass(frozen=True, kw_only=True)
-class DerivativesModel(DescriptorModel):
+class DerivativesModel(AircraftModel, DescriptorModel):
     """Six non-dimensional derivatives, optionally with Cz_adot and Cm_adot.
 
     Equations (docs/theory.md section 6, "steady" model), with k_z = rho U S/(2m),
@@ -90,17 +90,7 @@ class DerivativesModel(DescriptorModel):
 
     kind = "derivatives"
     closed_form_parameters = Model.closed_form_parameters | set(ALTERNATE_NAMES) | {"Cz_adot", "Cm_adot"}
-    aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
     adot: bool = False
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.aircraft, Aircraft):
-            raise ParameterError("the derivatives model needs an Aircraft (geometry and flight condition)")
-        super().__post_init__()
-
-    @property
-    def U(self) -> float:
-        return self.aircraft.U
 
     def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
         return placeholder_sources(self._default_parameters(), self.aircraft, ALTERNATE_INPUTS)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -17,7 +17,7 @@ from ..aero import IndicialFunction, downwash, get_indicial, kussner, lift_lag
 from ..aircraft import Aircraft, missing_lag_message
 from ..errors import AircraftError, ParameterError
 from ..parameters import Parameter, Parameters
-from .base import Model
+from .base import AircraftModel, Model
 
 __all__ = ["UnsteadyModel", "SteadyModel", "alternate_set", "ALTERNATE_NAMES"]
 
@@ -113,18 +113,8 @@ def placeholder_sources(params: Parameters, ac: Aircraft, inputs: Mapping[str, t
 
 
 @dataclass(frozen=True, kw_only=True)
-class _WKBase(Model):
-    aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
+class _WKBase(AircraftModel):
     closed_form_parameters = Model.closed_form_parameters | {"CLa_w", "CLa_t", "deps_da", "Cm_de", "Cz_de"}
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.aircraft, Aircraft):
-            raise ParameterError(f"the {self.kind} model needs an Aircraft (geometry and flight condition)")
-        super().__post_init__()
-
-    @property
-    def U(self) -> float:
-        return self.aircraft.U
 
     def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
         start = self._default_parameters()
