@@ -319,8 +319,7 @@ class Model:
     def __post_init__(self) -> None:
         object.__setattr__(self, "outputs", _row_space(self.outputs))
         if self.parameters is None:
-            params = self._default_parameters().extended(self._common_parameters())
-            object.__setattr__(self, "parameters", params)
+            object.__setattr__(self, "parameters", self._default_parameters().extended(self._common_parameters()))
         elif not isinstance(self.parameters, Parameters):
             raise ParameterError("parameters must be an fdml.Parameters set")
 
