@@ -177,6 +177,13 @@ class _WKBase(AircraftModel):
         kz, km, sr, l, U, c = ac.k_z, ac.k_m, ac.S_t / ac.S_w, p["l_t"], ac.U, ac.c_w
         n_w, n_t, e, Kg = self._parts(s, p)
         a_t, eps = p["CLa_t"], p["deps_da"]
+        K_w, K_t = Kg if self.gust else (0.0, 0.0)
+        # d/d name of (N_w, N_t in the q terms, C_Lt = a_t n_t (1 - eps e), the tail's gust lift, the wing's)
+        partial = {
+            "CLa_w": (n_w, 0.0, 0.0, 0.0, K_w),
+            "CLa_t": (0.0, n_t, n_t * (1.0 - eps * e), (1.0 - n_t * eps) * K_t, 0.0),
+            "deps_da": (0.0, 0.0, -a_t * n_t * e, -a_t * n_t * K_t, 0.0),
+        }
         n, n_in = s.size, (2 if self.gust else 1)
         for nm in theta & set(names):
             dM = np.zeros((n, 2, 2), complex)
@@ -186,21 +193,13 @@ class _WKBase(AircraftModel):
             elif nm == "Cm_de":
                 dB[:, 1, 0] = km
             else:
-                if nm == "CLa_w":
-                    dCLt = dCLtg = 0.0
-                    dM[:, 0, 0] = kz * n_w
-                elif nm == "CLa_t":
-                    dCLt = n_t * (1.0 - eps * e)  # d C_Lt / d a_t, C_Lt = a_t n_t (1 - eps e)
-                    dM[:, 0, 1] = kz * (l * sr / U) * n_t
-                    dM[:, 1, 1] = km * (l**2 * sr / (c * U)) * n_t
-                    dCLtg = (1.0 - n_t * eps) * Kg[1] if self.gust else 0.0
-                else:  # deps_da
-                    dCLt = -a_t * n_t * e
-                    dCLtg = -a_t * n_t * Kg[1] if self.gust else 0.0
-                dM[:, 0, 0] += kz * sr * dCLt
+                dNw, dNt, dCLt, dCLtg, dKw = partial[nm]
+                dM[:, 0, 0] = kz * dNw + kz * sr * dCLt
+                dM[:, 0, 1] = kz * (l * sr / U) * dNt
                 dM[:, 1, 0] = km * (l * sr / c) * dCLt
+                dM[:, 1, 1] = km * (l**2 * sr / (c * U)) * dNt
                 if self.gust:
-                    dB[:, 0, 1] = -kz * ((Kg[0] if nm == "CLa_w" else 0.0) + sr * dCLtg)
+                    dB[:, 0, 1] = -kz * (dKw + sr * dCLtg)
                     dB[:, 1, 1] = -km * (l * sr / c) * dCLtg
             out[nm] = (dM, dB, None)
         return out
