@@ -136,6 +136,14 @@ class Effect:
     nuisance_grid: dict | None = None
     signature: str = ""
 
+    def _describe(self, name: str, channel: str, params: Sequence[Param], needs: Sequence[str], signature: str) -> None:
+        """Set the attributes every effect has, for an effect made by its constructor's arguments."""
+        self.name = name
+        self.channel = channel
+        self.params = tuple(params)
+        self.needs = tuple(needs)
+        self.signature = signature
+
     @property
     def key(self) -> str:
         """Unique id of this variant: ``name@channel``."""
@@ -577,15 +585,11 @@ class _AppliedEffect(Effect):
         applies: Callable | None = None,
         realize: Callable | None = None,
     ):
-        self._realize = realize
-        self.name = name
-        self.channel = channel
-        self.params = tuple(params)
+        self._describe(name, channel, params, needs, signature)
         self._fn = fn
-        self.needs = tuple(needs)
-        self.signature = signature
         self.nuisance_grid = nuisance_grid
         self._applies = applies
+        self._realize = realize
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)
@@ -757,20 +761,14 @@ class FreeParameterEffect(Effect):
         signature: str = "",
         bounds: tuple | None = None,
     ):
-        self.name = name
-        self.channel = channel
-        self.params = (param,)
+        self._describe(name, channel, (param,), needs, signature)
         self.models = tuple(models)
         self._convert = convert
-        self.needs = tuple(needs)
-        self.signature = signature
         self._bounds = bounds
 
     def _target_root(self, model: Model) -> Model:
         root = root_model(model)
-        if self._convert is not None:
-            root = self._convert(root)
-        return root
+        return root if self._convert is None else self._convert(root)
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)

@@ -90,13 +90,9 @@ class Dispatch(Effect):
     """
 
     def __init__(self, name: str, channel: str, impls: dict, *, signature: str = "", needs=()):
-        self.name = name
-        self.channel = channel
         self.impls = dict(impls)
-        self.signature = signature
-        self.needs = tuple(needs)
         first = next(iter(self.impls.values()))
-        self.params = first.params
+        self._describe(name, channel, first.params, needs, signature)
         self.nuisance_grid = first.nuisance_grid
 
     def impl(self, model: Model):
@@ -178,10 +174,10 @@ def _needs_gust(root: Model) -> str | None:
     return None if root.gust else "needs the measured gust angle alpha_w in the model (--gust)"
 
 
-def _amplitude(name: str, null: float | None, plausible: float, description: str) -> Param:
-    """A lag's amplitude, -: from 0 to 1, plausible up to ``plausible``."""
+def _amplitude(name: str, null: float | None, plausible: float, description: str, upper: float = 1.0) -> Param:
+    """A lag's amplitude (a share), -: from 0 to ``upper``, plausible up to ``plausible``."""
     return Param(
-        name, null, lower=0.0, upper=1.0, plausible=(0.0, plausible), unit="-", start=0.05, description=description
+        name, null, lower=0.0, upper=upper, plausible=(0.0, plausible), unit="-", start=0.05, description=description
     )
 
 
@@ -400,16 +396,7 @@ def dw_delay_grid(lo: float, hi: float, n: int = 10) -> np.ndarray:
 
 
 _DW_PARAMS = (
-    Param(
-        "g_dw",
-        0.0,
-        lower=0.0,
-        upper=2.0,
-        plausible=(0.0, 1.2),
-        unit="-",
-        start=0.05,
-        description="share of the downwash that arrives late at the tail (1: all of it)",
-    ),
+    _amplitude("g_dw", 0.0, 1.2, "share of the downwash that arrives late at the tail (1: all of it)", upper=2.0),
     Param(
         "tau_dw",
         0.1,
