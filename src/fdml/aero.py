@@ -83,6 +83,17 @@ def downwash_pole_time(l: float, U: float, c: float) -> float:
     return (l - c) / U
 
 
+def positive_pole_time(l: float, U: float, c: float) -> float:
+    """:func:`downwash_pole_time`, s, where the F-term needs it: a pole time that is not positive is an error."""
+    T = downwash_pole_time(l, U, c)
+    if T <= 0.0:
+        raise ParameterError(
+            f"the downwash pole time T = (l_t - c_w)/U = {T:.4g} s must be positive: "
+            f"tail length l_t = {l} m must exceed the wing chord c_w = {c} m"
+        )
+    return T
+
+
 def downwash(s, eps_ss: float, F: float, G: float, H: float, l: float, U: float, c: float):
     """Wells-Keskar tail downwash transfer function E(s), docs/theory.md Eq. 16.
 
@@ -116,12 +127,7 @@ def downwash(s, eps_ss: float, F: float, G: float, H: float, l: float, U: float,
     lam_g = 2.0 * H * U / c  # G-lag rate 2HU/c_w, 1/s (Eq. 16)
     bracket = 1.0 - s * G / (s + lam_g)
     if F != 0.0:
-        T = downwash_pole_time(l, U, c)
-        if T <= 0.0:
-            raise ParameterError(
-                f"the downwash pole time T = (l_t - c_w)/U = {T:.4g} s must be positive: "
-                f"tail length l_t = {l} m must exceed the wing chord c_w = {c} m"
-            )
+        T = positive_pole_time(l, U, c)
         from scipy import special  # imported here: only the F term needs it
 
         nz = s != 0
@@ -160,9 +166,7 @@ def kussner(s, b, U: float, c: float, weights=None):
     """
     s = np.asarray(s, dtype=complex)
     b = np.atleast_1d(np.asarray(b, dtype=float))
-    if weights is None:
-        weights = np.full(b.shape, 1.0 / b.size)
-    weights = np.asarray(weights, dtype=float)
+    weights = np.full(b.shape, 1.0 / b.size) if weights is None else np.asarray(weights, dtype=float)
     if weights.shape != b.shape:
         raise ParameterError("Kussner weights and lag lengths must have the same length")
     if abs(weights.sum() - 1.0) > 1e-9:
@@ -250,11 +254,9 @@ def kussner_indicial(tau, b, weights=None):
     numpy.ndarray
         The normalised indicial gust lift, -, same shape as ``tau`` (0 for tau < 0).
     """
-    tau = np.asarray(tau, dtype=float)
     b = np.atleast_1d(np.asarray(b, dtype=float))
     w = np.full(b.shape, 1.0 / b.size) if weights is None else np.asarray(weights, float)
-    val = 1.0 - np.sum(w[:, None] * np.exp(-np.multiply.outer(1.0 / b, np.maximum(tau, 0).ravel())), axis=0)
-    return np.where(tau >= 0, val.reshape(tau.shape), 0.0)
+    return IndicialFunction("kussner", tuple(w), tuple(1.0 / b)).step(tau)  # rates 1/b_i per semichord
 
 
 @dataclass(frozen=True)

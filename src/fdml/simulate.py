@@ -42,7 +42,6 @@ from collections.abc import Mapping
 import numpy as np
 from scipy import interpolate, linalg, signal
 
-from .channels import INPUTS
 from .errors import ParameterError, RecordError
 from .maneuvers import DEFAULT_AMPLITUDE, DRYDEN_L, dryden_gust, make_input, time_vector
 from .models.realization import Realization, _System, _system, realize
@@ -275,7 +274,7 @@ def _check_time(t) -> tuple[np.ndarray, float]:
 def _check_inputs(model, t: np.ndarray, inputs) -> dict[str, np.ndarray]:
     if not isinstance(inputs, Mapping):
         raise RecordError("simulate: inputs must be a mapping such as {'de': array, 'alpha_w': array}")
-    needed = INPUTS if model.gust else INPUTS[:1]
+    needed = model.inputs
     missing = [k for k in needed if k not in inputs]
     if missing:
         extra = " (the model has a gust input; pass alpha_w, rad)" if "alpha_w" in missing else ""

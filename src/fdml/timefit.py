@@ -138,20 +138,14 @@ def fit_time_domain(
     if bad:
         raise FdmlError(f"unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
     model = model.with_outputs(outputs)  # the simulator returns them
-    params = model.parameters
-    if fix:
-        params = params.fix(fix) if not isinstance(fix, (list, tuple)) else params.fix(list(fix))
-    if free:
-        params = params.free(list(free))
+    params = model.parameters.fix(fix or ()).free(free or ())
     model = model.with_parameters(params)
     rec = record.remove_trim(trim)
     # the simulator needs an exactly uniform grid; records are uniform to 1e-3 of dt
     t_sim = rec.t[0] + rec.dt * np.arange(rec.n)
     if model.gust and not rec.has("alpha_w"):
         raise RecordError(f"record {rec.name!r} has no alpha_w column but the model has a gust input")
-    inputs = {"de": rec["de"]}
-    if model.gust:
-        inputs["alpha_w"] = rec["alpha_w"]
+    inputs = {k: rec[k] for k in model.inputs}
     zmeas = np.column_stack([rec[o] for o in outputs])
     names = list(params.free_model_names)
     theta0 = np.array([params[n].value for n in names])
@@ -159,9 +153,7 @@ def fit_time_domain(
     x0 = np.concatenate([theta0, np.zeros(nb)])
     lo = np.concatenate([[params[n].lower for n in names], np.full(nb, -np.inf)])
     hi = np.concatenate([[params[n].upper for n in names], np.full(nb, np.inf)])
-    base = params.values
-    for o in model.outputs:
-        base[f"bias_{o}"] = 0.0  # biases are handled here, per fitted output
+    base = {**params.values, **{f"bias_{o}": 0.0 for o in model.outputs}}  # biases are handled here, per fitted output
 
     def predict(x):
         vals = dict(base, **dict(zip(names, x[: len(names)])))

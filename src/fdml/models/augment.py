@@ -136,6 +136,14 @@ class Effect:
     nuisance_grid: dict | None = None
     signature: str = ""
 
+    def _describe(self, name: str, channel: str, params: Sequence[Param], needs: Sequence[str], signature: str) -> None:
+        """Set the attributes every effect has, for an effect made by its constructor's arguments."""
+        self.name = name
+        self.channel = channel
+        self.params = tuple(params)
+        self.needs = tuple(needs)
+        self.signature = signature
+
     @property
     def key(self) -> str:
         """Unique id of this variant: ``name@channel``."""
@@ -211,11 +219,8 @@ class Effect:
         dict of str to float
             Parameter name -> null value, in its unit.
         """
-        out = {}
         vals = model.parameters.values
-        for p in self.param_list(model):
-            out[p.name] = vals.get(p.name, 0.0) if p.null is None else float(p.null)
-        return out
+        return {p.name: vals.get(p.name, 0.0) if p.null is None else float(p.null) for p in self.param_list(model)}
 
     def realize(self, target, p: Mapping[str, float], root: Model):
         """The effect on a time-domain realisation (see :func:`fdml.models.realization.realize`).
@@ -307,26 +312,24 @@ class AugmentedModel(Model):
     def __post_init__(self) -> None:
         if not isinstance(self.root, Model) or isinstance(self.root, AugmentedModel):
             raise ParameterError("AugmentedModel needs a plain fdml model as root")
-        object.__setattr__(self, "gust", self.root.gust)
-        object.__setattr__(self, "output_bias", self.root.output_bias)
-        object.__setattr__(self, "outputs", self.root.outputs)
+        for name in ("gust", "output_bias", "outputs"):
+            object.__setattr__(self, name, getattr(self.root, name))
         if self.parameters is None:
-            items = list(self.root.parameters.items)
-            for eff in self.effects:
-                for par in eff.param_list(self.root):
-                    items.append(
-                        Parameter(
-                            par.name,
-                            0.0 if par.null is None else par.null,
-                            free=False,
-                            lower=par.lower,
-                            upper=par.upper,
-                            unit=par.unit,
-                            description=par.description or eff.key,
-                            role=Role.EFFECT,
-                        )
-                    )
-            object.__setattr__(self, "parameters", Parameters(tuple(items)))
+            own = [
+                Parameter(
+                    par.name,
+                    0.0 if par.null is None else par.null,
+                    free=False,
+                    lower=par.lower,
+                    upper=par.upper,
+                    unit=par.unit,
+                    description=par.description or eff.key,
+                    role=Role.EFFECT,
+                )
+                for eff in self.effects
+                for par in eff.param_list(self.root)
+            ]
+            object.__setattr__(self, "parameters", Parameters((*self.root.parameters.items, *own)))
 
     def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
         return self.root._placeholder_sources()  # the effects start at their nulls: no placeholders
@@ -372,15 +375,18 @@ class AugmentedModel(Model):
 
         return ModelResponse(omega, G, H, P, self.outputs), joined(dG, 0), joined(dH, 1), joined(dP, 2)
 
+    def _outputs(self, s, p, G, H, P) -> tuple:
+        """(G, H, P) through the output-level effects, in order."""
+        for eff in self.effects:
+            if isinstance(eff, OutputEffect):
+                G, H, P = eff.output(s, p, G, H, P, self.root)
+        return G, H, P
+
     def _output_difference(self, s, p, base: tuple, name: str) -> tuple:
         """d(G, H, P)/d(name) of an output-level effect's parameter: central differences of the effects alone."""
         v = p[name]
         h = 1e-5 * max(abs(v), 1e-2)
-        up, dn = base, base
-        for eff in self.effects:
-            if isinstance(eff, OutputEffect):
-                up = eff.output(s, {**p, name: v + h}, up[0], up[1], up[2], self.root)
-                dn = eff.output(s, {**p, name: v - h}, dn[0], dn[1], dn[2], self.root)
+        up, dn = self._outputs(s, {**p, name: v + h}, *base), self._outputs(s, {**p, name: v - h}, *base)
         return tuple((a - b) / (2 * h) for a, b in zip(up, dn))
 
     def _through_outputs(self, s, p, resp: tuple, derivs: tuple) -> tuple:
@@ -391,31 +397,18 @@ class AugmentedModel(Model):
         ``(T(G + e dG) - T(G - e dG)) / 2e``, exact for an affine T, all parameters in one call.
         Returns (G, H, P, dG, dH, dP) after the effects.
         """
-        outs = [e for e in self.effects if isinstance(e, OutputEffect)]
-        G, H, P = resp
         k = derivs[0].shape[0]
-        if not outs or k == 0:
-            for eff in outs:
-                G, H, P = eff.output(s, p, G, H, P, self.root)
-            return (G, H, P, *derivs)
-        scale = max(float(np.max(np.abs(G))), 1e-300)
+        if k == 0 or not any(isinstance(e, OutputEffect) for e in self.effects):
+            return (*self._outputs(s, p, *resp), *derivs)
+        scale = max(float(np.max(np.abs(resp[0]))), 1e-300)
         eps = 1e-6 * scale / np.maximum(np.max(np.abs(derivs[0]), axis=(1, 2, 3)), 1e-300)  # one step per parameter
         e = eps.reshape(k, 1, 1, 1)
-        st = np.tile(s, 2 * k + 1)
         stacks = [
             np.concatenate([x[None], x[None] + e * d, x[None] - e * d]).reshape((-1,) + x.shape[1:])
             for x, d in zip(resp, derivs)
         ]
-        for eff in outs:
-            sG, sH, sP = stacks
-            stacks = list(eff.output(st, p, sG, sH, sP, self.root))
-        n = s.size
-        out = []
-        for x in stacks:
-            x = x.reshape((2 * k + 1, n) + x.shape[1:])
-            out.append((x[0], (x[1 : k + 1] - x[k + 1 :]) / (2 * e)))
-        (G, dG), (H, dH), (P, dP) = out
-        return G, H, P, dG, dH, dP
+        out = [x.reshape((2 * k + 1, s.size) + x.shape[1:]) for x in self._outputs(np.tile(s, 2 * k + 1), p, *stacks)]
+        return (*(x[0] for x in out), *((x[1 : k + 1] - x[k + 1 :]) / (2 * e) for x in out))
 
     @property
     def U(self) -> float:
@@ -464,12 +457,7 @@ class AugmentedModel(Model):
             The response at ``omega``.
         """
         r = Model.evaluate(self, omega, values)  # input delays and the solve: written once, in Model
-        p = self.values(values)
-        s = 1j * r.omega
-        G, H, P = r.G, r.H, r.P
-        for eff in self.effects:
-            if isinstance(eff, OutputEffect):
-                G, H, P = eff.output(s, p, G, H, P, self.root)
+        G, H, P = self._outputs(1j * r.omega, self.values(values), r.G, r.H, r.P)
         return ModelResponse(omega, G, H, P, self.outputs)
 
     def derived(self, values: Mapping[str, float] | None = None) -> dict[str, float]:
@@ -523,18 +511,14 @@ def applied_effects(model: Model) -> tuple:
 
 def _rebuild(model: Model, root: Model, effects: tuple) -> Model:
     """A model with a new root and effect list, keeping every common parameter's value and status."""
-    if not effects:
-        new = root
-    else:
-        new = AugmentedModel(root=root, effects=effects)
+    new = AugmentedModel(root=root, effects=effects) if effects else root
     old = {p.name: p for p in model.parameters}
-    items = []
-    for p in new.parameters:
-        q = old.get(p.name)
-        if q is None or (q.value, q.free, q.lower, q.upper) == (p.value, p.free, p.lower, p.upper):
-            items.append(p)
-        else:
-            items.append(replace(p, value=q.value, free=q.free, lower=q.lower, upper=q.upper))
+    items = [
+        p
+        if (q := old.get(p.name)) is None or (q.value, q.free, q.lower, q.upper) == (p.value, p.free, p.lower, p.upper)
+        else replace(p, value=q.value, free=q.free, lower=q.lower, upper=q.upper)
+        for p in new.parameters
+    ]
     if all(a is b for a, b in zip(items, new.parameters.items)):  # nothing to carry over
         return new
     return new.with_parameters(Parameters(tuple(items)))
@@ -570,14 +554,11 @@ def with_gust(model: Model) -> Model:
         return model
     root, effs = root_model(model), applied_effects(model)
     groot = replace(root, gust=True, parameters=cast(Parameters, None))  # None: the default set (Model.__post_init__)
-    vals = root.parameters.values
-    common = {k: v for k, v in vals.items() if k in groot.parameters}
-    groot = groot.with_values(common)
+    groot = groot.with_values({k: v for k, v in root.parameters.values.items() if k in groot.parameters})
     if not effs:
         return groot
     aug = AugmentedModel(root=groot, effects=effs)
-    ev = model.parameters.values
-    return aug.with_values({k: v for k, v in ev.items() if k in aug.parameters})
+    return aug.with_values({k: v for k, v in model.parameters.values.items() if k in aug.parameters})
 
 
 # --- effect kinds ----------------------------------------------------------------------
@@ -604,15 +585,11 @@ class _AppliedEffect(Effect):
         applies: Callable | None = None,
         realize: Callable | None = None,
     ):
-        self._realize = realize
-        self.name = name
-        self.channel = channel
-        self.params = tuple(params)
+        self._describe(name, channel, params, needs, signature)
         self._fn = fn
-        self.needs = tuple(needs)
-        self.signature = signature
         self.nuisance_grid = nuisance_grid
         self._applies = applies
+        self._realize = realize
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)
@@ -784,20 +761,14 @@ class FreeParameterEffect(Effect):
         signature: str = "",
         bounds: tuple | None = None,
     ):
-        self.name = name
-        self.channel = channel
-        self.params = (param,)
+        self._describe(name, channel, (param,), needs, signature)
         self.models = tuple(models)
         self._convert = convert
-        self.needs = tuple(needs)
-        self.signature = signature
         self._bounds = bounds
 
     def _target_root(self, model: Model) -> Model:
         root = root_model(model)
-        if self._convert is not None:
-            root = self._convert(root)
-        return root
+        return root if self._convert is None else self._convert(root)
 
     def applicable(self, model, inputs=(INPUT,), outputs=OUTPUTS):
         why = super().applicable(model, inputs, outputs)
@@ -864,10 +835,7 @@ def scale_rows(G, H, P, row: int, factor):
     """
     f = np.asarray(factor)
     f = f[:, None] if f.ndim == 1 else f
-    G = G.copy()
-    H = H.copy()
-    P = P.copy()
-    G[:, row] = G[:, row] * f
-    H[:, row] = H[:, row] * f
-    P[:, row] = P[:, row] * f
-    return G, H, P
+    out = tuple(x.copy() for x in (G, H, P))
+    for x in out:
+        x[:, row] = x[:, row] * f
+    return out

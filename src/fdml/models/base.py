@@ -28,6 +28,7 @@ from typing import ClassVar
 
 import numpy as np
 
+from ..aircraft import Aircraft
 from ..channels import INPUTS, OUTPUT_TABLE, OUTPUTS, SIGNALS, STATIONS, row_space
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters, Role
@@ -104,14 +105,12 @@ class Descriptor:
             The system with n + 1 states.
         """
         n = self.A.shape[0]
-        E = np.eye(n + 1)
-        E[:n, :n] = self.E
-        A = np.zeros((n + 1, n + 1))
-        A[:n, :n] = self.A
+        E, A = np.pad(self.E, (0, 1)), np.pad(self.A, (0, 1))  # one more row and column of zeros
+        E[n, n] = 1.0
         A[:n, n] = a_col
         A[n] = a_row
-        pad = np.zeros((1, self.B0.shape[1]))
-        return Descriptor(E, A, np.vstack([self.B0, pad]), np.vstack([self.B1, pad]), self.channels)
+        row = ((0, 1), (0, 0))
+        return Descriptor(E, A, np.pad(self.B0, row), np.pad(self.B1, row), self.channels)
 
 
 def output_rows(rows: Sequence[str], U: float, p: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -205,20 +204,13 @@ def _inverse(s: np.ndarray, M: np.ndarray) -> np.ndarray:
 
     A view of a state-major array, so that each row of M^-1 over the frequencies is contiguous.
     """
-    det = _determinant(s, M)
+    det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
+    if (det == 0).any():  # a pole on the grid
+        raise ParameterError(f"the model is singular at s = {s[det == 0][0]}: a pole lies on the frequency grid")
     a = np.empty((2, s.size, 2), complex)
     a[0, :, 0], a[0, :, 1], a[1, :, 0], a[1, :, 1] = M[:, 1, 1], -M[:, 0, 1], -M[:, 1, 0], M[:, 0, 0]
     a /= det[None, :, None]
     return a.transpose(1, 0, 2)
-
-
-def _determinant(s: np.ndarray, M: np.ndarray) -> np.ndarray:
-    """det M per frequency, shape (n,); a zero (a pole on the grid) is an error naming s."""
-    det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
-    if (det == 0).any():
-        bad = s[det == 0]
-        raise ParameterError(f"the model is singular at s = {bad[0]}: a pole lies on the frequency grid")
-    return det
 
 
 _EYE2 = np.eye(2)
@@ -237,10 +229,7 @@ def _apply(A: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 def _inputs(B: np.ndarray, u: np.ndarray) -> np.ndarray:
     """``B @ u`` per frequency for ``B`` (..., n, 2, n_in) and inputs ``u`` (n, n_in): shape (..., n, 2)."""
-    out = B[..., 0] * u[:, :1]
-    for j in range(1, u.shape[1]):
-        out = out + B[..., j] * u[:, j : j + 1]
-    return out
+    return sum(B[..., j] * u[:, j : j + 1] for j in range(u.shape[1]))
 
 
 def _right_side(Bd: np.ndarray, E: np.ndarray, u: np.ndarray, boundary, forcing) -> np.ndarray:
@@ -330,8 +319,7 @@ class Model:
     def __post_init__(self) -> None:
         object.__setattr__(self, "outputs", _row_space(self.outputs))
         if self.parameters is None:
-            params = self._default_parameters().extended(self._common_parameters())
-            object.__setattr__(self, "parameters", params)
+            object.__setattr__(self, "parameters", self._default_parameters().extended(self._common_parameters()))
         elif not isinstance(self.parameters, Parameters):
             raise ParameterError("parameters must be an fdml.Parameters set")
 
@@ -449,11 +437,10 @@ class Model:
 
     def _common_parameters(self) -> list[Parameter]:
         what = {"tau_de": "elevator time delay", "tau_alpha_w": "gust-angle time delay"}
-        out = [
+        return [
             Parameter(n, 0.0, free=False, lower=0.0, unit="s", description=what[n], role=Role.DELAY)
             for n in self._delay_names()
-        ]
-        return out + [_bias_parameter(name, self.output_bias) for name in self.outputs]
+        ] + [_bias_parameter(name, self.output_bias) for name in self.outputs]
 
     def _delay_names(self) -> tuple[str, ...]:
         """The input delays of B, one per input (``tau_de``, ``tau_alpha_w``)."""
@@ -572,11 +559,9 @@ class Model:
                 h = 1e-5 * max(abs(p[nm]), 1.0)  # the row is affine in the station: exact to rounding
                 up = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] + h}))
                 dn = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] - h}))
-                dG[i] = (up[0] - dn[0]) / (2 * h)
-                if dH is not None:
-                    dH[i] = (up[1] - dn[1]) / (2 * h)
-                if dP is not None:
-                    dP[i] = (up[2] - dn[2]) / (2 * h)
+                for dx, a, b in zip((dG, dH, dP), up, dn):
+                    if dx is not None:
+                        dx[i] = (a - b) / (2 * h)
         return ModelResponse(omega, G, H, P, self.outputs), dG, dH, dP
 
     def forced_sensitivity(self, omega, values, names, u, boundary=None, forcing=None):
@@ -689,18 +674,15 @@ class Model:
     def _fd_sensitivity(self, omega, p, names):
         """Central differences of :meth:`evaluate` (for models without matrices)."""
         resp = self.evaluate(omega, p)
-        dG = np.zeros((len(names),) + resp.G.shape, complex)
-        dH = np.zeros((len(names),) + resp.H.shape, complex)
-        dP = np.zeros((len(names),) + resp.P.shape, complex)
+        d = [np.zeros((len(names),) + x.shape, complex) for x in (resp.G, resp.H, resp.P)]
         for k, nm in enumerate(names):
             v = p[nm]
             h = 1e-5 * max(abs(v), 1e-2)
             rp = self.evaluate(omega, {**p, nm: v + h})
             rm = self.evaluate(omega, {**p, nm: v - h})
-            dG[k] = (rp.G - rm.G) / (2 * h)
-            dH[k] = (rp.H - rm.H) / (2 * h)
-            dP[k] = (rp.P - rm.P) / (2 * h)
-        return resp, dG, dH, dP
+            for dx, up, dn in zip(d, (rp.G, rp.H, rp.P), (rm.G, rm.H, rm.P)):
+                dx[k] = (up - dn) / (2 * h)
+        return (resp, *d)
 
     def frequency_response(self, omega, values: Mapping[str, float] | None = None) -> np.ndarray:
         """G(j omega, theta), shape (n_y outputs, n_in inputs, n omega) (Eq. 18).
@@ -860,9 +842,7 @@ class Model:
         J = np.zeros((len(keys), len(names)))
         for j, n in enumerate(names):
             h = 1e-6 * max(abs(base[n]), 1e-3)
-            up = dict(base, **{n: base[n] + h})
-            dn = dict(base, **{n: base[n] - h})
-            du, dd = self.derived(up), self.derived(dn)
+            du, dd = self.derived({**base, n: base[n] + h}), self.derived({**base, n: base[n] - h})
             J[:, j] = [(du[k] - dd[k]) / (2 * h) for k in keys]
         return keys, J
 
@@ -885,6 +865,28 @@ class Model:
         if self.outputs != OUTPUTS:
             opts.append("outputs " + ",".join(self.outputs))
         return f"{self.kind} model ({', '.join(opts)})"
+
+
+@dataclass(frozen=True, kw_only=True)
+class AircraftModel(Model):
+    """A model built on an :class:`~fdml.aircraft.Aircraft` (geometry and flight condition), which it requires.
+
+    Parameters
+    ----------
+    aircraft : Aircraft
+        Geometry, mass, flight condition and default constants; its airspeed is the model's U.
+    """
+
+    aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.aircraft, Aircraft):
+            raise ParameterError(f"the {self.kind} model needs an Aircraft (geometry and flight condition)")
+        super().__post_init__()
+
+    @property
+    def U(self) -> float:
+        return self.aircraft.U
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -13,21 +13,34 @@ Jategaonkar fit to records without geometry:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..aircraft import MAX_AIRSPEED, Aircraft
 from ..errors import ParameterError
 from ..parameters import Parameter, Parameters
-from .base import Descriptor, DescriptorModel, Model
-from .wells_keskar import ALTERNATE_INPUTS, alternate_set, placeholder_sources
+from .base import AircraftModel, Descriptor, DescriptorModel, Model
+from .wells_keskar import ALTERNATE_INPUTS, ALTERNATE_NAMES, alternate_set, placeholder_sources
 
 __all__ = ["DerivativesModel", "DimensionalModel", "to_dimensional"]
 
 #: Generic dimensional start values for a record without geometry: a stable
 #: short period near 3 rad/s; a fit moves them (they are not data).
 _GENERIC_DIMENSIONAL = {"Z_a": -1.0, "Z_q": 0.0, "Z_de": -0.1, "M_a": -8.0, "M_q": -2.0, "M_de": -10.0}
+
+
+def _scales(ac: Aircraft) -> dict[str, tuple]:
+    """Per dimensional derivative: its non-dimensional one, k_z or k_m and c/(2U) (1 for a non-q derivative)."""
+    kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
+    return {
+        "Z_a": ("Cz_a", kz, 1.0),
+        "Z_q": ("Cz_q", kz, cu),
+        "Z_de": ("Cz_de", kz, 1.0),
+        "M_a": ("Cm_a", km, 1.0),
+        "M_q": ("Cm_q", km, cu),
+        "M_de": ("Cm_de", km, 1.0),
+    }
 
 
 def to_dimensional(d: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
@@ -45,19 +58,11 @@ def to_dimensional(d: Mapping[str, float], ac: Aircraft) -> dict[str, float]:
     dict of str to float
         Z_a (1/s), Z_q (-), Z_de (1/s), M_a (1/s^2), M_q (1/s), M_de (1/s^2).
     """
-    kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
-    return {
-        "Z_a": kz * d["Cz_a"],
-        "Z_q": kz * d["Cz_q"] * cu,
-        "Z_de": kz * d["Cz_de"],
-        "M_a": km * d["Cm_a"],
-        "M_q": km * d["Cm_q"] * cu,
-        "M_de": km * d["Cm_de"],
-    }
+    return {name: k * d[nd] * cu for name, (nd, k, cu) in _scales(ac).items()}
 
 
 @dataclass(frozen=True, kw_only=True)
-class DerivativesModel(DescriptorModel):
+class DerivativesModel(AircraftModel, DescriptorModel):
     """Six non-dimensional derivatives, optionally with Cz_adot and Cm_adot.
 
     Equations (docs/theory.md section 6, "steady" model), with k_z = rho U S/(2m),
@@ -84,27 +89,8 @@ class DerivativesModel(DescriptorModel):
     """
 
     kind = "derivatives"
-    closed_form_parameters = Model.closed_form_parameters | {
-        "Cz_a",
-        "Cz_q",
-        "Cz_de",
-        "Cm_a",
-        "Cm_q",
-        "Cm_de",
-        "Cz_adot",
-        "Cm_adot",
-    }
-    aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
+    closed_form_parameters = Model.closed_form_parameters | set(ALTERNATE_NAMES) | {"Cz_adot", "Cm_adot"}
     adot: bool = False
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.aircraft, Aircraft):
-            raise ParameterError("the derivatives model needs an Aircraft (geometry and flight condition)")
-        super().__post_init__()
-
-    @property
-    def U(self) -> float:
-        return self.aircraft.U
 
     def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
         return placeholder_sources(self._default_parameters(), self.aircraft, ALTERNATE_INPUTS)
@@ -173,7 +159,7 @@ class DimensionalModel(DescriptorModel):
     """
 
     kind = "dimensional"
-    closed_form_parameters = Model.closed_form_parameters | {"Z_a", "Z_q", "Z_de", "M_a", "M_q", "M_de"}
+    closed_form_parameters = Model.closed_form_parameters | set(_GENERIC_DIMENSIONAL)
     airspeed: float | None = None
     aircraft: Aircraft | None = None
 
@@ -198,7 +184,7 @@ class DimensionalModel(DescriptorModel):
         start = self._default_parameters()
         if self.aircraft is None:
             return {n: (start[n].value, "generic start value (no aircraft)") for n in _GENERIC_DIMENSIONAL}
-        dimensional = {d: ALTERNATE_INPUTS["C" + d[0].lower() + d[1:]] for d in _GENERIC_DIMENSIONAL}
+        dimensional = {d: ALTERNATE_INPUTS[nd] for d, (nd, _, _) in _scales(self.aircraft).items()}
         return placeholder_sources(start, self.aircraft, dimensional)
 
     def _default_parameters(self) -> Parameters:
@@ -232,13 +218,4 @@ class DimensionalModel(DescriptorModel):
         if self.aircraft is None:
             return {}
         p = self.values(values)
-        ac = self.aircraft
-        kz, km, cu = ac.k_z, ac.k_m, ac.c_w / (2.0 * ac.U)
-        return {
-            "Cz_a": p["Z_a"] / kz,
-            "Cz_q": p["Z_q"] / (kz * cu),
-            "Cz_de": p["Z_de"] / kz,
-            "Cm_a": p["M_a"] / km,
-            "Cm_q": p["M_q"] / (km * cu),
-            "Cm_de": p["M_de"] / km,
-        }
+        return {nd: p[name] / (k * cu) for name, (nd, k, cu) in _scales(self.aircraft).items()}

@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
-from typing import Any
 
 import numpy as np
 
@@ -91,13 +90,9 @@ class Dispatch(Effect):
     """
 
     def __init__(self, name: str, channel: str, impls: dict, *, signature: str = "", needs=()):
-        self.name = name
-        self.channel = channel
         self.impls = dict(impls)
-        self.signature = signature
-        self.needs = tuple(needs)
         first = next(iter(self.impls.values()))
-        self.params = first.params
+        self._describe(name, channel, first.params, needs, signature)
         self.nuisance_grid = first.nuisance_grid
 
     def impl(self, model: Model):
@@ -171,17 +166,28 @@ def to_unsteady_equivalent(root: Model) -> Model:
     return u.with_parameters(params)
 
 
-def _chord(root: Model) -> float | None:
-    ac = getattr(root, "aircraft", None)
-    return None if ac is None else float(ac.c_w)
-
-
 def _needs_chord(root: Model) -> str | None:
-    return None if _chord(root) is not None else "needs the wing chord (give an aircraft)"
+    return None if getattr(root, "aircraft", None) is not None else "needs the wing chord (give an aircraft)"
 
 
 def _needs_gust(root: Model) -> str | None:
     return None if root.gust else "needs the measured gust angle alpha_w in the model (--gust)"
+
+
+def _amplitude(name: str, null: float | None, plausible: float, description: str, upper: float = 1.0) -> Param:
+    """A lag's amplitude (a share), -: from 0 to ``upper``, plausible up to ``plausible``."""
+    return Param(
+        name, null, lower=0.0, upper=upper, plausible=(0.0, plausible), unit="-", start=0.05, description=description
+    )
+
+
+def _seconds(
+    name: str, null: float | None = 0.0, *, upper: float, plausible: float, start: float, description: str = ""
+):
+    """A delay or time constant, s: never negative, plausible up to ``plausible`` s."""
+    return Param(
+        name, null, lower=0.0, upper=upper, plausible=(0.0, plausible), unit="s", start=start, description=description
+    )
 
 
 # --- lift lag --------------------------------------------------------------------------------
@@ -218,37 +224,22 @@ def _lift_lag_realize(d, p, root):
     return d
 
 
-_LIFT_Y: dict[str, Any] = dict(
-    lower=0.0, upper=1.0, plausible=(0.0, 0.6), unit="-", start=0.05, description="wing lift-lag amplitude (Eq. 1)"
+_LIFT_Y = "wing lift-lag amplitude (Eq. 1)"
+_WK_LIFT_Y = FreeParameterEffect(
+    "lift_lag", "alpha", _amplitude("y_w", None, 0.6, _LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
 )
-
+_LIFT_Z = MatrixEffect(
+    "lift_lag",
+    "alpha",
+    (_amplitude("y_lift", 0.0, 0.6, _LIFT_Y),),
+    _lift_lag_matrix,
+    applies=_needs_chord,
+    realize=_lift_lag_realize,
+)
 LIFT_LAG = Dispatch(
     "lift_lag",
     "alpha",
-    {
-        "unsteady": FreeParameterEffect(
-            "lift_lag", "alpha", Param("y_w", None, **_LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
-        ),
-        "steady": FreeParameterEffect(
-            "lift_lag", "alpha", Param("y_w", None, **_LIFT_Y), ("unsteady", "steady"), convert=to_unsteady_equivalent
-        ),
-        "derivatives": MatrixEffect(
-            "lift_lag",
-            "alpha",
-            (Param("y_lift", 0.0, **_LIFT_Y),),
-            _lift_lag_matrix,
-            applies=_needs_chord,
-            realize=_lift_lag_realize,
-        ),
-        "dimensional": MatrixEffect(
-            "lift_lag",
-            "alpha",
-            (Param("y_lift", 0.0, **_LIFT_Y),),
-            _lift_lag_matrix,
-            applies=_needs_chord,
-            realize=_lift_lag_realize,
-        ),
-    },
+    {"unsteady": _WK_LIFT_Y, "steady": _WK_LIFT_Y, "derivatives": _LIFT_Z, "dimensional": _LIFT_Z},
     signature="lift builds up with a lag: alpha and a_z, magnitude dip and phase lag in the short-period band",
 )
 
@@ -279,16 +270,7 @@ def _adot_realize(d, p, root):
 _WK_DOWNWASH_G = FreeParameterEffect(
     "downwash_lag",
     "q",
-    Param(
-        "G",
-        None,
-        lower=0.0,
-        upper=1.0,
-        plausible=(0.0, 1.0),
-        unit="-",
-        start=0.05,
-        description="downwash lag amplitude (Eq. 2)",
-    ),
+    _amplitude("G", None, 1.0, "downwash lag amplitude (Eq. 2)"),
     ("unsteady", "steady"),
     convert=to_unsteady_equivalent,
     bounds=(0.0, 1.0),
@@ -361,14 +343,8 @@ def pade_delay(tau: float, n: int = DW_PADE):
     the realisation stays well conditioned for small tau.
     """
     k = np.arange(n + 1)
-    c = np.array(
-        [
-            math.factorial(2 * n - j)
-            * math.factorial(n)
-            / (math.factorial(2 * n) * math.factorial(j) * math.factorial(n - j))
-            for j in k
-        ]
-    )
+    f = math.factorial
+    c = np.array([f(2 * n - j) * f(n) / (f(2 * n) * f(j) * f(n - j)) for j in k])
     num, den = (c * (-1.0) ** k)[::-1] / c[n], c[::-1] / c[n]  # descending powers of sigma, monic
     # controller canonical form, as scipy.signal.tf2ss builds it (written here because importing
     # scipy.signal costs about 1 s on the fit path, issue 20): D the direct term, A the companion
@@ -420,16 +396,7 @@ def dw_delay_grid(lo: float, hi: float, n: int = 10) -> np.ndarray:
 
 
 _DW_PARAMS = (
-    Param(
-        "g_dw",
-        0.0,
-        lower=0.0,
-        upper=2.0,
-        plausible=(0.0, 1.2),
-        unit="-",
-        start=0.05,
-        description="share of the downwash that arrives late at the tail (1: all of it)",
-    ),
+    _amplitude("g_dw", 0.0, 1.2, "share of the downwash that arrives late at the tail (1: all of it)", upper=2.0),
     Param(
         "tau_dw",
         0.1,
@@ -462,10 +429,15 @@ DOWNWASH_DELAY = Dispatch(
 # --- gust lag ---------------------------------------------------------------------------------
 
 
-def _gust_lag_output(s, p, G, H, P, root):
-    G = G.copy()
-    G[:, :, 1] = G[:, :, 1] / (1.0 + s[:, None] * p["T_gust"])
-    return G, H, P
+def _input_lag(column: int, name: str):
+    """The response with input ``column`` (0 de, 1 alpha_w) through ``1/(1 + T s)``, T the parameter ``name``, s."""
+
+    def fn(s, p, G, H, P, root):
+        G = G.copy()
+        G[:, :, column] = G[:, :, column] / (1.0 + s[:, None] * p[name])
+        return G, H, P
+
+    return fn
 
 
 def _filter_realize(signal_name: str, name: str):
@@ -502,87 +474,42 @@ def _tail_applies(root):
     return None
 
 
-_B1: dict[str, Any] = dict(
-    lower=0.0, upper=40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5, description="Kussner lag length (BS-12)"
+_B1 = Param(
+    "b1", None, 0.0, 40.0, plausible=(0.0, 20.0), unit="semichords", start=0.5, description="Kussner lag length (BS-12)"
+)
+_WK_GUST_B1 = FreeParameterEffect(
+    "gust_lag",
+    "alpha_w",
+    _B1,
+    ("unsteady", "steady"),
+    convert=to_unsteady_equivalent,
+    needs=("alpha_w",),
+)
+_GUST_T = OutputEffect(
+    "gust_lag",
+    "alpha_w",
+    (_seconds("T_gust", upper=2.0, plausible=0.5, start=0.01),),
+    _input_lag(1, "T_gust"),
+    needs=("alpha_w",),
+    applies=_needs_gust,
+    realize=_filter_realize("alpha_w", "T_gust"),
 )
 GUST_LAG = Dispatch(
     "gust_lag",
     "alpha_w",
-    {
-        "unsteady": FreeParameterEffect(
-            "gust_lag",
-            "alpha_w",
-            Param("b1", None, **_B1),
-            ("unsteady", "steady"),
-            convert=to_unsteady_equivalent,
-            needs=("alpha_w",),
-        ),
-        "steady": FreeParameterEffect(
-            "gust_lag",
-            "alpha_w",
-            Param("b1", None, **_B1),
-            ("unsteady", "steady"),
-            convert=to_unsteady_equivalent,
-            needs=("alpha_w",),
-        ),
-        "derivatives": OutputEffect(
-            "gust_lag",
-            "alpha_w",
-            (Param("T_gust", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 0.5), unit="s", start=0.01),),
-            _gust_lag_output,
-            needs=("alpha_w",),
-            applies=_needs_gust,
-            realize=_filter_realize("alpha_w", "T_gust"),
-        ),
-        "dimensional": OutputEffect(
-            "gust_lag",
-            "alpha_w",
-            (Param("T_gust", 0.0, lower=0.0, upper=2.0, plausible=(0.0, 0.5), unit="s", start=0.01),),
-            _gust_lag_output,
-            needs=("alpha_w",),
-            applies=_needs_gust,
-            realize=_filter_realize("alpha_w", "T_gust"),
-        ),
-    },
+    {"unsteady": _WK_GUST_B1, "steady": _WK_GUST_B1, "derivatives": _GUST_T, "dimensional": _GUST_T},
     needs=("alpha_w",),
     signature="gust lift builds up with a lag: alpha and a_z, coherent with alpha_w",
 )
 
-_TAIL = (
-    Param(
-        "tau_tail",
-        0.0,
-        lower=0.0,
-        upper=1.0,
-        plausible=(0.0, 0.3),
-        unit="s",
-        start=0.01,
-        description="gust delay at the tail (BS-8)",
-    ),
+_TAIL = (_seconds("tau_tail", upper=1.0, plausible=0.3, start=0.01, description="gust delay at the tail (BS-8)"),)
+_GUST_TAIL = MatrixEffect(
+    "gust_lag", "tail", _TAIL, _tail_delay_matrix, needs=("alpha_w",), applies=_tail_applies, realize=_tail_realize
 )
 GUST_TAIL = Dispatch(
     "gust_lag",
     "tail",
-    {
-        "unsteady": MatrixEffect(
-            "gust_lag",
-            "tail",
-            _TAIL,
-            _tail_delay_matrix,
-            needs=("alpha_w",),
-            applies=_tail_applies,
-            realize=_tail_realize,
-        ),
-        "steady": MatrixEffect(
-            "gust_lag",
-            "tail",
-            _TAIL,
-            _tail_delay_matrix,
-            needs=("alpha_w",),
-            applies=_tail_applies,
-            realize=_tail_realize,
-        ),
-    },
+    {"unsteady": _GUST_TAIL, "steady": _GUST_TAIL},
     needs=("alpha_w",),
     signature="the gust reaches the tail l_t/U later: q, coherent with alpha_w",
 )
@@ -593,39 +520,11 @@ GUST_TAIL = Dispatch(
 TIME_DELAY_DE = FreeParameterEffect(
     "time_delay",
     "de",
-    Param(
-        "tau_de",
-        None,
-        lower=0.0,
-        upper=0.5,
-        plausible=(0.0, 0.15),
-        unit="s",
-        start=0.002,
-        description="elevator time delay",
-    ),
+    _seconds("tau_de", None, upper=0.5, plausible=0.15, start=0.002, description="elevator time delay"),
     ("unsteady", "steady", "derivatives", "dimensional"),
     signature="alpha, q and a_z respond tau after the recorded elevator (actuator or transport delay): phase "
     "lag growing with frequency on every output",
 )
-
-
-def _output_delay(rows: tuple, name: str):
-    def fn(s, p, G, H, P, root):
-        f = np.exp(-s * p[name])
-        for row in rows:
-            G, H, P = scale_rows(G, H, P, row, f)
-        return G, H, P
-
-    return fn
-
-
-def _delay_realize(rows: tuple, name: str):
-    def fn(sys, p, root):
-        for row in rows:
-            sys = delay_output(sys, row, p[name])
-        return sys
-
-    return fn
 
 
 def _spoken(channels) -> str:
@@ -644,53 +543,47 @@ def _make_output_delay(channels: tuple) -> OutputEffect:
     rows = tuple(OUTPUTS.index(c) for c in channels)
     name = "tau_" + "_".join(channels)
     others = _spoken([c for c in ("de", *OUTPUTS) if c not in channels])
+
+    def output(s, p, G, H, P, root):
+        f = np.exp(-s * p[name])
+        for row in rows:
+            G, H, P = scale_rows(G, H, P, row, f)
+        return G, H, P
+
+    def realize(sys, p, root):
+        for row in rows:
+            sys = delay_output(sys, row, p[name])
+        return sys
+
+    # plausible up to 0.25 s: air-data systems lag by up to 0.2 s and more (HFB-320's alpha)
+    what = f"{_spoken(channels)} recorded this long after {others}"
     return OutputEffect(
         "time_delay",
         ",".join(channels),
-        (
-            Param(
-                name,
-                0.0,
-                lower=0.0,
-                upper=0.5,
-                plausible=(0.0, 0.25),  # air-data systems lag by up to 0.2 s and more (HFB-320's alpha)
-                unit="s",
-                start=0.002,
-                description=f"{_spoken(channels)} recorded this long after {others}",
-            ),
-        ),
-        _output_delay(rows, name),
+        (_seconds(name, upper=0.5, plausible=0.25, start=0.002, description=what),),
+        output,
         signature=f"{_spoken(channels)} recorded tau after {others}: phase lag growing with frequency on "
         + ("it" if len(channels) == 1 else "them"),
-        realize=_delay_realize(rows, name),
+        realize=realize,
     )
 
 
 # --- actuator lag ----------------------------------------------------------------------------
 
 
-def _actuator(s, p, G, H, P, root):
-    G = G.copy()
-    G[:, :, 0] = G[:, :, 0] / (1.0 + s[:, None] * p["T_act"])
-    return G, H, P
-
-
 ACTUATOR_LAG = OutputEffect(
     "actuator_lag",
     "de",
     (
-        Param(
+        _seconds(
             "T_act",
-            0.0,
-            lower=0.0,
             upper=1.0,
-            plausible=(0.0, 0.15),
-            unit="s",
+            plausible=0.15,
             start=0.002,
             description="first-order lag, recorded to effective elevator",
         ),
     ),
-    _actuator,
+    _input_lag(0, "T_act"),
     signature="phase lag and roll-off above 1/T on every output",
     realize=_filter_realize("de", "T_act"),
 )
@@ -782,21 +675,16 @@ STRUCTURAL_MODE = OutputEffect(
     "structural_mode",
     "q,az",
     (
-        Param(
-            "r_q",
-            0.0,
-            plausible=(-0.5, 0.5),
-            unit="rad/s per rad",
-            start=0.01,
-            description="mode residue on q (peak r/(2 zeta))",
-        ),
-        Param(
-            "r_az",
-            0.0,
-            plausible=(-0.5, 0.5),
-            unit="g per rad",
-            start=0.01,
-            description="mode residue on a_z (peak r/(2 zeta))",
+        *(
+            Param(
+                f"r_{ch}",
+                0.0,
+                plausible=(-0.5, 0.5),
+                unit=unit,
+                start=0.01,
+                description=f"mode residue on {on} (peak r/(2 zeta))",
+            )
+            for ch, on, unit in (("q", "q", "rad/s per rad"), ("az", "a_z", "g per rad"))
         ),
         Param("omega_s", 10.0, lower=0.1, upper=1e3, unit="rad/s", nuisance=True, description="mode frequency"),
         Param(
@@ -820,40 +708,27 @@ STRUCTURAL_MODE = OutputEffect(
 # --- sensor scale ----------------------------------------------------------------------------
 
 
-def _scale(row: int, name: str):
-    def fn(s, p, G, H, P, root):
+def _make_scale(ch: str) -> OutputEffect:
+    name, row = f"k_{ch}", OUTPUTS.index(ch)
+
+    def output(s, p, G, H, P, root):
         return scale_rows(G, H, P, row, 1.0 + p[name])
 
-    return fn
-
-
-def _scale_realize(row: int, name: str):
-    def fn(sys, p, root):
+    def realize(sys, p, root):
         return scale_output(sys, row, 1.0 + p[name])
 
-    return fn
-
-
-def _make_scale(ch: str) -> OutputEffect:
-    name = f"k_{ch}"
+    param = Param(
+        name,
+        0.0,
+        lower=-0.9,
+        upper=2.0,
+        plausible=(-0.2, 0.2),
+        unit="-",
+        start=0.005,
+        description=f"gain error of {ch}",
+    )
     return OutputEffect(
-        "sensor_scale",
-        ch,
-        (
-            Param(
-                name,
-                0.0,
-                lower=-0.9,
-                upper=2.0,
-                plausible=(-0.2, 0.2),
-                unit="-",
-                start=0.005,
-                description=f"gain error of {ch}",
-            ),
-        ),
-        _scale(OUTPUTS.index(ch), name),
-        signature=f"{ch} too large or small at every frequency",
-        realize=_scale_realize(OUTPUTS.index(ch), name),
+        "sensor_scale", ch, (param,), output, signature=f"{ch} too large or small at every frequency", realize=realize
     )
 
 

@@ -177,8 +177,9 @@ def with_effects(model: Model, *effects) -> Model:
         reason from :meth:`Effect.applicable`), a noise-kind effect (it is
         not a part of the response) or an effect given twice.
     """
-    one = [isinstance(item, str) or not hasattr(item, "__iter__") for item in effects]
-    specs = [e for item, o in zip(effects, one) for e in ([item] if o else item)]
+    specs = [
+        e for item in effects for e in ([item] if isinstance(item, str) or not hasattr(item, "__iter__") else item)
+    ]
     parts = list(model.parts) if isinstance(model, AugmentedModel) else []
     for spec in specs:
         eff = resolve_effect(spec, model)
@@ -321,27 +322,19 @@ def catalogue() -> list[dict]:
     """
     out = []
     for eff in registered_effects():
-        impls = getattr(eff, "impls", None)
-        per = (
-            impls
-            if impls is not None
-            else {k: eff for k in MODEL_KINDS if not hasattr(eff, "models") or k in eff.models}
-        )
-        params = {}
-        for kind, imp in per.items():
-            params[kind] = [
+        per = getattr(eff, "impls", None)
+        if per is None:
+            per = {k: eff for k in MODEL_KINDS if not hasattr(eff, "models") or k in eff.models}
+        params = {
+            kind: [
                 {
-                    "name": p.name,
-                    "unit": p.unit,
-                    "null": p.null,
-                    "lower": p.lower,
-                    "upper": p.upper,
+                    **{f: getattr(p, f) for f in _CATALOGUE_FIELDS},
                     "plausible": list(p.plausible) if p.plausible else None,
-                    "nuisance": p.nuisance,
-                    "description": p.description,
                 }
                 for p in imp.params
             ]
+            for kind, imp in per.items()
+        }
         out.append(
             {
                 "key": eff.key,
@@ -355,6 +348,10 @@ def catalogue() -> list[dict]:
             }
         )
     return out
+
+
+#: The fields of a :class:`Param` in :func:`catalogue`, in order.
+_CATALOGUE_FIELDS = ("name", "unit", "null", "lower", "upper", "plausible", "nuisance", "description")
 
 
 # --- registry ---------------------------------------------------------------------------

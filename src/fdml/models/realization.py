@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..aero import get_indicial
+from ..aero import get_indicial, positive_pole_time
 from ..channels import OUTPUTS
 from ..errors import ParameterError
 from .augment import MatrixEffect, applied_effects, root_model
@@ -80,8 +80,7 @@ def _with_outputs(A, B, bF, value, rate, rows, U, p) -> dict:
     own = np.flatnonzero(I.any(axis=1))
     Z = I[own] @ value  # the integrators' derivatives, over [x | u | u' | eps_F] (no u', no eps_F)
     k = own.size
-    A2 = np.zeros((ns + k, ns + k))
-    A2[:ns, :ns] = A
+    A2 = np.pad(A, (0, k))
     A2[ns:, :ns] = Z[:, :ns]
     Cz = np.zeros((len(rows), k))
     Cz[own, np.arange(k)] = 1.0
@@ -114,10 +113,8 @@ def _from_descriptor(d: Descriptor, model, p) -> _System:
     Bx = Ei @ (B0 + A @ D12)
     value = np.hstack([np.eye(n)[:2], D12[:2], np.zeros((2, nu + 1))])
     rate = np.hstack([Ax[:2], Bx[:2], D12[:2], np.zeros((2, 1))])
-    zeros = np.zeros(n)
-    out = _with_outputs(Ax, Bx, zeros, value, rate, model.outputs, model.U, p)
-    rx = np.zeros(out["A"].shape[0])
-    return _System(channels=tuple(d.channels), rx=rx, ru=np.zeros(nu), **out)
+    out = _with_outputs(Ax, Bx, np.zeros(n), value, rate, model.outputs, model.U, p)
+    return _System(channels=tuple(d.channels), rx=np.zeros(out["A"].shape[0]), ru=np.zeros(nu), **out)
 
 
 def _conventional_system(model, p, matrix_effects=()) -> _System:
@@ -126,27 +123,6 @@ def _conventional_system(model, p, matrix_effects=()) -> _System:
     for eff in matrix_effects:
         d = eff.realize(d, p, model)
     return _from_descriptor(d, model, p)
-
-
-class _Rows:
-    """Linear forms over the vector [states | input channels | eps_F]."""
-
-    def __init__(self, ns: int, nu: int):
-        self.ns, self.nu, self.size = ns, nu, ns + nu + 1
-
-    def x(self, i: int) -> np.ndarray:
-        r = np.zeros(self.size)
-        r[i] = 1.0
-        return r
-
-    def u(self, j: int) -> np.ndarray:
-        return self.x(self.ns + j)
-
-    def eps(self) -> np.ndarray:
-        return self.x(self.size - 1)
-
-    def zero(self) -> np.ndarray:
-        return np.zeros(self.size)
 
 
 def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
@@ -170,29 +146,27 @@ def _wells_keskar_system(model, p, matrix_effects=()) -> _System:
         if tail_delay:
             channels.append(("alpha_w", p["tau_alpha_w"] + tail_tau))
     # --- states: alpha, q, the lift and downwash lags that are present, gust lags
-    names = ["alpha", "q"]
-    for name, amp in (("x_w", y_w), ("x_t", y_t), ("x_G", G)):
-        if amp != 0.0:
-            names.append(name)
+    names = ["alpha", "q"] + [name for name, amp in (("x_w", y_w), ("x_t", y_t), ("x_G", G)) if amp != 0.0]
     gust_terms = _gust_terms(model, p) if model.gust else (1.0, [])  # (unused without gust input)
     if model.gust:
         for s in ("w", "t") if tail_delay else ("w",):
             names += [f"g{s}{i}" for i in range(len(gust_terms[1]))]
     ns, nu = len(names), len(channels)
-    R = _Rows(ns, nu)
+    # linear forms over the vector [states | input channels | eps_F]: rows of the identity, a state not present zero
+    unit, zero = np.eye(ns + nu + 1), np.zeros(ns + nu + 1)
     ix = {n: i for i, n in enumerate(names)}
-    X = lambda n: R.x(ix[n]) if n in ix else R.zero()  # noqa: E731
+    X = lambda n: unit[ix[n]] if n in ix else zero  # noqa: E731
     alpha, q = X("alpha"), X("q")
     dyn: dict = {}
-    g_w, g_t = _gust_rows(R, X, gust_terms, tail_delay, dyn) if model.gust else (R.zero(), R.zero())
+    g_w, g_t = _gust_rows(unit[ns:], X, gust_terms, tail_delay, dyn) if model.gust else (zero, zero)
     # Eq. 17 / section 4: C_Lw = a_w[(1 - y_w) alpha + y_w x_w] (+ a_w K alpha_g, section 8)
     CLw = a_w * ((1.0 - y_w) * alpha + y_w * X("x_w")) + a_w * g_w
     # Eq. 16 / section 4: eps = eps_ss[(1 - G) alpha + G x_G] + eps_F (+ eps_ss K D alpha_g)
-    eps = eps_ss * ((1.0 - G) * alpha + G * X("x_G")) + eps_ss * g_t + R.eps()
+    eps = eps_ss * ((1.0 - G) * alpha + G * X("x_G")) + eps_ss * g_t + unit[-1]
     beta = alpha - eps + (l / U) * q  # Eq. 9: tail angle alpha - eps + l q / U
     CLt = a_t * ((1.0 - y_t) * beta + y_t * X("x_t")) + a_t * g_t
-    Cz = -CLw - sr * CLt + p["Cz_de"] * R.u(0)  # Eq. 6
-    Cm = -(l * sr / c) * CLt + p["Cm_de"] * R.u(0)  # Eq. 7
+    Cz = -CLw - sr * CLt + p["Cz_de"] * unit[ns]  # Eq. 6
+    Cm = -(l * sr / c) * CLt + p["Cm_de"] * unit[ns]  # Eq. 7
     dyn["alpha"] = q + kz * Cz  # Eq. 3
     dyn["q"] = km * Cm  # Eq. 4
     dyn["x_w"] = lam_w * (alpha - X("x_w"))
@@ -262,9 +236,10 @@ def _gust_terms(model, p) -> tuple[float, list[tuple[float, float]]]:
     return (1.0 - sum(fn.amplitudes), [(A, r) for A, r in zip(fn.amplitudes, rates) if A != 0.0])
 
 
-def _gust_rows(R, X, gust_terms, tail_delay: bool, dyn: dict) -> tuple:
-    """Rows of K alpha_g at the wing and the tail; the gust lag states' rows go into ``dyn``."""
-    inputs = {"w": R.u(1), "t": R.u(2) if tail_delay else R.u(1)}
+def _gust_rows(u, X, gust_terms, tail_delay: bool, dyn: dict) -> tuple:
+    """Rows of K alpha_g at the wing and the tail (``u``: the input channels' forms); the gust lag states' rows
+    go into ``dyn``."""
+    inputs = {"w": u[1], "t": u[2] if tail_delay else u[1]}
     ff, terms = gust_terms
     g_rows = {}
     for s in ("w", "t") if tail_delay else ("w",):
@@ -279,15 +254,11 @@ def _gust_rows(R, X, gust_terms, tail_delay: bool, dyn: dict) -> tuple:
 
 def _downwash_pole(l: float, c: float, U: float, eps_ss: float, F: float) -> tuple[float, float]:
     """(T, kappa) of the downwash pole term eps_F (zero kappa without it)."""
-    T = (l - c) / U
     if F == 0.0:
-        return T, 0.0
-    if T <= 0.0:
-        raise ParameterError(
-            f"the downwash pole time T = (l_t - c_w)/U = {T:.4g} s must be positive: "
-            f"tail length l_t = {l} m must exceed the wing chord c_w = {c} m"
-        )
-    return T, eps_ss * F * c / U  # section 4: eps_F = eps_ss F (c_w/U) PV int alpha_dot/(t - tau - T)
+        return (l - c) / U, 0.0
+    return positive_pole_time(
+        l, U, c
+    ), eps_ss * F * c / U  # section 4: eps_F = eps_ss F (c_w/U) PV int alpha_dot/(t - tau - T)
 
 
 def _system(model, p) -> _System:
@@ -314,17 +285,13 @@ def _system(model, p) -> _System:
 
 def _pad_states(sys: _System, k: int) -> _System:
     """``sys`` with ``k`` more states, all zero (appended after the existing ones)."""
-    n, nu = sys.B.shape
-    A = np.zeros((n + k, n + k))
-    A[:n, :n] = sys.A
-    z = np.zeros(k)
     return replace(
         sys,
-        A=A,
-        B=np.vstack([sys.B, np.zeros((k, nu))]),
-        C=np.hstack([sys.C, np.zeros((sys.C.shape[0], k))]),
-        bF=np.concatenate([sys.bF, z]),
-        rx=np.concatenate([sys.rx, z]),
+        A=np.pad(sys.A, (0, k)),  # zeros after each axis
+        B=np.pad(sys.B, ((0, k), (0, 0))),
+        C=np.pad(sys.C, ((0, 0), (0, k))),
+        bF=np.pad(sys.bF, (0, k)),
+        rx=np.pad(sys.rx, (0, k)),
     )
 
 
@@ -442,8 +409,8 @@ def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -
         raise ParameterError("a structural mode after a q or a_z delay: list the time_delay effect after it")
     n, nu = sys.B.shape
     s2 = _pad_states(sys, 2)
-    B = np.hstack([s2.B, np.zeros((n + 2, 1))])
-    A, C = s2.A, s2.C
+    one_more = ((0, 0), (0, 1))  # a column for the undelayed elevator channel
+    A, B, C, D = s2.A, np.pad(s2.B, one_more), s2.C, np.pad(sys.D, one_more)
     A[n, n + 1] = 1.0
     A[n + 1, n] = -(omega**2)
     A[n + 1, n + 1] = -2.0 * zeta * omega
@@ -451,17 +418,9 @@ def add_mode(sys: _System, r_q: float, r_az: float, omega: float, zeta: float) -
     C[1, n + 1] += r_q / omega
     C[2, n] -= r_az
     C[2, n + 1] -= 2.0 * zeta * r_az / omega
-    D = np.hstack([sys.D, np.zeros((sys.D.shape[0], 1))])
     D[2, nu] = r_az
-    return replace(
-        s2,
-        B=B,
-        C=C,
-        D=D,
-        Dd=np.hstack([sys.Dd, np.zeros((sys.Dd.shape[0], 1))]),
-        ru=np.concatenate([sys.ru, [0.0]]),
-        channels=sys.channels + (("de", 0.0),),
-    )
+    channels = sys.channels + (("de", 0.0),)
+    return replace(s2, B=B, C=C, D=D, Dd=np.pad(sys.Dd, one_more), ru=np.append(sys.ru, 0.0), channels=channels)
 
 
 @dataclass(frozen=True)

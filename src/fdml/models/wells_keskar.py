@@ -7,8 +7,9 @@ length b1 are fixed by default and may be freed.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -16,7 +17,7 @@ from ..aero import IndicialFunction, downwash, get_indicial, kussner, lift_lag
 from ..aircraft import Aircraft, missing_lag_message
 from ..errors import AircraftError, ParameterError
 from ..parameters import Parameter, Parameters
-from .base import Model
+from .base import AircraftModel, Model
 
 __all__ = ["UnsteadyModel", "SteadyModel", "alternate_set", "ALTERNATE_NAMES"]
 
@@ -29,6 +30,18 @@ _THETA = (
     ("deps_da", "-", "steady downwash gradient (d eps/d alpha)_ss"),
     ("Cm_de", "1/rad", "pitching moment per elevator"),
     ("Cz_de", "1/rad", "z force per elevator"),
+)
+
+
+#: The lag constants of Eqs. 1-2 and 17 (fixed by default): name, bounds and description.
+_LAG_CONSTANTS = (
+    ("y_w", 0.0, 1.0, "wing lift-lag amplitude"),
+    ("z_w", 0.0, math.inf, "wing lift-lag rate per semichord"),
+    ("y_t", 0.0, 1.0, "tail lift-lag amplitude"),
+    ("z_t", 0.0, math.inf, "tail lift-lag rate per semichord"),
+    ("F", -math.inf, math.inf, "downwash starting-vortex strength (Eq. 2)"),
+    ("G", -math.inf, math.inf, "downwash lag amplitude (Eq. 2)"),
+    ("H", 0.0, math.inf, "downwash lag rate (Eq. 2)"),
 )
 
 
@@ -100,22 +113,12 @@ def placeholder_sources(params: Parameters, ac: Aircraft, inputs: Mapping[str, t
 
 
 @dataclass(frozen=True, kw_only=True)
-class _WKBase(Model):
-    aircraft: Aircraft = field(default=None)  # type: ignore[assignment]
+class _WKBase(AircraftModel):
     closed_form_parameters = Model.closed_form_parameters | {"CLa_w", "CLa_t", "deps_da", "Cm_de", "Cz_de"}
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.aircraft, Aircraft):
-            raise ParameterError(f"the {self.kind} model needs an Aircraft (geometry and flight condition)")
-        super().__post_init__()
-
-    @property
-    def U(self) -> float:
-        return self.aircraft.U
-
     def _placeholder_sources(self) -> dict[str, tuple[float, str]]:
-        names = self._default_parameters().names
-        return placeholder_sources(self._default_parameters(), self.aircraft, {n: (n,) for n in names})
+        start = self._default_parameters()
+        return placeholder_sources(start, self.aircraft, {n: (n,) for n in start.names})
 
     def _theta_parameters(self) -> list[Parameter]:
         c = self.aircraft.constants
@@ -174,6 +177,13 @@ class _WKBase(Model):
         kz, km, sr, l, U, c = ac.k_z, ac.k_m, ac.S_t / ac.S_w, p["l_t"], ac.U, ac.c_w
         n_w, n_t, e, Kg = self._parts(s, p)
         a_t, eps = p["CLa_t"], p["deps_da"]
+        K_w, K_t = Kg if self.gust else (0.0, 0.0)
+        # d/d name of (N_w, N_t in the q terms, C_Lt = a_t n_t (1 - eps e), the tail's gust lift, the wing's)
+        partial = {
+            "CLa_w": (n_w, 0.0, 0.0, 0.0, K_w),
+            "CLa_t": (0.0, n_t, n_t * (1.0 - eps * e), (1.0 - n_t * eps) * K_t, 0.0),
+            "deps_da": (0.0, 0.0, -a_t * n_t * e, -a_t * n_t * K_t, 0.0),
+        }
         n, n_in = s.size, (2 if self.gust else 1)
         for nm in theta & set(names):
             dM = np.zeros((n, 2, 2), complex)
@@ -183,21 +193,13 @@ class _WKBase(Model):
             elif nm == "Cm_de":
                 dB[:, 1, 0] = km
             else:
-                if nm == "CLa_w":
-                    dCLt = dCLtg = 0.0
-                    dM[:, 0, 0] = kz * n_w
-                elif nm == "CLa_t":
-                    dCLt = n_t * (1.0 - eps * e)  # d C_Lt / d a_t, C_Lt = a_t n_t (1 - eps e)
-                    dM[:, 0, 1] = kz * (l * sr / U) * n_t
-                    dM[:, 1, 1] = km * (l**2 * sr / (c * U)) * n_t
-                    dCLtg = (1.0 - n_t * eps) * Kg[1] if self.gust else 0.0
-                else:  # deps_da
-                    dCLt = -a_t * n_t * e
-                    dCLtg = -a_t * n_t * Kg[1] if self.gust else 0.0
-                dM[:, 0, 0] += kz * sr * dCLt
+                dNw, dNt, dCLt, dCLtg, dKw = partial[nm]
+                dM[:, 0, 0] = kz * dNw + kz * sr * dCLt
+                dM[:, 0, 1] = kz * (l * sr / U) * dNt
                 dM[:, 1, 0] = km * (l * sr / c) * dCLt
+                dM[:, 1, 1] = km * (l**2 * sr / (c * U)) * dNt
                 if self.gust:
-                    dB[:, 0, 1] = -kz * ((Kg[0] if nm == "CLa_w" else 0.0) + sr * dCLtg)
+                    dB[:, 0, 1] = -kz * (dKw + sr * dCLtg)
                     dB[:, 1, 1] = -km * (l * sr / c) * dCLtg
             out[nm] = (dM, dB, None)
         return out
@@ -254,30 +256,12 @@ class UnsteadyModel(_WKBase):
     def _default_parameters(self) -> Parameters:
         c = self.aircraft.constants
         fixed = [
-            Parameter(
-                "y_w", c["y_w"], free=False, lower=0.0, upper=1.0, unit="-", description="wing lift-lag amplitude"
-            ),
-            Parameter("z_w", c["z_w"], free=False, lower=0.0, unit="-", description="wing lift-lag rate per semichord"),
-            Parameter(
-                "y_t", c["y_t"], free=False, lower=0.0, upper=1.0, unit="-", description="tail lift-lag amplitude"
-            ),
-            Parameter("z_t", c["z_t"], free=False, lower=0.0, unit="-", description="tail lift-lag rate per semichord"),
-            Parameter("F", c["F"], free=False, unit="-", description="downwash starting-vortex strength (Eq. 2)"),
-            Parameter("G", c["G"], free=False, unit="-", description="downwash lag amplitude (Eq. 2)"),
-            Parameter("H", c["H"], free=False, lower=0.0, unit="-", description="downwash lag rate (Eq. 2)"),
-            self._tail_length_parameter(),
-        ]
+            Parameter(n, c[n], free=False, lower=lo, upper=hi, unit="-", description=what)
+            for n, lo, hi, what in _LAG_CONSTANTS
+        ] + [self._tail_length_parameter()]
         if self.gust and self.gust_lag == "bs12":
-            fixed.append(
-                Parameter(
-                    "b1",
-                    c["b1"],
-                    free=False,
-                    lower=0.0,
-                    unit="semichords",
-                    description="Kussner lag length, T* = c b1/(2U) (BS-12)",
-                )
-            )
+            what = "Kussner lag length, T* = c b1/(2U) (BS-12)"
+            fixed.append(Parameter("b1", c["b1"], free=False, lower=0.0, unit="semichords", description=what))
         return Parameters(tuple(self._theta_parameters() + fixed))
 
     def _gust_lag(self, s, p) -> np.ndarray:
