@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import math
 import time
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -212,10 +213,7 @@ class MonteCarloResult:
         """Category -> number of runs whose fit warned with it."""
         from .warning_log import as_recorded
 
-        counts: dict[str, int] = {}
-        for ws in self.warnings.values():
-            for cat in {w.category for w in as_recorded(ws)}:
-                counts[cat] = counts.get(cat, 0) + 1
+        counts = Counter(cat for ws in self.warnings.values() for cat in {w.category for w in as_recorded(ws)})
         return dict(sorted(counts.items()))
 
     def stats(self) -> list[dict]:
@@ -258,14 +256,12 @@ class MonteCarloResult:
             counts = ", ".join(f"{cat} {k}" for cat, k in self.warning_counts.items())
             head += f"\n{len(self.warnings)} runs warned ({counts}; per run: .warnings)"
         cols = ("parameter", "truth", "mean", "bias", "scatter", "mean CRB", "scatter/CRB", "bias/se")
-        rows = []
-        shared = [st for st in self.stats() if math.isfinite(st["truth"])]  # a parameter of both models
-        for st in shared:
-            rows.append(
-                [st["name"]]
-                + [f"{st[k]:.{digits}g}" for k in ("truth", "mean", "bias", "scatter", "mean_crb")]
-                + [f"{st['efficiency']:.3f}", f"{st['bias_z']:+.2f}"]
-            )
+        rows = [
+            [st["name"], *(f"{st[k]:.{digits}g}" for k in ("truth", "mean", "bias", "scatter", "mean_crb"))]
+            + [f"{st['efficiency']:.3f}", f"{st['bias_z']:+.2f}"]
+            for st in self.stats()
+            if math.isfinite(st["truth"])  # a parameter of both models
+        ]
         lines = [head]
         if rows:
             widths = [max(len(c), *(len(r[j]) for r in rows)) for j, c in enumerate(cols)]
@@ -348,13 +344,8 @@ class MonteCarloResult:
                 (self.mean[j], self.scatter[j], "k--", "mean, scatter"),
             ):
                 if math.isfinite(mu) and math.isfinite(sd) and sd > 0:
-                    a.plot(
-                        grid,
-                        np.exp(-0.5 * ((grid - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi)),
-                        style,
-                        lw=1.2,
-                        label=label,
-                    )
+                    pdf = np.exp(-0.5 * ((grid - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
+                    a.plot(grid, pdf, style, lw=1.2, label=label)
             if math.isfinite(self.truth[j]):
                 a.axvline(self.truth[j], color="C3", lw=0.8)
             unit = self.units.get(name, "")
@@ -648,11 +639,9 @@ def _truth_spec(model, truth_values) -> ModelSpec:
 
 def _reported_names(fmodel, kw: dict) -> list:
     """The names the study reports: estimated model parameters, not nuisance terms."""
-    names = list(fmodel.parameters.free_model_names)
-    for nm in kw.get("fix", {}) or ():
-        if nm in names:
-            names.remove(nm)
     pars = fmodel.parameters
+    fixed = set(kw.get("fix") or ())
+    names = [nm for nm in pars.free_model_names if nm not in fixed]
     names += [nm for nm in (kw.get("free") or ()) if nm not in names and not (nm in pars and pars[nm].role.nuisance)]
     if not names:
         raise FdmlError("the fitted model has no free parameters")
