@@ -1077,14 +1077,12 @@ def run_batch(
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise FdmlError(f"workers must be a positive integer, got {workers!r}")
     out = Path(out_dir).absolute()
-    results = out / "results"
-    results.mkdir(parents=True, exist_ok=True)
+    (out / "results").mkdir(parents=True, exist_ok=True)
     common = {"spec": spec_d, "fit_kwargs": kw, "fit_key": _fit_options_key(kw), "read": read, "out_dir": str(out)}
     tasks = ({"index": i, **asdict(it), **common, "resume": bool(resume)} for i, it in enumerate(items))
     spool = _RowSpool(out / f".rows-{os.getpid()}.jsonl.tmp", len(items))
     done = 0
-    run = contextlib.ExitStack()  # closed in reverse: the engine, the folder lock, signal handlers, the spool
-    try:
+    with contextlib.ExitStack() as run:  # closed in reverse: the engine, the folder lock, signal handlers, the spool
         run.callback(spool.close)
         run.enter_context(_signals_end_the_run())
         run.enter_context(_folder_lock(out, spool))
@@ -1098,8 +1096,6 @@ def run_batch(
         errors = {r["key"]: r["error"] for r in spool.rows(only_failed=True)}
         findings = {r["key"]: r["findings"] for r in spool.rows(only_flagged=True)}
         warned = dict(spool.warnings)
-    finally:
-        run.close()
     return BatchSummary(
         out_dir=out,
         table_csv=csv_path,

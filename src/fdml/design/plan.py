@@ -238,12 +238,6 @@ def _saved_input(f: Fields, name: str) -> DesignInput:
     return replace(inp, name=name)
 
 
-def _steady_for(model, steady_kind: str):
-    if model.kind != "unsteady":
-        return None
-    return make_model(steady_kind, model.aircraft, gust=model.gust)
-
-
 def design(
     model,
     *,
@@ -312,7 +306,7 @@ def design(
         dt, duration = float(given.t[1] - given.t[0]), float(given.t[-1])
     fband = parse_band((0.5, 10.0) if band is None else band, dt=dt)
     lim = Limits(amplitude=amplitude, duration=duration, dt=dt, rate=rate)
-    ms = _steady_for(model, steady)
+    ms = make_model(steady, model.aircraft, gust=model.gust) if model.kind == "unsteady" else None
     ref = classic_input("3211", lim, fband[:2]) if given is None else given
     stds = noise_stds(response(model, ref), noise)
     if given is None:
@@ -340,12 +334,7 @@ def _scorer(criterion: str, model, steady, stds, band, targets):
         return lambda inp: discriminate(model, steady, inp, noise=stds, band=band).noncentrality
     if criterion == "a-optimal":
         return lambda inp: -sum(predict(model, inp, noise=stds, band=band).cov_of(targets))
-
-    def d_score(inp):
-        p = predict(model, inp, noise=stds, band=band)
-        return -float(np.linalg.slogdet(p.model_cov())[1])
-
-    return d_score
+    return lambda inp: -float(np.linalg.slogdet(predict(model, inp, noise=stds, band=band).model_cov())[1])
 
 
 def plot_design(d: Design, fig=None):
