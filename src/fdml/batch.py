@@ -779,11 +779,7 @@ class BatchSummary(Codec):
         pandas.DataFrame
             One row per record, read from ``table.csv``.
         """
-        try:
-            import pandas as pd
-        except ImportError:
-            raise FdmlError("to_frame needs pandas: pip install 'fdml[pandas]'") from None
-        return pd.read_csv(self.table_csv)
+        return require_pandas().read_csv(self.table_csv)
 
     def __str__(self) -> str:
         lines = [
@@ -804,6 +800,15 @@ class BatchSummary(Codec):
             lines.append(f"warnings: {counts} (column 'warnings')")
             lines.extend(f"  {r['key']}: {_warnings_text(r['warnings'])}" for r in self.rows if r.get("warnings"))
         return "\n".join(lines)
+
+
+def require_pandas():
+    """The pandas module (an optional extra), or a one-line error saying how to install it."""
+    try:
+        import pandas as pd
+    except ImportError:
+        raise FdmlError("to_frame needs pandas: pip install 'fdml[pandas]'") from None
+    return pd
 
 
 #: The table's columns before the estimates and their standard errors, in order.

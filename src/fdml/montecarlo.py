@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .batch import ModelSpec, canonical_json, check_fit_kwargs
+from .batch import ModelSpec, canonical_json, check_fit_kwargs, require_pandas
 from .errors import FdmlError
 from .parallel import engine_name, execute, one_line
 from .record import check_noise
@@ -287,11 +287,7 @@ class MonteCarloResult:
         pandas.DataFrame
             :meth:`stats`, one row per parameter.
         """
-        try:
-            import pandas as pd
-        except ImportError:
-            raise FdmlError("to_frame needs pandas: pip install 'fdml[pandas]'") from None
-        return pd.DataFrame(self.stats()).set_index("name")
+        return require_pandas().DataFrame(self.stats()).set_index("name")
 
     def plot(self, ax=None):
         """Histogram of the estimates per parameter against N(truth, mean CRB).
