@@ -386,8 +386,7 @@ def _is_window(x) -> bool:
 
 def _expand(src) -> list[tuple[str, float | None, float | None, str | None]]:
     if _is_window(src):
-        t0 = None if src[1] is None else float(src[1])
-        t1 = None if src[2] is None else float(src[2])
+        t0, t1 = (None if v is None else float(v) for v in src[1:3])
         name = str(src[3]) if len(src) == 4 and src[3] is not None else None
         return [(str(Path(src[0]).absolute()), t0, t1, name)]
     if isinstance(src, BatchItem):
@@ -433,16 +432,14 @@ def collect_sources(sources) -> list[BatchItem]:
     """
     if isinstance(sources, (str, os.PathLike, BatchItem)) or _is_window(sources):
         sources = [sources]
-    entries, listed = [], set()
+    entries: dict[tuple, str | None] = {}  # (path, t0, t1) -> the name given, if any
     for src in sources:
-        for e in _expand(src):
-            if e[:3] not in listed:  # a record named twice (a folder and a glob) is fitted once
-                listed.add(e[:3])
-                entries.append(e)
+        for path, t0, t1, name in _expand(src):
+            entries.setdefault((path, t0, t1), name)  # a record named twice (a folder and a glob) is fitted once
     if not entries:
         raise FdmlError("no records to fit")
     keys = []
-    for path, t0, t1, name in entries:
+    for (path, t0, t1), name in entries.items():
         if name is None:
             name = Path(path).stem
             if t0 is not None or t1 is not None:
@@ -450,7 +447,7 @@ def collect_sources(sources) -> list[BatchItem]:
         keys.append(_safe(name))
     count = Counter(keys)
     items = []
-    for (path, t0, t1, _), k in zip(entries, keys):
+    for (path, t0, t1), k in zip(entries, keys):
         if count[k] > 1:
             k = f"{k}-{hashlib.sha1(f'{path}|{t0}|{t1}'.encode()).hexdigest()[:8]}"
         items.append(BatchItem(path, t0, t1, k))
@@ -849,8 +846,7 @@ class _RowSpool:
         self.failed[i] = row["status"] != "ok"
         self.flagged[i] = bool(row.get("findings"))
         self.reused[i] = bool(row.get("reused"))
-        for n in row["params"]:
-            self.names.setdefault(n, None)
+        self.names.update(dict.fromkeys(row["params"]))
         return first
 
     def rows(self, only_failed: bool = False, only_flagged: bool = False) -> Iterator[dict]:
