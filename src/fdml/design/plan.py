@@ -99,19 +99,16 @@ class Design:
             lines.append(row)
         lines += _placeholder_note(self.placeholders, len(head))
         if self.detectable:
-            lines.append("")
-            lines.append(f"{'effect':<22}{'parameter':<12}{'min. detectable':>22}  (power, level)")
+            lines += ["", f"{'effect':<22}{'parameter':<12}{'min. detectable':>22}  (power, level)"]
             for e in self.detectable:
                 value = f"{e.minimum:.4g} {e.unit}".rstrip()
                 lines.append(f"{e.effect:<22}{e.parameter:<12}{value:>22}  ({e.power:g}, {e.level:g})")
         if self.discrimination:
-            lines.append("")
             head = f"{'steady vs unsteady':<22}{'lambda':>10}{'P(detect)':>11}{'P(favoured)':>13}{'P(compare)':>12}"
-            lines.append(head)
+            lines += ["", head]
             for k, d in self.discrimination.items():
-                lines.append(
-                    f"{k[:22]:<22}{d.noncentrality:>10.3g}{d.probability:>11.3f}{d.favoured:>13.3f}{d.vuong:>12.3f}"
-                )
+                row = f"{d.noncentrality:>10.3g}{d.probability:>11.3f}{d.favoured:>13.3f}{d.vuong:>12.3f}"
+                lines.append(f"{k[:22]:<22}{row}")
         return "\n".join(lines)
 
     def to_dict(self, csv_path=None) -> dict:
