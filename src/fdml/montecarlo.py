@@ -327,8 +327,7 @@ class MonteCarloResult:
                 raise FdmlError(f"plot needs {p} axes (one per parameter), got {len(axes)}")
             fig = axes[0].figure
         est = self.estimates[self.used]
-        for j, name in enumerate(self.names):
-            a = axes[j]
+        for j, (name, a) in enumerate(zip(self.names, axes)):
             x = est[:, j]
             a.hist(
                 x, bins=max(10, min(50, int(math.sqrt(x.size)))), density=True, alpha=0.5, color="C0", label="estimates"

@@ -268,8 +268,7 @@ def multisine_input(
     t = mv.time_vector(lim.duration, lim.dt)
     if second is not None:
         stride = 2
-    kw = {"phases": phases, "amplitudes": amplitudes, "stride": stride, "offset": offset}
-    u = mv.multisine(t, 1.0, lo, hi, **kw)
+    u = mv.multisine(t, 1.0, lo, hi, phases=phases, amplitudes=amplitudes, stride=stride, offset=offset)
     de, frac = _rate_scaled(u, lim)
     omega = mv.multisine_frequencies(t, lo, hi, stride=stride, offset=offset)
     signals = {"de": de}
