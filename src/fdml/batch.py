@@ -575,9 +575,7 @@ def _base_row(task: Mapping) -> dict:
 
 def error_row(task: Mapping, exc: BaseException | str) -> dict:
     """The table row of a record that failed with ``exc``."""
-    row = _base_row(task)
-    row["error"] = exc if isinstance(exc, str) else one_line(exc)
-    return row
+    return {**_base_row(task), "error": exc if isinstance(exc, str) else one_line(exc)}
 
 
 def _result_paths(task: Mapping) -> tuple[Path, Path]:
@@ -784,8 +782,7 @@ class BatchSummary(Codec):
             f"{self.n_failed} failed in {self.wall_time:.1f} s ({self.engine})",
             f"table: {self.table_csv}",
         ]
-        for key, err in self.errors.items():
-            lines.append(f"  {key}: {err}")
+        lines.extend(f"  {key}: {err}" for key, err in self.errors.items())
         if self.findings:
             lines.append(
                 f"data check: {len(self.findings)} record(s) with findings (column 'findings'; "
