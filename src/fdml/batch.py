@@ -222,13 +222,12 @@ class ModelSpec(Codec):
         from .parameters import as_names, check_fix_free, fixed_values
 
         check_fix_free(self.fix, self.free)  # a str is one name; both fixed and freed is an error
-        fix = fixed_values(self.fix)
         return ModelSpec(
             kind=str(self.kind),
             aircraft=ac,
             options=dict(self.options),
             values={str(k): float(v) for k, v in self.values.items()},
-            fix=fix,
+            fix=fixed_values(self.fix),
             free=as_names(self.free, "free"),
             parameters=None if self.parameters is None else [dict(p) for p in self.parameters],
             effects=_effect_keys(self.effects),

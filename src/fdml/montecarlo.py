@@ -224,9 +224,8 @@ class MonteCarloResult:
         list of dict
             One dict per parameter, in the order of :attr:`names`; values in the parameter's unit.
         """
-        cols = (self.truth, self.mean, self.bias, self.scatter, self.mean_crb, self.efficiency, self.bias_z)
-        keys = ("truth", "mean", "bias", "scatter", "mean_crb", "efficiency", "bias_z")
-        return [{"name": n, **{k: float(c[j]) for k, c in zip(keys, cols)}} for j, n in enumerate(self.names)]
+        cols = {k: getattr(self, k) for k in ("truth", "mean", "bias", "scatter", "mean_crb", "efficiency", "bias_z")}
+        return [{"name": n, **{k: float(c[j]) for k, c in cols.items()}} for j, n in enumerate(self.names)]
 
     # --- presentation -------------------------------------------------------------------------
     def table(self, digits: int = 4) -> str:
@@ -555,8 +554,7 @@ def monte_carlo(
     truth_spec = _truth_spec(model, truth_values)
     truth = truth_spec.build()
     # the fitted model defaults to the truth, started at the truth
-    fit_spec = ModelSpec.from_model(truth) if fit_model is None else ModelSpec.coerce(fit_model)
-    fit_spec = fit_spec.normalized()
+    fit_spec = (ModelSpec.from_model(truth) if fit_model is None else ModelSpec.coerce(fit_model)).normalized()
     fmodel = fit_spec.build()
     kw = check_fit_kwargs(fit_kwargs)
     noise = _check_noise(noise)
