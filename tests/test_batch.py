@@ -202,7 +202,7 @@ def test_process_pool_beside_threads_and_in_unguarded_scripts(tmp_path, records)
     """With another thread alive the pool uses forkserver; a script without a main guard works."""
     import threading
 
-    from fdml.batch import _pool_context
+    from fdml.parallel import pool_context as _pool_context
 
     assert _pool_context().get_start_method() == "fork"
     stop = threading.Event()

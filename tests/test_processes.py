@@ -227,7 +227,8 @@ def test_sigkill_ends_forkserver_workers_too(tmp_path, records, launched):
     script.write_text(
         textwrap.dedent(f"""
         import threading
-        from fdml.batch import _pool_context, run_batch
+        from fdml.batch import run_batch
+        from fdml.parallel import pool_context as _pool_context
 
         if __name__ == "__main__":
             threading.Thread(target=threading.Event().wait, daemon=True).start()

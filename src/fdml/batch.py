@@ -44,8 +44,9 @@ import math
 import os
 import re
 import time
+from collections import Counter
 from collections.abc import Iterator, Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 
 from .errors import FdmlError
@@ -54,7 +55,6 @@ from .jsoncodec import dumps as _dumps
 from .jsoncodec import loads as _loads
 from .outputs import atomic_open, atomic_write_text
 from .parallel import engine_name, execute, one_line
-from .parallel import pool_context as _pool_context  # noqa: F401  (its old name here; scripts and tests use it)
 from .parallel import signals_end_the_run as _signals_end_the_run
 from .warning_log import RecordedWarning, merged, recording
 
@@ -78,8 +78,6 @@ TABLE_FORMAT = ("fdml.BatchTable", 1)
 ERROR_FORMAT = ("fdml.BatchError", 1)
 #: File endings picked up when a source is a folder.
 RECORD_SUFFIXES = (".csv", ".mat", ".asc", ".dat")
-#: Deaths of a local worker process, running a task alone, after which the task is given up.
-_LONE_DEATHS = 2
 _GLOB_CHARS = re.compile(r"[*?\[]")
 
 
@@ -195,12 +193,10 @@ class ModelSpec(Codec):
         if isinstance(spec, cls):
             return spec
         if isinstance(spec, Mapping):
-            unknown = set(spec) - {"kind", "aircraft", "options", "values", "fix", "free", "parameters", "effects"}
+            known = [f.name for f in fields(cls)]
+            unknown = set(spec) - set(known)
             if unknown:
-                raise FdmlError(
-                    f"model spec: unknown key(s) {sorted(unknown)}; known: kind, aircraft, "
-                    "options, values, fix, free, parameters, effects"
-                )
+                raise FdmlError(f"model spec: unknown key(s) {sorted(unknown)}; known: {', '.join(known)}")
             if "kind" not in spec:
                 raise FdmlError("model spec: 'kind' is required (unsteady, steady, derivatives, dimensional)")
             return cls(**spec)
@@ -226,13 +222,12 @@ class ModelSpec(Codec):
         from .parameters import as_names, check_fix_free, fixed_values
 
         check_fix_free(self.fix, self.free)  # a str is one name; both fixed and freed is an error
-        fix = fixed_values(self.fix)
         return ModelSpec(
             kind=str(self.kind),
             aircraft=ac,
             options=dict(self.options),
             values={str(k): float(v) for k, v in self.values.items()},
-            fix=fix,
+            fix=fixed_values(self.fix),
             free=as_names(self.free, "free"),
             parameters=None if self.parameters is None else [dict(p) for p in self.parameters],
             effects=_effect_keys(self.effects),
@@ -258,10 +253,7 @@ class ModelSpec(Codec):
         A spec whose airspeed comes from each record is built at a nominal
         airspeed (1 m/s), on which no name, effect or option depends.
         """
-        if self.airspeed_from_records:
-            replace(self, options={**self.options, "airspeed": 1.0}).build()
-        else:
-            self.build()
+        (replace(self, options={**self.options, "airspeed": 1.0}) if self.airspeed_from_records else self).build()
 
     def build(self, records=None):
         """The :class:`~fdml.models.Model` described.
@@ -393,8 +385,7 @@ def _is_window(x) -> bool:
 
 def _expand(src) -> list[tuple[str, float | None, float | None, str | None]]:
     if _is_window(src):
-        t0 = None if src[1] is None else float(src[1])
-        t1 = None if src[2] is None else float(src[2])
+        t0, t1 = (None if v is None else float(v) for v in src[1:3])
         name = str(src[3]) if len(src) == 4 and src[3] is not None else None
         return [(str(Path(src[0]).absolute()), t0, t1, name)]
     if isinstance(src, BatchItem):
@@ -408,14 +399,13 @@ def _expand(src) -> list[tuple[str, float | None, float | None, str | None]]:
         )
         if not files:
             raise FdmlError(f"folder {p} holds no records ({', '.join(RECORD_SUFFIXES)})")
-        return [(str(f.absolute()), None, None, None) for f in files]
-    if not p.exists() and _GLOB_CHARS.search(str(src)):
-        matches = sorted(f for f in glob.glob(str(src), recursive=True) if Path(f).is_file())
-        if not matches:
+    elif not p.exists() and _GLOB_CHARS.search(str(src)):
+        files = [Path(f) for f in sorted(glob.glob(str(src), recursive=True)) if Path(f).is_file()]
+        if not files:
             raise FdmlError(f"no records match {src}")
-        return [(str(Path(f).absolute()), None, None, None) for f in matches]
-    # a single file; a missing one becomes an error row, like any other bad record
-    return [(str(p.absolute()), None, None, None)]
+    else:  # a single file; a missing one becomes an error row, like any other bad record
+        files = [p]
+    return [(str(f.absolute()), None, None, None) for f in files]
 
 
 def _safe(name: str) -> str:
@@ -441,26 +431,22 @@ def collect_sources(sources) -> list[BatchItem]:
     """
     if isinstance(sources, (str, os.PathLike, BatchItem)) or _is_window(sources):
         sources = [sources]
-    entries, listed = [], set()
+    entries: dict[tuple, str | None] = {}  # (path, t0, t1) -> the name given, if any
     for src in sources:
-        for e in _expand(src):
-            if e[:3] not in listed:  # a record named twice (a folder and a glob) is fitted once
-                listed.add(e[:3])
-                entries.append(e)
+        for path, t0, t1, name in _expand(src):
+            entries.setdefault((path, t0, t1), name)  # a record named twice (a folder and a glob) is fitted once
     if not entries:
         raise FdmlError("no records to fit")
     keys = []
-    for path, t0, t1, name in entries:
+    for (path, t0, t1), name in entries.items():
         if name is None:
             name = Path(path).stem
             if t0 is not None or t1 is not None:
                 name += f"@{'' if t0 is None else f'{t0:g}'}-{'' if t1 is None else f'{t1:g}'}"
         keys.append(_safe(name))
-    count: dict[str, int] = {}
-    for k in keys:
-        count[k] = count.get(k, 0) + 1
+    count = Counter(keys)
     items = []
-    for (path, t0, t1, _), k in zip(entries, keys):
+    for (path, t0, t1), k in zip(entries, keys):
         if count[k] > 1:
             k = f"{k}-{hashlib.sha1(f'{path}|{t0}|{t1}'.encode()).hexdigest()[:8]}"
         items.append(BatchItem(path, t0, t1, k))
@@ -489,8 +475,6 @@ def load_source(path, t0: float | None = None, t1: float | None = None, *, name:
     Record
         The record (cut to the window).
     """
-    from dataclasses import replace
-
     from .io import load_record
 
     rec = load_record(path, t0=t0, t1=t1, **read)
@@ -523,11 +507,8 @@ def canonical_json(obj) -> str:
 
 
 def _file_hash(path: str) -> str:
-    h = hashlib.sha256()
     with open(path, "rb") as fh:
-        for chunk in iter(lambda: fh.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
+        return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
 def check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
@@ -584,33 +565,16 @@ def _num(x: float):
 
 
 def _base_row(task: Mapping) -> dict:
-    return {
-        "index": task["index"],
-        "key": task["key"],
-        "source": task["path"],
-        "t0": task["t0"],
-        "t1": task["t1"],
-        "status": "error",
-        "reused": False,
-        "converged": None,
-        "iterations": None,
-        "cost": None,
-        "elapsed": None,
-        "n_freq": None,
-        "error": "",
-        "warnings": [],
-        "findings": "",
-        "result_file": "",
-        "params": {},
-        "stderr": {},
-    }
+    """The row of a task that has not succeeded (yet): its table columns, in order, then its estimates."""
+    row = {"index": task["index"], **dict.fromkeys(_FIXED_COLUMNS), "params": {}, "stderr": {}}
+    row.update(key=task["key"], source=task["path"], t0=task["t0"], t1=task["t1"], status="error", reused=False)
+    row.update(error="", warnings=[], findings="", result_file="")
+    return row
 
 
 def error_row(task: Mapping, exc: BaseException | str) -> dict:
     """The table row of a record that failed with ``exc``."""
-    row = _base_row(task)
-    row["error"] = exc if isinstance(exc, str) else one_line(exc)
-    return row
+    return {**_base_row(task), "error": exc if isinstance(exc, str) else one_line(exc)}
 
 
 def _result_paths(task: Mapping) -> tuple[Path, Path]:
@@ -629,13 +593,6 @@ def _reusable(path: Path, input_hash: str) -> dict | None:
     return b["row"]
 
 
-def _unlink(path: Path) -> None:
-    try:
-        path.unlink()
-    except FileNotFoundError:
-        pass
-
-
 def run_task(task: Mapping) -> dict:
     """Fit one batch item and write its result file; return its table row.
 
@@ -648,14 +605,11 @@ def run_task(task: Mapping) -> dict:
     t_start = time.perf_counter()
     res_path, err_path = _result_paths(task)
     row = _base_row(task)
+    key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_key"], "fdml": __version__}
+    if task.get("read"):  # absent when empty: the hash of a batch without reading options is unchanged
+        key["read"] = task["read"]
     try:
-        h = hashlib.sha256()
-        h.update(_file_hash(task["path"]).encode())
-        key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_key"], "fdml": __version__}
-        if task.get("read"):  # absent when empty: the hash of a batch without reading options is unchanged
-            key["read"] = task["read"]
-        h.update(canonical_json(key).encode())
-        input_hash = h.hexdigest()
+        input_hash = hashlib.sha256((_file_hash(task["path"]) + canonical_json(key)).encode()).hexdigest()
     except OSError as exc:
         from .errors import RecordError
 
@@ -668,16 +622,8 @@ def run_task(task: Mapping) -> dict:
     if task["resume"]:
         old = _reusable(res_path, input_hash)
         if old is not None:
-            _unlink(err_path)
-            return {
-                **old,
-                "index": task["index"],
-                "key": task["key"],
-                "source": task["path"],
-                "t0": task["t0"],
-                "t1": task["t1"],
-                "reused": True,
-            }
+            err_path.unlink(missing_ok=True)
+            return {**old, **{k: row[k] for k in ("index", "key", "source", "t0", "t1")}, "reused": True}
     try:
         from .conditions import attach_conditions
         from .estimate import fit
@@ -704,23 +650,26 @@ def run_task(task: Mapping) -> dict:
         d = res.to_dict()
         del res, rec
         row["task_seconds"] = time.perf_counter() - t_start
-        d["batch"] = {
-            "format": TABLE_FORMAT[0],
-            "key": task["key"],
-            "source": task["path"],
-            "window": [task["t0"], task["t1"]],
-            "input_hash": input_hash,
-            "spec": task["spec"],
-            "fit_kwargs": task["fit_kwargs"],
-            "row": row,
-        }
+        block = _task_block(task, input_hash, spec=task["spec"], fit_kwargs=task["fit_kwargs"], row=row)
+        d["batch"] = {"format": TABLE_FORMAT[0], **block}
         text = _dumps(d, compact=True)
         del d
         atomic_write_text(res_path, text)
-        _unlink(err_path)
+        err_path.unlink(missing_ok=True)
         return row
     except Exception as exc:  # any failure of this record stays with this record
         return _write_error(task, row, exc, err_path, res_path, input_hash, t_start)
+
+
+def _task_block(task: Mapping, input_hash, **more) -> dict:
+    """What a result or error file says of its task: key, source, window, input hash, then ``more``."""
+    return {
+        "key": task["key"],
+        "source": task["path"],
+        "window": [task["t0"], task["t1"]],
+        "input_hash": input_hash,
+        **more,
+    }
 
 
 def _write_error(task, row, exc, err_path: Path, res_path: Path, input_hash, t_start=None) -> dict:
@@ -737,15 +686,10 @@ def _write_error(task, row, exc, err_path: Path, res_path: Path, input_hash, t_s
     doc = {
         "format": ERROR_FORMAT[0],
         "version": ERROR_FORMAT[1],
-        "key": task["key"],
-        "source": task["path"],
-        "window": [task["t0"], task["t1"]],
-        "input_hash": input_hash,
-        "error": row["error"],
-        "row": row,
+        **_task_block(task, input_hash, error=row["error"], row=row),
     }
     try:
-        _unlink(res_path)  # a stale result for other inputs must not stand beside the error
+        res_path.unlink(missing_ok=True)  # a stale result for other inputs must not stand beside the error
         atomic_write_text(err_path, _dumps(doc, indent=1))
     except Exception as exc2:  # the row still carries the error
         row["error"] += f" (and the error file could not be written: {one_line(exc2)})"
@@ -829,11 +773,7 @@ class BatchSummary(Codec):
         pandas.DataFrame
             One row per record, read from ``table.csv``.
         """
-        try:
-            import pandas as pd
-        except ImportError:
-            raise FdmlError("to_frame needs pandas: pip install 'fdml[pandas]'") from None
-        return pd.read_csv(self.table_csv)
+        return require_pandas().read_csv(self.table_csv)
 
     def __str__(self) -> str:
         lines = [
@@ -841,8 +781,7 @@ class BatchSummary(Codec):
             f"{self.n_failed} failed in {self.wall_time:.1f} s ({self.engine})",
             f"table: {self.table_csv}",
         ]
-        for key, err in self.errors.items():
-            lines.append(f"  {key}: {err}")
+        lines.extend(f"  {key}: {err}" for key, err in self.errors.items())
         if self.findings:
             lines.append(
                 f"data check: {len(self.findings)} record(s) with findings (column 'findings'; "
@@ -856,28 +795,20 @@ class BatchSummary(Codec):
         return "\n".join(lines)
 
 
-_FIXED_COLUMNS = (
-    "key",
-    "source",
-    "t0",
-    "t1",
-    "status",
-    "reused",
-    "converged",
-    "iterations",
-    "cost",
-    "elapsed",
-    "n_freq",
-    "error",
-    "warnings",
-    "findings",
-    "result_file",
+def require_pandas():
+    """The pandas module (an optional extra), or a one-line error saying how to install it."""
+    try:
+        import pandas as pd
+    except ImportError:
+        raise FdmlError("to_frame needs pandas: pip install 'fdml[pandas]'") from None
+    return pd
+
+
+#: The table's columns before the estimates and their standard errors, in order.
+_FIXED_COLUMNS = tuple(
+    "key source t0 t1 status reused converged iterations cost elapsed n_freq error warnings findings "
+    "result_file".split()
 )
-
-
-def _atomic_open(path: Path):
-    """A text file handle whose content appears at ``path`` only when the block succeeds."""
-    return atomic_open(path, "w", what="batch table")
 
 
 class _RowSpool:
@@ -911,8 +842,7 @@ class _RowSpool:
         self.failed[i] = row["status"] != "ok"
         self.flagged[i] = bool(row.get("findings"))
         self.reused[i] = bool(row.get("reused"))
-        for n in row["params"]:
-            self.names.setdefault(n, None)
+        self.names.update(dict.fromkeys(row["params"]))
         return first
 
     def rows(self, only_failed: bool = False, only_flagged: bool = False) -> Iterator[dict]:
@@ -924,7 +854,7 @@ class _RowSpool:
 
     def close(self) -> None:
         self.fh.close()
-        _unlink(self.path)
+        self.path.unlink(missing_ok=True)
 
 
 def _row_warnings(value) -> list[dict]:
@@ -943,19 +873,15 @@ def _write_tables(out_dir: Path, spool: _RowSpool, spec: dict, fit_kwargs: dict)
     """table.csv and table.json, streamed row by row from the spool."""
     names = list(spool.names)
     csv_path, json_path = out_dir / "table.csv", out_dir / "table.json"
-    with _atomic_open(csv_path) as fh:
+    with atomic_open(csv_path, "w", what="batch table") as fh:
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(list(_FIXED_COLUMNS) + [c for n in names for c in (n, f"{n}_stderr")])
         for r in spool.rows():
             fixed = ["" if r.get(c) is None else r.get(c) for c in _FIXED_COLUMNS]
             fixed[_FIXED_COLUMNS.index("warnings")] = _warnings_text(r["warnings"])
-            vals = []
-            for n in names:
-                vals.append(r["params"].get(n, ""))
-                vals.append(r["stderr"].get(n, ""))
-            w.writerow(fixed + vals)
+            w.writerow(fixed + [v for n in names for v in (r["params"].get(n, ""), r["stderr"].get(n, ""))])
     head = {"format": TABLE_FORMAT[0], "version": TABLE_FORMAT[1], "model": spec, "fit_kwargs": fit_kwargs}
-    with _atomic_open(json_path) as fh:
+    with atomic_open(json_path, "w", what="batch table") as fh:
         fh.write(_dumps(head, indent=1)[:-2] + ',\n "rows": [')
         for i, r in enumerate(spool.rows()):
             r.pop("index", None)
@@ -991,7 +917,7 @@ def _clean_stale(out: Path, own: Path) -> None:
     """
     stale = [*(out / "results").glob(".*.tmp"), *out.glob(".table.csv.*.tmp"), *out.glob(".table.json.*.tmp")]
     for f in stale:
-        _unlink(f)
+        f.unlink(missing_ok=True)
     for f in out.glob(".rows-*.jsonl.tmp"):
         if f == own:
             continue
@@ -1001,7 +927,7 @@ def _clean_stale(out: Path, own: Path) -> None:
             continue
         try:
             if _try_flock(fd):  # nobody holds it: its batch is gone
-                _unlink(f)
+                f.unlink(missing_ok=True)
         except OSError:
             pass
         finally:
@@ -1063,7 +989,6 @@ def _folder_lock(out: Path, spool: _RowSpool) -> Iterator[None]:
                 holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "unknown process"
                 logger.warning("%s is in use by another fdml batch (%s); waiting for it to finish", out, holder)
                 fcntl.flock(fd, fcntl.LOCK_EX)
-            locked = True
         except OSError as exc:  # a file system without locks (some network or FUSE mounts)
             logger.warning(
                 "cannot lock %s (%s): a concurrent batch into it is not detected and temporary "
@@ -1071,8 +996,7 @@ def _folder_lock(out: Path, spool: _RowSpool) -> Iterator[None]:
                 out,
                 exc.strerror or exc,
             )
-            locked = False
-        if locked:
+        else:
             os.ftruncate(fd, 0)
             os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode(), 0)
             _clean_stale(out, spool.path)
@@ -1145,34 +1069,17 @@ def run_batch(
     spec.check()  # a bad model spec is one error now, not one per record
     spec_d = spec.to_dict()
     kw = check_fit_kwargs(fit_kwargs)
-    fit_key = _fit_options_key(kw)
     read = dict(read_kwargs or {})
     canonical_json(read)  # plain data only: it is hashed and shipped to workers
     if workers is not None and (not isinstance(workers, int) or workers < 1):
         raise FdmlError(f"workers must be a positive integer, got {workers!r}")
     out = Path(out_dir).absolute()
-    results = out / "results"
-    results.mkdir(parents=True, exist_ok=True)
-    tasks = (
-        {
-            "index": i,
-            "key": it.key,
-            "path": it.path,
-            "t0": it.t0,
-            "t1": it.t1,
-            "spec": spec_d,
-            "fit_kwargs": kw,
-            "fit_key": fit_key,
-            "read": read,
-            "out_dir": str(out),
-            "resume": bool(resume),
-        }
-        for i, it in enumerate(items)
-    )
+    (out / "results").mkdir(parents=True, exist_ok=True)
+    common = {"spec": spec_d, "fit_kwargs": kw, "fit_key": _fit_options_key(kw), "read": read, "out_dir": str(out)}
+    tasks = ({"index": i, **asdict(it), **common, "resume": bool(resume)} for i, it in enumerate(items))
     spool = _RowSpool(out / f".rows-{os.getpid()}.jsonl.tmp", len(items))
     done = 0
-    run = contextlib.ExitStack()  # closed in reverse: the engine, the folder lock, signal handlers, the spool
-    try:
+    with contextlib.ExitStack() as run:  # closed in reverse: the engine, the folder lock, signal handlers, the spool
         run.callback(spool.close)
         run.enter_context(_signals_end_the_run())
         run.enter_context(_folder_lock(out, spool))
@@ -1186,8 +1093,6 @@ def run_batch(
         errors = {r["key"]: r["error"] for r in spool.rows(only_failed=True)}
         findings = {r["key"]: r["findings"] for r in spool.rows(only_flagged=True)}
         warned = dict(spool.warnings)
-    finally:
-        run.close()
     return BatchSummary(
         out_dir=out,
         table_csv=csv_path,

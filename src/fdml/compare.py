@@ -449,15 +449,10 @@ class Comparison:
         ax.axhline(0, color="k", lw=0.8)
         ax.set_xticks(range(len(names)), names)
         ax.set_ylabel("shift / stderr")
-        ev = self.evidence
-        ax.set_title(
-            "steady - unsteady"
-            + (
-                ""
-                if ev is None
-                else f"; evidence: {ev.favoured} favoured (z = {ev.statistic:+.2f}, p = {ev.p_value:.2g})"
-            )
-        )
+        title, ev = "steady - unsteady", self.evidence
+        if ev is not None:
+            title += f"; evidence: {ev.favoured} favoured (z = {ev.statistic:+.2f}, p = {ev.p_value:.2g})"
+        ax.set_title(title)
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize=8)  # beside the bars, not over them
         return fig
 

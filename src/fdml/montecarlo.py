@@ -24,6 +24,7 @@ from __future__ import annotations
 import contextlib
 import math
 import time
+from collections import Counter
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -31,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .batch import ModelSpec, canonical_json, check_fit_kwargs
+from .batch import ModelSpec, canonical_json, check_fit_kwargs, require_pandas
 from .errors import FdmlError
 from .parallel import engine_name, execute, one_line
 from .record import check_noise
@@ -212,10 +213,7 @@ class MonteCarloResult:
         """Category -> number of runs whose fit warned with it."""
         from .warning_log import as_recorded
 
-        counts: dict[str, int] = {}
-        for ws in self.warnings.values():
-            for cat in {w.category for w in as_recorded(ws)}:
-                counts[cat] = counts.get(cat, 0) + 1
+        counts = Counter(cat for ws in self.warnings.values() for cat in {w.category for w in as_recorded(ws)})
         return dict(sorted(counts.items()))
 
     def stats(self) -> list[dict]:
@@ -226,9 +224,8 @@ class MonteCarloResult:
         list of dict
             One dict per parameter, in the order of :attr:`names`; values in the parameter's unit.
         """
-        cols = (self.truth, self.mean, self.bias, self.scatter, self.mean_crb, self.efficiency, self.bias_z)
-        keys = ("truth", "mean", "bias", "scatter", "mean_crb", "efficiency", "bias_z")
-        return [{"name": n, **{k: float(c[j]) for k, c in zip(keys, cols)}} for j, n in enumerate(self.names)]
+        cols = {k: getattr(self, k) for k in ("truth", "mean", "bias", "scatter", "mean_crb", "efficiency", "bias_z")}
+        return [{"name": n, **{k: float(c[j]) for k, c in cols.items()}} for j, n in enumerate(self.names)]
 
     # --- presentation -------------------------------------------------------------------------
     def table(self, digits: int = 4) -> str:
@@ -258,14 +255,12 @@ class MonteCarloResult:
             counts = ", ".join(f"{cat} {k}" for cat, k in self.warning_counts.items())
             head += f"\n{len(self.warnings)} runs warned ({counts}; per run: .warnings)"
         cols = ("parameter", "truth", "mean", "bias", "scatter", "mean CRB", "scatter/CRB", "bias/se")
-        rows = []
-        shared = [st for st in self.stats() if math.isfinite(st["truth"])]  # a parameter of both models
-        for st in shared:
-            rows.append(
-                [st["name"]]
-                + [f"{st[k]:.{digits}g}" for k in ("truth", "mean", "bias", "scatter", "mean_crb")]
-                + [f"{st['efficiency']:.3f}", f"{st['bias_z']:+.2f}"]
-            )
+        rows = [
+            [st["name"], *(f"{st[k]:.{digits}g}" for k in ("truth", "mean", "bias", "scatter", "mean_crb"))]
+            + [f"{st['efficiency']:.3f}", f"{st['bias_z']:+.2f}"]
+            for st in self.stats()
+            if math.isfinite(st["truth"])  # a parameter of both models
+        ]
         lines = [head]
         if rows:
             widths = [max(len(c), *(len(r[j]) for r in rows)) for j, c in enumerate(cols)]
@@ -291,11 +286,7 @@ class MonteCarloResult:
         pandas.DataFrame
             :meth:`stats`, one row per parameter.
         """
-        try:
-            import pandas as pd
-        except ImportError:
-            raise FdmlError("to_frame needs pandas: pip install 'fdml[pandas]'") from None
-        return pd.DataFrame(self.stats()).set_index("name")
+        return require_pandas().DataFrame(self.stats()).set_index("name")
 
     def plot(self, ax=None):
         """Histogram of the estimates per parameter against N(truth, mean CRB).
@@ -335,8 +326,7 @@ class MonteCarloResult:
                 raise FdmlError(f"plot needs {p} axes (one per parameter), got {len(axes)}")
             fig = axes[0].figure
         est = self.estimates[self.used]
-        for j, name in enumerate(self.names):
-            a = axes[j]
+        for j, (name, a) in enumerate(zip(self.names, axes)):
             x = est[:, j]
             a.hist(
                 x, bins=max(10, min(50, int(math.sqrt(x.size)))), density=True, alpha=0.5, color="C0", label="estimates"
@@ -348,13 +338,8 @@ class MonteCarloResult:
                 (self.mean[j], self.scatter[j], "k--", "mean, scatter"),
             ):
                 if math.isfinite(mu) and math.isfinite(sd) and sd > 0:
-                    a.plot(
-                        grid,
-                        np.exp(-0.5 * ((grid - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi)),
-                        style,
-                        lw=1.2,
-                        label=label,
-                    )
+                    pdf = np.exp(-0.5 * ((grid - mu) / sd) ** 2) / (sd * math.sqrt(2 * math.pi))
+                    a.plot(grid, pdf, style, lw=1.2, label=label)
             if math.isfinite(self.truth[j]):
                 a.axvline(self.truth[j], color="C3", lw=0.8)
             unit = self.units.get(name, "")
@@ -569,8 +554,7 @@ def monte_carlo(
     truth_spec = _truth_spec(model, truth_values)
     truth = truth_spec.build()
     # the fitted model defaults to the truth, started at the truth
-    fit_spec = ModelSpec.from_model(truth) if fit_model is None else ModelSpec.coerce(fit_model)
-    fit_spec = fit_spec.normalized()
+    fit_spec = (ModelSpec.from_model(truth) if fit_model is None else ModelSpec.coerce(fit_model)).normalized()
     fmodel = fit_spec.build()
     kw = check_fit_kwargs(fit_kwargs)
     noise = _check_noise(noise)
@@ -648,11 +632,9 @@ def _truth_spec(model, truth_values) -> ModelSpec:
 
 def _reported_names(fmodel, kw: dict) -> list:
     """The names the study reports: estimated model parameters, not nuisance terms."""
-    names = list(fmodel.parameters.free_model_names)
-    for nm in kw.get("fix", {}) or ():
-        if nm in names:
-            names.remove(nm)
     pars = fmodel.parameters
+    fixed = set(kw.get("fix") or ())
+    names = [nm for nm in pars.free_model_names if nm not in fixed]
     names += [nm for nm in (kw.get("free") or ()) if nm not in names and not (nm in pars and pars[nm].role.nuisance)]
     if not names:
         raise FdmlError("the fitted model has no free parameters")

@@ -67,9 +67,8 @@ def one_line(exc: BaseException) -> str:
     str
         Its class name, and the first line of its message if it has one.
     """
-    text = str(exc).strip()
-    first = text.splitlines()[0] if text else ""
-    return f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+    lines = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {lines[0]}" if lines else type(exc).__name__
 
 
 # --- the engine --------------------------------------------------------------------------------------
@@ -203,21 +202,15 @@ def engine_name(engine) -> str:
     str
         The engine's name (another object's class name).
     """
-    if engine in (None, "process"):
-        return "process"
-    if engine == "serial":
-        return "serial"
-    if _is_dask_client(engine):
-        return "dask"
-    return "dask" if isinstance(engine, str) else str(type(engine).__name__)
+    if engine in (None, "process", "serial"):
+        return engine or "process"
+    return "dask" if isinstance(engine, str) or _is_dask_client(engine) else type(engine).__name__
 
 
 def _resolve_engine(engine, workers):
     """(kind, client, owned) for an engine argument."""
-    if engine in (None, "process"):
-        return "process", None, False
-    if engine == "serial":
-        return "serial", None, False
+    if engine in (None, "process", "serial"):
+        return engine or "process", None, False
     if _is_dask_client(engine):
         return "dask", engine, False
     if isinstance(engine, str) and (engine == "dask" or "://" in engine):
@@ -462,12 +455,9 @@ class _PoolRun:
             return None if inflight else (*self.suspects.popleft(), True)  # a suspect runs alone
         if len(inflight) >= 2 * self.workers or self.exhausted:
             return None
-        try:
-            i, task = next(self.it)
-        except StopIteration:
-            self.exhausted = True
-            return None
-        return i, task, False
+        nxt = next(self.it, None)
+        self.exhausted = nxt is None
+        return None if nxt is None else (*nxt, False)
 
     def died(self, i: int, task, alone: bool, on_error):
         """The worker running task ``i`` died: its error result, or None when it is to be rerun alone."""
@@ -500,15 +490,12 @@ def _process_map(fn, tasks, workers: int, on_error) -> Generator[tuple[int, Any]
             initargs=(os.getpid(), ctx.get_start_method()),
         )
         state = {"broken": False}
-        finished = False
         try:
             yield from _one_pool(ex, fn, run, on_error, state)
-            finished = True
-        finally:
-            if finished:
-                ex.shutdown(wait=not state["broken"], cancel_futures=True)
-            else:  # a signal, an error, or the caller stopped early: end the workers now
-                _stop_pool(ex)
+        except BaseException:  # a signal, an error, or the caller stopped early: end the workers now
+            _stop_pool(ex)
+            raise
+        ex.shutdown(wait=not state["broken"], cancel_futures=True)
         if not state["broken"]:
             return
 
@@ -558,12 +545,11 @@ def _dask_map(client, fn, tasks, on_error) -> Generator[tuple[int, Any], None, N
     pending: dict = {}
 
     def submit() -> bool:
-        try:
-            i, task = next(it)
-        except StopIteration:
+        nxt = next(it, None)
+        if nxt is None:
             return False
-        fut = client.submit(fn, task, pure=False)
-        pending[fut.key] = (i, task, fut)
+        fut = client.submit(fn, nxt[1], pure=False)
+        pending[fut.key] = (*nxt, fut)
         ac.add(fut)
         return True
 

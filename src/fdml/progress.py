@@ -142,21 +142,14 @@ class TqdmProgress:
                 "TqdmProgress needs tqdm; install the optional extra: pip install 'fdml[progress]'"
             ) from None
         self.reset_each_fit = reset_each_fit
-        self.bar = tqdm(
-            total=total,
-            desc=desc,
-            file=file if file is not None else sys.stderr,
-            leave=leave,
-            unit="it",
-            disable=disable,
-        )
+        stream = file if file is not None else sys.stderr
+        self.bar = tqdm(total=total, desc=desc, file=stream, leave=leave, unit="it", disable=disable)
 
     def __call__(self, info) -> None:
         if self.reset_each_fit and info.iteration == 1 and self.bar.n:
             self.bar.reset()
         self.bar.set_postfix(cost=f"{info.cost:.4g}", step=f"{info.step_in_stderr:.3g} se", refresh=False)
         self.bar.update(1)
-        return None
 
     def close(self) -> None:
         """Close the bar after drawing its final count.
@@ -199,7 +192,6 @@ class PrintProgress:
                 f"iteration {info.iteration:3d}  J = det R = {info.cost:.6g}  "
                 f"largest step {info.step_in_stderr:.3g} standard errors\n"
             )
-        return None
 
 
 class HistoryRecorder:
@@ -225,7 +217,6 @@ class HistoryRecorder:
         if info.iteration == 1 or not self.fits:
             self.fits.append([])
         self.fits[-1].append(info)
-        return None
 
     @property
     def costs(self) -> np.ndarray:
@@ -336,10 +327,7 @@ def chain(*callbacks):
             raise TypeError(f"callbacks must be callable, got {type(c).__name__}")
 
     def combined(info) -> bool:
-        stop = False
-        for c in cbs:
-            stop = bool(c(info)) or stop
-        return stop
+        return any([c(info) for c in cbs])  # a list, not a generator: every callback is called
 
     combined.callbacks = tuple(cbs)
     return combined

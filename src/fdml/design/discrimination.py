@@ -363,8 +363,7 @@ def minimum_detectable(
     new = [n for n in with_effect.parameters.free_names if n not in model.parameters.free_names]
     if not new:
         raise FdmlError(f"effect {effect!r} adds no free parameter to the {model.kind} model: nothing to detect")
-    pred = predict(with_effect, inp, noise=noise, **kw)
-    lam_req = required_noncentrality(power, level, 1)
-    se = pred.stderr
+    se = predict(with_effect, inp, noise=noise, **kw).stderr
+    root = math.sqrt(required_noncentrality(power, level, 1))
     units = with_effect.parameters
-    return [Detectable(effect, n, se[n], math.sqrt(lam_req) * se[n], power, level, units[n].unit) for n in new]
+    return [Detectable(effect, n, se[n], root * se[n], power, level, units[n].unit) for n in new]

@@ -143,10 +143,6 @@ class DesignInput:
         self.to_record().to_csv(path)
 
 
-def _time(lim: Limits) -> np.ndarray:
-    return mv.time_vector(lim.duration, lim.dt)
-
-
 def _check_band(band, lim: Limits) -> tuple[float, float]:
     """The band's edges, rad/s (:func:`fdml.spectral.parse_band`), holding two harmonics of the record."""
     lo, hi, _ = parse_band(band, dt=lim.dt)  # an input's band has no grid
@@ -177,7 +173,7 @@ def _steps(kind: str, lim: Limits, unit: float | None) -> DesignInput:
             f"{lim.rate:.4g} rad/s (each edge needs {rise:.3g} s); raise the unit or the rate limit, "
             "or lower the amplitude"
         )
-    t = _time(lim)
+    t = mv.time_vector(lim.duration, lim.dt)
     if kind == "doublet":
         de = mv.doublet(t, lim.amplitude, start=_START, width=unit, rise=rise)
     else:
@@ -217,16 +213,15 @@ def classic_input(kind: str, lim: Limits, band=(0.5, 10.0), *, unit: float | Non
     if kind in ("doublet", "3211"):
         return _steps(kind, lim, unit)
     lo, hi = _check_band(band, lim)
-    t = _time(lim)
-    if kind in ("sweep", "log-sweep"):
-        u = mv.sweep(t, 1.0, lo, hi, kind="log" if kind == "log-sweep" else "linear")
-        opts = {"band": [lo, hi], "kind": "log" if kind == "log-sweep" else "linear"}
-    elif kind in ("schroeder", "min-crest"):
+    if kind in ("schroeder", "min-crest"):
         return multisine_input(lim, (lo, hi), phases=kind, name=f"{kind} multisine")
-    else:
+    if kind not in ("sweep", "log-sweep"):
         raise ParameterError(f"unknown input kind {kind!r}; kinds: {', '.join(CLASSIC_KINDS)}")
+    t = mv.time_vector(lim.duration, lim.dt)
+    shape = "log" if kind == "log-sweep" else "linear"
+    u = mv.sweep(t, 1.0, lo, hi, kind=shape)
     de, frac = _rate_scaled(u / np.max(np.abs(u)), lim)
-    return DesignInput(kind, t, {"de": de}, {**opts, "amplitude_fraction": frac}, lim)
+    return DesignInput(kind, t, {"de": de}, {"band": [lo, hi], "kind": shape, "amplitude_fraction": frac}, lim)
 
 
 def multisine_input(
@@ -270,11 +265,10 @@ def multisine_input(
         and ``amplitude_fraction`` (< 1 when the rate limit lowered the amplitude).
     """
     lo, hi = _check_band(band, lim)
-    t = _time(lim)
+    t = mv.time_vector(lim.duration, lim.dt)
     if second is not None:
         stride = 2
-    kw = {"phases": phases, "amplitudes": amplitudes, "stride": stride, "offset": offset}
-    u = mv.multisine(t, 1.0, lo, hi, **kw)
+    u = mv.multisine(t, 1.0, lo, hi, phases=phases, amplitudes=amplitudes, stride=stride, offset=offset)
     de, frac = _rate_scaled(u, lim)
     omega = mv.multisine_frequencies(t, lo, hi, stride=stride, offset=offset)
     signals = {"de": de}

@@ -93,27 +93,17 @@ def harmonic_information(model, omega, names, stds, outputs=OUTPUTS) -> np.ndarr
     return np.real(np.conj(np.transpose(a, (0, 2, 1))) @ S_inv @ a)
 
 
-def _d_optimal(Mk: np.ndarray) -> np.ndarray:
+def _multiplicative(Mk: np.ndarray, sel: list[int] | None) -> np.ndarray:
+    """The d-optimal (``sel`` None) or a-optimal (variances of the parameters ``sel``) power fractions."""
     K, p, _ = Mk.shape
     w = np.full(K, 1.0 / K)
+    C = np.eye(p)[sel or []]
     for _ in range(_ITERATIONS):
         Minv = np.linalg.inv(np.tensordot(w, Mk, axes=1))
-        d = np.einsum("ij,kji->k", Minv, Mk)  # tr(M^-1 M_k)
-        w = w * d / p
-        w /= w.sum()
-    return w
-
-
-def _a_optimal(Mk: np.ndarray, sel: list[int]) -> np.ndarray:
-    K = Mk.shape[0]
-    w = np.full(K, 1.0 / K)
-    C = np.zeros((len(sel), Mk.shape[1]))
-    C[np.arange(len(sel)), sel] = 1.0
-    for _ in range(_ITERATIONS):
-        Minv = np.linalg.inv(np.tensordot(w, Mk, axes=1))
-        B = Minv @ C.T @ C @ Minv
-        d = np.einsum("ij,kji->k", B, Mk)  # tr(M^-1 C^T C M^-1 M_k)
-        w = w * np.sqrt(np.maximum(d, 0.0))
+        if sel is None:
+            w = w * np.einsum("ij,kji->k", Minv, Mk) / p  # tr(M^-1 M_k)
+        else:  # tr(M^-1 C^T C M^-1 M_k)
+            w = w * np.sqrt(np.maximum(np.einsum("ij,kji->k", Minv @ C.T @ C @ Minv, Mk), 0.0))
         w /= w.sum()
     return w
 
@@ -169,12 +159,12 @@ def allocate(criterion: str, model, omega, stds, *, targets=(), steady=None, out
     """
     names = model_parameters(model)
     if criterion == "d-optimal":
-        return _d_optimal(harmonic_information(model, omega, names, stds, outputs))
+        return _multiplicative(harmonic_information(model, omega, names, stds, outputs), None)
     if criterion == "a-optimal":
         if not targets:
             raise ParameterError("the a-optimal criterion needs target parameters (e.g. --targets b1,y_w,G)")
         sel = [_target_index(model, names, t) for t in targets]
-        return _a_optimal(harmonic_information(model, omega, names, stds, outputs), sel)
+        return _multiplicative(harmonic_information(model, omega, names, stds, outputs), sel)
     if criterion == "discriminate":
         if model.kind != "unsteady" or steady is None:
             raise FdmlError(

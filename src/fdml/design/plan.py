@@ -99,19 +99,16 @@ class Design:
             lines.append(row)
         lines += _placeholder_note(self.placeholders, len(head))
         if self.detectable:
-            lines.append("")
-            lines.append(f"{'effect':<22}{'parameter':<12}{'min. detectable':>22}  (power, level)")
+            lines += ["", f"{'effect':<22}{'parameter':<12}{'min. detectable':>22}  (power, level)"]
             for e in self.detectable:
                 value = f"{e.minimum:.4g} {e.unit}".rstrip()
                 lines.append(f"{e.effect:<22}{e.parameter:<12}{value:>22}  ({e.power:g}, {e.level:g})")
         if self.discrimination:
-            lines.append("")
             head = f"{'steady vs unsteady':<22}{'lambda':>10}{'P(detect)':>11}{'P(favoured)':>13}{'P(compare)':>12}"
-            lines.append(head)
+            lines += ["", head]
             for k, d in self.discrimination.items():
-                lines.append(
-                    f"{k[:22]:<22}{d.noncentrality:>10.3g}{d.probability:>11.3f}{d.favoured:>13.3f}{d.vuong:>12.3f}"
-                )
+                row = f"{d.noncentrality:>10.3g}{d.probability:>11.3f}{d.favoured:>13.3f}{d.vuong:>12.3f}"
+                lines.append(f"{k[:22]:<22}{row}")
         return "\n".join(lines)
 
     def to_dict(self, csv_path=None) -> dict:
@@ -238,12 +235,6 @@ def _saved_input(f: Fields, name: str) -> DesignInput:
     return replace(inp, name=name)
 
 
-def _steady_for(model, steady_kind: str):
-    if model.kind != "unsteady":
-        return None
-    return make_model(steady_kind, model.aircraft, gust=model.gust)
-
-
 def design(
     model,
     *,
@@ -312,7 +303,7 @@ def design(
         dt, duration = float(given.t[1] - given.t[0]), float(given.t[-1])
     fband = parse_band((0.5, 10.0) if band is None else band, dt=dt)
     lim = Limits(amplitude=amplitude, duration=duration, dt=dt, rate=rate)
-    ms = _steady_for(model, steady)
+    ms = make_model(steady, model.aircraft, gust=model.gust) if model.kind == "unsteady" else None
     ref = classic_input("3211", lim, fband[:2]) if given is None else given
     stds = noise_stds(response(model, ref), noise)
     if given is None:
@@ -340,12 +331,7 @@ def _scorer(criterion: str, model, steady, stds, band, targets):
         return lambda inp: discriminate(model, steady, inp, noise=stds, band=band).noncentrality
     if criterion == "a-optimal":
         return lambda inp: -sum(predict(model, inp, noise=stds, band=band).cov_of(targets))
-
-    def d_score(inp):
-        p = predict(model, inp, noise=stds, band=band)
-        return -float(np.linalg.slogdet(p.model_cov())[1])
-
-    return d_score
+    return lambda inp: -float(np.linalg.slogdet(predict(model, inp, noise=stds, band=band).model_cov())[1])
 
 
 def plot_design(d: Design, fig=None):
