@@ -87,6 +87,9 @@ ALPHA = LEVEL
 MAX_BANDS = 4
 MIN_BAND = 6
 
+#: What a refit or a check that cannot run raises: reported, never fatal.
+_FAILURES = (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError)
+
 #: Output effects whose function evaluates a nuisance grid at once (checked once each, see _Context._agrees).
 _VECTORISES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -821,7 +824,6 @@ class _Refit:
     p: float
     q_eff: int
     params: dict
-    plausible: bool
     demoted: str | None
 
 
@@ -846,40 +848,40 @@ def _kinematics(prob, model):
         return None
 
 
-def _independent_rows(prob) -> np.ndarray:
-    off, out = 0, []
-    for d in prob.data:
-        out.append(off + _independent(d))
-        off += d.m
-    return np.concatenate(out)
+def _refitted(refit, model, **options):
+    """``refit(model, **options)``, None when it fails."""
+    try:
+        return refit(model, **options)
+    except _FAILURES:
+        return None
+
+
+def _lr(R0: np.ndarray, R1: np.ndarray, n_ind: float) -> float:
+    """The likelihood ratio of a refit with residual covariance R1 against R0 (module doc), at least 0."""
+    return max(2.0 * n_ind * (np.linalg.slogdet(R0)[1] - np.linalg.slogdet(R1)[1]), 0.0)
 
 
 def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Refit | None:
+    from .kinematics import input_resolution
     from .models.effects import root_model, with_effects
     from .verdict import judge
 
     model = with_effects(result.model, eff)
     model = model.with_values({k: v for k, v in start.items() if k in model.parameters and math.isfinite(v)})
-    try:
-        r = refit(model)
-    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
+    r = _refitted(refit, model)
+    if r is None:
         return None
-    lr = max(2.0 * n_ind * (np.linalg.slogdet(result.R)[1] - np.linalg.slogdet(r.R)[1]), 0.0)
+    lr = _lr(result.R, r.R, n_ind)
     null, q = null_kind(eff, result.model)
     p, _ = p_value(lr, q, null)
     plist = eff.param_list(result.model)
     params = {x.name: (r.params.get(x.name, math.nan), r.errors.get(x.name, math.nan)) for x in plist}
-    plausible = all(
-        x.plausible is None or x.nuisance or x.plausible[0] <= params[x.name][0] <= x.plausible[1] for x in plist
-    )
     base = [x.name for x in root_model(result.model).parameters if x.free and x.name in r.params]
     derivs = {n: (r.params[n], r.errors[n]) for n in base}
-    from .kinematics import input_resolution
-
     dt = max(float(d.dt) for d in prob.data)
     floor = input_resolution([d.record for d in prob.data], dt)
     why = judge(eff, params, result.model, derivs, kin, dt=dt, U=_airspeed(result.model), input_floor=floor)
-    return _Refit(eff, r, lr, p, q + len([x for x in plist if x.nuisance]), params, plausible, why)
+    return _Refit(eff, r, lr, p, q + len([x for x in plist if x.nuisance]), params, why)
 
 
 def _candidates(adequacy: Adequacy, kin, model) -> list:
@@ -890,10 +892,7 @@ def _candidates(adequacy: Adequacy, kin, model) -> list:
         # a lag starts at its kinematic value (its cost has other minima); an offset or a scale at its
         # null, where the fit's own estimate is the optimum (Twin Otter 017: 6 and 8 passes, not 8 and 12)
         return [(get_effect(m.key), {m.param: m.value} if m.unit == "s" else {}) for m in kin.aliases[0]]
-    out = []
-    for e in adequacy.flagged[:MAX_REFITS]:
-        out.append((get_effect(e.key), dict(e.expected)))
-    return out
+    return [(get_effect(e.key), dict(e.expected)) for e in adequacy.flagged[:MAX_REFITS]]
 
 
 def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
@@ -925,8 +924,7 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
     if adequacy.adequate:
         return None
     kin = _kinematics(prob, result.model)
-    rows = _independent_rows(prob)
-    n_ind = float(rows.size)
+    n_ind = float(sum(_independent(d).size for d in prob.data))
     if kin is not None and kin.settled:
         m = kin.settled[0]
         beside = _steps_beside(prob, result, refit, n_ind, m)
@@ -958,11 +956,8 @@ def _steps(prob, n_ind: float) -> tuple[int, float]:
 
 def _lr_of_steps(refit, model, R0: np.ndarray, n_ind: float) -> float | None:
     """LR of ``model`` refitted with every step's timing against residual covariance ``R0`` (None: no fit)."""
-    try:
-        r = refit(model, input_edges="estimated")
-    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
-        return None
-    return max(2.0 * n_ind * (np.linalg.slogdet(R0)[1] - np.linalg.slogdet(r.R)[1]), 0.0) if r.converged else None
+    r = _refitted(refit, model, input_edges="estimated")
+    return _lr(R0, r.R, n_ind) if r is not None and r.converged else None
 
 
 def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside: tuple):
@@ -974,8 +969,6 @@ def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside:
     (``"beside"``, LR) when it lowers the BIC beside the best candidate, else (None, 0) (also for records
     without such steps and for a fit that estimated them).
     """
-    from .tails import chi2_sf
-
     k, logn = _steps(prob, n_ind)
     if not k:
         return None, 0.0
@@ -1001,11 +994,8 @@ def _steps_beside(prob, result, refit, n_ind: float, m) -> bool:
     if not k:
         return False
     model = with_effects(result.model, get_effect(m.key)).fix({m.param: m.value})
-    try:
-        r0 = refit(model)
-    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
-        return False
-    lr = _lr_of_steps(refit, model, r0.R, n_ind)
+    r0 = _refitted(refit, model)
+    lr = None if r0 is None else _lr_of_steps(refit, model, r0.R, n_ind)
     return lr is not None and lr > k * logn
 
 
@@ -1062,16 +1052,13 @@ def advice(
         return _verdict_advice(adequacy, v, fit_argv, diagnosis)
     if adequacy.flagged:
         top = adequacy.flagged[0]
-        others = [e.key for e in adequacy.flagged[1:]]
-        refit = (
-            shlex.join([*fit_argv, "--effect", top.option])
-            if fit_argv
-            else f"fdml fit RECORD ... --effect {top.option} (Python: fdml.with_effects(model, {top.option!r}))"
+        refit = _command(
+            fit_argv,
+            ["--effect", top.option],
+            f"fdml fit RECORD ... --effect {top.option} (Python: fdml.with_effects(model, {top.option!r}))",
         )
-        also = f"; also flagged: {', '.join(others)}" if others else ""
-        return f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}" + (
-            f"; or {diagnosis}" if diagnosis else ""
-        )
+        also = _also([e.key for e in adequacy.flagged[1:]])
+        return f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}" + _or(diagnosis)
     c = adequacy.residual_flags[0]
     bounds = "the bounds assume white noise"
     if cov_type == "colored":
@@ -1087,6 +1074,19 @@ def advice(
 def _option(key: str) -> str:
     name, _, channel = key.partition("@")
     return f"{name}:{channel}"
+
+
+def _command(fit_argv, args: list, generic: str) -> str:
+    """The refit: the running command line with ``args`` added, else the ``generic`` spelling."""
+    return shlex.join([*fit_argv, *args]) if fit_argv else generic
+
+
+def _also(keys: list) -> str:
+    return f"; also flagged: {', '.join(keys)}" if keys else ""
+
+
+def _or(diagnosis: str) -> str:
+    return f"; or {diagnosis}" if diagnosis else ""
 
 
 def _airspeed_alias(v: Verdict) -> str:
@@ -1107,11 +1107,10 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
         why = "; ".join(f"{k}: {r}" for k, r in v.set_aside)
         return f"the fit's residuals flag effects that were all set aside ({why}){tail}"
     if v.source == "steps":
-        args = ["--input-edges", "estimated"]
-        refit = (
-            shlex.join([*fit_argv, *args])
-            if fit_argv
-            else 'fdml fit RECORD ... --input-edges estimated (Python: input_edges="estimated")'
+        refit = _command(
+            fit_argv,
+            ["--input-edges", "estimated"],
+            'fdml fit RECORD ... --input-edges estimated (Python: input_edges="estimated")',
         )
         return (
             f"the elevator steps between samples, and their timing (LR {v.lr:.3g}) explains the fit's residuals better "
@@ -1121,9 +1120,8 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
     extra = [f"{k}={val:.6g}" for k, (val, _) in v.params.items()] if v.source == "kinematics" else []
     args = ["--effect", _option(v.key)] + [a for x in extra for a in ("--fix", x)]
     args += ["--input-edges", "estimated"] if v.with_steps else []
-    refit = shlex.join([*fit_argv, *args]) if fit_argv else "fdml fit RECORD ... " + shlex.join(args)
-    others = [e.key for e in adequacy.flagged if e.key not in v.aliases]
-    also = f"; also flagged: {', '.join(others)}" if others else ""
+    refit = _command(fit_argv, args, "fdml fit RECORD ... " + shlex.join(args))
+    also = _also([e.key for e in adequacy.flagged if e.key not in v.aliases])
     if v.source == "kinematics":
         what = (
             f"the kinematics (alpha, q and a_z against the short-period identity, whatever the aerodynamics) "
@@ -1137,7 +1135,7 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
     else:
         steps = ", with the timing of the elevator's steps between samples" if v.with_steps else ""
         what = f"the fit's residuals carry {v.describe()}{steps}{also}. Refit with it: {refit}"
-    return what + (f"; or {diagnosis}" if diagnosis else "")
+    return what + _or(diagnosis)
 
 
 def reworded(
@@ -1222,12 +1220,11 @@ def attach(prob, result, V, sensitivities=None, refit=None):
         found = check(prob, result.values, V, result.R, sensitivities=sensitivities)
         if refit is not None and not found.adequate:
             found = replace(found, verdict=rank(found, prob, result, refit))
-    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:
+    except _FAILURES as exc:
         msg = f"the adequacy check could not run: {exc}"
         warnings.warn(msg, AdequacyWarning, stacklevel=4)
         return result
     msg = advice(found, cov_type=getattr(result, "cov_type", None))
-    if msg is None:
-        return replace(result, adequacy=found)
-    warnings.warn(msg, AdequacyWarning, stacklevel=4)
+    if msg is not None:
+        warnings.warn(msg, AdequacyWarning, stacklevel=4)
     return replace(result, adequacy=found)

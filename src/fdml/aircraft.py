@@ -88,23 +88,6 @@ KEY_MEANINGS = {
 #: incompressible theory: validity is the user's call, not this limit's.)
 MAX_AIRSPEED = 3000.0
 
-#: Optional model constants an aircraft may carry, by parameter name.
-CONSTANT_KEYS = (
-    "CLa_w",
-    "CLa_t",
-    "deps_da",
-    "Cm_de",
-    "Cz_de",
-    "y_w",
-    "z_w",
-    "y_t",
-    "z_t",
-    "F",
-    "G",
-    "H",
-    "b1",
-)
-
 #: Start values used for constants an aircraft file does not give.  They are
 #: generic light-aircraft numbers, not data: a fit frees the first five, and
 #: the lag constants default to "no lag" so that nothing unsteady is assumed.
@@ -123,6 +106,9 @@ GENERIC_CONSTANTS = {
     "H": 0.065,
     "b1": 7.5,
 }
+
+#: Optional model constants an aircraft may carry, by parameter name.
+CONSTANT_KEYS = tuple(GENERIC_CONSTANTS)
 
 
 #: The lag constants of the unsteady model (docs/theory.md Eqs. 1-2): lift lag of wing
@@ -265,7 +251,7 @@ class Aircraft:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
             raise AircraftError(f"aircraft name must be a non-empty string, got {self.name!r}")
-        for key in REQUIRED_KEYS[1:]:
+        for key in (*REQUIRED_KEYS[1:], *(("b",) if self.b is not None else ())):
             # every field is a size, a mass, an inertia, a speed or a density: positive
             v = _real(getattr(self, key), f"aircraft {self.name!r}: {key} ({_UNITS[key]})")
             if v <= 0:
@@ -273,11 +259,6 @@ class Aircraft:
                     f"aircraft {self.name!r}: {key} must be positive and finite ({_UNITS[key]}), got {v!r}"
                 )
             object.__setattr__(self, key, v)
-        if self.b is not None:
-            span = _real(self.b, f"aircraft {self.name!r}: b ({_UNITS['b']})")
-            if span <= 0:
-                raise AircraftError(f"aircraft {self.name!r}: b must be positive and finite (m), got {span!r}")
-            object.__setattr__(self, "b", span)
         if self.U > MAX_AIRSPEED:
             raise AircraftError(
                 f"aircraft {self.name!r}: airspeed U = {self.U:g} m/s is not physical "

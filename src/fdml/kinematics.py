@@ -218,7 +218,6 @@ def resolution(unit: str, dt: float, U: float) -> float | None:
     return {"s": TIME_RESOLUTION * dt, "m": TIME_RESOLUTION * dt * U, "-": SCALE_RESOLUTION}.get(unit)
 
 
-_OUTPUTS = OUTPUTS  # alpha, q, a_z: the three outputs the identity links
 #: The identity is read from MIN_CYCLES cycles over the record up (omega >= MIN_CYCLES 2 pi/T): below,
 #: a frequency is not resolved by the record, its transform is leakage of the record's ends and drift,
 #: and the identity's linearisation about trim (the flight-path angle and airspeed terms it drops) is
@@ -280,16 +279,16 @@ def sensor_terms(effect, values: dict) -> SensorTerms | None:
     name, chans = effect.name, effect.channel.split(",")
     if name in ("time_delay", "actuator_lag") and chans == ["de"]:
         return SensorTerms()
-    if name == "time_delay" and all(c in _OUTPUTS for c in chans):
+    if name == "time_delay" and all(c in OUTPUTS for c in chans):
         tau = float(values["tau_" + "_".join(chans)])
-        return SensorTerms(lags=tuple(tau if c in chans else 0.0 for c in _OUTPUTS))
+        return SensorTerms(lags=tuple(tau if c in chans else 0.0 for c in OUTPUTS))
     if name == "sensor_offset" and chans == ["alpha"]:
         return SensorTerms(offset=float(values["x_alpha"]))
     if name == "sensor_offset" and chans == ["az"]:
         return SensorTerms(offset=-float(values["x_az"]))
-    if name == "sensor_scale" and chans[0] in _OUTPUTS:
+    if name == "sensor_scale" and chans[0] in OUTPUTS:
         k = 1.0 + float(values["k_" + chans[0]])
-        return SensorTerms(scales=tuple(k if c == chans[0] else 1.0 for c in _OUTPUTS))
+        return SensorTerms(scales=tuple(k if c == chans[0] else 1.0 for c in OUTPUTS))
     return None
 
 
@@ -423,7 +422,7 @@ def patterns() -> tuple:
             "tau_" + "_".join(g),
             "s",
             (0.0, MAX_SHIFT),
-            lags=tuple(1.0 if c in g else 0.0 for c in _OUTPUTS),
+            lags=tuple(1.0 if c in g else 0.0 for c in OUTPUTS),
         )
         for g in TIMING_GROUPS
     ]
@@ -431,7 +430,7 @@ def patterns() -> tuple:
         Pattern(("sensor_offset@alpha", "sensor_offset@az"), "x_alpha", "m", (-MAX_OFFSET, MAX_OFFSET), offset=1.0)
     )
     out += [
-        Pattern((f"sensor_scale@{c}",), f"k_{c}", "-", (-MAX_SCALE, MAX_SCALE), scale=i) for i, c in enumerate(_OUTPUTS)
+        Pattern((f"sensor_scale@{c}",), f"k_{c}", "-", (-MAX_SCALE, MAX_SCALE), scale=i) for i, c in enumerate(OUTPUTS)
     ]
     return tuple(out)
 
@@ -468,7 +467,7 @@ def _records(spectra) -> list:
         steps = np.exp(-np.outer(s, np.asarray(getattr(d, "edges", ()), float)))
         N = np.column_stack([np.ones_like(s), np.exp(-s * d.T), np.asarray(d.ones)[keep], steps])
         z = np.asarray(d.z)[keep]
-        A, Q, Z = (z[:, list(d.outputs).index(c)] for c in _OUTPUTS)  # by name: theta or q_dot may be beside
+        A, Q, Z = (z[:, list(d.outputs).index(c)] for c in OUTPUTS)  # by name: theta or q_dot may be beside
         out.append(_Record(float(d.T), s, A, Q, Z, N, _ends(d), K, max(int(round(K)), 1)))
     return out
 
@@ -479,7 +478,7 @@ def _ends(d) -> np.ndarray:
     boundary nuisance's span, and only the second-order ``s tau^2`` part is left unmodelled)."""
     out = np.zeros((3, 2))
     rows = boundary_channels(d.outputs)
-    for j, c in enumerate(_OUTPUTS):
+    for j, c in enumerate(OUTPUTS):
         if c in rows:
             out[j] = d.x0[rows.index(c)], d.xT[rows.index(c)]
         elif d.record is not None and c in d.record.signals:
@@ -520,11 +519,7 @@ def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scale
 
 def _batch(terms) -> tuple:
     """(lags (G, 3), offsets (G,), scales (G, 3)) of a sequence of SensorTerms."""
-    return (
-        np.array([t.lags for t in terms], float),
-        np.array([t.offset for t in terms], float),
-        np.array([t.scales for t in terms], float),
-    )
+    return tuple(np.array([getattr(t, k) for t in terms], float) for k in ("lags", "offset", "scales"))
 
 
 @dataclass(frozen=True)
@@ -655,8 +650,7 @@ def _linear_profile(idn: _Identity, base: SensorTerms, pat: Pattern) -> tuple[fl
     x = u if pat.scale is None else 1.0 / u - 1.0
     # cost'' in the size: d2/dk2 of a u^2 + b u with du/dk = -u^2, d2u/dk2 = 2 u^3 for a scale
     curv = 2 * a if pat.scale is None else (2 * a * u + b) * 2 * u**3 + 2 * a * u**4
-    se = math.sqrt(2.0 / curv) if curv > 0 else math.inf  # cost = -2 ln L: var = 2 / cost''
-    return float(x), float(idn.terms_cost(base + pat.terms(x))), se
+    return float(x), float(idn.terms_cost(base + pat.terms(x))), _stderr(curv)
 
 
 def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -> tuple[float, float, float]:
@@ -679,9 +673,12 @@ def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -
             x = float(np.clip(x - half * (cp - cm) / (cp - 2 * c0 + cm), grid[i - 1], grid[i + 1]))
     h = 1e-4 * (hi - lo)  # the cost is defined past the bounds (a lead): its curvature at x, at a bound too
     cm, c0, cp = idn.costs(pat.batch(base, np.array([x - h, x, x + h])))
-    curv = (cp - 2 * c0 + cm) / h**2
-    se = math.sqrt(2.0 / curv) if curv > 0 else math.inf  # cost = -2 ln L: var = 2 / cost''
-    return x, float(c0), se
+    return x, float(c0), _stderr((cp - 2 * c0 + cm) / h**2)
+
+
+def _stderr(curv: float) -> float:
+    """The standard error of a size from the cost's curvature in it (cost = -2 ln L: var = 2 / cost'')."""
+    return math.sqrt(2.0 / curv) if curv > 0 else math.inf
 
 
 # --- the evidence --------------------------------------------------------------------------------
@@ -907,10 +904,7 @@ class KinematicEvidence:
         SensorTerms
             Their sum.
         """
-        t = self.known
-        for m in self.settled:
-            t = t + m.terms()
-        return t
+        return sum((m.terms() for m in self.settled), self.known)
 
     def check(self, terms: SensorTerms | None) -> tuple[float, float]:
         """Does a candidate's sensor part contradict the identity?  (LR, p) of undoing it.

@@ -287,18 +287,7 @@ def holm(p: np.ndarray) -> np.ndarray:
     numpy.ndarray
         Adjusted p-values, same shape.
     """
-    p = np.asarray(p, float)
-    out = np.full_like(p, np.nan)
-    ok = np.flatnonzero(np.isfinite(p))
-    if ok.size == 0:
-        return out
-    order = ok[np.argsort(p[ok])]
-    m = order.size
-    run = 0.0
-    for i, k in enumerate(order):
-        run = max(run, min(1.0, (m - i) * p[k]))
-        out[k] = run
-    return out
+    return _adjusted(p, lambda ps, m: np.maximum.accumulate(np.minimum(1.0, ps * (m - np.arange(m)))))
 
 
 def bh(p: np.ndarray) -> np.ndarray:
@@ -314,16 +303,17 @@ def bh(p: np.ndarray) -> np.ndarray:
     numpy.ndarray
         The q-values, same shape.
     """
+    return _adjusted(p, lambda ps, m: np.minimum.accumulate(np.minimum(1.0, ps * m / np.arange(1, m + 1))[::-1])[::-1])
+
+
+def _adjusted(p: np.ndarray, adjust) -> np.ndarray:
+    """``adjust(sorted finite p-values, their count)`` put back in the order of ``p``; NaN stays NaN."""
     p = np.asarray(p, float)
     out = np.full_like(p, np.nan)
     ok = np.flatnonzero(np.isfinite(p))
-    if ok.size == 0:
-        return out
-    order = ok[np.argsort(p[ok])]
-    m = order.size
-    q = np.minimum(1.0, p[order] * m / np.arange(1, m + 1))
-    q = np.minimum.accumulate(q[::-1])[::-1]
-    out[order] = q
+    if ok.size:
+        order = ok[np.argsort(p[ok])]
+        out[order] = adjust(p[order], order.size)
     return out
 
 
@@ -448,15 +438,13 @@ class ScreenContext:
         self.K = oversample
         self.spectra = list(spectra)
         self.options = fit_options
-        Ls = whitener(fit.Rs)
-        self.L = np.stack(Ls)[rows]  # (N, n, n)
+        self.L = np.stack(whitener(fit.Rs))[rows]  # (N, n, n)
         A = fit.prob.sensitivities(fit.theta) if sensitivities is None else sensitivities
-        self.r = self._real(self._white(fit.V))
-        self.Q = self._basis(self._real_cols(self._white_cols(A)))
+        self.r = self.white(fit.V[:, :, None])[:, 0]
+        self.Q = self._basis(self.white(A))
         # noise-floor metric (diagonal) for aliasing and MDE
-        n = fit.V.shape[1]
-        self.fw = np.ones((fit.V.shape[0], n)) if floor_weights is None else np.asarray(floor_weights, float)
-        self.Qf = self._basis(self._real_cols(self._floor_cols(A)))
+        self.fw = np.ones(fit.V.shape) if floor_weights is None else np.asarray(floor_weights, float)
+        self.Qf = self._basis(self.floor(A))
         self._rp: np.ndarray | None = None
 
     @staticmethod
@@ -465,21 +453,6 @@ class ScreenContext:
         U, s, _ = np.linalg.svd(J, full_matrices=False)
         keep = s > 1e-10 * (s[0] if s.size else 1.0)
         return U[:, keep]
-
-    def _white(self, V):
-        return (self.L @ V[:, :, None])[:, :, 0]
-
-    def _white_cols(self, A):
-        return self.L @ A
-
-    def _floor_cols(self, A):
-        """A whitened by the diagonal noise floors (row n, output j divided by its floor)."""
-        return A * self.fw[:, :, None]
-
-    @staticmethod
-    def _real(v):
-        v = v.ravel()
-        return np.concatenate([v.real, v.imag])
 
     @staticmethod
     def _real_cols(A):
@@ -537,7 +510,7 @@ class ScreenContext:
         numpy.ndarray
             The columns, shape (M, q) with M = 2 N n_out.
         """
-        return self._real_cols(self._white_cols(A))
+        return self._real_cols(self.L @ A)
 
     def floor(self, A: np.ndarray) -> np.ndarray:
         """Floor-whitened, real-stacked columns of dy/d eta (for aliasing and the MDE): (M, q).
@@ -552,7 +525,7 @@ class ScreenContext:
         numpy.ndarray
             The columns, shape (M, q) with M = 2 N n_out.
         """
-        return self._real_cols(self._floor_cols(A))
+        return self._real_cols(A * self.fw[:, :, None])  # row n, output j divided by its floor
 
     def pair(self, A: np.ndarray) -> tuple:
         """(:meth:`white`, :meth:`floor`) of A.
@@ -596,20 +569,13 @@ class ScreenContext:
             raise FdmlError("the screen was built without fdml.estimate.prepare: it cannot set up a candidate")
         prob = self._prepare(self.spectra, model, sensitivity="central", **self.options)
         theta = np.array([self.fit.params.get(n, model.parameters.values.get(n, 0.0)) for n in prob.names])
-        idx = {n: i for i, n in enumerate(prob.names)}
         cols = []
         for n, h, os_ in zip(names, steps, one_sided):
-            i = idx[n]
-            tp = theta.copy()
+            i, tp, tm = prob.names.index(n), theta.copy(), theta.copy()
             tp[i] += h
-            yp = _stack(prob, tp)
-            if os_:
-                y0 = _stack(prob, theta)
-                cols.append((yp - y0) / h)
-            else:
-                tm = theta.copy()
+            if not os_:  # a central difference; forward from a null on a bound
                 tm[i] -= h
-                cols.append((yp - _stack(prob, tm)) / (2 * h))
+            cols.append((_stack(prob, tp) - _stack(prob, tm)) / (h if os_ else 2 * h))
         return np.stack(cols, axis=-1)
 
     def candidate_jacobian(self, model, names, steps, one_sided) -> tuple:
@@ -746,12 +712,8 @@ def _blocks(n: int, per_value: int) -> list:
 
 def _steps(test, nulls, aug) -> tuple[list, list]:
     """Finite-difference steps (typical sizes) and one-sidedness (null on the lower bound) per tested parameter."""
-    steps, one_sided = [], []
-    for p in test:
-        at_lo = nulls[p.name] <= p.lower or (aug.parameters[p.name].lower >= nulls[p.name])
-        steps.append(p.typical())
-        one_sided.append(bool(at_lo))
-    return steps, one_sided
+    at_lo = [nulls[p.name] <= p.lower or aug.parameters[p.name].lower >= nulls[p.name] for p in test]
+    return [p.typical() for p in test], [bool(x) for x in at_lo]
 
 
 @dataclass(frozen=True)
@@ -900,13 +862,10 @@ def _grid_stats(ctx: ScreenContext, c: _Candidate, band: tuple) -> tuple:
 def _result(ctx: ScreenContext, c: _Candidate, stats: tuple, level: float) -> ScreenResult:
     """The screen's verdict on one candidate from its statistics (LM, eta, information, aliasing, ...)."""
     lm, eta, info, alias, jac, grid_out, best_nuis = stats
-    lm = float(lm)
     names = c.names
-    # one-sided nulls: a linearised step into the infeasible side means no evidence
-    for j in range(len(names)):
-        if c.one_sided[j] and eta[j] < 0 and len(names) == 1:
-            lm = 0.0
     q = len(names)
+    # one-sided nulls: a linearised step into the infeasible side means no evidence
+    lm = 0.0 if q == 1 and c.one_sided[0] and eta[0] < 0 else float(lm)
     n_family = max(int(getattr(ctx, "family_size", 1)), 1)
     lam = power_noncentrality(level / n_family, q)
     try:
