@@ -45,6 +45,7 @@ both use).
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import shlex
@@ -411,8 +412,6 @@ class _Context(ScreenContext):
     function that does not take that is evaluated value by value.
     """
 
-    _base_responses = None
-
     def candidate_sensitivities(self, model, names, steps, one_sided):
         (A,) = self.candidate_sensitivities_many([(model, names, steps, one_sided)])
         if isinstance(A, Exception):
@@ -431,7 +430,7 @@ class _Context(ScreenContext):
                 out.append(exc)
         if not changes:
             return out
-        base = self._base()
+        base = self._base
         A = self._measure(
             [
                 [_stack_parts([e for c in changes for e in c[r][i]], base[r][i]) for i in range(3)]
@@ -481,17 +480,17 @@ class _Context(ScreenContext):
         _VECTORISES[eff] = ok
         return ok
 
+    @functools.cached_property
     def _base(self) -> list:
-        if self._base_responses is None:
-            self._base_responses = [_ghp(self.fit.model.evaluate(d.omega)) for d in self.fit.prob.data]
-        return self._base_responses
+        """(G, H, P) per record of the fit's model (computed once)."""
+        return [_ghp(self.fit.model.evaluate(d.omega)) for d in self.fit.prob.data]
 
     def _response(self, eff, model, p) -> list:
         """(G, H, P) per record of ``model`` at the values ``p``."""
         if eff is None:
             return [_ghp(model.evaluate(d.omega, p)) for d in self.fit.prob.data]
         root = _root(self.fit.model)
-        return [eff.output(1j * d.omega, p, *r, root) for d, r in zip(self.fit.prob.data, self._base())]
+        return [eff.output(1j * d.omega, p, *r, root) for d, r in zip(self.fit.prob.data, self._base)]
 
     def _column(self, eff, model, up, down, step) -> list:
         """Per record, the central (or forward) difference of the responses, (dG, dH, dP); None: unchanged."""
@@ -517,7 +516,7 @@ class _Context(ScreenContext):
         vals = dict(model.parameters.values)
         root = _root(self.fit.model)
         changes = []
-        for d, r in zip(self.fit.prob.data, self._base()):
+        for d, r in zip(self.fit.prob.data, self._base):
             m = d.m
             s = np.tile(1j * d.omega, g)
             base = tuple(np.tile(x, (g, 1, 1)) for x in r)

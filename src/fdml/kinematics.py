@@ -453,7 +453,6 @@ class _Record:
     # (3, 2) measured x(0), x(T) of alpha (rad), q (rad/s), a_z (g) after trim: the ends a lag moves
     ends: np.ndarray
     K: float  # grid points per independent frequency
-    block: int  # grid points per independent frequency, rounded (for Vuong's blocks)
 
 
 def _records(spectra) -> list:
@@ -468,7 +467,7 @@ def _records(spectra) -> list:
         N = np.column_stack([np.ones_like(s), np.exp(-s * d.T), np.asarray(d.ones)[keep], steps])
         z = np.asarray(d.z)[keep]
         A, Q, Z = (z[:, list(d.outputs).index(c)] for c in OUTPUTS)  # by name: theta or q_dot may be beside
-        out.append(_Record(float(d.T), s, A, Q, Z, N, _ends(d), K, max(int(round(K)), 1)))
+        out.append(_Record(float(d.T), s, A, Q, Z, N, _ends(d), K))
     return out
 
 
@@ -943,15 +942,11 @@ class KinematicEvidence:
             ``aliases`` (lists of effect dicts), ``tested`` (finding dicts) and ``scales``.
         """
 
+        def sized(x) -> dict:  # a finding's or an effect's size
+            return {k: getattr(x, k) for k in ("param", "value", "stderr", "unit")}
+
         def eff(m: SensorEffect) -> dict:
-            return {
-                "key": m.key,
-                "param": m.param,
-                "value": m.value,
-                "stderr": m.stderr,
-                "unit": m.unit,
-                "lr": m.finding.lr,
-            }
+            return {"key": m.key, **sized(m), "lr": m.finding.lr}
 
         return {
             "source": self.source,
@@ -962,18 +957,7 @@ class KinematicEvidence:
             "aliases": [[eff(m) for m in a] for a in self.aliases],
             "implausible": [eff(m) for m in self.implausible],
             "unresolved": [eff(m) for m in self.unresolved],
-            "tested": [
-                {
-                    "keys": list(f.keys),
-                    "param": f.param,
-                    "value": f.value,
-                    "stderr": f.stderr,
-                    "unit": f.unit,
-                    "lr": f.lr,
-                    "p_value": f.p,
-                }
-                for f in self.tested
-            ],
+            "tested": [{"keys": list(f.keys), **sized(f), "lr": f.lr, "p_value": f.p} for f in self.tested],
             "scales": {k: {"value": v, "stderr": e} for k, (v, e) in self.scales.items()},
         }
 
@@ -1000,22 +984,15 @@ class KinematicEvidence:
 
         f = Fields(d, source)
 
+        def sized(x) -> tuple:  # param, value, stderr, unit
+            return x.string("param"), x.number("value"), x.number("stderr"), x.string("unit")
+
         def finding(x) -> KinematicFinding:
             keys = tuple(x.raw("keys")) if x.raw("keys", None) is not None else (x.string("key"),)
-            return KinematicFinding(
-                keys,
-                x.string("param"),
-                x.number("value"),
-                x.number("stderr"),
-                x.string("unit"),
-                x.number("lr"),
-                x.number("p_value", default=math.nan),
-            )
+            return KinematicFinding(keys, *sized(x), x.number("lr"), x.number("p_value", default=math.nan))
 
         def effect(x) -> SensorEffect:
-            return SensorEffect(
-                x.string("key"), x.string("param"), x.number("value"), x.number("stderr"), x.string("unit"), finding(x)
-            )
+            return SensorEffect(x.string("key"), *sized(x), finding(x))
 
         scales = f.mapping("scales")
         return cls(
@@ -1046,10 +1023,11 @@ class KinematicEvidence:
                 out.append(f"    or the airspeed is {self.airspeed * (1 + m.value):.4g} m/s, not {self.airspeed:.4g}")
         for a in self.aliases:
             out.append(f"  not separable by the kinematics: {' or '.join(m.describe() for m in a)}")
-        for m in self.implausible:
-            out.append(f"  set aside, outside its plausible range: {m.describe()}")
-        for m in self.unresolved:
-            out.append(f"  set aside, below the data's resolution: {m.describe()}")
+        for why, ms in (
+            ("outside its plausible range", self.implausible),
+            ("below the data's resolution", self.unresolved),
+        ):
+            out += [f"  set aside, {why}: {m.describe()}" for m in ms]
         if not self.settled and not self.aliases:
             out.append(f"  no sensor pattern at level {self.level:g} (largest: {self.tested[0].describe()})")
         ka, kz = self.scales["kappa_alpha"], self.scales["kappa_az"]

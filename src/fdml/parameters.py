@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -155,13 +155,9 @@ class Parameter:
             Every field; the role as its JSON form.
         """
         return {
-            "name": self.name,
-            "value": self.value,
-            "free": self.free,
+            **asdict(self),
             "lower": None if math.isinf(self.lower) else self.lower,
             "upper": None if math.isinf(self.upper) else self.upper,
-            "unit": self.unit,
-            "description": self.description,
             "role": self.role.value,
         }
 
@@ -179,8 +175,7 @@ class Parameter:
         Parameter
             The parameter.
         """
-        lo = d.get("lower")
-        hi = d.get("upper")
+        lo, hi = d.get("lower"), d.get("upper")
         return cls(
             name=d["name"],
             value=d["value"],
@@ -189,7 +184,7 @@ class Parameter:
             upper=math.inf if hi is None else float(hi),
             unit=d.get("unit", ""),
             description=d.get("description", ""),
-            role=_role(d.get("role", Role.AERO.value), d["name"]),
+            role=d.get("role", Role.AERO),  # checked by __post_init__
         )
 
 

@@ -164,18 +164,14 @@ def p_value(lr: float, q: int, null: str, *, V: float = 0.0, n_grid: int = 1) ->
     """
     lr = max(float(lr), 0.0)
     if null == "chibar":
-        if lr <= 0:
-            return 1.0, 0.0
-        lp = math.log(0.5) + chi2_logsf(lr, 1)
-        return math.exp(lp), lp
-    if null == "davies":
+        lp = math.log(0.5) + chi2_logsf(lr, 1) if lr > 0 else 0.0
+    elif null == "davies":
         lp_chi = chi2_logsf(lr, q)
         bonf = math.log(max(n_grid, 1)) + lp_chi
         dv = davies_bound(lr, q, V)
-        lp = min(bonf, math.log(dv) if dv > 0 else lp_chi + math.log(max(V, 1.0) + 1.0))
-        lp = min(lp, 0.0)
-        return math.exp(lp), lp
-    lp = chi2_logsf(lr, q)
+        lp = min(bonf, math.log(dv) if dv > 0 else lp_chi + math.log(max(V, 1.0) + 1.0), 0.0)
+    else:
+        lp = chi2_logsf(lr, q)
     return math.exp(lp), lp
 
 
@@ -239,12 +235,10 @@ def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> 
         null = effect.nulls(model)[p.name]
         try:
             aug = screen_res.model if screen_res is not None and screen_res.model is not None else effect.augment(model)
-            aug_par = aug.parameters[p.name]
+            bounds = aug.parameters[p.name]
         except FdmlError:  # pragma: no cover - augment validated before
-            aug_par = None
-        lo = aug_par.lower if aug_par is not None else p.lower
-        hi = aug_par.upper if aug_par is not None else p.upper
-        if null <= lo or null >= hi:
+            bounds = p
+        if null <= bounds.lower or null >= bounds.upper:
             return "chibar", 1
     return "chi2", q
 
@@ -330,13 +324,8 @@ def whitener(Rs) -> list[np.ndarray]:
     list of numpy.ndarray
         The whitening matrix L of each band, (n_out, n_out).
     """
-    out = []
-    for R in Rs:
-        W = np.linalg.inv(R)
-        W = 0.5 * (W + W.conj().T)
-        C = np.linalg.cholesky(W)
-        out.append(C.conj().T)
-    return out
+    Ws = [np.linalg.inv(R) for R in Rs]
+    return [np.linalg.cholesky(0.5 * (W + W.conj().T)).conj().T for W in Ws]
 
 
 # --- the screen ----------------------------------------------------------------------------------
@@ -445,7 +434,6 @@ class ScreenContext:
         # noise-floor metric (diagonal) for aliasing and MDE
         self.fw = np.ones(fit.V.shape) if floor_weights is None else np.asarray(floor_weights, float)
         self.Qf = self._basis(self.floor(A))
-        self._rp: np.ndarray | None = None
 
     @staticmethod
     def _basis(J):
@@ -490,12 +478,10 @@ class ScreenContext:
         """
         return X - self.Qf @ (self.Qf.T @ X)
 
-    @property
+    @functools.cached_property
     def r_perp(self) -> np.ndarray:
         """The whitened residual with the base sensitivities projected out (computed once)."""
-        if self._rp is None:
-            self._rp = self.perp(self.r)
-        return self._rp
+        return self.perp(self.r)
 
     def white(self, A: np.ndarray) -> np.ndarray:
         """Likelihood-whitened, real-stacked columns of dy/d eta, A of shape (N, n_out, q): (M, q).
