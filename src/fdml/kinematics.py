@@ -984,7 +984,7 @@ class KinematicEvidence:
 
         f = Fields(d, source)
 
-        def sized(x) -> tuple:  # param, value, stderr, unit
+        def sized(x) -> tuple[str, float, float, str]:  # param, value, stderr, unit
             return x.string("param"), x.number("value"), x.number("stderr"), x.string("unit")
 
         def finding(x) -> KinematicFinding:
