@@ -58,14 +58,7 @@ import numpy as np
 
 from .errors import FdmlError
 from .jsoncodec import Codec, Spec, integer, mapping, nested, nested_list, number_map, text, texts
-from .score import (
-    ScreenContext,
-    grid_variation,
-    holm,
-    null_kind,
-    p_value,
-    screen_all,
-)
+from .score import ScreenContext, grid_variation, holm, null_kind, p_value, screen_all
 from .tails import chi2_sf, f_sf
 from .verdict import LEVEL
 
@@ -346,8 +339,7 @@ class Adequacy(Codec):
         if v is not None and v.key is not None:
             amb = f" (or equally: {', '.join(k for k in v.aliases if k != v.key)})" if v.ambiguous else ""
             out.append(f"FIRST {v.describe()}{amb}")
-        for e in self.flagged:
-            out.append(f"FLAGGED {e.describe()}")
+        out += [f"FLAGGED {e.describe()}" for e in self.flagged]
         for c in self.residual_flags:
             out.append(f"FLAGGED residual {c.name}: p {c.p_value:.2g}, Holm p {c.p_holm:.2g} (worst: {c.worst})")
         if self.adequate:
@@ -371,13 +363,14 @@ def _fmt(v: float, unit: str) -> str:
 # --- the check ------------------------------------------------------------------------------------
 
 
+def _per_independent(d) -> float:
+    """Grid points per independent frequency 2 pi/T of a record's spectra (1 for a single frequency)."""
+    return 2 * math.pi / (d.T * float(np.median(np.diff(d.omega)))) if d.m > 1 else 1.0
+
+
 def _oversampling(prob) -> np.ndarray:
     """K per record: grid points per independent frequency 2 pi/T (at least 1)."""
-    out = []
-    for d in prob.data:
-        step = float(np.median(np.diff(d.omega))) if d.m > 1 else 2 * math.pi / d.T
-        out.append(max(1.0, 2 * math.pi / (d.T * step)))
-    return np.array(out)
+    return np.array([max(1.0, _per_independent(d)) for d in prob.data])
 
 
 @dataclass(frozen=True)
@@ -460,17 +453,16 @@ class _Context(ScreenContext):
                 A = self._grid_sensitivities(eff, model, names, steps, one_sided, gname, grid)
             except (TypeError, ValueError, IndexError, ArithmeticError):
                 A = None  # the effect function takes scalar parameters only
-            if A is not None and self._agrees(A, model, names, steps, one_sided, gname, grid):
+            if A is not None and self._agrees(eff, A, model, names, steps, one_sided, gname, grid):
                 return A
         return super().grid_sensitivities(model, names, steps, one_sided, gname, grid)
 
-    def _agrees(self, A, model, names, steps, one_sided, gname, grid) -> bool:
+    def _agrees(self, eff, A, model, names, steps, one_sided, gname, grid) -> bool:
         """The grid evaluation equals the value-by-value one at the grid's ends (a guard on the effect function).
 
         Checked once per effect object and process (:data:`_VECTORISES`): whether a function takes
         an array-valued parameter is a property of its code.
         """
-        eff = _output_effect_on(model, self.fit.model)
         if _VECTORISES.get(eff) is not None:
             return _VECTORISES[eff]
         ok = True
@@ -582,11 +574,9 @@ def _output_effect_on(model, base):
     if not isinstance(model, AugmentedModel) or not model.effects:
         return None
     eff = model.effects[-1]
-    if not isinstance(eff, OutputEffect):
-        return None
-    if tuple(model.effects[:-1]) != tuple(applied_effects(base)):
-        return None
-    return eff
+    if isinstance(eff, OutputEffect) and tuple(model.effects[:-1]) == tuple(applied_effects(base)):
+        return eff
+    return None
 
 
 def _context(prob, model, theta, V, R, A=None, prepare=None):
@@ -695,9 +685,7 @@ def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
 
 def _independent(d) -> np.ndarray:
     """Grid indices at spacing >= 2 pi/T (the residuals there are independent, docs/theory.md section 7)."""
-    step = float(np.median(np.diff(d.omega))) if d.m > 1 else 1.0
-    k = max(math.ceil(2 * math.pi / (d.T * step) - 1e-9), 1)
-    return np.arange(0, d.m, k)
+    return np.arange(0, d.m, max(math.ceil(_per_independent(d) - 1e-9), 1))
 
 
 def _bands(n: int) -> list:
@@ -708,10 +696,7 @@ def _bands(n: int) -> list:
 def _residual_checks(prob, V) -> tuple[tuple, tuple]:
     """(coherence, whiteness) as (statistic, p, cells, worst) each, Bonferroni over cells."""
     coh, white = [], []
-    off = 0
-    for d in prob.data:
-        v = V[off : off + d.m]
-        off += d.m
+    for d, v in zip(prob.data, np.split(V, np.cumsum([d.m for d in prob.data])[:-1])):
         idx = _independent(d)
         u, vi = d.u[idx], v[idx]
         gain = d.noise_gain(include_trim=False)[idx]
@@ -883,7 +868,7 @@ def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Ref
     return _Refit(eff, r, lr, p, q + len([x for x in plist if x.nuisance]), params, why)
 
 
-def _candidates(adequacy: Adequacy, kin, model) -> list:
+def _candidates(adequacy: Adequacy, kin) -> list:
     """(effect, start values) to refit: the kinematics' alias set, else the flagged effects."""
     from .models.effects import get_effect
 
@@ -930,13 +915,13 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
         return Verdict(
             m.key, {m.param: (m.value, m.stderr)}, {m.param: m.unit}, "kinematics", (m.key,), (), m.finding.lr, beside
         )
-    raw = [_refit_one(eff, st, prob, result, refit, kin, n_ind) for eff, st in _candidates(adequacy, kin, result.model)]
+    raw = [_refit_one(eff, st, prob, result, refit, kin, n_ind) for eff, st in _candidates(adequacy, kin)]
     fits: list[_Refit] = [f for f in raw if f is not None]
     level = adequacy.alpha / max(len(fits), 1)
     eligible = [f for f in fits if f.p < level and f.demoted is None]
     best, aliases = choose_among(eligible, 2.0 * n_ind * len(prob.out_idx))
     aside = tuple((f.effect.key, f.demoted) for f in fits if f.demoted is not None and f.p < level)
-    steps, steps_lr = _steps_verdict(prob, result, refit, n_ind, best, level, aside)
+    steps, steps_lr = _steps_verdict(prob, result, refit, n_ind, best, level)
     if steps == "steps":
         return Verdict("input_edges", {}, {}, "steps", (), aside, steps_lr)
     if best is None:
@@ -959,7 +944,7 @@ def _lr_of_steps(refit, model, R0: np.ndarray, n_ind: float) -> float | None:
     return _lr(R0, r.R, n_ind) if r is not None and r.converged else None
 
 
-def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside: tuple):
+def _steps_verdict(prob, result, refit, n_ind: float, best, level: float):
     """Where the timing of the elevator's steps between samples (docs/theory.md section 7a) enters the verdict.
 
     The fit's model and, with a ``best`` candidate, its refit are refitted with every step's timing and

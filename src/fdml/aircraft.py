@@ -282,8 +282,7 @@ class Aircraft:
                 f"aircraft {self.name!r}: unknown constants {sorted(unknown)}; known: {', '.join(CONSTANT_KEYS)}"
             )
         consts = dict(GENERIC_CONSTANTS)
-        for k, v in self.constants.items():
-            consts[k] = _real(v, f"aircraft {self.name!r}: constant {k}")
+        consts.update({k: _real(v, f"aircraft {self.name!r}: constant {k}") for k, v in self.constants.items()})
         given, sources, assumed = frozenset(self.constants), dict(self.sources), set(self.assumed)
         if self.lag_constants not in ("", *LAG_SOURCES):
             raise AircraftError(
@@ -318,12 +317,9 @@ class Aircraft:
         the lag constants of ``"lag_constants": "none"`` (no lag, chosen) are not
         placeholders.
         """
-        out = {}
-        for k in CONSTANT_KEYS:
-            chosen = k in LAG_KEYS and self.lag_constants == "none"
-            if k not in self.given and k not in self.lag_uncertainty and not chosen:
-                out[k] = f"generic {k} = {GENERIC_CONSTANTS[k]:g}"
-        return out
+        chosen = set(LAG_KEYS) if self.lag_constants == "none" else set()  # no lag, by choice
+        given = chosen | self.given | set(self.lag_uncertainty)
+        return {k: f"generic {k} = {GENERIC_CONSTANTS[k]:g}" for k in CONSTANT_KEYS if k not in given}
 
     # --- derived quantities --------------------------------------------------
     @property
