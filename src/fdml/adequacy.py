@@ -58,7 +58,7 @@ import numpy as np
 
 from .errors import FdmlError
 from .jsoncodec import Codec, Spec, integer, mapping, nested, nested_list, number_map, text, texts
-from .score import ScreenContext, grid_variation, holm, null_kind, p_value, screen_all
+from .score import ScreenContext, attempt, grid_variation, holm, null_kind, p_value, screen_all
 from .tails import chi2_sf, f_sf
 from .verdict import LEVEL
 
@@ -413,14 +413,9 @@ class _Context(ScreenContext):
 
     def candidate_sensitivities_many(self, cands) -> list:
         """Every candidate's dy/d eta from one measurement of all their response changes."""
-        out: list[int | Exception] = []  # per candidate: its column count, or why it failed
-        changes = []
-        for model, names, steps, one_sided in cands:
-            try:
-                changes.append(self._changes(model, names, steps, one_sided))
-                out.append(len(names))
-            except Exception as exc:  # noqa: BLE001 - a candidate that cannot be evaluated is reported
-                out.append(exc)
+        tried = [attempt(self._changes, *c) for c in cands]
+        changes = [t for t in tried if not isinstance(t, Exception)]
+        out = [t if isinstance(t, Exception) else len(c[1]) for t, c in zip(tried, cands)]  # columns, or why not
         if not changes:
             return out
         base = self._base

@@ -603,13 +603,7 @@ class ScreenContext:
         list
             Per candidate, its sensitivities (N, n_out, q) or the exception raised.
         """
-        out: list[np.ndarray | Exception] = []
-        for args in cands:
-            try:
-                out.append(self.candidate_sensitivities(*args))
-            except Exception as exc:  # noqa: BLE001 - a candidate that cannot be evaluated is reported
-                out.append(exc)
-        return out
+        return [attempt(self.candidate_sensitivities, *args) for args in cands]
 
     def grid_sensitivities(self, model, names, steps, one_sided, gname: str, grid: np.ndarray) -> np.ndarray:
         """:meth:`candidate_sensitivities` at every value of the nuisance parameter ``gname`` on ``grid``.
@@ -783,22 +777,12 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
     list
         Per effect, its :class:`ScreenResult` or the exception raised.
     """
-    out: list[ScreenResult | Exception | None] = [None] * len(effects)
-    cands: dict[int, _Candidate] = {}
-    for i, eff in enumerate(effects):
-        try:
-            cands[i] = _candidate(ctx, eff)
-        except Exception as exc:  # noqa: BLE001 - a candidate that cannot be set up is reported, never fatal
-            out[i] = exc
+    out: list = [attempt(_candidate, ctx, eff) for eff in effects]  # each candidate set up, or why not
+    cands = {i: c for i, c in enumerate(out) if isinstance(c, _Candidate)}
     plain = [i for i, c in cands.items() if not c.effect.nuisance_grid]
-    stats: dict[int, tuple] = {}
-    sens = ctx.candidate_sensitivities_many([cands[i].args for i in plain])
-    good = []
-    for i, A in zip(plain, sens):
-        if isinstance(A, Exception):
-            out[i] = A
-        else:
-            good.append((i, A))
+    sens = dict(zip(plain, ctx.candidate_sensitivities_many([cands[i].args for i in plain])))
+    stats: dict[int, tuple | Exception] = {i: A for i, A in sens.items() if isinstance(A, Exception)}
+    good = [(i, A) for i, A in sens.items() if not isinstance(A, Exception)]
     for q in sorted({A.shape[-1] for _, A in good}):
         group = [(i, A) for i, A in good if A.shape[-1] == q]
         Je, Jf = ctx.pair(np.concatenate([A for _, A in group], axis=-1))
@@ -807,18 +791,19 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
         infos, aliases = _floor_stats(ctx, Jf)
         for j, (i, _) in enumerate(group):
             stats[i] = (lms[j], etas[j], infos[j], aliases[j], (Je[:, j, :], Jf[:, j, :]), None, {})
-    for i, c in cands.items():
-        if c.effect.nuisance_grid:
-            try:
-                stats[i] = _grid_stats(ctx, c, band)
-            except Exception as exc:  # noqa: BLE001 - as above
-                out[i] = exc
+    stats.update({i: attempt(_grid_stats, ctx, c, band) for i, c in cands.items() if c.effect.nuisance_grid})
     for i, st in stats.items():
-        try:
-            out[i] = _result(ctx, cands[i], st, level)
-        except Exception as exc:  # noqa: BLE001 - as above
-            out[i] = exc
+        out[i] = st if isinstance(st, Exception) else attempt(_result, ctx, cands[i], st, level)
     return out
+
+
+def attempt(f, *args):
+    """``f(*args)``, or the exception it raised: a candidate that cannot be set up or evaluated is reported,
+    never fatal."""
+    try:
+        return f(*args)
+    except Exception as exc:  # noqa: BLE001 - reported in its place
+        return exc
 
 
 def _grid_stats(ctx: ScreenContext, c: _Candidate, band: tuple) -> tuple:
