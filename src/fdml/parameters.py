@@ -449,10 +449,8 @@ def as_names(value, what: str) -> list[str]:
         return []
     if isinstance(value, str):
         return [n.strip() for n in value.split(",") if n.strip()]
-    if isinstance(value, Mapping):
-        value = list(value)
     try:
-        names = list(value)
+        names = list(value)  # a mapping gives its keys
     except TypeError:
         raise ParameterError(f"{what} must be parameter names (a str or a list of str), got {value!r}") from None
     bad = [n for n in names if not isinstance(n, str)]
