@@ -1020,11 +1020,7 @@ def advice(
     """
     if adequacy.adequate:
         return None
-    diag = (
-        shlex.join(diagnose_argv)
-        if diagnose_argv
-        else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
-    )
+    diag = _command(diagnose_argv, [], "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))")
     diagnosis = "" if in_diagnosis else f"run the full diagnosis: {diag}"
     v = adequacy.verdict
     if v is not None:
@@ -1055,9 +1051,9 @@ def _option(key: str) -> str:
     return f"{name}:{channel}"
 
 
-def _command(fit_argv, args: list, generic: str) -> str:
-    """The refit: the running command line with ``args`` added, else the ``generic`` spelling."""
-    return shlex.join([*fit_argv, *args]) if fit_argv else generic
+def _command(argv, args: list, generic: str) -> str:
+    """The running command line ``argv`` with ``args`` added, else the ``generic`` spelling."""
+    return shlex.join([*argv, *args]) if argv else generic
 
 
 def _also(keys: list) -> str:
