@@ -1023,11 +1023,10 @@ class KinematicEvidence:
                 out.append(f"    or the airspeed is {self.airspeed * (1 + m.value):.4g} m/s, not {self.airspeed:.4g}")
         for a in self.aliases:
             out.append(f"  not separable by the kinematics: {' or '.join(m.describe() for m in a)}")
-        for why, ms in (
-            ("outside its plausible range", self.implausible),
-            ("below the data's resolution", self.unresolved),
-        ):
-            out += [f"  set aside, {why}: {m.describe()}" for m in ms]
+        for m in self.implausible:
+            out.append(f"  set aside, outside its plausible range: {m.describe()}")
+        for m in self.unresolved:
+            out.append(f"  set aside, below the data's resolution: {m.describe()}")
         if not self.settled and not self.aliases:
             out.append(f"  no sensor pattern at level {self.level:g} (largest: {self.tested[0].describe()})")
         ka, kz = self.scales["kappa_alpha"], self.scales["kappa_az"]

@@ -175,7 +175,8 @@ class Parameter:
         Parameter
             The parameter.
         """
-        lo, hi = d.get("lower"), d.get("upper")
+        lo = d.get("lower")
+        hi = d.get("upper")
         return cls(
             name=d["name"],
             value=d["value"],
