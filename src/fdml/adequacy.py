@@ -50,13 +50,14 @@ import itertools
 import math
 import shlex
 import time
+import warnings
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from .errors import FdmlError
+from .errors import AdequacyWarning, FdmlError
 from .jsoncodec import Codec, Spec, integer, mapping, nested, nested_list, number_map, text, texts
 from .score import ScreenContext, attempt, grid_variation, holm, null_kind, p_value, screen_all
 from .tails import chi2_sf, f_sf
@@ -1046,11 +1047,6 @@ def advice(
     )
 
 
-def _option(key: str) -> str:
-    name, _, channel = key.partition("@")
-    return f"{name}:{channel}"
-
-
 def _command(argv, args: list, generic: str) -> str:
     """The running command line ``argv`` with ``args`` added, else the ``generic`` spelling."""
     return shlex.join([*argv, *args]) if argv else generic
@@ -1093,7 +1089,7 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
             f"does not keep when each step happened. Refit with it: {refit}{tail}"
         )
     extra = [f"{k}={val:.6g}" for k, (val, _) in v.params.items()] if v.source == "kinematics" else []
-    args = ["--effect", _option(v.key)] + [a for x in extra for a in ("--fix", x)]
+    args = ["--effect", v.key.replace("@", ":", 1)] + [a for x in extra for a in ("--fix", x)]  # NAME:CHANNEL
     args += ["--input-edges", "estimated"] if v.with_steps else []
     refit = _command(fit_argv, args, "fdml fit RECORD ... " + shlex.join(args))
     also = _also([e.key for e in adequacy.flagged if e.key not in v.aliases])
@@ -1143,8 +1139,6 @@ def reworded(
     FitResult
         ``result`` with the re-worded warning (itself when there is none).
     """
-    from dataclasses import replace
-
     found = getattr(result, "adequacy", None)
     if found is None or found.adequate:
         return result
@@ -1186,18 +1180,12 @@ def attach(prob, result, V, sensitivities=None, refit=None):
     FitResult
         ``result`` with ``adequacy`` set (unchanged when the check could not run).
     """
-    import warnings
-    from dataclasses import replace
-
-    from .errors import AdequacyWarning
-
     try:
         found = check(prob, result.values, V, result.R, sensitivities=sensitivities)
         if refit is not None and not found.adequate:
             found = replace(found, verdict=rank(found, prob, result, refit))
     except _FAILURES as exc:
-        msg = f"the adequacy check could not run: {exc}"
-        warnings.warn(msg, AdequacyWarning, stacklevel=4)
+        warnings.warn(f"the adequacy check could not run: {exc}", AdequacyWarning, stacklevel=4)
         return result
     msg = advice(found, cov_type=getattr(result, "cov_type", None))
     if msg is not None:

@@ -423,7 +423,6 @@ class ScreenContext:
     ):
         self.fit = fit
         self._prepare = prepare
-        self.rows = rows
         self.K = oversample
         self.spectra = list(spectra)
         self.options = fit_options
