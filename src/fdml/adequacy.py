@@ -59,9 +59,20 @@ import numpy as np
 
 from .errors import AdequacyWarning, FdmlError
 from .jsoncodec import Codec, Spec, integer, mapping, nested, nested_list, number_map, text, texts
+from .kinematics import input_resolution, kinematic_evidence, known_terms
+from .models.base import OUTPUTS, ModelResponse
+from .models.effects import (
+    AugmentedModel,
+    OutputEffect,
+    applied_effects,
+    get_effect,
+    registered_effects,
+    root_model,
+    with_effects,
+)
 from .score import ScreenContext, attempt, grid_variation, holm, null_kind, p_value, screen_all
 from .tails import chi2_sf, f_sf
-from .verdict import LEVEL
+from .verdict import LEVEL, choose_among, judge
 
 __all__ = [
     "ALPHA",
@@ -477,7 +488,7 @@ class _Context(ScreenContext):
         """(G, H, P) per record of ``model`` at the values ``p``."""
         if eff is None:
             return [_ghp(model.evaluate(d.omega, p)) for d in self.fit.prob.data]
-        root = _root(self.fit.model)
+        root = root_model(self.fit.model)
         return [eff.output(1j * d.omega, p, *r, root) for d, r in zip(self.fit.prob.data, self._base)]
 
     def _column(self, eff, model, up, down, step) -> list:
@@ -489,8 +500,6 @@ class _Context(ScreenContext):
 
     def _measure(self, changes: list) -> np.ndarray:
         """dy/d eta, shape (N, n_out, q), from per-record response changes with a leading parameter axis."""
-        from .models.base import ModelResponse
-
         prob = self.fit.prob
         dy = [
             prob.linear_predict(self.fit.theta, r, ModelResponse(d.omega, *ch))[..., prob.out_idx]
@@ -502,7 +511,7 @@ class _Context(ScreenContext):
         """dy/d eta of shape (N, n_out, g, q): every grid value in one call of the effect per step."""
         g, q = grid.size, len(names)
         vals = dict(model.parameters.values)
-        root = _root(self.fit.model)
+        root = root_model(self.fit.model)
         changes = []
         for d, r in zip(self.fit.prob.data, self._base):
             m = d.m
@@ -557,16 +566,8 @@ def _ghp(r) -> tuple:
     return r.G, r.H, r.P
 
 
-def _root(model):
-    from .models.effects import root_model
-
-    return root_model(model)
-
-
 def _output_effect_on(model, base):
     """The output-level effect ``model`` adds on top of ``base`` (None when it is not just that)."""
-    from .models.effects import AugmentedModel, OutputEffect, applied_effects
-
     if not isinstance(model, AugmentedModel) or not model.effects:
         return None
     eff = model.effects[-1]
@@ -632,8 +633,6 @@ def _one_step_lrs(ctx, screens: list, Kr: np.ndarray) -> np.ndarray:
 
 def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
     """(tests as dicts, skipped) for every applicable deterministic effect."""
-    from .models.effects import registered_effects
-
     ctx, Kr = _context(prob, model, theta, V, R, A)
     inputs = tuple(prob.data[0].inputs)
     outputs = tuple(ctx.options["outputs"])
@@ -816,9 +815,6 @@ def _airspeed(model) -> float | None:
 
 def _kinematics(prob, model):
     """The short-period identity on the fit's spectra (None without alpha, q and a_z or an airspeed)."""
-    from .kinematics import kinematic_evidence, known_terms
-    from .models.base import OUTPUTS
-
     U = _airspeed(model)
     if U is None or not set(OUTPUTS) <= set(prob.outputs):  # alpha, q and a_z fitted (theta may be too)
         return None
@@ -842,10 +838,6 @@ def _lr(R0: np.ndarray, R1: np.ndarray, n_ind: float) -> float:
 
 
 def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Refit | None:
-    from .kinematics import input_resolution
-    from .models.effects import root_model, with_effects
-    from .verdict import judge
-
     model = with_effects(result.model, eff)
     model = model.with_values({k: v for k, v in start.items() if k in model.parameters and math.isfinite(v)})
     r = _refitted(refit, model)
@@ -866,8 +858,6 @@ def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Ref
 
 def _candidates(adequacy: Adequacy, kin) -> list:
     """(effect, start values) to refit: the kinematics' alias set, else the flagged effects."""
-    from .models.effects import get_effect
-
     if kin is not None and kin.aliases:
         # a lag starts at its kinematic value (its cost has other minima); an offset or a scale at its
         # null, where the fit's own estimate is the optimum (Twin Otter 017: 6 and 8 passes, not 8 and 12)
@@ -899,8 +889,6 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
     Verdict or None
         The verdict.
     """
-    from .verdict import choose_among
-
     if adequacy.adequate:
         return None
     kin = _kinematics(prob, result.model)
@@ -968,8 +956,6 @@ def _steps_verdict(prob, result, refit, n_ind: float, best, level: float):
 def _steps_beside(prob, result, refit, n_ind: float, m) -> bool:
     """Whether the steps' timing lowers the BIC beside the sensor effect ``m`` the kinematics settled (held at
     its kinematic value, as the advice refits it): :func:`_steps_verdict` for the kinematics' verdict."""
-    from .models.effects import get_effect, with_effects
-
     k, logn = _steps(prob, n_ind)
     if not k:
         return False

@@ -66,7 +66,10 @@ import numpy as np
 
 from .channels import OUTPUTS, boundary_channels
 from .constants import G0
+from .errors import FdmlError
 from .fourier import step_edges
+from .jsoncodec import Fields
+from .models.effects import applied_effects, get_effect
 from .score import equally
 from .tails import chi2_sf
 
@@ -173,7 +176,6 @@ def flight_path_findings(records) -> list:
         each parameter :data:`fdml.flightpath.SIGNIFICANT` standard errors from nominal) or
         ``note`` (why it was not run).
     """
-    from .errors import FdmlError
     from .flightpath import SIGNIFICANT, check_compatibility
 
     out = []
@@ -305,8 +307,6 @@ def known_terms(model) -> SensorTerms:
     SensorTerms
         Their sum (empty when there are none).
     """
-    from .models.effects import applied_effects
-
     vals = model.parameters.values
     out = SensorTerms()
     for e in applied_effects(model):
@@ -729,8 +729,6 @@ class KinematicFinding:
             The line.
         """
         if self.unit == "s":
-            from .models.effects import get_effect
-
             desc = get_effect(self.key).params[0].description or self.key
             size = f"{self.value * 1e3:.3g} +- {self.stderr * 1e3:.2g} ms"
             return f"{desc.replace('this long', size)} (LR {self.lr:.3g}, p {self.p:.2g})"
@@ -786,8 +784,6 @@ class SensorEffect:
         Effect
             It.
         """
-        from .models.effects import get_effect
-
         return get_effect(self.key)
 
     def terms(self) -> SensorTerms:
@@ -832,8 +828,6 @@ def members(found: KinematicFinding, dt: float = 0.0, U: float = 0.0) -> list:
     list of SensorEffect
         One per library effect (two for a vane offset: the vane x and the accelerometer -x).
     """
-    from .models.effects import get_effect
-
     pat = _pattern_of(found)
     out = []
     for key, vals in pat.values(found.value).items():
@@ -980,8 +974,6 @@ class KinematicEvidence:
         KinematicEvidence
             The evidence, without its spectra.
         """
-        from .jsoncodec import Fields
-
         f = Fields(d, source)
 
         def sized(x) -> tuple[str, float, float, str]:  # param, value, stderr, unit
