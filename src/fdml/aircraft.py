@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from importlib import resources
@@ -415,11 +416,8 @@ class Aircraft:
         if extra:
             raise AircraftError(f"{origin}: unknown key(s) {', '.join(sorted(extra))}")
         assumed = d.get("assumed", ())
-        if (
-            isinstance(assumed, (str, Mapping))
-            or not isinstance(assumed, (list, tuple))
-            or any(k not in REQUIRED_KEYS and k not in CONSTANT_KEYS and k != "b" for k in assumed)
-        ):
+        known = (*REQUIRED_KEYS, *CONSTANT_KEYS, "b")  # a str or a mapping is not a list of them
+        if not isinstance(assumed, (list, tuple)) or any(k not in known for k in assumed):
             raise AircraftError(f'{origin}: assumed must be a list of key names (e.g. ["S_t", "b1"]), got {assumed!r}')
         try:
             return cls(
@@ -590,8 +588,6 @@ def _checked_sensors(sensors, where: str) -> Mapping:
 
 def _real(value, what: str) -> float:
     """``value`` as a finite float; a bool, a string (even ``"12"``), NaN or inf is an AircraftError."""
-    import numbers
-
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise AircraftError(f"{what} must be a number, got {value!r} ({type(value).__name__})")
     v = float(value)
