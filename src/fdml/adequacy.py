@@ -45,28 +45,34 @@ both use).
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 import shlex
 import time
+import warnings
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from .errors import FdmlError
+from .errors import AdequacyWarning, FdmlError
 from .jsoncodec import Codec, Spec, integer, mapping, nested, nested_list, number_map, text, texts
-from .score import (
-    ScreenContext,
-    grid_variation,
-    holm,
-    null_kind,
-    p_value,
-    screen_all,
+from .kinematics import input_resolution, kinematic_evidence, known_terms
+from .models.base import OUTPUTS, ModelResponse
+from .models.effects import (
+    AugmentedModel,
+    OutputEffect,
+    applied_effects,
+    get_effect,
+    registered_effects,
+    root_model,
+    with_effects,
 )
+from .score import ScreenContext, attempt, grid_variation, holm, null_kind, p_value, screen_all
 from .tails import chi2_sf, f_sf
-from .verdict import LEVEL
+from .verdict import LEVEL, choose_among, judge
 
 __all__ = [
     "ALPHA",
@@ -86,6 +92,9 @@ ALPHA = LEVEL
 #: Bands of the residual checks: at most this many, each with at least MIN_BAND independent frequencies.
 MAX_BANDS = 4
 MIN_BAND = 6
+
+#: What a refit or a check that cannot run raises: reported, never fatal.
+_FAILURES = (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError)
 
 #: Output effects whose function evaluates a nuisance grid at once (checked once each, see _Context._agrees).
 _VECTORISES: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -342,8 +351,7 @@ class Adequacy(Codec):
         if v is not None and v.key is not None:
             amb = f" (or equally: {', '.join(k for k in v.aliases if k != v.key)})" if v.ambiguous else ""
             out.append(f"FIRST {v.describe()}{amb}")
-        for e in self.flagged:
-            out.append(f"FLAGGED {e.describe()}")
+        out += [f"FLAGGED {e.describe()}" for e in self.flagged]
         for c in self.residual_flags:
             out.append(f"FLAGGED residual {c.name}: p {c.p_value:.2g}, Holm p {c.p_holm:.2g} (worst: {c.worst})")
         if self.adequate:
@@ -367,13 +375,14 @@ def _fmt(v: float, unit: str) -> str:
 # --- the check ------------------------------------------------------------------------------------
 
 
+def _per_independent(d) -> float:
+    """Grid points per independent frequency 2 pi/T of a record's spectra (1 for a single frequency)."""
+    return 2 * math.pi / (d.T * float(np.median(np.diff(d.omega)))) if d.m > 1 else 1.0
+
+
 def _oversampling(prob) -> np.ndarray:
     """K per record: grid points per independent frequency 2 pi/T (at least 1)."""
-    out = []
-    for d in prob.data:
-        step = float(np.median(np.diff(d.omega))) if d.m > 1 else 2 * math.pi / d.T
-        out.append(max(1.0, 2 * math.pi / (d.T * step)))
-    return np.array(out)
+    return np.array([max(1.0, _per_independent(d)) for d in prob.data])
 
 
 @dataclass(frozen=True)
@@ -408,8 +417,6 @@ class _Context(ScreenContext):
     function that does not take that is evaluated value by value.
     """
 
-    _base_responses = None
-
     def candidate_sensitivities(self, model, names, steps, one_sided):
         (A,) = self.candidate_sensitivities_many([(model, names, steps, one_sided)])
         if isinstance(A, Exception):
@@ -418,17 +425,12 @@ class _Context(ScreenContext):
 
     def candidate_sensitivities_many(self, cands) -> list:
         """Every candidate's dy/d eta from one measurement of all their response changes."""
-        out: list[int | Exception] = []  # per candidate: its column count, or why it failed
-        changes = []
-        for model, names, steps, one_sided in cands:
-            try:
-                changes.append(self._changes(model, names, steps, one_sided))
-                out.append(len(names))
-            except Exception as exc:  # noqa: BLE001 - a candidate that cannot be evaluated is reported
-                out.append(exc)
+        tried = [attempt(self._changes, *c) for c in cands]
+        changes = [t for t in tried if not isinstance(t, Exception)]
+        out = [t if isinstance(t, Exception) else len(c[1]) for t, c in zip(tried, cands)]  # columns, or why not
         if not changes:
             return out
-        base = self._base()
+        base = self._base
         A = self._measure(
             [
                 [_stack_parts([e for c in changes for e in c[r][i]], base[r][i]) for i in range(3)]
@@ -458,17 +460,16 @@ class _Context(ScreenContext):
                 A = self._grid_sensitivities(eff, model, names, steps, one_sided, gname, grid)
             except (TypeError, ValueError, IndexError, ArithmeticError):
                 A = None  # the effect function takes scalar parameters only
-            if A is not None and self._agrees(A, model, names, steps, one_sided, gname, grid):
+            if A is not None and self._agrees(eff, A, model, names, steps, one_sided, gname, grid):
                 return A
         return super().grid_sensitivities(model, names, steps, one_sided, gname, grid)
 
-    def _agrees(self, A, model, names, steps, one_sided, gname, grid) -> bool:
+    def _agrees(self, eff, A, model, names, steps, one_sided, gname, grid) -> bool:
         """The grid evaluation equals the value-by-value one at the grid's ends (a guard on the effect function).
 
         Checked once per effect object and process (:data:`_VECTORISES`): whether a function takes
         an array-valued parameter is a property of its code.
         """
-        eff = _output_effect_on(model, self.fit.model)
         if _VECTORISES.get(eff) is not None:
             return _VECTORISES[eff]
         ok = True
@@ -478,17 +479,17 @@ class _Context(ScreenContext):
         _VECTORISES[eff] = ok
         return ok
 
+    @functools.cached_property
     def _base(self) -> list:
-        if self._base_responses is None:
-            self._base_responses = [_ghp(self.fit.model.evaluate(d.omega)) for d in self.fit.prob.data]
-        return self._base_responses
+        """(G, H, P) per record of the fit's model (computed once)."""
+        return [_ghp(self.fit.model.evaluate(d.omega)) for d in self.fit.prob.data]
 
     def _response(self, eff, model, p) -> list:
         """(G, H, P) per record of ``model`` at the values ``p``."""
         if eff is None:
             return [_ghp(model.evaluate(d.omega, p)) for d in self.fit.prob.data]
-        root = _root(self.fit.model)
-        return [eff.output(1j * d.omega, p, *r, root) for d, r in zip(self.fit.prob.data, self._base())]
+        root = root_model(self.fit.model)
+        return [eff.output(1j * d.omega, p, *r, root) for d, r in zip(self.fit.prob.data, self._base)]
 
     def _column(self, eff, model, up, down, step) -> list:
         """Per record, the central (or forward) difference of the responses, (dG, dH, dP); None: unchanged."""
@@ -499,8 +500,6 @@ class _Context(ScreenContext):
 
     def _measure(self, changes: list) -> np.ndarray:
         """dy/d eta, shape (N, n_out, q), from per-record response changes with a leading parameter axis."""
-        from .models.base import ModelResponse
-
         prob = self.fit.prob
         dy = [
             prob.linear_predict(self.fit.theta, r, ModelResponse(d.omega, *ch))[..., prob.out_idx]
@@ -512,9 +511,9 @@ class _Context(ScreenContext):
         """dy/d eta of shape (N, n_out, g, q): every grid value in one call of the effect per step."""
         g, q = grid.size, len(names)
         vals = dict(model.parameters.values)
-        root = _root(self.fit.model)
+        root = root_model(self.fit.model)
         changes = []
-        for d, r in zip(self.fit.prob.data, self._base()):
+        for d, r in zip(self.fit.prob.data, self._base):
             m = d.m
             s = np.tile(1j * d.omega, g)
             base = tuple(np.tile(x, (g, 1, 1)) for x in r)
@@ -567,24 +566,14 @@ def _ghp(r) -> tuple:
     return r.G, r.H, r.P
 
 
-def _root(model):
-    from .models.effects import root_model
-
-    return root_model(model)
-
-
 def _output_effect_on(model, base):
     """The output-level effect ``model`` adds on top of ``base`` (None when it is not just that)."""
-    from .models.effects import AugmentedModel, OutputEffect, applied_effects
-
     if not isinstance(model, AugmentedModel) or not model.effects:
         return None
     eff = model.effects[-1]
-    if not isinstance(eff, OutputEffect):
-        return None
-    if tuple(model.effects[:-1]) != tuple(applied_effects(base)):
-        return None
-    return eff
+    if isinstance(eff, OutputEffect) and tuple(model.effects[:-1]) == tuple(applied_effects(base)):
+        return eff
+    return None
 
 
 def _context(prob, model, theta, V, R, A=None, prepare=None):
@@ -644,8 +633,6 @@ def _one_step_lrs(ctx, screens: list, Kr: np.ndarray) -> np.ndarray:
 
 def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
     """(tests as dicts, skipped) for every applicable deterministic effect."""
-    from .models.effects import registered_effects
-
     ctx, Kr = _context(prob, model, theta, V, R, A)
     inputs = tuple(prob.data[0].inputs)
     outputs = tuple(ctx.options["outputs"])
@@ -693,9 +680,7 @@ def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
 
 def _independent(d) -> np.ndarray:
     """Grid indices at spacing >= 2 pi/T (the residuals there are independent, docs/theory.md section 7)."""
-    step = float(np.median(np.diff(d.omega))) if d.m > 1 else 1.0
-    k = max(math.ceil(2 * math.pi / (d.T * step) - 1e-9), 1)
-    return np.arange(0, d.m, k)
+    return np.arange(0, d.m, max(math.ceil(_per_independent(d) - 1e-9), 1))
 
 
 def _bands(n: int) -> list:
@@ -706,10 +691,7 @@ def _bands(n: int) -> list:
 def _residual_checks(prob, V) -> tuple[tuple, tuple]:
     """(coherence, whiteness) as (statistic, p, cells, worst) each, Bonferroni over cells."""
     coh, white = [], []
-    off = 0
-    for d in prob.data:
-        v = V[off : off + d.m]
-        off += d.m
+    for d, v in zip(prob.data, np.split(V, np.cumsum([d.m for d in prob.data])[:-1])):
         idx = _independent(d)
         u, vi = d.u[idx], v[idx]
         gain = d.noise_gain(include_trim=False)[idx]
@@ -821,7 +803,6 @@ class _Refit:
     p: float
     q_eff: int
     params: dict
-    plausible: bool
     demoted: str | None
 
 
@@ -834,9 +815,6 @@ def _airspeed(model) -> float | None:
 
 def _kinematics(prob, model):
     """The short-period identity on the fit's spectra (None without alpha, q and a_z or an airspeed)."""
-    from .kinematics import kinematic_evidence, known_terms
-    from .models.base import OUTPUTS
-
     U = _airspeed(model)
     if U is None or not set(OUTPUTS) <= set(prob.outputs):  # alpha, q and a_z fitted (theta may be too)
         return None
@@ -846,54 +824,45 @@ def _kinematics(prob, model):
         return None
 
 
-def _independent_rows(prob) -> np.ndarray:
-    off, out = 0, []
-    for d in prob.data:
-        out.append(off + _independent(d))
-        off += d.m
-    return np.concatenate(out)
+def _refitted(refit, model, **options):
+    """``refit(model, **options)``, None when it fails."""
+    try:
+        return refit(model, **options)
+    except _FAILURES:
+        return None
+
+
+def _lr(R0: np.ndarray, R1: np.ndarray, n_ind: float) -> float:
+    """The likelihood ratio of a refit with residual covariance R1 against R0 (module doc), at least 0."""
+    return max(2.0 * n_ind * (np.linalg.slogdet(R0)[1] - np.linalg.slogdet(R1)[1]), 0.0)
 
 
 def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Refit | None:
-    from .models.effects import root_model, with_effects
-    from .verdict import judge
-
     model = with_effects(result.model, eff)
     model = model.with_values({k: v for k, v in start.items() if k in model.parameters and math.isfinite(v)})
-    try:
-        r = refit(model)
-    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
+    r = _refitted(refit, model)
+    if r is None:
         return None
-    lr = max(2.0 * n_ind * (np.linalg.slogdet(result.R)[1] - np.linalg.slogdet(r.R)[1]), 0.0)
+    lr = _lr(result.R, r.R, n_ind)
     null, q = null_kind(eff, result.model)
     p, _ = p_value(lr, q, null)
     plist = eff.param_list(result.model)
     params = {x.name: (r.params.get(x.name, math.nan), r.errors.get(x.name, math.nan)) for x in plist}
-    plausible = all(
-        x.plausible is None or x.nuisance or x.plausible[0] <= params[x.name][0] <= x.plausible[1] for x in plist
-    )
     base = [x.name for x in root_model(result.model).parameters if x.free and x.name in r.params]
     derivs = {n: (r.params[n], r.errors[n]) for n in base}
-    from .kinematics import input_resolution
-
     dt = max(float(d.dt) for d in prob.data)
     floor = input_resolution([d.record for d in prob.data], dt)
     why = judge(eff, params, result.model, derivs, kin, dt=dt, U=_airspeed(result.model), input_floor=floor)
-    return _Refit(eff, r, lr, p, q + len([x for x in plist if x.nuisance]), params, plausible, why)
+    return _Refit(eff, r, lr, p, q + len([x for x in plist if x.nuisance]), params, why)
 
 
-def _candidates(adequacy: Adequacy, kin, model) -> list:
+def _candidates(adequacy: Adequacy, kin) -> list:
     """(effect, start values) to refit: the kinematics' alias set, else the flagged effects."""
-    from .models.effects import get_effect
-
     if kin is not None and kin.aliases:
         # a lag starts at its kinematic value (its cost has other minima); an offset or a scale at its
         # null, where the fit's own estimate is the optimum (Twin Otter 017: 6 and 8 passes, not 8 and 12)
         return [(get_effect(m.key), {m.param: m.value} if m.unit == "s" else {}) for m in kin.aliases[0]]
-    out = []
-    for e in adequacy.flagged[:MAX_REFITS]:
-        out.append((get_effect(e.key), dict(e.expected)))
-    return out
+    return [(get_effect(e.key), dict(e.expected)) for e in adequacy.flagged[:MAX_REFITS]]
 
 
 def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
@@ -920,26 +889,23 @@ def rank(adequacy: Adequacy, prob, result, refit) -> Verdict | None:
     Verdict or None
         The verdict.
     """
-    from .verdict import choose_among
-
     if adequacy.adequate:
         return None
     kin = _kinematics(prob, result.model)
-    rows = _independent_rows(prob)
-    n_ind = float(rows.size)
+    n_ind = float(sum(_independent(d).size for d in prob.data))
     if kin is not None and kin.settled:
         m = kin.settled[0]
         beside = _steps_beside(prob, result, refit, n_ind, m)
         return Verdict(
             m.key, {m.param: (m.value, m.stderr)}, {m.param: m.unit}, "kinematics", (m.key,), (), m.finding.lr, beside
         )
-    raw = [_refit_one(eff, st, prob, result, refit, kin, n_ind) for eff, st in _candidates(adequacy, kin, result.model)]
+    raw = [_refit_one(eff, st, prob, result, refit, kin, n_ind) for eff, st in _candidates(adequacy, kin)]
     fits: list[_Refit] = [f for f in raw if f is not None]
     level = adequacy.alpha / max(len(fits), 1)
     eligible = [f for f in fits if f.p < level and f.demoted is None]
     best, aliases = choose_among(eligible, 2.0 * n_ind * len(prob.out_idx))
     aside = tuple((f.effect.key, f.demoted) for f in fits if f.demoted is not None and f.p < level)
-    steps, steps_lr = _steps_verdict(prob, result, refit, n_ind, best, level, aside)
+    steps, steps_lr = _steps_verdict(prob, result, refit, n_ind, best, level)
     if steps == "steps":
         return Verdict("input_edges", {}, {}, "steps", (), aside, steps_lr)
     if best is None:
@@ -958,14 +924,11 @@ def _steps(prob, n_ind: float) -> tuple[int, float]:
 
 def _lr_of_steps(refit, model, R0: np.ndarray, n_ind: float) -> float | None:
     """LR of ``model`` refitted with every step's timing against residual covariance ``R0`` (None: no fit)."""
-    try:
-        r = refit(model, input_edges="estimated")
-    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
-        return None
-    return max(2.0 * n_ind * (np.linalg.slogdet(R0)[1] - np.linalg.slogdet(r.R)[1]), 0.0) if r.converged else None
+    r = _refitted(refit, model, input_edges="estimated")
+    return _lr(R0, r.R, n_ind) if r is not None and r.converged else None
 
 
-def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside: tuple):
+def _steps_verdict(prob, result, refit, n_ind: float, best, level: float):
     """Where the timing of the elevator's steps between samples (docs/theory.md section 7a) enters the verdict.
 
     The fit's model and, with a ``best`` candidate, its refit are refitted with every step's timing and
@@ -974,8 +937,6 @@ def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside:
     (``"beside"``, LR) when it lowers the BIC beside the best candidate, else (None, 0) (also for records
     without such steps and for a fit that estimated them).
     """
-    from .tails import chi2_sf
-
     k, logn = _steps(prob, n_ind)
     if not k:
         return None, 0.0
@@ -995,17 +956,12 @@ def _steps_verdict(prob, result, refit, n_ind: float, best, level: float, aside:
 def _steps_beside(prob, result, refit, n_ind: float, m) -> bool:
     """Whether the steps' timing lowers the BIC beside the sensor effect ``m`` the kinematics settled (held at
     its kinematic value, as the advice refits it): :func:`_steps_verdict` for the kinematics' verdict."""
-    from .models.effects import get_effect, with_effects
-
     k, logn = _steps(prob, n_ind)
     if not k:
         return False
     model = with_effects(result.model, get_effect(m.key)).fix({m.param: m.value})
-    try:
-        r0 = refit(model)
-    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError):
-        return False
-    lr = _lr_of_steps(refit, model, r0.R, n_ind)
+    r0 = _refitted(refit, model)
+    lr = None if r0 is None else _lr_of_steps(refit, model, r0.R, n_ind)
     return lr is not None and lr > k * logn
 
 
@@ -1051,27 +1007,20 @@ def advice(
     """
     if adequacy.adequate:
         return None
-    diag = (
-        shlex.join(diagnose_argv)
-        if diagnose_argv
-        else "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))"
-    )
+    diag = _command(diagnose_argv, [], "fdml diagnose RECORD ... (or fdml.diagnose.diagnose(records, model))")
     diagnosis = "" if in_diagnosis else f"run the full diagnosis: {diag}"
     v = adequacy.verdict
     if v is not None:
         return _verdict_advice(adequacy, v, fit_argv, diagnosis)
     if adequacy.flagged:
         top = adequacy.flagged[0]
-        others = [e.key for e in adequacy.flagged[1:]]
-        refit = (
-            shlex.join([*fit_argv, "--effect", top.option])
-            if fit_argv
-            else f"fdml fit RECORD ... --effect {top.option} (Python: fdml.with_effects(model, {top.option!r}))"
+        refit = _command(
+            fit_argv,
+            ["--effect", top.option],
+            f"fdml fit RECORD ... --effect {top.option} (Python: fdml.with_effects(model, {top.option!r}))",
         )
-        also = f"; also flagged: {', '.join(others)}" if others else ""
-        return f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}" + (
-            f"; or {diagnosis}" if diagnosis else ""
-        )
+        also = _also([e.key for e in adequacy.flagged[1:]])
+        return f"the fit's residuals carry {top.describe()}{also}. Refit with it: {refit}" + _or(diagnosis)
     c = adequacy.residual_flags[0]
     bounds = "the bounds assume white noise"
     if cov_type == "colored":
@@ -1084,9 +1033,17 @@ def advice(
     )
 
 
-def _option(key: str) -> str:
-    name, _, channel = key.partition("@")
-    return f"{name}:{channel}"
+def _command(argv, args: list, generic: str) -> str:
+    """The running command line ``argv`` with ``args`` added, else the ``generic`` spelling."""
+    return shlex.join([*argv, *args]) if argv else generic
+
+
+def _also(keys: list) -> str:
+    return f"; also flagged: {', '.join(keys)}" if keys else ""
+
+
+def _or(diagnosis: str) -> str:
+    return f"; or {diagnosis}" if diagnosis else ""
 
 
 def _airspeed_alias(v: Verdict) -> str:
@@ -1107,11 +1064,10 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
         why = "; ".join(f"{k}: {r}" for k, r in v.set_aside)
         return f"the fit's residuals flag effects that were all set aside ({why}){tail}"
     if v.source == "steps":
-        args = ["--input-edges", "estimated"]
-        refit = (
-            shlex.join([*fit_argv, *args])
-            if fit_argv
-            else 'fdml fit RECORD ... --input-edges estimated (Python: input_edges="estimated")'
+        refit = _command(
+            fit_argv,
+            ["--input-edges", "estimated"],
+            'fdml fit RECORD ... --input-edges estimated (Python: input_edges="estimated")',
         )
         return (
             f"the elevator steps between samples, and their timing (LR {v.lr:.3g}) explains the fit's residuals better "
@@ -1119,11 +1075,10 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
             f"does not keep when each step happened. Refit with it: {refit}{tail}"
         )
     extra = [f"{k}={val:.6g}" for k, (val, _) in v.params.items()] if v.source == "kinematics" else []
-    args = ["--effect", _option(v.key)] + [a for x in extra for a in ("--fix", x)]
+    args = ["--effect", v.key.replace("@", ":", 1)] + [a for x in extra for a in ("--fix", x)]  # NAME:CHANNEL
     args += ["--input-edges", "estimated"] if v.with_steps else []
-    refit = shlex.join([*fit_argv, *args]) if fit_argv else "fdml fit RECORD ... " + shlex.join(args)
-    others = [e.key for e in adequacy.flagged if e.key not in v.aliases]
-    also = f"; also flagged: {', '.join(others)}" if others else ""
+    refit = _command(fit_argv, args, "fdml fit RECORD ... " + shlex.join(args))
+    also = _also([e.key for e in adequacy.flagged if e.key not in v.aliases])
     if v.source == "kinematics":
         what = (
             f"the kinematics (alpha, q and a_z against the short-period identity, whatever the aerodynamics) "
@@ -1137,7 +1092,7 @@ def _verdict_advice(adequacy: Adequacy, v: Verdict, fit_argv, diagnosis: str) ->
     else:
         steps = ", with the timing of the elevator's steps between samples" if v.with_steps else ""
         what = f"the fit's residuals carry {v.describe()}{steps}{also}. Refit with it: {refit}"
-    return what + (f"; or {diagnosis}" if diagnosis else "")
+    return what + _or(diagnosis)
 
 
 def reworded(
@@ -1170,8 +1125,6 @@ def reworded(
     FitResult
         ``result`` with the re-worded warning (itself when there is none).
     """
-    from dataclasses import replace
-
     found = getattr(result, "adequacy", None)
     if found is None or found.adequate:
         return result
@@ -1213,21 +1166,14 @@ def attach(prob, result, V, sensitivities=None, refit=None):
     FitResult
         ``result`` with ``adequacy`` set (unchanged when the check could not run).
     """
-    import warnings
-    from dataclasses import replace
-
-    from .errors import AdequacyWarning
-
     try:
         found = check(prob, result.values, V, result.R, sensitivities=sensitivities)
         if refit is not None and not found.adequate:
             found = replace(found, verdict=rank(found, prob, result, refit))
-    except (FdmlError, np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:
-        msg = f"the adequacy check could not run: {exc}"
-        warnings.warn(msg, AdequacyWarning, stacklevel=4)
+    except _FAILURES as exc:
+        warnings.warn(f"the adequacy check could not run: {exc}", AdequacyWarning, stacklevel=4)
         return result
     msg = advice(found, cov_type=getattr(result, "cov_type", None))
-    if msg is None:
-        return replace(result, adequacy=found)
-    warnings.warn(msg, AdequacyWarning, stacklevel=4)
+    if msg is not None:
+        warnings.warn(msg, AdequacyWarning, stacklevel=4)
     return replace(result, adequacy=found)

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import math
+import numbers
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from importlib import resources
@@ -88,23 +89,6 @@ KEY_MEANINGS = {
 #: incompressible theory: validity is the user's call, not this limit's.)
 MAX_AIRSPEED = 3000.0
 
-#: Optional model constants an aircraft may carry, by parameter name.
-CONSTANT_KEYS = (
-    "CLa_w",
-    "CLa_t",
-    "deps_da",
-    "Cm_de",
-    "Cz_de",
-    "y_w",
-    "z_w",
-    "y_t",
-    "z_t",
-    "F",
-    "G",
-    "H",
-    "b1",
-)
-
 #: Start values used for constants an aircraft file does not give.  They are
 #: generic light-aircraft numbers, not data: a fit frees the first five, and
 #: the lag constants default to "no lag" so that nothing unsteady is assumed.
@@ -123,6 +107,9 @@ GENERIC_CONSTANTS = {
     "H": 0.065,
     "b1": 7.5,
 }
+
+#: Optional model constants an aircraft may carry, by parameter name.
+CONSTANT_KEYS = tuple(GENERIC_CONSTANTS)
 
 
 #: The lag constants of the unsteady model (docs/theory.md Eqs. 1-2): lift lag of wing
@@ -265,7 +252,7 @@ class Aircraft:
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
             raise AircraftError(f"aircraft name must be a non-empty string, got {self.name!r}")
-        for key in REQUIRED_KEYS[1:]:
+        for key in (*REQUIRED_KEYS[1:], *(("b",) if self.b is not None else ())):
             # every field is a size, a mass, an inertia, a speed or a density: positive
             v = _real(getattr(self, key), f"aircraft {self.name!r}: {key} ({_UNITS[key]})")
             if v <= 0:
@@ -273,11 +260,6 @@ class Aircraft:
                     f"aircraft {self.name!r}: {key} must be positive and finite ({_UNITS[key]}), got {v!r}"
                 )
             object.__setattr__(self, key, v)
-        if self.b is not None:
-            span = _real(self.b, f"aircraft {self.name!r}: b ({_UNITS['b']})")
-            if span <= 0:
-                raise AircraftError(f"aircraft {self.name!r}: b must be positive and finite (m), got {span!r}")
-            object.__setattr__(self, "b", span)
         if self.U > MAX_AIRSPEED:
             raise AircraftError(
                 f"aircraft {self.name!r}: airspeed U = {self.U:g} m/s is not physical "
@@ -301,8 +283,7 @@ class Aircraft:
                 f"aircraft {self.name!r}: unknown constants {sorted(unknown)}; known: {', '.join(CONSTANT_KEYS)}"
             )
         consts = dict(GENERIC_CONSTANTS)
-        for k, v in self.constants.items():
-            consts[k] = _real(v, f"aircraft {self.name!r}: constant {k}")
+        consts.update({k: _real(v, f"aircraft {self.name!r}: constant {k}") for k, v in self.constants.items()})
         given, sources, assumed = frozenset(self.constants), dict(self.sources), set(self.assumed)
         if self.lag_constants not in ("", *LAG_SOURCES):
             raise AircraftError(
@@ -337,12 +318,9 @@ class Aircraft:
         the lag constants of ``"lag_constants": "none"`` (no lag, chosen) are not
         placeholders.
         """
-        out = {}
-        for k in CONSTANT_KEYS:
-            chosen = k in LAG_KEYS and self.lag_constants == "none"
-            if k not in self.given and k not in self.lag_uncertainty and not chosen:
-                out[k] = f"generic {k} = {GENERIC_CONSTANTS[k]:g}"
-        return out
+        chosen = set(LAG_KEYS) if self.lag_constants == "none" else set()  # no lag, by choice
+        given = chosen | self.given | set(self.lag_uncertainty)
+        return {k: f"generic {k} = {GENERIC_CONSTANTS[k]:g}" for k in CONSTANT_KEYS if k not in given}
 
     # --- derived quantities --------------------------------------------------
     @property
@@ -438,11 +416,8 @@ class Aircraft:
         if extra:
             raise AircraftError(f"{origin}: unknown key(s) {', '.join(sorted(extra))}")
         assumed = d.get("assumed", ())
-        if (
-            isinstance(assumed, (str, Mapping))
-            or not isinstance(assumed, (list, tuple))
-            or any(k not in REQUIRED_KEYS and k not in CONSTANT_KEYS and k != "b" for k in assumed)
-        ):
+        known = (*REQUIRED_KEYS, *CONSTANT_KEYS, "b")  # a str or a mapping is not a list of them
+        if not isinstance(assumed, (list, tuple)) or any(k not in known for k in assumed):
             raise AircraftError(f'{origin}: assumed must be a list of key names (e.g. ["S_t", "b1"]), got {assumed!r}')
         try:
             return cls(
@@ -613,8 +588,6 @@ def _checked_sensors(sensors, where: str) -> Mapping:
 
 def _real(value, what: str) -> float:
     """``value`` as a finite float; a bool, a string (even ``"12"``), NaN or inf is an AircraftError."""
-    import numbers
-
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise AircraftError(f"{what} must be a number, got {value!r} ({type(value).__name__})")
     v = float(value)

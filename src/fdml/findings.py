@@ -89,8 +89,6 @@ def raise_if_strict(findings: Iterable[Finding], strict: bool) -> None:
     strict : bool
         Whether to raise (``--strict``); without it this does nothing.
     """
-    if not strict:
-        return
-    bad = [f for f in findings if f.kind == "data"]
+    bad = [f for f in findings if f.kind == "data"] if strict else []
     if bad:
         raise DataCheckError("data check failed (--strict): " + "; ".join(str(f) for f in bad))

@@ -66,7 +66,10 @@ import numpy as np
 
 from .channels import OUTPUTS, boundary_channels
 from .constants import G0
+from .errors import FdmlError
 from .fourier import step_edges
+from .jsoncodec import Fields
+from .models.effects import applied_effects, get_effect
 from .score import equally
 from .tails import chi2_sf
 
@@ -173,7 +176,6 @@ def flight_path_findings(records) -> list:
         each parameter :data:`fdml.flightpath.SIGNIFICANT` standard errors from nominal) or
         ``note`` (why it was not run).
     """
-    from .errors import FdmlError
     from .flightpath import SIGNIFICANT, check_compatibility
 
     out = []
@@ -218,7 +220,6 @@ def resolution(unit: str, dt: float, U: float) -> float | None:
     return {"s": TIME_RESOLUTION * dt, "m": TIME_RESOLUTION * dt * U, "-": SCALE_RESOLUTION}.get(unit)
 
 
-_OUTPUTS = OUTPUTS  # alpha, q, a_z: the three outputs the identity links
 #: The identity is read from MIN_CYCLES cycles over the record up (omega >= MIN_CYCLES 2 pi/T): below,
 #: a frequency is not resolved by the record, its transform is leakage of the record's ends and drift,
 #: and the identity's linearisation about trim (the flight-path angle and airspeed terms it drops) is
@@ -280,16 +281,16 @@ def sensor_terms(effect, values: dict) -> SensorTerms | None:
     name, chans = effect.name, effect.channel.split(",")
     if name in ("time_delay", "actuator_lag") and chans == ["de"]:
         return SensorTerms()
-    if name == "time_delay" and all(c in _OUTPUTS for c in chans):
+    if name == "time_delay" and all(c in OUTPUTS for c in chans):
         tau = float(values["tau_" + "_".join(chans)])
-        return SensorTerms(lags=tuple(tau if c in chans else 0.0 for c in _OUTPUTS))
+        return SensorTerms(lags=tuple(tau if c in chans else 0.0 for c in OUTPUTS))
     if name == "sensor_offset" and chans == ["alpha"]:
         return SensorTerms(offset=float(values["x_alpha"]))
     if name == "sensor_offset" and chans == ["az"]:
         return SensorTerms(offset=-float(values["x_az"]))
-    if name == "sensor_scale" and chans[0] in _OUTPUTS:
+    if name == "sensor_scale" and chans[0] in OUTPUTS:
         k = 1.0 + float(values["k_" + chans[0]])
-        return SensorTerms(scales=tuple(k if c == chans[0] else 1.0 for c in _OUTPUTS))
+        return SensorTerms(scales=tuple(k if c == chans[0] else 1.0 for c in OUTPUTS))
     return None
 
 
@@ -306,8 +307,6 @@ def known_terms(model) -> SensorTerms:
     SensorTerms
         Their sum (empty when there are none).
     """
-    from .models.effects import applied_effects
-
     vals = model.parameters.values
     out = SensorTerms()
     for e in applied_effects(model):
@@ -423,7 +422,7 @@ def patterns() -> tuple:
             "tau_" + "_".join(g),
             "s",
             (0.0, MAX_SHIFT),
-            lags=tuple(1.0 if c in g else 0.0 for c in _OUTPUTS),
+            lags=tuple(1.0 if c in g else 0.0 for c in OUTPUTS),
         )
         for g in TIMING_GROUPS
     ]
@@ -431,7 +430,7 @@ def patterns() -> tuple:
         Pattern(("sensor_offset@alpha", "sensor_offset@az"), "x_alpha", "m", (-MAX_OFFSET, MAX_OFFSET), offset=1.0)
     )
     out += [
-        Pattern((f"sensor_scale@{c}",), f"k_{c}", "-", (-MAX_SCALE, MAX_SCALE), scale=i) for i, c in enumerate(_OUTPUTS)
+        Pattern((f"sensor_scale@{c}",), f"k_{c}", "-", (-MAX_SCALE, MAX_SCALE), scale=i) for i, c in enumerate(OUTPUTS)
     ]
     return tuple(out)
 
@@ -454,7 +453,6 @@ class _Record:
     # (3, 2) measured x(0), x(T) of alpha (rad), q (rad/s), a_z (g) after trim: the ends a lag moves
     ends: np.ndarray
     K: float  # grid points per independent frequency
-    block: int  # grid points per independent frequency, rounded (for Vuong's blocks)
 
 
 def _records(spectra) -> list:
@@ -468,8 +466,8 @@ def _records(spectra) -> list:
         steps = np.exp(-np.outer(s, np.asarray(getattr(d, "edges", ()), float)))
         N = np.column_stack([np.ones_like(s), np.exp(-s * d.T), np.asarray(d.ones)[keep], steps])
         z = np.asarray(d.z)[keep]
-        A, Q, Z = (z[:, list(d.outputs).index(c)] for c in _OUTPUTS)  # by name: theta or q_dot may be beside
-        out.append(_Record(float(d.T), s, A, Q, Z, N, _ends(d), K, max(int(round(K)), 1)))
+        A, Q, Z = (z[:, list(d.outputs).index(c)] for c in OUTPUTS)  # by name: theta or q_dot may be beside
+        out.append(_Record(float(d.T), s, A, Q, Z, N, _ends(d), K))
     return out
 
 
@@ -479,7 +477,7 @@ def _ends(d) -> np.ndarray:
     boundary nuisance's span, and only the second-order ``s tau^2`` part is left unmodelled)."""
     out = np.zeros((3, 2))
     rows = boundary_channels(d.outputs)
-    for j, c in enumerate(_OUTPUTS):
+    for j, c in enumerate(OUTPUTS):
         if c in rows:
             out[j] = d.x0[rows.index(c)], d.xT[rows.index(c)]
         elif d.record is not None and c in d.record.signals:
@@ -520,11 +518,7 @@ def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scale
 
 def _batch(terms) -> tuple:
     """(lags (G, 3), offsets (G,), scales (G, 3)) of a sequence of SensorTerms."""
-    return (
-        np.array([t.lags for t in terms], float),
-        np.array([t.offset for t in terms], float),
-        np.array([t.scales for t in terms], float),
-    )
+    return tuple(np.array([getattr(t, k) for t in terms], float) for k in ("lags", "offset", "scales"))
 
 
 @dataclass(frozen=True)
@@ -655,8 +649,7 @@ def _linear_profile(idn: _Identity, base: SensorTerms, pat: Pattern) -> tuple[fl
     x = u if pat.scale is None else 1.0 / u - 1.0
     # cost'' in the size: d2/dk2 of a u^2 + b u with du/dk = -u^2, d2u/dk2 = 2 u^3 for a scale
     curv = 2 * a if pat.scale is None else (2 * a * u + b) * 2 * u**3 + 2 * a * u**4
-    se = math.sqrt(2.0 / curv) if curv > 0 else math.inf  # cost = -2 ln L: var = 2 / cost''
-    return float(x), float(idn.terms_cost(base + pat.terms(x))), se
+    return float(x), float(idn.terms_cost(base + pat.terms(x))), _stderr(curv)
 
 
 def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -> tuple[float, float, float]:
@@ -679,9 +672,12 @@ def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -
             x = float(np.clip(x - half * (cp - cm) / (cp - 2 * c0 + cm), grid[i - 1], grid[i + 1]))
     h = 1e-4 * (hi - lo)  # the cost is defined past the bounds (a lead): its curvature at x, at a bound too
     cm, c0, cp = idn.costs(pat.batch(base, np.array([x - h, x, x + h])))
-    curv = (cp - 2 * c0 + cm) / h**2
-    se = math.sqrt(2.0 / curv) if curv > 0 else math.inf  # cost = -2 ln L: var = 2 / cost''
-    return x, float(c0), se
+    return x, float(c0), _stderr((cp - 2 * c0 + cm) / h**2)
+
+
+def _stderr(curv: float) -> float:
+    """The standard error of a size from the cost's curvature in it (cost = -2 ln L: var = 2 / cost'')."""
+    return math.sqrt(2.0 / curv) if curv > 0 else math.inf
 
 
 # --- the evidence --------------------------------------------------------------------------------
@@ -733,8 +729,6 @@ class KinematicFinding:
             The line.
         """
         if self.unit == "s":
-            from .models.effects import get_effect
-
             desc = get_effect(self.key).params[0].description or self.key
             size = f"{self.value * 1e3:.3g} +- {self.stderr * 1e3:.2g} ms"
             return f"{desc.replace('this long', size)} (LR {self.lr:.3g}, p {self.p:.2g})"
@@ -790,8 +784,6 @@ class SensorEffect:
         Effect
             It.
         """
-        from .models.effects import get_effect
-
         return get_effect(self.key)
 
     def terms(self) -> SensorTerms:
@@ -836,8 +828,6 @@ def members(found: KinematicFinding, dt: float = 0.0, U: float = 0.0) -> list:
     list of SensorEffect
         One per library effect (two for a vane offset: the vane x and the accelerometer -x).
     """
-    from .models.effects import get_effect
-
     pat = _pattern_of(found)
     out = []
     for key, vals in pat.values(found.value).items():
@@ -907,10 +897,7 @@ class KinematicEvidence:
         SensorTerms
             Their sum.
         """
-        t = self.known
-        for m in self.settled:
-            t = t + m.terms()
-        return t
+        return sum((m.terms() for m in self.settled), self.known)
 
     def check(self, terms: SensorTerms | None) -> tuple[float, float]:
         """Does a candidate's sensor part contradict the identity?  (LR, p) of undoing it.
@@ -949,15 +936,11 @@ class KinematicEvidence:
             ``aliases`` (lists of effect dicts), ``tested`` (finding dicts) and ``scales``.
         """
 
+        def sized(x) -> dict:  # a finding's or an effect's size
+            return {k: getattr(x, k) for k in ("param", "value", "stderr", "unit")}
+
         def eff(m: SensorEffect) -> dict:
-            return {
-                "key": m.key,
-                "param": m.param,
-                "value": m.value,
-                "stderr": m.stderr,
-                "unit": m.unit,
-                "lr": m.finding.lr,
-            }
+            return {"key": m.key, **sized(m), "lr": m.finding.lr}
 
         return {
             "source": self.source,
@@ -968,18 +951,7 @@ class KinematicEvidence:
             "aliases": [[eff(m) for m in a] for a in self.aliases],
             "implausible": [eff(m) for m in self.implausible],
             "unresolved": [eff(m) for m in self.unresolved],
-            "tested": [
-                {
-                    "keys": list(f.keys),
-                    "param": f.param,
-                    "value": f.value,
-                    "stderr": f.stderr,
-                    "unit": f.unit,
-                    "lr": f.lr,
-                    "p_value": f.p,
-                }
-                for f in self.tested
-            ],
+            "tested": [{"keys": list(f.keys), **sized(f), "lr": f.lr, "p_value": f.p} for f in self.tested],
             "scales": {k: {"value": v, "stderr": e} for k, (v, e) in self.scales.items()},
         }
 
@@ -1002,26 +974,17 @@ class KinematicEvidence:
         KinematicEvidence
             The evidence, without its spectra.
         """
-        from .jsoncodec import Fields
-
         f = Fields(d, source)
+
+        def sized(x) -> tuple[str, float, float, str]:  # param, value, stderr, unit
+            return x.string("param"), x.number("value"), x.number("stderr"), x.string("unit")
 
         def finding(x) -> KinematicFinding:
             keys = tuple(x.raw("keys")) if x.raw("keys", None) is not None else (x.string("key"),)
-            return KinematicFinding(
-                keys,
-                x.string("param"),
-                x.number("value"),
-                x.number("stderr"),
-                x.string("unit"),
-                x.number("lr"),
-                x.number("p_value", default=math.nan),
-            )
+            return KinematicFinding(keys, *sized(x), x.number("lr"), x.number("p_value", default=math.nan))
 
         def effect(x) -> SensorEffect:
-            return SensorEffect(
-                x.string("key"), x.string("param"), x.number("value"), x.number("stderr"), x.string("unit"), finding(x)
-            )
+            return SensorEffect(x.string("key"), *sized(x), finding(x))
 
         scales = f.mapping("scales")
         return cls(

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -155,13 +155,9 @@ class Parameter:
             Every field; the role as its JSON form.
         """
         return {
-            "name": self.name,
-            "value": self.value,
-            "free": self.free,
+            **asdict(self),
             "lower": None if math.isinf(self.lower) else self.lower,
             "upper": None if math.isinf(self.upper) else self.upper,
-            "unit": self.unit,
-            "description": self.description,
             "role": self.role.value,
         }
 
@@ -189,7 +185,7 @@ class Parameter:
             upper=math.inf if hi is None else float(hi),
             unit=d.get("unit", ""),
             description=d.get("description", ""),
-            role=_role(d.get("role", Role.AERO.value), d["name"]),
+            role=d.get("role", Role.AERO),  # checked by __post_init__
         )
 
 
@@ -454,10 +450,8 @@ def as_names(value, what: str) -> list[str]:
         return []
     if isinstance(value, str):
         return [n.strip() for n in value.split(",") if n.strip()]
-    if isinstance(value, Mapping):
-        value = list(value)
     try:
-        names = list(value)
+        names = list(value)  # a mapping gives its keys
     except TypeError:
         raise ParameterError(f"{what} must be parameter names (a str or a list of str), got {value!r}") from None
     bad = [n for n in names if not isinstance(n, str)]

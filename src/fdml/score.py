@@ -164,18 +164,14 @@ def p_value(lr: float, q: int, null: str, *, V: float = 0.0, n_grid: int = 1) ->
     """
     lr = max(float(lr), 0.0)
     if null == "chibar":
-        if lr <= 0:
-            return 1.0, 0.0
-        lp = math.log(0.5) + chi2_logsf(lr, 1)
-        return math.exp(lp), lp
-    if null == "davies":
+        lp = math.log(0.5) + chi2_logsf(lr, 1) if lr > 0 else 0.0
+    elif null == "davies":
         lp_chi = chi2_logsf(lr, q)
         bonf = math.log(max(n_grid, 1)) + lp_chi
         dv = davies_bound(lr, q, V)
-        lp = min(bonf, math.log(dv) if dv > 0 else lp_chi + math.log(max(V, 1.0) + 1.0))
-        lp = min(lp, 0.0)
-        return math.exp(lp), lp
-    lp = chi2_logsf(lr, q)
+        lp = min(bonf, math.log(dv) if dv > 0 else lp_chi + math.log(max(V, 1.0) + 1.0), 0.0)
+    else:
+        lp = chi2_logsf(lr, q)
     return math.exp(lp), lp
 
 
@@ -239,12 +235,10 @@ def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> 
         null = effect.nulls(model)[p.name]
         try:
             aug = screen_res.model if screen_res is not None and screen_res.model is not None else effect.augment(model)
-            aug_par = aug.parameters[p.name]
+            bounds = aug.parameters[p.name]
         except FdmlError:  # pragma: no cover - augment validated before
-            aug_par = None
-        lo = aug_par.lower if aug_par is not None else p.lower
-        hi = aug_par.upper if aug_par is not None else p.upper
-        if null <= lo or null >= hi:
+            bounds = p
+        if null <= bounds.lower or null >= bounds.upper:
             return "chibar", 1
     return "chi2", q
 
@@ -287,18 +281,7 @@ def holm(p: np.ndarray) -> np.ndarray:
     numpy.ndarray
         Adjusted p-values, same shape.
     """
-    p = np.asarray(p, float)
-    out = np.full_like(p, np.nan)
-    ok = np.flatnonzero(np.isfinite(p))
-    if ok.size == 0:
-        return out
-    order = ok[np.argsort(p[ok])]
-    m = order.size
-    run = 0.0
-    for i, k in enumerate(order):
-        run = max(run, min(1.0, (m - i) * p[k]))
-        out[k] = run
-    return out
+    return _adjusted(p, lambda ps, m: np.maximum.accumulate(np.minimum(1.0, ps * (m - np.arange(m)))))
 
 
 def bh(p: np.ndarray) -> np.ndarray:
@@ -314,16 +297,17 @@ def bh(p: np.ndarray) -> np.ndarray:
     numpy.ndarray
         The q-values, same shape.
     """
+    return _adjusted(p, lambda ps, m: np.minimum.accumulate(np.minimum(1.0, ps * m / np.arange(1, m + 1))[::-1])[::-1])
+
+
+def _adjusted(p: np.ndarray, adjust) -> np.ndarray:
+    """``adjust(sorted finite p-values, their count)`` put back in the order of ``p``; NaN stays NaN."""
     p = np.asarray(p, float)
     out = np.full_like(p, np.nan)
     ok = np.flatnonzero(np.isfinite(p))
-    if ok.size == 0:
-        return out
-    order = ok[np.argsort(p[ok])]
-    m = order.size
-    q = np.minimum(1.0, p[order] * m / np.arange(1, m + 1))
-    q = np.minimum.accumulate(q[::-1])[::-1]
-    out[order] = q
+    if ok.size:
+        order = ok[np.argsort(p[ok])]
+        out[order] = adjust(p[order], order.size)
     return out
 
 
@@ -340,13 +324,8 @@ def whitener(Rs) -> list[np.ndarray]:
     list of numpy.ndarray
         The whitening matrix L of each band, (n_out, n_out).
     """
-    out = []
-    for R in Rs:
-        W = np.linalg.inv(R)
-        W = 0.5 * (W + W.conj().T)
-        C = np.linalg.cholesky(W)
-        out.append(C.conj().T)
-    return out
+    Ws = [np.linalg.inv(R) for R in Rs]
+    return [np.linalg.cholesky(0.5 * (W + W.conj().T)).conj().T for W in Ws]
 
 
 # --- the screen ----------------------------------------------------------------------------------
@@ -444,20 +423,16 @@ class ScreenContext:
     ):
         self.fit = fit
         self._prepare = prepare
-        self.rows = rows
         self.K = oversample
         self.spectra = list(spectra)
         self.options = fit_options
-        Ls = whitener(fit.Rs)
-        self.L = np.stack(Ls)[rows]  # (N, n, n)
+        self.L = np.stack(whitener(fit.Rs))[rows]  # (N, n, n)
         A = fit.prob.sensitivities(fit.theta) if sensitivities is None else sensitivities
-        self.r = self._real(self._white(fit.V))
-        self.Q = self._basis(self._real_cols(self._white_cols(A)))
+        self.r = self.white(fit.V[:, :, None])[:, 0]
+        self.Q = self._basis(self.white(A))
         # noise-floor metric (diagonal) for aliasing and MDE
-        n = fit.V.shape[1]
-        self.fw = np.ones((fit.V.shape[0], n)) if floor_weights is None else np.asarray(floor_weights, float)
-        self.Qf = self._basis(self._real_cols(self._floor_cols(A)))
-        self._rp: np.ndarray | None = None
+        self.fw = np.ones(fit.V.shape) if floor_weights is None else np.asarray(floor_weights, float)
+        self.Qf = self._basis(self.floor(A))
 
     @staticmethod
     def _basis(J):
@@ -465,21 +440,6 @@ class ScreenContext:
         U, s, _ = np.linalg.svd(J, full_matrices=False)
         keep = s > 1e-10 * (s[0] if s.size else 1.0)
         return U[:, keep]
-
-    def _white(self, V):
-        return (self.L @ V[:, :, None])[:, :, 0]
-
-    def _white_cols(self, A):
-        return self.L @ A
-
-    def _floor_cols(self, A):
-        """A whitened by the diagonal noise floors (row n, output j divided by its floor)."""
-        return A * self.fw[:, :, None]
-
-    @staticmethod
-    def _real(v):
-        v = v.ravel()
-        return np.concatenate([v.real, v.imag])
 
     @staticmethod
     def _real_cols(A):
@@ -517,12 +477,10 @@ class ScreenContext:
         """
         return X - self.Qf @ (self.Qf.T @ X)
 
-    @property
+    @functools.cached_property
     def r_perp(self) -> np.ndarray:
         """The whitened residual with the base sensitivities projected out (computed once)."""
-        if self._rp is None:
-            self._rp = self.perp(self.r)
-        return self._rp
+        return self.perp(self.r)
 
     def white(self, A: np.ndarray) -> np.ndarray:
         """Likelihood-whitened, real-stacked columns of dy/d eta, A of shape (N, n_out, q): (M, q).
@@ -537,7 +495,7 @@ class ScreenContext:
         numpy.ndarray
             The columns, shape (M, q) with M = 2 N n_out.
         """
-        return self._real_cols(self._white_cols(A))
+        return self._real_cols(self.L @ A)
 
     def floor(self, A: np.ndarray) -> np.ndarray:
         """Floor-whitened, real-stacked columns of dy/d eta (for aliasing and the MDE): (M, q).
@@ -552,7 +510,7 @@ class ScreenContext:
         numpy.ndarray
             The columns, shape (M, q) with M = 2 N n_out.
         """
-        return self._real_cols(self._floor_cols(A))
+        return self._real_cols(A * self.fw[:, :, None])  # row n, output j divided by its floor
 
     def pair(self, A: np.ndarray) -> tuple:
         """(:meth:`white`, :meth:`floor`) of A.
@@ -596,20 +554,13 @@ class ScreenContext:
             raise FdmlError("the screen was built without fdml.estimate.prepare: it cannot set up a candidate")
         prob = self._prepare(self.spectra, model, sensitivity="central", **self.options)
         theta = np.array([self.fit.params.get(n, model.parameters.values.get(n, 0.0)) for n in prob.names])
-        idx = {n: i for i, n in enumerate(prob.names)}
         cols = []
         for n, h, os_ in zip(names, steps, one_sided):
-            i = idx[n]
-            tp = theta.copy()
+            i, tp, tm = prob.names.index(n), theta.copy(), theta.copy()
             tp[i] += h
-            yp = _stack(prob, tp)
-            if os_:
-                y0 = _stack(prob, theta)
-                cols.append((yp - y0) / h)
-            else:
-                tm = theta.copy()
+            if not os_:  # a central difference; forward from a null on a bound
                 tm[i] -= h
-                cols.append((yp - _stack(prob, tm)) / (2 * h))
+            cols.append((_stack(prob, tp) - _stack(prob, tm)) / (h if os_ else 2 * h))
         return np.stack(cols, axis=-1)
 
     def candidate_jacobian(self, model, names, steps, one_sided) -> tuple:
@@ -651,13 +602,7 @@ class ScreenContext:
         list
             Per candidate, its sensitivities (N, n_out, q) or the exception raised.
         """
-        out: list[np.ndarray | Exception] = []
-        for args in cands:
-            try:
-                out.append(self.candidate_sensitivities(*args))
-            except Exception as exc:  # noqa: BLE001 - a candidate that cannot be evaluated is reported
-                out.append(exc)
-        return out
+        return [attempt(self.candidate_sensitivities, *args) for args in cands]
 
     def grid_sensitivities(self, model, names, steps, one_sided, gname: str, grid: np.ndarray) -> np.ndarray:
         """:meth:`candidate_sensitivities` at every value of the nuisance parameter ``gname`` on ``grid``.
@@ -746,12 +691,8 @@ def _blocks(n: int, per_value: int) -> list:
 
 def _steps(test, nulls, aug) -> tuple[list, list]:
     """Finite-difference steps (typical sizes) and one-sidedness (null on the lower bound) per tested parameter."""
-    steps, one_sided = [], []
-    for p in test:
-        at_lo = nulls[p.name] <= p.lower or (aug.parameters[p.name].lower >= nulls[p.name])
-        steps.append(p.typical())
-        one_sided.append(bool(at_lo))
-    return steps, one_sided
+    at_lo = [nulls[p.name] <= p.lower or aug.parameters[p.name].lower >= nulls[p.name] for p in test]
+    return [p.typical() for p in test], [bool(x) for x in at_lo]
 
 
 @dataclass(frozen=True)
@@ -835,22 +776,12 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
     list
         Per effect, its :class:`ScreenResult` or the exception raised.
     """
-    out: list[ScreenResult | Exception | None] = [None] * len(effects)
-    cands: dict[int, _Candidate] = {}
-    for i, eff in enumerate(effects):
-        try:
-            cands[i] = _candidate(ctx, eff)
-        except Exception as exc:  # noqa: BLE001 - a candidate that cannot be set up is reported, never fatal
-            out[i] = exc
+    out: list = [attempt(_candidate, ctx, eff) for eff in effects]  # each candidate set up, or why not
+    cands = {i: c for i, c in enumerate(out) if isinstance(c, _Candidate)}
     plain = [i for i, c in cands.items() if not c.effect.nuisance_grid]
-    stats: dict[int, tuple] = {}
-    sens = ctx.candidate_sensitivities_many([cands[i].args for i in plain])
-    good = []
-    for i, A in zip(plain, sens):
-        if isinstance(A, Exception):
-            out[i] = A
-        else:
-            good.append((i, A))
+    sens = dict(zip(plain, ctx.candidate_sensitivities_many([cands[i].args for i in plain])))
+    stats: dict[int, tuple | Exception] = {i: A for i, A in sens.items() if isinstance(A, Exception)}
+    good = [(i, A) for i, A in sens.items() if not isinstance(A, Exception)]
     for q in sorted({A.shape[-1] for _, A in good}):
         group = [(i, A) for i, A in good if A.shape[-1] == q]
         Je, Jf = ctx.pair(np.concatenate([A for _, A in group], axis=-1))
@@ -859,18 +790,19 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
         infos, aliases = _floor_stats(ctx, Jf)
         for j, (i, _) in enumerate(group):
             stats[i] = (lms[j], etas[j], infos[j], aliases[j], (Je[:, j, :], Jf[:, j, :]), None, {})
-    for i, c in cands.items():
-        if c.effect.nuisance_grid:
-            try:
-                stats[i] = _grid_stats(ctx, c, band)
-            except Exception as exc:  # noqa: BLE001 - as above
-                out[i] = exc
+    stats.update({i: attempt(_grid_stats, ctx, c, band) for i, c in cands.items() if c.effect.nuisance_grid})
     for i, st in stats.items():
-        try:
-            out[i] = _result(ctx, cands[i], st, level)
-        except Exception as exc:  # noqa: BLE001 - as above
-            out[i] = exc
+        out[i] = st if isinstance(st, Exception) else attempt(_result, ctx, cands[i], st, level)
     return out
+
+
+def attempt(f, *args):
+    """``f(*args)``, or the exception it raised: a candidate that cannot be set up or evaluated is reported,
+    never fatal."""
+    try:
+        return f(*args)
+    except Exception as exc:  # noqa: BLE001 - reported in its place
+        return exc
 
 
 def _grid_stats(ctx: ScreenContext, c: _Candidate, band: tuple) -> tuple:
@@ -900,13 +832,10 @@ def _grid_stats(ctx: ScreenContext, c: _Candidate, band: tuple) -> tuple:
 def _result(ctx: ScreenContext, c: _Candidate, stats: tuple, level: float) -> ScreenResult:
     """The screen's verdict on one candidate from its statistics (LM, eta, information, aliasing, ...)."""
     lm, eta, info, alias, jac, grid_out, best_nuis = stats
-    lm = float(lm)
     names = c.names
-    # one-sided nulls: a linearised step into the infeasible side means no evidence
-    for j in range(len(names)):
-        if c.one_sided[j] and eta[j] < 0 and len(names) == 1:
-            lm = 0.0
     q = len(names)
+    # one-sided nulls: a linearised step into the infeasible side means no evidence
+    lm = 0.0 if q == 1 and c.one_sided[0] and eta[0] < 0 else float(lm)
     n_family = max(int(getattr(ctx, "family_size", 1)), 1)
     lam = power_noncentrality(level / n_family, q)
     try:

@@ -73,17 +73,15 @@ def judge(
         The reason, in words.
     """
     values = {k: v for k, (v, _) in params.items()}
-    for p in effect.param_list(model):
-        if p.name in values and p.plausible is not None and not p.nuisance:
+    tested = [p for p in effect.param_list(model) if p.name in values and not p.nuisance]
+    for p in tested:
+        if p.plausible is not None and not p.plausible[0] <= values[p.name] <= p.plausible[1]:
             lo, hi = p.plausible
-            if not lo <= values[p.name] <= hi:
-                return f"{p.name} = {values[p.name]:.3g} {p.unit} lies outside its plausible range {lo:g} .. {hi:g}"
+            return f"{p.name} = {values[p.name]:.3g} {p.unit} lies outside its plausible range {lo:g} .. {hi:g}"
     terms = sensor_terms(effect, values)
     if terms is not None:  # a sensor or timing effect: sizes below the data's resolution absorb model errors
-        for p in effect.param_list(model):
-            if p.name not in values or p.nuisance or (p.unit == "m" and U is None):
-                continue
-            floor = resolution(p.unit, dt, U or 0.0)
+        for p in tested:
+            floor = None if p.unit == "m" and U is None else resolution(p.unit, dt, U or 0.0)
             if floor is not None and effect.channel == "de" and p.unit == "s":
                 floor = max(floor, input_floor)
             if floor is not None and abs(values[p.name]) < floor:
