@@ -21,20 +21,8 @@ EXIT_CLOSED_PIPE = 141
 VERBOSE_HELP = "show warnings and log messages as they happen (before or after the command)"
 
 #: Command modules under fdml.commands, in help order.
-COMMANDS = (
-    "demo",
-    "fit",
-    "compare",
-    "check",
-    "simulate",
-    "response",
-    "report",
-    "batch",
-    "montecarlo",
-    "diagnose",
-    "aircraft",
-    "effects",
-    "design",
+COMMANDS = tuple(
+    "demo fit compare check simulate response report batch montecarlo diagnose aircraft effects design".split()
 )
 
 
@@ -81,6 +69,24 @@ def print_json(obj) -> None:
     from .jsoncodec import dumps
 
     sys.stdout.write(dumps(obj, indent=1) + "\n")
+
+
+def show(args, obj, text) -> None:
+    """A command's answer: ``obj`` as JSON with ``--json`` (:func:`print_json`), else ``text`` printed.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments (``json``).
+    obj : object
+        The machine-readable answer.
+    text : object
+        The answer for a reader.
+    """
+    if args.json:
+        print_json(obj)
+    else:
+        print(text)
 
 
 def _closed_pipe() -> int:

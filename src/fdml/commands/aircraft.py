@@ -27,32 +27,26 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..aircraft import list_aircraft, load_aircraft
-    from ..cli import print_json
+    from ..cli import show
     from ..errors import AircraftError
 
     if args.action == "init":
         return _init(args)
     if args.action == "list":
         names = list_aircraft()
-        if args.json:
-            print_json(names)
-        else:
-            print("\n".join(names))
+        show(args, names, "\n".join(names))
         return 0
     if not args.name:
         raise AircraftError("fdml aircraft show needs a NAME (or FILE.json)")
     ac = load_aircraft(args.name)
-    if args.json:
-        print_json(ac.to_dict())
-    else:
-        print(ac.describe())
+    show(args, ac.to_dict(), ac.describe())
     return 0
 
 
 def _init(args) -> int:
     """Start an aircraft file from a record: write it (-o) or print it (JSON on stdout)."""
     from ..aircraft import aircraft_template
-    from ..cli import print_json
+    from ..cli import print_json, show
     from ..errors import AircraftError
     from ..io import load_record
     from ..io.cli import record_options
@@ -69,9 +63,9 @@ def _init(args) -> int:
     import json
 
     atomic_write_text(args.output, json.dumps(tpl.as_file(), indent=1) + "\n")
-    if args.json:
-        print_json({"aircraft_file": str(args.output), "missing": tpl.missing})
-    else:
-        print(tpl.describe())
-        print(f"\nwrote {args.output}; fill the null values, then: fdml aircraft show {args.output}")
+    show(
+        args,
+        {"aircraft_file": str(args.output), "missing": tpl.missing},
+        f"{tpl.describe()}\n\nwrote {args.output}; fill the null values, then: fdml aircraft show {args.output}",
+    )
     return 0

@@ -130,6 +130,7 @@ def _windowed(source, args):
 
 def run(args) -> int:
     from ..batch import run_batch
+    from ..cli import show
     from ..errors import FdmlError
 
     band = args.band
@@ -162,10 +163,5 @@ def run(args) -> int:
         resume=args.resume,
         progress=progress,
     )
-    if args.json:
-        from ..cli import print_json
-
-        print_json(summary.to_dict())
-    else:
-        print(summary)
+    show(args, summary.to_dict(), summary)
     return 0 if summary.n_failed == 0 else 1

@@ -46,13 +46,9 @@ def text(cat: list[dict]) -> str:
 
 
 def run(args) -> int:
+    from ..cli import show
     from ..models.effects import catalogue
 
     cat = catalogue()
-    if args.json:
-        from ..cli import print_json
-
-        print_json({"effects": cat})
-    else:
-        print(text(cat))
+    show(args, {"effects": cat}, text(cat))
     return 0

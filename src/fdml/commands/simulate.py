@@ -27,6 +27,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    from ..cli import show
     from ..outputs import check_output
     from ..simulate import simulate_maneuver
 
@@ -44,12 +45,9 @@ def run(args) -> int:
         **kw,
     )
     rec.to_csv(args.output)
-    if args.json:
-        from ..cli import print_json
-
-        print_json(
-            {"output": args.output, "samples": rec.n, "dt": rec.dt, "model": model.kind, "signals": list(rec.signals)}
-        )
-    else:
-        print(f"wrote {args.output}: {rec.n} samples at {rec.dt:g} s, signals {', '.join(rec.signals)}")
+    show(
+        args,
+        {"output": args.output, "samples": rec.n, "dt": rec.dt, "model": model.kind, "signals": list(rec.signals)},
+        f"wrote {args.output}: {rec.n} samples at {rec.dt:g} s, signals {', '.join(rec.signals)}",
+    )
     return 0

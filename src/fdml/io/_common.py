@@ -12,8 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..channels import REQUIRED
 from ..errors import RecordError
 from ..record import Record
+from .units import QUANTITY, unit_factor
 
 #: Leading window over which ``meta["trim_values"]`` are averaged, s.  Half a
 #: second is many samples at any flight-test rate (5 at 10 Hz, 25 at 50 Hz) and
@@ -48,6 +50,35 @@ def trim_values(t: np.ndarray, signals: Mapping[str, np.ndarray], window: float 
     dt = (t[-1] - t[0]) / (t.size - 1)
     k = min(t.size, int(round(window / dt)) + 1)
     return {name: float(np.mean(v[:k])) for name, v in signals.items()}
+
+
+def columns_to_si(p: Path, data: np.ndarray, columns: Mapping[str, tuple], label) -> tuple[dict, dict, dict, list]:
+    """The signals of a record matrix in fdml's units, from a layout ``{signal: (1-based column, unit)}``.
+
+    A column of zeros was not recorded: an error for a required signal, else
+    the signal is left out (listed in ``absent``).  ``label(column, unit)`` is
+    the channel's description in ``meta["channels"]``.
+
+    Returns
+    -------
+    signals, channels, conversion : dict
+        The SI signals, their channel descriptions and ``{"unit", "factor"}``.
+    absent : list of str
+        The signals whose column holds only zeros.
+    """
+    signals, channels, conv, absent = {}, {}, {}, []
+    for sig, (col, unit) in columns.items():
+        x = np.asarray(data[:, col - 1], dtype=float)
+        if not np.any(x != 0.0):
+            if sig in REQUIRED:
+                raise RecordError(f"{p}: column {col} ({sig}) holds only zeros: the channel was not recorded")
+            absent.append(sig)
+            continue
+        factor = unit_factor(unit, QUANTITY[sig], what=f"{p} column {col}")
+        signals[sig] = x * factor
+        channels[sig] = label(col, unit)
+        conv[sig] = {"unit": unit, "factor": factor}
+    return signals, channels, conv, absent
 
 
 def finish(
