@@ -20,7 +20,8 @@ def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
     out: dict[str, float] = {}
     for item in items or []:
         name, sep, value = item.partition("=")
-        if not sep or not name.strip():
+        name = name.strip()
+        if not sep or not name:
             raise ParameterError(f"expected {what}, got {item!r}")
         try:
             number = float(value)
@@ -28,9 +29,9 @@ def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
             raise ParameterError(f"{item!r}: {value!r} is not a number") from None
         if not math.isfinite(number):  # float() reads nan and inf: no parameter value is either
             raise ParameterError(f"{item!r}: {value.strip()!r} is not a finite number")
-        if name.strip() in out and out[name.strip()] != number:
-            raise ParameterError(f"{item!r}: {name.strip()} is already given as {out[name.strip()]:g}")
-        out[name.strip()] = number
+        if out.get(name, number) != number:
+            raise ParameterError(f"{item!r}: {name} is already given as {out[name]:g}")
+        out[name] = number
     return out
 
 
@@ -75,17 +76,26 @@ def _effect_list(text: str) -> list[str]:
     for piece in (x.strip() for x in text.split(",")):
         if not piece:
             continue
-        if (
-            out
-            and ("@" in out[-1] or ":" in out[-1])
-            and ":" not in piece
-            and "@" not in piece
-            and piece in ("alpha", "q", "az", "a_z", "de", "alpha_w", "tail")
-        ):
+        if out and ("@" in out[-1] or ":" in out[-1]) and piece in ("alpha", "q", "az", "a_z", "de", "alpha_w", "tail"):
             out[-1] = f"{out[-1]},{piece}"
         else:
             out.append(piece)
     return out
+
+
+def fit_spectra(records, band, kwargs: dict):
+    """The records' spectra for :func:`fdml.fit`: the front end's ``trim`` moves out of ``kwargs`` (fit options).
+
+    The rows are the fit's ``outputs``.  One record gives its FrequencyData,
+    several give a list (a joint fit).
+    """
+    from ..spectral import spectra
+
+    given = {"outputs": kwargs.get("outputs")}
+    if "trim" in kwargs:
+        given["trim"] = kwargs.pop("trim")
+    data = [spectra(r, band=band, **given) for r in records]
+    return data if len(data) > 1 else data[0]
 
 
 def make_model_from_args(args, values: dict | None = None):

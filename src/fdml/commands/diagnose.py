@@ -9,12 +9,6 @@ from __future__ import annotations
 from . import _options as O
 
 
-def _level() -> float:
-    from ..verdict import LEVEL  # deferred: the parser must not import the numerics (fdml --help)
-
-    return LEVEL
-
-
 def register(sub) -> None:
     p = sub.add_parser(
         "diagnose",
@@ -25,7 +19,7 @@ def register(sub) -> None:
     p.add_argument("records", nargs="*", metavar="RECORD", help="record file(s), fitted jointly")
     O.add_model_options(p, what="base model the effects are added to")
     O.add_record_options(p)
-    lo_hi = _default_lo_hi()
+    lo_hi = O.DEFAULT_BAND_TEXT.rsplit(":", 1)[0]  # fdml's default band (fdml.diagnose.data.DEFAULT_DIAG_BAND)
     O.add_band_option(
         p,
         help=f"analysis band, rad/s (default {lo_hi}; a :STEP is ignored: the "
@@ -93,14 +87,10 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
-def _default_lo_hi() -> str:
-    """``LO:HI`` of fdml's default band (the diagnosis's default, :data:`fdml.diagnose.data.DEFAULT_DIAG_BAND`)."""
-    return O.DEFAULT_BAND_TEXT.rsplit(":", 1)[0]
-
-
 def _validate(args) -> int:
     import sys
 
+    from ..cli import show
     from ..diagnose.validation import REPORT_SEED_BASE, validate
 
     n_e, n_n = (1, 6) if args.quick else (args.n_effect, args.n_null)
@@ -109,29 +99,21 @@ def _validate(args) -> int:
 
         check_output(args.output, what="validation file")
 
-    show = O.progress_wanted(args, default_on=True)
-
     def progress(done, total):
-        if show:
-            sys.stderr.write(f"\rfdml diagnose --validate: {done}/{total}")
-            if done == total:
-                sys.stderr.write("\n")
+        sys.stderr.write(f"\rfdml diagnose --validate: {done}/{total}")
+        if done == total:
+            sys.stderr.write("\n")
 
     res = validate(
         n_effect=n_e,
         n_null=n_n,
         seed_base=REPORT_SEED_BASE if args.seed_base is None else args.seed_base,
         processes=args.workers,
-        progress=progress,
+        progress=progress if O.progress_wanted(args, default_on=True) else None,
     )
     if args.output:
         res.to_json(args.output)
-    if args.json:
-        from ..cli import print_json
-
-        print_json({"settings": res.settings, "scores": res.scores})
-    else:
-        print(res.table())
+    show(args, {"settings": res.settings, "scores": res.scores}, res.table())
     return 0
 
 
@@ -140,22 +122,21 @@ def _check_outputs(args) -> None:
     from ..outputs import check_output
 
     inputs = [*args.records, *(args.holdout or []), args.aircraft]
-    if args.output:
-        check_output(args.output, inputs, what="report file")
-    if args.figure:
-        check_output(args.figure, inputs, what="figure")
-    if args.recommended_output:
-        check_output(args.recommended_output, inputs, what="result file")
+    for path, what in ((args.output, "report file"), (args.figure, "figure"), (args.recommended_output, "result file")):
+        if path:
+            check_output(path, inputs, what=what)
 
 
 def run(args) -> int:
     if args.validate:
         return _validate(args)
+    from ..cli import show
     from ..diagnose import diagnose
     from ..errors import ParameterError, RecordError
     from ..estimate import parse_outputs
     from ..io import load_records
     from ..io.cli import record_options
+    from ..verdict import LEVEL
     from ._common import model_for_records
 
     if not args.records:
@@ -171,18 +152,16 @@ def run(args) -> int:
             bands = [float(x) for x in args.bands.split(",")]
         except ValueError:
             raise ParameterError(f"--bands must be numbers separated by commas, got {args.bands!r}") from None
-    library = [x.strip() for x in args.library.split(",")] if args.library else None
-    outputs = list(parse_outputs(args.outputs, what="--outputs"))
     rep = diagnose(
         records,
         model,
         holdout=holdout,
         band=args.band,
         bands=bands,
-        library=library,
-        alpha=args.alpha if args.alpha is not None else _level(),
+        library=[x.strip() for x in args.library.split(",")] if args.library else None,
+        alpha=args.alpha if args.alpha is not None else LEVEL,
         max_effects=args.max_effects,
-        outputs=outputs,
+        outputs=list(parse_outputs(args.outputs, what="--outputs")),
         input_edges=args.input_edges,
         trim="first",
         strict=bool(args.strict),
@@ -194,12 +173,7 @@ def run(args) -> int:
         rep.recommended.to_json(args.recommended_output)
     if args.figure and rep.status == "ok":
         rep.plot(args.figure)
-    if args.json:
-        from ..cli import print_json
-
-        print_json(rep.to_dict())
-    else:
-        print(rep.summary())
+    show(args, rep.to_dict(), rep.summary())
     import sys
 
     if rep.status != "ok":

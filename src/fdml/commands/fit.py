@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from . import _options as O
-from ._common import assignments, check_band_option, model_for_records
+from ._common import assignments, check_band_option, fit_spectra, model_for_records
 
 
 def register(sub) -> None:
@@ -90,33 +90,28 @@ def run(args) -> int:
     import time
 
     t0 = time.perf_counter()
+    from ..adequacy import reworded
     from ..conditions import attach_conditions
     from ..estimate import fit
     from ..io import load_records
     from ..io.cli import record_options
-    from ..spectral import spectra
 
     if args.output:  # before any work: the result must not replace an input, a folder or a device
         from ..outputs import check_output
 
         check_output(args.output, [*args.records, args.aircraft], what="result file")
-    band = args.band
-    check_band_option(band)
+    check_band_option(args.band)
     kwargs = O.fit_kwargs(args)  # a bad --outputs before reading
     records = load_records(args.records, **record_options(args))
     t_read = time.perf_counter()
     model, provenance = model_for_records(args, records)
     fixed = assignments(args.fix)
-    trim = kwargs.pop("trim", None)
-    opts = {"outputs": kwargs.get("outputs"), **({} if trim is None else {"trim": trim})}
-    data = [spectra(r, band=band, **opts) for r in records]  # the front end
+    data = fit_spectra(records, args.band, kwargs)  # the front end
     t_transform = time.perf_counter()
     bar = _progress_callback(O.progress_wanted(args, default_on=False))
-    from ..adequacy import reworded
-
     try:
         res = fit(
-            data if len(data) > 1 else data[0],
+            data,
             model,
             fix=fixed,
             free=args.free or [],
