@@ -107,10 +107,8 @@ def _read_kwargs(args) -> dict:
     """
     from ..io.cli import record_options
 
-    opts = record_options(args)
-    for key in ("t0", "t1"):
-        opts.pop(key, None)
-    if opts.get("format") == "auto":
+    opts = {k: v for k, v in record_options(args).items() if k not in ("t0", "t1")}
+    if opts["format"] == "auto":
         del opts["format"]
     return opts
 
@@ -129,26 +127,23 @@ def _windowed(source, args):
 
 
 def run(args) -> int:
+    import importlib.util
+
     from ..batch import run_batch
     from ..cli import show
     from ..errors import FdmlError
 
-    band = args.band
-    check_band_option(band)  # up front: a bad band would fail every record one by one
+    check_band_option(args.band)  # up front: a bad band would fail every record one by one
     spec = model_spec_from_args(args, reads_records=True, fix=assignments(args.fix), free=list(args.free or []))
     fit_kwargs = O.fit_kwargs(args)
-    if band is not None:
-        fit_kwargs["band"] = band
+    if args.band is not None:
+        fit_kwargs["band"] = args.band
     if args.strict:
         fit_kwargs["strict"] = True
     if args.serial and args.scheduler:
         raise FdmlError("give --serial or --scheduler, not both")
     engine = "serial" if args.serial else (args.scheduler or "process")
-    progress = None
-    if O.progress_wanted(args, default_on=True):
-        import importlib.util
-
-        progress = True if importlib.util.find_spec("tqdm") is not None else None
+    progress = True if O.progress_wanted(args, default_on=True) and importlib.util.find_spec("tqdm") else None
     out = args.output or DEFAULT_OUTPUT
     sources = [_windowed(parse_source(s), args) for s in args.sources]
     check_batch_outputs(sources, out, args.aircraft)

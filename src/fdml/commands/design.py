@@ -88,6 +88,7 @@ def _names(items) -> list[str]:
 def run(args) -> int:
     from pathlib import Path
 
+    from ..cli import show
     from ..design import design, plot_design, read_input
     from ..errors import ParameterError
     from ..outputs import StagedOutputs, check_output
@@ -129,14 +130,9 @@ def run(args) -> int:
         with StagedOutputs([args.input, args.aircraft]) as out:
             out.write_text(args.output, d.input.to_record().to_csv_text(), what="input file")
             out.savefig(fig, figure, dpi=110)
-    if args.json:
-        from ..cli import print_json
-
-        out_d = d.to_dict(args.output if args.output is not None else args.input)
-        out_d["figure"] = None if figure is None else str(figure)
-        print_json(out_d)
-    else:
-        print(d.table())
-        if args.output is not None:
-            print(f"\nwrote {args.output} (t, de) and {figure}")
+    show(
+        args,
+        {**d.to_dict(args.output if args.output is not None else args.input), "figure": figure and str(figure)},
+        d.table() + ("" if figure is None else f"\n\nwrote {args.output} (t, de) and {figure}"),
+    )
     return 0

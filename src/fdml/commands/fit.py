@@ -37,28 +37,24 @@ def register(sub) -> None:
 _NOT_QUOTED = ("output", "json", "progress", "func", "parsers", "command", "verbose")
 
 
-def _argv_of(parser, args, *, rename=None) -> list:
+def _argv_of(parser, args) -> list:
     """``args`` as the argv of ``parser``: positionals, then every option not at its default.
 
-    ``rename`` maps an attribute of ``args`` to the dest of ``parser``; options ``parser`` does not have are left out.
+    Options ``parser`` does not have are left out.
     """
-    rename = rename or {}
-    vals = {rename.get(k, k): v for k, v in vars(args).items() if k not in _NOT_QUOTED}
+    vals = {k: v for k, v in vars(args).items() if k not in _NOT_QUOTED}
     pos, opt = [], []
     for a in parser._actions:
         if a.dest not in vals or a.dest == "help" or a.help == "==SUPPRESS==":  # not hidden aliases
             continue
         v = vals[a.dest]
+        items = [str(x) for x in (v if isinstance(v, list) else [v])]
         if not a.option_strings:
-            pos += [str(x) for x in (v if isinstance(v, list) else [v])]
+            pos += items
         elif v != a.default and v is not None and not (a.choices and v not in a.choices):
             flag = max(a.option_strings, key=len)
             # a repeatable option once per value (--effect a --effect b): every parser reads that form
-            opt += (
-                [flag]
-                if a.nargs == 0
-                else [x for item in (v if isinstance(v, list) else [v]) for x in (flag, str(item))]
-            )
+            opt += [flag] if a.nargs == 0 else [x for item in items for x in (flag, item)]
     return pos + opt
 
 
