@@ -91,7 +91,7 @@ def fit_spectra(records, band, kwargs: dict):
     """
     from ..spectral import spectra
 
-    given = {"outputs": kwargs.get("outputs")}
+    given: dict = {"outputs": kwargs.get("outputs")}
     if "trim" in kwargs:
         given["trim"] = kwargs.pop("trim")
     data = [spectra(r, band=band, **given) for r in records]
