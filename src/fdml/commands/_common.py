@@ -128,9 +128,8 @@ def model_for_records(args, records, values: dict | None = None):
             aircraft = aircraft_for_lags(aircraft, given=supplied, source=option)
         aircraft = aircraft_for_lags(aircraft, getattr(args, "free", None))
     model = make_model(kind, aircraft, **opts)
-    effects = list(getattr(args, "effect", None) or ())
-    if effects:
-        model = with_effects(model, effects)
+    if getattr(args, "effect", None):
+        model = with_effects(model, list(args.effect))
     if values:
         model.parameters.check_names(values)
         model = model.with_values(values)

@@ -50,7 +50,8 @@ def _init(args) -> int:
     from ..errors import AircraftError
     from ..io import load_record
     from ..io.cli import record_options
-    from ..outputs import atomic_write_text, check_output
+    from ..jsoncodec import write_json
+    from ..outputs import check_output
 
     if not args.name:
         raise AircraftError("fdml aircraft init needs a RECORD (fdml aircraft init RECORD -o FILE.json)")
@@ -60,9 +61,7 @@ def _init(args) -> int:
     if not args.output:
         print_json(tpl.as_file())
         return 0
-    import json
-
-    atomic_write_text(args.output, json.dumps(tpl.as_file(), indent=1) + "\n")
+    write_json(args.output, tpl.as_file())
     show(
         args,
         {"aircraft_file": str(args.output), "missing": tpl.missing},

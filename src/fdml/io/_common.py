@@ -100,7 +100,6 @@ def finish(
     are computed by the caller from the windowed arrays through
     ``meta["_per_sample"]``: a dict of SI arrays averaged here after windowing.
     """
-    check_trim(trim)
     per_sample = meta.pop("_per_sample", {})
     where = str(path)
     try:
@@ -131,9 +130,7 @@ def finish(
             )
         rec = rec.window(rec.t[keep][0], rec.t[keep][-1])
         rec = replace(rec, meta={**rec.meta, "window": [a, b]})
-    extra = {}
-    for key, arr in per_sample.items():
-        extra[key] = float(np.mean(np.asarray(arr, dtype=float)[keep]))
+    extra = {key: float(np.mean(np.asarray(arr, dtype=float)[keep])) for key, arr in per_sample.items()}
     tv = trim_values(rec.t, rec.signals, trim_window)
     # window_means: which meta values are means of per-sample channels over the record (their provenance)
     meta2 = {**rec.meta, **extra, "window_means": sorted(extra), "trim_values": tv, "trim_values_window": trim_window}

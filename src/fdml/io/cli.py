@@ -110,27 +110,19 @@ def record_options(args) -> dict:
     """
     from ..errors import RecordError
 
-    opts: dict = {
-        "format": getattr(args, "format", None) or "auto",
-        "t0": getattr(args, "t0", None),
-        "t1": getattr(args, "t1", None),
-    }
-    columns = parse_mapping(getattr(args, "columns", None), "columns")
-    units = parse_mapping(getattr(args, "units", None), "units")
-    sign_txt = parse_mapping(getattr(args, "sign", None), "sign")
-    if columns:
-        if opts["format"] == "auto":
-            opts["format"] = "csv-map"
-        opts["columns"] = columns
-        if units:
-            opts["units"] = units
-        if sign_txt:
-            opts["sign"] = {k: _sign(k, v) for k, v in sign_txt.items()}
-    elif units or sign_txt:
+    opts: dict = {"format": args.format or ("csv-map" if args.columns else "auto"), "t0": args.t0, "t1": args.t1}
+    columns, units, signs = (parse_mapping(getattr(args, key), key) for key in ("columns", "units", "sign"))
+    if (units or signs) and not columns:
         raise RecordError("--units and --sign apply to a column-mapped CSV: give --columns too")
-    for key in ("layout", "variable", "delimiter"):
-        if getattr(args, key, None):
-            opts[key] = getattr(args, key)
-    if getattr(args, "check_units", None) is False:
+    given = {
+        "columns": columns,
+        "units": units,
+        "sign": {k: _sign(k, v) for k, v in signs.items()},
+        "layout": args.layout,
+        "variable": args.variable,
+        "delimiter": args.delimiter,
+    }
+    opts.update({k: v for k, v in given.items() if v})
+    if args.check_units is False:
         opts["check_units"] = False
     return opts
