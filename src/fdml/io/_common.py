@@ -82,17 +82,7 @@ def columns_to_si(p: Path, data: np.ndarray, columns: Mapping[str, tuple], label
 
 
 def finish(
-    path: Path,
-    t,
-    signals: dict,
-    meta: dict,
-    *,
-    name: str | None,
-    t0,
-    t1,
-    trim,
-    trim_window: float = TRIM_WINDOW,
-    check_units: bool = True,
+    path: Path, t, signals: dict, meta: dict, *, name: str | None, t0, t1, trim, check_units: bool = True
 ) -> Record:
     """Build the Record, cut the window, record trim values, optionally remove trim.
 
@@ -101,45 +91,43 @@ def finish(
     ``meta["_per_sample"]``: a dict of SI arrays averaged here after windowing.
     """
     per_sample = meta.pop("_per_sample", {})
-    where = str(path)
     try:
         rec = Record(t, signals, name=name or path.stem, meta=meta, check_units=check_units)
     except RecordError as exc:
-        raise RecordError(f"{where}: {exc}") from None
+        raise RecordError(f"{path}: {exc}") from None
     keep = np.ones(rec.n, dtype=bool)
     if t0 is not None or t1 is not None:
         for label, v in (("t0", t0), ("t1", t1)):
             if v is not None and not (isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(v)):
-                raise RecordError(f"{where}: window {label} must be a finite number of seconds, got {v!r}")
+                raise RecordError(f"{path}: window {label} must be a finite number of seconds, got {v!r}")
         # Time stamps in files carry rounding (HFB-320: 30.00001 s for 30 s), so a
         # window edge within WINDOW_TOL sample intervals of a sample includes it.
         tol = WINDOW_TOL * rec.dt
         a = rec.t[0] if t0 is None else float(t0)
         b = rec.t[-1] if t1 is None else float(t1)
         if not a < b:
-            raise RecordError(f"{where}: window start {a:g} s is not before its end {b:g} s")
+            raise RecordError(f"{path}: window start {a:g} s is not before its end {b:g} s")
         if a < rec.t[0] - tol or b > rec.t[-1] + tol:
             raise RecordError(
-                f"{where}: window [{a:g}, {b:g}] s lies outside the record [{rec.t[0]:g}, {rec.t[-1]:g}] s"
+                f"{path}: window [{a:g}, {b:g}] s lies outside the record [{rec.t[0]:g}, {rec.t[-1]:g}] s"
             )
-        lo, hi = max(a - tol, rec.t[0]), min(b + tol, rec.t[-1])
-        keep = (rec.t >= lo) & (rec.t <= hi)
+        keep = (rec.t >= max(a - tol, rec.t[0])) & (rec.t <= min(b + tol, rec.t[-1]))
         if int(keep.sum()) < 4:
             raise RecordError(
-                f"{where}: window [{a:g}, {b:g}] s holds only {int(keep.sum())} samples; at least 4 are needed"
+                f"{path}: window [{a:g}, {b:g}] s holds only {int(keep.sum())} samples; at least 4 are needed"
             )
         rec = rec.window(rec.t[keep][0], rec.t[keep][-1])
         rec = replace(rec, meta={**rec.meta, "window": [a, b]})
     extra = {key: float(np.mean(np.asarray(arr, dtype=float)[keep])) for key, arr in per_sample.items()}
-    tv = trim_values(rec.t, rec.signals, trim_window)
     # window_means: which meta values are means of per-sample channels over the record (their provenance)
-    meta2 = {**rec.meta, **extra, "window_means": sorted(extra), "trim_values": tv, "trim_values_window": trim_window}
+    tv = trim_values(rec.t, rec.signals)
+    meta2 = {**rec.meta, **extra, "window_means": sorted(extra), "trim_values": tv, "trim_values_window": TRIM_WINDOW}
     rec = replace(rec, meta=meta2)
     if trim not in (None, "none"):
         try:
-            rec = rec.remove_trim(trim, window=trim_window)
+            rec = rec.remove_trim(trim, window=TRIM_WINDOW)
         except RecordError as exc:  # e.g. a record shorter than the trim window
-            raise RecordError(f"{where}: {exc}") from None
+            raise RecordError(f"{path}: {exc}") from None
     return rec
 
 

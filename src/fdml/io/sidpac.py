@@ -36,6 +36,9 @@ _CONDITION_COLUMNS = {
     "Iy": (50, "slug ft^2", "iyy", "inertia"),
 }
 
+#: Reference geometry: meta key -> (scalar variable of the file, unit, quantity).
+_GEOMETRY = {"S_w": ("sarea", "ft^2", "area"), "c_w": ("cbar", "ft", "length"), "b": ("bspan", "ft", "length")}
+
 
 def read_sidpac(
     path,
@@ -157,11 +160,7 @@ def read_sidpac(
         if np.all(np.isfinite(x)) and np.any(x != 0.0):
             per[k] = x * unit_factor(unit, quantity)
     meta["_per_sample"] = per
-    for k, var, unit, quantity in (
-        ("S_w", "sarea", "ft^2", "area"),
-        ("c_w", "cbar", "ft", "length"),
-        ("b", "bspan", "ft", "length"),
-    ):
+    for k, (var, unit, quantity) in _GEOMETRY.items():
         if var in mat and np.size(mat[var]) == 1:
             meta[k] = float(np.asarray(mat[var], dtype=float).ravel()[0]) * unit_factor(unit, quantity)
     meta["units"] = {k: CONDITION_UNITS[k] for k in ("U", "rho", "mass", "Iy", "S_w", "c_w", "b")}
