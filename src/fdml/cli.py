@@ -51,8 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"fdml {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help=VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for name in COMMANDS:
-        importlib.import_module(f"fdml.commands.{name}").register(sub)
+    for name in COMMANDS:  # each module's register(sub) adds its parser, named as the module; run(args) runs it
+        module = importlib.import_module(f"fdml.commands.{name}")
+        module.register(sub)
+        sub.choices[name].set_defaults(func=module.run)
     for command in sub.choices.values():  # -v after the command too; absent there, the one before it stands
         command.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
     return parser
@@ -96,14 +98,13 @@ def _closed_pipe() -> int:
     point stdout at devnull so that the flush at interpreter exit cannot fail
     again.  The exit code is the shell's for a process ended by SIGPIPE.
     """
+    import contextlib
     import os
 
-    try:
+    with contextlib.suppress(OSError, ValueError):  # ValueError, OSError: no descriptor (an in-process capture)
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)
-    except (OSError, ValueError):  # no file descriptor behind stdout (an in-process capture)
-        pass
     return EXIT_CLOSED_PIPE
 
 

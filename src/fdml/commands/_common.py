@@ -184,15 +184,15 @@ def model_spec_from_args(args, *, reads_records: bool = False, **fields):
     return spec
 
 
-def check_band_option(text, option: str = "--band", *, positive: bool = True) -> None:
-    """Refuse a malformed or unusable band before any work (fdml's one band check).
+def check_band_option(text) -> None:
+    """Refuse a malformed or unusable ``--band`` before any work (fdml's one band check).
 
     ``montecarlo`` and ``batch`` would otherwise fail every run one by one and
-    print a table of NaN; the message names ``option``.
+    print a table of NaN.
     """
     from ..spectral import parse_band
 
-    parse_band(text, what=option, positive=positive)
+    parse_band(text, what="--band", positive=True)
 
 
 def _integer(text: str, lowest: int, what: str) -> int:

@@ -16,13 +16,11 @@ def register(sub) -> None:
     p.add_argument(
         "--name", dest="aircraft_name", metavar="NAME", help="the aircraft's name (init; default: the record's)"
     )
-    from ..io.cli import add_record_arguments
     from . import _options as O
 
-    add_record_arguments(p)
+    O.add_record_options(p)
     O.add_output_option(p, kind="file", metavar="FILE.json", help="the aircraft file started by init")
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:

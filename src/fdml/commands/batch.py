@@ -48,7 +48,6 @@ def register(sub) -> None:
         "fails with that finding as its error",
     )
     O.add_json_option(p, "machine-readable summary")
-    p.set_defaults(func=run)
 
 
 #: Where the batch writes when -o is not given.

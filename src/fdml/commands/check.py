@@ -40,7 +40,6 @@ def register(sub) -> None:
     )
     O.add_strict_option(p, "exit with code 2 when the data check finds anything (units, signs, channels, response)")
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:

@@ -29,7 +29,6 @@ def register(sub) -> None:
         p, kind="folder", metavar="DIR", help="comparison.json (both fits, shifts, evidence), summary.txt, compare.png"
     )
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def _check_outputs(args) -> None:

@@ -21,7 +21,6 @@ def register(sub) -> None:
     O.add_noise_option(p, default=f"{DEFAULT_NOISE:g}")
     p.add_argument("--no-figure", action="store_true", help="skip the figure (no matplotlib)")
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:

@@ -76,7 +76,6 @@ def register(sub) -> None:
         p, kind="file", metavar="INPUT.csv", help="the designed input (t, de), and a figure beside it (.png)"
     )
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def _names(items) -> list[str]:

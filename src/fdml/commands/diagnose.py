@@ -84,7 +84,6 @@ def register(sub) -> None:
     )
     O.add_workers_option(v)
     O.add_progress_option(v, default_on=True)
-    p.set_defaults(func=run)
 
 
 def _validate(args) -> int:

@@ -30,7 +30,7 @@ def register(sub) -> None:
     )
     O.add_json_option(p)
     O.add_progress_option(p, default_on=False)
-    p.set_defaults(func=run, parsers=sub)  # the parsers: for the commands the adequacy warning quotes (_commands)
+    p.set_defaults(parsers=sub)  # the parsers: for the commands the adequacy warning quotes (_commands)
 
 
 #: Options the quoted commands leave out: where results go and how they are shown.

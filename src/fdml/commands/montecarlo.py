@@ -42,7 +42,6 @@ def register(sub) -> None:
         p, kind="folder", metavar="DIR", help="DIR/montecarlo.json, DIR/montecarlo.txt and DIR/montecarlo.png"
     )
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:

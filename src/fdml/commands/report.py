@@ -16,7 +16,6 @@ def register(sub) -> None:
     )
     p.add_argument("--hz", action="store_true", help="frequency axes in Hz (default rad/s)")
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:

@@ -21,7 +21,6 @@ def register(sub) -> None:
         "LO may be 0)",
     )
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:

@@ -23,7 +23,6 @@ def register(sub) -> None:
     p.add_argument("--seed", type=seed_int, help="random seed (an integer >= 0)")
     O.add_output_option(p, kind="file", metavar="RECORD.csv", required=True, help="the simulated record (CSV)")
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:
