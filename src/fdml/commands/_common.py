@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..errors import ParameterError
+
 
 def default_model(args) -> str:
     """The model kind by the one rule: --model, else unsteady with --aircraft, else dimensional."""
@@ -15,8 +17,6 @@ def default_model(args) -> str:
 
 def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
     """Parse ``["Cm_de=-1.4", ...]`` into ``{"Cm_de": -1.4}``."""
-    from ..errors import ParameterError
-
     out: dict[str, float] = {}
     for item in items or []:
         name, sep, value = item.partition("=")
@@ -145,7 +145,6 @@ def check_model_rule(kind: str, args, reads_records: bool, records=None) -> None
     needs them to carry their airspeed.
     """
     from ..conditions import record_airspeed
-    from ..errors import ParameterError
 
     if kind == "dimensional" and args.aircraft is None and args.airspeed is None:
         if not reads_records or (records is not None and record_airspeed(records) is None):

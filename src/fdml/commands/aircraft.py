@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ..errors import AircraftError
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -26,7 +28,6 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..aircraft import list_aircraft, load_aircraft
     from ..cli import show
-    from ..errors import AircraftError
 
     if args.action == "init":
         return _init(args)
@@ -45,7 +46,6 @@ def _init(args) -> int:
     """Start an aircraft file from a record: write it (-o) or print it (JSON on stdout)."""
     from ..aircraft import aircraft_template
     from ..cli import print_json, show
-    from ..errors import AircraftError
     from ..io import load_record
     from ..io.cli import record_options
     from ..jsoncodec import write_json

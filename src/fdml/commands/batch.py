@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from ..errors import FdmlError
 from . import _options as O
 from ._common import assignments, check_band_option, model_spec_from_args
 
@@ -56,10 +59,6 @@ DEFAULT_OUTPUT = "fdml-batch"
 
 def parse_source(text: str):
     """``FILE@T0:T1`` -> (FILE, t0, t1); anything else unchanged (an existing file wins)."""
-    from pathlib import Path
-
-    from ..errors import FdmlError
-
     path, sep, window = text.rpartition("@")
     if not sep or Path(text).exists():
         return text
@@ -81,8 +80,6 @@ def check_batch_outputs(sources, out_dir, aircraft=None) -> None:
     record's result and error file; the inputs are the record files, the source
     folders and the aircraft JSON.
     """
-    from pathlib import Path
-
     from ..batch import collect_sources
     from ..outputs import Inputs, check_output, check_output_dir
 
@@ -116,11 +113,7 @@ def _windowed(source, args):
     """A source with the --t0/--t1 window when it has none of its own."""
     if isinstance(source, tuple) or (args.t0 is None and args.t1 is None):
         return source
-    from pathlib import Path
-
     if Path(source).is_dir() or any(c in str(source) for c in "*?["):
-        from ..errors import FdmlError
-
         raise FdmlError(f"--t0/--t1 apply to record files; {source!r} is a folder or a glob: give FILE@T0:T1")
     return (source, args.t0, args.t1)
 
@@ -130,7 +123,6 @@ def run(args) -> int:
 
     from ..batch import run_batch
     from ..cli import show
-    from ..errors import FdmlError
 
     check_band_option(args.band)  # up front: a bad band would fail every record one by one
     spec = model_spec_from_args(args, reads_records=True, fix=assignments(args.fix), free=list(args.free or []))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from ..errors import ParameterError
 from . import _options as O
 from ._common import assignments, make_model_from_args, noise_option
 
@@ -14,8 +15,6 @@ def _angle(text: str | None, what: str, rate: bool = False) -> float | None:
     """'3deg', '0.05' (rad) or, for a rate, '40deg/s', '0.7' (rad/s)."""
     if text is None:
         return None
-    from ..errors import ParameterError
-
     t = text.strip().lower()
     unit = "deg/s" if rate else "deg"
     deg = t.endswith(unit)
@@ -89,7 +88,6 @@ def run(args) -> int:
 
     from ..cli import show
     from ..design import design, plot_design, read_input
-    from ..errors import ParameterError
     from ..outputs import StagedOutputs, check_output
 
     if args.input is None and args.output is None:

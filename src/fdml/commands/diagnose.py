@@ -6,6 +6,9 @@ simulated with one withheld effect; see :mod:`fdml.diagnose.validation`).
 
 from __future__ import annotations
 
+import sys
+
+from ..cli import show
 from . import _options as O
 
 
@@ -87,9 +90,6 @@ def register(sub) -> None:
 
 
 def _validate(args) -> int:
-    import sys
-
-    from ..cli import show
     from ..diagnose.validation import REPORT_SEED_BASE, validate
 
     n_e, n_n = (1, 6) if args.quick else (args.n_effect, args.n_null)
@@ -129,7 +129,6 @@ def _check_outputs(args) -> None:
 def run(args) -> int:
     if args.validate:
         return _validate(args)
-    from ..cli import show
     from ..diagnose import diagnose
     from ..errors import ParameterError, RecordError
     from ..estimate import parse_outputs
@@ -173,8 +172,6 @@ def run(args) -> int:
     if args.figure and rep.status == "ok":
         rep.plot(args.figure)
     show(args, rep.to_dict(), rep.summary())
-    import sys
-
     if rep.status != "ok":
         sys.stderr.write(f"fdml: error: no verdict: {'; '.join(rep.problems)}\n")
         return 2

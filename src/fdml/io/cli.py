@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 from ..channels import FORMATS
+from ..errors import RecordError
 
 __all__ = ["add_record_arguments", "record_options", "parse_mapping"]
 
@@ -66,8 +67,6 @@ def parse_mapping(text: str | None, what: str) -> dict[str, str]:
     dict of str to str
         The items, names and values stripped.
     """
-    from ..errors import RecordError
-
     out: dict[str, str] = {}
     if not text:
         return out
@@ -81,8 +80,6 @@ def parse_mapping(text: str | None, what: str) -> dict[str, str]:
 
 def _sign(signal: str, text: str) -> int:
     """``"-1"`` -> -1; anything but exactly +1 or -1 (``-1.9``, ``2``, ``x``) is a RecordError."""
-    from ..errors import RecordError
-
     try:
         value = float(text)
     except ValueError:
@@ -108,8 +105,6 @@ def record_options(args) -> dict:
         ``format``, ``t0``, ``t1`` and, where given, ``columns``, ``units``,
         ``sign``, ``layout``, ``variable``, ``delimiter`` and ``check_units``.
     """
-    from ..errors import RecordError
-
     opts: dict = {"format": args.format or ("csv-map" if args.columns else "auto"), "t0": args.t0, "t1": args.t1}
     columns, units, signs = (parse_mapping(getattr(args, key), key) for key in ("columns", "units", "sign"))
     if (units or signs) and not columns:
