@@ -83,6 +83,7 @@ def _progress_callback(enabled: bool):
 
 
 def run(args) -> int:
+    import contextlib
     import time
 
     t0 = time.perf_counter()
@@ -105,19 +106,8 @@ def run(args) -> int:
     data = fit_spectra(records, args.band, kwargs)  # the front end
     t_transform = time.perf_counter()
     bar = _progress_callback(O.progress_wanted(args, default_on=False))
-    try:
-        res = fit(
-            data,
-            model,
-            fix=fixed,
-            free=args.free or [],
-            callback=bar,
-            strict=bool(args.strict),
-            **kwargs,
-        )
-    finally:
-        if bar is not None:
-            bar.close()
+    with bar or contextlib.nullcontext():  # the bar closes on its last count
+        res = fit(data, model, fix=fixed, free=args.free or [], callback=bar, strict=bool(args.strict), **kwargs)
     fit_argv, diagnose_argv = _commands(args)
     res = reworded(res, fit_argv=fit_argv, diagnose_argv=diagnose_argv)  # the advice quotes this command
     res = attach_conditions(res, model, records, provenance)

@@ -154,10 +154,7 @@ def read_mat(path: Path, *, names_only: bool = False):
         except Exception as exc:  # scipy raises many types on corrupt input
             return "error", wrap_read_error(path, "a MATLAB .mat file", exc)
 
-    if not hasattr(os, "fork"):
-        kind, value = parse()
-    else:
-        kind, value = _in_child(parse, path)
+    kind, value = _in_child(parse, path) if hasattr(os, "fork") else parse()
     if kind == "error":
         raise value
     return value
@@ -181,8 +178,8 @@ def _in_child(func, path: Path):
     with os.fdopen(r, "rb") as fh:
         data = fh.read()
     _, status = os.waitpid(pid, 0)
-    if not data or os.waitstatus_to_exitcode(status) != 0:
-        code = os.waitstatus_to_exitcode(status)
+    code = os.waitstatus_to_exitcode(status)
+    if not data or code != 0:
         how = f"signal {-code}" if code < 0 else f"exit code {code}"
         return "error", RecordError(
             f"{path}: cannot read it as a MATLAB .mat file (corrupt or truncated file?): the MAT reader crashed ({how})"
