@@ -230,19 +230,17 @@ def _read_ascii(p, n_columns: int) -> np.ndarray:
         text = p.read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise wrap_read_error(p, "a text (.asc) record", exc) from None
-    rows, started = [], False
+    rows: list[list[float]] = []
     for i, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
         if not s or s[0] in "%#":
             continue
-        parts = s.replace(",", " ").split()
         try:
-            vals = [float(x) for x in parts]
+            vals = [float(x) for x in s.replace(",", " ").split()]
         except ValueError:
-            if not started:
+            if not rows:
                 continue  # header line
             raise RecordError(f"{p}: line {i} is not numeric ({s[:40]!r}...); corrupt file?") from None
-        started = True
         if len(vals) != n_columns:
             raise RecordError(
                 f"{p}: line {i} has {len(vals)} values, the layout has {n_columns} columns (truncated or corrupt file?)"
