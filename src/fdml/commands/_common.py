@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from ..errors import ParameterError
+from ..errors import ParameterError, RecordError
 
 
 def default_model(args) -> str:
@@ -42,7 +42,6 @@ def noise_option(text: str | None):
     """
     if text is None:
         return None
-    from ..errors import RecordError
     from ..record import check_noise
 
     if "=" in text:

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from ..errors import FdmlError, ParameterError
+from ..outputs import atomic_savefig, atomic_write_text, check_output, check_output_dir
 from . import _options as O
 from ._common import assignments, check_band_option, fit_spectra, model_for_records
 
@@ -32,8 +34,6 @@ def register(sub) -> None:
 
 
 def _check_outputs(args) -> None:
-    from ..outputs import check_output, check_output_dir
-
     if args.output:
         inputs = [*args.records, args.aircraft]
         check_output_dir(args.output, inputs, what="compare folder")
@@ -44,7 +44,6 @@ def _check_outputs(args) -> None:
 def _fit_both(args, records, data, kwargs):
     """(steady, unsteady) FitResults, each with the command's provenance; --fix/--free go to the model that has them."""
     from ..conditions import attach_conditions
-    from ..errors import ParameterError
     from ..estimate import fit
 
     fixed, free = assignments(args.fix), list(args.free or [])
@@ -71,7 +70,6 @@ def _fit_both(args, records, data, kwargs):
 def run(args) -> int:
     from ..cli import show
     from ..compare import Comparison, check_records_for_compare
-    from ..errors import FdmlError
     from ..io import check_same_rate, load_record
     from ..io.cli import record_options
 
@@ -100,7 +98,6 @@ def _write(cmp, folder) -> dict:
     from pathlib import Path
 
     from ..jsoncodec import write_json
-    from ..outputs import atomic_savefig, atomic_write_text
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)

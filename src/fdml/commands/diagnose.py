@@ -9,6 +9,7 @@ from __future__ import annotations
 import sys
 
 from ..cli import show
+from ..outputs import check_output
 from . import _options as O
 
 
@@ -94,8 +95,6 @@ def _validate(args) -> int:
 
     n_e, n_n = (1, 6) if args.quick else (args.n_effect, args.n_null)
     if args.output:  # before the (long) work
-        from ..outputs import check_output
-
         check_output(args.output, what="validation file")
 
     def progress(done, total):
@@ -118,8 +117,6 @@ def _validate(args) -> int:
 
 def _check_outputs(args) -> None:
     """-o and --figure: not an input (records, hold-out records, aircraft JSON), a folder or a device."""
-    from ..outputs import check_output
-
     inputs = [*args.records, *(args.holdout or []), args.aircraft]
     for path, what in ((args.output, "report file"), (args.figure, "figure"), (args.recommended_output, "result file")):
         if path:

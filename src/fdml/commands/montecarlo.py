@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..outputs import atomic_savefig, atomic_write_text, check_output, check_output_dir
 from . import _options as O
 from ._common import assignments, check_band_option, model_spec_from_args, noise_option, seed_int
 
@@ -60,8 +61,6 @@ def run(args) -> int:
     check_band_option(args.band)  # up front: a bad band would fail all N runs one by one
     paths = {k: Path(args.output or ".") / name for k, name in FILES.items()}
     if args.output:  # before any work: the folder and its three files
-        from ..outputs import check_output, check_output_dir
-
         check_output_dir(args.output, [args.aircraft])
         for path in paths.values():
             check_output(path, [args.aircraft])
@@ -80,8 +79,6 @@ def run(args) -> int:
         progress=True if O.progress_wanted(args, default_on=True) and importlib.util.find_spec("tqdm") else None,
     )
     if args.output:
-        from ..outputs import atomic_savefig, atomic_write_text
-
         res.to_json(paths["json"])
         atomic_write_text(paths["table"], res.table() + "\n")
         if not importlib.util.find_spec("matplotlib"):
