@@ -32,7 +32,6 @@ def run(args) -> int:
 
     check_output(args.output, [args.aircraft], what="record file")  # before any work
     model = make_model_from_args(args, assignments(args.set)).with_outputs(args.outputs or ())
-    kw = {} if args.amplitude is None else {"amplitude": args.amplitude}
     rec = simulate_maneuver(
         model,
         args.maneuver,
@@ -41,7 +40,7 @@ def run(args) -> int:
         gust_std=args.gust or 0.0,
         seed=args.seed,
         noise=noise_option(args.noise),  # a number is a fraction of RMS in simulate_maneuver too
-        **kw,
+        **({} if args.amplitude is None else {"amplitude": args.amplitude}),  # simulate_maneuver's default
     )
     rec.to_csv(args.output)
     show(
