@@ -88,6 +88,7 @@ def run(args) -> int:
 
     t0 = time.perf_counter()
     from ..adequacy import reworded
+    from ..cli import show
     from ..conditions import attach_conditions
     from ..estimate import fit
     from ..io import load_records
@@ -114,17 +115,11 @@ def run(args) -> int:
     t_fit = time.perf_counter()
     if args.output:
         res.to_json(args.output)
-    if args.json:
-        from ..cli import print_json
-
-        out = res.brief()
-        # seconds: reading (imports of the loaders included), the Fourier front end, the estimator
-        out["timing"] = {"read": t_read - t0, "transform": t_transform - t_read, "estimate": t_fit - t_transform}
-        if args.output:
-            out["result_file"] = args.output
-        print_json(out)
-    else:
-        print(res.summary())  # its header gives the airspeed and where it came from
-        if args.output:
-            print(f"\nwrote {args.output}")
+    out = res.brief()
+    # seconds: reading (imports of the loaders included), the Fourier front end, the estimator
+    out["timing"] = {"read": t_read - t0, "transform": t_transform - t_read, "estimate": t_fit - t_transform}
+    if args.output:
+        out["result_file"] = args.output
+    # the summary's header gives the airspeed and where it came from
+    show(args, out, res.summary() + (f"\n\nwrote {args.output}" if args.output else ""))
     return 0 if res.converged else 1
