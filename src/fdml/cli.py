@@ -101,7 +101,7 @@ def _closed_pipe() -> int:
     import contextlib
     import os
 
-    with contextlib.suppress(OSError, ValueError):  # ValueError, OSError: no descriptor (an in-process capture)
+    with contextlib.suppress(OSError, ValueError):  # no file descriptor behind stdout (an in-process capture)
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)

@@ -59,6 +59,17 @@ def columns_to_si(p: Path, data: np.ndarray, columns: Mapping[str, tuple], label
     the signal is left out (listed in ``absent``).  ``label(column, unit)`` is
     the channel's description in ``meta["channels"]``.
 
+    Parameters
+    ----------
+    p : Path
+        The file, named in errors.
+    data : numpy.ndarray
+        The record matrix, one channel per column, in the file's units.
+    columns : mapping
+        fdml signal -> (1-based column, unit in the file).
+    label : callable
+        ``label(column, unit)``: the channel's description.
+
     Returns
     -------
     signals, channels, conversion : dict

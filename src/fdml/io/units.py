@@ -54,7 +54,8 @@ UNITS = {
     "area": {"m^2": 1.0, "ft^2": FT**2},
 }
 
-#: Other spellings of the canonical units, as ``canonical: "spelling spelling ..."`` (normalised, lower case).
+#: Other spellings of the units (lower case, as :func:`normalise_unit` leaves them) -> the spelling of :data:`UNITS`,
+#: written as ``canonical: "spelling spelling ..."``.
 _ALIASES = {
     alias: unit
     for unit, aliases in {
