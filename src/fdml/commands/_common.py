@@ -133,8 +133,7 @@ def model_for_records(args, records, values: dict | None = None):
         model.parameters.check_names(values)
         model = model.with_values(values)
     model_source = "--model" if getattr(args, "model", None) else "model rule"
-    provenance = model_provenance(kind, model_source, model, "--airspeed" if source == "given" else source, records)
-    return model, provenance
+    return model, model_provenance(kind, model_source, model, "--airspeed" if source == "given" else source, records)
 
 
 def check_model_rule(kind: str, args, reads_records: bool, records=None) -> None:

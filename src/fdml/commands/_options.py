@@ -67,6 +67,19 @@ MODEL_RULE = "unsteady with --aircraft, else dimensional with --airspeed or the 
 MODEL_RULE_NO_RECORD = "unsteady with --aircraft, else dimensional with --airspeed"
 
 
+#: The two kinds of --gust (:func:`add_model_options`): a switch, or the turbulence simulate flies in.
+_GUST: dict[str, dict] = {
+    "flag": {"action": "store_true", "help": "add the vertical gust input alpha_w (the records carry it)"},
+    "std": {
+        "nargs": "?",
+        "type": float,
+        "const": 1.0,
+        "metavar": "STD",
+        "help": "fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, recording alpha_w",
+    },
+}
+
+
 def accumulating(p, *flags, **kw) -> None:
     """A repeatable list option: every occurrence adds its values (``action="extend"``, ``nargs="+"``)."""
     p.add_argument(*flags, action="extend", nargs="+", default=None, **kw)
@@ -89,23 +102,8 @@ def add_model_options(
     rule = MODEL_RULE if reads_records else MODEL_RULE_NO_RECORD
     if kinds:
         g.add_argument("--model", choices=MODEL_CHOICES, default=None, help=f"{what} (default: {rule})")
-    if gust == "flag":
-        g.add_argument(
-            "--gust",
-            action="store_true",
-            default=None,
-            help="add the vertical gust input alpha_w (the records carry it)",
-        )
-    elif gust == "std":
-        g.add_argument(
-            "--gust",
-            nargs="?",
-            type=float,
-            const=1.0,
-            default=None,
-            metavar="STD",
-            help="fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, recording alpha_w",
-        )
+    if gust:
+        g.add_argument("--gust", default=None, **_GUST[gust])
     if kinds:
         g.add_argument(
             "--airspeed",

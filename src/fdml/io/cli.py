@@ -68,9 +68,7 @@ def parse_mapping(text: str | None, what: str) -> dict[str, str]:
         The items, names and values stripped.
     """
     out: dict[str, str] = {}
-    if not text:
-        return out
-    for item in text.split(","):
+    for item in text.split(",") if text else []:
         k, sep, v = item.partition("=")
         if not sep or not k.strip() or not v.strip():
             raise RecordError(f"--{what}: expected NAME=VALUE items separated by commas, got {item!r}")
