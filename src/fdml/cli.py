@@ -21,20 +21,8 @@ EXIT_CLOSED_PIPE = 141
 VERBOSE_HELP = "show warnings and log messages as they happen (before or after the command)"
 
 #: Command modules under fdml.commands, in help order.
-COMMANDS = (
-    "demo",
-    "fit",
-    "compare",
-    "check",
-    "simulate",
-    "response",
-    "report",
-    "batch",
-    "montecarlo",
-    "diagnose",
-    "aircraft",
-    "effects",
-    "design",
+COMMANDS = tuple(
+    "demo fit compare check simulate response report batch montecarlo diagnose aircraft effects design".split()
 )
 
 
@@ -63,8 +51,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"fdml {__version__}")
     parser.add_argument("-v", "--verbose", action="store_true", help=VERBOSE_HELP)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    for name in COMMANDS:
-        importlib.import_module(f"fdml.commands.{name}").register(sub)
+    for name in COMMANDS:  # each module's register(sub) adds its parser, named as the module; run(args) runs it
+        module = importlib.import_module(f"fdml.commands.{name}")
+        module.register(sub)
+        sub.choices[name].set_defaults(func=module.run)
     for command in sub.choices.values():  # -v after the command too; absent there, the one before it stands
         command.add_argument("-v", "--verbose", action="store_true", default=argparse.SUPPRESS, help=VERBOSE_HELP)
     return parser
@@ -83,6 +73,24 @@ def print_json(obj) -> None:
     sys.stdout.write(dumps(obj, indent=1) + "\n")
 
 
+def show(args, obj, text) -> None:
+    """A command's answer: ``obj`` as JSON with ``--json`` (:func:`print_json`), else ``text`` printed.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's arguments (``json``).
+    obj : object
+        The machine-readable answer.
+    text : object
+        The answer for a reader.
+    """
+    if args.json:
+        print_json(obj)
+    else:
+        print(text)
+
+
 def _closed_pipe() -> int:
     """The reader of stdout went away (``fdml fit ... | head -1``): end quietly.
 
@@ -90,14 +98,13 @@ def _closed_pipe() -> int:
     point stdout at devnull so that the flush at interpreter exit cannot fail
     again.  The exit code is the shell's for a process ended by SIGPIPE.
     """
+    import contextlib
     import os
 
-    try:
+    with contextlib.suppress(OSError, ValueError):  # no file descriptor behind stdout (an in-process capture)
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)
-    except (OSError, ValueError):  # no file descriptor behind stdout (an in-process capture)
-        pass
     return EXIT_CLOSED_PIPE
 
 

@@ -21,6 +21,17 @@ from .record import Record, add_noise
 
 __all__ = ["DemoResult", "run_demo", "WK_TABLE1"]
 
+#: The demo's measurement noise: a fraction of each output's RMS.
+DEFAULT_NOISE = 0.02
+#: The files the demo writes into its folder (the figure only with ``figure=True``).
+FILES = {
+    "record": "navion_3211.csv",
+    "unsteady": "unsteady.json",
+    "steady": "steady.json",
+    "summary": "summary.txt",
+    "figure": "bode.png",
+}
+
 #: WK Table 1 (docs/theory.md 11.1): {derivative: (unsteady, steady)}.
 WK_TABLE1 = {
     "Cz_a": (-4.99, -4.90),
@@ -58,7 +69,7 @@ def run_demo(
     out_dir: str | Path = "fdml-demo",
     *,
     seed: int = 1,
-    noise: float = 0.02,
+    noise: float = DEFAULT_NOISE,
     duration: float = 12.0,
     dt: float = 0.02,
     figure: bool = True,
@@ -86,15 +97,8 @@ def run_demo(
     from .simulate import simulate_maneuver
 
     out = Path(out_dir)
-    names = {
-        "record": "navion_3211.csv",
-        "unsteady": "unsteady.json",
-        "steady": "steady.json",
-        "summary": "summary.txt",
-        "figure": "bode.png",
-    }
     check_output_dir(out, what="demo folder")  # every output checked before the work
-    for key, name in names.items():
+    for key, name in FILES.items():
         check_output(out / name, what=f"demo {key} file")
     truth = make_model("unsteady", "navion")
     clean = simulate_maneuver(truth, "3211", duration=duration, dt=dt)
@@ -102,7 +106,7 @@ def run_demo(
     rec = Record(rec.t, rec.signals, name="navion_3211", meta=rec.meta)
     cmp = compare_steady_unsteady(rec, "navion")
     table = cmp.table(reference=WK_TABLE1)
-    files = {k: out / names[k] for k in ("record", "unsteady", "steady", "summary")}
+    files = {k: out / name for k, name in FILES.items() if figure or k != "figure"}
     rec.to_csv(files["record"])
     cmp.unsteady.to_json(files["unsteady"])
     cmp.steady.to_json(files["steady"])
@@ -124,7 +128,6 @@ def run_demo(
             ["unsteady fit", "steady fit"],
             title="Navion 3-2-1-1: measured and fitted spectra",
         )
-        files["figure"] = out / names["figure"]
         try:
             atomic_savefig(fig, files["figure"], dpi=110)
         finally:

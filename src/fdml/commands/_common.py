@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..errors import ParameterError, RecordError
+
 
 def default_model(args) -> str:
     """The model kind by the one rule: --model, else unsteady with --aircraft, else dimensional."""
@@ -15,12 +17,11 @@ def default_model(args) -> str:
 
 def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
     """Parse ``["Cm_de=-1.4", ...]`` into ``{"Cm_de": -1.4}``."""
-    from ..errors import ParameterError
-
     out: dict[str, float] = {}
     for item in items or []:
         name, sep, value = item.partition("=")
-        if not sep or not name.strip():
+        name = name.strip()
+        if not sep or not name:
             raise ParameterError(f"expected {what}, got {item!r}")
         try:
             number = float(value)
@@ -28,9 +29,9 @@ def assignments(items, what: str = "NAME=VALUE") -> dict[str, float]:
             raise ParameterError(f"{item!r}: {value!r} is not a number") from None
         if not math.isfinite(number):  # float() reads nan and inf: no parameter value is either
             raise ParameterError(f"{item!r}: {value.strip()!r} is not a finite number")
-        if name.strip() in out and out[name.strip()] != number:
-            raise ParameterError(f"{item!r}: {name.strip()} is already given as {out[name.strip()]:g}")
-        out[name.strip()] = number
+        if out.get(name, number) != number:
+            raise ParameterError(f"{item!r}: {name} is already given as {out[name]:g}")
+        out[name] = number
     return out
 
 
@@ -41,7 +42,6 @@ def noise_option(text: str | None):
     """
     if text is None:
         return None
-    from ..errors import RecordError
     from ..record import check_noise
 
     if "=" in text:
@@ -75,17 +75,26 @@ def _effect_list(text: str) -> list[str]:
     for piece in (x.strip() for x in text.split(",")):
         if not piece:
             continue
-        if (
-            out
-            and ("@" in out[-1] or ":" in out[-1])
-            and ":" not in piece
-            and "@" not in piece
-            and piece in ("alpha", "q", "az", "a_z", "de", "alpha_w", "tail")
-        ):
+        if out and ("@" in out[-1] or ":" in out[-1]) and piece in ("alpha", "q", "az", "a_z", "de", "alpha_w", "tail"):
             out[-1] = f"{out[-1]},{piece}"
         else:
             out.append(piece)
     return out
+
+
+def fit_spectra(records, band, kwargs: dict):
+    """The records' spectra for :func:`fdml.fit`: the front end's ``trim`` moves out of ``kwargs`` (fit options).
+
+    The rows are the fit's ``outputs``.  One record gives its FrequencyData,
+    several give a list (a joint fit).
+    """
+    from ..spectral import spectra
+
+    given: dict = {"outputs": kwargs.get("outputs")}
+    if "trim" in kwargs:
+        given["trim"] = kwargs.pop("trim")
+    data = [spectra(r, band=band, **given) for r in records]
+    return data if len(data) > 1 else data[0]
 
 
 def make_model_from_args(args, values: dict | None = None):
@@ -118,15 +127,13 @@ def model_for_records(args, records, values: dict | None = None):
             aircraft = aircraft_for_lags(aircraft, given=supplied, source=option)
         aircraft = aircraft_for_lags(aircraft, getattr(args, "free", None))
     model = make_model(kind, aircraft, **opts)
-    effects = list(getattr(args, "effect", None) or ())
-    if effects:
-        model = with_effects(model, effects)
+    if getattr(args, "effect", None):
+        model = with_effects(model, list(args.effect))
     if values:
         model.parameters.check_names(values)
         model = model.with_values(values)
     model_source = "--model" if getattr(args, "model", None) else "model rule"
-    provenance = model_provenance(kind, model_source, model, "--airspeed" if source == "given" else source, records)
-    return model, provenance
+    return model, model_provenance(kind, model_source, model, "--airspeed" if source == "given" else source, records)
 
 
 def check_model_rule(kind: str, args, reads_records: bool, records=None) -> None:
@@ -136,7 +143,6 @@ def check_model_rule(kind: str, args, reads_records: bool, records=None) -> None
     needs them to carry their airspeed.
     """
     from ..conditions import record_airspeed
-    from ..errors import ParameterError
 
     if kind == "dimensional" and args.aircraft is None and args.airspeed is None:
         if not reads_records or (records is not None and record_airspeed(records) is None):
@@ -175,15 +181,15 @@ def model_spec_from_args(args, *, reads_records: bool = False, **fields):
     return spec
 
 
-def check_band_option(text, option: str = "--band", *, positive: bool = True) -> None:
-    """Refuse a malformed or unusable band before any work (fdml's one band check).
+def check_band_option(text) -> None:
+    """Refuse a malformed or unusable ``--band`` before any work (fdml's one band check).
 
     ``montecarlo`` and ``batch`` would otherwise fail every run one by one and
-    print a table of NaN; the message names ``option``.
+    print a table of NaN.
     """
     from ..spectral import parse_band
 
-    parse_band(text, what=option, positive=positive)
+    parse_band(text, what="--band", positive=True)
 
 
 def _integer(text: str, lowest: int, what: str) -> int:

@@ -28,6 +28,8 @@ from __future__ import annotations
 import argparse
 
 from ..fit_options import command_line_options, parse_outputs
+from ..models import MODEL_KINDS
+from ..spectral import DEFAULT_BAND, DEFAULT_STEP
 from ._common import add_effect_argument, default_model, positive_int
 
 __all__ = [
@@ -53,34 +55,29 @@ __all__ = [
 ]
 
 
-def _model_choices() -> tuple[str, ...]:
-    from ..models import MODEL_KINDS
-
-    return tuple(MODEL_KINDS)
-
-
-def _band_default() -> str:
-    from ..spectral import DEFAULT_BAND
-
-    return ":".join(f"{x:g}" for x in DEFAULT_BAND)
-
-
-def _step_default() -> str:
-    from ..spectral import DEFAULT_STEP
-
-    return f"{DEFAULT_STEP:g}"
-
-
 #: Model names, from :data:`fdml.models.MODEL_KINDS` (the one list).
-MODEL_CHOICES = _model_choices()
+MODEL_CHOICES = tuple(MODEL_KINDS)
 #: The default band ``LO:HI:STEP`` (rad/s), from :data:`fdml.spectral.DEFAULT_BAND`.
-DEFAULT_BAND_TEXT = _band_default()
+DEFAULT_BAND_TEXT = ":".join(f"{x:g}" for x in DEFAULT_BAND)
 #: The step of a band given as ``LO:HI`` (rad/s), from :data:`fdml.spectral.DEFAULT_STEP`.
-DEFAULT_STEP_TEXT = _step_default()
+DEFAULT_STEP_TEXT = f"{DEFAULT_STEP:g}"
 #: The one rule for the model when --model is not given (quoted in --help).
 MODEL_RULE = "unsteady with --aircraft, else dimensional with --airspeed or the record's mean airspeed"
 #: The same rule for commands that read no record (simulate, response, montecarlo, design).
 MODEL_RULE_NO_RECORD = "unsteady with --aircraft, else dimensional with --airspeed"
+
+
+#: The two kinds of --gust (:func:`add_model_options`): a switch, or the turbulence simulate flies in.
+_GUST: dict[str, dict] = {
+    "flag": {"action": "store_true", "help": "add the vertical gust input alpha_w (the records carry it)"},
+    "std": {
+        "nargs": "?",
+        "type": float,
+        "const": 1.0,
+        "metavar": "STD",
+        "help": "fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, recording alpha_w",
+    },
+}
 
 
 def accumulating(p, *flags, **kw) -> None:
@@ -105,33 +102,16 @@ def add_model_options(
     rule = MODEL_RULE if reads_records else MODEL_RULE_NO_RECORD
     if kinds:
         g.add_argument("--model", choices=MODEL_CHOICES, default=None, help=f"{what} (default: {rule})")
-    if gust == "flag":
+    if gust:
+        g.add_argument("--gust", default=None, **_GUST[gust])
+    if kinds:
         g.add_argument(
-            "--gust",
-            action="store_true",
-            default=None,
-            help="add the vertical gust input alpha_w (the records carry it)",
-        )
-    elif gust == "std":
-        g.add_argument(
-            "--gust",
-            nargs="?",
+            "--airspeed",
             type=float,
-            const=1.0,
-            default=None,
-            metavar="STD",
-            help="fly in Dryden turbulence of vertical RMS STD m/s (default 1.0) with a gust model, recording alpha_w",
+            metavar="U",
+            help="airspeed, m/s, of the dimensional model without --aircraft"
+            + (" (default: the record's mean airspeed, when the file carries it)" if reads_records else ""),
         )
-    if not kinds:
-        add_effect_argument(g)
-        return
-    g.add_argument(
-        "--airspeed",
-        type=float,
-        metavar="U",
-        help="airspeed, m/s, of the dimensional model without --aircraft"
-        + (" (default: the record's mean airspeed, when the file carries it)" if reads_records else ""),
-    )
     add_effect_argument(g)
 
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from ..errors import AircraftError
+
 
 def register(sub) -> None:
     p = sub.add_parser(
@@ -16,47 +18,38 @@ def register(sub) -> None:
     p.add_argument(
         "--name", dest="aircraft_name", metavar="NAME", help="the aircraft's name (init; default: the record's)"
     )
-    from ..io.cli import add_record_arguments
     from . import _options as O
 
-    add_record_arguments(p)
+    O.add_record_options(p)
     O.add_output_option(p, kind="file", metavar="FILE.json", help="the aircraft file started by init")
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:
     from ..aircraft import list_aircraft, load_aircraft
-    from ..cli import print_json
-    from ..errors import AircraftError
+    from ..cli import show
 
     if args.action == "init":
         return _init(args)
     if args.action == "list":
         names = list_aircraft()
-        if args.json:
-            print_json(names)
-        else:
-            print("\n".join(names))
+        show(args, names, "\n".join(names))
         return 0
     if not args.name:
         raise AircraftError("fdml aircraft show needs a NAME (or FILE.json)")
     ac = load_aircraft(args.name)
-    if args.json:
-        print_json(ac.to_dict())
-    else:
-        print(ac.describe())
+    show(args, ac.to_dict(), ac.describe())
     return 0
 
 
 def _init(args) -> int:
     """Start an aircraft file from a record: write it (-o) or print it (JSON on stdout)."""
     from ..aircraft import aircraft_template
-    from ..cli import print_json
-    from ..errors import AircraftError
+    from ..cli import print_json, show
     from ..io import load_record
     from ..io.cli import record_options
-    from ..outputs import atomic_write_text, check_output
+    from ..jsoncodec import write_json
+    from ..outputs import check_output
 
     if not args.name:
         raise AircraftError("fdml aircraft init needs a RECORD (fdml aircraft init RECORD -o FILE.json)")
@@ -66,12 +59,10 @@ def _init(args) -> int:
     if not args.output:
         print_json(tpl.as_file())
         return 0
-    import json
-
-    atomic_write_text(args.output, json.dumps(tpl.as_file(), indent=1) + "\n")
-    if args.json:
-        print_json({"aircraft_file": str(args.output), "missing": tpl.missing})
-    else:
-        print(tpl.describe())
-        print(f"\nwrote {args.output}; fill the null values, then: fdml aircraft show {args.output}")
+    write_json(args.output, tpl.as_file())
+    show(
+        args,
+        {"aircraft_file": str(args.output), "missing": tpl.missing},
+        f"{tpl.describe()}\n\nwrote {args.output}; fill the null values, then: fdml aircraft show {args.output}",
+    )
     return 0

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
+from ..errors import FdmlError
 from . import _options as O
 from ._common import assignments, check_band_option, model_spec_from_args
 
@@ -48,7 +51,6 @@ def register(sub) -> None:
         "fails with that finding as its error",
     )
     O.add_json_option(p, "machine-readable summary")
-    p.set_defaults(func=run)
 
 
 #: Where the batch writes when -o is not given.
@@ -57,10 +59,6 @@ DEFAULT_OUTPUT = "fdml-batch"
 
 def parse_source(text: str):
     """``FILE@T0:T1`` -> (FILE, t0, t1); anything else unchanged (an existing file wins)."""
-    from pathlib import Path
-
-    from ..errors import FdmlError
-
     path, sep, window = text.rpartition("@")
     if not sep or Path(text).exists():
         return text
@@ -82,8 +80,6 @@ def check_batch_outputs(sources, out_dir, aircraft=None) -> None:
     record's result and error file; the inputs are the record files, the source
     folders and the aircraft JSON.
     """
-    from pathlib import Path
-
     from ..batch import collect_sources
     from ..outputs import Inputs, check_output, check_output_dir
 
@@ -107,10 +103,8 @@ def _read_kwargs(args) -> dict:
     """
     from ..io.cli import record_options
 
-    opts = record_options(args)
-    for key in ("t0", "t1"):
-        opts.pop(key, None)
-    if opts.get("format") == "auto":
+    opts = {k: v for k, v in record_options(args).items() if k not in ("t0", "t1")}
+    if opts["format"] == "auto":
         del opts["format"]
     return opts
 
@@ -119,35 +113,28 @@ def _windowed(source, args):
     """A source with the --t0/--t1 window when it has none of its own."""
     if isinstance(source, tuple) or (args.t0 is None and args.t1 is None):
         return source
-    from pathlib import Path
-
     if Path(source).is_dir() or any(c in str(source) for c in "*?["):
-        from ..errors import FdmlError
-
         raise FdmlError(f"--t0/--t1 apply to record files; {source!r} is a folder or a glob: give FILE@T0:T1")
     return (source, args.t0, args.t1)
 
 
 def run(args) -> int:
-    from ..batch import run_batch
-    from ..errors import FdmlError
+    import importlib.util
 
-    band = args.band
-    check_band_option(band)  # up front: a bad band would fail every record one by one
+    from ..batch import run_batch
+    from ..cli import show
+
+    check_band_option(args.band)  # up front: a bad band would fail every record one by one
     spec = model_spec_from_args(args, reads_records=True, fix=assignments(args.fix), free=list(args.free or []))
     fit_kwargs = O.fit_kwargs(args)
-    if band is not None:
-        fit_kwargs["band"] = band
+    if args.band is not None:
+        fit_kwargs["band"] = args.band
     if args.strict:
         fit_kwargs["strict"] = True
     if args.serial and args.scheduler:
         raise FdmlError("give --serial or --scheduler, not both")
     engine = "serial" if args.serial else (args.scheduler or "process")
-    progress = None
-    if O.progress_wanted(args, default_on=True):
-        import importlib.util
-
-        progress = True if importlib.util.find_spec("tqdm") is not None else None
+    progress = True if O.progress_wanted(args, default_on=True) and importlib.util.find_spec("tqdm") else None
     out = args.output or DEFAULT_OUTPUT
     sources = [_windowed(parse_source(s), args) for s in args.sources]
     check_batch_outputs(sources, out, args.aircraft)
@@ -162,10 +149,5 @@ def run(args) -> int:
         resume=args.resume,
         progress=progress,
     )
-    if args.json:
-        from ..cli import print_json
-
-        print_json(summary.to_dict())
-    else:
-        print(summary)
+    show(args, summary.to_dict(), summary)
     return 0 if summary.n_failed == 0 else 1

@@ -40,11 +40,12 @@ def register(sub) -> None:
     )
     O.add_strict_option(p, "exit with code 2 when the data check finds anything (units, signs, channels, response)")
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from ..cli import show
     from ..datacheck import check_data
+    from ..errors import RecordError
     from ..findings import raise_if_strict
     from ..io import load_record
     from ..io.cli import record_options
@@ -56,11 +57,10 @@ def run(args) -> int:
     rec = load_record(args.record, **record_options(args))
     report = check_quality(rec, band=band, n_params=args.n_params)
     data_check = check_data(rec, band=band, airspeed=args.airspeed)
-    from ..errors import RecordError
-
-    compat, compat_note = None, None
     if args.estimate and not args.compat:
         raise RecordError("--estimate names the parameters of the compatibility check: give --compat too")
+    out = {"record": args.record, "quality": report.to_dict(), "data_check": data_check.to_dict()}
+    texts = [report.summary(), data_check.summary()]
     if args.compat:
         from ..flightpath import check_compatibility
 
@@ -70,25 +70,11 @@ def run(args) -> int:
         except RecordError as exc:  # a perturbation record: the data check above covers Eq. 5
             if "trim kept" not in str(exc):
                 raise
-            compat_note = f"compatibility check skipped: {exc}"
-    if args.json:
-        from ..cli import print_json
-
-        out = {"record": args.record, "quality": report.to_dict(), "data_check": data_check.to_dict()}
-        if compat is not None:
+            out["compatibility"] = {"skipped": f"compatibility check skipped: {exc}"}
+            texts.append(out["compatibility"]["skipped"])
+        else:
             out["compatibility"] = compat.to_dict()
-        elif compat_note:
-            out["compatibility"] = {"skipped": compat_note}
-        print_json(out)
-    else:
-        print(report.summary())
-        print()
-        print(data_check.summary())
-        if compat is not None:
-            print()
-            print(compat.summary())
-        elif compat_note:
-            print()
-            print(compat_note)
+            texts.append(compat.summary())
+    show(args, out, "\n\n".join(texts))
     raise_if_strict(data_check.findings, bool(args.strict))
     return 0

@@ -4,8 +4,10 @@ from __future__ import annotations
 
 import argparse
 
+from ..errors import FdmlError, ParameterError
+from ..outputs import atomic_savefig, atomic_write_text, check_output, check_output_dir
 from . import _options as O
-from ._common import assignments, check_band_option, model_for_records
+from ._common import assignments, check_band_option, fit_spectra, model_for_records
 
 #: Files written into the -o folder.
 FILES = {"comparison": "comparison.json", "summary": "summary.txt", "figure": "compare.png"}
@@ -29,12 +31,9 @@ def register(sub) -> None:
         p, kind="folder", metavar="DIR", help="comparison.json (both fits, shifts, evidence), summary.txt, compare.png"
     )
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def _check_outputs(args) -> None:
-    from ..outputs import check_output, check_output_dir
-
     if args.output:
         inputs = [*args.records, args.aircraft]
         check_output_dir(args.output, inputs, what="compare folder")
@@ -45,35 +44,32 @@ def _check_outputs(args) -> None:
 def _fit_both(args, records, data, kwargs):
     """(steady, unsteady) FitResults, each with the command's provenance; --fix/--free go to the model that has them."""
     from ..conditions import attach_conditions
-    from ..errors import ParameterError
     from ..estimate import fit
 
     fixed, free = assignments(args.fix), list(args.free or [])
-    out = {}
+    out, known = {}, set()
     for kind in ("unsteady", args.steady):
         ns = argparse.Namespace(**{**vars(args), "model": kind, "airspeed": None})
         model, prov = model_for_records(ns, records)
         names = set(model.parameters.names)
+        known |= names
         res = fit(
-            data if len(data) > 1 else data[0],
+            data,
             model,
             fix={k: v for k, v in fixed.items() if k in names},
             free=[n for n in free if n in names],
             **kwargs,
         )
         out[kind] = attach_conditions(res, model, records, prov)
-        names_seen = out.setdefault("_names", set())
-        names_seen |= names
-    unknown = sorted((set(fixed) | set(free)) - out["_names"])
+    unknown = sorted((set(fixed) | set(free)) - known)
     if unknown:
         raise ParameterError(f"--fix/--free: {', '.join(unknown)} is a parameter of neither model")
     return out[args.steady], out["unsteady"]
 
 
 def run(args) -> int:
-    from .. import spectra  # the Fourier front end (the function; its module's name differs across versions)
+    from ..cli import show
     from ..compare import Comparison, check_records_for_compare
-    from ..errors import FdmlError
     from ..io import check_same_rate, load_record
     from ..io.cli import record_options
 
@@ -86,20 +82,14 @@ def run(args) -> int:
     records = [load_record(path, **opts) for path in args.records]
     check_records_for_compare(records, gust=bool(args.gust))  # one aircraft first: its records' rates may differ too
     check_same_rate(records, args.records)
-    trim = kwargs.pop("trim", None)
-    given = {"outputs": kwargs.get("outputs"), **({} if trim is None else {"trim": trim})}  # the fitted rows
-    data = [spectra(r, band=args.band, **given) for r in records]
-    steady, unsteady = _fit_both(args, records, data, kwargs)
+    steady, unsteady = _fit_both(args, records, fit_spectra(records, args.band, kwargs), kwargs)
     cmp = Comparison(steady=steady, unsteady=unsteady)
     files = _write(cmp, args.output) if args.output else {}
-    if args.json:
-        from ..cli import print_json
-
-        print_json({**cmp.brief(), **({"files": files} if files else {})})
-    else:
-        print(cmp.summary())
-        for k, v in files.items():
-            print(f"wrote {k:10s} {v}")
+    show(
+        args,
+        {**cmp.brief(), **({"files": files} if files else {})},
+        "\n".join([cmp.summary(), *(f"wrote {k:10s} {v}" for k, v in files.items())]),
+    )
     return 0 if steady.converged and unsteady.converged else 1
 
 
@@ -108,7 +98,6 @@ def _write(cmp, folder) -> dict:
     from pathlib import Path
 
     from ..jsoncodec import write_json
-    from ..outputs import atomic_savefig, atomic_write_text
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..demo import DEFAULT_NOISE
 from . import _options as O
 from ._common import noise_option, seed_int
 
@@ -17,59 +18,51 @@ def register(sub) -> None:
         p, kind="folder", metavar="DIR", help=f"the table, fits and figure (default ./{DEFAULT_OUTPUT})"
     )
     p.add_argument("--seed", type=seed_int, default=1, help="noise seed (default 1)")
-    O.add_noise_option(p, default=f"{_default_noise():g}")
+    O.add_noise_option(p, default=f"{DEFAULT_NOISE:g}")
     p.add_argument("--no-figure", action="store_true", help="skip the figure (no matplotlib)")
     O.add_json_option(p)
-    p.set_defaults(func=run)
-
-
-def _default_noise() -> float:
-    """run_demo's noise fraction (the library's default)."""
-    import inspect
-
-    from ..demo import run_demo
-
-    return inspect.signature(run_demo).parameters["noise"].default
 
 
 def run(args) -> int:
-    from ..cli import print_json
+    from ..cli import show
     from ..demo import run_demo
     from ..errors import FdmlError
 
-    noise = noise_option(args.noise)
+    noise = noise_option(args.noise or str(DEFAULT_NOISE))
     if isinstance(noise, dict):
         raise FdmlError(
             "fdml demo --noise takes a fraction of each output's RMS (e.g. 0.02); "
             "absolute stds go to fdml simulate --noise"
         )
-    noise = _default_noise() if noise is None else noise
     res = run_demo(args.output or DEFAULT_OUTPUT, seed=args.seed, noise=noise, figure=not args.no_figure)
     evidence = res.comparison.evidence
     assert evidence is not None  # the demo's fits hold their spectra
-    if args.json:
-        print_json(
-            {
-                "comparison": {
-                    "unsteady": _set_dict(res.comparison.unsteady_set),
-                    "steady": _set_dict(res.comparison.steady_set),
-                    "shifts": res.comparison.shifts,
-                    "evidence": evidence.to_dict(),
-                },
-                "files": {k: str(v) for k, v in res.files.items()},
-            }
-        )
-        return 0
-    print(
+    header = (
         "fdml demo: Navion 3-2-1-1 simulated with the unsteady model "
         f"({100 * noise:g} % noise, seed {args.seed}); steady = six-derivative model\n"
     )
-    print(res.table)
-    print()
-    print("evidence: " + evidence.text())
-    print()
-    for k, v in res.files.items():
-        print(f"wrote {k:9s} {v}")
+    show(
+        args,
+        {
+            "comparison": {
+                "unsteady": _set_dict(res.comparison.unsteady_set),
+                "steady": _set_dict(res.comparison.steady_set),
+                "shifts": res.comparison.shifts,
+                "evidence": evidence.to_dict(),
+            },
+            "files": {k: str(v) for k, v in res.files.items()},
+        },
+        "\n".join(
+            [
+                header,
+                res.table,
+                "",
+                "evidence: " + evidence.text(),
+                "",
+                *(f"wrote {k:9s} {v}" for k, v in res.files.items()),
+            ]
+        ),
+    )
     return 0
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+from ..errors import ParameterError
 from . import _options as O
 from ._common import assignments, make_model_from_args, noise_option
 
@@ -14,8 +15,6 @@ def _angle(text: str | None, what: str, rate: bool = False) -> float | None:
     """'3deg', '0.05' (rad) or, for a rate, '40deg/s', '0.7' (rad/s)."""
     if text is None:
         return None
-    from ..errors import ParameterError
-
     t = text.strip().lower()
     unit = "deg/s" if rate else "deg"
     deg = t.endswith(unit)
@@ -76,7 +75,6 @@ def register(sub) -> None:
         p, kind="file", metavar="INPUT.csv", help="the designed input (t, de), and a figure beside it (.png)"
     )
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def _names(items) -> list[str]:
@@ -88,8 +86,8 @@ def _names(items) -> list[str]:
 def run(args) -> int:
     from pathlib import Path
 
+    from ..cli import show
     from ..design import design, plot_design, read_input
-    from ..errors import ParameterError
     from ..outputs import StagedOutputs, check_output
 
     if args.input is None and args.output is None:
@@ -129,14 +127,9 @@ def run(args) -> int:
         with StagedOutputs([args.input, args.aircraft]) as out:
             out.write_text(args.output, d.input.to_record().to_csv_text(), what="input file")
             out.savefig(fig, figure, dpi=110)
-    if args.json:
-        from ..cli import print_json
-
-        out_d = d.to_dict(args.output if args.output is not None else args.input)
-        out_d["figure"] = None if figure is None else str(figure)
-        print_json(out_d)
-    else:
-        print(d.table())
-        if args.output is not None:
-            print(f"\nwrote {args.output} (t, de) and {figure}")
+    show(
+        args,
+        {**d.to_dict(args.output if args.output is not None else args.input), "figure": figure and str(figure)},
+        d.table() + ("" if figure is None else f"\n\nwrote {args.output} (t, de) and {figure}"),
+    )
     return 0

@@ -6,13 +6,11 @@ simulated with one withheld effect; see :mod:`fdml.diagnose.validation`).
 
 from __future__ import annotations
 
+import sys
+
+from ..cli import show
+from ..outputs import check_output
 from . import _options as O
-
-
-def _level() -> float:
-    from ..verdict import LEVEL  # deferred: the parser must not import the numerics (fdml --help)
-
-    return LEVEL
 
 
 def register(sub) -> None:
@@ -25,7 +23,7 @@ def register(sub) -> None:
     p.add_argument("records", nargs="*", metavar="RECORD", help="record file(s), fitted jointly")
     O.add_model_options(p, what="base model the effects are added to")
     O.add_record_options(p)
-    lo_hi = _default_lo_hi()
+    lo_hi = O.DEFAULT_BAND_TEXT.rsplit(":", 1)[0]  # fdml's default band (fdml.diagnose.data.DEFAULT_DIAG_BAND)
     O.add_band_option(
         p,
         help=f"analysis band, rad/s (default {lo_hi}; a :STEP is ignored: the "
@@ -90,62 +88,39 @@ def register(sub) -> None:
     )
     O.add_workers_option(v)
     O.add_progress_option(v, default_on=True)
-    p.set_defaults(func=run)
-
-
-def _default_lo_hi() -> str:
-    """``LO:HI`` of fdml's default band (the diagnosis's default, :data:`fdml.diagnose.data.DEFAULT_DIAG_BAND`)."""
-    return O.DEFAULT_BAND_TEXT.rsplit(":", 1)[0]
 
 
 def _validate(args) -> int:
-    import sys
-
     from ..diagnose.validation import REPORT_SEED_BASE, validate
 
     n_e, n_n = (1, 6) if args.quick else (args.n_effect, args.n_null)
     if args.output:  # before the (long) work
-        from ..outputs import check_output
-
         check_output(args.output, what="validation file")
 
-    show = O.progress_wanted(args, default_on=True)
-
     def progress(done, total):
-        if show:
-            sys.stderr.write(f"\rfdml diagnose --validate: {done}/{total}")
-            if done == total:
-                sys.stderr.write("\n")
+        sys.stderr.write(f"\rfdml diagnose --validate: {done}/{total}")
+        if done == total:
+            sys.stderr.write("\n")
 
     res = validate(
         n_effect=n_e,
         n_null=n_n,
         seed_base=REPORT_SEED_BASE if args.seed_base is None else args.seed_base,
         processes=args.workers,
-        progress=progress,
+        progress=progress if O.progress_wanted(args, default_on=True) else None,
     )
     if args.output:
         res.to_json(args.output)
-    if args.json:
-        from ..cli import print_json
-
-        print_json({"settings": res.settings, "scores": res.scores})
-    else:
-        print(res.table())
+    show(args, {"settings": res.settings, "scores": res.scores}, res.table())
     return 0
 
 
 def _check_outputs(args) -> None:
     """-o and --figure: not an input (records, hold-out records, aircraft JSON), a folder or a device."""
-    from ..outputs import check_output
-
     inputs = [*args.records, *(args.holdout or []), args.aircraft]
-    if args.output:
-        check_output(args.output, inputs, what="report file")
-    if args.figure:
-        check_output(args.figure, inputs, what="figure")
-    if args.recommended_output:
-        check_output(args.recommended_output, inputs, what="result file")
+    for path, what in ((args.output, "report file"), (args.figure, "figure"), (args.recommended_output, "result file")):
+        if path:
+            check_output(path, inputs, what=what)
 
 
 def run(args) -> int:
@@ -156,6 +131,7 @@ def run(args) -> int:
     from ..estimate import parse_outputs
     from ..io import load_records
     from ..io.cli import record_options
+    from ..verdict import LEVEL
     from ._common import model_for_records
 
     if not args.records:
@@ -171,18 +147,16 @@ def run(args) -> int:
             bands = [float(x) for x in args.bands.split(",")]
         except ValueError:
             raise ParameterError(f"--bands must be numbers separated by commas, got {args.bands!r}") from None
-    library = [x.strip() for x in args.library.split(",")] if args.library else None
-    outputs = list(parse_outputs(args.outputs, what="--outputs"))
     rep = diagnose(
         records,
         model,
         holdout=holdout,
         band=args.band,
         bands=bands,
-        library=library,
-        alpha=args.alpha if args.alpha is not None else _level(),
+        library=[x.strip() for x in args.library.split(",")] if args.library else None,
+        alpha=args.alpha if args.alpha is not None else LEVEL,
         max_effects=args.max_effects,
-        outputs=outputs,
+        outputs=list(parse_outputs(args.outputs, what="--outputs")),
         input_edges=args.input_edges,
         trim="first",
         strict=bool(args.strict),
@@ -194,14 +168,7 @@ def run(args) -> int:
         rep.recommended.to_json(args.recommended_output)
     if args.figure and rep.status == "ok":
         rep.plot(args.figure)
-    if args.json:
-        from ..cli import print_json
-
-        print_json(rep.to_dict())
-    else:
-        print(rep.summary())
-    import sys
-
+    show(args, rep.to_dict(), rep.summary())
     if rep.status != "ok":
         sys.stderr.write(f"fdml: error: no verdict: {'; '.join(rep.problems)}\n")
         return 2

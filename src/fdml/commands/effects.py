@@ -11,16 +11,6 @@ def register(sub) -> None:
     from . import _options as O
 
     O.add_json_option(p)
-    p.set_defaults(func=run)
-
-
-def _range(par: dict) -> str:
-    lo, hi = par["plausible"] or (None, None)
-    return "-" if lo is None else f"{lo:g} .. {hi:g}"
-
-
-def _null(par: dict) -> str:
-    return "base value" if par["null"] is None else f"{par['null']:g}"
 
 
 def text(cat: list[dict]) -> str:
@@ -39,20 +29,17 @@ def text(cat: list[dict]) -> str:
             seen.setdefault(key, ([], pars))[0].append(model)
         for models, pars in seen.values():
             for p in pars:
-                lines.append(
-                    f"    {','.join(models):40s} {p['name']:10s} {p['unit'] or '-':14s} {_null(p):10s} {_range(p)}"
-                )
+                lo, hi = p["plausible"] or (None, None)
+                span = "-" if lo is None else f"{lo:g} .. {hi:g}"
+                null = "base value" if p["null"] is None else f"{p['null']:g}"
+                lines.append(f"    {','.join(models):40s} {p['name']:10s} {p['unit'] or '-':14s} {null:10s} {span}")
     return "\n".join(lines)
 
 
 def run(args) -> int:
+    from ..cli import show
     from ..models.effects import catalogue
 
     cat = catalogue()
-    if args.json:
-        from ..cli import print_json
-
-        print_json({"effects": cat})
-    else:
-        print(text(cat))
+    show(args, {"effects": cat}, text(cat))
     return 0

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from . import _options as O
-from ._common import assignments, check_band_option, model_for_records
+from ._common import assignments, check_band_option, fit_spectra, model_for_records
 
 
 def register(sub) -> None:
@@ -30,35 +30,31 @@ def register(sub) -> None:
     )
     O.add_json_option(p)
     O.add_progress_option(p, default_on=False)
-    p.set_defaults(func=run, parsers=sub)  # the parsers: for the commands the adequacy warning quotes (_commands)
+    p.set_defaults(parsers=sub)  # the parsers: for the commands the adequacy warning quotes (_commands)
 
 
 #: Options the quoted commands leave out: where results go and how they are shown.
 _NOT_QUOTED = ("output", "json", "progress", "func", "parsers", "command", "verbose")
 
 
-def _argv_of(parser, args, *, rename=None) -> list:
+def _argv_of(parser, args) -> list:
     """``args`` as the argv of ``parser``: positionals, then every option not at its default.
 
-    ``rename`` maps an attribute of ``args`` to the dest of ``parser``; options ``parser`` does not have are left out.
+    Options ``parser`` does not have are left out.
     """
-    rename = rename or {}
-    vals = {rename.get(k, k): v for k, v in vars(args).items() if k not in _NOT_QUOTED}
+    vals = {k: v for k, v in vars(args).items() if k not in _NOT_QUOTED}
     pos, opt = [], []
     for a in parser._actions:
         if a.dest not in vals or a.dest == "help" or a.help == "==SUPPRESS==":  # not hidden aliases
             continue
         v = vals[a.dest]
+        items = [str(x) for x in (v if isinstance(v, list) else [v])]
         if not a.option_strings:
-            pos += [str(x) for x in (v if isinstance(v, list) else [v])]
+            pos += items
         elif v != a.default and v is not None and not (a.choices and v not in a.choices):
             flag = max(a.option_strings, key=len)
             # a repeatable option once per value (--effect a --effect b): every parser reads that form
-            opt += (
-                [flag]
-                if a.nargs == 0
-                else [x for item in (v if isinstance(v, list) else [v]) for x in (flag, str(item))]
-            )
+            opt += [flag] if a.nargs == 0 else [x for item in items for x in (flag, item)]
     return pos + opt
 
 
@@ -87,63 +83,43 @@ def _progress_callback(enabled: bool):
 
 
 def run(args) -> int:
+    import contextlib
     import time
 
     t0 = time.perf_counter()
+    from ..adequacy import reworded
+    from ..cli import show
     from ..conditions import attach_conditions
     from ..estimate import fit
     from ..io import load_records
     from ..io.cli import record_options
-    from ..spectral import spectra
 
     if args.output:  # before any work: the result must not replace an input, a folder or a device
         from ..outputs import check_output
 
         check_output(args.output, [*args.records, args.aircraft], what="result file")
-    band = args.band
-    check_band_option(band)
+    check_band_option(args.band)
     kwargs = O.fit_kwargs(args)  # a bad --outputs before reading
     records = load_records(args.records, **record_options(args))
     t_read = time.perf_counter()
     model, provenance = model_for_records(args, records)
     fixed = assignments(args.fix)
-    trim = kwargs.pop("trim", None)
-    opts = {"outputs": kwargs.get("outputs"), **({} if trim is None else {"trim": trim})}
-    data = [spectra(r, band=band, **opts) for r in records]  # the front end
+    data = fit_spectra(records, args.band, kwargs)  # the front end
     t_transform = time.perf_counter()
     bar = _progress_callback(O.progress_wanted(args, default_on=False))
-    from ..adequacy import reworded
-
-    try:
-        res = fit(
-            data if len(data) > 1 else data[0],
-            model,
-            fix=fixed,
-            free=args.free or [],
-            callback=bar,
-            strict=bool(args.strict),
-            **kwargs,
-        )
-    finally:
-        if bar is not None:
-            bar.close()
+    with bar or contextlib.nullcontext():  # the bar closes on its last count
+        res = fit(data, model, fix=fixed, free=args.free or [], callback=bar, strict=bool(args.strict), **kwargs)
     fit_argv, diagnose_argv = _commands(args)
     res = reworded(res, fit_argv=fit_argv, diagnose_argv=diagnose_argv)  # the advice quotes this command
     res = attach_conditions(res, model, records, provenance)
     t_fit = time.perf_counter()
     if args.output:
         res.to_json(args.output)
-    if args.json:
-        from ..cli import print_json
-
-        out = res.brief()
-        # seconds: reading (imports of the loaders included), the Fourier front end, the estimator
-        out["timing"] = {"read": t_read - t0, "transform": t_transform - t_read, "estimate": t_fit - t_transform}
-        if args.output:
-            out["result_file"] = args.output
-        print_json(out)
-    else:
-        print(res.summary())  # its header gives the airspeed and where it came from
-        if args.output:
-            print(f"\nwrote {args.output}")
+    out = res.brief()
+    # seconds: reading (imports of the loaders included), the Fourier front end, the estimator
+    out["timing"] = {"read": t_read - t0, "transform": t_transform - t_read, "estimate": t_fit - t_transform}
+    if args.output:
+        out["result_file"] = args.output
+    # the summary's header gives the airspeed and where it came from
+    show(args, out, res.summary() + (f"\n\nwrote {args.output}" if args.output else ""))
     return 0 if res.converged else 1

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from ..outputs import atomic_savefig, atomic_write_text, check_output, check_output_dir
 from . import _options as O
 from ._common import assignments, check_band_option, model_spec_from_args, noise_option, seed_int
 
 #: Noise when --noise is not given: a fraction of each output's RMS.
 DEFAULT_NOISE = "0.03"
+#: Files written into the -o folder.
+FILES = {"json": "montecarlo.json", "table": "montecarlo.txt", "figure": "montecarlo.png"}
 
 
 def register(sub) -> None:
@@ -40,7 +43,6 @@ def register(sub) -> None:
         p, kind="folder", metavar="DIR", help="DIR/montecarlo.json, DIR/montecarlo.txt and DIR/montecarlo.png"
     )
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:
@@ -48,6 +50,7 @@ def run(args) -> int:
     from pathlib import Path
 
     from ..batch import ModelSpec
+    from ..cli import show
     from ..montecarlo import monte_carlo
 
     truth = model_spec_from_args(args, values=assignments(args.set))
@@ -55,15 +58,12 @@ def run(args) -> int:
     if args.fit_model and args.fit_model != truth.kind:
         fit_model = ModelSpec(kind=args.fit_model, aircraft=args.aircraft, options=truth.options, effects=truth.effects)
     noise = noise_option(args.noise or DEFAULT_NOISE)
-    band = args.band
-    check_band_option(band)  # up front: a bad band would fail all N runs one by one
+    check_band_option(args.band)  # up front: a bad band would fail all N runs one by one
+    paths = {k: Path(args.output or ".") / name for k, name in FILES.items()}
     if args.output:  # before any work: the folder and its three files
-        from ..outputs import check_output, check_output_dir
-
         check_output_dir(args.output, [args.aircraft])
-        for name in ("montecarlo.json", "montecarlo.txt", "montecarlo.png"):
-            check_output(Path(args.output) / name, [args.aircraft])
-    progress = True if (O.progress_wanted(args, default_on=True) and importlib.util.find_spec("tqdm")) else None
+        for path in paths.values():
+            check_output(path, [args.aircraft])
     res = monte_carlo(
         truth,
         n=args.n,
@@ -73,20 +73,17 @@ def run(args) -> int:
         noise=noise,
         seed=args.seed,
         fit_model=fit_model,
-        fit_kwargs={} if band is None else {"band": band},
+        fit_kwargs={} if args.band is None else {"band": args.band},
         engine=args.scheduler or "process",
         workers=args.workers,
-        progress=progress,
+        progress=True if O.progress_wanted(args, default_on=True) and importlib.util.find_spec("tqdm") else None,
     )
-    files = {}
     if args.output:
-        from ..outputs import atomic_savefig, atomic_write_text
-
-        out = Path(args.output)
-        res.to_json(out / "montecarlo.json")
-        atomic_write_text(out / "montecarlo.txt", res.table() + "\n")
-        files = {"json": str(out / "montecarlo.json"), "table": str(out / "montecarlo.txt")}
-        if importlib.util.find_spec("matplotlib"):
+        res.to_json(paths["json"])
+        atomic_write_text(paths["table"], res.table() + "\n")
+        if not importlib.util.find_spec("matplotlib"):
+            del paths["figure"]
+        else:
             import matplotlib
 
             matplotlib.use("Agg")
@@ -94,26 +91,14 @@ def run(args) -> int:
 
             fig, _ = res.plot()
             try:
-                atomic_savefig(fig, out / "montecarlo.png", dpi=120)
+                atomic_savefig(fig, paths["figure"], dpi=120)
             finally:
                 plt.close(fig)
-            files["figure"] = str(out / "montecarlo.png")
-    if args.json:
-        from ..cli import print_json
-
-        print_json(
-            {
-                "n": res.n,
-                "used": res.n_used,
-                "failed": len(res.errors),
-                "wall_time": res.wall_time,
-                "settings": res.settings,
-                "stats": res.stats(),
-                "files": files,
-            }
-        )
-    else:
-        print(res.table())
-        for f in files.values():
-            print(f"wrote {f}")
+    files = {k: str(v) for k, v in paths.items()} if args.output else {}
+    summary = {"n": res.n, "used": res.n_used, "failed": len(res.errors), "wall_time": res.wall_time}
+    show(
+        args,
+        {**summary, "settings": res.settings, "stats": res.stats(), "files": files},
+        "\n".join([res.table(), *(f"wrote {f}" for f in files.values())]),
+    )
     return 0 if res.n_used >= 2 else 1

@@ -16,18 +16,16 @@ def register(sub) -> None:
     )
     p.add_argument("--hz", action="store_true", help="frequency axes in Hz (default rad/s)")
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from ..cli import show
     from ..report import write_report  # draws on Figure objects: no display, no pyplot
 
     files = write_report(args.result, args.output, freq_unit="Hz" if args.hz else "rad/s")
-    if args.json:
-        from ..cli import print_json
-
-        print_json({"files": {k: str(v) for k, v in files.items()}})
-    else:
-        for k, v in files.items():
-            print(f"wrote {k:18s} {v}")
+    show(
+        args,
+        {"files": {k: str(v) for k, v in files.items()}},
+        "\n".join(f"wrote {k:18s} {v}" for k, v in files.items()),
+    )
     return 0

@@ -21,41 +21,36 @@ def register(sub) -> None:
         "LO may be 0)",
     )
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:
     import numpy as np
 
+    from ..cli import show
     from ..fourier import omega_band
     from ..spectral import parse_band
 
     model = make_model_from_args(args, assignments(args.set))
     omega = omega_band(*parse_band(args.band, what="--band", positive=False))
     G = model.frequency_response(omega)
-    if args.json:
-        from ..cli import print_json
-
-        print_json(
-            {
-                "model": model.kind,
-                "outputs": list(model.outputs),
-                "inputs": list(model.inputs),
-                "omega": omega.tolist(),
-                "shape": list(G.shape),
-                "real": G.real.tolist(),
-                "imag": G.imag.tolist(),
-            }
-        )
-        return 0
-    print(f"{model.describe()}: |G| and phase (deg)")
-    head = "omega".rjust(8) + "".join(f"{o + '/' + i:>24s}" for o in model.outputs for i in model.inputs)
-    print(head)
-    for k, w in enumerate(omega):
-        row = "".join(
-            f"{abs(G[a, b, k]):12.5g}{np.degrees(np.angle(G[a, b, k])):12.2f}"
-            for a in range(G.shape[0])
-            for b in range(G.shape[1])
-        )
-        print(f"{w:8.3f}{row}")
+    lines = [
+        f"{model.describe()}: |G| and phase (deg)",
+        "omega".rjust(8) + "".join(f"{o + '/' + i:>24s}" for o in model.outputs for i in model.inputs),
+    ]
+    for k, w in enumerate(omega):  # the (output, input) pairs in the order of the header
+        pairs = zip(np.abs(G[:, :, k]).ravel(), np.degrees(np.angle(G[:, :, k])).ravel())
+        lines.append(f"{w:8.3f}" + "".join(f"{mag:12.5g}{phase:12.2f}" for mag, phase in pairs))
+    show(
+        args,
+        {
+            "model": model.kind,
+            "outputs": list(model.outputs),
+            "inputs": list(model.inputs),
+            "omega": omega.tolist(),
+            "shape": list(G.shape),
+            "real": G.real.tolist(),
+            "imag": G.imag.tolist(),
+        },
+        "\n".join(lines),
+    )
     return 0

@@ -23,16 +23,15 @@ def register(sub) -> None:
     p.add_argument("--seed", type=seed_int, help="random seed (an integer >= 0)")
     O.add_output_option(p, kind="file", metavar="RECORD.csv", required=True, help="the simulated record (CSV)")
     O.add_json_option(p)
-    p.set_defaults(func=run)
 
 
 def run(args) -> int:
+    from ..cli import show
     from ..outputs import check_output
     from ..simulate import simulate_maneuver
 
     check_output(args.output, [args.aircraft], what="record file")  # before any work
     model = make_model_from_args(args, assignments(args.set)).with_outputs(args.outputs or ())
-    kw = {} if args.amplitude is None else {"amplitude": args.amplitude}
     rec = simulate_maneuver(
         model,
         args.maneuver,
@@ -41,15 +40,12 @@ def run(args) -> int:
         gust_std=args.gust or 0.0,
         seed=args.seed,
         noise=noise_option(args.noise),  # a number is a fraction of RMS in simulate_maneuver too
-        **kw,
+        **({} if args.amplitude is None else {"amplitude": args.amplitude}),  # simulate_maneuver's default
     )
     rec.to_csv(args.output)
-    if args.json:
-        from ..cli import print_json
-
-        print_json(
-            {"output": args.output, "samples": rec.n, "dt": rec.dt, "model": model.kind, "signals": list(rec.signals)}
-        )
-    else:
-        print(f"wrote {args.output}: {rec.n} samples at {rec.dt:g} s, signals {', '.join(rec.signals)}")
+    show(
+        args,
+        {"output": args.output, "samples": rec.n, "dt": rec.dt, "model": model.kind, "signals": list(rec.signals)},
+        f"wrote {args.output}: {rec.n} samples at {rec.dt:g} s, signals {', '.join(rec.signals)}",
+    )
     return 0

@@ -174,7 +174,6 @@ def load_record(path, format: str = "auto", t0: float | None = None, t1: float |
     """
     if format not in FORMATS:
         raise RecordError(f"unknown record format {format!r}; use one of {', '.join(FORMATS)}")
-    implied: dict = {}
     if format == "auto":
         format, implied = detect_format(path, **kw)
     else:  # a format given: one that does not fit the file is named with the one it looks like

@@ -12,8 +12,10 @@ from pathlib import Path
 
 import numpy as np
 
+from ..channels import REQUIRED
 from ..errors import RecordError
 from ..record import Record
+from .units import QUANTITY, unit_factor
 
 #: Leading window over which ``meta["trim_values"]`` are averaged, s.  Half a
 #: second is many samples at any flight-test rate (5 at 10 Hz, 25 at 50 Hz) and
@@ -50,18 +52,48 @@ def trim_values(t: np.ndarray, signals: Mapping[str, np.ndarray], window: float 
     return {name: float(np.mean(v[:k])) for name, v in signals.items()}
 
 
+def columns_to_si(p: Path, data: np.ndarray, columns: Mapping[str, tuple], label) -> tuple[dict, dict, dict, list]:
+    """The signals of a record matrix in fdml's units, from a layout ``{signal: (1-based column, unit)}``.
+
+    A column of zeros was not recorded: an error for a required signal, else
+    the signal is left out (listed in ``absent``).  ``label(column, unit)`` is
+    the channel's description in ``meta["channels"]``.
+
+    Parameters
+    ----------
+    p : Path
+        The file, named in errors.
+    data : numpy.ndarray
+        The record matrix, one channel per column, in the file's units.
+    columns : mapping
+        fdml signal -> (1-based column, unit in the file).
+    label : callable
+        ``label(column, unit)``: the channel's description.
+
+    Returns
+    -------
+    signals, channels, conversion : dict
+        The SI signals, their channel descriptions and ``{"unit", "factor"}``.
+    absent : list of str
+        The signals whose column holds only zeros.
+    """
+    signals, channels, conv, absent = {}, {}, {}, []
+    for sig, (col, unit) in columns.items():
+        x = np.asarray(data[:, col - 1], dtype=float)
+        if not np.any(x != 0.0):
+            if sig in REQUIRED:
+                raise RecordError(f"{p}: column {col} ({sig}) holds only zeros: the channel was not recorded")
+            absent.append(sig)
+            continue
+        factor = unit_factor(unit, QUANTITY[sig], what=f"{p} column {col}")
+        signals[sig] = x * factor
+        channels[sig] = label(col, unit)
+        conv[sig] = {"unit": unit, "factor": factor}
+    return signals, channels, conv, absent
+
+
 def finish(
-    path: Path,
-    t,
-    signals: dict,
-    meta: dict,
-    *,
-    name: str | None,
-    t0,
-    t1,
-    trim,
-    trim_window: float = TRIM_WINDOW,
-    check_units: bool = True,
+    path: Path, t, signals: dict, meta: dict, *, name: str | None, t0, t1, trim, check_units: bool = True
 ) -> Record:
     """Build the Record, cut the window, record trim values, optionally remove trim.
 
@@ -69,49 +101,44 @@ def finish(
     are computed by the caller from the windowed arrays through
     ``meta["_per_sample"]``: a dict of SI arrays averaged here after windowing.
     """
-    check_trim(trim)
     per_sample = meta.pop("_per_sample", {})
-    where = str(path)
     try:
         rec = Record(t, signals, name=name or path.stem, meta=meta, check_units=check_units)
     except RecordError as exc:
-        raise RecordError(f"{where}: {exc}") from None
+        raise RecordError(f"{path}: {exc}") from None
     keep = np.ones(rec.n, dtype=bool)
     if t0 is not None or t1 is not None:
         for label, v in (("t0", t0), ("t1", t1)):
             if v is not None and not (isinstance(v, (int, float, np.floating, np.integer)) and math.isfinite(v)):
-                raise RecordError(f"{where}: window {label} must be a finite number of seconds, got {v!r}")
+                raise RecordError(f"{path}: window {label} must be a finite number of seconds, got {v!r}")
         # Time stamps in files carry rounding (HFB-320: 30.00001 s for 30 s), so a
         # window edge within WINDOW_TOL sample intervals of a sample includes it.
         tol = WINDOW_TOL * rec.dt
         a = rec.t[0] if t0 is None else float(t0)
         b = rec.t[-1] if t1 is None else float(t1)
         if not a < b:
-            raise RecordError(f"{where}: window start {a:g} s is not before its end {b:g} s")
+            raise RecordError(f"{path}: window start {a:g} s is not before its end {b:g} s")
         if a < rec.t[0] - tol or b > rec.t[-1] + tol:
             raise RecordError(
-                f"{where}: window [{a:g}, {b:g}] s lies outside the record [{rec.t[0]:g}, {rec.t[-1]:g}] s"
+                f"{path}: window [{a:g}, {b:g}] s lies outside the record [{rec.t[0]:g}, {rec.t[-1]:g}] s"
             )
-        lo, hi = max(a - tol, rec.t[0]), min(b + tol, rec.t[-1])
-        keep = (rec.t >= lo) & (rec.t <= hi)
+        keep = (rec.t >= max(a - tol, rec.t[0])) & (rec.t <= min(b + tol, rec.t[-1]))
         if int(keep.sum()) < 4:
             raise RecordError(
-                f"{where}: window [{a:g}, {b:g}] s holds only {int(keep.sum())} samples; at least 4 are needed"
+                f"{path}: window [{a:g}, {b:g}] s holds only {int(keep.sum())} samples; at least 4 are needed"
             )
         rec = rec.window(rec.t[keep][0], rec.t[keep][-1])
         rec = replace(rec, meta={**rec.meta, "window": [a, b]})
-    extra = {}
-    for key, arr in per_sample.items():
-        extra[key] = float(np.mean(np.asarray(arr, dtype=float)[keep]))
-    tv = trim_values(rec.t, rec.signals, trim_window)
+    extra = {key: float(np.mean(np.asarray(arr, dtype=float)[keep])) for key, arr in per_sample.items()}
     # window_means: which meta values are means of per-sample channels over the record (their provenance)
-    meta2 = {**rec.meta, **extra, "window_means": sorted(extra), "trim_values": tv, "trim_values_window": trim_window}
+    tv = trim_values(rec.t, rec.signals)
+    meta2 = {**rec.meta, **extra, "window_means": sorted(extra), "trim_values": tv, "trim_values_window": TRIM_WINDOW}
     rec = replace(rec, meta=meta2)
     if trim not in (None, "none"):
         try:
-            rec = rec.remove_trim(trim, window=trim_window)
+            rec = rec.remove_trim(trim, window=TRIM_WINDOW)
         except RecordError as exc:  # e.g. a record shorter than the trim window
-            raise RecordError(f"{where}: {exc}") from None
+            raise RecordError(f"{path}: {exc}") from None
     return rec
 
 
@@ -138,10 +165,7 @@ def read_mat(path: Path, *, names_only: bool = False):
         except Exception as exc:  # scipy raises many types on corrupt input
             return "error", wrap_read_error(path, "a MATLAB .mat file", exc)
 
-    if not hasattr(os, "fork"):
-        kind, value = parse()
-    else:
-        kind, value = _in_child(parse, path)
+    kind, value = _in_child(parse, path) if hasattr(os, "fork") else parse()
     if kind == "error":
         raise value
     return value
@@ -165,8 +189,8 @@ def _in_child(func, path: Path):
     with os.fdopen(r, "rb") as fh:
         data = fh.read()
     _, status = os.waitpid(pid, 0)
-    if not data or os.waitstatus_to_exitcode(status) != 0:
-        code = os.waitstatus_to_exitcode(status)
+    code = os.waitstatus_to_exitcode(status)
+    if not data or code != 0:
         how = f"signal {-code}" if code < 0 else f"exit code {code}"
         return "error", RecordError(
             f"{path}: cannot read it as a MATLAB .mat file (corrupt or truncated file?): the MAT reader crashed ({how})"

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 
 from ..channels import FORMATS
+from ..errors import RecordError
 
 __all__ = ["add_record_arguments", "record_options", "parse_mapping"]
 
@@ -66,12 +67,8 @@ def parse_mapping(text: str | None, what: str) -> dict[str, str]:
     dict of str to str
         The items, names and values stripped.
     """
-    from ..errors import RecordError
-
     out: dict[str, str] = {}
-    if not text:
-        return out
-    for item in text.split(","):
+    for item in text.split(",") if text else []:
         k, sep, v = item.partition("=")
         if not sep or not k.strip() or not v.strip():
             raise RecordError(f"--{what}: expected NAME=VALUE items separated by commas, got {item!r}")
@@ -81,8 +78,6 @@ def parse_mapping(text: str | None, what: str) -> dict[str, str]:
 
 def _sign(signal: str, text: str) -> int:
     """``"-1"`` -> -1; anything but exactly +1 or -1 (``-1.9``, ``2``, ``x``) is a RecordError."""
-    from ..errors import RecordError
-
     try:
         value = float(text)
     except ValueError:
@@ -108,29 +103,19 @@ def record_options(args) -> dict:
         ``format``, ``t0``, ``t1`` and, where given, ``columns``, ``units``,
         ``sign``, ``layout``, ``variable``, ``delimiter`` and ``check_units``.
     """
-    from ..errors import RecordError
-
-    opts: dict = {
-        "format": getattr(args, "format", None) or "auto",
-        "t0": getattr(args, "t0", None),
-        "t1": getattr(args, "t1", None),
-    }
-    columns = parse_mapping(getattr(args, "columns", None), "columns")
-    units = parse_mapping(getattr(args, "units", None), "units")
-    sign_txt = parse_mapping(getattr(args, "sign", None), "sign")
-    if columns:
-        if opts["format"] == "auto":
-            opts["format"] = "csv-map"
-        opts["columns"] = columns
-        if units:
-            opts["units"] = units
-        if sign_txt:
-            opts["sign"] = {k: _sign(k, v) for k, v in sign_txt.items()}
-    elif units or sign_txt:
+    opts: dict = {"format": args.format or ("csv-map" if args.columns else "auto"), "t0": args.t0, "t1": args.t1}
+    columns, units, signs = (parse_mapping(getattr(args, key), key) for key in ("columns", "units", "sign"))
+    if (units or signs) and not columns:
         raise RecordError("--units and --sign apply to a column-mapped CSV: give --columns too")
-    for key in ("layout", "variable", "delimiter"):
-        if getattr(args, key, None):
-            opts[key] = getattr(args, key)
-    if getattr(args, "check_units", None) is False:
+    given = {
+        "columns": columns,
+        "units": units,
+        "sign": {k: _sign(k, v) for k, v in signs.items()},
+        "layout": args.layout,
+        "variable": args.variable,
+        "delimiter": args.delimiter,
+    }
+    opts.update({k: v for k, v in given.items() if v})
+    if args.check_units is False:
         opts["check_units"] = False
     return opts

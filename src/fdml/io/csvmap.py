@@ -148,12 +148,10 @@ def _check_maps(p, columns, units, sign) -> tuple[dict, dict]:
     missing_req = [k for k in ("t", *REQUIRED) if k not in columns]
     if missing_req:
         raise RecordError(f"{p}: the column map lacks {', '.join(missing_req)} (t, de, alpha, q and az are required)")
-    extra_units = [k for k in units if k not in columns]
-    if extra_units:
-        raise RecordError(f"{p}: units given for signal(s) not in the column map: {', '.join(extra_units)}")
-    extra_sign = [k for k in sign if k not in columns]
-    if extra_sign:
-        raise RecordError(f"{p}: sign given for signal(s) not in the column map: {', '.join(extra_sign)}")
+    for label, mp in (("units", units), ("sign", sign)):
+        extra = [k for k in mp if k not in columns]
+        if extra:
+            raise RecordError(f"{p}: {label} given for signal(s) not in the column map: {', '.join(extra)}")
     for k, v in sign.items():
         if isinstance(v, bool) or v not in (1, -1):  # exactly +-1: a scale factor belongs in units=
             raise RecordError(f"{p}: sign of {k} must be +1 or -1, got {v!r}")
@@ -171,7 +169,7 @@ def _read_columns(p, columns, delimiter):
     ]
     if not lines:
         raise RecordError(f"{p}: no header row and no data")
-    split = _splitter(p, [ln for _, ln in lines[:20]], delimiter)
+    split = _splitter(p, lines[0][1], delimiter)
     header = [c.strip() for c in split(lines[0][1])]
     names = [split_header_unit(c) for c in header]
 
@@ -187,7 +185,7 @@ def _read_columns(p, columns, delimiter):
         col_index[sig] = hits[0]
         header_units[sig] = names[hits[0]][1]
 
-    data = np.empty((len(lines) - 1, len(header)))
+    data = np.full((len(lines) - 1, len(header)), np.nan)  # unmapped columns stay nan
     for r, (lineno, ln) in enumerate(lines[1:]):
         cells = split(ln)
         if len(cells) != len(header):
@@ -195,11 +193,8 @@ def _read_columns(p, columns, delimiter):
                 f"{p}: line {lineno} has {len(cells)} fields but the header has {len(header)} "
                 "(truncated or corrupt file?)"
             )
-        for c, cell in enumerate(cells):
-            s = cell.strip()
-            if c not in col_index.values():
-                data[r, c] = np.nan
-                continue
+        for c in sorted(set(col_index.values())):
+            s = cells[c].strip()
             if not s:
                 raise RecordError(f"{p}: line {lineno}, column {header[c]!r}: missing value")
             try:
@@ -214,7 +209,6 @@ def _read_columns(p, columns, delimiter):
 def _convert(p, header, col_index, header_units, data, units, sign):
     """Time and signals in fdml's units and signs, with the conversion and source column of each."""
     signals, conv, chans = {}, {}, {}
-    t = None
     for sig, i in col_index.items():
         hu, uu = header_units[sig], units.get(sig)
         if hu is not None and uu is not None and normalise_unit(hu) != normalise_unit(uu):
@@ -229,29 +223,23 @@ def _convert(p, header, col_index, header_units, data, units, sign):
                 f"units={{{sig!r}: ...}}) or write it in the header, e.g. 'AOA (deg)'"
             )
         f = unit_factor(unit, QUANTITY[sig], what=f"{p}: {sig} (column {header[i]!r})")
-        s = float(sign.get(sig, 1))
-        x = data[:, i] * f * s
+        signals[sig] = data[:, i] * f * float(sign.get(sig, 1))
         chans[sig] = header[i]
         conv[sig] = {"unit": unit, "factor": f}
-        if sig == "t":
-            t = x
-        else:
-            signals[sig] = x
-    return t, signals, conv, chans
+    return signals.pop("t"), signals, conv, chans
 
 
-def _splitter(p, sample: list[str], delimiter: str | None):
-    if delimiter is not None:
-        if delimiter in (" ", "whitespace"):
-            return lambda ln: ln.split()
-        return lambda ln: next(csv.reader(io.StringIO(ln), delimiter=delimiter))
-    head = sample[0]
-    for d in (",", ";", "\t"):
-        if d in head:
-            return lambda ln, d=d: next(csv.reader(io.StringIO(ln), delimiter=d))
-    if len(head.split()) > 1:
-        return lambda ln: ln.split()
-    raise RecordError(
-        f"{p}: cannot tell the field separator from the header {head[:60]!r}; give --delimiter CHAR "
-        "(Python: delimiter=)"
-    )
+def _splitter(p, head: str, delimiter: str | None):
+    """A function splitting a line into cells: by ``delimiter``, else by the first of , ; tab or spaces in ``head``."""
+    if delimiter is None:
+        delimiter = next((d for d in (",", ";", "\t") if d in head), None)
+    if delimiter is None:
+        if len(head.split()) < 2:
+            raise RecordError(
+                f"{p}: cannot tell the field separator from the header {head[:60]!r}; give --delimiter CHAR "
+                "(Python: delimiter=)"
+            )
+        delimiter = "whitespace"
+    if delimiter in (" ", "whitespace"):
+        return str.split
+    return lambda ln: next(csv.reader(io.StringIO(ln), delimiter=delimiter))

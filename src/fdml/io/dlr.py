@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..channels import CONDITION_UNITS, REQUIRED
+from ..channels import CONDITION_UNITS
 from ..errors import RecordError
-from ._common import check_path, check_trim, finish, read_mat, wrap_read_error
-from .units import QUANTITY, to_si, unit_factor
+from ._common import check_path, check_trim, columns_to_si, finish, read_mat, wrap_read_error
+from .units import to_si, unit_factor
 
 __all__ = ["read_dlr_asc", "read_dlr_mat", "LAYOUTS"]
 
@@ -204,13 +204,8 @@ def read_dlr_mat(
     mat = read_mat(p)
     names = [k for k in mat if not k.startswith("__")]
     if variable is None:
-        mats = [
-            k
-            for k in names
-            if np.asarray(mat[k]).ndim == 2
-            and np.asarray(mat[k]).shape[0] > 1
-            and np.issubdtype(np.asarray(mat[k]).dtype, np.number)
-        ]
+        arrays = {k: np.asarray(mat[k]) for k in names}
+        mats = [k for k, a in arrays.items() if a.ndim == 2 and a.shape[0] > 1 and np.issubdtype(a.dtype, np.number)]
         if len(mats) != 1:
             raise RecordError(
                 f"{p}: expected one record matrix, found {len(mats)} ({', '.join(mats) or 'none'}); "
@@ -235,19 +230,17 @@ def _read_ascii(p, n_columns: int) -> np.ndarray:
         text = p.read_text()
     except (OSError, UnicodeDecodeError) as exc:
         raise wrap_read_error(p, "a text (.asc) record", exc) from None
-    rows, started = [], False
+    rows: list[list[float]] = []
     for i, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
         if not s or s[0] in "%#":
             continue
-        parts = s.replace(",", " ").split()
         try:
-            vals = [float(x) for x in parts]
+            vals = [float(x) for x in s.replace(",", " ").split()]
         except ValueError:
-            if not started:
+            if not rows:
                 continue  # header line
             raise RecordError(f"{p}: line {i} is not numeric ({s[:40]!r}...); corrupt file?") from None
-        started = True
         if len(vals) != n_columns:
             raise RecordError(
                 f"{p}: line {i} has {len(vals)} values, the layout has {n_columns} columns (truncated or corrupt file?)"
@@ -262,18 +255,9 @@ def _build(p, data, lay, fmt, t0, t1, trim, name, check_units, variable=None):
     sig_cols = lay["signals"]
     tcol, tunit = sig_cols["t"]
     t = to_si(data[:, tcol - 1], tunit, "t", what=f"{p} column {tcol}")
-    signals, channels, conv = {}, {}, {}
-    for sig, (col, unit) in sig_cols.items():
-        if sig == "t":
-            continue
-        x = data[:, col - 1]
-        if not np.any(x != 0.0):
-            if sig in REQUIRED:
-                raise RecordError(f"{p}: column {col} ({sig}) holds only zeros: the channel was not recorded")
-            continue
-        signals[sig] = to_si(x, unit, sig, what=f"{p} column {col}")
-        channels[sig] = f"column {col} ({unit})"
-        conv[sig] = {"unit": unit, "factor": unit_factor(unit, QUANTITY[sig])}
+    signals, channels, conv, _ = columns_to_si(
+        p, data, {k: v for k, v in sig_cols.items() if k != "t"}, lambda col, unit: f"column {col} ({unit})"
+    )
     meta = {
         "source": str(p),
         "format": fmt,

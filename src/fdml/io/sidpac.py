@@ -9,10 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..channels import CONDITION_UNITS, REQUIRED
+from ..channels import CONDITION_UNITS
 from ..errors import RecordError
-from ._common import check_path, check_trim, finish, read_mat
-from .units import to_si, unit_factor
+from ._common import check_path, check_trim, columns_to_si, finish, read_mat
+from .units import unit_factor
 
 __all__ = ["read_sidpac", "SIDPAC_COLUMNS"]
 
@@ -35,6 +35,9 @@ _CONDITION_COLUMNS = {
     "mass": (48, "slug", "mass", "mass"),
     "Iy": (50, "slug ft^2", "iyy", "inertia"),
 }
+
+#: Reference geometry: meta key -> (scalar variable of the file, unit, quantity).
+_GEOMETRY = {"S_w": ("sarea", "ft^2", "area"), "c_w": ("cbar", "ft", "length"), "b": ("bspan", "ft", "length")}
 
 
 def read_sidpac(
@@ -131,17 +134,12 @@ def read_sidpac(
     else:
         t = fd[:, 0] - fd[0, 0]
         t_src = "fdata column 1 minus its first value (s)"
-    signals, channels, conv, absent = {}, {}, {}, []
-    for sig, (col, unit, _word) in SIDPAC_COLUMNS.items():
-        x = np.asarray(fd[:, col - 1], dtype=float)
-        if not np.any(x != 0.0):
-            if sig in REQUIRED:
-                raise RecordError(f"{p}: column {col} ({sig}) holds only zeros: the channel was not recorded")
-            absent.append(sig)
-            continue
-        signals[sig] = to_si(x, unit, sig, what=f"{p} column {col}")
-        channels[sig] = f"{key} column {col} ({labels.get(col, '').strip() or unit})"
-        conv[sig] = {"unit": unit, "factor": unit_factor(unit, _quantity(sig))}
+    signals, channels, conv, absent = columns_to_si(
+        p,
+        fd,
+        {sig: (col, unit) for sig, (col, unit, _word) in SIDPAC_COLUMNS.items()},
+        lambda col, unit: f"{key} column {col} ({labels.get(col, '').strip() or unit})",
+    )
     meta = {
         "source": str(p),
         "format": "sidpac",
@@ -162,21 +160,11 @@ def read_sidpac(
         if np.all(np.isfinite(x)) and np.any(x != 0.0):
             per[k] = x * unit_factor(unit, quantity)
     meta["_per_sample"] = per
-    for k, var, unit, quantity in (
-        ("S_w", "sarea", "ft^2", "area"),
-        ("c_w", "cbar", "ft", "length"),
-        ("b", "bspan", "ft", "length"),
-    ):
+    for k, (var, unit, quantity) in _GEOMETRY.items():
         if var in mat and np.size(mat[var]) == 1:
             meta[k] = float(np.asarray(mat[var], dtype=float).ravel()[0]) * unit_factor(unit, quantity)
     meta["units"] = {k: CONDITION_UNITS[k] for k in ("U", "rho", "mass", "Iy", "S_w", "c_w", "b")}
     return finish(p, t, signals, meta, name=name, t0=t0, t1=t1, trim=trim, check_units=check_units)
-
-
-def _quantity(sig: str) -> str:
-    from .units import QUANTITY
-
-    return QUANTITY[sig]
 
 
 def _labels(mat) -> dict[int, str]:

@@ -22,19 +22,18 @@ __all__ = ["QUANTITY", "UNITS", "normalise_unit", "unit_factor", "to_si", "units
 
 #: Physical quantity of each fdml signal (and of the time column ``t``).
 QUANTITY = {
-    "t": "time",
-    "de": "angle",
-    "alpha": "angle",
-    "alpha_w": "angle",
-    "theta": "angle",
-    "q": "angular rate",
-    "qdot": "angular acceleration",
-    "az": "specific force",
-    "ax": "specific force",
-    "V": "speed",
-    "hdot": "speed",
-    "h": "length",
-    "qbar": "pressure",
+    signal: quantity
+    for quantity, signals in {
+        "time": "t",
+        "angle": "de alpha alpha_w theta",
+        "angular rate": "q",
+        "angular acceleration": "qdot",
+        "specific force": "az ax",
+        "speed": "V hdot",
+        "length": "h",
+        "pressure": "qbar",
+    }.items()
+    for signal in signals.split()
 }
 
 #: Known units per quantity: factor that turns a value in that unit into fdml's unit.
@@ -55,54 +54,37 @@ UNITS = {
     "area": {"m^2": 1.0, "ft^2": FT**2},
 }
 
+#: Other spellings of the units (lower case, as :func:`normalise_unit` leaves them) -> the spelling of :data:`UNITS`,
+#: written as ``canonical: "spelling spelling ..."``.
 _ALIASES = {
-    "sec": "s",
-    "second": "s",
-    "seconds": "s",
-    "msec": "ms",
-    "degree": "deg",
-    "degrees": "deg",
-    "radian": "rad",
-    "radians": "rad",
-    "deg/sec": "deg/s",
-    "rad/sec": "rad/s",
-    "dps": "deg/s",
-    "rps": "rad/s",
-    "deg/s/s": "deg/s^2",
-    "rad/s/s": "rad/s^2",
-    "gs": "g",
-    "g0": "g",
-    "gee": "g",
-    "m/s/s": "m/s^2",
-    "ft/s/s": "ft/s^2",
-    "mps2": "m/s^2",
-    "fps2": "ft/s^2",
-    "mps": "m/s",
-    "fps": "ft/s",
-    "ft/sec": "ft/s",
-    "kts": "kt",
-    "knot": "kt",
-    "knots": "kt",
-    "kn": "kt",
-    "kmh": "km/h",
-    "kph": "km/h",
-    "fpm": "ft/min",
-    "feet": "ft",
-    "foot": "ft",
-    "meter": "m",
-    "meters": "m",
-    "metre": "m",
-    "metres": "m",
-    "psf": "lbf/ft^2",
-    "lb/ft^2": "lbf/ft^2",
-    "n/m^2": "pa",
-    "slugs": "slug",
-    "lbm": "lb",
-    "kgm^2": "kg m^2",
-    "kg*m^2": "kg m^2",
-    "slug-ft^2": "slug ft^2",
-    "slugft^2": "slug ft^2",
-    "slug*ft^2": "slug ft^2",
+    alias: unit
+    for unit, aliases in {
+        "s": "sec second seconds",
+        "ms": "msec",
+        "deg": "degree degrees",
+        "rad": "radian radians",
+        "deg/s": "deg/sec dps",
+        "rad/s": "rad/sec rps",
+        "deg/s^2": "deg/s/s",
+        "rad/s^2": "rad/s/s",
+        "g": "gs g0 gee",
+        "m/s^2": "m/s/s mps2",
+        "ft/s^2": "ft/s/s fps2",
+        "m/s": "mps",
+        "ft/s": "fps ft/sec",
+        "kt": "kts knot knots kn",
+        "km/h": "kmh kph",
+        "ft/min": "fpm",
+        "ft": "feet foot",
+        "m": "meter meters metre metres",
+        "lbf/ft^2": "psf lb/ft^2",
+        "pa": "n/m^2",
+        "slug": "slugs",
+        "lb": "lbm",
+        "kg m^2": "kgm^2 kg*m^2",
+        "slug ft^2": "slug-ft^2 slugft^2 slug*ft^2",
+    }.items()
+    for alias in aliases.split()
 }
 
 
