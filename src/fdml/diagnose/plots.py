@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..channels import OUTPUTS
@@ -104,9 +102,9 @@ def plot_report(rep, path=None):
     axt = fig.add_subplot(gs[0, 2])
     axt.axis("off")
     # Bode overlays (elevator column) at the independent frequencies
-    om = np.concatenate([d.omega[m] for d, m in zip(data.spectra, data.dft)])
-    order = np.argsort(om)
     rows = np.flatnonzero(data.stacked_dft())
+    om = data.stacked_omega()[rows]
+    order = np.argsort(om)
     u = np.concatenate([d.u[:, 0] for d in data.spectra])[rows]
     e = base.full_residual()[rows]
     Gb = np.concatenate([base.model.evaluate(d.omega).G[:, :, 0] for d in data.spectra])[rows]
@@ -177,7 +175,3 @@ def _fit_text(ax, text: str, fontsize: float) -> None:
         if size <= 4.0:
             return  # the smallest font and wrap: shown as far as it goes
         size -= 0.5
-
-
-def _finite(x) -> bool:  # pragma: no cover - helper
-    return x is not None and math.isfinite(x)
