@@ -28,7 +28,7 @@ from ..record import Record
 from ..verdict import ABSORBS, LEVEL
 from ..warning_log import merged, recording
 from .attribute import Candidate, attribute_step, choose, p_value
-from .data import AnalysisData, analysis_data
+from .data import AnalysisData, analysis_data, model_airspeed
 from .disturbance import GustTest, gust_test
 from .likelihood import DiagFit, fit_model, likelihood_ratio, noise_bands
 from .locate import GapMap, default_bands, holm
@@ -41,6 +41,7 @@ from .shrink import (
     parameter_shifts,
     shrink,
 )
+from .text import paragraph
 
 __all__ = ["diagnose", "recommended_fit"]
 
@@ -85,15 +86,11 @@ def _data_findings(records, model, band, strict: bool) -> list:
     from ..datacheck import check_data
     from ..findings import emit, raise_if_strict
 
-    try:
-        U = float(model.U)
-    except (AttributeError, NotImplementedError, TypeError, ValueError):
-        U = None
     lohi = None
     if band is not None:  # the diagnosis takes LO:HI; the check needs a grid: 100 steps over it
         lo, hi = band.split(":")[:2] if isinstance(band, str) else band[:2]
         lohi = (float(lo), float(hi), (float(hi) - float(lo)) / 100)
-    found = [f for r in records for f in check_data(r, band=lohi, airspeed=U).findings]
+    found = [f for r in records for f in check_data(r, band=lohi, airspeed=model_airspeed(model)).findings]
     raise_if_strict(found, strict)
     emit(found, stacklevel=3)
     return found
@@ -102,16 +99,9 @@ def _data_findings(records, model, band, strict: bool) -> list:
 def _library(library) -> list:
     if library is None:
         return list(registered_effects())
-    out = []
-    names = []
-    for item in library:
-        if isinstance(item, Effect):
-            out.append(item)
-        else:
-            names.append(str(item))
-    if names:
-        out.extend(default_library(names))
-    return out
+    library = list(library)
+    names = [str(item) for item in library if not isinstance(item, Effect)]
+    return [item for item in library if isinstance(item, Effect)] + list(default_library(names) if names else ())
 
 
 def _noise_effect(effects):
@@ -123,9 +113,8 @@ def _kinematics(su, model) -> tuple[KinematicEvidence | None, str]:
     missing = [c for c in OUTPUTS if c not in su.channels]
     if missing:
         return None, f"the kinematic identity needs alpha, q and a_z; {', '.join(missing)} not fitted"
-    try:
-        U = float(model.U)
-    except (AttributeError, NotImplementedError, TypeError, ValueError):
+    U = model_airspeed(model)
+    if U is None:
         return None, "the kinematic identity needs the airspeed U"
     try:
         return kinematic_evidence(su.data.spectra, U, known=known_terms(model)), ""
@@ -156,13 +145,7 @@ def _sensor_stage(su, raw_model, base_fit, base_map, holdout) -> _Sensors:
     shr, nflag = shrink(raw_map, su.fit_map(base_fit, before=raw_map))
     hs = None
     if holdout is not None:
-        hdata = analysis_data(holdout, su.data.band, oversample=su.oversample, trim=su.trim, gust=su.model.gust)
-        hnb = noise_bands(hdata, mode=su.noise)
-
-        def hmap(model, before=None):
-            hf = frozen_fit(hdata, model, hnb, su.options)
-            return fit_map(hdata, hf, su.edges, alpha=su.alpha, channels=su.channels, before=before)
-
+        _, _, hmap = _holdout_maps(su, holdout)
         h_raw = hmap(raw_fit.model)
         hs, nflag_h = shrink(h_raw, hmap(base_fit.model, h_raw))
         nflag = nflag_h if hs is not None else nflag
@@ -243,12 +226,6 @@ class _Shrink:
     shrink_final: float | None
     n_flagged: int
     hold: dict | None  # the report's hold-out section
-
-
-def _paragraph(rep):
-    from .text import paragraph
-
-    return paragraph(rep)
 
 
 def _steps_compared(rep: DiagnosisReport, boundary, biases) -> tuple[str | None, dict | None]:
@@ -356,7 +333,7 @@ def _steps_compete(diag):
             rep = _with_steps_alternative(rep, alt)
         else:
             return rep
-        return replace(rep, text=_paragraph(rep))
+        return replace(rep, text=paragraph(rep))
 
     return run
 
@@ -573,8 +550,7 @@ def _setup(
     effects = _library(library)
     data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust, outputs=model.outputs)
     nb = noise_bands(data, mode=noise)
-    channels = tuple(outputs.split(",") if isinstance(outputs, str) else (outputs or OUTPUTS))
-    channels = tuple(c.strip() for c in channels)
+    channels = parse_outputs(outputs or None)
     edges = np.asarray(bands, float) if bands is not None else default_bands(data)
     if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
         raise ParameterError("bands must be increasing edges in rad/s, at least two")
@@ -736,17 +712,15 @@ def _turbulence(su: _Setup, cur, gust_eff, K0, skipped_all: dict):
         return None, False
     gust = None
     why = gust_eff.applicable(cur.model, inputs=su.data.inputs, outputs=su.channels)
-    if why is None and len(su.channels) >= 2:
+    if why is None and len(su.channels) < 2:
+        why = "needs at least two output channels"
+    if why is None:
         try:
             gust = gust_test(su.data, cur, su.edges)
         except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:
-            skipped_all[gust_eff.key] = Candidate(
-                gust_eff, gust_eff.key, identifiable=False, reason=f"cannot be evaluated: {exc}"
-            )
-    else:
-        skipped_all[gust_eff.key] = Candidate(
-            gust_eff, gust_eff.key, identifiable=False, reason=why or "needs at least two output channels"
-        )
+            why = f"cannot be evaluated: {exc}"
+    if why is not None:
+        skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False, reason=why)
     if gust is None:
         return None, False
     return gust, min(1.0, gust.p * max(K0 or 1, 1)) < su.alpha
@@ -763,9 +737,7 @@ def _shrink_holdout(su: _Setup, base_fit, base_map, sel: _Selection, holdout) ->
     it removes.
     """
     refitted = [c for c in sel.tested if c.refitted]
-    step_maps = {0: base_map}
-    for k in range(1, len(sel.step_fits)):
-        step_maps[k] = su.fit_map(sel.step_fits[k], before=base_map)
+    step_maps = {k: su.fit_map(f, before=base_map) if k else base_map for k, f in enumerate(sel.step_fits)}
     in_shr = {(c.key, c.step): shrink(step_maps[c.step], su.fit_map(c.fit, before=base_map)) for c in refitted}
     final_map_same = su.fit_map(sel.final, before=base_map)
     final_map = su.fit_map(sel.final, own=True)
@@ -786,20 +758,25 @@ def _shrink_holdout(su: _Setup, base_fit, base_map, sel: _Selection, holdout) ->
     )
 
 
-def _holdout(su: _Setup, base_fit, sel: _Selection, refitted: list, holdout):
-    """Shrink on the hold-out records with every model parameter frozen: ({(key, step): shrink}, section)."""
+def _holdout_maps(su: _Setup, holdout, designs: dict | None = None):
+    """The hold-out records' analysis data and noise bands, and ``hmap(model, before=None)``: the gap map
+    of ``model`` with every model parameter frozen on them (``before``'s floors held; ``designs`` shared)."""
     hdata = analysis_data(holdout, su.data.band, oversample=su.oversample, trim=su.trim, gust=su.model.gust)
     hnb = noise_bands(hdata, mode=su.noise)
-    designs: dict = {}
 
     def hmap(model, before=None):
         hf = frozen_fit(hdata, model, hnb, su.options)
         return fit_map(hdata, hf, su.edges, alpha=su.alpha, channels=su.channels, before=before, designs=designs)
 
+    return hdata, hnb, hmap
+
+
+def _holdout(su: _Setup, base_fit, sel: _Selection, refitted: list, holdout):
+    """Shrink on the hold-out records with every model parameter frozen: ({(key, step): shrink}, section)."""
+    designs: dict = {}
+    hdata, hnb, hmap = _holdout_maps(su, holdout, designs)
     h_before = hmap(base_fit.model)
-    h_step = {0: h_before}
-    for k in range(1, len(sel.step_fits)):
-        h_step[k] = hmap(sel.step_fits[k].model, h_before)
+    h_step = {k: hmap(f.model, h_before) if k else h_before for k, f in enumerate(sel.step_fits)}
     h_shr = {(c.key, c.step): shrink(h_step[c.step], hmap(c.fit.model, h_before)) for c in refitted}
     h_final = frozen_fit(hdata, sel.final.model, hnb, su.options)
     h_final_same = fit_map(
@@ -926,8 +903,6 @@ def _assemble(
     ``warned``: the warnings of the fits the report keeps (base, final, accepted, recommended);
     ``sensors``: the model as given against the one with the settled sensor effects.
     """
-    from .text import paragraph
-
     settled = _settled_entries(
         su, sensors, n_unexplained=len([u for u in shr.unexplained if u["where"] == "in-sample"])
     )
@@ -1014,10 +989,11 @@ def _as_recommended(entry: dict, rec, kin) -> dict:
     the identity's estimate of the same effect (``kinematic``), when it tested it."""
     out = dict(entry)
     if rec is not None:
-        params = {}
-        for n, d in entry["params"].items():
-            params[n] = dict(d, value=rec.params[n], stderr=rec.errors[n]) if n in rec.params else d
-        out["params"], out["diagnosis_fit"] = params, entry["params"]
+        out["params"] = {
+            n: dict(d, value=rec.params[n], stderr=rec.errors[n]) if n in rec.params else d
+            for n, d in entry["params"].items()
+        }
+        out["diagnosis_fit"] = entry["params"]
     if kin is not None:
         for f in kin.tested:
             if entry["key"] in f.keys:
@@ -1073,9 +1049,9 @@ def _derivative_table(raw, rec) -> dict:
     if rec is None:
         return {}
     out = {}
-    names = [p.name for p in root_model(rec.model).parameters if p.free and p.role is Role.AERO]
-    for n in names:
-        if n not in rec.params:
+    for p in root_model(rec.model).parameters:
+        n = p.name
+        if not (p.free and p.role is Role.AERO and n in rec.params):
             continue
         row = {"recommended": [rec.params[n], rec.errors.get(n)]}
         if raw is not None and n in raw.params:
