@@ -23,6 +23,7 @@ REPORT_SEED_BASE``) is where the figures come from.  The two never overlap.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import math
 import os
 import time
@@ -157,23 +158,18 @@ def scenarios(
     list of Scenario
         The scenarios, seeds distinct.
     """
-    out = []
-    seed = seed_base
-    for key in TRUTHS if truths is None else truths:
-        small, large = TRUTHS[key]
-        for size, vals in (("small", small), ("large", large)):
-            for man in MANEUVERS:
-                for nz in NOISES:
-                    for _ in range(n_effect):
-                        out.append(Scenario(key, dict(vals), size, man, nz, "white", seed, key))
-                        seed += 1
-    for name in NULLS if nulls is None else nulls:
-        for man in MANEUVERS:
-            for nz in NOISES:
-                for _ in range(n_null):
-                    out.append(Scenario(None, {}, "-", man, nz, NULLS[name], seed, name))
-                    seed += 1
-    return out
+    seeds = itertools.count(seed_base)
+    out = [
+        Scenario(key, dict(vals), size, man, nz, "white", next(seeds), key)
+        for key in (TRUTHS if truths is None else truths)
+        for size, vals in zip(("small", "large"), TRUTHS[key])
+        for man, nz, _ in itertools.product(MANEUVERS, NOISES, range(n_effect))
+    ]
+    return out + [
+        Scenario(None, {}, "-", man, nz, NULLS[name], next(seeds), name)
+        for name in (NULLS if nulls is None else nulls)
+        for man, nz, _ in itertools.product(MANEUVERS, NOISES, range(n_null))
+    ]
 
 
 def _base(sc: Scenario):
@@ -208,11 +204,7 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
     t0 = time.perf_counter()
     rec = simulate_truth(base, sc.truth, sc.values, maneuver=sc.maneuver, seed=sc.seed, **kw)
     hold = simulate_truth(base, sc.truth, sc.values, maneuver=HOLDOUT_OF[sc.maneuver], seed=sc.seed + 7_919_000, **kw)
-    row = {
-        **{k: v for k, v in asdict(sc).items() if k != "values"},
-        "values": dumps(sc.values, indent=None),
-        "truth_name": sc.truth_name,
-    }
+    row = _scenario_columns(sc)
     try:
         with recording(reemit=False) as log:  # hundreds of runs: counted in the row, not shown
             rep = diagnose(rec, base, holdout=hold, band=BAND, **(diagnose_options or {}))
@@ -263,16 +255,19 @@ def _run(task: dict) -> dict:
 
 def _failed(task: dict, exc) -> dict:
     """The row of a run whose worker failed outside :func:`run_scenario` (it died, or the simulation raised)."""
-    sc = task["scenario"]
     msg = exc if isinstance(exc, str) else one_line(exc)
     return {
-        **{k: v for k, v in asdict(sc).items() if k != "values"},
-        "values": dumps(sc.values, indent=None),
-        "truth_name": sc.truth_name,
+        **_scenario_columns(task["scenario"]),
         "status": f"error: {msg}",
         "verdict": "error",
         "verdict_key": "error",
     }
+
+
+def _scenario_columns(sc: Scenario) -> dict:
+    """The scenario's columns of a row (its values as JSON text)."""
+    row = {k: v for k, v in asdict(sc).items() if k != "values"}
+    return {**row, "values": dumps(sc.values, indent=None), "truth_name": sc.truth_name}
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple:
@@ -326,16 +321,13 @@ def relabel(row: dict, threshold: float, unexplained: str = UNEXPLAINED_RULE) ->
     n_unexp = row.get("unexplained_in_sample" if unexplained == "in-sample" else "unexplained_holdout") or 0
     if row.get("verdict") == "unmeasured_gust":
         return "confirmed" if n_unexp == 0 else "partial"
-    amb = len(loads(row.get("ambiguous") or "[]")) > 0
-    n_flag = row.get("flagged_before_holdout")
-    shr = row.get("shrink")
     return label_for(
         significant=True,
         accepted=True,
-        ambiguous=amb,
+        ambiguous=len(loads(row.get("ambiguous") or "[]")) > 0,
         plausible=bool(row.get("plausible", True)),
-        shrink=shr,
-        n_flagged=n_flag or 0,
+        shrink=row.get("shrink"),
+        n_flagged=row.get("flagged_before_holdout") or 0,
         n_unexplained=n_unexp,
         threshold=threshold,
     )
@@ -403,17 +395,16 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
             "labels_when_top1": dict(lab_top),
             "errors": errors,
         }
-        by_size = {}
-        for size in ("small", "large"):
-            rr = [r for r in rs if r["size"] == size]
-            if rr:
-                t1 = sum(1 for r in rr if r["verdict"] == name)
-                by_size[size] = {
-                    "n": len(rr),
-                    "top1": t1 / len(rr),
-                    "detected": sum(1 for r in rr if r["verdict"] not in ("none", "error")) / len(rr),
-                }
-        entry["by_size"] = by_size
+        by_size = {size: [r for r in rs if r["size"] == size] for size in ("small", "large")}
+        entry["by_size"] = {
+            size: {
+                "n": len(rr),
+                "top1": sum(1 for r in rr if r["verdict"] == name) / len(rr),
+                "detected": sum(1 for r in rr if r["verdict"] not in ("none", "error")) / len(rr),
+            }
+            for size, rr in by_size.items()
+            if rr
+        }
         if case in OUT_OF_LIBRARY:
             wrong_conf = sum(
                 1 for r, lab in zip(rs, labels) if r["verdict"] not in ("none", "error") and lab == "confirmed"
@@ -429,8 +420,7 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
             }
             continue
         eff[case] = entry
-    lib = [c for c in eff]
-    overall_top1 = sum(eff[c]["top1"] * eff[c]["n"] for c in lib) / max(sum(eff[c]["n"] for c in lib), 1)
+    overall_top1 = sum(v["top1"] * v["n"] for v in eff.values()) / max(sum(v["n"] for v in eff.values()), 1)
     return {
         "threshold": threshold,
         "effects": eff,
