@@ -38,6 +38,7 @@ One attribution step, from the current fit:
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass, field
 
@@ -154,7 +155,7 @@ class Candidate:
         return self.p_holm is not None and self.p_holm < alpha
 
 
-def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options, *, refine: bool = True):
+def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options):
     """Refit one candidate from the linearised start.
 
     Returns (best fit, cost at the grid value of any nuisance parameter): the test uses the latter,
@@ -171,9 +172,8 @@ def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options
         start2 = {k: nulls[k] + 2.0 * (v - nulls[k]) for k, v in scr.eta_lin.items()}
         best = min(best, fit_model(data, aug, bands, start=start2, **options), key=lambda f: f.cost)
     grid_cost = best.cost
-    if refine and effect.nuisance_grid:
-        nuis = [p.name for p in effect.param_list(cur.model) if p.nuisance]
-        m2 = best.model.free(nuis)
+    if effect.nuisance_grid:
+        m2 = best.model.free([p.name for p in effect.param_list(cur.model) if p.nuisance])
         params = m2.parameters
         for gname, (grid, _prof) in (scr.grid or {}).items():
             # refine within the searched range: a nuisance parameter that wanders off the grid
@@ -182,13 +182,8 @@ def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options
         for p in effect.param_list(cur.model):
             if p.nuisance and p.name not in (scr.grid or {}) and p.plausible is not None:
                 params = params.bound(p.name, *p.plausible)
-        m2 = m2.with_parameters(params)
-        try:
-            f2 = fit_model(data, m2, bands, **options)
-            if f2.cost < best.cost:
-                best = f2
-        except Exception:  # a refinement that fails keeps the grid fit  # pragma: no cover
-            pass
+        with contextlib.suppress(Exception):  # a refinement that fails keeps the grid fit
+            best = min(best, fit_model(data, m2.with_parameters(params), bands, **options), key=lambda f: f.cost)
     return best, grid_cost
 
 
@@ -309,12 +304,9 @@ def attribute_step(
             c.derivatives, c.demoted = _judge(c, cur.model, kin, data)
     for c in tested:
         V, ng = _grid_variation(c.screen)
-        u = c.lr_test if (c.refitted and c.lr_test is not None) else c.lr
-        c.p, c.logp = p_value(u, c.df, c.null, V=V, n_grid=ng)
-        nuis = len([p for p in c.effect.param_list(cur.model) if p.nuisance])
-        c.q_eff = c.df + nuis
-    ph = holm(np.array([c.p for c in tested]))
-    for c, a in zip(tested, ph):
+        c.p, c.logp = p_value(c.lr if c.lr_test is None else c.lr_test, c.df, c.null, V=V, n_grid=ng)
+        c.q_eff = c.df + sum(p.nuisance for p in c.effect.param_list(cur.model))
+    for c, a in zip(tested, holm(np.array([c.p for c in tested]))):
         c.p_holm = float(a)
     logn = math.log(max(n_obs, 2))
     tested.sort(key=lambda c: c.q_eff * logn - c.lr)

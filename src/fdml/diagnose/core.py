@@ -104,10 +104,6 @@ def _library(library) -> list:
     return [item for item in library if isinstance(item, Effect)] + list(default_library(names) if names else ())
 
 
-def _noise_effect(effects):
-    return next((e for e in effects if e.kind == "noise" and e.name == "unmeasured_gust"), None)
-
-
 def _kinematics(su, model) -> tuple[KinematicEvidence | None, str]:
     """The short-period identity on the analysis spectra (fdml.kinematics), or None and why not."""
     missing = [c for c in OUTPUTS if c not in su.channels]
@@ -609,7 +605,7 @@ def _locate(su: _Setup, base_fit):
 def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int) -> _Selection:
     """Greedy forward selection of deterministic effects, then the unmeasured-turbulence test."""
     fw = floor_weights(su.data, base_map, su.channels)
-    gust_eff = _noise_effect(su.effects)
+    gust_eff = next((e for e in su.effects if e.kind == "noise" and e.name == "unmeasured_gust"), None)
     cur = base_fit
     accepted: list[Candidate] = []
     ambiguity: list[list[Candidate]] = []
