@@ -483,18 +483,11 @@ def diagnose(
     if base_fit.result is not None:  # every later fit takes the steps' timing as the base fit settled it
         su = replace(su, options={**su.options, "input_edges": base_fit.result.options.get("input_edges", "none")})
     if not base_fit.converged:
-        return _empty(
-            "base_not_converged",
-            [
-                (
-                    f"the base fit did not converge ({base_fit.message}); no effect can be attributed "
-                    "against an unconverged base"
-                )
-            ],
-            su.settings,
-            found,
-            warned=base_fit.warnings,
+        why = (
+            f"the base fit did not converge ({base_fit.message}); no effect can be attributed against an "
+            "unconverged base"
         )
+        return _empty("base_not_converged", [why], su.settings, found, warned=base_fit.warnings)
     base_map, problems = _locate(su, base_fit)
     if not any(c.excitation == "ok" for c in base_map.cells):
         return _empty(
@@ -849,8 +842,8 @@ def recommended_fit(
 
     model = with_effects(base_model, *effects) if effects else base_model
     if start is not None:
-        sv = start.parameters.values
-        model = model.with_values({k: v for k, v in sv.items() if k in model.parameters and math.isfinite(v)})
+        sv = start.parameters.values.items()
+        model = model.with_values({k: v for k, v in sv if k in model.parameters and math.isfinite(v)})
 
     def refit(values=None, start_model=model, adequacy=True):
         m = start_model.with_values(values) if values else start_model

@@ -197,11 +197,9 @@ def _size(E, G, phi, bidx):
     s2 = float(z1[-1])
     se, share = math.nan, 0.0
     if s2 > 0:
-        h = 1e-3 * s2
-        zp, zm = z1.copy(), z1.copy()
-        zp[-1] += h
-        zm[-1] -= h
-        d2 = (nll(zp) - 2 * nll(z1) + nll(zm)) / h**2
+        h = np.zeros_like(z1)
+        h[-1] = 1e-3 * s2
+        d2 = (nll(z1 + h) - 2 * nll(z1) + nll(z1 - h)) / h[-1] ** 2
         if d2 > 0:  # observed information of sigma^2
             se = (1.0 / math.sqrt(d2)) / (2.0 * math.sqrt(s2))
         share = float(s2 * np.sum(np.real(np.einsum("ijj->i", gg))) / max(float(np.sum(np.abs(E) ** 2)), 1e-300))
@@ -229,8 +227,7 @@ def gust_test(data: AnalysisData, fit, edges: np.ndarray, *, length: float = DRY
     """
     model = fit.model
     out_idx = list(fit.prob.out_idx)
-    n = len(out_idx)
-    if n < 2:
+    if len(out_idx) < 2:
         return None
     e = fit.full_residual()
     gm = with_gust(model)

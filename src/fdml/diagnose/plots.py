@@ -20,14 +20,9 @@ _MAP_KEY = (
 
 
 def _map_array(cells, channels, nb):
-    X = np.full((len(channels), nb), np.nan)
-    sig = np.zeros((len(channels), nb), bool)
-    for i, c in enumerate(cells):
-        r, b = divmod(i, nb)
-        ex = c.get("excess")
-        X[r, b] = np.nan if ex is None else ex
-        sig[r, b] = bool(c.get("significant"))
-    return X, sig
+    X = np.array([np.nan if c.get("excess") is None else c["excess"] for c in cells], float)
+    sig = np.array([bool(c.get("significant")) for c in cells])
+    return X.reshape(len(channels), nb), sig.reshape(len(channels), nb)
 
 
 def _draw_map(ax, cells, channels, edges, title, vmax):

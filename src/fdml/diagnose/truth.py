@@ -285,11 +285,9 @@ def sensor_noise(rng: np.random.Generator, n: int, dt: float, kind: str = "white
     if kind != "coloured":
         raise ParameterError(f"noise kind must be 'white' or 'coloured', got {kind!r}")
     a = math.exp(-COLOURED_CORNER * dt)
-    x = np.empty(n)
     e = rng.standard_normal(n) * math.sqrt(1 - a * a)
-    x[0] = rng.standard_normal()
-    for i in range(1, n):
-        x[i] = a * x[i - 1] + e[i]
+    e[0] = rng.standard_normal()  # the AR(1) part starts from its stationary distribution
+    x = signal.lfilter([1.0], [1.0, -a], e)  # x_i = a x_(i-1) + e_i
     # AR(1) spectrum at low frequency is (1 + a)/(1 - a) times its variance density; scale to the ratio
     c = math.sqrt(COLOURED_LF_RATIO * (1 - a) / (1 + a))
     return w + c * x

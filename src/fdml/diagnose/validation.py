@@ -213,14 +213,9 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
         return row
     warned = merged(log, rep.warnings)
     sel = rep.selected[0] if rep.selected else None
-    g = next((r for r in rep.ranking if r["effect"] == "unmeasured_gust"), None)
     if sel is None and rep.verdict == "unmeasured_gust":
-        sel = g
-    truth_rows = [
-        r for r in rep.ranking if sc.truth and (r["key"] == sc.truth or r["effect"] == sc.truth) and r["step"] == 0
-    ]
-    tr = truth_rows[0] if truth_rows else None
-    hold_info = rep.holdout or {}
+        sel = next((r for r in rep.ranking if r["effect"] == "unmeasured_gust"), None)
+    tr = next((r for r in rep.ranking if sc.truth and sc.truth in (r["key"], r["effect"]) and r["step"] == 0), None)
     row.update(
         status=rep.status,
         verdict=rep.verdict,
@@ -235,7 +230,7 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
         shrink_holdout=sel.get("shrink_holdout") if sel else None,
         plausible=sel.get("plausible", True) if sel else None,
         flagged_before=sum(1 for c in rep.location if c.get("significant")),
-        flagged_before_holdout=hold_info.get("flagged_before"),
+        flagged_before_holdout=(rep.holdout or {}).get("flagged_before"),
         unexplained_in_sample=sum(1 for u in rep.unexplained if u.get("where") == "in-sample"),
         unexplained_holdout=sum(1 for u in rep.unexplained if u.get("where") == "holdout"),
         truth_lr=tr["lr"] if tr else None,
