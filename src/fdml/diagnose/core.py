@@ -67,12 +67,10 @@ def _resolve(records, base, outputs=None):
         raise ParameterError(f"base must be an fdml Model or FitResult, got {type(base).__name__}")
     if records is None:
         raise FdmlError("no records were given to diagnose")
-    if isinstance(records, Record):
-        records = [records]
     outputs = opts.get("outputs") if outputs is None else outputs
     if outputs:  # the rows the spectra and the predictions follow
         base = base.with_outputs(parse_outputs(outputs))
-    return list(records), base, {**opts, "outputs": outputs}
+    return _as_list(records), base, {**opts, "outputs": outputs}
 
 
 def _as_list(records) -> list:
@@ -222,6 +220,11 @@ class _Shrink:
     shrink_final: float | None
     n_flagged: int
     hold: dict | None  # the report's hold-out section
+
+    @property
+    def n_unexplained(self) -> int:
+        """Flagged cells left in the final fit's own map, in-sample (what the labels judge: report.UNEXPLAINED_RULE)."""
+        return sum(u["where"] == "in-sample" for u in self.unexplained)
 
 
 def _steps_compared(rep: DiagnosisReport, boundary, biases) -> tuple[str | None, dict | None]:
@@ -892,9 +895,7 @@ def _assemble(
     ``warned``: the warnings of the fits the report keeps (base, final, accepted, recommended);
     ``sensors``: the model as given against the one with the settled sensor effects.
     """
-    settled = _settled_entries(
-        su, sensors, n_unexplained=len([u for u in shr.unexplained if u["where"] == "in-sample"])
-    )
+    settled = _settled_entries(su, sensors, n_unexplained=shr.n_unexplained)
     ranking = settled + _ranking(su, sel, shr, n_settled=len(settled))
     verdict = (
         settled[0]["effect"]
@@ -1011,12 +1012,7 @@ def _settled_entries(su: _Setup, sensors: _Sensors, n_unexplained: int) -> list:
         f = m.finding
         out.append(
             {
-                "effect": m.effect().name,
-                "key": m.key,
-                "channel": m.effect().channel,
-                "lr": f.lr,
-                "p_value": f.p,
-                "p_holm": f.p,
+                **_entry_head(m.effect(), m.key, f.lr, f.p, f.p),
                 "shrink": shr,
                 "shrink_in_sample": sensors.shrink,
                 "shrink_holdout": sensors.shrink_holdout,
@@ -1086,8 +1082,6 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> l
     """One entry per tested candidate (and the turbulence test, after the ``n_settled`` sensor effects the
     kinematics settled and the accepted ones), with its label."""
     acc_keys = [(a.key, a.step) for a in sel.accepted]
-    # remaining gap for the labels: the final fit's own map (report.UNEXPLAINED_RULE)
-    n_unexp_label = len([u for u in shr.unexplained if u["where"] == "in-sample"])
     ranking = []
     for c in sel.tested:
         sig = c.significant(su.alpha) and c.refitted
@@ -1103,7 +1097,7 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> l
             plausible=c.plausible,
             shrink=shr_,
             n_flagged=nflag,
-            n_unexplained=n_unexp_label,
+            n_unexplained=shr.n_unexplained,
             threshold=su.shrink_threshold,
         )
         if sig and c.demoted:
@@ -1113,17 +1107,12 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> l
     if gust is not None:
         # a noise-kind effect is judged on its likelihood gain, not on the coherent gap (which it cannot
         # close): confirmed when no coherent gap is left unexplained, else partial
-        glab = ("confirmed" if n_unexp_label == 0 else "partial") if sel.gust_sig else None
+        glab = ("confirmed" if shr.n_unexplained == 0 else "partial") if sel.gust_sig else None
         ge = sel.gust_effect
         assert ge is not None  # a turbulence test ran, so the library holds the effect
         ranking.append(
             {
-                "effect": "unmeasured_gust",
-                "key": ge.key,
-                "channel": ge.channel,
-                "lr": gust.lr,
-                "p_value": gust.p,
-                "p_holm": min(1.0, gust.p * max(K0 or 1, 1)),
+                **_entry_head(ge, ge.key, gust.lr, gust.p, min(1.0, gust.p * max(K0 or 1, 1))),
                 "shrink": gust.share,
                 "label": glab,
                 "params": {"sigma_w": {"value": gust.sigma_w, "stderr": gust.sigma_w_se, "unit": "m/s"}},
@@ -1173,6 +1162,11 @@ def floor_weights(data, gmap, channels) -> np.ndarray:
     return out
 
 
+def _entry_head(effect: Effect, key: str, lr: float, p: float, p_holm: float | None) -> dict:
+    """The leading keys of a ranking entry: the effect, its key and channel, its LR and p-values."""
+    return {"effect": effect.name, "key": key, "channel": effect.channel, "lr": lr, "p_value": p, "p_holm": p_holm}
+
+
 def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_obs: int, sig: bool) -> dict:
     units = {p.name: p.unit for p in c.effect.params}
     try:
@@ -1181,12 +1175,7 @@ def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_
         pass
     logn = math.log(max(n_obs, 2))
     return {
-        "effect": c.name,
-        "key": c.key,
-        "channel": c.channel,
-        "lr": c.lr,
-        "p_value": c.p,
-        "p_holm": c.p_holm,
+        **_entry_head(c.effect, c.key, c.lr, c.p, c.p_holm),
         "log10_p": c.logp / math.log(10),
         "shrink": shr,
         "shrink_in_sample": in_sample,
