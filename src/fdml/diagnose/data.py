@@ -219,11 +219,9 @@ def analysis_data(
         out.append(d)
         masks.append(dft)
     has_gust = all("alpha_w" in d.inputs for d in out)
-    if gust is None:
-        gust = has_gust
+    gust = has_gust if gust is None else gust
     if gust and not has_gust:
         raise RecordError("the model has a gust input but not every record has an alpha_w column")
     if not gust:
         out = [replace(d, u=d.u[:, :1], inputs=("de",)) if d.u.shape[1] > 1 else d for d in out]
-    inputs = INPUTS if gust else INPUTS[:1]
-    return AnalysisData(tuple(out), tuple(masks), K, (lo, hi), inputs)
+    return AnalysisData(tuple(out), tuple(masks), K, (lo, hi), INPUTS if gust else INPUTS[:1])

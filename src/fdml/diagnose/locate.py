@@ -183,10 +183,7 @@ class Cell:
         """
 
         def num(x):
-            if x is None:
-                return None
-            x = float(x)
-            return x if math.isfinite(x) else None
+            return None if x is None or not math.isfinite(x) else float(x)
 
         return {
             "channel": self.channel,

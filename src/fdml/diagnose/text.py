@@ -72,19 +72,16 @@ def _p(p) -> str:
 def _kinematics_sentences(rep) -> list:
     """What the short-period identity said about the sensors, and what it did with it."""
     k = getattr(rep, "kinematics", None) or {}
-    out = []
-    for m in k.get("settled", []):
-        size = _fmt_param(m["param"], m)
-        out.append(
-            f"The kinematics (alpha, q and a_z obey the short-period identity whatever the aerodynamics) settle "
-            f"{m['key']} ({size}, LR {m['lr']:.3g}): it enters the recommended model fixed at that value, its "
-            "uncertainty carried into the standard errors."
-        )
-    for m in k.get("implausible", []):
-        out.append(
-            f"The kinematics' other reading, {m['key']} ({_fmt_param(m['param'], m)}), lies outside its "
-            "plausible range."
-        )
+    out = [
+        f"The kinematics (alpha, q and a_z obey the short-period identity whatever the aerodynamics) settle "
+        f"{m['key']} ({_fmt_param(m['param'], m)}, LR {m['lr']:.3g}): it enters the recommended model fixed at "
+        "that value, its uncertainty carried into the standard errors."
+        for m in k.get("settled", [])
+    ]
+    out += [
+        f"The kinematics' other reading, {m['key']} ({_fmt_param(m['param'], m)}), lies outside its plausible range."
+        for m in k.get("implausible", [])
+    ]
     out += _flight_path_sentences(k)
     for a in k.get("aliases", []):
         names = " or ".join(f"{m['key']} ({_fmt_param(m['param'], m)})" for m in a)

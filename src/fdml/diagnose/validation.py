@@ -461,22 +461,17 @@ def tune_threshold(
         The threshold, or ``(threshold, rule)`` with ``return_rule``.
     """
     best, best_rule, best_j = SHRINK_CONFIRM, UNEXPLAINED_RULE, -math.inf
-    for rule in rules:
-        for th in sorted(grid, reverse=True):
-            good = bad = n = 0
-            for r in rows:
-                if r.get("verdict") in (None, "error"):
-                    continue
-                n += 1
-                if r["verdict"] == "none" or relabel(r, th, rule) != "confirmed":
-                    continue
-                if r.get("truth") is not None and r["case"] not in OUT_OF_LIBRARY and r["verdict"] == r["truth_name"]:
-                    good += 1
-                else:
-                    bad += 1
-            j = (good - cost * bad) / max(n, 1)
-            if j > best_j + 1e-12:
-                best, best_rule, best_j = th, rule, j
+    runs = [r for r in rows if r.get("verdict") not in (None, "error")]
+    for rule, th in itertools.product(rules, sorted(grid, reverse=True)):
+        confirmed = [r for r in runs if r["verdict"] != "none" and relabel(r, th, rule) == "confirmed"]
+        good = sum(
+            1
+            for r in confirmed
+            if r.get("truth") is not None and r["case"] not in OUT_OF_LIBRARY and r["verdict"] == r["truth_name"]
+        )
+        j = (good - cost * (len(confirmed) - good)) / max(len(runs), 1)
+        if j > best_j + 1e-12:
+            best, best_rule, best_j = th, rule, j
     return (float(best), best_rule) if return_rule else float(best)
 
 
