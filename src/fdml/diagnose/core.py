@@ -169,7 +169,6 @@ class _Setup:
     n_obs: int  # real independent observations (for BIC)
     settings: dict
     model: Model  # the base model as given (its gust option sets the hold-out's inputs)
-    oversample: int
     noise: str
     trim: str
     shrink_threshold: float
@@ -458,21 +457,40 @@ def diagnose(
         raise ParameterError(f"alpha must lie in (0, 1), got {alpha}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, (int, np.integer)) or max_effects < 0:
         raise ParameterError(f"max_effects must be an integer >= 0, got {max_effects!r}")
-    su = _setup(
-        records,
-        model,
-        band=band,
-        bands=bands,
-        library=library,
+    effects = _library(library)
+    data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust, outputs=model.outputs)
+    nb = noise_bands(data, mode=noise)
+    channels = parse_outputs(outputs or None)
+    edges = np.asarray(bands, float) if bands is not None else default_bands(data)
+    if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
+        raise ParameterError("bands must be increasing edges in rad/s, at least two")
+    su = _Setup(
+        data=data,
+        nb=nb,
+        rows=nb.assign(data.stacked_omega()),
+        edges=edges,
+        channels=channels,
+        options={"outputs": outputs, "boundary": boundary, "biases": biases, "input_edges": input_edges},
+        effects=tuple(effects),
         alpha=alpha,
-        max_effects=max_effects,
-        oversample=oversample,
+        n_obs=2 * data.n_dft * len(channels),
+        settings={
+            "alpha": alpha,
+            "band": list(data.band),
+            "bands": edges.tolist(),
+            "oversample": oversample,
+            "noise": noise,
+            "noise_bands": list(nb.edges),
+            "refit_top": refit_top,
+            "max_effects": max_effects,
+            "records": data.names(),
+            "independent_frequencies": data.n_dft,
+            "base_model": model.describe(),
+            "shrink_threshold": shrink_threshold,
+            "outputs": list(channels),
+        },
+        model=model,
         noise=noise,
-        refit_top=refit_top,
-        outputs=outputs,
-        boundary=boundary,
-        biases=biases,
-        input_edges=input_edges,
         trim=trim,
         shrink_threshold=shrink_threshold,
     )
@@ -491,6 +509,13 @@ def diagnose(
             "unconverged base"
         )
         return _empty("base_not_converged", [why], su.settings, found, warned=base_fit.warnings)
+    return _attribute(su, raw_model, base_fit, holdout, found, t0, max_effects=max_effects, refit_top=refit_top)
+
+
+def _attribute(
+    su: _Setup, raw_model, base_fit, holdout, found: list, t0: float, *, max_effects: int, refit_top: int
+) -> DiagnosisReport:
+    """The phases after the base fit: locate, attribute, shrink, the recommended fit and the report."""
     base_map, problems = _locate(su, base_fit)
     if not any(c.excitation == "ok" for c in base_map.cells):
         return _empty(
@@ -509,7 +534,7 @@ def diagnose(
             base_fit.model,
             [a.effect for a in sel.accepted],
             start=sel.final.model,
-            settled=kin.settled if kin is not None else (),
+            settled=su.kin.settled if su.kin is not None else (),
             **su.options,
         )
     warned = merged(
@@ -517,67 +542,6 @@ def diagnose(
     )
     sensors = _sensor_stage(su, raw_model, base_fit, base_map, holdout)
     return _assemble(su, base_fit, base_map, sel, shr, problems, found, rec, t0, warned, sensors)
-
-
-def _setup(
-    records,
-    model,
-    *,
-    band,
-    bands,
-    library,
-    alpha,
-    max_effects,
-    oversample,
-    noise,
-    refit_top,
-    outputs,
-    boundary,
-    biases,
-    input_edges,
-    trim,
-    shrink_threshold,
-) -> _Setup:
-    """Analysis data, noise bands, gap-map edges and the settings (bad options raise here)."""
-    effects = _library(library)
-    data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust, outputs=model.outputs)
-    nb = noise_bands(data, mode=noise)
-    channels = parse_outputs(outputs or None)
-    edges = np.asarray(bands, float) if bands is not None else default_bands(data)
-    if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
-        raise ParameterError("bands must be increasing edges in rad/s, at least two")
-    settings = {
-        "alpha": alpha,
-        "band": list(data.band),
-        "bands": edges.tolist(),
-        "oversample": oversample,
-        "noise": noise,
-        "noise_bands": list(nb.edges),
-        "refit_top": refit_top,
-        "max_effects": max_effects,
-        "records": data.names(),
-        "independent_frequencies": data.n_dft,
-        "base_model": model.describe(),
-        "shrink_threshold": shrink_threshold,
-        "outputs": list(channels),
-    }
-    return _Setup(
-        data=data,
-        nb=nb,
-        rows=nb.assign(data.stacked_omega()),
-        edges=edges,
-        channels=channels,
-        options={"outputs": outputs, "boundary": boundary, "biases": biases, "input_edges": input_edges},
-        effects=tuple(effects),
-        alpha=alpha,
-        n_obs=2 * data.n_dft * len(channels),
-        settings=settings,
-        model=model,
-        oversample=oversample,
-        noise=noise,
-        trim=trim,
-        shrink_threshold=shrink_threshold,
-    )
 
 
 # --- phase 1: locate ---------------------------------------------------------------------------------------------
@@ -753,7 +717,7 @@ def _shrink_holdout(su: _Setup, base_fit, base_map, sel: _Selection, holdout) ->
 def _holdout_maps(su: _Setup, holdout, designs: dict | None = None):
     """The hold-out records' analysis data and noise bands, and ``hmap(model, before=None)``: the gap map
     of ``model`` with every model parameter frozen on them (``before``'s floors held; ``designs`` shared)."""
-    hdata = analysis_data(holdout, su.data.band, oversample=su.oversample, trim=su.trim, gust=su.model.gust)
+    hdata = analysis_data(holdout, su.data.band, oversample=su.data.oversample, trim=su.trim, gust=su.model.gust)
     hnb = noise_bands(hdata, mode=su.noise)
 
     def hmap(model, before=None):

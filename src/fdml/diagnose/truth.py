@@ -384,8 +384,7 @@ def simulate_truth(
         model = with_gust(base)
     elif key is not None and key not in OUT_OF_LIBRARY:
         model = truth_model(base, key, values)
-    mvals = {k: v for k, v in values.items() if k in model.parameters}
-    run = _Run(t, model, inputs, mvals)
+    run = _Run(t, model, inputs, {k: v for k, v in values.items() if k in model.parameters})
     y = TRUTHS[key](run, values) if key in TRUTHS else run.outputs()
     keep = slice(n0, t.size)
     signals = {"de": de[keep], **{k: v[keep] for k, v in y.items()}}
@@ -395,15 +394,7 @@ def simulate_truth(
     stds = noise_stds(clean, noise, relative=True)  # a fraction of each clean channel's RMS
     if any(stds.values()):
         signals.update({ch: clean[ch] + stds[ch] * sensor_noise(rng, tr.size, dt, noise_kind) for ch in OUTPUTS})
-    meta = {
-        "truth": key,
-        "values": values,
-        "maneuver": maneuver,
-        "noise": noise,
-        "noise_kind": noise_kind,
-        "seed": seed,
-        "U": U,
-    }
+    meta = dict(truth=key, values=values, maneuver=maneuver, noise=noise, noise_kind=noise_kind, seed=seed, U=U)
     if "alpha_w" in inputs:
         meta["gust_rms_in_record"] = float(np.std(inputs["alpha_w"][keep]) * U)  # realised sigma_w, m/s
     return Record(tr, signals, name=name or f"{key or 'none'}-{maneuver}-{seed}", meta=meta, check_units=False)
