@@ -960,7 +960,6 @@ def _settled_entries(su: _Setup, sensors: _Sensors, n_unexplained: int) -> list:
     """Ranking entries of the sensor effects the kinematics settled (accepted before any other)."""
     if su.kin is None:
         return []
-    out = []
     shr = sensors.shrink_holdout if sensors.shrink_holdout is not None else sensors.shrink
     label = label_for(
         significant=True,
@@ -972,25 +971,23 @@ def _settled_entries(su: _Setup, sensors: _Sensors, n_unexplained: int) -> list:
         n_unexplained=n_unexplained,
         threshold=su.shrink_threshold,
     )
-    for m in su.kin.settled:
-        f = m.finding
-        out.append(
-            {
-                **_entry_head(m.effect(), m.key, f.lr, f.p, f.p),
-                "shrink": shr,
-                "shrink_in_sample": sensors.shrink,
-                "shrink_holdout": sensors.shrink_holdout,
-                "plausible": True,
-                "label": label,
-                "params": {m.param: {"value": m.value, "stderr": m.stderr, "unit": m.unit}},
-                "accepted": True,
-                "significant": True,
-                "step": 0,
-                "source": "kinematics",
-                "note": f"settled by the kinematics: {f.describe()}",
-            }
-        )
-    return out
+    return [
+        {
+            **_entry_head(m.effect(), m.key, m.finding.lr, m.finding.p, m.finding.p),
+            "shrink": shr,
+            "shrink_in_sample": sensors.shrink,
+            "shrink_holdout": sensors.shrink_holdout,
+            "plausible": True,
+            "label": label,
+            "params": {m.param: {"value": m.value, "stderr": m.stderr, "unit": m.unit}},
+            "accepted": True,
+            "significant": True,
+            "step": 0,
+            "source": "kinematics",
+            "note": f"settled by the kinematics: {m.finding.describe()}",
+        }
+        for m in su.kin.settled
+    ]
 
 
 def _derivative_table(raw, rec) -> dict:

@@ -120,10 +120,8 @@ def _derivative_lines(table: dict) -> list:
         v, se = x
         return f"{v:>11.4g} +- {se if se is not None else float('nan'):<8.2g}"
 
-    out = [f"  {'parameter':10s} {'base as given':>22s} {'recommended':>22s}"]
-    for n, row in table.items():
-        out.append(f"  {n:10s} {cell(row.get('base'))} {cell(row.get('recommended'))}")
-    return out
+    head = f"  {'parameter':10s} {'base as given':>22s} {'recommended':>22s}"
+    return [head] + [f"  {n:10s} {cell(row.get('base'))} {cell(row.get('recommended'))}" for n, row in table.items()]
 
 
 def _clean(obj):
@@ -374,11 +372,8 @@ class DiagnosisReport:
         if self.warnings:
             lines += ["", "warnings of the fits:"] + [f"  {w}" for w in as_recorded(self.warnings)]
         if self.not_identifiable:
-            lines.append("")
-            lines.append(
-                "not testable here: "
-                + "; ".join(f"{n['effect']}@{n['channel']} ({n['reason']})" for n in self.not_identifiable)
-            )
+            untestable = "; ".join(f"{n['effect']}@{n['channel']} ({n['reason']})" for n in self.not_identifiable)
+            lines += ["", "not testable here: " + untestable]
         return "\n".join(lines)
 
     def __str__(self) -> str:
