@@ -605,8 +605,7 @@ def gap_map(
             fl = None if floors is None else floors.get(key)
             cells.append(evaluate_cell(designs[key], residual[:, c], ch, (edges[b], edges[b + 1]), fl))
     p = np.array([c.p if c.p is not None else np.nan for c in cells])
-    ph, q = holm(p), bh(p)
-    for cell, a, b_ in zip(cells, ph, q):
+    for cell, a, b_ in zip(cells, holm(p), bh(p)):
         cell.p_holm = None if not np.isfinite(a) else float(a)
         cell.q_bh = None if not np.isfinite(b_) else float(b_)
         cell.significant = bool(np.isfinite(a) and a < alpha)

@@ -640,7 +640,6 @@ def validate(
             if fh:
                 fh.write(dumps(row, indent=None) + "\n")
                 fh.flush()
-    th = SHRINK_CONFIRM if threshold is None else threshold
     settings = {
         "n_effect": n_effect,
         "n_null": n_null,
@@ -651,4 +650,4 @@ def validate(
         "gust_std": GUST_STD,
         "base_model": "steady navion",
     }
-    return ValidationResult(rows, score(rows, th), settings)
+    return ValidationResult(rows, score(rows, SHRINK_CONFIRM if threshold is None else threshold), settings)
