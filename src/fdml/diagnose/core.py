@@ -181,14 +181,9 @@ class _Setup:
         """The gap map of an in-sample fit: with ``before``, that map's noise floors held; the regressors
         (forced responses) are the base fit's, shared by every map (same regressors before and after),
         unless ``own`` (the fit's own regressors, for the remaining gap)."""
+        designs = None if own else self.designs
         return fit_map(
-            self.data,
-            fit,
-            self.edges,
-            alpha=self.alpha,
-            channels=self.channels,
-            before=before,
-            designs=None if own else self.designs,
+            self.data, fit, self.edges, alpha=self.alpha, channels=self.channels, before=before, designs=designs
         )
 
 
@@ -245,7 +240,8 @@ def _steps_compared(rep: DiagnosisReport, boundary, biases) -> tuple[str | None,
     final = rep.details.get("final_fit")
     if final is None or not any(r.get("significant") for r in rep.ranking):
         return None, None
-    if not any(d.edges.size for d in rep.details["data"].spectra):  # the steps the analysis spectra hold
+    data = rep.details["data"]
+    if not any(d.edges.size for d in data.spectra):  # the steps the analysis spectra hold
         return None, None
     st, base_fit = rep.settings, rep.details["base_fit"]
     nb = NoiseModel(tuple(rep.noise["bands"]))
@@ -263,13 +259,7 @@ def _steps_compared(rep: DiagnosisReport, boundary, biases) -> tuple[str | None,
     for model in path if final.model in path else [*path, final.model]:  # instead of the effects, or beside
         try:
             edged = fit_model(
-                rep.details["data"],
-                model,
-                nb,
-                outputs=st["outputs"],
-                boundary=boundary,
-                biases=biases,
-                input_edges="estimated",
+                data, model, nb, outputs=st["outputs"], boundary=boundary, biases=biases, input_edges="estimated"
             )
         except FdmlError:
             continue
@@ -457,6 +447,7 @@ def diagnose(
         raise ParameterError(f"alpha must lie in (0, 1), got {alpha}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, (int, np.integer)) or max_effects < 0:
         raise ParameterError(f"max_effects must be an integer >= 0, got {max_effects!r}")
+    # the set-up every phase shares: analysis data, noise bands, gap-map edges, settings (bad options raise here)
     effects = _library(library)
     data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust, outputs=model.outputs)
     nb = noise_bands(data, mode=noise)
@@ -528,13 +519,14 @@ def _attribute(
         )
     sel = _select(su, base_fit, base_map, max_effects=max_effects, refit_top=refit_top)
     shr = _shrink_holdout(su, base_fit, base_map, sel, holdout)
+    settled = su.kin.settled if su.kin is not None else ()
     with recording(reemit=False) as log:  # kept in the report
         rec = recommended_fit(
             su.data,
             base_fit.model,
             [a.effect for a in sel.accepted],
             start=sel.final.model,
-            settled=su.kin.settled if su.kin is not None else (),
+            settled=settled,
             **su.options,
         )
     warned = merged(

@@ -56,6 +56,8 @@ MAX_GAIN_SE_DB = 3.0
 COHERENT_ORDER = 2
 #: Transient terms per record and band (a constant).
 TRANSIENT_ORDER = 1
+#: A cell's error figures of its primary input, in the order :func:`evaluate_cell` computes them.
+_ERROR_FIELDS = ("gain_db", "gain_db_ci", "phase_deg", "phase_deg_ci", "gain_se_db")
 
 
 def default_bands(data: AnalysisData, n_target: int = 5, min_bins: int | None = None) -> np.ndarray:
@@ -491,7 +493,6 @@ def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, 
     if not s2 > 0:
         return empty
     F = (coherent / kC) / s2
-    p = float(stats.f.sf(F, 2 * kC, 2 * dof))
     excess = coherent / s2 - kC * dof / (dof - 1)
     # gain/phase of the model against the data, input de (the first input used)
     cov = s2 * np.linalg.pinv(X.conj().T @ X)
@@ -506,26 +507,13 @@ def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, 
         se_db = 20 / math.log(10) * se
         se_deg = math.degrees(se)
         out[name] = (gdb, (gdb - 1.96 * se_db, gdb + 1.96 * se_db), ph, (ph - 1.96 * se_deg, ph + 1.96 * se_deg), se_db)
-    prim: dict[str, Any] = dict(
-        zip(
-            ("gain_db", "gain_db_ci", "phase_deg", "phase_deg_ci", "gain_se_db"),
-            out.get("de") or next(iter(out.values())),
-        )
-    )
+    prim: dict[str, Any] = dict(zip(_ERROR_FIELDS, out.get("de") or next(iter(out.values()))))
     excitation = "ok" if prim["gain_se_db"] <= MAX_GAIN_SE_DB else "insufficient excitation"
+    p = float(stats.f.sf(F, 2 * kC, 2 * dof)) if excitation == "ok" else None  # an untested cell has none
     extra = {
         f"{k}_{name}": v[i] for name, v in out.items() if name != "de" for k, i in (("gain_db", 0), ("phase_deg", 2))
     }
-    return replace(
-        empty,
-        floor=s2,
-        F=F,
-        p=p if excitation == "ok" else None,
-        excess=excess,
-        excitation=excitation,
-        extra=extra,
-        **prim,
-    )
+    return replace(empty, floor=s2, F=F, p=p, excess=excess, excitation=excitation, extra=extra, **prim)
 
 
 def forced_response(data: AnalysisData, model, values=None) -> np.ndarray:

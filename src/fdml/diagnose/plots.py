@@ -30,21 +30,13 @@ def _draw_map(ax, cells, channels, edges, title, vmax):
     X, sig = _map_array(cells, channels, nb)
     V = np.log10(1.0 + np.maximum(np.nan_to_num(X, nan=0.0), 0.0))
     im = ax.imshow(V, aspect="auto", cmap="magma_r", vmin=0, vmax=vmax, origin="upper")
-    for r in range(len(channels)):
-        for b in range(nb):
-            c = cells[r * nb + b]
-            txt = "-" if c.get("excess") is None else f"{c['excess']:.0f}"
-            if c.get("gain_db") is not None and c.get("phase_deg") is not None:
-                txt += f"\n{c['gain_db']:+.1f} dB\n{c['phase_deg']:+.1f}°"
-            ax.text(
-                b,
-                r,
-                txt + (" *" if sig[r, b] else ""),
-                ha="center",
-                va="center",
-                fontsize=7,
-                color="white" if V[r, b] > 0.6 * vmax else "black",
-            )
+    for i, c in enumerate(cells):
+        r, b = divmod(i, nb)
+        txt = "-" if c.get("excess") is None else f"{c['excess']:.0f}"
+        if c.get("gain_db") is not None and c.get("phase_deg") is not None:
+            txt += f"\n{c['gain_db']:+.1f} dB\n{c['phase_deg']:+.1f}°"
+        color = "white" if V[r, b] > 0.6 * vmax else "black"
+        ax.text(b, r, txt + (" *" if sig[r, b] else ""), ha="center", va="center", fontsize=7, color=color)
     ax.set_xticks(range(nb))
     ax.set_xticklabels([f"{edges[i]:.2g}-{edges[i + 1]:.2g}" for i in range(nb)], fontsize=7)
     ax.set_yticks(range(len(channels)))

@@ -127,9 +127,7 @@ class Scenario:
     @property
     def truth_name(self) -> str:
         """The withheld effect's name, or ``"none"`` for a null case."""
-        if self.truth is None:
-            return "none"
-        return self.truth.split("@")[0]
+        return "none" if self.truth is None else self.truth.split("@")[0]
 
 
 def scenarios(
@@ -624,15 +622,8 @@ def validate(
     procs = processes or os.cpu_count() or 1
     rows = []
     report = (lambda done, total, row: progress(done, total)) if progress else None
-    runs = execute(
-        _run,
-        tasks,
-        engine="process" if procs > 1 else "serial",
-        workers=procs,
-        on_error=_failed,
-        progress=report,
-        total=len(tasks),
-    )
+    engine = "process" if procs > 1 else "serial"
+    runs = execute(_run, tasks, engine=engine, workers=procs, on_error=_failed, progress=report, total=len(tasks))
     with contextlib.ExitStack() as stack:
         fh = stack.enter_context(open(rows_path, "a")) if rows_path else None
         for row in stack.enter_context(contextlib.closing(runs)):
