@@ -853,13 +853,9 @@ def _assemble(
     """
     settled = _settled_entries(su, sensors, n_unexplained=shr.n_unexplained)
     ranking = settled + _ranking(su, sel, shr, n_settled=len(settled))
-    verdict = (
-        settled[0]["effect"]
-        if settled
-        else sel.accepted[0].name
-        if sel.accepted
-        else ("unmeasured_gust" if sel.gust_sig else "none")
-    )
+    verdict = "unmeasured_gust" if sel.gust_sig else "none"
+    if settled or sel.accepted:
+        verdict = settled[0]["effect"] if settled else sel.accepted[0].name
     not_ident = [
         {"effect": s.effect.name, "channel": s.effect.channel, "key": s.key, "reason": s.reason}
         for s in sel.skipped.values()

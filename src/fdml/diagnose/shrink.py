@@ -226,13 +226,7 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
 def _shift(base: float, base_se: float, aug: float, aug_se: float) -> dict:
     """One entry of :func:`parameter_shifts`: the shift in base standard errors (NaN without one)."""
     shift = (aug - base) / base_se if (base_se and math.isfinite(base_se) and base_se > 0) else math.nan
-    return {
-        "base": base,
-        "base_stderr": base_se,
-        "augmented": aug,
-        "augmented_stderr": aug_se,
-        "shift_in_stderr": shift,
-    }
+    return dict(base=base, base_stderr=base_se, augmented=aug, augmented_stderr=aug_se, shift_in_stderr=shift)
 
 
 def frozen_fit(data: AnalysisData, model, bands: NoiseModel, options: dict) -> DiagFit:

@@ -249,12 +249,7 @@ def _run(task: dict) -> dict:
 def _failed(task: dict, exc) -> dict:
     """The row of a run whose worker failed outside :func:`run_scenario` (it died, or the simulation raised)."""
     msg = exc if isinstance(exc, str) else one_line(exc)
-    return {
-        **_scenario_columns(task["scenario"]),
-        "status": f"error: {msg}",
-        "verdict": "error",
-        "verdict_key": "error",
-    }
+    return dict(_scenario_columns(task["scenario"]), status=f"error: {msg}", verdict="error", verdict_key="error")
 
 
 def _scenario_columns(sc: Scenario) -> dict:
