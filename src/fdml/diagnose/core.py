@@ -160,7 +160,6 @@ class _Setup:
 
     data: AnalysisData
     nb: NoiseModel  # the band-wise noise of every fit
-    rows: np.ndarray  # noise band of each stacked analysis row
     edges: np.ndarray  # gap-map band edges, rad/s
     channels: tuple
     options: dict  # outputs, boundary, biases, input_edges (as fdml.fit; edges as the base fit resolved them)
@@ -458,7 +457,6 @@ def diagnose(
     su = _Setup(
         data=data,
         nb=nb,
-        rows=nb.assign(data.stacked_omega()),
         edges=edges,
         channels=channels,
         options={"outputs": outputs, "boundary": boundary, "biases": biases, "input_edges": input_edges},
@@ -614,7 +612,7 @@ def _step(su: _Setup, cur, remaining: list, step: int, refit_top: int, fw) -> tu
             cur,
             cands,
             su.nb,
-            su.rows,
+            su.nb.assign(su.data.stacked_omega()),  # the noise band of each stacked row
             su.options,
             alpha=su.alpha,
             refit_top=refit_top,

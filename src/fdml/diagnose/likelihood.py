@@ -61,12 +61,10 @@ def noise_bands(data: AnalysisData, *, mode: str = "band", min_independent: int 
     """
     om = np.sort(data.stacked_omega())
     lo, hi = om[0] * (1 - 1e-9), om[-1] * (1 + 1e-9)
-    if mode == "white":
-        return NoiseModel((lo, hi))
-    if mode != "band":
+    if mode not in ("band", "white"):
         raise FdmlError(f"noise must be 'band' or 'white', got {mode!r}")
     nb = int(max(1, min(max_bands, data.n_dft // max(min_independent, 1))))
-    if nb == 1:
+    if mode == "white" or nb == 1:
         return NoiseModel((lo, hi))
     q = np.quantile(om, np.linspace(0, 1, nb + 1)[1:-1])
     return NoiseModel(tuple(np.concatenate([[lo], q, [hi]])))

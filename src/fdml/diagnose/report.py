@@ -100,9 +100,7 @@ def label_for(
         return "partial"
     if n_flagged == 0 or shrink is None:
         return "tentative"
-    if shrink < threshold:
-        return "partial"
-    if accepted and n_unexplained > 0:
+    if shrink < threshold or (accepted and n_unexplained > 0):
         return "partial"
     if ambiguous or not accepted:
         return "tentative"
