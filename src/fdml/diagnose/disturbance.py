@@ -137,13 +137,9 @@ def _band_stats(data, e, g, out_idx, edges, phi):
     bands = _samples(data, e, out_idx, edges)
     if not bands:
         return None
-    Cs, Ms, ms = [], [], []
-    for xs, rows, lev in bands:
-        m = xs.shape[0]
-        Cs.append(xs.T @ xs.conj() / m)  # sample covariance (v v^H convention)
-        gg = g[rows]
-        Ms.append(np.einsum("i,ij,ik->jk", lev * phi[rows], gg, gg.conj()) / m)
-        ms.append(m)
+    ms = [xs.shape[0] for xs, _, _ in bands]
+    Cs = [xs.T @ xs.conj() / xs.shape[0] for xs, _, _ in bands]  # sample covariance (v v^H convention)
+    Ms = [np.einsum("i,ij,ik->jk", lev * phi[rows], g[rows], g[rows].conj()) / xs.shape[0] for xs, rows, lev in bands]
     return Cs, Ms, ms
 
 
