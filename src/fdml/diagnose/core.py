@@ -517,14 +517,13 @@ def _attribute(
         )
     sel = _select(su, base_fit, base_map, max_effects=max_effects, refit_top=refit_top)
     shr = _shrink_holdout(su, base_fit, base_map, sel, holdout)
-    settled = su.kin.settled if su.kin is not None else ()
     with recording(reemit=False) as log:  # kept in the report
         rec = recommended_fit(
             su.data,
             base_fit.model,
             [a.effect for a in sel.accepted],
             start=sel.final.model,
-            settled=settled,
+            settled=su.kin.settled if su.kin is not None else (),
             **su.options,
         )
     warned = merged(
