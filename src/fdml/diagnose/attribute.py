@@ -38,13 +38,14 @@ One attribution step, from the current fit:
 
 from __future__ import annotations
 
+import contextlib
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..channels import OUTPUTS
 from ..estimate import prepare
+from ..fit_options import parse_outputs
 from ..kinematics import input_resolution
 from ..models.effects import Effect
 from ..parameters import Role
@@ -52,6 +53,7 @@ from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, sc
 from ..score import grid_variation as _grid_variation
 from ..score import null_kind as _null_kind
 from ..verdict import LEVEL, choose_among, judge
+from .data import model_airspeed
 from .likelihood import DiagFit, fit_model, likelihood_ratio
 
 __all__ = ["Candidate", "attribute_step", "p_value", "davies_bound", "choose"]
@@ -153,31 +155,25 @@ class Candidate:
         return self.p_holm is not None and self.p_holm < alpha
 
 
-def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options, *, refine: bool = True):
+def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options):
     """Refit one candidate from the linearised start.
 
     Returns (best fit, cost at the grid value of any nuisance parameter): the test uses the latter,
     since Davies' bound is for the supremum over the grid; the continuous refinement of the
     nuisance parameters (frequency, damping) only improves the estimate and the shrink.
     """
-    aug = effect.augment(cur.model)
-    aug = aug.with_values(effect.nulls(cur.model))
+    nulls = effect.nulls(cur.model)
+    aug = effect.augment(cur.model).with_values(nulls)
     if scr.nuisance:
         aug = aug.with_values(scr.nuisance)
-    start = dict(scr.eta_lin)
-    fits = []
-    fit1 = fit_model(data, aug, bands, start=start, **options)
-    fits.append(fit1)
-    lr1 = likelihood_ratio(cur.cost, fit1.cost, data.oversample)
-    if lr1 < 0.8 * scr.lm:  # a poor local optimum: try a larger start in the same direction
-        nulls = effect.nulls(cur.model)
-        start2 = {k: nulls[k] + 2.0 * (v - nulls[k]) for k, v in start.items()}
-        fits.append(fit_model(data, aug, bands, start=start2, **options))
-    best = min(fits, key=lambda f: f.cost)
+    best = fit_model(data, aug, bands, start=scr.eta_lin, **options)
+    if likelihood_ratio(cur.cost, best.cost, data.oversample) < 0.8 * scr.lm:
+        # a poor local optimum: try a larger start in the same direction
+        start2 = {k: nulls[k] + 2.0 * (v - nulls[k]) for k, v in scr.eta_lin.items()}
+        best = min(best, fit_model(data, aug, bands, start=start2, **options), key=lambda f: f.cost)
     grid_cost = best.cost
-    if refine and effect.nuisance_grid:
-        nuis = [p.name for p in effect.param_list(cur.model) if p.nuisance]
-        m2 = best.model.free(nuis)
+    if effect.nuisance_grid:
+        m2 = best.model.free([p.name for p in effect.param_list(cur.model) if p.nuisance])
         params = m2.parameters
         for gname, (grid, _prof) in (scr.grid or {}).items():
             # refine within the searched range: a nuisance parameter that wanders off the grid
@@ -186,13 +182,8 @@ def _refit(data, cur: DiagFit, effect: Effect, scr: ScreenResult, bands, options
         for p in effect.param_list(cur.model):
             if p.nuisance and p.name not in (scr.grid or {}) and p.plausible is not None:
                 params = params.bound(p.name, *p.plausible)
-        m2 = m2.with_parameters(params)
-        try:
-            f2 = fit_model(data, m2, bands, **options)
-            if f2.cost < best.cost:
-                best = f2
-        except Exception:  # a refinement that fails keeps the grid fit  # pragma: no cover
-            pass
+        with contextlib.suppress(Exception):  # a refinement that fails keeps the grid fit
+            best = min(best, fit_model(data, m2.with_parameters(params), bands, **options), key=lambda f: f.cost)
     return best, grid_cost
 
 
@@ -200,12 +191,9 @@ def _params(effect: Effect, model, fit: DiagFit) -> tuple[dict, bool]:
     out, ok = {}, True
     for p in effect.param_list(model):
         v = fit.params[p.name] if p.name in fit.params else fit.model.parameters.values[p.name]
-        se = fit.stderr.get(p.name, math.nan) if p.name in fit.stderr else math.nan
-        out[p.name] = (float(v), float(se))
-        if p.plausible is not None and not p.nuisance:
-            lo, hi = p.plausible
-            if not (lo <= v <= hi):
-                ok = False
+        out[p.name] = (float(v), float(fit.stderr.get(p.name, math.nan)))
+        if p.plausible is not None and not p.nuisance and not (p.plausible[0] <= v <= p.plausible[1]):
+            ok = False
     return out, ok
 
 
@@ -215,12 +203,8 @@ def _judge(c: Candidate, model, kin, data) -> tuple[dict, str | None]:
     base = [p.name for p in model.parameters if p.free and p.role is Role.AERO and p.name in c.fit.params]
     derivs = {n: (float(c.fit.params[n]), float(c.fit.stderr.get(n, math.nan))) for n in base}
     dt = max(float(d.dt) for d in data.spectra)
-    try:
-        U = float(model.U)
-    except (AttributeError, NotImplementedError, TypeError, ValueError):
-        U = None
     floor = input_resolution([d.record for d in data.spectra], dt)
-    return derivs, judge(c.effect, c.params, model, derivs, kin, dt=dt, U=U, input_floor=floor)
+    return derivs, judge(c.effect, c.params, model, derivs, kin, dt=dt, U=model_airspeed(model), input_floor=floor)
 
 
 def attribute_step(
@@ -283,16 +267,15 @@ def attribute_step(
     for eff in effects:
         if eff.kind != "deterministic":
             continue
-        why = eff.applicable(cur.model, inputs=data.inputs, outputs=_outputs(options))
+        why = eff.applicable(cur.model, inputs=data.inputs, outputs=parse_outputs(options.get("outputs")))
         if why:
             skipped.append(Candidate(eff, eff.key, identifiable=False, reason=why, step=step))
         else:
             usable.append(eff)
     ctx.family_size = max(len(usable), 1)
-    level = alpha
     for eff in usable:
         try:
-            scr = screen(ctx, eff, level=level, band=data.band)
+            scr = screen(ctx, eff, level=alpha, band=data.band)
         except Exception as exc:  # a candidate that cannot be evaluated here is skipped, with the reason
             skipped.append(Candidate(eff, eff.key, identifiable=False, reason=f"cannot be evaluated: {exc}", step=step))
             continue
@@ -321,25 +304,13 @@ def attribute_step(
             c.derivatives, c.demoted = _judge(c, cur.model, kin, data)
     for c in tested:
         V, ng = _grid_variation(c.screen)
-        u = c.lr_test if (c.refitted and c.lr_test is not None) else c.lr
-        c.p, c.logp = p_value(u, c.df, c.null, V=V, n_grid=ng)
-        nuis = len([p for p in c.effect.param_list(cur.model) if p.nuisance])
-        c.q_eff = c.df + nuis
-    ph = holm(np.array([c.p for c in tested]))
-    for c, a in zip(tested, ph):
+        c.p, c.logp = p_value(c.lr if c.lr_test is None else c.lr_test, c.df, c.null, V=V, n_grid=ng)
+        c.q_eff = c.df + sum(p.nuisance for p in c.effect.param_list(cur.model))
+    for c, a in zip(tested, holm(np.array([c.p for c in tested]))):
         c.p_holm = float(a)
     logn = math.log(max(n_obs, 2))
     tested.sort(key=lambda c: c.q_eff * logn - c.lr)
     return tested, skipped
-
-
-def _outputs(options):
-    outs = options.get("outputs")
-    if outs is None:
-        return OUTPUTS
-    if isinstance(outs, str):
-        return tuple(o.strip() for o in outs.split(","))
-    return tuple(outs)
 
 
 def choose(tested: list, alpha: float, n_obs: int) -> tuple:

@@ -28,7 +28,7 @@ from ..record import Record
 from ..verdict import ABSORBS, LEVEL
 from ..warning_log import merged, recording
 from .attribute import Candidate, attribute_step, choose, p_value
-from .data import AnalysisData, analysis_data
+from .data import AnalysisData, analysis_data, model_airspeed
 from .disturbance import GustTest, gust_test
 from .likelihood import DiagFit, fit_model, likelihood_ratio, noise_bands
 from .locate import GapMap, default_bands, holm
@@ -41,6 +41,7 @@ from .shrink import (
     parameter_shifts,
     shrink,
 )
+from .text import paragraph
 
 __all__ = ["diagnose", "recommended_fit"]
 
@@ -66,12 +67,10 @@ def _resolve(records, base, outputs=None):
         raise ParameterError(f"base must be an fdml Model or FitResult, got {type(base).__name__}")
     if records is None:
         raise FdmlError("no records were given to diagnose")
-    if isinstance(records, Record):
-        records = [records]
     outputs = opts.get("outputs") if outputs is None else outputs
     if outputs:  # the rows the spectra and the predictions follow
         base = base.with_outputs(parse_outputs(outputs))
-    return list(records), base, {**opts, "outputs": outputs}
+    return _as_list(records), base, {**opts, "outputs": outputs}
 
 
 def _as_list(records) -> list:
@@ -85,15 +84,11 @@ def _data_findings(records, model, band, strict: bool) -> list:
     from ..datacheck import check_data
     from ..findings import emit, raise_if_strict
 
-    try:
-        U = float(model.U)
-    except (AttributeError, NotImplementedError, TypeError, ValueError):
-        U = None
     lohi = None
     if band is not None:  # the diagnosis takes LO:HI; the check needs a grid: 100 steps over it
         lo, hi = band.split(":")[:2] if isinstance(band, str) else band[:2]
         lohi = (float(lo), float(hi), (float(hi) - float(lo)) / 100)
-    found = [f for r in records for f in check_data(r, band=lohi, airspeed=U).findings]
+    found = [f for r in records for f in check_data(r, band=lohi, airspeed=model_airspeed(model)).findings]
     raise_if_strict(found, strict)
     emit(found, stacklevel=3)
     return found
@@ -102,20 +97,9 @@ def _data_findings(records, model, band, strict: bool) -> list:
 def _library(library) -> list:
     if library is None:
         return list(registered_effects())
-    out = []
-    names = []
-    for item in library:
-        if isinstance(item, Effect):
-            out.append(item)
-        else:
-            names.append(str(item))
-    if names:
-        out.extend(default_library(names))
-    return out
-
-
-def _noise_effect(effects):
-    return next((e for e in effects if e.kind == "noise" and e.name == "unmeasured_gust"), None)
+    library = list(library)
+    names = [str(item) for item in library if not isinstance(item, Effect)]
+    return [item for item in library if isinstance(item, Effect)] + list(default_library(names) if names else ())
 
 
 def _kinematics(su, model) -> tuple[KinematicEvidence | None, str]:
@@ -123,9 +107,8 @@ def _kinematics(su, model) -> tuple[KinematicEvidence | None, str]:
     missing = [c for c in OUTPUTS if c not in su.channels]
     if missing:
         return None, f"the kinematic identity needs alpha, q and a_z; {', '.join(missing)} not fitted"
-    try:
-        U = float(model.U)
-    except (AttributeError, NotImplementedError, TypeError, ValueError):
+    U = model_airspeed(model)
+    if U is None:
         return None, "the kinematic identity needs the airspeed U"
     try:
         return kinematic_evidence(su.data.spectra, U, known=known_terms(model)), ""
@@ -156,13 +139,7 @@ def _sensor_stage(su, raw_model, base_fit, base_map, holdout) -> _Sensors:
     shr, nflag = shrink(raw_map, su.fit_map(base_fit, before=raw_map))
     hs = None
     if holdout is not None:
-        hdata = analysis_data(holdout, su.data.band, oversample=su.oversample, trim=su.trim, gust=su.model.gust)
-        hnb = noise_bands(hdata, mode=su.noise)
-
-        def hmap(model, before=None):
-            hf = frozen_fit(hdata, model, hnb, su.options)
-            return fit_map(hdata, hf, su.edges, alpha=su.alpha, channels=su.channels, before=before)
-
+        _, _, hmap = _holdout_maps(su, holdout)
         h_raw = hmap(raw_fit.model)
         hs, nflag_h = shrink(h_raw, hmap(base_fit.model, h_raw))
         nflag = nflag_h if hs is not None else nflag
@@ -183,7 +160,6 @@ class _Setup:
 
     data: AnalysisData
     nb: NoiseModel  # the band-wise noise of every fit
-    rows: np.ndarray  # noise band of each stacked analysis row
     edges: np.ndarray  # gap-map band edges, rad/s
     channels: tuple
     options: dict  # outputs, boundary, biases, input_edges (as fdml.fit; edges as the base fit resolved them)
@@ -192,7 +168,6 @@ class _Setup:
     n_obs: int  # real independent observations (for BIC)
     settings: dict
     model: Model  # the base model as given (its gust option sets the hold-out's inputs)
-    oversample: int
     noise: str
     trim: str
     shrink_threshold: float
@@ -205,14 +180,9 @@ class _Setup:
         """The gap map of an in-sample fit: with ``before``, that map's noise floors held; the regressors
         (forced responses) are the base fit's, shared by every map (same regressors before and after),
         unless ``own`` (the fit's own regressors, for the remaining gap)."""
+        designs = None if own else self.designs
         return fit_map(
-            self.data,
-            fit,
-            self.edges,
-            alpha=self.alpha,
-            channels=self.channels,
-            before=before,
-            designs=None if own else self.designs,
+            self.data, fit, self.edges, alpha=self.alpha, channels=self.channels, before=before, designs=designs
         )
 
 
@@ -244,11 +214,10 @@ class _Shrink:
     n_flagged: int
     hold: dict | None  # the report's hold-out section
 
-
-def _paragraph(rep):
-    from .text import paragraph
-
-    return paragraph(rep)
+    @property
+    def n_unexplained(self) -> int:
+        """Flagged cells left in the final fit's own map, in-sample (what the labels judge: report.UNEXPLAINED_RULE)."""
+        return sum(u["where"] == "in-sample" for u in self.unexplained)
 
 
 def _steps_compared(rep: DiagnosisReport, boundary, biases) -> tuple[str | None, dict | None]:
@@ -270,7 +239,8 @@ def _steps_compared(rep: DiagnosisReport, boundary, biases) -> tuple[str | None,
     final = rep.details.get("final_fit")
     if final is None or not any(r.get("significant") for r in rep.ranking):
         return None, None
-    if not any(d.edges.size for d in rep.details["data"].spectra):  # the steps the analysis spectra hold
+    data = rep.details["data"]
+    if not any(d.edges.size for d in data.spectra):  # the steps the analysis spectra hold
         return None, None
     st, base_fit = rep.settings, rep.details["base_fit"]
     nb = NoiseModel(tuple(rep.noise["bands"]))
@@ -288,13 +258,7 @@ def _steps_compared(rep: DiagnosisReport, boundary, biases) -> tuple[str | None,
     for model in path if final.model in path else [*path, final.model]:  # instead of the effects, or beside
         try:
             edged = fit_model(
-                rep.details["data"],
-                model,
-                nb,
-                outputs=st["outputs"],
-                boundary=boundary,
-                biases=biases,
-                input_edges="estimated",
+                data, model, nb, outputs=st["outputs"], boundary=boundary, biases=biases, input_edges="estimated"
             )
         except FdmlError:
             continue
@@ -356,7 +320,7 @@ def _steps_compete(diag):
             rep = _with_steps_alternative(rep, alt)
         else:
             return rep
-        return replace(rep, text=_paragraph(rep))
+        return replace(rep, text=paragraph(rep))
 
     return run
 
@@ -482,21 +446,40 @@ def diagnose(
         raise ParameterError(f"alpha must lie in (0, 1), got {alpha}")
     if isinstance(max_effects, bool) or not isinstance(max_effects, (int, np.integer)) or max_effects < 0:
         raise ParameterError(f"max_effects must be an integer >= 0, got {max_effects!r}")
-    su = _setup(
-        records,
-        model,
-        band=band,
-        bands=bands,
-        library=library,
+    # the set-up every phase shares: analysis data, noise bands, gap-map edges, settings (bad options raise here)
+    effects = _library(library)
+    data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust, outputs=model.outputs)
+    nb = noise_bands(data, mode=noise)
+    channels = parse_outputs(outputs or None)
+    edges = np.asarray(bands, float) if bands is not None else default_bands(data)
+    if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
+        raise ParameterError("bands must be increasing edges in rad/s, at least two")
+    su = _Setup(
+        data=data,
+        nb=nb,
+        edges=edges,
+        channels=channels,
+        options={"outputs": outputs, "boundary": boundary, "biases": biases, "input_edges": input_edges},
+        effects=tuple(effects),
         alpha=alpha,
-        max_effects=max_effects,
-        oversample=oversample,
+        n_obs=2 * data.n_dft * len(channels),
+        settings={
+            "alpha": alpha,
+            "band": list(data.band),
+            "bands": edges.tolist(),
+            "oversample": oversample,
+            "noise": noise,
+            "noise_bands": list(nb.edges),
+            "refit_top": refit_top,
+            "max_effects": max_effects,
+            "records": data.names(),
+            "independent_frequencies": data.n_dft,
+            "base_model": model.describe(),
+            "shrink_threshold": shrink_threshold,
+            "outputs": list(channels),
+        },
+        model=model,
         noise=noise,
-        refit_top=refit_top,
-        outputs=outputs,
-        boundary=boundary,
-        biases=biases,
-        input_edges=input_edges,
         trim=trim,
         shrink_threshold=shrink_threshold,
     )
@@ -510,18 +493,18 @@ def diagnose(
     if base_fit.result is not None:  # every later fit takes the steps' timing as the base fit settled it
         su = replace(su, options={**su.options, "input_edges": base_fit.result.options.get("input_edges", "none")})
     if not base_fit.converged:
-        return _empty(
-            "base_not_converged",
-            [
-                (
-                    f"the base fit did not converge ({base_fit.message}); no effect can be attributed "
-                    "against an unconverged base"
-                )
-            ],
-            su.settings,
-            found,
-            warned=base_fit.warnings,
+        why = (
+            f"the base fit did not converge ({base_fit.message}); no effect can be attributed against an "
+            "unconverged base"
         )
+        return _empty("base_not_converged", [why], su.settings, found, warned=base_fit.warnings)
+    return _attribute(su, raw_model, base_fit, holdout, found, t0, max_effects=max_effects, refit_top=refit_top)
+
+
+def _attribute(
+    su: _Setup, raw_model, base_fit, holdout, found: list, t0: float, *, max_effects: int, refit_top: int
+) -> DiagnosisReport:
+    """The phases after the base fit: locate, attribute, shrink, the recommended fit and the report."""
     base_map, problems = _locate(su, base_fit)
     if not any(c.excitation == "ok" for c in base_map.cells):
         return _empty(
@@ -540,7 +523,7 @@ def diagnose(
             base_fit.model,
             [a.effect for a in sel.accepted],
             start=sel.final.model,
-            settled=kin.settled if kin is not None else (),
+            settled=su.kin.settled if su.kin is not None else (),
             **su.options,
         )
     warned = merged(
@@ -548,68 +531,6 @@ def diagnose(
     )
     sensors = _sensor_stage(su, raw_model, base_fit, base_map, holdout)
     return _assemble(su, base_fit, base_map, sel, shr, problems, found, rec, t0, warned, sensors)
-
-
-def _setup(
-    records,
-    model,
-    *,
-    band,
-    bands,
-    library,
-    alpha,
-    max_effects,
-    oversample,
-    noise,
-    refit_top,
-    outputs,
-    boundary,
-    biases,
-    input_edges,
-    trim,
-    shrink_threshold,
-) -> _Setup:
-    """Analysis data, noise bands, gap-map edges and the settings (bad options raise here)."""
-    effects = _library(library)
-    data = analysis_data(records, band, oversample=oversample, trim=trim, gust=model.gust, outputs=model.outputs)
-    nb = noise_bands(data, mode=noise)
-    channels = tuple(outputs.split(",") if isinstance(outputs, str) else (outputs or OUTPUTS))
-    channels = tuple(c.strip() for c in channels)
-    edges = np.asarray(bands, float) if bands is not None else default_bands(data)
-    if edges.ndim != 1 or edges.size < 2 or np.any(np.diff(edges) <= 0):
-        raise ParameterError("bands must be increasing edges in rad/s, at least two")
-    settings = {
-        "alpha": alpha,
-        "band": list(data.band),
-        "bands": edges.tolist(),
-        "oversample": oversample,
-        "noise": noise,
-        "noise_bands": list(nb.edges),
-        "refit_top": refit_top,
-        "max_effects": max_effects,
-        "records": data.names(),
-        "independent_frequencies": data.n_dft,
-        "base_model": model.describe(),
-        "shrink_threshold": shrink_threshold,
-        "outputs": list(channels),
-    }
-    return _Setup(
-        data=data,
-        nb=nb,
-        rows=nb.assign(data.stacked_omega()),
-        edges=edges,
-        channels=channels,
-        options={"outputs": outputs, "boundary": boundary, "biases": biases, "input_edges": input_edges},
-        effects=tuple(effects),
-        alpha=alpha,
-        n_obs=2 * data.n_dft * len(channels),
-        settings=settings,
-        model=model,
-        oversample=oversample,
-        noise=noise,
-        trim=trim,
-        shrink_threshold=shrink_threshold,
-    )
 
 
 # --- phase 1: locate ---------------------------------------------------------------------------------------------
@@ -633,7 +554,7 @@ def _locate(su: _Setup, base_fit):
 def _select(su: _Setup, base_fit, base_map, *, max_effects: int, refit_top: int) -> _Selection:
     """Greedy forward selection of deterministic effects, then the unmeasured-turbulence test."""
     fw = floor_weights(su.data, base_map, su.channels)
-    gust_eff = _noise_effect(su.effects)
+    gust_eff = next((e for e in su.effects if e.kind == "noise" and e.name == "unmeasured_gust"), None)
     cur = base_fit
     accepted: list[Candidate] = []
     ambiguity: list[list[Candidate]] = []
@@ -690,7 +611,7 @@ def _step(su: _Setup, cur, remaining: list, step: int, refit_top: int, fw) -> tu
             cur,
             cands,
             su.nb,
-            su.rows,
+            su.nb.assign(su.data.stacked_omega()),  # the noise band of each stacked row
             su.options,
             alpha=su.alpha,
             refit_top=refit_top,
@@ -736,17 +657,15 @@ def _turbulence(su: _Setup, cur, gust_eff, K0, skipped_all: dict):
         return None, False
     gust = None
     why = gust_eff.applicable(cur.model, inputs=su.data.inputs, outputs=su.channels)
-    if why is None and len(su.channels) >= 2:
+    if why is None and len(su.channels) < 2:
+        why = "needs at least two output channels"
+    if why is None:
         try:
             gust = gust_test(su.data, cur, su.edges)
         except (FdmlError, np.linalg.LinAlgError, ValueError) as exc:
-            skipped_all[gust_eff.key] = Candidate(
-                gust_eff, gust_eff.key, identifiable=False, reason=f"cannot be evaluated: {exc}"
-            )
-    else:
-        skipped_all[gust_eff.key] = Candidate(
-            gust_eff, gust_eff.key, identifiable=False, reason=why or "needs at least two output channels"
-        )
+            why = f"cannot be evaluated: {exc}"
+    if why is not None:
+        skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False, reason=why)
     if gust is None:
         return None, False
     return gust, min(1.0, gust.p * max(K0 or 1, 1)) < su.alpha
@@ -763,9 +682,7 @@ def _shrink_holdout(su: _Setup, base_fit, base_map, sel: _Selection, holdout) ->
     it removes.
     """
     refitted = [c for c in sel.tested if c.refitted]
-    step_maps = {0: base_map}
-    for k in range(1, len(sel.step_fits)):
-        step_maps[k] = su.fit_map(sel.step_fits[k], before=base_map)
+    step_maps = {k: su.fit_map(f, before=base_map) if k else base_map for k, f in enumerate(sel.step_fits)}
     in_shr = {(c.key, c.step): shrink(step_maps[c.step], su.fit_map(c.fit, before=base_map)) for c in refitted}
     final_map_same = su.fit_map(sel.final, before=base_map)
     final_map = su.fit_map(sel.final, own=True)
@@ -786,20 +703,25 @@ def _shrink_holdout(su: _Setup, base_fit, base_map, sel: _Selection, holdout) ->
     )
 
 
-def _holdout(su: _Setup, base_fit, sel: _Selection, refitted: list, holdout):
-    """Shrink on the hold-out records with every model parameter frozen: ({(key, step): shrink}, section)."""
-    hdata = analysis_data(holdout, su.data.band, oversample=su.oversample, trim=su.trim, gust=su.model.gust)
+def _holdout_maps(su: _Setup, holdout, designs: dict | None = None):
+    """The hold-out records' analysis data and noise bands, and ``hmap(model, before=None)``: the gap map
+    of ``model`` with every model parameter frozen on them (``before``'s floors held; ``designs`` shared)."""
+    hdata = analysis_data(holdout, su.data.band, oversample=su.data.oversample, trim=su.trim, gust=su.model.gust)
     hnb = noise_bands(hdata, mode=su.noise)
-    designs: dict = {}
 
     def hmap(model, before=None):
         hf = frozen_fit(hdata, model, hnb, su.options)
         return fit_map(hdata, hf, su.edges, alpha=su.alpha, channels=su.channels, before=before, designs=designs)
 
+    return hdata, hnb, hmap
+
+
+def _holdout(su: _Setup, base_fit, sel: _Selection, refitted: list, holdout):
+    """Shrink on the hold-out records with every model parameter frozen: ({(key, step): shrink}, section)."""
+    designs: dict = {}
+    hdata, hnb, hmap = _holdout_maps(su, holdout, designs)
     h_before = hmap(base_fit.model)
-    h_step = {0: h_before}
-    for k in range(1, len(sel.step_fits)):
-        h_step[k] = hmap(sel.step_fits[k].model, h_before)
+    h_step = {k: hmap(f.model, h_before) if k else h_before for k, f in enumerate(sel.step_fits)}
     h_shr = {(c.key, c.step): shrink(h_step[c.step], hmap(c.fit.model, h_before)) for c in refitted}
     h_final = frozen_fit(hdata, sel.final.model, hnb, su.options)
     h_final_same = fit_map(
@@ -876,8 +798,8 @@ def recommended_fit(
 
     model = with_effects(base_model, *effects) if effects else base_model
     if start is not None:
-        sv = start.parameters.values
-        model = model.with_values({k: v for k, v in sv.items() if k in model.parameters and math.isfinite(v)})
+        sv = start.parameters.values.items()
+        model = model.with_values({k: v for k, v in sv if k in model.parameters and math.isfinite(v)})
 
     def refit(values=None, start_model=model, adequacy=True):
         m = start_model.with_values(values) if values else start_model
@@ -926,19 +848,11 @@ def _assemble(
     ``warned``: the warnings of the fits the report keeps (base, final, accepted, recommended);
     ``sensors``: the model as given against the one with the settled sensor effects.
     """
-    from .text import paragraph
-
-    settled = _settled_entries(
-        su, sensors, n_unexplained=len([u for u in shr.unexplained if u["where"] == "in-sample"])
-    )
+    settled = _settled_entries(su, sensors, n_unexplained=shr.n_unexplained)
     ranking = settled + _ranking(su, sel, shr, n_settled=len(settled))
-    verdict = (
-        settled[0]["effect"]
-        if settled
-        else sel.accepted[0].name
-        if sel.accepted
-        else ("unmeasured_gust" if sel.gust_sig else "none")
-    )
+    verdict = "unmeasured_gust" if sel.gust_sig else "none"
+    if settled or sel.accepted:
+        verdict = settled[0]["effect"] if settled else sel.accepted[0].name
     not_ident = [
         {"effect": s.effect.name, "channel": s.effect.channel, "key": s.key, "reason": s.reason}
         for s in sel.skipped.values()
@@ -1014,10 +928,11 @@ def _as_recommended(entry: dict, rec, kin) -> dict:
     the identity's estimate of the same effect (``kinematic``), when it tested it."""
     out = dict(entry)
     if rec is not None:
-        params = {}
-        for n, d in entry["params"].items():
-            params[n] = dict(d, value=rec.params[n], stderr=rec.errors[n]) if n in rec.params else d
-        out["params"], out["diagnosis_fit"] = params, entry["params"]
+        out["params"] = {
+            n: dict(d, value=rec.params[n], stderr=rec.errors[n]) if n in rec.params else d
+            for n, d in entry["params"].items()
+        }
+        out["diagnosis_fit"] = entry["params"]
     if kin is not None:
         for f in kin.tested:
             if entry["key"] in f.keys:
@@ -1030,7 +945,6 @@ def _settled_entries(su: _Setup, sensors: _Sensors, n_unexplained: int) -> list:
     """Ranking entries of the sensor effects the kinematics settled (accepted before any other)."""
     if su.kin is None:
         return []
-    out = []
     shr = sensors.shrink_holdout if sensors.shrink_holdout is not None else sensors.shrink
     label = label_for(
         significant=True,
@@ -1042,30 +956,23 @@ def _settled_entries(su: _Setup, sensors: _Sensors, n_unexplained: int) -> list:
         n_unexplained=n_unexplained,
         threshold=su.shrink_threshold,
     )
-    for m in su.kin.settled:
-        f = m.finding
-        out.append(
-            {
-                "effect": m.effect().name,
-                "key": m.key,
-                "channel": m.effect().channel,
-                "lr": f.lr,
-                "p_value": f.p,
-                "p_holm": f.p,
-                "shrink": shr,
-                "shrink_in_sample": sensors.shrink,
-                "shrink_holdout": sensors.shrink_holdout,
-                "plausible": True,
-                "label": label,
-                "params": {m.param: {"value": m.value, "stderr": m.stderr, "unit": m.unit}},
-                "accepted": True,
-                "significant": True,
-                "step": 0,
-                "source": "kinematics",
-                "note": f"settled by the kinematics: {f.describe()}",
-            }
-        )
-    return out
+    return [
+        {
+            **_entry_head(m.effect(), m.key, m.finding.lr, m.finding.p, m.finding.p),
+            "shrink": shr,
+            "shrink_in_sample": sensors.shrink,
+            "shrink_holdout": sensors.shrink_holdout,
+            "plausible": True,
+            "label": label,
+            "params": {m.param: {"value": m.value, "stderr": m.stderr, "unit": m.unit}},
+            "accepted": True,
+            "significant": True,
+            "step": 0,
+            "source": "kinematics",
+            "note": f"settled by the kinematics: {m.finding.describe()}",
+        }
+        for m in su.kin.settled
+    ]
 
 
 def _derivative_table(raw, rec) -> dict:
@@ -1073,9 +980,9 @@ def _derivative_table(raw, rec) -> dict:
     if rec is None:
         return {}
     out = {}
-    names = [p.name for p in root_model(rec.model).parameters if p.free and p.role is Role.AERO]
-    for n in names:
-        if n not in rec.params:
+    for p in root_model(rec.model).parameters:
+        n = p.name
+        if not (p.free and p.role is Role.AERO and n in rec.params):
             continue
         row = {"recommended": [rec.params[n], rec.errors.get(n)]}
         if raw is not None and n in raw.params:
@@ -1121,8 +1028,6 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> l
     """One entry per tested candidate (and the turbulence test, after the ``n_settled`` sensor effects the
     kinematics settled and the accepted ones), with its label."""
     acc_keys = [(a.key, a.step) for a in sel.accepted]
-    # remaining gap for the labels: the final fit's own map (report.UNEXPLAINED_RULE)
-    n_unexp_label = len([u for u in shr.unexplained if u["where"] == "in-sample"])
     ranking = []
     for c in sel.tested:
         sig = c.significant(su.alpha) and c.refitted
@@ -1138,7 +1043,7 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> l
             plausible=c.plausible,
             shrink=shr_,
             n_flagged=nflag,
-            n_unexplained=n_unexp_label,
+            n_unexplained=shr.n_unexplained,
             threshold=su.shrink_threshold,
         )
         if sig and c.demoted:
@@ -1148,17 +1053,12 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> l
     if gust is not None:
         # a noise-kind effect is judged on its likelihood gain, not on the coherent gap (which it cannot
         # close): confirmed when no coherent gap is left unexplained, else partial
-        glab = ("confirmed" if n_unexp_label == 0 else "partial") if sel.gust_sig else None
+        glab = ("confirmed" if shr.n_unexplained == 0 else "partial") if sel.gust_sig else None
         ge = sel.gust_effect
         assert ge is not None  # a turbulence test ran, so the library holds the effect
         ranking.append(
             {
-                "effect": "unmeasured_gust",
-                "key": ge.key,
-                "channel": ge.channel,
-                "lr": gust.lr,
-                "p_value": gust.p,
-                "p_holm": min(1.0, gust.p * max(K0 or 1, 1)),
+                **_entry_head(ge, ge.key, gust.lr, gust.p, min(1.0, gust.p * max(K0 or 1, 1))),
                 "shrink": gust.share,
                 "label": glab,
                 "params": {"sigma_w": {"value": gust.sigma_w, "stderr": gust.sigma_w_se, "unit": "m/s"}},
@@ -1208,6 +1108,11 @@ def floor_weights(data, gmap, channels) -> np.ndarray:
     return out
 
 
+def _entry_head(effect: Effect, key: str, lr: float, p: float, p_holm: float | None) -> dict:
+    """The leading keys of a ranking entry: the effect, its key and channel, its LR and p-values."""
+    return {"effect": effect.name, "key": key, "channel": effect.channel, "lr": lr, "p_value": p, "p_holm": p_holm}
+
+
 def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_obs: int, sig: bool) -> dict:
     units = {p.name: p.unit for p in c.effect.params}
     try:
@@ -1216,12 +1121,7 @@ def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_
         pass
     logn = math.log(max(n_obs, 2))
     return {
-        "effect": c.name,
-        "key": c.key,
-        "channel": c.channel,
-        "lr": c.lr,
-        "p_value": c.p,
-        "p_holm": c.p_holm,
+        **_entry_head(c.effect, c.key, c.lr, c.p, c.p_holm),
         "log10_p": c.logp / math.log(10),
         "shrink": shr,
         "shrink_in_sample": in_sample,

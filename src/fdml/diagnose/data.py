@@ -23,7 +23,7 @@ and uses it as follows:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -37,6 +37,25 @@ __all__ = ["AnalysisData", "analysis_data", "parse_diag_band", "DEFAULT_DIAG_BAN
 
 #: Default analysis band, rad/s: fdml's default fit band (docs/theory.md 11.2: 0-10 rad/s).
 DEFAULT_DIAG_BAND = (0.1, 10.0)
+
+
+def model_airspeed(model) -> float | None:
+    """The model's airspeed U, m/s, or None when it has none.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+
+    Returns
+    -------
+    float or None
+        U, m/s.
+    """
+    try:
+        return float(model.U)
+    except (AttributeError, NotImplementedError, TypeError, ValueError):
+        return None
 
 
 def parse_diag_band(band) -> tuple[float, float]:
@@ -196,19 +215,13 @@ def analysis_data(
             )
         d = spectra(r, omega, trim=trim, outputs=outputs)
         if names.count(r.name) > 1:
-            from dataclasses import replace
-
             d = replace(d, name=f"{r.name}#{i}")
         out.append(d)
         masks.append(dft)
     has_gust = all("alpha_w" in d.inputs for d in out)
-    if gust is None:
-        gust = has_gust
+    gust = has_gust if gust is None else gust
     if gust and not has_gust:
         raise RecordError("the model has a gust input but not every record has an alpha_w column")
     if not gust:
-        from dataclasses import replace
-
         out = [replace(d, u=d.u[:, :1], inputs=("de",)) if d.u.shape[1] > 1 else d for d in out]
-    inputs = INPUTS if gust else INPUTS[:1]
-    return AnalysisData(tuple(out), tuple(masks), K, (lo, hi), inputs)
+    return AnalysisData(tuple(out), tuple(masks), K, (lo, hi), INPUTS if gust else INPUTS[:1])

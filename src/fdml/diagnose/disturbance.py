@@ -47,7 +47,7 @@ from scipy import optimize, stats
 from ..maneuvers import DRYDEN_L, dryden_psd
 from ..models.effects import with_gust
 from .data import AnalysisData
-from .locate import _legendre
+from .locate import _legendre, band_rows
 
 __all__ = ["GustTest", "gust_test"]
 
@@ -85,27 +85,17 @@ class GustTest:
 
 def _samples(data: AnalysisData, e: np.ndarray, out_idx, edges):
     """Per band: (samples (m, n_out), rows, leverage weights)."""
-    om = data.stacked_omega()
     rec = data.stacked_record()
-    dft = data.stacked_dft()
     U = np.concatenate([d.u for d in data.spectra])
     out = []
     nb = edges.size - 1
     for b in range(nb):
-        lo, hi = edges[b], edges[b + 1]
-        inb = (om >= lo) & ((om <= hi) if b == nb - 1 else (om < hi)) & dft
-        rows = np.flatnonzero(inb)
+        rows, x = band_rows(data, edges[b], edges[b + 1], b == nb - 1)
         if rows.size == 0:
             continue
-        x = 2.0 * (np.log(om[rows]) - math.log(lo)) / (math.log(hi) - math.log(lo)) - 1.0
-        cols = []
-        for r in range(data.n_records):
-            sel = (rec[rows] == r).astype(float)
-            if sel.any():
-                cols.append(sel[:, None].astype(complex))
+        cols = [(rec[rows] == r)[:, None].astype(complex) for r in np.unique(rec[rows])]
         P = _legendre(x, 2)
-        for j in range(U.shape[1]):
-            cols.append(P * U[rows, j][:, None])
+        cols += [P * U[rows, j][:, None] for j in range(U.shape[1])]
         X = np.hstack(cols)
         m = rows.size - np.linalg.matrix_rank(X)
         if m < 2:
@@ -147,13 +137,9 @@ def _band_stats(data, e, g, out_idx, edges, phi):
     bands = _samples(data, e, out_idx, edges)
     if not bands:
         return None
-    Cs, Ms, ms = [], [], []
-    for xs, rows, lev in bands:
-        m = xs.shape[0]
-        Cs.append(xs.T @ xs.conj() / m)  # sample covariance (v v^H convention)
-        gg = g[rows]
-        Ms.append(np.einsum("i,ij,ik->jk", lev * phi[rows], gg, gg.conj()) / m)
-        ms.append(m)
+    ms = [xs.shape[0] for xs, _, _ in bands]
+    Cs = [xs.T @ xs.conj() / xs.shape[0] for xs, _, _ in bands]  # sample covariance (v v^H convention)
+    Ms = [np.einsum("i,ij,ik->jk", lev * phi[rows], g[rows], g[rows].conj()) / xs.shape[0] for xs, rows, lev in bands]
     return Cs, Ms, ms
 
 
@@ -178,11 +164,9 @@ def _score_test(Cs, Ms, ms) -> float:
 
 def _size(E, G, phi, bidx):
     """ML of sigma_w^2 with S_i = diag(d_b(i)) + sigma^2 phi_i g_i g_i^H per point: (s2, se of sigma_w, share)."""
-    bands = np.unique(bidx)
+    bands, bi = np.unique(bidx, return_inverse=True)
     n = E.shape[1]
     nb = bands.size
-    pos = {b: i for i, b in enumerate(bands)}
-    bi = np.array([pos[b] for b in bidx])
     gg = np.einsum("i,ij,ik->ijk", phi, G, G.conj())
 
     def nll(z):
@@ -209,11 +193,9 @@ def _size(E, G, phi, bidx):
     s2 = float(z1[-1])
     se, share = math.nan, 0.0
     if s2 > 0:
-        h = 1e-3 * s2
-        zp, zm = z1.copy(), z1.copy()
-        zp[-1] += h
-        zm[-1] -= h
-        d2 = (nll(zp) - 2 * nll(z1) + nll(zm)) / h**2
+        h = np.zeros_like(z1)
+        h[-1] = 1e-3 * s2
+        d2 = (nll(z1 + h) - 2 * nll(z1) + nll(z1 - h)) / h[-1] ** 2
         if d2 > 0:  # observed information of sigma^2
             se = (1.0 / math.sqrt(d2)) / (2.0 * math.sqrt(s2))
         share = float(s2 * np.sum(np.real(np.einsum("ijj->i", gg))) / max(float(np.sum(np.abs(E) ** 2)), 1e-300))
@@ -241,8 +223,7 @@ def gust_test(data: AnalysisData, fit, edges: np.ndarray, *, length: float = DRY
     """
     model = fit.model
     out_idx = list(fit.prob.out_idx)
-    n = len(out_idx)
-    if n < 2:
+    if len(out_idx) < 2:
         return None
     e = fit.full_residual()
     gm = with_gust(model)
@@ -264,12 +245,11 @@ def gust_test(data: AnalysisData, fit, edges: np.ndarray, *, length: float = DRY
     dft = data.stacked_dft()
     bidx = np.clip(np.searchsorted(edges, om, side="right") - 1, 0, edges.size - 2)[dft]
     s2, se, share = _size(e[dft][:, out_idx], g[dft][:, out_idx], phi[dft], bidx)
-    ms = norm[2]
     return GustTest(
         lr=float(lr),
         p=float(p),
         sigma_w=float(math.sqrt(max(s2, 0.0))),
         sigma_w_se=float(se),
         share=min(max(share, 0.0), 1.0),
-        n_samples=int(sum(ms)),
+        n_samples=int(sum(norm[2])),
     )

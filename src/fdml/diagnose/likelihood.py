@@ -61,12 +61,10 @@ def noise_bands(data: AnalysisData, *, mode: str = "band", min_independent: int 
     """
     om = np.sort(data.stacked_omega())
     lo, hi = om[0] * (1 - 1e-9), om[-1] * (1 + 1e-9)
-    if mode == "white":
-        return NoiseModel((lo, hi))
-    if mode != "band":
+    if mode not in ("band", "white"):
         raise FdmlError(f"noise must be 'band' or 'white', got {mode!r}")
     nb = int(max(1, min(max_bands, data.n_dft // max(min_independent, 1))))
-    if nb == 1:
+    if mode == "white" or nb == 1:
         return NoiseModel((lo, hi))
     q = np.quantile(om, np.linspace(0, 1, nb + 1)[1:-1])
     return NoiseModel(tuple(np.concatenate([[lo], q, [hi]])))
@@ -210,19 +208,15 @@ def fit_model(
         The fit, its band-wise cost and the warnings it raised.
     """
     if start:
-        vals = {}
-        for k, v in start.items():
-            if k in model.parameters and math.isfinite(v):
-                par = model.parameters[k]
-                vals[k] = min(max(float(v), par.lower), par.upper)
-        model = model.with_values(vals)
-    items = list(data.spectra)
+        pars = model.parameters
+        ok = {k: float(v) for k, v in start.items() if k in pars and math.isfinite(v)}
+        model = model.with_values({k: min(max(v, pars[k].lower), pars[k].upper) for k, v in ok.items()})
     with recording(reemit=False) as log:
         # the diagnosis checks its records once (core._data_findings); no adequacy check inside its own fits
         # "analytic": closed forms where the model has them, else central differences of the model
         # response (2 evaluations a parameter; Eq. 26's settled forward differences take 4 and more)
         res = fdml_fit(
-            items,
+            list(data.spectra),
             model,
             outputs=outputs,
             boundary=boundary,
@@ -265,9 +259,10 @@ def diag_fit(res, data: AnalysisData, bands: NoiseModel, stderr: dict, warned=()
     DiagFit
         The fit with its residuals and band-wise cost.
     """
-    items = list(data.spectra)
     with recording(reemit=False) as log:
-        prob = prepare(items, res.model, **{**options, "input_edges": res.options.get("input_edges", "none")})
+        prob = prepare(
+            list(data.spectra), res.model, **{**options, "input_edges": res.options.get("input_edges", "none")}
+        )
     theta = np.array([res.params[n] for n in prob.names], float)
     V = prob.residuals(theta)
     C, Rs = band_cost(V, bands.assign(data.stacked_omega()), bands.n)

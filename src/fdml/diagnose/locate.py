@@ -37,7 +37,8 @@ is marked "insufficient excitation" and is not tested.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -55,6 +56,8 @@ MAX_GAIN_SE_DB = 3.0
 COHERENT_ORDER = 2
 #: Transient terms per record and band (a constant).
 TRANSIENT_ORDER = 1
+#: A cell's error figures of its primary input, in the order :func:`evaluate_cell` computes them.
+_ERROR_FIELDS = ("gain_db", "gain_db_ci", "phase_deg", "phase_deg_ci", "gain_se_db")
 
 
 def default_bands(data: AnalysisData, n_target: int = 5, min_bins: int | None = None) -> np.ndarray:
@@ -79,30 +82,18 @@ def default_bands(data: AnalysisData, n_target: int = 5, min_bins: int | None = 
         The band edges, rad/s.
     """
     lo, hi = data.band
-    om = np.concatenate([d.omega[m] for d, m in zip(data.spectra, data.dft)])
+    om = data.stacked_omega()[data.stacked_dft()]
     k = COHERENT_ORDER * len(data.inputs) + TRANSIENT_ORDER * data.n_records
     need = min_bins if min_bins is not None else max(10, 3 * k)
     edges = list(np.geomspace(lo, hi, n_target + 1))
-
-    def counts(e):  # frequencies per band, the last band closed at its upper edge
-        return [
-            int(np.sum((om >= a) & (om < b))) if i < len(e) - 2 else int(np.sum((om >= a) & (om <= b)))
-            for i, (a, b) in enumerate(zip(e[:-1], e[1:]))
-        ]
-
     while len(edges) > 2:
-        c = counts(edges)
+        c = np.histogram(om, edges)[0]  # frequencies per band, the last band closed at its upper edge
         i = int(np.argmin(c))
         if c[i] >= need:
             break
         # merge the smallest band with its smaller neighbour
-        if i == 0:
-            j = 1
-        elif i == len(c) - 1:
-            j = i - 1
-        else:
-            j = i - 1 if c[i - 1] <= c[i + 1] else i + 1
-        del edges[max(i, j)]
+        right = i == 0 or (i < len(c) - 1 and c[i + 1] < c[i - 1])
+        del edges[i + 1 if right else i]
     return np.asarray(edges, float)
 
 
@@ -170,14 +161,14 @@ class Cell:
     floor: float  # noise floor per point (incoherent / dof)
     dof: int  # complex dof of the floor
     k: int  # complex coherent coefficients
-    F: float
-    p: float | None
-    excess: float  # coherent energy / floor - expectation (noise units)
-    gain_db: float | None
-    gain_db_ci: tuple | None
-    phase_deg: float | None
-    phase_deg_ci: tuple | None
-    gain_se_db: float | None
+    F: float = math.nan
+    p: float | None = None
+    excess: float = math.nan  # coherent energy / floor - expectation (noise units)
+    gain_db: float | None = None
+    gain_db_ci: tuple | None = None
+    phase_deg: float | None = None
+    phase_deg_ci: tuple | None = None
+    gain_se_db: float | None = None
     excitation: str = "ok"
     p_holm: float | None = None
     q_bh: float | None = None
@@ -194,10 +185,7 @@ class Cell:
         """
 
         def num(x):
-            if x is None:
-                return None
-            x = float(x)
-            return x if math.isfinite(x) else None
+            return None if x is None or not math.isfinite(x) else float(x)
 
         return {
             "channel": self.channel,
@@ -218,7 +206,7 @@ class Cell:
             "floor_dof": int(2 * self.dof),
             "excitation": self.excitation,
             "n_freq": int(self.n),
-            **{k: v for k, v in self.extra.items()},
+            **self.extra,
         }
 
     @classmethod
@@ -259,14 +247,12 @@ class Cell:
             floor=_nan_if_none(f.number("noise_floor", allow_none=True)),
             dof=f.integer("floor_dof", minimum=0) // 2,
             k=0,
-            F=math.nan,
             p=f.number("p_value", allow_none=True),
             excess=_nan_if_none(f.number("excess", allow_none=True)),
             gain_db=f.number("gain_db", allow_none=True),
             gain_db_ci=_pair_or_none(f, "gain_db_ci"),
             phase_deg=f.number("phase_deg", allow_none=True),
             phase_deg_ci=_pair_or_none(f, "phase_deg_ci"),
-            gain_se_db=None,
             excitation=f.string("excitation"),
             p_holm=f.number("p_holm", allow_none=True),
             q_bh=f.number("q_bh", allow_none=True),
@@ -366,6 +352,31 @@ def _legendre(x: np.ndarray, order: int) -> np.ndarray:
     return np.polynomial.legendre.legvander(x, max(order - 1, 0))[:, :order]
 
 
+def band_rows(data: AnalysisData, lo: float, hi: float, last: bool) -> tuple[np.ndarray, np.ndarray]:
+    """The stacked DFT rows in the band [lo, hi), and their log frequency mapped onto [-1, 1].
+
+    Parameters
+    ----------
+    data : AnalysisData
+        The records' spectra.
+    lo, hi : float
+        Band edges, rad/s.
+    last : bool
+        Whether this is the last band (closed at ``hi``).
+
+    Returns
+    -------
+    rows : numpy.ndarray
+        Indices into the stacked analysis rows.
+    x : numpy.ndarray
+        ``2 (ln w - ln lo) / (ln hi - ln lo) - 1`` at those rows.
+    """
+    om = data.stacked_omega()
+    inb = (om >= lo) & ((om <= hi) if last else (om < hi))
+    rows = np.flatnonzero(inb & data.stacked_dft())
+    return rows, 2.0 * (np.log(om[rows]) - math.log(lo)) / (math.log(hi) - math.log(lo)) - 1.0
+
+
 @dataclass
 class CellDesign:
     """Rows and regressors of one cell (shared by before/after evaluations).
@@ -414,25 +425,15 @@ def cell_design(data: AnalysisData, forced: np.ndarray, c: int, lo: float, hi: f
     CellDesign
         The cell's rows and its transient and coherent regressors.
     """
-    om = data.stacked_omega()
-    rec = data.stacked_record()
-    dft = data.stacked_dft()
-    inb = (om >= lo) & ((om <= hi) if last else (om < hi))
-    rows = np.flatnonzero(inb & dft)
-    x = 2.0 * (np.log(om[rows]) - math.log(lo)) / (math.log(hi) - math.log(lo)) - 1.0 if rows.size else rows
-    cols_T = []
-    for r in range(data.n_records):
-        sel = (rec[rows] == r).astype(float)
-        if sel.sum() == 0:
-            continue
-        P = _legendre(x, TRANSIENT_ORDER)
-        cols_T.append(P * sel[:, None])
+    rows, x = band_rows(data, lo, hi, last)
+    rec = data.stacked_record()[rows]
+    cols_T = [_legendre(x, TRANSIENT_ORDER) * (rec == r)[:, None] for r in np.unique(rec)]
     XT = np.hstack(cols_T).astype(complex) if cols_T else np.zeros((rows.size, 0), complex)
     cols_C, weights, used = [], [], []
     off = 0
     for j, name in enumerate(data.inputs):
         y = forced[rows, c, j]
-        if rows.size == 0 or not np.any(np.abs(y) > 0):
+        if not np.any(np.abs(y) > 0):
             continue
         P = _legendre(x, COHERENT_ORDER)
         cols_C.append(P * y[:, None])
@@ -447,10 +448,10 @@ def cell_design(data: AnalysisData, forced: np.ndarray, c: int, lo: float, hi: f
 
 def _lstsq_rss(X, e):
     if X.shape[1] == 0:
-        return float(np.vdot(e, e).real), None, None
+        return float(np.vdot(e, e).real), None
     coef, *_ = np.linalg.lstsq(X, e, rcond=None)
     res = e - X @ coef
-    return float(np.vdot(res, res).real), coef, res
+    return float(np.vdot(res, res).real), coef
 
 
 def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, floor: float | None = None):
@@ -479,29 +480,12 @@ def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, 
     dof = n - kT - kC
     ee = e[design.rows]
     total = float(np.vdot(ee, ee).real)
-    rss0, _, _ = _lstsq_rss(design.XT, ee)
+    rss0, _ = _lstsq_rss(design.XT, ee)
     X = np.hstack([design.XT, design.XC])
-    rss1, coef, _ = _lstsq_rss(X, ee)
+    rss1, coef = _lstsq_rss(X, ee)
     coherent = max(rss0 - rss1, 0.0)
     empty = Cell(
-        channel,
-        band,
-        n,
-        total / max(n, 1),
-        coherent,
-        rss1,
-        math.nan,
-        dof,
-        kC,
-        math.nan,
-        None,
-        math.nan,
-        None,
-        None,
-        None,
-        None,
-        None,
-        excitation="too few frequencies",
+        channel, band, n, total / max(n, 1), coherent, rss1, math.nan, dof, kC, excitation="too few frequencies"
     )
     if dof < 2 or kC == 0:
         return empty
@@ -509,52 +493,27 @@ def evaluate_cell(design: CellDesign, e: np.ndarray, channel: str, band: tuple, 
     if not s2 > 0:
         return empty
     F = (coherent / kC) / s2
-    p = float(stats.f.sf(F, 2 * kC, 2 * dof))
     excess = coherent / s2 - kC * dof / (dof - 1)
     # gain/phase of the model against the data, input de (the first input used)
     cov = s2 * np.linalg.pinv(X.conj().T @ X)
     out = {}
     for (sl, avg), name in zip(design.weights, design.inputs):
         idx = np.arange(kT + sl.start, kT + sl.stop)
-        d = complex(avg @ coef[idx])
+        z = 1.0 + complex(avg @ coef[idx])
         var = float(np.real(avg.conj() @ cov[np.ix_(idx, idx)] @ avg))
-        z = 1.0 + d
-        az = abs(z)
-        se = math.sqrt(max(var, 0.0) / 2.0) / max(az, 1e-12)  # per real component, relative
-        gdb = 20 * math.log10(max(az, 1e-12))
+        se = math.sqrt(max(var, 0.0) / 2.0) / max(abs(z), 1e-12)  # per real component, relative
+        gdb = 20 * math.log10(max(abs(z), 1e-12))
         ph = math.degrees(math.atan2(z.imag, z.real))
         se_db = 20 / math.log(10) * se
         se_deg = math.degrees(se)
         out[name] = (gdb, (gdb - 1.96 * se_db, gdb + 1.96 * se_db), ph, (ph - 1.96 * se_deg, ph + 1.96 * se_deg), se_db)
-    prim = out.get("de") or next(iter(out.values()))
-    excitation = "ok" if prim[4] <= MAX_GAIN_SE_DB else "insufficient excitation"
-    extra = {}
-    for name, v in out.items():
-        if name != "de":
-            extra[f"gain_db_{name}"] = v[0]
-            extra[f"phase_deg_{name}"] = v[2]
-    cell = Cell(
-        channel,
-        band,
-        n,
-        total / n,
-        coherent,
-        rss1,
-        s2,
-        dof,
-        kC,
-        F,
-        p if excitation == "ok" else None,
-        excess,
-        prim[0],
-        prim[1],
-        prim[2],
-        prim[3],
-        prim[4],
-        excitation=excitation,
-        extra=extra,
-    )
-    return cell
+    prim: dict[str, Any] = dict(zip(_ERROR_FIELDS, out.get("de") or next(iter(out.values()))))
+    excitation = "ok" if prim["gain_se_db"] <= MAX_GAIN_SE_DB else "insufficient excitation"
+    p = float(stats.f.sf(F, 2 * kC, 2 * dof)) if excitation == "ok" else None  # an untested cell has none
+    extra = {
+        f"{k}_{name}": v[i] for name, v in out.items() if name != "de" for k, i in (("gain_db", 0), ("phase_deg", 2))
+    }
+    return replace(empty, floor=s2, F=F, p=p, excess=excess, excitation=excitation, extra=extra, **prim)
 
 
 def forced_response(data: AnalysisData, model, values=None) -> np.ndarray:
@@ -634,8 +593,7 @@ def gap_map(
             fl = None if floors is None else floors.get(key)
             cells.append(evaluate_cell(designs[key], residual[:, c], ch, (edges[b], edges[b + 1]), fl))
     p = np.array([c.p if c.p is not None else np.nan for c in cells])
-    ph, q = holm(p), bh(p)
-    for cell, a, b_ in zip(cells, ph, q):
+    for cell, a, b_ in zip(cells, holm(p), bh(p)):
         cell.p_holm = None if not np.isfinite(a) else float(a)
         cell.q_bh = None if not np.isfinite(b_) else float(b_)
         cell.significant = bool(np.isfinite(a) and a < alpha)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from ..channels import OUTPUTS
@@ -22,14 +20,9 @@ _MAP_KEY = (
 
 
 def _map_array(cells, channels, nb):
-    X = np.full((len(channels), nb), np.nan)
-    sig = np.zeros((len(channels), nb), bool)
-    for i, c in enumerate(cells):
-        r, b = divmod(i, nb)
-        ex = c.get("excess")
-        X[r, b] = np.nan if ex is None else ex
-        sig[r, b] = bool(c.get("significant"))
-    return X, sig
+    X = np.array([np.nan if c.get("excess") is None else c["excess"] for c in cells], float)
+    sig = np.array([bool(c.get("significant")) for c in cells])
+    return X.reshape(len(channels), nb), sig.reshape(len(channels), nb)
 
 
 def _draw_map(ax, cells, channels, edges, title, vmax):
@@ -37,21 +30,13 @@ def _draw_map(ax, cells, channels, edges, title, vmax):
     X, sig = _map_array(cells, channels, nb)
     V = np.log10(1.0 + np.maximum(np.nan_to_num(X, nan=0.0), 0.0))
     im = ax.imshow(V, aspect="auto", cmap="magma_r", vmin=0, vmax=vmax, origin="upper")
-    for r in range(len(channels)):
-        for b in range(nb):
-            c = cells[r * nb + b]
-            txt = "-" if c.get("excess") is None else f"{c['excess']:.0f}"
-            if c.get("gain_db") is not None and c.get("phase_deg") is not None:
-                txt += f"\n{c['gain_db']:+.1f} dB\n{c['phase_deg']:+.1f}°"
-            ax.text(
-                b,
-                r,
-                txt + (" *" if sig[r, b] else ""),
-                ha="center",
-                va="center",
-                fontsize=7,
-                color="white" if V[r, b] > 0.6 * vmax else "black",
-            )
+    for i, c in enumerate(cells):
+        r, b = divmod(i, nb)
+        txt = "-" if c.get("excess") is None else f"{c['excess']:.0f}"
+        if c.get("gain_db") is not None and c.get("phase_deg") is not None:
+            txt += f"\n{c['gain_db']:+.1f} dB\n{c['phase_deg']:+.1f}°"
+        color = "white" if V[r, b] > 0.6 * vmax else "black"
+        ax.text(b, r, txt + (" *" if sig[r, b] else ""), ha="center", va="center", fontsize=7, color=color)
     ax.set_xticks(range(nb))
     ax.set_xticklabels([f"{edges[i]:.2g}-{edges[i + 1]:.2g}" for i in range(nb)], fontsize=7)
     ax.set_yticks(range(len(channels)))
@@ -104,9 +89,9 @@ def plot_report(rep, path=None):
     axt = fig.add_subplot(gs[0, 2])
     axt.axis("off")
     # Bode overlays (elevator column) at the independent frequencies
-    om = np.concatenate([d.omega[m] for d, m in zip(data.spectra, data.dft)])
-    order = np.argsort(om)
     rows = np.flatnonzero(data.stacked_dft())
+    om = data.stacked_omega()[rows]
+    order = np.argsort(om)
     u = np.concatenate([d.u[:, 0] for d in data.spectra])[rows]
     e = base.full_residual()[rows]
     Gb = np.concatenate([base.model.evaluate(d.omega).G[:, :, 0] for d in data.spectra])[rows]
@@ -177,7 +162,3 @@ def _fit_text(ax, text: str, fontsize: float) -> None:
         if size <= 4.0:
             return  # the smallest font and wrap: shown as far as it goes
         size -= 0.5
-
-
-def _finite(x) -> bool:  # pragma: no cover - helper
-    return x is not None and math.isfinite(x)

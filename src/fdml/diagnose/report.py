@@ -30,7 +30,7 @@ flagged cells are reported under ``unexplained`` all the same.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..warning_log import as_recorded
 
@@ -53,6 +53,8 @@ _MISSING = object()
 RECOMMENDATION_KEYS = ("settled_by_kinematics", "ambiguous", "alternatives", "spread", "derivatives")
 #: Keys every JSON report has (issue 4).
 JSON_KEYS = ("verdict", "ranking", "ambiguous", "not_identifiable", "location", "footprint", "unexplained")
+#: The JSON's other keys that hold a field of the same name as it is (after ``status`` and ``problems``).
+_PLAIN_KEYS = ("selected", "location_after", "compensation", "parameter_shifts", "holdout", "noise", "settings")
 
 
 def label_for(
@@ -98,9 +100,7 @@ def label_for(
         return "partial"
     if n_flagged == 0 or shrink is None:
         return "tentative"
-    if shrink < threshold:
-        return "partial"
-    if accepted and n_unexplained > 0:
+    if shrink < threshold or (accepted and n_unexplained > 0):
         return "partial"
     if ambiguous or not accepted:
         return "tentative"
@@ -118,10 +118,8 @@ def _derivative_lines(table: dict) -> list:
         v, se = x
         return f"{v:>11.4g} +- {se if se is not None else float('nan'):<8.2g}"
 
-    out = [f"  {'parameter':10s} {'base as given':>22s} {'recommended':>22s}"]
-    for n, row in table.items():
-        out.append(f"  {n:10s} {cell(row.get('base'))} {cell(row.get('recommended'))}")
-    return out
+    head = f"  {'parameter':10s} {'base as given':>22s} {'recommended':>22s}"
+    return [head] + [f"  {n:10s} {cell(row.get('base'))} {cell(row.get('recommended'))}" for n, row in table.items()]
 
 
 def _clean(obj):
@@ -240,29 +238,14 @@ class DiagnosisReport:
         dict
             Plain JSON data (non-finite numbers as None).
         """
-        d = {
-            "verdict": self.verdict,
-            "ranking": self.ranking,
-            "ambiguous": self.ambiguous,
-            "not_identifiable": self.not_identifiable,
-            "location": self.location,
-            "footprint": self.footprint,
-            "unexplained": self.unexplained,
-            "status": self.status,
-            "problems": self.problems,
-            "selected": self.selected,
-            "location_after": self.location_after,
-            "compensation": self.compensation,
-            "parameter_shifts": self.parameter_shifts,
-            "holdout": self.holdout,
-            "noise": self.noise,
-            "settings": self.settings,
-            "summary": self.text,
-            "findings": [f.to_dict() for f in self.findings],
-            "recommended": self._recommended_dict(),
-            "kinematics": self.kinematics,
-            "warnings": [w.to_dict() for w in as_recorded(self.warnings)],
-        }
+        d = {k: getattr(self, k) for k in (*JSON_KEYS, "status", "problems", *_PLAIN_KEYS)}
+        d.update(
+            summary=self.text,
+            findings=[f.to_dict() for f in self.findings],
+            recommended=self._recommended_dict(),
+            kinematics=self.kinematics,
+            warnings=[w.to_dict() for w in as_recorded(self.warnings)],
+        )
         return _clean(d)
 
     def _recommended_dict(self) -> dict | None:
@@ -303,23 +286,17 @@ class DiagnosisReport:
 
         holdout = f.raw("holdout", None)
         recommended = f.raw("recommended", None)
+        kw: dict[str, Any] = {
+            "verdict": f.string("verdict"),
+            "status": f.string("status"),
+            **{k: items(k) for k in ("problems", *JSON_KEYS[1:])},
+            **{k: items(k, []) for k in ("selected", "location_after", "compensation")},
+            "parameter_shifts": f.mapping("parameter_shifts", default={}),
+            "holdout": None if holdout is None else f.mapping("holdout"),
+            **{k: f.mapping(k, default={}) for k in ("noise", "settings")},
+        }
         return cls(
-            verdict=f.string("verdict"),
-            status=f.string("status"),
-            problems=items("problems"),
-            ranking=items("ranking"),
-            ambiguous=items("ambiguous"),
-            not_identifiable=items("not_identifiable"),
-            location=items("location"),
-            footprint=items("footprint"),
-            unexplained=items("unexplained"),
-            selected=items("selected", []),
-            location_after=items("location_after", []),
-            compensation=items("compensation", []),
-            parameter_shifts=f.mapping("parameter_shifts", default={}),
-            holdout=None if holdout is None else f.mapping("holdout"),
-            noise=f.mapping("noise", default={}),
-            settings=f.mapping("settings", default={}),
+            **kw,
             text=f.string("summary", default=""),
             findings=tuple(Finding.from_fields(x) for x in f.items("findings", default=[])),
             warnings=as_recorded(items("warnings", [])),
@@ -393,11 +370,8 @@ class DiagnosisReport:
         if self.warnings:
             lines += ["", "warnings of the fits:"] + [f"  {w}" for w in as_recorded(self.warnings)]
         if self.not_identifiable:
-            lines.append("")
-            lines.append(
-                "not testable here: "
-                + "; ".join(f"{n['effect']}@{n['channel']} ({n['reason']})" for n in self.not_identifiable)
-            )
+            untestable = "; ".join(f"{n['effect']}@{n['channel']} ({n['reason']})" for n in self.not_identifiable)
+            lines += ["", "not testable here: " + untestable]
         return "\n".join(lines)
 
     def __str__(self) -> str:

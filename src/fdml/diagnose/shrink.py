@@ -27,7 +27,7 @@ from ..estimate import fit as fdml_fit
 from ..warning_log import recording
 from .data import AnalysisData
 from .likelihood import DiagFit, diag_fit
-from .locate import GapMap, forced_response, gap_map
+from .locate import GapMap, band_rows, forced_response, gap_map
 
 __all__ = ["fit_map", "shrink", "footprint", "compensation", "parameter_shifts", "frozen_fit"]
 
@@ -103,18 +103,14 @@ def _predict_rows(fit: DiagFit, theta: np.ndarray) -> np.ndarray:
 
 
 def _cell_energy(data: AnalysisData, delta: np.ndarray, before: GapMap) -> list:
-    om = data.stacked_omega()
-    dft = data.stacked_dft()
     nb = before.edges.size - 1
     out = []
-    for c in before.cells:
-        b = [i for i in range(nb) if abs(before.edges[i] - c.band[0]) < 1e-12][0]
-        lo, hi = before.edges[b], before.edges[b + 1]
-        rows = dft & (om >= lo) & ((om <= hi) if b == nb - 1 else (om < hi))
-        k = CHANNELS.index(c.channel)
-        e = float(np.sum(np.abs(delta[rows, k]) ** 2))
-        fl = c.floor if (c.floor is not None and math.isfinite(c.floor) and c.floor > 0) else math.nan
-        out.append({"channel": c.channel, "band": [round(lo, 6), round(hi, 6)], "energy": e / fl if fl == fl else None})
+    for i, c in enumerate(before.cells):
+        lo, hi = before.edges[i % nb], before.edges[i % nb + 1]
+        rows, _ = band_rows(data, lo, hi, i % nb == nb - 1)
+        e = float(np.sum(np.abs(delta[rows, CHANNELS.index(c.channel)]) ** 2))
+        ok = c.floor is not None and math.isfinite(c.floor) and c.floor > 0
+        out.append({"channel": c.channel, "band": [round(lo, 6), round(hi, 6)], "energy": e / c.floor if ok else None})
     tot = sum(x["energy"] for x in out if x["energy"] is not None)
     for x in out:
         x["share"] = None if (x["energy"] is None or tot <= 0) else x["energy"] / tot
@@ -140,17 +136,19 @@ def footprint(data: AnalysisData, fit: DiagFit, nulls: dict, before: GapMap) -> 
     list of dict
         Per cell: ``channel``, ``band`` (rad/s), ``energy`` (floor units) and ``share``.
     """
+    delta = _predict_rows(fit, fit.theta) - _predict_null(fit, nulls)
+    return _cell_energy(data, delta, before)
+
+
+def _predict_null(fit: DiagFit, nulls: dict) -> np.ndarray:
+    """Prediction with the effect switched off (free and fixed effect parameters at their nulls).
+
+    Nuisance (non-free) effect parameters live in the model, not in theta.
+    """
     theta0 = fit.theta.copy()
     for n, v in nulls.items():
         if n in fit.names:
             theta0[fit.names.index(n)] = v
-    # nuisance (non-free) effect parameters live in the model, not in theta (see _predict_null)
-    delta = _predict_rows(fit, fit.theta) - _predict_null(fit, theta0, nulls)
-    return _cell_energy(data, delta, before)
-
-
-def _predict_null(fit: DiagFit, theta0: np.ndarray, nulls: dict) -> np.ndarray:
-    """Prediction with the effect switched off (free and fixed effect parameters at their nulls)."""
     fixed = {n: v for n, v in nulls.items() if n not in fit.names}
     if not fixed:
         return _predict_rows(fit, theta0)
@@ -184,11 +182,7 @@ def compensation(data: AnalysisData, fit: DiagFit, base: DiagFit, nulls: dict, b
     list of dict
         Per cell: ``channel``, ``band`` (rad/s), ``energy`` (floor units) and ``share``.
     """
-    theta0 = fit.theta.copy()
-    for n, v in nulls.items():
-        if n in fit.names:
-            theta0[fit.names.index(n)] = v
-    delta = _predict_null(fit, theta0, nulls) - _predict_rows(base, base.theta)
+    delta = _predict_null(fit, nulls) - _predict_rows(base, base.theta)
     return _cell_energy(data, delta, before)
 
 
@@ -208,21 +202,12 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
         Per shared model parameter and derived value (``derived: True``), values
         in its unit and the shift in base standard errors.
     """
-    out = {}
     bp, fp = base.params, fit.params
-    slots = base.prob.slots
-    for i, n in enumerate(base.names):
-        if slots[i].role.nuisance or n not in fp:
-            continue
-        se = base.stderr.get(n, math.nan)
-        shift = (fp[n] - bp[n]) / se if (se and math.isfinite(se) and se > 0) else math.nan
-        out[n] = {
-            "base": bp[n],
-            "base_stderr": se,
-            "augmented": fp[n],
-            "augmented_stderr": fit.stderr.get(n, math.nan),
-            "shift_in_stderr": shift,
-        }
+    out = {
+        n: _shift(bp[n], base.stderr.get(n, math.nan), fp[n], fit.stderr.get(n, math.nan))
+        for n, slot in zip(base.names, base.prob.slots)
+        if not slot.role.nuisance and n in fp
+    }
     # the derived set (alternate set / dimensional derivatives, docs/theory.md 6), delta-method errors
     try:
         bd = base.model.derived()
@@ -232,19 +217,16 @@ def parameter_shifts(base: DiagFit, fit: DiagFit) -> dict:
     except Exception:  # pragma: no cover - a model without a derived set
         return out
     for k in bd:
-        if k in out or k not in ad:
-            continue
-        se = bse.get(k, (None, math.nan))[1]
-        shift = (ad[k] - bd[k]) / se if (se and math.isfinite(se) and se > 0) else math.nan
-        out[k] = {
-            "base": bd[k],
-            "base_stderr": se,
-            "augmented": ad[k],
-            "augmented_stderr": fse.get(k, (None, math.nan))[1],
-            "shift_in_stderr": shift,
-            "derived": True,
-        }
+        if k not in out and k in ad:
+            se = bse.get(k, (None, math.nan))[1]
+            out[k] = {**_shift(bd[k], se, ad[k], fse.get(k, (None, math.nan))[1]), "derived": True}
     return out
+
+
+def _shift(base: float, base_se: float, aug: float, aug_se: float) -> dict:
+    """One entry of :func:`parameter_shifts`: the shift in base standard errors (NaN without one)."""
+    shift = (aug - base) / base_se if (base_se and math.isfinite(base_se) and base_se > 0) else math.nan
+    return dict(base=base, base_stderr=base_se, augmented=aug, augmented_stderr=aug_se, shift_in_stderr=shift)
 
 
 def frozen_fit(data: AnalysisData, model, bands: NoiseModel, options: dict) -> DiagFit:

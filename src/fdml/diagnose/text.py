@@ -15,20 +15,20 @@ def _fmt_param(name: str, d: dict) -> str:
         return name
     k, u = _UNIT_SCALE.get(unit, (1.0, unit))
     s = f"{name} = {k * v:.3g}"
-    if se is not None and math.isfinite(se):
+    if _finite(se):
         s += f" ± {k * se:.2g}"
     return s + (f" {u}" if u and u != "-" else "")
 
 
-def _band(c) -> str:
-    return f"{c['band'][0]:.3g}-{c['band'][1]:.3g} rad/s"
+def _finite(x) -> bool:
+    return x is not None and math.isfinite(x)
 
 
 def _where(c, whole) -> str:
     """``at LO-HI rad/s``, or ``across the band`` for a cell that spans the whole analysis band."""
     if whole is not None and all(math.isclose(a, b, rel_tol=1e-6) for a, b in zip(c["band"], whole)):
         return "across the band"
-    return f"at {_band(c)}"
+    return f"at {c['band'][0]:.3g}-{c['band'][1]:.3g} rad/s"
 
 
 def _errors(c) -> str:
@@ -72,19 +72,16 @@ def _p(p) -> str:
 def _kinematics_sentences(rep) -> list:
     """What the short-period identity said about the sensors, and what it did with it."""
     k = getattr(rep, "kinematics", None) or {}
-    out = []
-    for m in k.get("settled", []):
-        size = _fmt_param(m["param"], m)
-        out.append(
-            f"The kinematics (alpha, q and a_z obey the short-period identity whatever the aerodynamics) settle "
-            f"{m['key']} ({size}, LR {m['lr']:.3g}): it enters the recommended model fixed at that value, its "
-            "uncertainty carried into the standard errors."
-        )
-    for m in k.get("implausible", []):
-        out.append(
-            f"The kinematics' other reading, {m['key']} ({_fmt_param(m['param'], m)}), lies outside its "
-            "plausible range."
-        )
+    out = [
+        f"The kinematics (alpha, q and a_z obey the short-period identity whatever the aerodynamics) settle "
+        f"{m['key']} ({_fmt_param(m['param'], m)}, LR {m['lr']:.3g}): it enters the recommended model fixed at "
+        "that value, its uncertainty carried into the standard errors."
+        for m in k.get("settled", [])
+    ]
+    out += [
+        f"The kinematics' other reading, {m['key']} ({_fmt_param(m['param'], m)}), lies outside its plausible range."
+        for m in k.get("implausible", [])
+    ]
     out += _flight_path_sentences(k)
     for a in k.get("aliases", []):
         names = " or ".join(f"{m['key']} ({_fmt_param(m['param'], m)})" for m in a)
@@ -203,14 +200,12 @@ def paragraph(rep) -> str:
     if sel:
         for i, s in enumerate(sel):
             params = ", ".join(_fmt_param(k, v) for k, v in s["params"].items())
-            sh = s.get("shrink")
-            hs = s.get("shrink_holdout")
             shtxt = (
-                f"explains {100 * sh:.0f} % of the coherent gap in the flagged cells"
-                if sh is not None
+                f"explains {100 * s['shrink']:.0f} % of the coherent gap in the flagged cells"
+                if s.get("shrink") is not None
                 else "is significant although no cell was flagged"
             )
-            if hs is not None and s.get("shrink_in_sample") is not None:
+            if s.get("shrink_holdout") is not None and s.get("shrink_in_sample") is not None:
                 shtxt += f" (held out; in-sample {100 * s['shrink_in_sample']:.0f} %)"
             lead = "Cause" if i == 0 else "A further effect"
             kin = s.get("kinematic")
@@ -229,16 +224,11 @@ def paragraph(rep) -> str:
                         f"It acts mostly on {top['channel']} {_where(top, whole)} ({100 * top['share']:.0f} % "
                         "of its footprint)."
                     )
-        shifts = sel[0].get("parameter_shifts") or {}
+        shifts = (sel[0].get("parameter_shifts") or {}).items()
         big = sorted(
-            (
-                (k, v)
-                for k, v in shifts.items()
-                if v.get("shift_in_stderr") is not None and math.isfinite(v["shift_in_stderr"])
-            ),
+            ((k, v) for k, v in shifts if _finite(v.get("shift_in_stderr")) and abs(v["shift_in_stderr"]) >= 2),
             key=lambda kv: -abs(kv[1]["shift_in_stderr"]),
-        )
-        big = [kv for kv in big if abs(kv[1]["shift_in_stderr"]) >= 2][:3]
+        )[:3]
         if big:
             out.append(
                 "Without it the base estimates were biased: "
@@ -265,14 +255,12 @@ def paragraph(rep) -> str:
     else:
         out.append(f"No candidate effect is significant at the family level {st.get('alpha')}: verdict none.")
     out += _ambiguity_sentences(rep)
-    uin = [u for u in rep.unexplained if u.get("where") == "in-sample"]
-    uho = [u for u in rep.unexplained if u.get("where") == "holdout"]
-    if uin or uho:
-        parts = []
-        if uin:
-            parts.append("in-sample " + "; ".join(_cell_phrase(u, whole) for u in uin[:3]))
-        if uho:
-            parts.append("on the held-out record " + "; ".join(_cell_phrase(u, whole) for u in uho[:3]))
+    parts = []
+    for where, lead in (("in-sample", "in-sample"), ("holdout", "on the held-out record")):
+        cells = [u for u in rep.unexplained if u.get("where") == where]
+        if cells:
+            parts.append(f"{lead} " + "; ".join(_cell_phrase(u, whole) for u in cells[:3]))
+    if parts:
         out.append("Still unexplained: " + " and ".join(parts) + ".")
     elif sel:
         out.append("No flagged cell remains after the final model.")

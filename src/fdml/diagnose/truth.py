@@ -44,7 +44,7 @@ from ..constants import G0
 from ..errors import ParameterError
 from ..maneuvers import dryden_gust, make_input, time_vector
 from ..models.base import Model
-from ..models.effects import get_effect, root_model
+from ..models.effects import get_effect, root_model, with_gust
 from ..record import Record, noise_stds
 from ..simulate import realize, simulate
 
@@ -154,10 +154,8 @@ def _downwash_delay(model, t, inputs, tau: float, sub: int = 8) -> dict:
 def _qdot(model, values, t, inputs) -> np.ndarray:
     """q_dot from the model's state equations (finite-state realisation, exact first-order hold)."""
     real = realize(model, values)
-    C2 = np.vstack([real.C[1] @ real.A])
-    D2 = np.vstack([real.C[1] @ real.B])
     u = np.column_stack([np.interp(t - d, t, inputs[nm], left=0.0) for nm, d in real.channels])
-    sys = signal.StateSpace(real.A, real.B, C2, D2)
+    sys = signal.StateSpace(real.A, real.B, real.C[1:2] @ real.A, real.C[1:2] @ real.B)
     _, y, _ = signal.lsim(sys, u, t, interp=True)
     return np.asarray(y, float).reshape(t.size)
 
@@ -287,11 +285,9 @@ def sensor_noise(rng: np.random.Generator, n: int, dt: float, kind: str = "white
     if kind != "coloured":
         raise ParameterError(f"noise kind must be 'white' or 'coloured', got {kind!r}")
     a = math.exp(-COLOURED_CORNER * dt)
-    x = np.empty(n)
     e = rng.standard_normal(n) * math.sqrt(1 - a * a)
-    x[0] = rng.standard_normal()
-    for i in range(1, n):
-        x[i] = a * x[i - 1] + e[i]
+    e[0] = rng.standard_normal()  # the AR(1) part starts from its stationary distribution
+    x = signal.lfilter([1.0], [1.0, -a], e)  # x_i = a x_(i-1) + e_i
     # AR(1) spectrum at low frequency is (1 + a)/(1 - a) times its variance density; scale to the ratio
     c = math.sqrt(COLOURED_LF_RATIO * (1 - a) / (1 + a))
     return w + c * x
@@ -304,12 +300,11 @@ def _elevator(maneuver: str, tr: np.ndarray, amp: float, rng: np.random.Generato
         n1 = int(round(0.75 * (tr.size - 1))) + 1
         u = make_input("multisine", tr[:n1], amp, omega_lo=0.4, omega_hi=12.0, phases="random", rng=rng)
         return np.concatenate([u, np.zeros(tr.size - n1)])
-    elif maneuver == "3211":
+    if maneuver == "3211":
         return make_input("3211", tr, amp, unit=0.4, rise=0.04)
-    elif maneuver == "doublet":
+    if maneuver == "doublet":
         return make_input("doublet", tr, amp, width=0.4, rise=0.04)
-    else:
-        raise ParameterError(f"unknown manoeuvre {maneuver!r}; use 3211, doublet or multisine")
+    raise ParameterError(f"unknown manoeuvre {maneuver!r}; use 3211, doublet or multisine")
 
 
 def simulate_truth(
@@ -367,15 +362,13 @@ def simulate_truth(
     values = dict(values or {})
     rng = np.random.default_rng(seed)
     gust_key = key == "unmeasured_gust"
-    turbulent = gust_key
     # in turbulence the aircraft is never at rest: simulate a warm-up and keep the last `duration` s
-    warm = WARMUP if turbulent else 0.0
+    warm = WARMUP if gust_key else 0.0
     t = time_vector(duration + warm, dt)
     n0 = int(round(warm / dt))
     tr = t[: t.size - n0]  # the kept record's own time axis
     amp = amplitude if amplitude is not None else math.radians(1.0)
-    de_rec = _elevator(maneuver, tr, amp, rng)
-    de = np.concatenate([np.zeros(n0), de_rec])
+    de = np.concatenate([np.zeros(n0), _elevator(maneuver, tr, amp, rng)])
     inputs = {"de": de}
     U = base.U
     if gust_key:
@@ -388,13 +381,10 @@ def simulate_truth(
         inputs["alpha_w"] = aw * signal.windows.tukey(t.size, min(2 * GUST_FADE / t[-1], 1.0))
     model = base
     if gust_key:
-        from ..models.effects import with_gust
-
         model = with_gust(base)
     elif key is not None and key not in OUT_OF_LIBRARY:
         model = truth_model(base, key, values)
-    mvals = {k: v for k, v in values.items() if k in model.parameters}
-    run = _Run(t, model, inputs, mvals)
+    run = _Run(t, model, inputs, {k: v for k, v in values.items() if k in model.parameters})
     y = TRUTHS[key](run, values) if key in TRUTHS else run.outputs()
     keep = slice(n0, t.size)
     signals = {"de": de[keep], **{k: v[keep] for k, v in y.items()}}
@@ -404,15 +394,7 @@ def simulate_truth(
     stds = noise_stds(clean, noise, relative=True)  # a fraction of each clean channel's RMS
     if any(stds.values()):
         signals.update({ch: clean[ch] + stds[ch] * sensor_noise(rng, tr.size, dt, noise_kind) for ch in OUTPUTS})
-    meta = {
-        "truth": key,
-        "values": values,
-        "maneuver": maneuver,
-        "noise": noise,
-        "noise_kind": noise_kind,
-        "seed": seed,
-        "U": U,
-    }
+    meta = dict(truth=key, values=values, maneuver=maneuver, noise=noise, noise_kind=noise_kind, seed=seed, U=U)
     if "alpha_w" in inputs:
         meta["gust_rms_in_record"] = float(np.std(inputs["alpha_w"][keep]) * U)  # realised sigma_w, m/s
     return Record(tr, signals, name=name or f"{key or 'none'}-{maneuver}-{seed}", meta=meta, check_units=False)

@@ -23,6 +23,7 @@ REPORT_SEED_BASE``) is where the figures come from.  The two never overlap.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import math
 import os
 import time
@@ -126,9 +127,7 @@ class Scenario:
     @property
     def truth_name(self) -> str:
         """The withheld effect's name, or ``"none"`` for a null case."""
-        if self.truth is None:
-            return "none"
-        return self.truth.split("@")[0]
+        return "none" if self.truth is None else self.truth.split("@")[0]
 
 
 def scenarios(
@@ -157,23 +156,18 @@ def scenarios(
     list of Scenario
         The scenarios, seeds distinct.
     """
-    out = []
-    seed = seed_base
-    for key in TRUTHS if truths is None else truths:
-        small, large = TRUTHS[key]
-        for size, vals in (("small", small), ("large", large)):
-            for man in MANEUVERS:
-                for nz in NOISES:
-                    for _ in range(n_effect):
-                        out.append(Scenario(key, dict(vals), size, man, nz, "white", seed, key))
-                        seed += 1
-    for name in NULLS if nulls is None else nulls:
-        for man in MANEUVERS:
-            for nz in NOISES:
-                for _ in range(n_null):
-                    out.append(Scenario(None, {}, "-", man, nz, NULLS[name], seed, name))
-                    seed += 1
-    return out
+    seeds = itertools.count(seed_base)
+    out = [
+        Scenario(key, dict(vals), size, man, nz, "white", next(seeds), key)
+        for key in (TRUTHS if truths is None else truths)
+        for size, vals in zip(("small", "large"), TRUTHS[key])
+        for man, nz, _ in itertools.product(MANEUVERS, NOISES, range(n_effect))
+    ]
+    return out + [
+        Scenario(None, {}, "-", man, nz, NULLS[name], next(seeds), name)
+        for name in (NULLS if nulls is None else nulls)
+        for man, nz, _ in itertools.product(MANEUVERS, NOISES, range(n_null))
+    ]
 
 
 def _base(sc: Scenario):
@@ -208,11 +202,7 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
     t0 = time.perf_counter()
     rec = simulate_truth(base, sc.truth, sc.values, maneuver=sc.maneuver, seed=sc.seed, **kw)
     hold = simulate_truth(base, sc.truth, sc.values, maneuver=HOLDOUT_OF[sc.maneuver], seed=sc.seed + 7_919_000, **kw)
-    row = {
-        **{k: v for k, v in asdict(sc).items() if k != "values"},
-        "values": dumps(sc.values, indent=None),
-        "truth_name": sc.truth_name,
-    }
+    row = _scenario_columns(sc)
     try:
         with recording(reemit=False) as log:  # hundreds of runs: counted in the row, not shown
             rep = diagnose(rec, base, holdout=hold, band=BAND, **(diagnose_options or {}))
@@ -221,14 +211,9 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
         return row
     warned = merged(log, rep.warnings)
     sel = rep.selected[0] if rep.selected else None
-    g = next((r for r in rep.ranking if r["effect"] == "unmeasured_gust"), None)
     if sel is None and rep.verdict == "unmeasured_gust":
-        sel = g
-    truth_rows = [
-        r for r in rep.ranking if sc.truth and (r["key"] == sc.truth or r["effect"] == sc.truth) and r["step"] == 0
-    ]
-    tr = truth_rows[0] if truth_rows else None
-    hold_info = rep.holdout or {}
+        sel = next((r for r in rep.ranking if r["effect"] == "unmeasured_gust"), None)
+    tr = next((r for r in rep.ranking if sc.truth and sc.truth in (r["key"], r["effect"]) and r["step"] == 0), None)
     row.update(
         status=rep.status,
         verdict=rep.verdict,
@@ -243,7 +228,7 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
         shrink_holdout=sel.get("shrink_holdout") if sel else None,
         plausible=sel.get("plausible", True) if sel else None,
         flagged_before=sum(1 for c in rep.location if c.get("significant")),
-        flagged_before_holdout=hold_info.get("flagged_before"),
+        flagged_before_holdout=(rep.holdout or {}).get("flagged_before"),
         unexplained_in_sample=sum(1 for u in rep.unexplained if u.get("where") == "in-sample"),
         unexplained_holdout=sum(1 for u in rep.unexplained if u.get("where") == "holdout"),
         truth_lr=tr["lr"] if tr else None,
@@ -263,16 +248,14 @@ def _run(task: dict) -> dict:
 
 def _failed(task: dict, exc) -> dict:
     """The row of a run whose worker failed outside :func:`run_scenario` (it died, or the simulation raised)."""
-    sc = task["scenario"]
     msg = exc if isinstance(exc, str) else one_line(exc)
-    return {
-        **{k: v for k, v in asdict(sc).items() if k != "values"},
-        "values": dumps(sc.values, indent=None),
-        "truth_name": sc.truth_name,
-        "status": f"error: {msg}",
-        "verdict": "error",
-        "verdict_key": "error",
-    }
+    return dict(_scenario_columns(task["scenario"]), status=f"error: {msg}", verdict="error", verdict_key="error")
+
+
+def _scenario_columns(sc: Scenario) -> dict:
+    """The scenario's columns of a row (its values as JSON text)."""
+    row = {k: v for k, v in asdict(sc).items() if k != "values"}
+    return {**row, "values": dumps(sc.values, indent=None), "truth_name": sc.truth_name}
 
 
 def wilson(k: int, n: int, z: float = 1.96) -> tuple:
@@ -326,16 +309,13 @@ def relabel(row: dict, threshold: float, unexplained: str = UNEXPLAINED_RULE) ->
     n_unexp = row.get("unexplained_in_sample" if unexplained == "in-sample" else "unexplained_holdout") or 0
     if row.get("verdict") == "unmeasured_gust":
         return "confirmed" if n_unexp == 0 else "partial"
-    amb = len(loads(row.get("ambiguous") or "[]")) > 0
-    n_flag = row.get("flagged_before_holdout")
-    shr = row.get("shrink")
     return label_for(
         significant=True,
         accepted=True,
-        ambiguous=amb,
+        ambiguous=len(loads(row.get("ambiguous") or "[]")) > 0,
         plausible=bool(row.get("plausible", True)),
-        shrink=shr,
-        n_flagged=n_flag or 0,
+        shrink=row.get("shrink"),
+        n_flagged=row.get("flagged_before_holdout") or 0,
         n_unexplained=n_unexp,
         threshold=threshold,
     )
@@ -403,17 +383,16 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
             "labels_when_top1": dict(lab_top),
             "errors": errors,
         }
-        by_size = {}
-        for size in ("small", "large"):
-            rr = [r for r in rs if r["size"] == size]
-            if rr:
-                t1 = sum(1 for r in rr if r["verdict"] == name)
-                by_size[size] = {
-                    "n": len(rr),
-                    "top1": t1 / len(rr),
-                    "detected": sum(1 for r in rr if r["verdict"] not in ("none", "error")) / len(rr),
-                }
-        entry["by_size"] = by_size
+        by_size = {size: [r for r in rs if r["size"] == size] for size in ("small", "large")}
+        entry["by_size"] = {
+            size: {
+                "n": len(rr),
+                "top1": sum(1 for r in rr if r["verdict"] == name) / len(rr),
+                "detected": sum(1 for r in rr if r["verdict"] not in ("none", "error")) / len(rr),
+            }
+            for size, rr in by_size.items()
+            if rr
+        }
         if case in OUT_OF_LIBRARY:
             wrong_conf = sum(
                 1 for r, lab in zip(rs, labels) if r["verdict"] not in ("none", "error") and lab == "confirmed"
@@ -429,8 +408,7 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
             }
             continue
         eff[case] = entry
-    lib = [c for c in eff]
-    overall_top1 = sum(eff[c]["top1"] * eff[c]["n"] for c in lib) / max(sum(eff[c]["n"] for c in lib), 1)
+    overall_top1 = sum(v["top1"] * v["n"] for v in eff.values()) / max(sum(v["n"] for v in eff.values()), 1)
     return {
         "threshold": threshold,
         "effects": eff,
@@ -476,22 +454,17 @@ def tune_threshold(
         The threshold, or ``(threshold, rule)`` with ``return_rule``.
     """
     best, best_rule, best_j = SHRINK_CONFIRM, UNEXPLAINED_RULE, -math.inf
-    for rule in rules:
-        for th in sorted(grid, reverse=True):
-            good = bad = n = 0
-            for r in rows:
-                if r.get("verdict") in (None, "error"):
-                    continue
-                n += 1
-                if r["verdict"] == "none" or relabel(r, th, rule) != "confirmed":
-                    continue
-                if r.get("truth") is not None and r["case"] not in OUT_OF_LIBRARY and r["verdict"] == r["truth_name"]:
-                    good += 1
-                else:
-                    bad += 1
-            j = (good - cost * bad) / max(n, 1)
-            if j > best_j + 1e-12:
-                best, best_rule, best_j = th, rule, j
+    runs = [r for r in rows if r.get("verdict") not in (None, "error")]
+    for rule, th in itertools.product(rules, sorted(grid, reverse=True)):
+        confirmed = [r for r in runs if r["verdict"] != "none" and relabel(r, th, rule) == "confirmed"]
+        good = sum(
+            1
+            for r in confirmed
+            if r.get("truth") is not None and r["case"] not in OUT_OF_LIBRARY and r["verdict"] == r["truth_name"]
+        )
+        j = (good - cost * (len(confirmed) - good)) / max(len(runs), 1)
+        if j > best_j + 1e-12:
+            best, best_rule, best_j = th, rule, j
     return (float(best), best_rule) if return_rule else float(best)
 
 
@@ -644,15 +617,8 @@ def validate(
     procs = processes or os.cpu_count() or 1
     rows = []
     report = (lambda done, total, row: progress(done, total)) if progress else None
-    runs = execute(
-        _run,
-        tasks,
-        engine="process" if procs > 1 else "serial",
-        workers=procs,
-        on_error=_failed,
-        progress=report,
-        total=len(tasks),
-    )
+    engine = "process" if procs > 1 else "serial"
+    runs = execute(_run, tasks, engine=engine, workers=procs, on_error=_failed, progress=report, total=len(tasks))
     with contextlib.ExitStack() as stack:
         fh = stack.enter_context(open(rows_path, "a")) if rows_path else None
         for row in stack.enter_context(contextlib.closing(runs)):
@@ -660,7 +626,6 @@ def validate(
             if fh:
                 fh.write(dumps(row, indent=None) + "\n")
                 fh.flush()
-    th = SHRINK_CONFIRM if threshold is None else threshold
     settings = {
         "n_effect": n_effect,
         "n_null": n_null,
@@ -671,4 +636,4 @@ def validate(
         "gust_std": GUST_STD,
         "base_model": "steady navion",
     }
-    return ValidationResult(rows, score(rows, th), settings)
+    return ValidationResult(rows, score(rows, SHRINK_CONFIRM if threshold is None else threshold), settings)
