@@ -55,28 +55,28 @@ TMP_SUFFIX = ".tmp"
 
 
 # --- checks -------------------------------------------------------------------------------------
+#: Plain-language names of the file types that are not regular files.
+_KINDS = (
+    (stat.S_ISDIR, "a folder"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
 def _kind(mode: int) -> str:
     """A plain-language name of a non-regular file type."""
-    if stat.S_ISDIR(mode):
-        return "a folder"
-    if stat.S_ISCHR(mode):
-        return "a character device"
-    if stat.S_ISBLK(mode):
-        return "a block device"
-    if stat.S_ISFIFO(mode):
-        return "a FIFO (named pipe)"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "not a regular file"
+    return next((name for test, name in _KINDS if test(mode)), "not a regular file")
 
 
 def _input_paths(inputs) -> list:
     """The path-like entries of ``inputs`` (a preset name or an in-memory object is skipped)."""
     if isinstance(inputs, Inputs):
         return list(inputs.paths)
-    if inputs is None or isinstance(inputs, (str, os.PathLike)):
-        inputs = [] if inputs is None else [inputs]
-    return [p for p in inputs if isinstance(p, (str, os.PathLike))]
+    if isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    return [p for p in inputs or () if isinstance(p, (str, os.PathLike))]
 
 
 class Inputs:
@@ -345,11 +345,10 @@ class StagedOutputs:
                 raise
             with fh:
                 yield fh
-        except OSError as exc:
+        except BaseException as exc:
             _remove(pending.tmp)
-            raise pending.error(exc) from None
-        except BaseException:
-            _remove(pending.tmp)
+            if isinstance(exc, OSError):
+                raise pending.error(exc) from None
             raise
         self._pending.append(pending)
 
@@ -426,25 +425,16 @@ class StagedOutputs:
         """Rename every staged file into place (in staging order)."""
         pending, self._pending = self._pending, []
         for i, p in enumerate(pending):
-            st: os.stat_result | None = None
-            err: OSError | OutputError | None = None
             try:
-                st = os.stat(p.final)
-            except (FileNotFoundError, NotADirectoryError):
-                pass
-            except OSError as exc:
-                err = exc
-            if st is not None and not stat.S_ISREG(st.st_mode):  # appeared while we wrote
-                err = OutputError(f"{p.what} {p.user} is {_kind(st.st_mode)}, not a regular file: give a file name")
-            if err is None:
-                try:
-                    os.replace(p.tmp, p.final)
-                    continue
-                except OSError as exc:
-                    err = exc
-            for q in pending[i:]:
-                _remove(q.tmp)
-            raise err if isinstance(err, OutputError) else p.error(err) from None
+                with contextlib.suppress(FileNotFoundError, NotADirectoryError):
+                    mode = os.stat(p.final).st_mode
+                    if not stat.S_ISREG(mode):  # appeared while we wrote
+                        raise OutputError(f"{p.what} {p.user} is {_kind(mode)}, not a regular file: give a file name")
+                os.replace(p.tmp, p.final)
+            except (OSError, OutputError) as err:
+                for q in pending[i:]:
+                    _remove(q.tmp)
+                raise err if isinstance(err, OutputError) else p.error(err) from None
 
     def discard(self) -> None:
         """Remove every staged temporary file; nothing at the final paths changes."""
