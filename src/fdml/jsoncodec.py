@@ -132,19 +132,17 @@ def to_jsonable(obj, *, default=str, nonfinite: str = "string"):
         raise ValueError(f"nonfinite must be 'string' or 'null', got {nonfinite!r}")
 
     def conv(o):
-        if o is None or isinstance(o, (str, bool)):
+        if o is None or isinstance(o, str):
             return o
-        if isinstance(o, (int, np.integer)) and not isinstance(o, np.bool_):
+        if isinstance(o, (bool, np.bool_)):
+            return bool(o)
+        if isinstance(o, (int, np.integer)):
             return int(o)
         if isinstance(o, (float, np.floating)):
             return _float(float(o), nonfinite)
-        if isinstance(o, np.bool_):
-            return bool(o)
-        if isinstance(o, (complex, np.complexfloating)):
+        if isinstance(o, (complex, np.complexfloating)) or (isinstance(o, np.ndarray) and o.dtype.kind == "c"):
             return _complex(o, nonfinite)
         if isinstance(o, np.ndarray):
-            if o.dtype.kind == "c":
-                return _complex(o, nonfinite)
             if o.dtype.kind in "biuf":
                 return _array(o, nonfinite)
             return [conv(x) for x in o.tolist()]
@@ -292,16 +290,13 @@ def read_json(path, *, what: str = "result file"):
     where = f"{what} {p}"
     try:
         st = os.stat(p)
+        if stat.S_ISDIR(st.st_mode):
+            raise FdmlError(f"{where} is a folder, not a JSON file")
+        if not stat.S_ISREG(st.st_mode):
+            raise FdmlError(f"{where} is not a regular file (a device, FIFO or socket)")
+        raw = p.read_bytes()
     except FileNotFoundError:
         raise FdmlError(f"{where} does not exist") from None
-    except OSError as exc:
-        raise FdmlError(f"{where} cannot be read: {exc.strerror or exc}") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise FdmlError(f"{where} is a folder, not a JSON file")
-    if not stat.S_ISREG(st.st_mode):
-        raise FdmlError(f"{where} is not a regular file (a device, FIFO or socket)")
-    try:
-        raw = p.read_bytes()
     except OSError as exc:
         raise FdmlError(f"{where} cannot be read: {exc.strerror or exc}") from None
     try:
@@ -905,10 +900,8 @@ class Fields:
         dict of str to float
             The numbers by name, in the file's order (or ``default``).
         """
-        if key not in self.doc and default is not _MISSING:
-            return default
-        sub = self.sub(key)
-        return {name: sub.number(name) for name in sub.doc}
+        sub = self.sub(key, default)
+        return sub if sub is default else {name: sub.number(name) for name in sub.doc}
 
     @overload
     def sub(self, key: str) -> Fields: ...
@@ -930,9 +923,7 @@ class Fields:
         Fields
             Access to the nested object (or ``default``).
         """
-        if key not in self.doc and default is not _MISSING:
-            return default
-        return Fields(self.raw(key), self.source, f"{self.name(key)}.")
+        return self._get(key, default, lambda v: Fields(v, self.source, f"{self.name(key)}."))
 
     def items(self, key: str, default=_MISSING, allow_none: bool = False) -> list:
         """A list of objects at ``key``, each as :class:`Fields` (None entries kept with ``allow_none``).
@@ -951,15 +942,16 @@ class Fields:
         list of Fields
             One entry per object (or ``default``).
         """
-        if key not in self.doc and default is not _MISSING:
-            return default
-        v = self.raw(key)
-        if not isinstance(v, list):
-            raise self.error(key, f"must be a list, got {_kind(v)}")
-        return [
-            None if (x is None and allow_none) else Fields(x, self.source, f"{self.name(key)}[{i}].")
-            for i, x in enumerate(v)
-        ]
+
+        def conv(v):
+            if not isinstance(v, list):
+                raise TypeError(f"must be a list, got {_kind(v)}")
+            return [
+                None if (x is None and allow_none) else Fields(x, self.source, f"{self.name(key)}[{i}].")
+                for i, x in enumerate(v)
+            ]
+
+        return self._get(key, default, conv)
 
 
 # --- the declarative codec ----------------------------------------------------------------------
