@@ -497,7 +497,7 @@ class FitOptions:
         tuple of str
             The names.
         """
-        return tuple(f.name for f in fields(cls) if not stages or f.metadata["stage"] in stages)
+        return tuple(f.name for f in _declared(*stages))
 
     def pick(self, *stages: str) -> dict:
         """The options of ``stages`` by name (keyword arguments for the stage's function).
@@ -635,6 +635,11 @@ class FitOptions:
         return (_from_plain, (self.to_dict(),))
 
 
+def _declared(*stages: str) -> list:
+    """The fields of :class:`FitOptions` (the options' declarations) of ``stages``, all without."""
+    return [f for f in fields(FitOptions) if not stages or f.metadata["stage"] in stages]
+
+
 def _from_plain(d: dict) -> FitOptions:
     """Unpickle :class:`FitOptions` (its mapping proxies cannot be pickled as they are)."""
     return FitOptions(**d)
@@ -693,11 +698,7 @@ def keyword_parameters(*stages: str) -> list[inspect.Parameter]:
     list of inspect.Parameter
         One per option, in declaration order.
     """
-    return [
-        inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default)
-        for f in fields(FitOptions)
-        if not stages or f.metadata["stage"] in stages
-    ]
+    return [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default) for f in _declared(*stages)]
 
 
 def command_line_options() -> list[dict]:
@@ -716,17 +717,14 @@ def command_line_options() -> list[dict]:
             continue
         kw = dict(f.metadata["cli_kw"])
         values = kw.pop("values", {})
-        choices = tuple(values or f.metadata["choices"] or ()) or None
-        flag = "--" + f.name.replace("_", "-")
-        switch = isinstance(f.default, bool)
         out.append(
             {
                 "name": f.name,
-                "flag": flag,
+                "flag": "--" + f.name.replace("_", "-"),
                 "help": f.metadata["cli"],
-                "choices": choices,
+                "choices": tuple(values or f.metadata["choices"] or ()) or None,
                 "values": values,
-                "switch": switch,
+                "switch": isinstance(f.default, bool),
                 "repeat": kw.pop("repeat", False),
                 **kw,
             }

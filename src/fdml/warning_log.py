@@ -80,10 +80,7 @@ def as_recorded(values: Iterable) -> tuple[RecordedWarning, ...]:
     tuple of RecordedWarning
         The distinct warnings, in order of first occurrence.
     """
-    out: dict[RecordedWarning, None] = {}
-    for v in values:
-        out.setdefault(RecordedWarning.from_value(v), None)
-    return tuple(out)
+    return tuple(dict.fromkeys(RecordedWarning.from_value(v) for v in values))
 
 
 @contextmanager
@@ -118,11 +115,11 @@ def recording(reemit: bool = True) -> Iterator[list[RecordedWarning]]:
             yield log
         finally:
             seen = list(caught)
-    log.extend(as_recorded(RecordedWarning(w.category.__name__, str(w.message)) for w in seen))
+    firsts: dict[tuple[str, str], warnings.WarningMessage] = {}  # (category, message) -> first caught
+    for w in seen:
+        firsts.setdefault((w.category.__name__, str(w.message)), w)
+    log.extend(RecordedWarning(*key) for key in firsts)
     if reemit:
-        firsts: dict[tuple[str, str], warnings.WarningMessage] = {}
-        for w in seen:
-            firsts.setdefault((w.category.__name__, str(w.message)), w)
         for w in firsts.values():
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
