@@ -292,9 +292,9 @@ class StagedOutputs:
         self._pending: list[_Pending] = []
 
     # -- staging --
-    def _stage(self, path, what: str) -> tuple[_Pending, int]:
+    def _stage(self, path, what: str) -> tuple[_Pending, int, int]:
+        """A temporary file for ``path``: its pending rename, its descriptor and the mode it gets."""
         final = check_output(path, self.inputs, what=what)
-        user = str(path)
         try:
             final.parent.mkdir(parents=True, exist_ok=True)
             try:
@@ -303,15 +303,8 @@ class StagedOutputs:
                 mode = 0o666 & ~_umask()
             fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=TMP_SUFFIX, dir=final.parent)
         except OSError as exc:
-            raise OutputError(f"cannot write {what} {user}: {_reason(exc)}") from None
-        pending = _Pending(user, what, final, Path(tmp))
-        try:
-            os.fchmod(fd, mode)
-        except OSError as exc:
-            os.close(fd)
-            _remove(pending.tmp)
-            raise pending.error(exc) from None
-        return pending, fd
+            raise OutputError(f"cannot write {what} {path}: {_reason(exc)}") from None
+        return _Pending(str(path), what, final, Path(tmp)), fd, mode
 
     @contextlib.contextmanager
     def open(self, path, mode: str = "w", *, encoding: str = "utf-8", what: str = "output file") -> Iterator:
@@ -335,7 +328,7 @@ class StagedOutputs:
         """
         if mode not in ("w", "wt", "wb"):
             raise ValueError(f"mode must be 'w' or 'wb', got {mode!r}")
-        pending, fd = self._stage(path, what)
+        pending, fd, perms = self._stage(path, what)
         try:
             kw: dict[str, Any] = {} if "b" in mode else {"encoding": encoding, "newline": ""}
             try:
@@ -344,6 +337,7 @@ class StagedOutputs:
                 os.close(fd)
                 raise
             with fh:
+                os.fchmod(fd, perms)
                 yield fh
         except BaseException as exc:
             _remove(pending.tmp)
