@@ -741,13 +741,7 @@ class Fields:
         """
 
         def conv(v):
-            if not isinstance(v, list):
-                raise TypeError(f"must be a list of strings, got {_kind(v)}")
-            bad = next((x for x in v if not isinstance(x, str)), _MISSING)
-            if bad is not _MISSING:
-                raise TypeError(f"must be a list of strings, holds {_kind(bad)}")
-            if length is not None and len(v) != length:
-                raise ValueError(f"must have {length} entries, got {len(v)}")
+            _typed_list(v, str, "strings", length)
             if choices is not None:
                 odd = [x for x in v if x not in choices]
                 if odd:

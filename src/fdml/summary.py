@@ -131,18 +131,9 @@ class Table:
 def _fmt(value, kind: str, digits: int) -> str:
     if kind == "text":
         return "" if value is None else str(value)
-    if value is None:
+    if value is None or math.isnan(float(value)):
         return ""
-    x = float(value)
-    if math.isnan(x):
-        return ""
-    if math.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    if kind == "num":
-        return f"{x:.{digits}g}"
-    if kind == "err":
-        return f"{x:.4g}"
-    return f"{x:.2f}"  # pct, z
+    return format(float(value), {"num": f".{digits}g", "err": ".4g"}.get(kind, ".2f"))  # pct, z: .2f; inf as "inf"
 
 
 #: LaTeX's special characters and how each is written as text.
