@@ -70,10 +70,7 @@ def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
     """
     if outputs is None:
         return row_space()
-    if isinstance(outputs, str):
-        items = [o.strip() for o in outputs.split(",")]
-    else:
-        items = [str(o).strip() for o in outputs]
+    items = [str(o).strip() for o in (outputs.split(",") if isinstance(outputs, str) else outputs)]
     if not items or not any(items):
         raise FdmlError(f"{what}: empty; choose from {', '.join(ALL_OUTPUTS)}")
     if "" in items:

@@ -318,11 +318,7 @@ def read_json(path, *, what: str = "result file"):
 
 def _kind(v) -> str:
     """The JSON type of a decoded value, for messages."""
-    if v is None:
-        return "null"
-    if isinstance(v, Mapping):
-        return "object"
-    return type(v).__name__
+    return "null" if v is None else "object" if isinstance(v, Mapping) else type(v).__name__
 
 
 def float_value(x) -> float:
@@ -457,8 +453,7 @@ def complex_array(v, shape=None) -> np.ndarray:
     missing = [k for k in ("re", "im") if k not in v]
     if missing:
         raise ValueError(f"must be an object with keys 're' and 'im'; '{missing[0]}' is missing")
-    re = float_array(v["re"])
-    im = float_array(v["im"])
+    re, im = float_array(v["re"]), float_array(v["im"])
     if re.shape != im.shape:
         raise ValueError(f"has 're' of shape {_shape_text(re.shape)} but 'im' of shape {_shape_text(im.shape)}")
     out = np.empty(re.shape, complex)
@@ -557,11 +552,9 @@ class Fields:
         object
             The decoded value, unchecked.
         """
-        if key not in self.doc:
-            if default is _MISSING:
-                raise self.error(key, "is missing")
-            return default
-        return self.doc[key]
+        if key not in self.doc and default is _MISSING:
+            raise self.error(key, "is missing")
+        return self.doc.get(key, default)
 
     def _get(self, key, default, convert):
         if key not in self.doc and default is not _MISSING:
@@ -651,13 +644,7 @@ class Fields:
         float or None
             The number (or ``default``).
         """
-
-        def conv(v):
-            if v is None and allow_none:
-                return None
-            return float_value(v)
-
-        return self._get(key, default, conv)
+        return self._get(key, default, lambda v: None if v is None and allow_none else float_value(v))
 
     def boolean(self, key: str, default=_MISSING) -> bool:
         """The boolean at ``key``.
@@ -975,9 +962,7 @@ SKIP = Spec(read=lambda f, key, done: None)
 
 def _dims(shape, done) -> tuple | None:
     """A shape whose entries may name an earlier field (its length)."""
-    if shape is None:
-        return None
-    return tuple(len(done[s]) if isinstance(s, str) else s for s in shape)
+    return None if shape is None else tuple(len(done[s]) if isinstance(s, str) else s for s in shape)
 
 
 def text(choices=None, none: bool = False) -> Spec:
@@ -1144,9 +1129,7 @@ def pairs() -> Spec:
     """
 
     def read(f, k, done):
-        if f.raw(k) == []:
-            return ()
-        return tuple(map(tuple, f.floats(k, (None, 2)).tolist()))
+        return () if f.raw(k) == [] else tuple(map(tuple, f.floats(k, (None, 2)).tolist()))
 
     return Spec(read)
 
@@ -1277,15 +1260,15 @@ def specs(kind: Any) -> dict[str, Spec]:
     own = dict(getattr(kind, "json_fields", {}))
     out = {}
     for fld in dataclasses.fields(kind):
+        make = _BY_ANNOTATION.get(str(fld.type))
         if fld.name in own:
             out[fld.name] = own[fld.name]
-            continue
-        make = _BY_ANNOTATION.get(str(fld.type))
-        if make is None:
+        elif make is not None:
+            out[fld.name] = make()
+        else:
             raise TypeError(
                 f"{kind.__name__}.{fld.name}: annotation {fld.type!r} has no JSON spec; add it to json_fields"
             )
-        out[fld.name] = make()
     return out
 
 
@@ -1323,8 +1306,7 @@ class Codec:
             if spec is not SKIP:
                 value = getattr(self, name)
                 out[spec.key or name] = value if spec.write is None else spec.write(value)
-        for name in self.json_extra:
-            out[name] = getattr(self, name)
+        out.update({name: getattr(self, name) for name in self.json_extra})
         return to_jsonable(out)
 
     @classmethod

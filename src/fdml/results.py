@@ -228,7 +228,7 @@ def _model_field(f: Fields, key: str, done: dict):
     kind = m.string("kind")
     options = m.mapping("options", default={})
     aircraft = None if m.raw("aircraft", None) is None else m.mapping("aircraft")
-    params = [{k: getattr(p, kind)(k, **kw) for k, kind, kw in _PARAMETER_KEYS} for p in m.items("parameters")]
+    params = [{k: getattr(p, reader)(k, **kw) for k, reader, kw in _PARAMETER_KEYS} for p in m.items("parameters")]
     effects = list(m.strings("effects", default=()))  # effect keys (H1, issue 8)
     try:
         return model_from_dict(
