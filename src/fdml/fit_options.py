@@ -232,12 +232,10 @@ def _bounds(value) -> Mapping:
 
 
 def _noise(value) -> NoiseModel:
-    if value is None:
-        return NoiseModel()
     if isinstance(value, NoiseModel):
         return value
-    if isinstance(value, (list, tuple)):
-        return NoiseModel(tuple(value))
+    if value is None or isinstance(value, (list, tuple)):
+        return NoiseModel(tuple(value or ()))  # None: white
     raise FdmlError(f"noise must be an fdml.estimate.NoiseModel, got {type(value).__name__}")
 
 

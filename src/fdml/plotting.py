@@ -60,7 +60,7 @@ def _freq(omega: np.ndarray, unit: str):
     raise ValueError(f"freq_unit must be 'rad/s' or 'Hz', got {unit!r}")
 
 
-def _axes_grid(axes, ax, shape: tuple[int, int], figsize, sharex=True):
+def _axes_grid(axes, ax, shape: tuple[int, int], figsize):
     """(figure, axes array of ``shape``, created) from user axes or a new (constrained-layout) figure."""
     if axes is not None and ax is not None:
         raise ValueError("give axes= or ax=, not both")
@@ -68,7 +68,7 @@ def _axes_grid(axes, ax, shape: tuple[int, int], figsize, sharex=True):
     if given is None:
         import matplotlib.pyplot as plt
 
-        fig, arr = plt.subplots(*shape, figsize=figsize, sharex=sharex, squeeze=False, layout="constrained")
+        fig, arr = plt.subplots(*shape, figsize=figsize, sharex=True, squeeze=False, layout="constrained")
         return fig, arr, True
     arr = np.asarray(given, dtype=object)
     n = shape[0] * shape[1]
@@ -118,10 +118,7 @@ def phase_on_one_branch(reference, *others) -> list[np.ndarray]:
     """
     ref = np.asarray(reference, complex)
     base = np.unwrap(np.angle(ref))
-    out = [np.degrees(base)]
-    for o in others:
-        out.append(np.degrees(base + np.angle(np.asarray(o, complex) * np.conj(ref))))
-    return out
+    return [np.degrees(base)] + [np.degrees(base + np.angle(np.asarray(o, complex) * np.conj(ref))) for o in others]
 
 
 def figure_legend(fig, axes, *, side: str = "lower", **kw):
