@@ -321,6 +321,13 @@ def _kind(v) -> str:
     return "null" if v is None else "object" if isinstance(v, Mapping) else type(v).__name__
 
 
+def _checked(v, types, what: str):
+    """``v`` if it is of ``types``, else a TypeError "must be <what>, got <its JSON type>"."""
+    if not isinstance(v, types):
+        raise TypeError(f"must be {what}, got {_kind(v)}")
+    return v
+
+
 def float_value(x) -> float:
     """A number as written by :func:`to_jsonable`: a JSON number or ``"nan"``, ``"inf"``, ``"-inf"``.
 
@@ -448,8 +455,7 @@ def complex_array(v, shape=None) -> np.ndarray:
     numpy.ndarray
         The complex array.
     """
-    if not isinstance(v, Mapping):
-        raise TypeError(f"must be an object with keys 're' and 'im', got {_kind(v)}")
+    _checked(v, Mapping, "an object with keys 're' and 'im'")
     missing = [k for k in ("re", "im") if k not in v]
     if missing:
         raise ValueError(f"must be an object with keys 're' and 'im'; '{missing[0]}' is missing")
@@ -465,8 +471,7 @@ _MISSING = object()
 
 
 def _typed_list(v, typ, what: str, length: int | None) -> list:
-    if not isinstance(v, list):
-        raise TypeError(f"must be a list of {what}, got {_kind(v)}")
+    _checked(v, list, f"a list of {what}")
     for x in v:
         if not isinstance(x, typ) or (typ is int and isinstance(x, bool)):
             raise TypeError(f"must be a list of {what}, holds {_kind(x)}")
@@ -661,13 +666,7 @@ class Fields:
         bool
             The value (or ``default``).
         """
-
-        def conv(v):
-            if not isinstance(v, bool):
-                raise TypeError(f"must be true or false, got {_kind(v)}")
-            return v
-
-        return self._get(key, default, conv)
+        return self._get(key, default, lambda v: _checked(v, bool, "true or false"))
 
     @overload
     def string(self, key: str, default: str = ..., choices: Any = None, allow_none: Literal[False] = False) -> str: ...
@@ -699,8 +698,7 @@ class Fields:
         def conv(v):
             if v is None and allow_none:
                 return None
-            if not isinstance(v, str):
-                raise TypeError(f"must be a string, got {_kind(v)}")
+            _checked(v, str, "a string")
             if choices is not None and v not in choices:
                 raise ValueError(f"must be one of {', '.join(map(repr, choices))}, got {v[:40]!r}")
             return v
@@ -858,13 +856,7 @@ class Fields:
         dict
             A copy of the object (or ``default``).
         """
-
-        def conv(v):
-            if not isinstance(v, Mapping):
-                raise TypeError(f"must be an object, got {_kind(v)}")
-            return dict(v)
-
-        return self._get(key, default, conv)
+        return self._get(key, default, lambda v: dict(_checked(v, Mapping, "an object")))
 
     def number_map(self, key: str, default=_MISSING) -> dict:
         """The JSON object of finite numbers at ``key`` as ``{name: float}``.
@@ -925,11 +917,9 @@ class Fields:
         """
 
         def conv(v):
-            if not isinstance(v, list):
-                raise TypeError(f"must be a list, got {_kind(v)}")
             return [
                 None if (x is None and allow_none) else Fields(x, self.source, f"{self.name(key)}[{i}].")
-                for i, x in enumerate(v)
+                for i, x in enumerate(_checked(v, list, "a list"))
             ]
 
         return self._get(key, default, conv)
