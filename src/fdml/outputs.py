@@ -79,6 +79,15 @@ def _input_paths(inputs) -> list:
     return [p for p in inputs or () if isinstance(p, (str, os.PathLike))]
 
 
+def _file_id(path) -> tuple[int, int] | None:
+    """``(device, inode)`` of ``path`` (links followed), None when it cannot be read."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return st.st_dev, st.st_ino
+
+
 class Inputs:
     """A command's input files, identified once by device and inode (what :func:`os.path.samefile` compares).
 
@@ -93,14 +102,11 @@ class Inputs:
 
     def __init__(self, paths: Iterable = ()):
         self.paths = tuple(_input_paths(paths))
-        ids: dict[tuple[int, int], str] = {}
+        self.ids: dict[tuple[int, int], str] = {}
         for p in self.paths:
-            try:
-                st = os.stat(p)
-            except (OSError, ValueError):  # missing (a preset name) or unreadable: cannot be written over
-                continue
-            ids.setdefault((st.st_dev, st.st_ino), str(p))
-        self.ids = ids
+            key = _file_id(p)
+            if key is not None:  # missing (a preset name) or unreadable: cannot be written over
+                self.ids.setdefault(key, str(p))
 
     def match(self, path) -> str | None:
         """The input (as given) that is the same file or folder as ``path`` (links followed), else None.
@@ -115,11 +121,8 @@ class Inputs:
         str or None
             The matching input as given, or None.
         """
-        try:
-            st = os.stat(path)
-        except (OSError, ValueError):
-            return None
-        return self.ids.get((st.st_dev, st.st_ino))
+        key = _file_id(path)
+        return None if key is None else self.ids.get(key)
 
 
 def _same_as_input(path: Path, inputs) -> str | None:
