@@ -33,9 +33,7 @@ def _load(result_or_path):
 
 
 def _default_dir(source: Path | None) -> Path:
-    if source is None:
-        return Path("fdml-report")
-    return source.with_name(source.stem + "-report")
+    return Path("fdml-report") if source is None else source.with_name(source.stem + "-report")
 
 
 _TIME_CAPTION = "Time histories: measured against the model simulated in the time domain from the estimate"
@@ -147,10 +145,7 @@ def _markdown(res, source, figures, notes) -> str:
     s = res.summary()
     s = type(s)(s.title, s.header, s.tables, [n for n in s.notes if n[0] != "warnings"], digits=s.digits)
     lines = [f"# fdml report: {res.model.describe()}", ""]
-    if source is not None:
-        lines.append(f"Result file: `{source.name}` (fdml {__version__}).")
-    else:
-        lines.append(f"fdml {__version__}.")
+    lines.append(f"fdml {__version__}." if source is None else f"Result file: `{source.name}` (fdml {__version__}).")
     lines += ["", "## Summary", "", s.as_markdown().replace("### ", "#### ", 1), ""]  # warnings: below, once
     lines += ["## Convergence", ""]
     verdict = "stopped by the callback" if res.stopped else "converged" if res.converged else "NOT converged"
@@ -160,11 +155,7 @@ def _markdown(res, source, figures, notes) -> str:
         rel = "" if prev is None or prev == 0 else f"{(J - prev) / prev:+.3g}"
         lines.append(f"| {k} | {J:.6g} | {rel} |")
     lines += ["", "## Warnings", ""]
-    if res.warnings or notes:
-        lines += [f"- {w}" for w in res.warnings]
-        lines += [f"- {n}" for n in notes]
-    else:
-        lines.append("None.")
+    lines += [f"- {w}" for w in (*res.warnings, *notes)] or ["None."]
     lines += ["", "## Figures", ""]
     current = None
     for rec, caption, fname in figures:

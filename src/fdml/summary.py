@@ -248,8 +248,7 @@ class Summary(str):
             lines.append("|" + "|".join(":---" if c.kind == "text" else "---:" for c in t.columns) + "|")
             lines += ["| " + " | ".join(map(_md_escape, cells)) + " |" for cells in _cells(t, self.digits)]
         for title, items in self.notes:
-            lines += ["", f"**{_md_escape(title)}**", ""]
-            lines += [f"- {_md_escape(x)}" for x in items]
+            lines += ["", f"**{_md_escape(title)}**", "", *(f"- {_md_escape(x)}" for x in items)]
         return "\n".join(lines) + "\n"
 
     def as_html(self) -> str:
@@ -313,8 +312,7 @@ class Summary(str):
             out += [r"\hline", r"\end{tabular}"]
         for title, items in self.notes:
             out += ["", r"\medskip", r"\textit{" + x(title) + r"}", r"\begin{itemize}"]
-            out += [r"\item " + x(i) for i in items]
-            out.append(r"\end{itemize}")
+            out += [*(r"\item " + x(i) for i in items), r"\end{itemize}"]
         out.append(r"\end{center}")
         return "\n".join(out) + "\n"
 
@@ -377,8 +375,7 @@ def _render_text(title, header, tables, notes, digits) -> str:
         lines += ["", t.title, line([c.label for c in t.columns])]
         lines += [line(r) for r in cells]
     for title_, items in notes:
-        lines += ["", f"{title_}:"]
-        lines += [f"  {x}" for x in items]
+        lines += ["", f"{title_}:", *(f"  {x}" for x in items)]
     return "\n".join(lines)
 
 
@@ -388,22 +385,18 @@ def _render_text(title, header, tables, notes, digits) -> str:
 def _biases_used(res) -> list[str]:
     """Which bias terms a fit estimated, from the roles of its estimates and fixed parameters."""
     roles = {s.role for s in res.slots}
-    out = []
     outs = [b[len("bias_") :] for b in dict.fromkeys(s.base for s in res.slots if s.role is Role.OUTPUT_BIAS)]
-    if outs:
-        out.append("output biases " + ",".join(outs))
-    if Role.STATE_BIAS in roles:
-        out.append("state-equation biases")
-    if Role.INPUT_BIAS in roles:
-        out.append("elevator bias")
-    edges = [s.name for s in res.slots if s.role is Role.INPUT_EDGE]
-    if edges:
-        out.append(f"timing of {len(edges)} elevator step(s) between samples")
+    edges = sum(s.role is Role.INPUT_EDGE for s in res.slots)
     params = res.model.parameters
     fixed = [k for k, v in res.fixed.items() if k in params and params[k].role.nuisance and v != 0.0]
-    if fixed:
-        out.append("fixed " + ", ".join(fixed))
-    return out
+    used = [
+        "output biases " + ",".join(outs) if outs else None,
+        "state-equation biases" if Role.STATE_BIAS in roles else None,
+        "elevator bias" if Role.INPUT_BIAS in roles else None,
+        f"timing of {edges} elevator step(s) between samples" if edges else None,
+        "fixed " + ", ".join(fixed) if fixed else None,
+    ]
+    return [u for u in used if u is not None]
 
 
 #: Where a fit's airspeed came from (``FitResult.provenance["airspeed"]["source"]``), in words.
@@ -465,12 +458,8 @@ def _header(res) -> list[tuple[str, str]]:
 
 
 def _flags(res, name: str, stderr: float) -> str:
-    flags = []
-    if name in res.at_bound:
-        flags.append("at bound")
-    if not math.isfinite(stderr):
-        flags.append("not identifiable")
-    return ", ".join(flags)
+    flags = {"at bound": name in res.at_bound, "not identifiable": not math.isfinite(stderr)}
+    return ", ".join(f for f, on in flags.items() if on)
 
 
 def _row(res, name: str, value: float, stderr: float, flags: str) -> tuple:
@@ -596,11 +585,8 @@ def comparison_summary(cmp, reference: Mapping | None = None, digits: int = 4) -
         s, ss = cmp.steady_set.get(n, (math.nan, math.nan))
         sig = math.hypot(su, ss)
         z = (s - u) / sig if sig > 0 and math.isfinite(sig) else math.nan
-        row = [n, u, su, s, ss, z]
-        if reference:
-            ru, rs = reference.get(n, (math.nan, math.nan))
-            row += [ru, rs]
-        rows.append(tuple(row))
+        paper = reference.get(n, (math.nan, math.nan)) if reference else ()  # (unsteady, steady)
+        rows.append((n, u, su, s, ss, z, *paper))
     header = [
         ("unsteady model", cmp.unsteady.model.describe()),
         ("steady model", cmp.steady.model.describe()),
