@@ -33,11 +33,9 @@ _RATIONAL = ("steady", "derivatives", "dimensional")
 
 def _model_of(obj):
     """The model of a FitResult (at the estimate), or the model itself."""
-    if isinstance(obj, Model):
-        return obj
-    model = getattr(obj, "model", None)
-    if isinstance(model, Model):
-        return model
+    for candidate in (obj, getattr(obj, "model", None)):
+        if isinstance(candidate, Model):
+            return candidate
     raise ParameterError(f"expected an fdml FitResult or Model, got {type(obj).__name__}")
 
 
@@ -179,10 +177,8 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
             "gust input): the system is improper and has no state-space form; use fdml.export.to_frd"
         )
     inputs = list(model.inputs)
-    n = real.states
-    C2 = real.C[:2, :2]
-    first = ["alpha", "q"] if np.array_equal(C2, np.eye(2)) and not np.any(real.D[:2]) else ["xi_alpha", "xi_q"]
-    states = first + [f"x{i}" for i in range(2, n)]
+    plain = np.array_equal(real.C[:2, :2], np.eye(2)) and not np.any(real.D[:2])  # the states are alpha and q
+    states = (["alpha", "q"] if plain else ["xi_alpha", "xi_q"]) + [f"x{i}" for i in range(2, real.states)]
     sysname = name or f"fdml {model.kind}"
     chans = [f"u{j}" for j in range(len(real.channels))]
     plant = control.StateSpace(

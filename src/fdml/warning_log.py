@@ -11,6 +11,7 @@ again on leaving, so that the caller's own filters still decide what is shown.
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -142,7 +143,6 @@ def merged(*groups: Iterable) -> tuple[RecordedWarning, ...]:
         One warning per distinct message, in order of first occurrence.
     """
     out: dict[str, RecordedWarning] = {}
-    for group in groups:
-        for w in as_recorded(group):
-            out.setdefault(w.message, w)
+    for w in as_recorded(itertools.chain(*groups)):
+        out.setdefault(w.message, w)
     return tuple(out.values())
