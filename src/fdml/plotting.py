@@ -644,8 +644,7 @@ def plot_residual_spectra(
     fig, arr, created = _axes_grid(axes, ax, (1, len(outputs)), (4.2 * len(outputs), 3.4))
     arr = arr[0]
     R = np.asarray(result.R)
-    for j, out in enumerate(outputs):
-        a = arr[j]
+    for a, out in zip(arr, outputs):
         k = _row(result.model.outputs, out)
         a.semilogy(f, np.abs(v[:, k]), ".", ms=4, color="C3", label="|residual|")
         _plain_log_ticks(a.yaxis)
@@ -726,10 +725,8 @@ def plot_correlation(
 
     cm = matplotlib.colormaps[cmap].with_extremes(bad="0.85")  # NaN (unidentified): grey
     im = a.imshow(np.ma.masked_invalid(C), cmap=cm, vmin=-1.0, vmax=1.0, interpolation="nearest")
-    a.set_xticks(range(n))
-    a.set_yticks(range(n))
-    a.set_xticklabels(names, rotation=60, ha="right", fontsize="small")
-    a.set_yticklabels(names, fontsize="small")
+    a.set_xticks(range(n), names, rotation=60, ha="right", fontsize="small")
+    a.set_yticks(range(n), names, fontsize="small")
     if annotate:
         fs = "x-small" if n > 10 else "small"
         for (i, j), c in np.ndenumerate(C):
