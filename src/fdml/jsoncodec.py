@@ -74,12 +74,8 @@ __all__ = [
 #: Strings that stand for non-finite floats (lower case; ``str(float)`` and JavaScript spellings).
 _NONFINITE = {
     "nan": math.nan,
-    "inf": math.inf,
-    "+inf": math.inf,
-    "-inf": -math.inf,
-    "infinity": math.inf,
-    "+infinity": math.inf,
-    "-infinity": -math.inf,
+    **dict.fromkeys(("inf", "+inf", "infinity", "+infinity"), math.inf),
+    **dict.fromkeys(("-inf", "-infinity"), -math.inf),
 }
 
 
