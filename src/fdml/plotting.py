@@ -240,8 +240,7 @@ def spectra_uncertainty(result, record: int = 0, *, rel_step: float = 1e-6):
     rec_name = result.spectra[record].name
     params = result.model.parameters
     A = np.zeros(y0.shape + (len(result.names),), complex)
-    for i, name in enumerate(result.names):
-        slot = result.slots[i]
+    for i, (name, slot) in enumerate(zip(result.names, result.slots)):
         if not ok[i] or slot.record not in (None, rec_name):
             continue  # unidentified, or a nuisance term of another record
         v = float(result.values[i])

@@ -48,8 +48,15 @@ __all__ = ["FitResult", "IterationInfo", "correlation", "frozen", "load_result",
 RESULT_FORMAT = ("fdml.FitResult", 2)
 
 
+class _Rebuilt:
+    """Pickled as its fields, thawed, and built again on unpickling (which freezes them again)."""
+
+    def __reduce__(self):
+        return (_rebuild, (type(self), _thawed_fields(self)))
+
+
 @dataclass(frozen=True)
-class IterationInfo:
+class IterationInfo(_Rebuilt):
     """What a progress callback receives after each iteration.
 
     Parameters
@@ -71,9 +78,6 @@ class IterationInfo:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "params", frozen(self.params))
-
-    def __reduce__(self):
-        return (_rebuild, (type(self), _thawed_fields(self)))
 
 
 #: Immutable leaf types :func:`frozen` returns as they are, without the ABC checks below.
@@ -266,7 +270,7 @@ def _read_only(a: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class FitResult(ByName, Codec):
+class FitResult(ByName, Codec, _Rebuilt):
     """The outcome of :func:`fdml.fit`.
 
     Each parameter is the attribute of the same name.
@@ -393,9 +397,6 @@ class FitResult(ByName, Codec):
         object.__setattr__(self, "warnings", as_recorded(self.warnings))
         if not self.slots or len(self.slots) != len(self.names):
             object.__setattr__(self, "slots", _legacy_slots(self.names, self.model, self.records))
-
-    def __reduce__(self):
-        return (_rebuild, (type(self), _thawed_fields(self)))
 
     # --- construction -------------------------------------------------------------------
     @classmethod
