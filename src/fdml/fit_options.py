@@ -626,18 +626,13 @@ class FitOptions:
             where = f"key '{f.prefix.rstrip('.')}'" if f.prefix else "the object"
             raise FdmlError(f"{f.source}: {where} holds no valid fit options: {exc}") from None
 
-    def __reduce__(self):
-        return (_from_plain, (self.to_dict(),))
+    def __reduce__(self):  # as plain data: mapping proxies cannot be pickled as they are
+        return (FitOptions.from_dict, (self.to_dict(),))
 
 
 def _declared(*stages: str) -> list:
     """The fields of :class:`FitOptions` (the options' declarations) of ``stages``, all without."""
     return [f for f in fields(FitOptions) if not stages or f.metadata["stage"] in stages]
-
-
-def _from_plain(d: dict) -> FitOptions:
-    """Unpickle :class:`FitOptions` (its mapping proxies cannot be pickled as they are)."""
-    return FitOptions(**d)
 
 
 def _lead(window: float, dt: float) -> int:
