@@ -69,7 +69,7 @@ def parameter_unit(result, name: str) -> str:
     str
         The unit (``"1/rad"``, ``"s"``, ...), or ``''``.
     """
-    slot = result.slot(name)
+    slot = result.slot(name) if hasattr(result, "slot") else None
     base = name if slot is None else slot.base
     params = result.model.parameters
     if base in params:
@@ -409,7 +409,7 @@ _AIRSPEED_SOURCES = {
 
 def _airspeed(res) -> str | None:
     """The fit's airspeed and where it came from, or None for a model without one."""
-    given = res.provenance.get("airspeed")
+    given = (getattr(res, "provenance", None) or {}).get("airspeed")
     if isinstance(given, Mapping) and given.get("value") is not None:
         src = str(given.get("source"))
         return f"{float(given['value']):.4g} m/s ({_AIRSPEED_SOURCES.get(src, src)})"
@@ -538,8 +538,8 @@ def fit_summary(res, digits: int = 6) -> Summary:
             Column("correlation", "correlation", "z"),
         )
         tables.append(Table("correlations", f"Correlations |r| >= {listed:g}", ccols, tuple(pairs)))
-    notes = [("data check", [str(f) for f in res.findings]), ("warnings", list(res.warnings))]
-    if res.adequacy is not None:  # fdml.adequacy: score tests and residual checks
+    notes = [("data check", [str(f) for f in getattr(res, "findings", ())]), ("warnings", list(res.warnings))]
+    if getattr(res, "adequacy", None) is not None:  # fdml.adequacy: score tests and residual checks
         notes.insert(1, ("adequacy", res.adequacy.lines()))
     title = f"fdml fit: {res.model.describe()}"
     return Summary(title, _header(res), tables, notes, digits=digits)
