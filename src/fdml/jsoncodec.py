@@ -1113,11 +1113,7 @@ def pairs() -> Spec:
     Spec
         The field's spec.
     """
-
-    def read(f, k, done):
-        return () if f.raw(k) == [] else tuple(map(tuple, f.floats(k, (None, 2)).tolist()))
-
-    return Spec(read)
+    return Spec(lambda f, k, done: () if f.raw(k) == [] else tuple(map(tuple, f.floats(k, (None, 2)).tolist())))
 
 
 def path() -> Spec:
@@ -1168,11 +1164,7 @@ def nested(kind, none: bool = False) -> Spec:
     Spec
         The field's spec.
     """
-
-    def read(f, k, done):
-        return None if none and f.raw(k) is None else kind.from_fields(f.sub(k))
-
-    return Spec(read)
+    return Spec(lambda f, k, done: None if none and f.raw(k) is None else kind.from_fields(f.sub(k)))
 
 
 def nested_list(kind) -> Spec:
