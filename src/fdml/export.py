@@ -33,11 +33,9 @@ _RATIONAL = ("steady", "derivatives", "dimensional")
 
 def _model_of(obj):
     """The model of a FitResult (at the estimate), or the model itself."""
-    if isinstance(obj, Model):
-        return obj
-    model = getattr(obj, "model", None)
-    if isinstance(model, Model):
-        return model
+    for candidate in (obj, getattr(obj, "model", None)):
+        if isinstance(candidate, Model):
+            return candidate
     raise ParameterError(f"expected an fdml FitResult or Model, got {type(obj).__name__}")
 
 
@@ -179,10 +177,8 @@ def to_statespace(result_or_model, *, pade: int | None = None, name: str | None 
             "gust input): the system is improper and has no state-space form; use fdml.export.to_frd"
         )
     inputs = list(model.inputs)
-    n = real.states
-    C2 = real.C[:2, :2]
-    first = ["alpha", "q"] if np.array_equal(C2, np.eye(2)) and not np.any(real.D[:2]) else ["xi_alpha", "xi_q"]
-    states = first + [f"x{i}" for i in range(2, n)]
+    plain = np.array_equal(real.C[:2, :2], np.eye(2)) and not np.any(real.D[:2])  # the states are alpha and q
+    states = (["alpha", "q"] if plain else ["xi_alpha", "xi_q"]) + [f"x{i}" for i in range(2, real.states)]
     sysname = name or f"fdml {model.kind}"
     chans = [f"u{j}" for j in range(len(real.channels))]
     plant = control.StateSpace(
@@ -211,21 +207,16 @@ def _delay_block(delays, labels, pade):
     import control
     from scipy.linalg import block_diag
 
-    As, Bs, Cs, Ds, names = [], [], [], [], []
+    blocks, names = [], []  # (A, B, C, D) of each signal's block
     for d, lab in zip(delays, labels):
         if d:
             blk = control.ss(control.tf(*control.pade(d, int(pade))))
-            As.append(blk.A)
-            Bs.append(blk.B)
-            Cs.append(blk.C)
-            Ds.append(blk.D)
+            blocks.append((blk.A, blk.B, blk.C, blk.D))
             names += [f"{lab}{j}" for j in range(blk.nstates)]
         else:
-            As.append(np.zeros((0, 0)))
-            Bs.append(np.zeros((0, 1)))
-            Cs.append(np.zeros((1, 0)))
-            Ds.append(np.eye(1))
-    return block_diag(*As), block_diag(*Bs), block_diag(*Cs), block_diag(*Ds), names
+            blocks.append((np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.eye(1)))
+    A, B, C, D = (block_diag(*(b[i] for b in blocks)) for i in range(4))
+    return A, B, C, D, names
 
 
 def _series(first, second, third):
@@ -296,12 +287,11 @@ def to_control(
         The system, its form and how its delays were treated.
     """
     model = _model_of(result_or_model)
-    if form == "frd":
-        has = _has_delays(model)
-        return ControlExport(to_frd(result_or_model, omega, name=name), "frd", "exact" if has else "none")
-    if form != "statespace":
+    if form not in ("frd", "statespace"):
         raise ParameterError(f"form must be 'frd' or 'statespace', got {form!r}")
     has = _has_delays(model)
+    if form == "frd":
+        return ControlExport(to_frd(result_or_model, omega, name=name), "frd", "exact" if has else "none")
     sys = to_statespace(result_or_model, pade=pade if has else None, name=name)
     # with delays, to_statespace has refused pade=None
     return ControlExport(sys, "statespace", "pade" if has else "none", int(pade) if has and pade is not None else None)

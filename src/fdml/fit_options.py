@@ -70,10 +70,7 @@ def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
     """
     if outputs is None:
         return row_space()
-    if isinstance(outputs, str):
-        items = [o.strip() for o in outputs.split(",")]
-    else:
-        items = [str(o).strip() for o in outputs]
+    items = [str(o).strip() for o in (outputs.split(",") if isinstance(outputs, str) else outputs)]
     if not items or not any(items):
         raise FdmlError(f"{what}: empty; choose from {', '.join(ALL_OUTPUTS)}")
     if "" in items:
@@ -235,12 +232,10 @@ def _bounds(value) -> Mapping:
 
 
 def _noise(value) -> NoiseModel:
-    if value is None:
-        return NoiseModel()
     if isinstance(value, NoiseModel):
         return value
-    if isinstance(value, (list, tuple)):
-        return NoiseModel(tuple(value))
+    if value is None or isinstance(value, (list, tuple)):
+        return NoiseModel(tuple(value or ()))  # None: white
     raise FdmlError(f"noise must be an fdml.estimate.NoiseModel, got {type(value).__name__}")
 
 
@@ -497,7 +492,7 @@ class FitOptions:
         tuple of str
             The names.
         """
-        return tuple(f.name for f in fields(cls) if not stages or f.metadata["stage"] in stages)
+        return tuple(f.name for f in _declared(*stages))
 
     def pick(self, *stages: str) -> dict:
         """The options of ``stages`` by name (keyword arguments for the stage's function).
@@ -631,13 +626,13 @@ class FitOptions:
             where = f"key '{f.prefix.rstrip('.')}'" if f.prefix else "the object"
             raise FdmlError(f"{f.source}: {where} holds no valid fit options: {exc}") from None
 
-    def __reduce__(self):
-        return (_from_plain, (self.to_dict(),))
+    def __reduce__(self):  # as plain data: mapping proxies cannot be pickled as they are
+        return (FitOptions.from_dict, (self.to_dict(),))
 
 
-def _from_plain(d: dict) -> FitOptions:
-    """Unpickle :class:`FitOptions` (its mapping proxies cannot be pickled as they are)."""
-    return FitOptions(**d)
+def _declared(*stages: str) -> list:
+    """The fields of :class:`FitOptions` (the options' declarations) of ``stages``, all without."""
+    return [f for f in fields(FitOptions) if not stages or f.metadata["stage"] in stages]
 
 
 def _lead(window: float, dt: float) -> int:
@@ -693,11 +688,7 @@ def keyword_parameters(*stages: str) -> list[inspect.Parameter]:
     list of inspect.Parameter
         One per option, in declaration order.
     """
-    return [
-        inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default)
-        for f in fields(FitOptions)
-        if not stages or f.metadata["stage"] in stages
-    ]
+    return [inspect.Parameter(f.name, inspect.Parameter.KEYWORD_ONLY, default=f.default) for f in _declared(*stages)]
 
 
 def command_line_options() -> list[dict]:
@@ -716,17 +707,14 @@ def command_line_options() -> list[dict]:
             continue
         kw = dict(f.metadata["cli_kw"])
         values = kw.pop("values", {})
-        choices = tuple(values or f.metadata["choices"] or ()) or None
-        flag = "--" + f.name.replace("_", "-")
-        switch = isinstance(f.default, bool)
         out.append(
             {
                 "name": f.name,
-                "flag": flag,
+                "flag": "--" + f.name.replace("_", "-"),
                 "help": f.metadata["cli"],
-                "choices": choices,
+                "choices": tuple(values or f.metadata["choices"] or ()) or None,
                 "values": values,
-                "switch": switch,
+                "switch": isinstance(f.default, bool),
                 "repeat": kw.pop("repeat", False),
                 **kw,
             }

@@ -74,12 +74,8 @@ __all__ = [
 #: Strings that stand for non-finite floats (lower case; ``str(float)`` and JavaScript spellings).
 _NONFINITE = {
     "nan": math.nan,
-    "inf": math.inf,
-    "+inf": math.inf,
-    "-inf": -math.inf,
-    "infinity": math.inf,
-    "+infinity": math.inf,
-    "-infinity": -math.inf,
+    **dict.fromkeys(("inf", "+inf", "infinity", "+infinity"), math.inf),
+    **dict.fromkeys(("-inf", "-infinity"), -math.inf),
 }
 
 
@@ -132,19 +128,17 @@ def to_jsonable(obj, *, default=str, nonfinite: str = "string"):
         raise ValueError(f"nonfinite must be 'string' or 'null', got {nonfinite!r}")
 
     def conv(o):
-        if o is None or isinstance(o, (str, bool)):
+        if o is None or isinstance(o, str):
             return o
-        if isinstance(o, (int, np.integer)) and not isinstance(o, np.bool_):
+        if isinstance(o, (bool, np.bool_)):
+            return bool(o)
+        if isinstance(o, (int, np.integer)):
             return int(o)
         if isinstance(o, (float, np.floating)):
             return _float(float(o), nonfinite)
-        if isinstance(o, np.bool_):
-            return bool(o)
-        if isinstance(o, (complex, np.complexfloating)):
+        if isinstance(o, (complex, np.complexfloating)) or (isinstance(o, np.ndarray) and o.dtype.kind == "c"):
             return _complex(o, nonfinite)
         if isinstance(o, np.ndarray):
-            if o.dtype.kind == "c":
-                return _complex(o, nonfinite)
             if o.dtype.kind in "biuf":
                 return _array(o, nonfinite)
             return [conv(x) for x in o.tolist()]
@@ -292,16 +286,13 @@ def read_json(path, *, what: str = "result file"):
     where = f"{what} {p}"
     try:
         st = os.stat(p)
+        if stat.S_ISDIR(st.st_mode):
+            raise FdmlError(f"{where} is a folder, not a JSON file")
+        if not stat.S_ISREG(st.st_mode):
+            raise FdmlError(f"{where} is not a regular file (a device, FIFO or socket)")
+        raw = p.read_bytes()
     except FileNotFoundError:
         raise FdmlError(f"{where} does not exist") from None
-    except OSError as exc:
-        raise FdmlError(f"{where} cannot be read: {exc.strerror or exc}") from None
-    if stat.S_ISDIR(st.st_mode):
-        raise FdmlError(f"{where} is a folder, not a JSON file")
-    if not stat.S_ISREG(st.st_mode):
-        raise FdmlError(f"{where} is not a regular file (a device, FIFO or socket)")
-    try:
-        raw = p.read_bytes()
     except OSError as exc:
         raise FdmlError(f"{where} cannot be read: {exc.strerror or exc}") from None
     try:
@@ -323,11 +314,14 @@ def read_json(path, *, what: str = "result file"):
 
 def _kind(v) -> str:
     """The JSON type of a decoded value, for messages."""
-    if v is None:
-        return "null"
-    if isinstance(v, Mapping):
-        return "object"
-    return type(v).__name__
+    return "null" if v is None else "object" if isinstance(v, Mapping) else type(v).__name__
+
+
+def _checked(v, types, what: str):
+    """``v`` if it is of ``types``, else a TypeError "must be <what>, got <its JSON type>"."""
+    if not isinstance(v, types):
+        raise TypeError(f"must be {what}, got {_kind(v)}")
+    return v
 
 
 def float_value(x) -> float:
@@ -457,13 +451,11 @@ def complex_array(v, shape=None) -> np.ndarray:
     numpy.ndarray
         The complex array.
     """
-    if not isinstance(v, Mapping):
-        raise TypeError(f"must be an object with keys 're' and 'im', got {_kind(v)}")
+    _checked(v, Mapping, "an object with keys 're' and 'im'")
     missing = [k for k in ("re", "im") if k not in v]
     if missing:
         raise ValueError(f"must be an object with keys 're' and 'im'; '{missing[0]}' is missing")
-    re = float_array(v["re"])
-    im = float_array(v["im"])
+    re, im = float_array(v["re"]), float_array(v["im"])
     if re.shape != im.shape:
         raise ValueError(f"has 're' of shape {_shape_text(re.shape)} but 'im' of shape {_shape_text(im.shape)}")
     out = np.empty(re.shape, complex)
@@ -475,8 +467,7 @@ _MISSING = object()
 
 
 def _typed_list(v, typ, what: str, length: int | None) -> list:
-    if not isinstance(v, list):
-        raise TypeError(f"must be a list of {what}, got {_kind(v)}")
+    _checked(v, list, f"a list of {what}")
     for x in v:
         if not isinstance(x, typ) or (typ is int and isinstance(x, bool)):
             raise TypeError(f"must be a list of {what}, holds {_kind(x)}")
@@ -562,11 +553,9 @@ class Fields:
         object
             The decoded value, unchecked.
         """
-        if key not in self.doc:
-            if default is _MISSING:
-                raise self.error(key, "is missing")
-            return default
-        return self.doc[key]
+        if key not in self.doc and default is _MISSING:
+            raise self.error(key, "is missing")
+        return self.doc.get(key, default)
 
     def _get(self, key, default, convert):
         if key not in self.doc and default is not _MISSING:
@@ -656,13 +645,7 @@ class Fields:
         float or None
             The number (or ``default``).
         """
-
-        def conv(v):
-            if v is None and allow_none:
-                return None
-            return float_value(v)
-
-        return self._get(key, default, conv)
+        return self._get(key, default, lambda v: None if v is None and allow_none else float_value(v))
 
     def boolean(self, key: str, default=_MISSING) -> bool:
         """The boolean at ``key``.
@@ -679,13 +662,7 @@ class Fields:
         bool
             The value (or ``default``).
         """
-
-        def conv(v):
-            if not isinstance(v, bool):
-                raise TypeError(f"must be true or false, got {_kind(v)}")
-            return v
-
-        return self._get(key, default, conv)
+        return self._get(key, default, lambda v: _checked(v, bool, "true or false"))
 
     @overload
     def string(self, key: str, default: str = ..., choices: Any = None, allow_none: Literal[False] = False) -> str: ...
@@ -717,8 +694,7 @@ class Fields:
         def conv(v):
             if v is None and allow_none:
                 return None
-            if not isinstance(v, str):
-                raise TypeError(f"must be a string, got {_kind(v)}")
+            _checked(v, str, "a string")
             if choices is not None and v not in choices:
                 raise ValueError(f"must be one of {', '.join(map(repr, choices))}, got {v[:40]!r}")
             return v
@@ -746,13 +722,7 @@ class Fields:
         """
 
         def conv(v):
-            if not isinstance(v, list):
-                raise TypeError(f"must be a list of strings, got {_kind(v)}")
-            bad = next((x for x in v if not isinstance(x, str)), _MISSING)
-            if bad is not _MISSING:
-                raise TypeError(f"must be a list of strings, holds {_kind(bad)}")
-            if length is not None and len(v) != length:
-                raise ValueError(f"must have {length} entries, got {len(v)}")
+            _typed_list(v, str, "strings", length)
             if choices is not None:
                 odd = [x for x in v if x not in choices]
                 if odd:
@@ -882,13 +852,7 @@ class Fields:
         dict
             A copy of the object (or ``default``).
         """
-
-        def conv(v):
-            if not isinstance(v, Mapping):
-                raise TypeError(f"must be an object, got {_kind(v)}")
-            return dict(v)
-
-        return self._get(key, default, conv)
+        return self._get(key, default, lambda v: dict(_checked(v, Mapping, "an object")))
 
     def number_map(self, key: str, default=_MISSING) -> dict:
         """The JSON object of finite numbers at ``key`` as ``{name: float}``.
@@ -905,10 +869,8 @@ class Fields:
         dict of str to float
             The numbers by name, in the file's order (or ``default``).
         """
-        if key not in self.doc and default is not _MISSING:
-            return default
-        sub = self.sub(key)
-        return {name: sub.number(name) for name in sub.doc}
+        sub = self.sub(key, default)
+        return sub if sub is default else {name: sub.number(name) for name in sub.doc}
 
     @overload
     def sub(self, key: str) -> Fields: ...
@@ -930,9 +892,7 @@ class Fields:
         Fields
             Access to the nested object (or ``default``).
         """
-        if key not in self.doc and default is not _MISSING:
-            return default
-        return Fields(self.raw(key), self.source, f"{self.name(key)}.")
+        return self._get(key, default, lambda v: Fields(v, self.source, f"{self.name(key)}."))
 
     def items(self, key: str, default=_MISSING, allow_none: bool = False) -> list:
         """A list of objects at ``key``, each as :class:`Fields` (None entries kept with ``allow_none``).
@@ -951,15 +911,14 @@ class Fields:
         list of Fields
             One entry per object (or ``default``).
         """
-        if key not in self.doc and default is not _MISSING:
-            return default
-        v = self.raw(key)
-        if not isinstance(v, list):
-            raise self.error(key, f"must be a list, got {_kind(v)}")
-        return [
-            None if (x is None and allow_none) else Fields(x, self.source, f"{self.name(key)}[{i}].")
-            for i, x in enumerate(v)
-        ]
+
+        def conv(v):
+            return [
+                None if (x is None and allow_none) else Fields(x, self.source, f"{self.name(key)}[{i}].")
+                for i, x in enumerate(_checked(v, list, "a list"))
+            ]
+
+        return self._get(key, default, conv)
 
 
 # --- the declarative codec ----------------------------------------------------------------------
@@ -989,9 +948,7 @@ SKIP = Spec(read=lambda f, key, done: None)
 
 def _dims(shape, done) -> tuple | None:
     """A shape whose entries may name an earlier field (its length)."""
-    if shape is None:
-        return None
-    return tuple(len(done[s]) if isinstance(s, str) else s for s in shape)
+    return None if shape is None else tuple(len(done[s]) if isinstance(s, str) else s for s in shape)
 
 
 def text(choices=None, none: bool = False) -> Spec:
@@ -1156,13 +1113,7 @@ def pairs() -> Spec:
     Spec
         The field's spec.
     """
-
-    def read(f, k, done):
-        if f.raw(k) == []:
-            return ()
-        return tuple(map(tuple, f.floats(k, (None, 2)).tolist()))
-
-    return Spec(read)
+    return Spec(lambda f, k, done: () if f.raw(k) == [] else tuple(map(tuple, f.floats(k, (None, 2)).tolist())))
 
 
 def path() -> Spec:
@@ -1213,11 +1164,7 @@ def nested(kind, none: bool = False) -> Spec:
     Spec
         The field's spec.
     """
-
-    def read(f, k, done):
-        return None if none and f.raw(k) is None else kind.from_fields(f.sub(k))
-
-    return Spec(read)
+    return Spec(lambda f, k, done: None if none and f.raw(k) is None else kind.from_fields(f.sub(k)))
 
 
 def nested_list(kind) -> Spec:
@@ -1291,15 +1238,15 @@ def specs(kind: Any) -> dict[str, Spec]:
     own = dict(getattr(kind, "json_fields", {}))
     out = {}
     for fld in dataclasses.fields(kind):
+        make = _BY_ANNOTATION.get(str(fld.type))
         if fld.name in own:
             out[fld.name] = own[fld.name]
-            continue
-        make = _BY_ANNOTATION.get(str(fld.type))
-        if make is None:
+        elif make is not None:
+            out[fld.name] = make()
+        else:
             raise TypeError(
                 f"{kind.__name__}.{fld.name}: annotation {fld.type!r} has no JSON spec; add it to json_fields"
             )
-        out[fld.name] = make()
     return out
 
 
@@ -1337,8 +1284,7 @@ class Codec:
             if spec is not SKIP:
                 value = getattr(self, name)
                 out[spec.key or name] = value if spec.write is None else spec.write(value)
-        for name in self.json_extra:
-            out[name] = getattr(self, name)
+        out.update({name: getattr(self, name) for name in self.json_extra})
         return to_jsonable(out)
 
     @classmethod

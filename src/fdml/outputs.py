@@ -55,28 +55,37 @@ TMP_SUFFIX = ".tmp"
 
 
 # --- checks -------------------------------------------------------------------------------------
+#: Plain-language names of the file types that are not regular files.
+_KINDS = (
+    (stat.S_ISDIR, "a folder"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
 def _kind(mode: int) -> str:
     """A plain-language name of a non-regular file type."""
-    if stat.S_ISDIR(mode):
-        return "a folder"
-    if stat.S_ISCHR(mode):
-        return "a character device"
-    if stat.S_ISBLK(mode):
-        return "a block device"
-    if stat.S_ISFIFO(mode):
-        return "a FIFO (named pipe)"
-    if stat.S_ISSOCK(mode):
-        return "a socket"
-    return "not a regular file"
+    return next((name for test, name in _KINDS if test(mode)), "not a regular file")
 
 
 def _input_paths(inputs) -> list:
     """The path-like entries of ``inputs`` (a preset name or an in-memory object is skipped)."""
     if isinstance(inputs, Inputs):
         return list(inputs.paths)
-    if inputs is None or isinstance(inputs, (str, os.PathLike)):
-        inputs = [] if inputs is None else [inputs]
-    return [p for p in inputs if isinstance(p, (str, os.PathLike))]
+    if isinstance(inputs, (str, os.PathLike)):
+        inputs = [inputs]
+    return [p for p in inputs or () if isinstance(p, (str, os.PathLike))]
+
+
+def _file_id(path) -> tuple[int, int] | None:
+    """``(device, inode)`` of ``path`` (links followed), None when it cannot be read."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return st.st_dev, st.st_ino
 
 
 class Inputs:
@@ -93,14 +102,11 @@ class Inputs:
 
     def __init__(self, paths: Iterable = ()):
         self.paths = tuple(_input_paths(paths))
-        ids: dict[tuple[int, int], str] = {}
+        self.ids: dict[tuple[int, int], str] = {}
         for p in self.paths:
-            try:
-                st = os.stat(p)
-            except (OSError, ValueError):  # missing (a preset name) or unreadable: cannot be written over
-                continue
-            ids.setdefault((st.st_dev, st.st_ino), str(p))
-        self.ids = ids
+            key = _file_id(p)
+            if key is not None:  # missing (a preset name) or unreadable: cannot be written over
+                self.ids.setdefault(key, str(p))
 
     def match(self, path) -> str | None:
         """The input (as given) that is the same file or folder as ``path`` (links followed), else None.
@@ -115,11 +121,8 @@ class Inputs:
         str or None
             The matching input as given, or None.
         """
-        try:
-            st = os.stat(path)
-        except (OSError, ValueError):
-            return None
-        return self.ids.get((st.st_dev, st.st_ino))
+        key = _file_id(path)
+        return None if key is None else self.ids.get(key)
 
 
 def _same_as_input(path: Path, inputs) -> str | None:
@@ -292,9 +295,9 @@ class StagedOutputs:
         self._pending: list[_Pending] = []
 
     # -- staging --
-    def _stage(self, path, what: str) -> tuple[_Pending, int]:
+    def _stage(self, path, what: str) -> tuple[_Pending, int, int]:
+        """A temporary file for ``path``: its pending rename, its descriptor and the mode it gets."""
         final = check_output(path, self.inputs, what=what)
-        user = str(path)
         try:
             final.parent.mkdir(parents=True, exist_ok=True)
             try:
@@ -303,15 +306,8 @@ class StagedOutputs:
                 mode = 0o666 & ~_umask()
             fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=TMP_SUFFIX, dir=final.parent)
         except OSError as exc:
-            raise OutputError(f"cannot write {what} {user}: {_reason(exc)}") from None
-        pending = _Pending(user, what, final, Path(tmp))
-        try:
-            os.fchmod(fd, mode)
-        except OSError as exc:
-            os.close(fd)
-            _remove(pending.tmp)
-            raise pending.error(exc) from None
-        return pending, fd
+            raise OutputError(f"cannot write {what} {path}: {_reason(exc)}") from None
+        return _Pending(str(path), what, final, Path(tmp)), fd, mode
 
     @contextlib.contextmanager
     def open(self, path, mode: str = "w", *, encoding: str = "utf-8", what: str = "output file") -> Iterator:
@@ -335,7 +331,7 @@ class StagedOutputs:
         """
         if mode not in ("w", "wt", "wb"):
             raise ValueError(f"mode must be 'w' or 'wb', got {mode!r}")
-        pending, fd = self._stage(path, what)
+        pending, fd, perms = self._stage(path, what)
         try:
             kw: dict[str, Any] = {} if "b" in mode else {"encoding": encoding, "newline": ""}
             try:
@@ -344,12 +340,12 @@ class StagedOutputs:
                 os.close(fd)
                 raise
             with fh:
+                os.fchmod(fd, perms)
                 yield fh
-        except OSError as exc:
+        except BaseException as exc:
             _remove(pending.tmp)
-            raise pending.error(exc) from None
-        except BaseException:
-            _remove(pending.tmp)
+            if isinstance(exc, OSError):
+                raise pending.error(exc) from None
             raise
         self._pending.append(pending)
 
@@ -426,25 +422,16 @@ class StagedOutputs:
         """Rename every staged file into place (in staging order)."""
         pending, self._pending = self._pending, []
         for i, p in enumerate(pending):
-            st: os.stat_result | None = None
-            err: OSError | OutputError | None = None
             try:
-                st = os.stat(p.final)
-            except (FileNotFoundError, NotADirectoryError):
-                pass
-            except OSError as exc:
-                err = exc
-            if st is not None and not stat.S_ISREG(st.st_mode):  # appeared while we wrote
-                err = OutputError(f"{p.what} {p.user} is {_kind(st.st_mode)}, not a regular file: give a file name")
-            if err is None:
-                try:
-                    os.replace(p.tmp, p.final)
-                    continue
-                except OSError as exc:
-                    err = exc
-            for q in pending[i:]:
-                _remove(q.tmp)
-            raise err if isinstance(err, OutputError) else p.error(err) from None
+                with contextlib.suppress(FileNotFoundError, NotADirectoryError):
+                    mode = os.stat(p.final).st_mode
+                    if not stat.S_ISREG(mode):  # appeared while we wrote
+                        raise OutputError(f"{p.what} {p.user} is {_kind(mode)}, not a regular file: give a file name")
+                os.replace(p.tmp, p.final)
+            except (OSError, OutputError) as err:
+                for q in pending[i:]:
+                    _remove(q.tmp)
+                raise err if isinstance(err, OutputError) else p.error(err) from None
 
     def discard(self) -> None:
         """Remove every staged temporary file; nothing at the final paths changes."""

@@ -60,7 +60,7 @@ def _freq(omega: np.ndarray, unit: str):
     raise ValueError(f"freq_unit must be 'rad/s' or 'Hz', got {unit!r}")
 
 
-def _axes_grid(axes, ax, shape: tuple[int, int], figsize, sharex=True):
+def _axes_grid(axes, ax, shape: tuple[int, int], figsize):
     """(figure, axes array of ``shape``, created) from user axes or a new (constrained-layout) figure."""
     if axes is not None and ax is not None:
         raise ValueError("give axes= or ax=, not both")
@@ -68,7 +68,7 @@ def _axes_grid(axes, ax, shape: tuple[int, int], figsize, sharex=True):
     if given is None:
         import matplotlib.pyplot as plt
 
-        fig, arr = plt.subplots(*shape, figsize=figsize, sharex=sharex, squeeze=False, layout="constrained")
+        fig, arr = plt.subplots(*shape, figsize=figsize, sharex=True, squeeze=False, layout="constrained")
         return fig, arr, True
     arr = np.asarray(given, dtype=object)
     n = shape[0] * shape[1]
@@ -118,10 +118,7 @@ def phase_on_one_branch(reference, *others) -> list[np.ndarray]:
     """
     ref = np.asarray(reference, complex)
     base = np.unwrap(np.angle(ref))
-    out = [np.degrees(base)]
-    for o in others:
-        out.append(np.degrees(base + np.angle(np.asarray(o, complex) * np.conj(ref))))
-    return out
+    return [np.degrees(base)] + [np.degrees(base + np.angle(np.asarray(o, complex) * np.conj(ref))) for o in others]
 
 
 def figure_legend(fig, axes, *, side: str = "lower", **kw):
@@ -147,15 +144,14 @@ def figure_legend(fig, axes, *, side: str = "lower", **kw):
     matplotlib.legend.Legend or None
         The legend (None when there is nothing to show).
     """
-    handles, labels = [], []
     axes = list(axes)
+    entries: dict = {}  # label -> its first handle
     for a in axes:
         for h, lab in zip(*a.get_legend_handles_labels()):
-            if lab not in labels:
-                handles.append(h)
-                labels.append(lab)
-    if not handles:
+            entries.setdefault(lab, h)
+    if not entries:
         return None
+    handles, labels = list(entries.values()), list(entries)
     opts = {"fontsize": "small", "ncol": min(len(labels), 5), **kw}
     engine = fig.get_layout_engine()
     if engine is not None and type(engine).__name__ == "ConstrainedLayoutEngine":
@@ -239,23 +235,17 @@ def spectra_uncertainty(result, record: int = 0, *, rel_step: float = 1e-6):
     """
     y0 = result.fitted_spectra(record)
     cov = np.array(result.cov, float)
-    p = len(result.names)
-    ok = np.isfinite(np.diag(cov)) if p else np.zeros(0, bool)
-    cov = np.where(np.isfinite(cov), cov, 0.0)
-    cov[~ok, :] = 0.0
-    cov[:, ~ok] = 0.0
+    ok = np.isfinite(np.diag(cov))
+    cov = np.where(np.isfinite(cov) & np.outer(ok, ok), cov, 0.0)  # unidentified estimates left out
     rec_name = result.spectra[record].name
     params = result.model.parameters
-    A = np.zeros(y0.shape + (p,), complex)
-    for i, name in enumerate(result.names):
-        slot = result.slots[i]
+    A = np.zeros(y0.shape + (len(result.names),), complex)
+    for i, (name, slot) in enumerate(zip(result.names, result.slots)):
         if not ok[i] or slot.record not in (None, rec_name):
             continue  # unidentified, or a nuisance term of another record
         v = float(result.values[i])
         h = rel_step * max(abs(v), 1e-3)
-        lo, hi = -math.inf, math.inf
-        if name in params:
-            lo, hi = params[name].lower, params[name].upper
+        lo, hi = (params[name].lower, params[name].upper) if name in params else (-math.inf, math.inf)
         up, dn = min(v + h, hi), max(v - h, lo)
         if up == dn:
             continue
@@ -364,22 +354,15 @@ def plot_spectra(
             if sd_all is not None:
                 a, sd = np.abs(y), sigma * sd_all[:, k]
                 lo = np.maximum(a - sd, 1e-3 * a)
-                ax_m.fill_between(
-                    f,
-                    mag(lo),
-                    mag(a + sd),
-                    color=line.get_color(),
-                    alpha=0.25,
-                    lw=0,
-                    label=f"{lab} {sigma:g}-sigma band",
-                )
+                shade = {"color": line.get_color(), "alpha": 0.25, "lw": 0}
+                ax_m.fill_between(f, mag(lo), mag(a + sd), label=f"{lab} {sigma:g}-sigma band", **shade)
                 dph = np.degrees(np.minimum(sd / np.maximum(a, 1e-300), np.pi))
-                ax_p.fill_between(f, ph - dph, ph + dph, color=line.get_color(), alpha=0.25, lw=0)
+                ax_p.fill_between(f, ph - dph, ph + dph, **shade)
         # scale the magnitude axis to the data and fits, not to the band: where the band is
         # wider than the spectrum (lowest frequencies, bias and boundary terms) it is clipped
-        curves = [np.abs(z)] + [np.abs(y_all[:, k]) for y_all, _ in bands]
-        top = max(float(np.max(c)) for c in curves)
-        bottom = min(float(np.min(c[c > 0])) if np.any(c > 0) else top for c in curves)
+        curves = np.abs(np.concatenate([z] + [y_all[:, k] for y_all, _ in bands]))
+        top = float(np.max(curves))
+        bottom = float(np.min(curves[curves > 0])) if np.any(curves > 0) else top
         if mag_unit == "abs" and top > 0:
             ax_m.set_ylim(bottom / 2.0, top * 2.0)
         elif top > 0:
@@ -513,11 +496,9 @@ def _free_response(real, tau: np.ndarray, x0: np.ndarray, sb: np.ndarray, rates:
     ns = real.A.shape[0]
     at = [real.outputs.index(c) for c in boundary_channels(real.outputs)]
     xi0 = np.linalg.lstsq(real.C[at], x0, rcond=None)[0]  # alpha, q[, theta] = x0; every other state zero
-    bf = np.zeros(ns)
-    bf[:2] = sb
-    M = np.zeros((ns + 1, ns + 1))
+    M = np.zeros((ns + 1, ns + 1))  # the state and the constant 1, whose column carries the forcing
     M[:ns, :ns] = real.A
-    M[:ns, ns] = bf
+    M[:2, ns] = sb
     dt = tau[1] - tau[0]
     Phi = linalg.expm(M * dt)
     z = np.empty((tau.size, ns + 1))
@@ -581,7 +562,7 @@ def plot_time_histories(
         _row(result.model.outputs, out)
     meas = result.record(record)
     model = simulate_fit(result, record, trim_window=trim_window)
-    n = len(outputs) + (1 if inputs else 0)
+    n = len(outputs) + int(inputs)
     fig, arr, created = _axes_grid(axes, ax, (n, 1), (8, 2.0 * n + 0.6))
     arr = arr[:, 0]
     scale = _DEG if angle_unit == "deg" else 1.0
@@ -589,7 +570,6 @@ def plot_time_histories(
     unit = {"q": rate, "qdot": f"{rate}^2", "az": "g", **dict.fromkeys(("alpha", "theta", "de", "alpha_w"), angle_unit)}
     sc = {k: 1.0 if k == "az" else scale for k in unit}
     t = meas.t
-    i0 = 0
     if inputs:
         a = arr[0]
         a.plot(t, sc["de"] * meas["de"], "k-", lw=1.0, label=r"$\delta_e$")
@@ -597,15 +577,12 @@ def plot_time_histories(
             a.plot(t, sc["alpha_w"] * meas["alpha_w"], "-", color="0.5", lw=1.0, label=r"$\alpha_w$")
         a.set_ylabel(f"input ({unit['de']})")
         a.grid(True, alpha=0.3)
-        i0 = 1
-    names = _NAMES
-    for j, out in enumerate(outputs):
-        a = arr[i0 + j]
+    for a, out in zip(arr[int(inputs) :], outputs):
         ym, yf = sc[out] * meas[out], sc[out] * model[out]
         rms = float(np.sqrt(np.mean((ym - yf) ** 2)))
         a.plot(t, yf, "-", lw=2.2, color="C1", alpha=0.85, label="model")
         a.plot(t, ym, "k-", lw=0.7, label="measured", zorder=3)
-        a.set_ylabel(f"{names[out]} ({unit[out]})")
+        a.set_ylabel(f"{_NAMES[out]} ({unit[out]})")
         a.set_title(f"rms error {rms:.3g} {unit[out]}", loc="right", fontsize="small")
         a.grid(True, alpha=0.3)
     arr[-1].set_xlabel("time (s)")
@@ -666,8 +643,7 @@ def plot_residual_spectra(
     fig, arr, created = _axes_grid(axes, ax, (1, len(outputs)), (4.2 * len(outputs), 3.4))
     arr = arr[0]
     R = np.asarray(result.R)
-    for j, out in enumerate(outputs):
-        a = arr[j]
+    for a, out in zip(arr, outputs):
         k = _row(result.model.outputs, out)
         a.semilogy(f, np.abs(v[:, k]), ".", ms=4, color="C3", label="|residual|")
         _plain_log_ticks(a.yaxis)
@@ -748,25 +724,14 @@ def plot_correlation(
 
     cm = matplotlib.colormaps[cmap].with_extremes(bad="0.85")  # NaN (unidentified): grey
     im = a.imshow(np.ma.masked_invalid(C), cmap=cm, vmin=-1.0, vmax=1.0, interpolation="nearest")
-    a.set_xticks(range(n))
-    a.set_yticks(range(n))
-    a.set_xticklabels(names, rotation=60, ha="right", fontsize="small")
-    a.set_yticklabels(names, fontsize="small")
+    a.set_xticks(range(n), names, rotation=60, ha="right", fontsize="small")
+    a.set_yticks(range(n), names, fontsize="small")
     if annotate:
         fs = "x-small" if n > 10 else "small"
-        for i in range(n):
-            for j in range(n):
-                c = C[i, j]
-                txt = "" if not np.isfinite(c) else f"{c + 0.0:.2f}".replace("-0.00", "0.00")
-                a.text(
-                    j,
-                    i,
-                    txt,
-                    ha="center",
-                    va="center",
-                    fontsize=fs,
-                    color="white" if np.isfinite(c) and abs(c) > 0.6 else "black",
-                )
+        for (i, j), c in np.ndenumerate(C):
+            txt = f"{c + 0.0:.2f}".replace("-0.00", "0.00") if np.isfinite(c) else ""
+            color = "white" if np.isfinite(c) and abs(c) > 0.6 else "black"
+            a.text(j, i, txt, ha="center", va="center", fontsize=fs, color=color)
     if colorbar:
         fig.colorbar(im, ax=a, fraction=0.046, pad=0.04, label="correlation")
     a.set_title(title or "correlation of the estimates")

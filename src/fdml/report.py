@@ -33,9 +33,10 @@ def _load(result_or_path):
 
 
 def _default_dir(source: Path | None) -> Path:
-    if source is None:
-        return Path("fdml-report")
-    return source.with_name(source.stem + "-report")
+    return Path("fdml-report") if source is None else source.with_name(source.stem + "-report")
+
+
+_TIME_CAPTION = "Time histories: measured against the model simulated in the time domain from the estimate"
 
 
 def _figure(figsize, dpi: int, constrained: bool = True):
@@ -85,82 +86,50 @@ def write_report(
     for name in _file_names(len(res.spectra)):
         check_output(out / name, inputs, what="report file")
     staged = StagedOutputs(inputs)  # nothing is renamed into place before every file is written
-    pending: dict[str, Path] = {}  # key -> final path
+    pending: dict[str, Path] = {}  # key (the file's stem) -> final path
+    figures: list[tuple[str, str, str]] = []  # (record label, caption, file name)
     notes: list[str] = []
 
-    def save(key: str, fig, stem: str) -> None:
-        pending[key] = staged.savefig(fig, out / f"{stem}.png", dpi=dpi, format="png")
+    def save(fig, stem: str, rname: str, caption: str) -> None:
+        pending[stem] = staged.savefig(fig, out / f"{stem}.png", dpi=dpi, format="png")
+        figures.append((rname, caption, f"{stem}.png"))
 
-    multi = len(res.spectra) > 1
-    figures: list[tuple[str, str, str]] = []  # (record label, caption, file name)
+    n_out = len(res.outputs)
     with staged:
         for i, spec in enumerate(res.spectra):
-            sfx = f"_{i}" if multi else ""
+            sfx = f"_{i}" if len(res.spectra) > 1 else ""
             rname = spec.name
-            n_out = len(res.outputs)
             fig = _figure((4.2 * n_out, 6.4), dpi)
             axes = fig.subplots(2, n_out, sharex=True, squeeze=False)
-            plot_spectra(
-                res,
-                record=i,
-                freq_unit=freq_unit,
-                axes=axes,
-                title=f"{rname}: measured and fitted spectra ({res.kind}), 2-sigma band",
-            )
-            save("spectra" + sfx, fig, "spectra" + sfx)
-            figures.append(
-                (rname, "Measured against fitted spectra with the 2-sigma Cramer-Rao band", f"spectra{sfx}.png")
-            )
-            if spec.record is not None:
-                try:
-                    fig = _figure((8, 2.0 * 4 + 1.0), dpi)
-                    axes = fig.subplots(4, 1, sharex=True, squeeze=False)
-                    plot_time_histories(
-                        res,
-                        record=i,
-                        axes=axes,
-                        trim_window=trim_window,
-                        title=f"{rname}: measured and simulated from the estimate",
-                    )
-                    save("time_histories" + sfx, fig, "time_histories" + sfx)
-                    figures.append(
-                        (
-                            rname,
-                            "Time histories: measured against the model simulated in the time domain from the estimate",
-                            f"time_histories{sfx}.png",
-                        )
-                    )
-                except FdmlError as exc:  # the report goes on without this figure
-                    notes.append(f"record {rname}: time histories not drawn ({exc})")
-            else:
+            title = f"{rname}: measured and fitted spectra ({res.kind}), 2-sigma band"
+            plot_spectra(res, record=i, freq_unit=freq_unit, axes=axes, title=title)
+            save(fig, "spectra" + sfx, rname, "Measured against fitted spectra with the 2-sigma Cramer-Rao band")
+            if spec.record is None:
                 notes.append(
                     f"record {rname}: time histories not drawn (the fit was given spectra, not time-domain records)"
                 )
+            else:
+                try:
+                    fig = _figure((8, 2.0 * 4 + 1.0), dpi)
+                    axes = fig.subplots(4, 1, sharex=True, squeeze=False)
+                    title = f"{rname}: measured and simulated from the estimate"
+                    plot_time_histories(res, record=i, axes=axes, trim_window=trim_window, title=title)
+                    save(fig, "time_histories" + sfx, rname, _TIME_CAPTION)
+                except FdmlError as exc:  # the report goes on without this figure
+                    notes.append(f"record {rname}: time histories not drawn ({exc})")
             fig = _figure((4.2 * n_out, 3.8), dpi)
             axes = fig.subplots(1, n_out, squeeze=False)
-            plot_residual_spectra(
-                res,
-                record=i,
-                freq_unit=freq_unit,
-                axes=axes,
-                title=f"{rname}: residual spectra and the noise floor implied by R",
-            )
-            save("residual_spectra" + sfx, fig, "residual_spectra" + sfx)
-            figures.append(
-                (rname, "Residual spectra |z - y| with sqrt(R_kk) and its 95 % level", f"residual_spectra{sfx}.png")
-            )
-        n = len(res.names)
-        size = max(3.5, 0.45 * n + 1.8)
+            title = f"{rname}: residual spectra and the noise floor implied by R"
+            plot_residual_spectra(res, record=i, freq_unit=freq_unit, axes=axes, title=title)
+            save(fig, "residual_spectra" + sfx, rname, "Residual spectra |z - y| with sqrt(R_kk) and its 95 % level")
+        size = max(3.5, 0.45 * len(res.names) + 1.8)
         fig = _figure((size + 1.0, size), dpi, constrained=False)
-        ax = fig.subplots()
-        plot_correlation(res, ax=ax)
+        plot_correlation(res, ax=fig.subplots())
         settle_layout(fig)  # a fixed-aspect heat map with a colour bar
-        save("correlation", fig, "correlation")
-        figures.append(("", "Correlation of the estimates", "correlation.png"))
+        save(fig, "correlation", "", "Correlation of the estimates")
         text = _markdown(res, source, figures, notes)
         pending["report"] = staged.write_text(out / "report.md", text, what="report file")
-    order = ["report"] + [k for k in pending if k != "report"]
-    return {k: pending[k] for k in order}
+    return {"report": pending.pop("report"), **pending}
 
 
 def _file_names(n_records: int) -> list[str]:
@@ -176,26 +145,17 @@ def _markdown(res, source, figures, notes) -> str:
     s = res.summary()
     s = type(s)(s.title, s.header, s.tables, [n for n in s.notes if n[0] != "warnings"], digits=s.digits)
     lines = [f"# fdml report: {res.model.describe()}", ""]
-    if source is not None:
-        lines.append(f"Result file: `{source.name}` (fdml {__version__}).")
-    else:
-        lines.append(f"fdml {__version__}.")
+    lines.append(f"fdml {__version__}." if source is None else f"Result file: `{source.name}` (fdml {__version__}).")
     lines += ["", "## Summary", "", s.as_markdown().replace("### ", "#### ", 1), ""]  # warnings: below, once
     lines += ["## Convergence", ""]
     verdict = "stopped by the callback" if res.stopped else "converged" if res.converged else "NOT converged"
     lines.append(f"{verdict} after {res.iterations} iterations ({res.method}, stop rule {res.stop!r}): {res.message}.")
     lines += ["", "| iteration | J = det R | relative change |", "|---:|---:|---:|"]
-    prev = None
-    for k, J in enumerate(res.cost_history):
+    for k, (prev, J) in enumerate(zip((None, *res.cost_history), res.cost_history)):
         rel = "" if prev is None or prev == 0 else f"{(J - prev) / prev:+.3g}"
         lines.append(f"| {k} | {J:.6g} | {rel} |")
-        prev = J
     lines += ["", "## Warnings", ""]
-    if res.warnings or notes:
-        lines += [f"- {w}" for w in res.warnings]
-        lines += [f"- {n}" for n in notes]
-    else:
-        lines.append("None.")
+    lines += [f"- {w}" for w in (*res.warnings, *notes)] or ["None."]
     lines += ["", "## Figures", ""]
     current = None
     for rec, caption, fname in figures:

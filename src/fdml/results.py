@@ -48,8 +48,15 @@ __all__ = ["FitResult", "IterationInfo", "correlation", "frozen", "load_result",
 RESULT_FORMAT = ("fdml.FitResult", 2)
 
 
+class _Rebuilt:
+    """Pickled as its fields, thawed, and built again on unpickling (which freezes them again)."""
+
+    def __reduce__(self):
+        return (_rebuild, (type(self), _thawed_fields(self)))
+
+
 @dataclass(frozen=True)
-class IterationInfo:
+class IterationInfo(_Rebuilt):
     """What a progress callback receives after each iteration.
 
     Parameters
@@ -71,9 +78,6 @@ class IterationInfo:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "params", frozen(self.params))
-
-    def __reduce__(self):
-        return (_rebuild, (type(self), _thawed_fields(self)))
 
 
 #: Immutable leaf types :func:`frozen` returns as they are, without the ABC checks below.
@@ -169,12 +173,10 @@ def _warnings_field(f: Fields, key: str, done: dict) -> tuple:
         raise f.error(key, "must be a list of warnings")
     out = []
     for i, w in enumerate(items):
-        if isinstance(w, str):
-            out.append(RecordedWarning.from_value(w))
-            continue
-        if not isinstance(w, dict):
+        if not isinstance(w, (str, dict)):
             raise f.error(key, f"entry {i} is neither a string nor a {{category, message}} object")
-        out.append(RecordedWarning.from_fields(Fields(w, f.source, f"{f.name(key)}[{i}].")))
+        where = Fields(w, f.source, f"{f.name(key)}[{i}].") if isinstance(w, dict) else None
+        out.append(RecordedWarning.from_value(w) if where is None else RecordedWarning.from_fields(where))
     return tuple(out)
 
 
@@ -210,6 +212,18 @@ def _model_dict(model) -> dict:
     return model_to_dict(model)
 
 
+#: A saved parameter's keys: (key, the :class:`Fields` reader, its keywords).
+_PARAMETER_KEYS: tuple[tuple[str, str, dict], ...] = (
+    ("name", "string", {}),
+    ("value", "number", {}),
+    ("free", "boolean", {"default": True}),
+    ("lower", "number", {"default": None, "allow_none": True}),
+    ("upper", "number", {"default": None, "allow_none": True}),
+    ("unit", "string", {"default": ""}),
+    ("description", "string", {"default": ""}),
+)
+
+
 def _model_field(f: Fields, key: str, done: dict):
     """The saved model, checked key by key, then built by :func:`fdml.models.model_from_dict`."""
     from .models import model_from_dict
@@ -218,19 +232,7 @@ def _model_field(f: Fields, key: str, done: dict):
     kind = m.string("kind")
     options = m.mapping("options", default={})
     aircraft = None if m.raw("aircraft", None) is None else m.mapping("aircraft")
-    params = []
-    for p in m.items("parameters"):
-        params.append(
-            {
-                "name": p.string("name"),
-                "value": p.number("value"),
-                "free": p.boolean("free", default=True),
-                "lower": p.number("lower", default=None, allow_none=True),
-                "upper": p.number("upper", default=None, allow_none=True),
-                "unit": p.string("unit", default=""),
-                "description": p.string("description", default=""),
-            }
-        )
+    params = [{k: getattr(p, reader)(k, **kw) for k, reader, kw in _PARAMETER_KEYS} for p in m.items("parameters")]
     effects = list(m.strings("effects", default=()))  # effect keys (H1, issue 8)
     try:
         return model_from_dict(
@@ -251,8 +253,24 @@ def _adequacy_field(f: Fields, key: str, done: dict):
     return Adequacy.from_fields(f.sub(key))
 
 
+def _option(name: str, doc: str) -> property:
+    """A result's property that reads the option ``name`` of its :attr:`FitResult.fit_options`."""
+
+    def read(self):
+        return getattr(self.fit_options, name)
+
+    read.__doc__ = doc
+    return property(read)
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """``a`` (a new array) made read-only."""
+    a.setflags(write=False)
+    return a
+
+
 @dataclass(frozen=True)
-class FitResult(ByName, Codec):
+class FitResult(ByName, Codec, _Rebuilt):
     """The outcome of :func:`fdml.fit`.
 
     Each parameter is the attribute of the same name.
@@ -380,9 +398,6 @@ class FitResult(ByName, Codec):
         if not self.slots or len(self.slots) != len(self.names):
             object.__setattr__(self, "slots", _legacy_slots(self.names, self.model, self.records))
 
-    def __reduce__(self):
-        return (_rebuild, (type(self), _thawed_fields(self)))
-
     # --- construction -------------------------------------------------------------------
     @classmethod
     def build(cls, *, prob, model, theta, history, options, **state) -> "FitResult":
@@ -428,16 +443,12 @@ class FitResult(ByName, Codec):
     @functools.cached_property
     def stderr(self) -> np.ndarray:  # type: ignore[override]  # ByName's attribute, derived here
         """Standard errors, the square roots of the diagonal of ``cov`` (inf: unidentifiable); read-only."""
-        out = np.sqrt(np.diag(np.asarray(self.cov, float)))
-        out.setflags(write=False)
-        return out
+        return _read_only(np.sqrt(np.diag(np.asarray(self.cov, float))))
 
     @functools.cached_property
     def corr(self) -> np.ndarray:
         """Correlation of the estimates (:func:`correlation` of ``cov``); read-only."""
-        out = correlation(self.cov)
-        out.setflags(write=False)
-        return out
+        return _read_only(correlation(self.cov))
 
     @functools.cached_property
     def derived(self) -> Mapping:
@@ -454,30 +465,11 @@ class FitResult(ByName, Codec):
         """:attr:`options` as :class:`~fdml.fit_options.FitOptions` (the defaults for keys an old file lacks)."""
         return FitOptions.from_dict(self.options, source="the result's options")
 
-    @property
-    def outputs(self) -> tuple:
-        """Fitted outputs."""
-        return self.fit_options.outputs
-
-    @property
-    def boundary(self) -> str:
-        """The boundary terms: ``estimated``, ``measured`` or ``none``."""
-        return self.fit_options.boundary
-
-    @property
-    def cov_type(self) -> str:
-        """The covariance of ``cov``: ``white``, ``colored`` or ``naive``."""
-        return self.fit_options.cov_type
-
-    @property
-    def method(self) -> str:
-        """The iteration: ``lm`` or ``gauss-newton``."""
-        return self.fit_options.method
-
-    @property
-    def stop(self) -> str:
-        """The stopping rule: ``converge`` or ``paper``."""
-        return self.fit_options.stop
+    outputs = _option("outputs", "Fitted outputs.")
+    boundary = _option("boundary", "The boundary terms: ``estimated``, ``measured`` or ``none``.")
+    cov_type = _option("cov_type", "The covariance of ``cov``: ``white``, ``colored`` or ``naive``.")
+    method = _option("method", "The iteration: ``lm`` or ``gauss-newton``.")
+    stop = _option("stop", "The stopping rule: ``converge`` or ``paper``.")
 
     @property
     def band(self) -> tuple | None:
@@ -586,9 +578,7 @@ class FitResult(ByName, Codec):
             raise FdmlError(f"alpha must lie strictly between 0 and 1, got {alpha!r}")
         z = float(norm.ppf(1.0 - float(alpha) / 2.0))
         half = z * np.asarray(self.stderr, float)
-        out = np.column_stack([self.values - half, self.values + half])
-        out.setflags(write=False)
-        return out
+        return _read_only(np.column_stack([self.values - half, self.values + half]))
 
     @property
     def resid(self) -> np.ndarray:
@@ -599,9 +589,7 @@ class FitResult(ByName, Codec):
         """
         idx = [self.model.outputs.index(o) for o in self.outputs]
         parts = [(s.z - self.fitted_spectra(r))[:, idx] for r, s in enumerate(self.spectra)]
-        out = np.concatenate(parts) if parts else np.zeros((0, len(idx)), complex)
-        out.setflags(write=False)
-        return out
+        return _read_only(np.concatenate(parts) if parts else np.zeros((0, len(idx)), complex))
 
     def __getitem__(self, name: str) -> float:
         if name in self.names:
@@ -679,17 +667,14 @@ class FitResult(ByName, Codec):
         dict
             JSON-ready.
         """
-
-        def num(x):
-            return x if math.isfinite(x) else str(x)
-
         return {
             "model": self.kind,
             "effects": self.effects_brief(),
             "params": {
-                n: {"value": float(v), "stderr": num(float(s))} for n, v, s in zip(self.names, self.values, self.stderr)
+                n: {"value": float(v), "stderr": _num(float(s))}
+                for n, v, s in zip(self.names, self.values, self.stderr)
             },
-            "derived": {k: {"value": v, "stderr": num(s)} for k, (v, s) in self.derived.items()},
+            "derived": {k: {"value": v, "stderr": _num(s)} for k, (v, s) in self.derived.items()},
             "fixed": self.fixed,
             "cost": self.cost,
             "iterations": self.iterations,
@@ -722,7 +707,7 @@ class FitResult(ByName, Codec):
         """
         from .models.effects import root_model
 
-        se = dict(zip(self.names, (float(x) for x in self.stderr)))
+        se = self.errors
         known = {k: v["stderr"] for k, v in dict(self.options).get("known_uncertainty", {}).items()}
         vals = self.model.parameters.values
         out = []
@@ -730,11 +715,7 @@ class FitResult(ByName, Codec):
             pars = {}
             for p in eff.param_list(root_model(self.model)):
                 s = se.get(p.name, known.get(p.name))
-                pars[p.name] = {
-                    "value": float(vals[p.name]),
-                    "unit": p.unit,
-                    "stderr": None if s is None else (s if math.isfinite(s) else str(s)),
-                }
+                pars[p.name] = {"value": float(vals[p.name]), "unit": p.unit, "stderr": None if s is None else _num(s)}
                 if p.name in known and p.name not in se:
                     pars[p.name]["known"] = True
             out.append({"key": eff.key, "parameters": pars})
@@ -909,6 +890,11 @@ class FitResult(ByName, Codec):
         return predict(resp, u, s.ones, nu.boundary(end_shift(s.omega, s.T)), nu.biases, nu.state_biases, elevator)
 
 
+def _num(x: float):
+    """A float for JSON output: itself if finite, else its string ("inf", "nan")."""
+    return x if math.isfinite(x) else str(x)
+
+
 def correlation(cov) -> np.ndarray:
     """Correlation of estimates from their covariance: NaN where a standard error is 0 or not finite, 1 on the diagonal.
 
@@ -934,11 +920,9 @@ def correlation(cov) -> np.ndarray:
 def _at_bound(prob, theta) -> tuple:
     """The names of the estimates on (or past) a finite bound."""
     lo, hi = prob.bounds()
-    return tuple(
-        n
-        for i, n in enumerate(prob.names)
-        if (math.isfinite(lo[i]) and theta[i] <= lo[i]) or (math.isfinite(hi[i]) and theta[i] >= hi[i])
-    )
+    theta = np.asarray(theta, float)
+    on = (np.isfinite(lo) & (theta <= lo)) | (np.isfinite(hi) & (theta >= hi))
+    return tuple(n for n, x in zip(prob.names, on) if x)
 
 
 def _derived(model, slots, cov) -> dict:
@@ -952,14 +936,9 @@ def _derived(model, slots, cov) -> dict:
     C = np.asarray(cov, float)[np.ix_(idx, idx)]
     with np.errstate(invalid="ignore"):
         dcov = J @ np.where(np.isfinite(C), C, 0.0) @ J.T  # delta method
-    bad = ~np.all(np.isfinite(C), axis=0)
-    derived = {}
-    for k, key in enumerate(keys):
-        se = math.sqrt(max(dcov[k, k], 0.0))
-        if np.any(bad & (np.abs(J[k]) > 0)):
-            se = math.inf
-        derived[key] = (float(dvals[key]), se)
-    return derived
+    se = np.sqrt(np.maximum(np.diag(dcov), 0.0))
+    se[np.any((np.abs(J) > 0) & ~np.all(np.isfinite(C), axis=0), axis=1)] = math.inf  # needs an unidentified one
+    return {key: (float(dvals[key]), float(x)) for key, x in zip(keys, se)}
 
 
 def _frozen_record(rec):
@@ -975,12 +954,10 @@ def _frozen_record(rec):
 def _frozen_spectrum(d: FrequencyData) -> FrequencyData:
     """Spectra with read-only arrays, an immutable meta and a frozen record (itself when they are so already)."""
     arrays = {k: getattr(d, k) for k in ("omega", "z", "u", "x0", "xT", "ones", "end_offset")}
-    if all(not a.flags.writeable for a in arrays.values()) and isinstance(d.meta, MappingProxyType):
-        if d.record is None or isinstance(d.record.signals, MappingProxyType):
-            return d
-    return replace(
-        d, **{k: frozen(np.asarray(a)) for k, a in arrays.items()}, meta=frozen(d.meta), record=_frozen_record(d.record)
-    )
+    rec = _frozen_record(d.record)
+    if rec is d.record and isinstance(d.meta, MappingProxyType) and not any(a.flags.writeable for a in arrays.values()):
+        return d
+    return replace(d, **{k: frozen(np.asarray(a)) for k, a in arrays.items()}, meta=frozen(d.meta), record=rec)
 
 
 _NUISANCE_ROLE = {
@@ -995,10 +972,7 @@ def _legacy_slots(names, model, records) -> tuple[Slot, ...]:
     out = []
     for n in names:
         base, _, rec = n.partition("[")
-        if base in model.parameters:
-            role = model.parameters[base].role
-        else:
-            role = _NUISANCE_ROLE.get(base, Role.AERO)
+        role = model.parameters[base].role if base in model.parameters else _NUISANCE_ROLE.get(base, Role.AERO)
         record = rec[:-1] if rec else (records[0] if role.nuisance and records else None)
         out.append(Slot(n, base, role, record))
     return tuple(out)

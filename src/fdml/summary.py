@@ -41,20 +41,10 @@ _EXTRA_UNITS = {
     "bias_alpha_dot": "rad/s",
     "bias_q_dot": "rad/s^2",
     **{f"{end}_{c}": SIGNALS[c] for end in ("x0", "xT") for c in boundary_channels(ALL_OUTPUTS)},
-    "Z_a": "1/s",
+    **dict.fromkeys(("Z_a", "Z_de", "M_q"), "1/s"),
     "Z_q": "-",
-    "Z_de": "1/s",
-    "M_a": "1/s^2",
-    "M_q": "1/s",
-    "M_de": "1/s^2",
-    "Cz_a": "1/rad",
-    "Cz_q": "1/rad",
-    "Cz_de": "1/rad",
-    "Cm_a": "1/rad",
-    "Cm_q": "1/rad",
-    "Cm_de": "1/rad",
-    "Cz_adot_G": "1/rad",
-    "Cm_adot_G": "1/rad",
+    **dict.fromkeys(("M_a", "M_de"), "1/s^2"),
+    **dict.fromkeys(("Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q", "Cm_de", "Cz_adot_G", "Cm_adot_G"), "1/rad"),
 }
 
 _COV_TYPES = {
@@ -141,34 +131,28 @@ class Table:
 def _fmt(value, kind: str, digits: int) -> str:
     if kind == "text":
         return "" if value is None else str(value)
-    if value is None:
+    if value is None or math.isnan(float(value)):
         return ""
-    x = float(value)
-    if math.isnan(x):
-        return ""
-    if math.isinf(x):
-        return "inf" if x > 0 else "-inf"
-    if kind == "num":
-        return f"{x:.{digits}g}"
-    if kind == "err":
-        return f"{x:.4g}"
-    return f"{x:.2f}"  # pct, z
+    return format(float(value), {"num": f".{digits}g", "err": ".4g"}.get(kind, ".2f"))  # pct, z: .2f; inf as "inf"
+
+
+#: LaTeX's special characters and how each is written as text.
+_LATEX = str.maketrans(
+    {**{ch: "\\" + ch for ch in "&%$#_{}"}, "\\": r"\textbackslash{}", "^": r"\^{}", "~": r"\textasciitilde{}"}
+)
+
+
+def _cells(t: Table, digits: int) -> list[list[str]]:
+    """The table's rows, each cell formatted as its column says."""
+    return [[_fmt(v, c.kind, digits) for v, c in zip(row, t.columns)] for row in t.rows]
+
+
+#: HTML cell alignment, by whether the column holds text.
+_ALIGN = {True: "left", False: "right"}
 
 
 def _latex_escape(text: str) -> str:
-    out = []
-    for ch in str(text):
-        if ch in "&%$#_{}":
-            out.append("\\" + ch)
-        elif ch == "\\":
-            out.append(r"\textbackslash{}")
-        elif ch == "^":
-            out.append(r"\^{}")
-        elif ch == "~":
-            out.append(r"\textasciitilde{}")
-        else:
-            out.append(ch)
-    return "".join(out)
+    return str(text).translate(_LATEX)
 
 
 def _md_escape(text: str) -> str:
@@ -257,18 +241,14 @@ class Summary(str):
             The Markdown text.
         """
         lines = [f"### {_md_escape(self.title)}", ""]
-        for k, v in self.header:
-            lines.append(f"- **{_md_escape(k)}**: {_md_escape(v)}")
+        lines += [f"- **{_md_escape(k)}**: {_md_escape(v)}" for k, v in self.header]
         for t in self.tables:
             lines += ["", f"**{_md_escape(t.title)}**", ""]
             lines.append("| " + " | ".join(_md_escape(c.label) for c in t.columns) + " |")
             lines.append("|" + "|".join(":---" if c.kind == "text" else "---:" for c in t.columns) + "|")
-            for row in t.rows:
-                cells = [_md_escape(_fmt(v, c.kind, self.digits)) for v, c in zip(row, t.columns)]
-                lines.append("| " + " | ".join(cells) + " |")
+            lines += ["| " + " | ".join(map(_md_escape, cells)) + " |" for cells in _cells(t, self.digits)]
         for title, items in self.notes:
-            lines += ["", f"**{_md_escape(title)}**", ""]
-            lines += [f"- {_md_escape(x)}" for x in items]
+            lines += ["", f"**{_md_escape(title)}**", "", *(f"- {_md_escape(x)}" for x in items)]
         return "\n".join(lines) + "\n"
 
     def as_html(self) -> str:
@@ -283,20 +263,21 @@ class Summary(str):
         out = ['<div class="fdml-summary">', f"<h4>{e(self.title)}</h4>"]
         if self.header:
             out.append('<table class="fdml-header"><tbody>')
-            for k, v in self.header:
-                out.append(f'<tr><th style="text-align:left">{e(k)}</th><td style="text-align:left">{e(v)}</td></tr>')
+            out += [
+                f'<tr><th style="text-align:left">{e(k)}</th><td style="text-align:left">{e(v)}</td></tr>'
+                for k, v in self.header
+            ]
             out.append("</tbody></table>")
         for t in self.tables:
             out.append(f'<table class="fdml-table fdml-{e(t.key)}">')
             out.append(f"<caption>{e(t.title)}</caption>")
             out.append("<thead><tr>" + "".join(f"<th>{e(c.label)}</th>" for c in t.columns) + "</tr></thead>")
             out.append("<tbody>")
-            for row in t.rows:
-                cells = []
-                for v, c in zip(row, t.columns):
-                    align = "left" if c.kind == "text" else "right"
-                    cells.append(f'<td style="text-align:{align}">{e(_fmt(v, c.kind, self.digits))}</td>')
-                out.append("<tr>" + "".join(cells) + "</tr>")
+            for cells in _cells(t, self.digits):
+                tds = (
+                    f'<td style="text-align:{_ALIGN[c.kind == "text"]}">{e(x)}</td>' for x, c in zip(cells, t.columns)
+                )
+                out.append("<tr>" + "".join(tds) + "</tr>")
             out.append("</tbody></table>")
         for title, items in self.notes:
             out.append(f"<p><b>{e(title)}</b></p><ul>" + "".join(f"<li>{e(x)}</li>" for x in items) + "</ul>")
@@ -314,12 +295,8 @@ class Summary(str):
         x = _latex_escape
         out = [r"\begin{center}", r"\textbf{" + x(self.title) + r"}\\[4pt]"]
         if self.header:
-            out.append(r"\begin{tabular}{ll}")
-            out.append(r"\hline")
-            for k, v in self.header:
-                out.append(f"{x(k)} & {x(v)} \\\\")
-            out.append(r"\hline")
-            out.append(r"\end{tabular}")
+            rows = [f"{x(k)} & {x(v)} \\\\" for k, v in self.header]
+            out += [r"\begin{tabular}{ll}", r"\hline", *rows, r"\hline", r"\end{tabular}"]
         for t in self.tables:
             spec = "".join("l" if c.kind == "text" else "r" for c in t.columns)
             out += [
@@ -331,13 +308,11 @@ class Summary(str):
                 " & ".join(x(c.label) for c in t.columns) + r" \\",
                 r"\hline",
             ]
-            for row in t.rows:
-                out.append(" & ".join(x(_fmt(v, c.kind, self.digits)) for v, c in zip(row, t.columns)) + r" \\")
+            out += [" & ".join(map(x, cells)) + r" \\" for cells in _cells(t, self.digits)]
             out += [r"\hline", r"\end{tabular}"]
         for title, items in self.notes:
             out += ["", r"\medskip", r"\textit{" + x(title) + r"}", r"\begin{itemize}"]
-            out += [r"\item " + x(i) for i in items]
-            out.append(r"\end{itemize}")
+            out += [*(r"\item " + x(i) for i in items), r"\end{itemize}"]
         out.append(r"\end{center}")
         return "\n".join(out) + "\n"
 
@@ -368,13 +343,9 @@ class Summary(str):
                 "Summary.to_frame needs pandas; install the optional extra: pip install 'fdml[pandas]'"
             ) from None
         t = self.tables[0] if table is None else self.table(table)
-        cols = [c.key for c in t.columns]
-        data = [[(np.nan if v is None and c.kind != "text" else v) for v, c in zip(row, t.columns)] for row in t.rows]
-        frame = pd.DataFrame(data, columns=cols)
-        frame = frame.set_index(cols[0])
-        for c in t.columns[1:]:
-            if c.kind != "text":
-                frame[c.key] = frame[c.key].astype(float)
+        numbers = {c.key: float for c in t.columns[1:] if c.kind != "text"}  # None: NaN
+        frame = pd.DataFrame(list(t.rows), columns=[c.key for c in t.columns]).set_index(t.columns[0].key)
+        frame = frame.astype(numbers)
         frame.attrs["title"] = self.title
         frame.attrs["header"] = dict(self.header)
         return frame
@@ -393,21 +364,18 @@ def _render_text(title, header, tables, notes, digits) -> str:
         w = max(len(k) for k, _ in header) + 1
         lines += [f"{k + ':':>{w}s} {v}" for k, v in header]
     for t in tables:
-        cells = [[_fmt(v, c.kind, digits) for v, c in zip(row, t.columns)] for row in t.rows]
+        cells = _cells(t, digits)
         widths = [max([len(c.label)] + [len(r[j]) for r in cells]) for j, c in enumerate(t.columns)]
         widths[0] = max(widths[0], 12)
 
         def line(items):
-            parts = []
-            for j, (s, c) in enumerate(zip(items, t.columns)):
-                parts.append(s.ljust(widths[j]) if c.kind == "text" else s.rjust(widths[j]))
-            return "  ".join(parts).rstrip()
+            cells = (s.ljust(w) if c.kind == "text" else s.rjust(w) for s, w, c in zip(items, widths, t.columns))
+            return "  ".join(cells).rstrip()
 
         lines += ["", t.title, line([c.label for c in t.columns])]
         lines += [line(r) for r in cells]
     for title_, items in notes:
-        lines += ["", f"{title_}:"]
-        lines += [f"  {x}" for x in items]
+        lines += ["", f"{title_}:", *(f"  {x}" for x in items)]
     return "\n".join(lines)
 
 
@@ -417,22 +385,18 @@ def _render_text(title, header, tables, notes, digits) -> str:
 def _biases_used(res) -> list[str]:
     """Which bias terms a fit estimated, from the roles of its estimates and fixed parameters."""
     roles = {s.role for s in res.slots}
-    out = []
     outs = [b[len("bias_") :] for b in dict.fromkeys(s.base for s in res.slots if s.role is Role.OUTPUT_BIAS)]
-    if outs:
-        out.append("output biases " + ",".join(outs))
-    if Role.STATE_BIAS in roles:
-        out.append("state-equation biases")
-    if Role.INPUT_BIAS in roles:
-        out.append("elevator bias")
-    edges = [s.name for s in res.slots if s.role is Role.INPUT_EDGE]
-    if edges:
-        out.append(f"timing of {len(edges)} elevator step(s) between samples")
+    edges = sum(s.role is Role.INPUT_EDGE for s in res.slots)
     params = res.model.parameters
     fixed = [k for k, v in res.fixed.items() if k in params and params[k].role.nuisance and v != 0.0]
-    if fixed:
-        out.append("fixed " + ", ".join(fixed))
-    return out
+    used = [
+        "output biases " + ",".join(outs) if outs else None,
+        "state-equation biases" if Role.STATE_BIAS in roles else None,
+        "elevator bias" if Role.INPUT_BIAS in roles else None,
+        f"timing of {edges} elevator step(s) between samples" if edges else None,
+        "fixed " + ", ".join(fixed) if fixed else None,
+    ]
+    return [u for u in used if u is not None]
 
 
 #: Where a fit's airspeed came from (``FitResult.provenance["airspeed"]["source"]``), in words.
@@ -457,58 +421,50 @@ def _airspeed(res) -> str | None:
     return f"{U:.4g} m/s ({'aircraft ' + ac.name if ac is not None else 'given to the model'})"
 
 
-def _header(res) -> list[tuple[str, str]]:
-    h = [("model", res.model.describe())]
-    ac = getattr(res.model, "aircraft", None)
-    if ac is not None and getattr(ac, "name", None):
-        h.append(("aircraft", ac.name))
-    airspeed = _airspeed(res)
-    if airspeed is not None:
-        h.append(("airspeed", airspeed))
-    h.append(("records", ", ".join(res.records)))
-    h.append(("outputs", ", ".join(res.outputs)))
+def _band(res) -> str:
+    """The fitted band (or frequencies) in words, with the number of frequencies."""
     if res.band is not None:
         lo, hi, step = res.band
-        band = (
+        return (
             f"{lo:g}-{hi:g} rad/s, step {step:g} ({lo / (2 * math.pi):.3g}-{hi / (2 * math.pi):.3g} Hz); "
             f"{res.n_freq} frequencies"
         )
-    elif res.spectra:
+    if res.spectra:
         w = np.concatenate([s.omega for s in res.spectra])
-        band = f"{w.min():.4g}-{w.max():.4g} rad/s (given frequencies); {res.n_freq} frequencies"
-    else:
-        band = f"{res.n_freq} frequencies"
-    h.append(("band", band))
-    h.append(("boundary terms", res.boundary))
-    h.append(("biases", "; ".join(_biases_used(res)) or "no biases"))
-    trims = [d.trim_mode for d in getattr(res, "spectra", ())]
-    if trims:
-        h.append(("trim", ",".join(dict.fromkeys(str(t) for t in trims))))
-    h.append(("standard errors", f"{res.cov_type}: {_COV_TYPES.get(res.cov_type, res.cov_type)}"))
-    h.append(("method", f"{res.method}, stop rule {res.stop!r}"))
-    if res.stopped:
-        verdict = f"stopped by the callback after {res.iterations} iterations"
-    elif res.converged:
-        verdict = f"converged after {res.iterations} iterations"
-    else:
-        verdict = f"NOT converged after {res.iterations} iterations"
-    msg = res.message
-    for prefix in ("converged: ", "converged, "):
-        if msg.startswith(prefix):
-            msg = msg[len(prefix) :]
-    h.append(("convergence", f"{verdict}: {msg}"))
-    h.append(("cost J = det R", f"{res.cost:.6g} (start {res.cost_history[0]:.6g})"))
-    h.append(("elapsed", f"{res.elapsed:.3g} s"))
-    return h
+        return f"{w.min():.4g}-{w.max():.4g} rad/s (given frequencies); {res.n_freq} frequencies"
+    return f"{res.n_freq} frequencies"
+
+
+def _header(res) -> list[tuple[str, str]]:
+    verdict = "stopped by the callback" if res.stopped else "converged" if res.converged else "NOT converged"
+    msg = res.message.removeprefix("converged: ").removeprefix("converged, ")
+    h = [
+        ("model", res.model.describe()),
+        ("aircraft", getattr(getattr(res.model, "aircraft", None), "name", None) or None),
+        ("airspeed", _airspeed(res)),
+        ("records", ", ".join(res.records)),
+        ("outputs", ", ".join(res.outputs)),
+        ("band", _band(res)),
+        ("boundary terms", res.boundary),
+        ("biases", "; ".join(_biases_used(res)) or "no biases"),
+        ("trim", ",".join(dict.fromkeys(str(d.trim_mode) for d in res.spectra)) or None),
+        ("standard errors", f"{res.cov_type}: {_COV_TYPES.get(res.cov_type, res.cov_type)}"),
+        ("method", f"{res.method}, stop rule {res.stop!r}"),
+        ("convergence", f"{verdict} after {res.iterations} iterations: {msg}"),
+        ("cost J = det R", f"{res.cost:.6g} (start {res.cost_history[0]:.6g})"),
+        ("elapsed", f"{res.elapsed:.3g} s"),
+    ]
+    return [(k, v) for k, v in h if v is not None]  # no aircraft, airspeed or trim to tell: no line
 
 
 def _flags(res, name: str, stderr: float) -> str:
-    flags = []
-    if name in res.at_bound:
-        flags.append("at bound")
-    if not math.isfinite(stderr):
-        flags.append("not identifiable")
-    return ", ".join(flags)
+    flags = {"at bound": name in res.at_bound, "not identifiable": not math.isfinite(stderr)}
+    return ", ".join(f for f, on in flags.items() if on)
+
+
+def _row(res, name: str, value: float, stderr: float, flags: str) -> tuple:
+    """A row of the estimates' (or the derived set's) table."""
+    return (name, value, stderr, _rel(value, stderr), flags, parameter_unit(res, name))
 
 
 def _rel(value: float, stderr: float) -> float:
@@ -558,34 +514,22 @@ def fit_summary(res, digits: int = 6) -> Summary:
     Summary
         The tables and notes.
     """
-    rows: list[tuple] = []
-    for n, v, s in zip(res.names, np.asarray(res.values, float), np.asarray(res.stderr, float)):
-        rows.append((n, float(v), float(s), _rel(float(v), float(s)), _flags(res, n, float(s)), parameter_unit(res, n)))
-    for k, v in _shown_fixed(res).items():
-        rows.append((k, float(v), None, None, "fixed", parameter_unit(res, k)))
+    rows = [
+        _row(res, n, v, s, _flags(res, n, s)) for n, v, s in zip(res.names, res.values.tolist(), res.stderr.tolist())
+    ]
+    rows += [(k, float(v), None, None, "fixed", parameter_unit(res, k)) for k, v in _shown_fixed(res).items()]
     tables = [Table("parameters", "Estimates", _PARAM_COLUMNS, tuple(rows))]
     if res.derived:
         drows = tuple(
-            (
-                k,
-                float(v),
-                float(s),
-                _rel(float(v), float(s)),
-                "not identifiable" if not math.isfinite(s) else "",
-                parameter_unit(res, k),
-            )
+            _row(res, k, float(v), float(s), "" if math.isfinite(s) else "not identifiable")
             for k, (v, s) in res.derived.items()
         )
         dcols = (Column("quantity", "derived"),) + _PARAM_COLUMNS[1:]
         tables.append(Table("derived", "Derived set (delta method)", dcols, drows))
     listed = SETTINGS.correlation_listed  # the estimator's named thresholds
     corr = np.asarray(res.corr, float)
-    pairs = []
-    for i in range(len(res.names)):
-        for j in range(i):
-            r = corr[i, j]
-            if np.isfinite(r) and abs(r) >= listed:
-                pairs.append((res.names[j], res.names[i], float(r)))
+    below = zip(*np.tril_indices(len(res.names), -1))  # (i, j), j < i, row by row
+    pairs = [(res.names[j], res.names[i], float(corr[i, j])) for i, j in below if abs(corr[i, j]) >= listed]
     if pairs:
         pairs.sort(key=lambda p: -abs(p[2]))
         ccols = (
@@ -641,11 +585,8 @@ def comparison_summary(cmp, reference: Mapping | None = None, digits: int = 4) -
         s, ss = cmp.steady_set.get(n, (math.nan, math.nan))
         sig = math.hypot(su, ss)
         z = (s - u) / sig if sig > 0 and math.isfinite(sig) else math.nan
-        row = [n, u, su, s, ss, z]
-        if reference:
-            ru, rs = reference.get(n, (math.nan, math.nan))
-            row += [ru, rs]
-        rows.append(tuple(row))
+        paper = reference.get(n, (math.nan, math.nan)) if reference else ()  # (unsteady, steady)
+        rows.append((n, u, su, s, ss, z, *paper))
     header = [
         ("unsteady model", cmp.unsteady.model.describe()),
         ("steady model", cmp.steady.model.describe()),

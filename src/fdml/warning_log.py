@@ -11,6 +11,7 @@ again on leaving, so that the caller's own filters still decide what is shown.
 
 from __future__ import annotations
 
+import itertools
 import warnings
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -80,10 +81,7 @@ def as_recorded(values: Iterable) -> tuple[RecordedWarning, ...]:
     tuple of RecordedWarning
         The distinct warnings, in order of first occurrence.
     """
-    out: dict[RecordedWarning, None] = {}
-    for v in values:
-        out.setdefault(RecordedWarning.from_value(v), None)
-    return tuple(out)
+    return tuple(dict.fromkeys(RecordedWarning.from_value(v) for v in values))
 
 
 @contextmanager
@@ -118,11 +116,11 @@ def recording(reemit: bool = True) -> Iterator[list[RecordedWarning]]:
             yield log
         finally:
             seen = list(caught)
-    log.extend(as_recorded(RecordedWarning(w.category.__name__, str(w.message)) for w in seen))
+    firsts: dict[tuple[str, str], warnings.WarningMessage] = {}  # (category, message) -> first caught
+    for w in seen:
+        firsts.setdefault((w.category.__name__, str(w.message)), w)
+    log.extend(RecordedWarning(*key) for key in firsts)
     if reemit:
-        firsts: dict[tuple[str, str], warnings.WarningMessage] = {}
-        for w in seen:
-            firsts.setdefault((w.category.__name__, str(w.message)), w)
         for w in firsts.values():
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
 
@@ -145,7 +143,6 @@ def merged(*groups: Iterable) -> tuple[RecordedWarning, ...]:
         One warning per distinct message, in order of first occurrence.
     """
     out: dict[str, RecordedWarning] = {}
-    for group in groups:
-        for w in as_recorded(group):
-            out.setdefault(w.message, w)
+    for w in as_recorded(itertools.chain(*groups)):
+        out.setdefault(w.message, w)
     return tuple(out.values())
