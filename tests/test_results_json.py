@@ -375,6 +375,21 @@ def test_a_version_1_file_loads_and_derives_what_it_kept():
     np.testing.assert_array_equal(res.resid, back.resid)
 
 
+@pytest.mark.parametrize("mode, lead", [("none", 0), ("first", 1), ("mean", 21)])
+def test_a_version_1_file_counts_the_trim_samples_as_spectra_does(tmp_path, mode, lead):
+    # version 1 kept the trim mode, not its sample count: the reader counts them as fdml.spectra does
+    # (trim "none": no leading samples, though the file keeps a 1 s window beside it)
+    d = json.loads(V1_FILE.read_text())
+    d["nuisance"]["trim"] = [mode] * len(d["nuisance"]["trim"])
+    for r in d["time_records"]:
+        r["trim_mode"] = mode
+    path = tmp_path / "v1.json"
+    path.write_text(json.dumps(d))
+    res = load_result(path)
+    assert [s.trim_samples for s in res.spectra] == [lead] * len(res.spectra)
+    assert all(s.trim_mode == mode for s in res.spectra)
+
+
 def _theta_fit():
     """alpha, q, theta and q_dot fitted (issue 22 item 3): theta's own boundary values, no bias_theta."""
     from fdml.maneuvers import three_two_one_one, time_vector

@@ -999,7 +999,9 @@ def _from_version_1(cls, f: Fields, given: Mapping) -> FitResult:
     for i, s in enumerate(f.items("spectra", default=[])):
         mode = trims[i] if i < len(trims) else opts.get("trim", "first")
         dt = s.number("dt")
-        lead = {"none": 0, "first": 1}.get(mode) or int(round(float(opts.get("trim_window") or 0.5) / dt)) + 1
+        # as fdml.spectra counts them: none for "none", the first sample for "first", else the window's
+        window = {"none": None, "first": 0.0}.get(mode, float(opts.get("trim_window") or 0.5))
+        lead = 0 if window is None else int(round(window / dt)) + 1
         spectra.append(
             FrequencyData.from_fields(
                 Fields({**s.doc, "outputs": rows}, s.source, s.prefix),
