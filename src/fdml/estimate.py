@@ -422,8 +422,11 @@ class Problem:
         """The fitted outputs of ``y``, whose ``axis`` runs over all the model's rows."""
         return y if self._all_outputs else np.take(y, self.out_idx, axis=axis)
 
-    def _eval_stacked(self, theta: np.ndarray) -> np.ndarray:
-        return np.concatenate([y[:, self.out_idx] for y in self.predict(theta)])
+    def _eval_moved(self, theta: np.ndarray, i: int, h: float) -> np.ndarray:
+        """The fitted outputs' predictions, stacked over records, with slot ``i`` moved by ``h``."""
+        t = theta.copy()
+        t[i] += h
+        return np.concatenate([y[:, self.out_idx] for y in self.predict(t)])
 
     def _fd_column(self, theta, i, y0s, lo, hi, tol=SETTINGS.settle_tol) -> np.ndarray:
         """Eq. 26 with step reduction until the sensitivity settles to ``tol``.
@@ -440,21 +443,14 @@ class Problem:
             h = SETTINGS.fd_start * scale
         if self.sensitivity == "central":
             h = SETTINGS.central_step * scale
-            tp, tm = theta.copy(), theta.copy()
-            tp[i] += h
-            tm[i] -= h
-            return (self._eval_stacked(tp) - self._eval_stacked(tm)) / (2 * h)
+            return (self._eval_moved(theta, i, h) - self._eval_moved(theta, i, -h)) / (2 * h)
 
         def column(step):
             step = step if theta[i] + step <= hi else -step  # stay inside the bounds
-            t = theta.copy()
-            t[i] += step
             if tol < SETTINGS.settle_tol and theta[i] - step >= lo:
                 # final covariance: central differences, O(h^2), settle far below Eq. 26's 1e-4
-                tm = theta.copy()
-                tm[i] -= step
-                return (self._eval_stacked(t) - self._eval_stacked(tm)) / (2 * step)
-            return (self._eval_stacked(t) - y0s) / step
+                return (self._eval_moved(theta, i, step) - self._eval_moved(theta, i, -step)) / (2 * step)
+            return (self._eval_moved(theta, i, step) - y0s) / step
 
         prev = column(h)
         best, best_change, best_h = prev, math.inf, h
