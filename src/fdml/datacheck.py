@@ -44,6 +44,7 @@ import itertools
 import math
 import time
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -407,6 +408,7 @@ def _pct(x: float) -> str:
 def _kinematic_findings(k: KinematicFit, name: str):
     if k.fit < _MIN_FIT and k.fit_labelled < _MIN_FIT:
         return  # no usable identity: the outputs do not respond (the response check says so)
+    found = partial(Finding, record=name)
     exp_b = "" if k.expected_az is None else f" and {k.expected_az:.4g} rad/s per g (g/U)"
     slopes = (
         f"alpha_dot = {k.slope_q:.4g} q + {k.slope_az:.4g} a_z in the band (expected 1{exp_b}; "
@@ -414,69 +416,48 @@ def _kinematic_findings(k: KinematicFit, name: str):
     )
     if k.order != OUTPUTS:
         labels = ", ".join(f"{lab} holds {true}" for lab, true in zip(k.order, OUTPUTS) if lab != true)
-        yield Finding(
+        yield found(
             "channels.swapped",
             f"the outputs satisfy the kinematic identity (docs/theory.md Eq. 5) only when relabelled: "
             f"{labels} (relabelled, {_pct(1 - k.fit)} of alpha_dot is left unexplained; as "
             f"labelled, {_pct(1 - k.fit_labelled)})",
-            record=name,
             value=k.fit,
             expected=k.fit_labelled,
         )
     if not k.scales:
-        yield Finding(
+        yield found(
             "kinematics.inconsistent",
             f"alpha, q and a_z do not satisfy the kinematic identity (docs/theory.md Eq. 5): {slopes}; "
             "no single unit or sign error explains it (check units, signs and the airspeed)",
-            record=name,
             value=k.slope_q,
             expected=1.0,
         )
         return
     sa, sq, sz = k.scales
     if sa != 1.0:
-        yield Finding(
-            "units.alpha",
-            f"alpha looks like degrees: {slopes}; both slopes carry a factor "
-            f"of about {abs(k.slope_q * sq):.3g} (57.3 for degrees)",
-            record=name,
-            value=abs(k.slope_q * sq),
-            expected=DEG,
+        factor = abs(k.slope_q * sq)
+        text = (
+            f"alpha looks like degrees: {slopes}; both slopes carry a factor of about {factor:.3g} (57.3 for degrees)"
         )
+        yield found("units.alpha", text, value=factor, expected=DEG)
     if abs(sq) != 1.0:
-        yield Finding(
-            "units.q",
-            f"q looks like deg/s: {slopes}; the q slope is 1/{abs(sa / k.slope_q):.3g} (1/57.3 for deg/s)",
-            record=name,
-            value=abs(sa / k.slope_q),
-            expected=DEG,
-        )
+        factor = abs(sa / k.slope_q)
+        text = f"q looks like deg/s: {slopes}; the q slope is 1/{factor:.3g} (1/57.3 for deg/s)"
+        yield found("units.q", text, value=factor, expected=DEG)
     if sq < 0:
-        yield Finding(
-            "sign.q",
-            f"q has the wrong sign (nose up must be positive): {slopes}",
-            record=name,
-            value=k.slope_q,
-            expected=1.0,
-        )
+        text = f"q has the wrong sign (nose up must be positive): {slopes}"
+        yield found("sign.q", text, value=k.slope_q, expected=1.0)
     if abs(sz) != 1.0:
-        f = abs(sa * k.expected_az / k.slope_az)
-        yield Finding(
-            "units.az",
-            f"a_z looks like m/s^2 where g is due: {slopes}; the a_z slope is g/U divided by {f:.3g} (9.81 for m/s^2)",
-            record=name,
-            value=f,
-            expected=G0,
-        )
+        factor = abs(sa * k.expected_az / k.slope_az)
+        text = f"a_z looks like m/s^2 where g is due: {slopes}; the a_z slope is g/U divided by {factor:.3g}"
+        text += " (9.81 for m/s^2)"
+        yield found("units.az", text, value=factor, expected=G0)
     if sz < 0:
-        yield Finding(
-            "sign.az",
-            f"a_z has the wrong sign (fdml's a_z is positive down, docs/theory.md Eq. 5; "
-            f"a record's a_n is positive up): {slopes}",
-            record=name,
-            value=k.slope_az,
-            expected=k.expected_az,
+        text = (
+            "a_z has the wrong sign (fdml's a_z is positive down, docs/theory.md Eq. 5; "
+            f"a record's a_n is positive up): {slopes}"
         )
+        yield found("sign.az", text, value=k.slope_az, expected=k.expected_az)
 
 
 # --- response to the input -------------------------------------------------------------------

@@ -217,10 +217,7 @@ class QualityReport(Codec):
         ChannelQuality
             Its report.
         """
-        for c in self.channels:
-            if c.name == name:
-                return c
-        raise KeyError(name)
+        return {c.name: c for c in self.channels}[name]
 
     def summary(self) -> str:
         """Plain-text report.
@@ -318,7 +315,7 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
     jitter = float(np.max(np.abs(d - dt)) / dt)
 
     # --- channels --------------------------------------------------------------------------
-    chans, findings, findings_low, n_defects = _channel_findings(record, outputs, hi)
+    chans, findings, findings_low = _channel_findings(record, outputs, hi)
     if jitter > 1e-6:
         findings_low.append(f"sample intervals vary by up to {100 * jitter:.2g} % of dt")
 
@@ -338,25 +335,22 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
 
     # --- verdict ----------------------------------------------------------------------------
     independent = (hi - lo) * T / (2 * math.pi) + 1.0
-    good_in = ~low_mask
+    good = ~low_mask
     if coh_w.size:
         coherent = np.zeros(coh_w.size, bool)
         for g in coh.values():
             coherent |= g >= max(GOOD_COHERENCE, thr)
-        coherent_on_grid = np.interp(omega, coh_w, coherent.astype(float)) >= 0.5
-        good = good_in & coherent_on_grid
-    else:
-        good = good_in
+        good &= np.interp(omega, coh_w, coherent.astype(float)) >= 0.5
     useful = float(np.sum(good)) * step * T / (2 * math.pi) if omega.size > 1 else float(np.sum(good))
     useful = min(useful, independent)
     n_out = len(outputs)
     required = max(1, math.ceil(n_params / (2 * n_out)))
     sufficient = useful >= required and peak > 0
 
-    head = _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, omega, low_mask, coh, thr)
+    head = _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, low_input, coh, thr)
     if "too short" in method:
         head.append(method)
-    if n_defects == 0:
+    if not any(c.holds or c.clipped for c in chans if c.name != "de"):
         findings.append("no dropouts or saturation in any measured channel")
     findings = head + findings + findings_low + [f"sampling {1 / dt:.4g} Hz, jitter {jitter:.2g} of dt"]
 
@@ -386,11 +380,10 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
 
 
 def _channel_findings(record: Record, outputs, hi: float):
-    """Each channel's quantisation, holds and clipping; findings on the fitted channels, the others', and defects."""
+    """Each channel's quantisation, holds and clipping; findings on the fitted channels and on the others."""
     dt = record.dt
     findings: list[str] = []
     findings_low: list[str] = []
-    n_defects = 0
     chans = []
     f_hi_hz = hi / (2 * math.pi)
     for name in [k for k in SIGNALS if k in record.signals]:
@@ -403,33 +396,32 @@ def _channel_findings(record: Record, outputs, hi: float):
                 f"and the band reaches {f_hi_hz:.3g} Hz"
             )
             (findings if name in ("de", *outputs) else findings_low).append(msg)
-        if c.repeat_fraction > 0.5 and name != "de":
+        if name == "de":  # the input's holds and flat tops are its steps
+            continue
+        if c.repeat_fraction > 0.5:
             msg = (
                 f"{name} repeats its previous value in {100 * c.repeat_fraction:.0f} % of the samples "
                 f"({c.n_levels} levels, step {c.resolution:.3g} {c.unit}): a slow update or a coarse resolution"
             )
             (findings if name in outputs else findings_low).append(msg)
-        if (c.holds or c.clipped) and name != "de":
-            n_defects += 1
-        if c.holds and name != "de":
+        if c.holds:
             tot = sum(h[1] for h in c.holds)
             findings.append(
                 f"{name} holds its value {len(c.holds)} time(s) while the signal moves "
                 f"(dropouts; {tot:.3g} s in all, longest {max(h[1] for h in c.holds):.3g} s at "
                 f"t = {max(c.holds, key=lambda h: h[1])[0]:.4g} s)"
             )
-        if c.clipped and name != "de":
+        if c.clipped:
             findings.append(
                 f"{name} is flat at its {' and '.join(c.clipped)} value while heading further: "
                 "possible sensor saturation"
             )
-    return chans, findings, findings_low, n_defects
+    return chans, findings, findings_low
 
 
-def _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, omega, low_mask, coh, thr) -> list[str]:
+def _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, low_input, coh, thr) -> list[str]:
     """The verdict's first findings: sufficiency of excitation, input energy in the band, coherence."""
     lo, hi, _step = band
-    low_input = _intervals(omega, low_mask)
     head = []
     if peak == 0:
         head.append("the elevator does not move: the record carries no input; no parameter can be identified")
@@ -618,18 +610,9 @@ def _spans(intervals) -> str:
 
 
 def _intervals(omega, mask):
-    out = []
-    i = 0
-    while i < mask.size:
-        if mask[i]:
-            j = i
-            while j + 1 < mask.size and mask[j + 1]:
-                j += 1
-            out.append((float(np.round(omega[i], 10)), float(np.round(omega[j], 10))))
-            i = j + 1
-        else:
-            i += 1
-    return out
+    """(first, last) frequency of each run of ``mask``, rad/s."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
+    return [(float(np.round(omega[i], 10)), float(np.round(omega[j - 1], 10))) for i, j in edges.reshape(-1, 2)]
 
 
 # --- coherence ----------------------------------------------------------------------------------
@@ -681,75 +664,69 @@ def _welch(x: np.ndarray, Y: np.ndarray, fs: float, nper: int, nover: int):
 
 
 def _coherence(record: Record, outputs, lo: float, hi: float):
+    """Coherence of the elevator with each output in the band (Welch, or Daniell for short records: see
+    :func:`check_quality`); returns (by output, frequencies rad/s, method, 5 % significance threshold)."""
     n, dt = record.n, record.dt
     fs = 1.0 / dt
     de = record["de"]
+    names = [k for k in outputs if k in record.signals]
+    Y = np.vstack([record[k] for k in names]) if names else np.zeros((0, n))
     nper = int(2 * n / (WELCH_SEGMENTS + 1))
-    coh = {}
+    welch = False
     if nper >= 16:
-        nover = nper // 2
-        n_seg = 1 + (n - nper) // (nper - nover)
         w1 = 2 * math.pi * fs / nper
         w_grid = np.arange(lo, hi + 1e-12, (hi - lo) / 100 if hi > lo else 1.0)
         covered = float(np.mean(w_grid >= w1))
         n_in_band = int(np.sum((w1 * np.arange(1, nper // 2 + 1) >= lo) & (w1 * np.arange(1, nper // 2 + 1) <= hi)))
-        if covered >= 0.5 and n_in_band >= MIN_COHERENCE_ESTIMATES:
-            names = [k for k in outputs if k in record.signals]
-            Y = np.vstack([record[k] for k in names]) if names else np.zeros((0, n))
-            # one Welch pass over the elevator and all outputs (what scipy.signal.coherence
-            # computes output by output, in three passes each)
-            f, Pxx, Pyy, Pxy = _welch(de, Y, fs, nper, nover)
-            w = 2 * math.pi * f
-            sel = (w >= lo) & (w <= hi) & (w > 0)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                g = np.abs(Pxy) ** 2 / (Pxx[None, :] * Pyy)
-            for i, k in enumerate(names):
-                coh[k] = np.nan_to_num(g[i, sel])
-            w_out = w[sel]
-            thr = 1 - COHERENCE_ALPHA ** (1 / max(n_seg - 1, 1))
-            method = (
-                f"Welch, {nper}-sample Hann segments ({nper * dt:.3g} s), 50 % "
-                f"overlap, {n_seg} segments: resolution {w1:.3g} rad/s; 5 % significance threshold "
-                f"{thr:.2f}"
-            )
-            if covered < 1.0:
-                method += f"; band frequencies below {w1:.3g} rad/s are not resolved by these segments"
-            return coh, w_out, method, thr
-    # Daniell: whole-record FFT, smoothed over DANIELL_BINS adjacent bins; the
-    # spectrum is mirrored about zero frequency (S(-k) = conj S(k)) so the
-    # lowest bins are smoothed over as many bins as the others.
-    m = DANIELL_BINS
-    h = m // 2
-    X = np.fft.rfft(de - np.mean(de))
-    w = 2 * math.pi * np.fft.rfftfreq(n, dt)
-    ker = np.ones(m)
+        welch = covered >= 0.5 and n_in_band >= MIN_COHERENCE_ESTIMATES
+    if welch:
+        nover = nper // 2
+        n_seg = 1 + (n - nper) // (nper - nover)
+        # one Welch pass over the elevator and all outputs (what scipy.signal.coherence
+        # computes output by output, in three passes each)
+        f, Pxx, Pyy, Pxy = _welch(de, Y, fs, nper, nover)
+        w = 2 * math.pi * f
+        thr = 1 - COHERENCE_ALPHA ** (1 / max(n_seg - 1, 1))
+        method = (
+            f"Welch, {nper}-sample Hann segments ({nper * dt:.3g} s), 50 % "
+            f"overlap, {n_seg} segments: resolution {w1:.3g} rad/s; 5 % significance threshold "
+            f"{thr:.2f}"
+        )
+        if covered < 1.0:
+            method += f"; band frequencies below {w1:.3g} rad/s are not resolved by these segments"
+    else:
+        # Daniell: whole-record FFT, smoothed over DANIELL_BINS adjacent bins; the
+        # spectrum is mirrored about zero frequency (S(-k) = conj S(k)) so the
+        # lowest bins are smoothed over as many bins as the others.
+        m = DANIELL_BINS
+        h = m // 2
+        X = np.fft.rfft(de - np.mean(de))
+        w = 2 * math.pi * np.fft.rfftfreq(n, dt)
+        ker = np.ones(m)
 
-    def smooth(S):
-        ext = np.concatenate([np.conj(S[1 : h + 1][::-1]), S, np.conj(S[-h - 1 : -1][::-1])])
-        return np.convolve(ext, ker, mode="valid")
+        def smooth(S):
+            ext = np.concatenate([np.conj(S[1 : h + 1][::-1]), S, np.conj(S[-h - 1 : -1][::-1])])
+            return np.convolve(ext, ker, mode="valid")
 
-    Sxx = smooth(np.abs(X) ** 2)
+        Z = [np.fft.rfft(y - np.mean(y)) for y in Y]
+        Pxx = smooth(np.abs(X) ** 2).real
+        Pyy = [smooth(np.abs(z) ** 2).real for z in Z]
+        Pxy = [smooth(X * np.conj(z)) for z in Z]
+        thr = 1 - COHERENCE_ALPHA ** (1 / (m - 1))
+        reason = (
+            f"Welch segments short enough for {WELCH_SEGMENTS} averages ({nper * dt:.3g} s) resolve only "
+            f"{2 * math.pi / (nper * dt):.3g} rad/s"
+            if nper >= 16
+            else "too few samples for Welch segments"
+        )
+        method = (
+            f"record too short for Welch coherence over this band ({record.duration:.3g} s; {reason}): "
+            f"coherence from the whole-record FFT smoothed over {m} adjacent bins (Daniell), resolution "
+            f"{m * (2 * math.pi / (n * dt)):.3g} rad/s, {m} averages, 5 % significance threshold {thr:.2f}"
+        )
     sel = (w >= lo) & (w <= hi) & (w > 0)
-    for k in outputs:
-        if k not in record.signals:
-            continue
-        Y = np.fft.rfft(record[k] - np.mean(record[k]))
-        Syy = smooth(np.abs(Y) ** 2)
-        Sxy = smooth(X * np.conj(Y))
+    coh = {}
+    for k, syy, sxy in zip(names, Pyy, Pxy):
         with np.errstate(invalid="ignore", divide="ignore"):
-            g = np.abs(Sxy) ** 2 / (Sxx.real * Syy.real)
-        coh[k] = np.nan_to_num(g[sel])
-    thr = 1 - COHERENCE_ALPHA ** (1 / (m - 1))
-    dw = 2 * math.pi / (n * dt)
-    reason = (
-        f"Welch segments short enough for {WELCH_SEGMENTS} averages ({nper * dt:.3g} s) resolve only "
-        f"{2 * math.pi / (nper * dt):.3g} rad/s"
-        if nper >= 16
-        else "too few samples for Welch segments"
-    )
-    method = (
-        f"record too short for Welch coherence over this band ({record.duration:.3g} s; {reason}): "
-        f"coherence from the whole-record FFT smoothed over {m} adjacent bins (Daniell), resolution "
-        f"{m * dw:.3g} rad/s, {m} averages, 5 % significance threshold {thr:.2f}"
-    )
+            coh[k] = np.nan_to_num((np.abs(sxy) ** 2 / (Pxx * syy))[sel])
     return coh, w[sel], method, thr
