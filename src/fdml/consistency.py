@@ -134,8 +134,7 @@ def consistency(results: Sequence, names: Sequence[str] | None = None) -> Consis
     if len(results) < 2:
         raise FdmlError("a consistency test needs at least two fits")
     if names is None:
-        common = [n for n in results[0].model_names if all(n in r.names for r in results)]
-        names = common
+        names = [n for n in results[0].model_names if all(n in r.names for r in results)]
     if not names:
         raise FdmlError("the fits share no estimated parameter to compare")
     for r in results:
