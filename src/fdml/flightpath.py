@@ -389,10 +389,7 @@ def _integrate(a, th, V, dt, q, az, ax, Vin):
     q, az = q.tolist(), az.tolist()
     ax = None if ax is None else ax.tolist()
     Vin = None if Vin is None else Vin.tolist()
-    A = [a] * n
-    TH = [th] * n
-    VV = [V] * n
-    HH = [0.0] * n
+    A, TH, VV, HH = [a] * n, [th] * n, [V] * n, [0.0] * n
     h = 0.0
     hdt = 0.5 * dt
     sixth = dt / 6.0
@@ -409,8 +406,8 @@ def _integrate(a, th, V, dt, q, az, ax, Vin):
 
     for k in range(n - 1):
         i0 = 2 * k
-        q0, q1, q2 = q[i0], q[i0 + 1], q[i0 + 2]
-        z0, z1, z2 = az[i0], az[i0 + 1], az[i0 + 2]
+        q0, q1, q2 = q[i0 : i0 + 3]
+        z0, z1, z2 = az[i0 : i0 + 3]
         # theta depends on q only
         t1, t2, t3, t4 = th, th + hdt * q0, th + hdt * q1, th + dt * q1
         if ax is None:
@@ -420,7 +417,7 @@ def _integrate(a, th, V, dt, q, az, ax, Vin):
         if vstate:
             v1 = V
         else:
-            v1, vm, v4 = Vin[i0], Vin[i0 + 1], Vin[i0 + 2]
+            v1, vm, v4 = Vin[i0 : i0 + 3]
         da1, dV1, dh1 = rates(a, v1, t1, q0, z0, x0)
         a2 = a + hdt * da1
         v2 = V + hdt * dV1 if vstate else vm
@@ -433,10 +430,7 @@ def _integrate(a, th, V, dt, q, az, ax, Vin):
         da4, dV4, dh4 = rates(a4, vv4, t4, q2, z2, x2)
         a += sixth * (da1 + 2 * da2 + 2 * da3 + da4)
         th += sixth * (q0 + 4 * q1 + q2)
-        if vstate:
-            V += sixth * (dV1 + 2 * dV2 + 2 * dV3 + dV4)
-        else:
-            V = v4
+        V = V + sixth * (dV1 + 2 * dV2 + 2 * dV3 + dV4) if vstate else v4
         h += sixth * (dh1 + 2 * dh2 + 2 * dh3 + dh4)
         if not (-10.0 < a < 10.0 and 0.0 < V < 1e5):
             raise FloatingPointError("kinematic integration diverged")
@@ -480,7 +474,6 @@ class _Problem:
         self.has_h = record.has("h")
         self.has_ax = record.has("ax")
         self.V_state = record.has("V") and self.has_ax
-        self.free = free
         self.fixed = fixed
         self.U = U
         present = {"alpha": True, "theta": self.has_theta, "V": self.V_state, "h": self.has_h}
@@ -501,17 +494,15 @@ class _Problem:
         self._cache: dict = {}
         self._splines: dict = {}
         self._runs: dict = {}
-        self.V_meas = record["V"] if record.has("V") else np.full(self.n, U)
 
     def unpack(self, x):
-        p = dict(self.fixed)
-        p.update(zip(self.names, x))
-        return p
+        return self.fixed | dict(zip(self.names, x))
 
     def _spline(self, name: str) -> CubicSpline:
         """The cubic spline through a channel (cached: no parameter changes it)."""
         if name not in self._splines:
-            self._splines[name] = CubicSpline(self.t, self.V_meas if name == "V" else self.rec[name])
+            x = self.rec[name] if self.rec.has(name) else np.full(self.n, self.U)  # V: the airspeed given
+            self._splines[name] = CubicSpline(self.t, x)
         return self._splines[name]
 
     def _mid(self, name: str) -> np.ndarray:
