@@ -249,11 +249,9 @@ def check_data(record: Record, *, band=None, airspeed: float | None = None, data
     findings = []
     U = airspeed if airspeed is not None else record.meta.get("U")
     U = float(U) if U is not None and np.isfinite(U) and U > 0 else None
-    kin = None
-    if data is None:
-        data = _spectra_or_none(record, band)
-    if data is not None:
-        kin = _kinematic_fit(data, U)
+    data = _spectra_or_none(record, band) if data is None else data
+    kin = None if data is None else _kinematic_fit(data, U)
+    if kin is not None:
         findings.extend(_kinematic_findings(kin, record.name))
     # a range finding adds nothing to a kinematic finding of the same code (which has the factor)
     findings.extend(f for f in _range_findings(record) if f.code not in {g.code for g in findings})
@@ -273,7 +271,6 @@ def check_data(record: Record, *, band=None, airspeed: float | None = None, data
 
 # --- physical ranges -------------------------------------------------------------------------
 def _range_findings(record: Record):
-    names = {"de": "elevator", "alpha": "alpha", "q": "q", "az": "az"}
     for sig, (limit, unit, factor) in RANGE_LIMITS.items():
         if not record.has(sig):
             continue
@@ -282,7 +279,7 @@ def _range_findings(record: Record):
         if size > limit:
             what = "perturbation " if sig == "az" else ""
             yield Finding(
-                f"units.{names[sig]}",
+                f"units.{'elevator' if sig == 'de' else sig}",
                 f"{sig} {what}reaches {size:.3g} {SIGNALS[sig]}, beyond the plausible {limit:g} {SIGNALS[sig]} of a "
                 f"short-period manoeuvre: it looks like {unit} where {SIGNALS[sig]} is due",
                 record=record.name,

@@ -77,6 +77,7 @@ from .constants import G0
 from .errors import FdmlError, IdentifiabilityWarning, RecordError
 from .jsoncodec import SKIP, Codec, Spec, floats, integer, number_map, texts
 from .lsq import RelaxedFit, relaxed_least_squares
+from .quality import _resolution
 from .record import Record
 
 __all__ = ["check_compatibility", "CompatibilityResult", "ParameterEstimate", "PARAMETERS", "apply_corrections"]
@@ -818,10 +819,7 @@ def noise_level(x: np.ndarray) -> float:
 
 def _sigma_floor(x: np.ndarray) -> float:
     """Smallest credible noise level: the quantisation noise of the channel (step / sqrt 12)."""
-    d = np.abs(np.diff(x))
-    nz = d[d > 1e-3 * np.median(d[d > 0])] if np.any(d > 0) else d
-    step = float(np.min(nz)) if nz.size else 1e-12
-    return max(step / math.sqrt(12), 1e-12)
+    return max(_resolution(x)[0] / math.sqrt(12), 1e-12)
 
 
 def _covariances(J: np.ndarray, r: np.ndarray, n_out: int, n_used: int):

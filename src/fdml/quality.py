@@ -311,8 +311,7 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
         )
     omega = fourier.omega_band(lo, hi, step)
     n, dt, T = record.n, record.dt, record.duration
-    d = np.diff(record.t)
-    jitter = float(np.max(np.abs(d - dt)) / dt)
+    jitter = float(np.max(np.abs(np.diff(record.t) - dt)) / dt)
 
     # --- channels --------------------------------------------------------------------------
     chans, findings, findings_low = _channel_findings(record, outputs, hi)
