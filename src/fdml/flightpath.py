@@ -492,28 +492,16 @@ class _Problem:
         self.meas = {k: record[k] for k in self.outputs}
         self.tt = np.empty(2 * self.n - 1)  # the samples and the midpoints between them
         self.tt[0::2], self.tt[1::2] = self.t, self.t[:-1] + 0.5 * self.dt
-        self._cache: dict = {}
-        self._splines: dict = {}
+        # the inputs' cubic splines (fourth order, like the integrator: linear midpoints would bias
+        # slowly varying integrals), and their values at the samples and midpoints; V without a
+        # channel is the airspeed given
+        inputs = {k: record[k] for k in ("q", "az", "ax", "V") if record.has(k)}
+        self.splines = {k: CubicSpline(self.t, x) for k, x in ({"V": np.full(self.n, U)} | inputs).items()}
+        self.mid = {k: spline(self.tt) for k, spline in self.splines.items()}
         self._runs: dict = {}
 
     def unpack(self, x):
         return self.fixed | dict(zip(self.names, x))
-
-    def _spline(self, name: str) -> CubicSpline:
-        """The cubic spline through a channel (cached: no parameter changes it)."""
-        if name not in self._splines:
-            x = self.rec[name] if self.rec.has(name) else np.full(self.n, self.U)  # V: the airspeed given
-            self._splines[name] = CubicSpline(self.t, x)
-        return self._splines[name]
-
-    def _mid(self, name: str) -> np.ndarray:
-        """A channel at the samples and midpoints (cached), by cubic interpolation.
-
-        Fourth order, like the integrator; linear midpoints would bias slowly varying integrals.
-        """
-        if name not in self._cache:
-            self._cache[name] = self._spline(name)(self.tt)
-        return self._cache[name]
 
     def _run(self, p) -> _Run:
         """The kinematics integrated from the corrected inputs, reusing the last runs.
@@ -534,14 +522,14 @@ class _Problem:
 
     def _new_run(self, p) -> _Run:
         """One integration from the inputs corrected by the sensor parameters in ``p``."""
-        q = (self._mid("q") - p["b_q"]) / p["K_q"]
+        q = (self.mid["q"] - p["b_q"]) / p["K_q"]
         if p["tau_az"] != 0.0:
-            az_src = self._spline("az")(np.clip(self.tt + p["tau_az"], self.t[0], self.t[-1]))
+            az_src = self.splines["az"](np.clip(self.tt + p["tau_az"], self.t[0], self.t[-1]))
         else:
-            az_src = self._mid("az")
+            az_src = self.mid["az"]
         az = (az_src - p["b_az"]) / p["K_az"]
-        ax = self._mid("ax") - p["b_ax"] if self.has_ax else None
-        Vin = None if self.V_state else self._mid("V") / p["K_V"]
+        ax = self.mid["ax"] - p["b_ax"] if self.has_ax else None
+        Vin = None if self.V_state else self.mid["V"] / p["K_V"]
         theta0 = p["theta0"] if self.has_theta else p["alpha0"]
         V0 = p["V0"] if Vin is None else Vin[0]
         return _Run(self.t, *_integrate(float(p["alpha0"]), float(theta0), float(V0), self.dt, q, az, ax, Vin))

@@ -263,8 +263,7 @@ def multisine(
         phi = phi + omega_k * _upward_zero(omega_k, phi, tau[-1], amps)
     u = np.cos(np.outer(tau, omega_k) + phi) @ amps
     if zero_start:
-        u[0] = 0.0  # the crossing is found to ~1e-16 of the peak; make it exact
-        u[-1] = 0.0
+        u[[0, -1]] = 0.0  # the crossing is found to ~1e-16 of the peak; make it exact
     return amplitude * u / np.max(np.abs(u))
 
 
@@ -615,10 +614,7 @@ def dryden_gust(
     den = np.array([1.0, -np.trace(Phi), np.linalg.det(Phi)])
     adj = np.array([[-Phi[1, 1], Phi[0, 1]], [Phi[1, 0], -Phi[0, 0]]])  # adj(zI - Phi) = z I + adj
     drive = np.vstack([x0, w[:-1]])
-    y = np.zeros(n)
-    for j in range(2):
-        num = np.array([0.0, c[j], c @ adj[:, j]])
-        y += signal.lfilter(num, den, drive[:, j])
+    y = sum(signal.lfilter([0.0, c[j], c @ adj[:, j]], den, drive[:, j]) for j in range(2))
     return sigma * y / U
 
 

@@ -504,8 +504,7 @@ def _runs(x: np.ndarray, dust: float = 0.0):
     """(start index, length) of runs of equal consecutive values (steps <= ``dust`` count as equal)."""
     change = np.flatnonzero(np.abs(np.diff(x)) > dust) + 1
     starts = np.concatenate([[0], change])
-    ends = np.concatenate([change, [x.size]])
-    return starts, ends - starts
+    return starts, np.diff(np.append(starts, x.size))
 
 
 def _resolution(x: np.ndarray) -> tuple[float, float]:

@@ -322,8 +322,7 @@ class Record(Codec):
         cols = ["t"] + [k for k in SIGNALS if k in self.signals]
         data = np.column_stack([self.t] + [self.signals[k] for k in cols[1:]])
         buf = io.StringIO()
-        buf.write(",".join(cols) + "\n")
-        np.savetxt(buf, data, delimiter=",", fmt="%.17g")
+        np.savetxt(buf, data, delimiter=",", fmt="%.17g", header=",".join(cols), comments="")
         return buf.getvalue()
 
     def to_csv(self, path: str | Path) -> Path:

@@ -228,14 +228,12 @@ def gust_angle(
     gamma_k = np.arctan2(hdot, V * np.cos(gamma_a) + horizontal_wind)
     alpha_w = gamma_k - gamma_a
     floor = noise / float(np.mean(V))
-    notes.append(
+    notes += [
         f"noise floor of alpha_w about {math.degrees(floor):.2g} deg (vertical-speed noise "
-        f"{noise:.2g} m/s over V = {np.mean(V):.4g} m/s)"
-    )
-    notes.append(
+        f"{noise:.2g} m/s over V = {np.mean(V):.4g} m/s)",
         "any error of alpha (bias, scale, lag, upwash) appears one-for-one in alpha_w: correct alpha "
-        "first (fdml.flightpath)"
-    )
+        "first (fdml.flightpath)",
+    ]
     if horizontal_wind == 0.0:
         notes.append(
             "along-track horizontal wind taken as 0 (no ground speed in the record): error of order gamma u_w / V"
