@@ -647,8 +647,7 @@ def _checked_airspeed(record: Record, U: float | None) -> float:
             "with trim kept (a_z near -1 g in level flight, body z positive down). Load it without trim= "
             "or add the trim back"
         )
-    if U is None:
-        U = record.meta.get("U")
+    U = record.meta.get("U") if U is None else U
     if not record.has("V") and (U is None or not U > 0):
         raise RecordError(f"record {record.name!r} has no airspeed V: pass U= (m/s)")
     return float(U) if U is not None else float(np.mean(record["V"]))

@@ -272,22 +272,18 @@ class Record(Codec):
             The perturbation record; ``meta["trim"]`` holds the removed values
             and ``meta["trim_mode"]`` the mode, so the change can be undone.
         """
+        if mode not in TRIM_MODES:
+            raise RecordError(f"unknown trim mode {mode!r}; use 'first', 'mean' or 'none'")
         if mode == "none":
             return self
-        if mode == "first":
-            trim = {k: float(v[0]) for k, v in self.signals.items()}
-            n_lead = 1
-        elif mode == "mean":
-            n_lead = int(round(window / self.dt)) + 1
-            if window <= 0 or n_lead > self.n:
-                raise RecordError(
-                    f"record {self.name!r}: trim window {window} s must be positive and within the "
-                    f"{self.duration:.3g} s record"
-                )
-            trim = {k: float(np.mean(v[:n_lead])) for k, v in self.signals.items()}
-        else:
-            raise RecordError(f"unknown trim mode {mode!r}; use 'first', 'mean' or 'none'")
-        prev = dict(self.meta.get("trim", {}))
+        n_lead = 1 if mode == "first" else int(round(window / self.dt)) + 1  # the first sample is its own mean
+        if mode == "mean" and (window <= 0 or n_lead > self.n):
+            raise RecordError(
+                f"record {self.name!r}: trim window {window} s must be positive and within the "
+                f"{self.duration:.3g} s record"
+            )
+        trim = {k: float(np.mean(v[:n_lead])) for k, v in self.signals.items()}
+        prev = self.meta.get("trim", {})
         total = {k: prev.get(k, 0.0) + trim[k] for k in trim}
         return replace(
             self,
