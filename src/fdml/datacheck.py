@@ -338,14 +338,13 @@ def _kinematic_fit(data, U: float | None) -> KinematicFit:
     expected = G0 / U if U else None
     perm = _channel_order(fits, expected)
     a, b, r2 = fits[perm]
-    labelled = fits[(0, 1, 2)]
     return KinematicFit(
         order=tuple(OUTPUTS[i] for i in perm),
         slope_q=float(a),
         slope_az=float(b),
         expected_az=expected,
         fit=float(r2),
-        fit_labelled=float(labelled[2]),
+        fit_labelled=float(fits[(0, 1, 2)][2]),
         scales=_nearest_scales(a, b, expected),
     )
 
@@ -371,9 +370,7 @@ def _channel_order(fits: dict, expected: float | None) -> tuple:
         return lab
     best = max(plausible, key=lambda p: fits[p][2])
     miss = 1 - fits[best][2]
-    if miss < _SWAP_MARGIN * (1 - r_lab) or (not lab_ok and miss <= max(2 * (1 - r_lab), 0.02)):
-        return best
-    return lab
+    return best if miss < _SWAP_MARGIN * (1 - r_lab) or (not lab_ok and miss <= max(2 * (1 - r_lab), 0.02)) else lab
 
 
 def _nearest_scales(a: float, b: float, expected_az: float | None) -> tuple:

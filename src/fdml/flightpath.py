@@ -268,9 +268,7 @@ class CompatibilityResult(Codec):
         dict of str to float
             The values, SI units.
         """
-        out = {k: v[0] for k, v in self.fixed.items()}
-        out.update({k: p.value for k, p in self.params.items()})
-        return out
+        return {k: v[0] for k, v in self.fixed.items()} | {k: p.value for k, p in self.params.items()}
 
     def apply(self, record: Record) -> Record:
         """The record corrected with these estimates (see :func:`apply_corrections`).
@@ -657,11 +655,10 @@ def _choose_free(record: Record, estimate, fix) -> tuple[list[str], dict[str, fl
     """Free parameters, values of the fixed ones and why each is not estimated."""
     free, why = _default_free(record)
     if estimate is not None:
-        estimate = list(estimate)
-        bad = [k for k in estimate if k not in PARAMETERS]
+        free = list(estimate)
+        bad = [k for k in free if k not in PARAMETERS]
         if bad:
             raise FdmlError(f"unknown compatibility parameter(s) {bad}; known: {', '.join(PARAMETERS)}")
-        free = estimate
         why = {k: "not requested" for k in PARAMETERS if k not in free}
     fixed_vals = {k: PARAMETERS[k][0] for k in PARAMETERS if k not in free}
     for k, v in dict(fix or {}).items():

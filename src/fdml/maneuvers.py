@@ -114,10 +114,7 @@ def _pulse_train(t, amplitude: float, start: float, widths, signs, rise: float) 
         )
     levels = np.concatenate([[0.0], np.asarray(signs, float), [0.0]])
     edges = start + np.concatenate([[0.0], np.cumsum(widths)])
-    u = np.zeros_like(t)
-    for edge, jump in zip(edges, np.diff(levels)):
-        u += jump * _smooth_step(t, edge, rise)
-    return amplitude * u
+    return amplitude * sum(jump * _smooth_step(t, edge, rise) for edge, jump in zip(edges, np.diff(levels)))
 
 
 def doublet(
