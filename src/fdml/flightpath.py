@@ -576,14 +576,13 @@ class _Problem:
                 blocks.append((zero, zero, p["K_V"] * G0 * Lm))
             elif k == "h":
                 blocks.append((zero, -G0 * (Lm @ Lm), zero))
-        sel = np.arange(n)[self.sel]
         Minv = np.linalg.pinv(J.T @ J)
         mid = np.zeros((J.shape[1], J.shape[1]))
         AJ = [np.zeros((n, J.shape[1])) for _ in range(3)]
         for j, k in enumerate(self.outputs):
             Jk = J[j * self.n_used : (j + 1) * self.n_used]
             for i in range(3):
-                AJ[i] += blocks[j][i][sel].T @ Jk / sigma[k]
+                AJ[i] += blocks[j][i][self.sel].T @ Jk / sigma[k]
             s_meas = noise_level(self.meas[k])
             mid += (s_meas / sigma[k]) ** 2 * (Jk.T @ Jk)
         for i, s2 in enumerate((s_q**2, s_az**2, s_ax**2)):

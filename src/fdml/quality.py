@@ -525,15 +525,10 @@ def _resolution(x: np.ndarray) -> tuple[float, float]:
 
 
 def _channel(name: str, x: np.ndarray, dt: float, is_input: bool) -> ChannelQuality:
-    unit = SIGNALS.get(name, "")
     res, dust = _resolution(x)
-    dx = np.abs(np.diff(x))
-    changed = dx > dust
-    T = dt * (x.size - 1)
+    changed = np.abs(np.diff(x)) > dust  # a record has at least 4 samples
     starts, lens = _runs(x, dust)
-    n_levels = int(starts.size and np.unique(np.round(x[starts] / res) if res > 0 else x[starts]).size)
-    change_rate = int(np.sum(changed)) / T if T > 0 else 0.0
-    repeat = float(np.mean(~changed)) if dx.size else 0.0
+    n_levels = np.unique(np.round(x[starts] / res) if res > 0 else x[starts]).size
     holds = []
     xmax, xmin = float(np.max(x)), float(np.min(x))
     for s, L in zip(starts, lens):
@@ -544,8 +539,8 @@ def _channel(name: str, x: np.ndarray, dt: float, is_input: bool) -> ChannelQual
         D = abs(x[s + L] - x[s - 1])
         if D > 2 * res * (L + 1) / (L - 1):
             holds.append((float(s * dt), float((L - 1) * dt)))
-    flat_max, clip_max = _flat(x, lens, starts, np.max(x), res, dust, dt)
-    flat_min, clip_min = _flat(x, lens, starts, np.min(x), res, dust, dt)
+    flat_max, clip_max = _flat(x, lens, starts, xmax, res, dust, dt)
+    flat_min, clip_min = _flat(x, lens, starts, xmin, res, dust, dt)
     clipped = tuple(k for k, c in (("max", clip_max), ("min", clip_min)) if c)
     flags = []
     if holds:
@@ -556,11 +551,11 @@ def _channel(name: str, x: np.ndarray, dt: float, is_input: bool) -> ChannelQual
         )
     return ChannelQuality(
         name=name,
-        unit=unit,
+        unit=SIGNALS.get(name, ""),
         resolution=res,
         n_levels=n_levels,
-        change_rate=change_rate,
-        repeat_fraction=repeat,
+        change_rate=int(np.sum(changed)) / (dt * (x.size - 1)),
+        repeat_fraction=float(np.mean(~changed)),
         holds=tuple(holds),
         flat_max=flat_max,
         flat_min=flat_min,
