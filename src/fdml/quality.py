@@ -243,11 +243,9 @@ class QualityReport(Codec):
                 f"  {c.name:8s} {c.resolution:11.4g} {c.unit:7s}{c.n_levels:5d} {c.change_rate:9.3g}"
                 f" {100 * c.repeat_fraction:7.1f}% {len(c.holds):5d}  {c.flat_max:.3g}/{c.flat_min:.3g}"
             )
-        out.append("")
-        out.append(f"  input energy inside the band: {100 * self.input_energy_fraction:.1f} %")
+        out += ["", f"  input energy inside the band: {100 * self.input_energy_fraction:.1f} %"]
         if self.low_input:
-            spans = _spans(self.low_input)
-            out.append(f"  input more than {LOW_INPUT_DB:g} dB below its peak at: {spans} rad/s")
+            out.append(f"  input more than {LOW_INPUT_DB:g} dB below its peak at: {_spans(self.low_input)} rad/s")
         out.append(f"  coherence: {self.coherence_method}")
         for k, g in self.coherence.items():
             if g.size:
@@ -256,9 +254,7 @@ class QualityReport(Codec):
                     f"    de -> {k:6s}: median {np.median(g):.2f}, min {np.min(g):.2f}, "
                     f">= {GOOD_COHERENCE:g} at {100 * good:.0f} % of {g.size} estimates"
                 )
-        out.append("")
-        out.append("Findings:")
-        out.extend(f"  - {f}" for f in self.findings)
+        out += ["", "Findings:", *(f"  - {f}" for f in self.findings)]
         return "\n".join(out)
 
 
@@ -439,9 +435,8 @@ def _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, l
         )
     head.append(f"{100 * frac:.0f} % of the elevator's energy lies inside the band {lo:g}-{hi:g} rad/s")
     if low_input:
-        spans = _spans(low_input)
         head.append(
-            f"the input is more than {LOW_INPUT_DB:g} dB below its peak at {spans} rad/s: "
+            f"the input is more than {LOW_INPUT_DB:g} dB below its peak at {_spans(low_input)} rad/s: "
             "those frequencies carry almost no information"
         )
     for k, g in coh.items():
