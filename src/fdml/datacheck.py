@@ -519,9 +519,9 @@ def phugoid_frequency(record: Record) -> float | None:
     gamma = record["theta"] - record["alpha"]
     y = gamma - gamma[0]
     t = record.t - record.t[0]
-    others = [_cumulative(record[k] - record[k][0], record.dt) for k in ("alpha", "de") if record.has(k)]
-    speed = _cumulative(record["V"] - record["V"][0], record.dt)
-    X = np.column_stack([speed, *others, t])
+    # the running integrals of the speed, alpha and elevator perturbations, the speed's first
+    integrals = [_cumulative(record[k] - record[k][0], record.dt) for k in ("V", "alpha", "de") if record.has(k)]
+    X = np.column_stack([*integrals, t])
     ss = float(y @ y)
     if ss == 0.0:
         return None
