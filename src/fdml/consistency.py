@@ -149,18 +149,16 @@ def consistency(results: Sequence, names: Sequence[str] | None = None) -> Consis
     mean = np.sum(w * est, axis=0) / np.sum(w, axis=0)
     chi2 = np.sum(((est - mean) / se) ** 2, axis=0)
     dof = len(results) - 1
-    p = stats.chi2.sf(chi2, dof)
     joint = float(np.sum(chi2))
-    labels = tuple(", ".join(r.records) for r in results)
     return ConsistencyResult(
         names=tuple(names),
-        labels=labels,
+        labels=tuple(", ".join(r.records) for r in results),
         estimates=est,
         stderr=se,
         mean=mean,
         chi2=chi2,
         dof=dof,
-        p_value=p,
+        p_value=stats.chi2.sf(chi2, dof),
         scale=np.sqrt(chi2 / dof),
         joint_chi2=joint,
         joint_p=float(stats.chi2.sf(joint, dof * len(names))),
