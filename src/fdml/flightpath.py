@@ -752,13 +752,11 @@ def check_compatibility(
         est[k] = ParameterEstimate(k, float(x[i]), float(se[i]), float(se_w[i]), unit, desc, nom)
     params = {k: est[k] for k in free}
     rms = {k: float(np.sqrt(np.mean(e**2))) for k, e in zip(prob.outputs, prob.errors(x))}
-    fixed = {k: (fixed_vals[k], why.get(k, "fixed")) for k in PARAMETERS if k not in free}
-    findings = _findings(params, free, prob, x, hi, lo, rms)
     out = CompatibilityResult(
         name=record.name,
         params=params,
         states={k: est[k] for k in prob.states},
-        fixed=fixed,
+        fixed={k: (fixed_vals[k], why.get(k, "fixed")) for k in PARAMETERS if k not in free},
         corr=corr,
         names=tuple(prob.names),
         outputs=prob.outputs,
@@ -767,7 +765,7 @@ def check_compatibility(
         n_used=prob.n_used,
         converged=fit.success and fit.settled,
         message=fit.message if fit.settled else f"output weights still changing after {_WEIGHT_PASSES} passes",
-        findings=tuple(findings),
+        findings=tuple(_findings(params, free, prob, x, hi, lo, rms)),
     )
     if correct:
         out = replace(out, record=out.apply(record))

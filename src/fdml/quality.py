@@ -589,8 +589,7 @@ def _flat(x, lens, starts, level, res, dust, dt):
     if abs(tv) > (best + 1) * dt:
         return dur, False
     vertex = c0 + c1 * tv + c2 * tv**2
-    excess = sign * (vertex - level)
-    return dur, bool(excess > max(3 * res, 3 * fit_rms))
+    return dur, bool(sign * (vertex - level) > max(3 * res, 3 * fit_rms))  # peaks beyond the flat level
 
 
 def _spans(intervals) -> str:

@@ -227,9 +227,8 @@ def gust_angle(
     w_wind = hdot - V * np.sin(gamma_a)
     gamma_k = np.arctan2(hdot, V * np.cos(gamma_a) + horizontal_wind)
     alpha_w = gamma_k - gamma_a
-    floor = noise / float(np.mean(V))
     notes += [
-        f"noise floor of alpha_w about {math.degrees(floor):.2g} deg (vertical-speed noise "
+        f"noise floor of alpha_w about {math.degrees(noise / float(np.mean(V))):.2g} deg (vertical-speed noise "
         f"{noise:.2g} m/s over V = {np.mean(V):.4g} m/s)",
         "any error of alpha (bias, scale, lag, upwash) appears one-for-one in alpha_w: correct alpha "
         "first (fdml.flightpath)",
