@@ -587,8 +587,7 @@ def dryden_gust(
     n = t.size
     if method == "exact":
         # Van Loan (1978): expm([[-A, q B B^T], [0, A^T]] dt) gives Phi and Qd.
-        M = np.block([[-A, q * (B @ B.T)], [np.zeros((2, 2)), A.T]])
-        E = linalg.expm(M * dt)
+        E = linalg.expm(np.block([[-A, q * (B @ B.T)], [np.zeros((2, 2)), A.T]]) * dt)
         Phi = E[2:, 2:].T
         Qd = Phi @ E[:2, 2:]
         Qd = 0.5 * (Qd + Qd.T)
