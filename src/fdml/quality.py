@@ -376,14 +376,12 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
 
 def _channel_findings(record: Record, outputs, hi: float):
     """Each channel's quantisation, holds and clipping; findings on the fitted channels and on the others."""
-    dt = record.dt
     findings: list[str] = []
     findings_low: list[str] = []
-    chans = []
+    chans = [_channel(k, record[k], record.dt, is_input=(k == "de")) for k in SIGNALS if k in record.signals]
     f_hi_hz = hi / (2 * math.pi)
-    for name in [k for k in SIGNALS if k in record.signals]:
-        c = _channel(name, record[name], dt, is_input=(name == "de"))
-        chans.append(c)
+    for c in chans:
+        name = c.name
         if c.change_rate < 2 * f_hi_hz and c.n_levels > 1:
             msg = (
                 f"{name} changes value only {c.change_rate:.3g} times per second ({c.n_levels} levels, step "
@@ -400,11 +398,11 @@ def _channel_findings(record: Record, outputs, hi: float):
             )
             (findings if name in outputs else findings_low).append(msg)
         if c.holds:
-            tot = sum(h[1] for h in c.holds)
+            start, longest = max(c.holds, key=lambda h: h[1])
             findings.append(
                 f"{name} holds its value {len(c.holds)} time(s) while the signal moves "
-                f"(dropouts; {tot:.3g} s in all, longest {max(h[1] for h in c.holds):.3g} s at "
-                f"t = {max(c.holds, key=lambda h: h[1])[0]:.4g} s)"
+                f"(dropouts; {sum(h[1] for h in c.holds):.3g} s in all, longest {longest:.3g} s at "
+                f"t = {start:.4g} s)"
             )
         if c.clipped:
             findings.append(
