@@ -461,9 +461,8 @@ def _coherent_fraction(record: Record, data) -> tuple[dict, float]:
     if data is None or not record.has("de"):
         return {}, math.nan
     lo, hi = float(data.omega.min()), float(data.omega.max())
-    outs = [o for o in OUTPUTS if record.has(o)]
     try:
-        coh, _, _, thr = _coherence(record, outs, lo, hi)
+        coh, _, _, thr = _coherence(record, OUTPUTS, lo, hi)  # the outputs the record has
     except (ValueError, FloatingPointError):  # degenerate record (constant input): quality reports it
         return {}, math.nan
     return {k: float(np.mean(v > thr)) if v.size else math.nan for k, v in coh.items()}, float(thr)

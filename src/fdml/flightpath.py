@@ -682,7 +682,7 @@ def _start(prob: _Problem, free: list[str], max_shift: float):
 def _solve(prob: _Problem, x0, lo, hi) -> RelaxedFit:
     """Least-squares passes, each output weighted by its residual RMS of the pass before (:mod:`fdml.lsq`)."""
     floor = [_sigma_floor(prob.rec[k]) for k in prob.outputs]
-    start = np.maximum([noise_level(prob.rec[k]) for k in prob.outputs], floor)
+    start = np.array([noise_level(prob.rec[k]) for k in prob.outputs])  # each at least its floor
     return relaxed_least_squares(prob.errors, x0, (lo, hi), start, passes=_WEIGHT_PASSES, tol=_WEIGHT_TOL, floor=floor)
 
 
