@@ -151,11 +151,7 @@ CONDITION_UNITS = {
 }
 
 #: SI unit -> (factor from the SI value, unit it is read in): angles in degrees.
-DISPLAY_UNITS = {
-    "rad": (180.0 / math.pi, "deg"),
-    "rad/s": (180.0 / math.pi, "deg/s"),
-    "rad/s^2": (180.0 / math.pi, "deg/s^2"),
-}
+DISPLAY_UNITS = {u: (180.0 / math.pi, u.replace("rad", "deg")) for u in ("rad", "rad/s", "rad/s^2")}
 
 #: Record formats accepted by :func:`fdml.io.load_record` (``auto`` inspects the file).
 FORMATS = ("auto", "sidpac", "dlr-asc", "dlr-mat", "csv", "csv-map")

@@ -45,6 +45,13 @@ def _finite(x) -> float | None:
     return v if math.isfinite(v) and v > 0 else None
 
 
+def _mean(records, key: str) -> float | None:
+    """The mean of the records' ``meta[key]``, or None when there are none or any lacks a finite positive one."""
+    values = [_finite(r.meta.get(key)) for r in records]
+    known = [v for v in values if v is not None]
+    return sum(known) / len(known) if known and len(known) == len(values) else None
+
+
 def record_airspeed(records) -> float | None:
     """The mean of the records' airspeeds (``meta["U"]``, m/s), or None when any record lacks one.
 
@@ -58,11 +65,7 @@ def record_airspeed(records) -> float | None:
     float or None
         The mean airspeed, m/s.
     """
-    values = [_finite(r.meta.get("U")) for r in records]
-    known = [v for v in values if v is not None]
-    if not values or len(known) < len(values):
-        return None
-    return sum(known) / len(known)
+    return _mean(records, "U")
 
 
 def record_conditions(records) -> dict:
@@ -79,13 +82,8 @@ def record_conditions(records) -> dict:
         Each key of :data:`RECORD_CONDITIONS` that every record carries (finite),
         with its mean, in the meta data's (SI) unit.
     """
-    out = {}
-    for key in RECORD_CONDITIONS:
-        values = [_finite(r.meta.get(key)) for r in records]
-        known = [v for v in values if v is not None]
-        if values and len(known) == len(values):
-            out[key] = sum(known) / len(known)
-    return out
+    means = {key: _mean(records, key) for key in RECORD_CONDITIONS}
+    return {key: v for key, v in means.items() if v is not None}
 
 
 def airspeed_findings(model, records, tolerance: float = AIRSPEED_TOLERANCE) -> list[Finding]:
@@ -106,26 +104,19 @@ def airspeed_findings(model, records, tolerance: float = AIRSPEED_TOLERANCE) -> 
         The mismatches (empty when the model has no airspeed).
     """
     U = _finite(getattr(model, "U", None))
-    found: list[Finding] = []
     if U is None:
-        return found
+        return []
+    found = []
     for r in records:
         Ur = _finite(r.meta.get("U"))
-        if Ur is None or abs(U / Ur - 1.0) <= tolerance:
-            continue
-        found.append(
-            Finding(
-                "airspeed.mismatch",
+        if Ur is not None and abs(U / Ur - 1.0) > tolerance:
+            text = (
                 f"the model's airspeed {U:.4g} m/s differs from the record's mean airspeed {Ur:.4g} m/s by "
                 f"{100 * (U / Ur - 1):+.1f} % (more than {100 * tolerance:g} %): the a_z gain U/g is wrong by that "
                 f"fraction; give --airspeed {Ur:.4g}, or leave out --airspeed and --aircraft: the dimensional "
-                "model then takes the record's airspeed",
-                kind="estimation",
-                record=r.name,
-                value=U,
-                expected=Ur,
+                "model then takes the record's airspeed"
             )
-        )
+            found.append(Finding("airspeed.mismatch", text, kind="estimation", record=r.name, value=U, expected=Ur))
     return found
 
 

@@ -134,8 +134,7 @@ def consistency(results: Sequence, names: Sequence[str] | None = None) -> Consis
     if len(results) < 2:
         raise FdmlError("a consistency test needs at least two fits")
     if names is None:
-        common = [n for n in results[0].model_names if all(n in r.names for r in results)]
-        names = common
+        names = [n for n in results[0].model_names if all(n in r.names for r in results)]
     if not names:
         raise FdmlError("the fits share no estimated parameter to compare")
     for r in results:
@@ -150,18 +149,16 @@ def consistency(results: Sequence, names: Sequence[str] | None = None) -> Consis
     mean = np.sum(w * est, axis=0) / np.sum(w, axis=0)
     chi2 = np.sum(((est - mean) / se) ** 2, axis=0)
     dof = len(results) - 1
-    p = stats.chi2.sf(chi2, dof)
     joint = float(np.sum(chi2))
-    labels = tuple(", ".join(r.records) for r in results)
     return ConsistencyResult(
         names=tuple(names),
-        labels=labels,
+        labels=tuple(", ".join(r.records) for r in results),
         estimates=est,
         stderr=se,
         mean=mean,
         chi2=chi2,
         dof=dof,
-        p_value=p,
+        p_value=stats.chi2.sf(chi2, dof),
         scale=np.sqrt(chi2 / dof),
         joint_chi2=joint,
         joint_p=float(stats.chi2.sf(joint, dof * len(names))),

@@ -44,6 +44,7 @@ import itertools
 import math
 import time
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -248,11 +249,9 @@ def check_data(record: Record, *, band=None, airspeed: float | None = None, data
     findings = []
     U = airspeed if airspeed is not None else record.meta.get("U")
     U = float(U) if U is not None and np.isfinite(U) and U > 0 else None
-    kin = None
-    if data is None:
-        data = _spectra_or_none(record, band)
-    if data is not None:
-        kin = _kinematic_fit(data, U)
+    data = _spectra_or_none(record, band) if data is None else data
+    kin = None if data is None else _kinematic_fit(data, U)
+    if kin is not None:
         findings.extend(_kinematic_findings(kin, record.name))
     # a range finding adds nothing to a kinematic finding of the same code (which has the factor)
     findings.extend(f for f in _range_findings(record) if f.code not in {g.code for g in findings})
@@ -272,7 +271,6 @@ def check_data(record: Record, *, band=None, airspeed: float | None = None, data
 
 # --- physical ranges -------------------------------------------------------------------------
 def _range_findings(record: Record):
-    names = {"de": "elevator", "alpha": "alpha", "q": "q", "az": "az"}
     for sig, (limit, unit, factor) in RANGE_LIMITS.items():
         if not record.has(sig):
             continue
@@ -281,7 +279,7 @@ def _range_findings(record: Record):
         if size > limit:
             what = "perturbation " if sig == "az" else ""
             yield Finding(
-                f"units.{names[sig]}",
+                f"units.{'elevator' if sig == 'de' else sig}",
                 f"{sig} {what}reaches {size:.3g} {SIGNALS[sig]}, beyond the plausible {limit:g} {SIGNALS[sig]} of a "
                 f"short-period manoeuvre: it looks like {unit} where {SIGNALS[sig]} is due",
                 record=record.name,
@@ -340,14 +338,13 @@ def _kinematic_fit(data, U: float | None) -> KinematicFit:
     expected = G0 / U if U else None
     perm = _channel_order(fits, expected)
     a, b, r2 = fits[perm]
-    labelled = fits[(0, 1, 2)]
     return KinematicFit(
         order=tuple(OUTPUTS[i] for i in perm),
         slope_q=float(a),
         slope_az=float(b),
         expected_az=expected,
         fit=float(r2),
-        fit_labelled=float(labelled[2]),
+        fit_labelled=float(fits[(0, 1, 2)][2]),
         scales=_nearest_scales(a, b, expected),
     )
 
@@ -373,9 +370,7 @@ def _channel_order(fits: dict, expected: float | None) -> tuple:
         return lab
     best = max(plausible, key=lambda p: fits[p][2])
     miss = 1 - fits[best][2]
-    if miss < _SWAP_MARGIN * (1 - r_lab) or (not lab_ok and miss <= max(2 * (1 - r_lab), 0.02)):
-        return best
-    return lab
+    return best if miss < _SWAP_MARGIN * (1 - r_lab) or (not lab_ok and miss <= max(2 * (1 - r_lab), 0.02)) else lab
 
 
 def _nearest_scales(a: float, b: float, expected_az: float | None) -> tuple:
@@ -407,6 +402,7 @@ def _pct(x: float) -> str:
 def _kinematic_findings(k: KinematicFit, name: str):
     if k.fit < _MIN_FIT and k.fit_labelled < _MIN_FIT:
         return  # no usable identity: the outputs do not respond (the response check says so)
+    found = partial(Finding, record=name)
     exp_b = "" if k.expected_az is None else f" and {k.expected_az:.4g} rad/s per g (g/U)"
     slopes = (
         f"alpha_dot = {k.slope_q:.4g} q + {k.slope_az:.4g} a_z in the band (expected 1{exp_b}; "
@@ -414,69 +410,48 @@ def _kinematic_findings(k: KinematicFit, name: str):
     )
     if k.order != OUTPUTS:
         labels = ", ".join(f"{lab} holds {true}" for lab, true in zip(k.order, OUTPUTS) if lab != true)
-        yield Finding(
+        yield found(
             "channels.swapped",
             f"the outputs satisfy the kinematic identity (docs/theory.md Eq. 5) only when relabelled: "
             f"{labels} (relabelled, {_pct(1 - k.fit)} of alpha_dot is left unexplained; as "
             f"labelled, {_pct(1 - k.fit_labelled)})",
-            record=name,
             value=k.fit,
             expected=k.fit_labelled,
         )
     if not k.scales:
-        yield Finding(
+        yield found(
             "kinematics.inconsistent",
             f"alpha, q and a_z do not satisfy the kinematic identity (docs/theory.md Eq. 5): {slopes}; "
             "no single unit or sign error explains it (check units, signs and the airspeed)",
-            record=name,
             value=k.slope_q,
             expected=1.0,
         )
         return
     sa, sq, sz = k.scales
     if sa != 1.0:
-        yield Finding(
-            "units.alpha",
-            f"alpha looks like degrees: {slopes}; both slopes carry a factor "
-            f"of about {abs(k.slope_q * sq):.3g} (57.3 for degrees)",
-            record=name,
-            value=abs(k.slope_q * sq),
-            expected=DEG,
+        factor = abs(k.slope_q * sq)
+        text = (
+            f"alpha looks like degrees: {slopes}; both slopes carry a factor of about {factor:.3g} (57.3 for degrees)"
         )
+        yield found("units.alpha", text, value=factor, expected=DEG)
     if abs(sq) != 1.0:
-        yield Finding(
-            "units.q",
-            f"q looks like deg/s: {slopes}; the q slope is 1/{abs(sa / k.slope_q):.3g} (1/57.3 for deg/s)",
-            record=name,
-            value=abs(sa / k.slope_q),
-            expected=DEG,
-        )
+        factor = abs(sa / k.slope_q)
+        text = f"q looks like deg/s: {slopes}; the q slope is 1/{factor:.3g} (1/57.3 for deg/s)"
+        yield found("units.q", text, value=factor, expected=DEG)
     if sq < 0:
-        yield Finding(
-            "sign.q",
-            f"q has the wrong sign (nose up must be positive): {slopes}",
-            record=name,
-            value=k.slope_q,
-            expected=1.0,
-        )
+        text = f"q has the wrong sign (nose up must be positive): {slopes}"
+        yield found("sign.q", text, value=k.slope_q, expected=1.0)
     if abs(sz) != 1.0:
-        f = abs(sa * k.expected_az / k.slope_az)
-        yield Finding(
-            "units.az",
-            f"a_z looks like m/s^2 where g is due: {slopes}; the a_z slope is g/U divided by {f:.3g} (9.81 for m/s^2)",
-            record=name,
-            value=f,
-            expected=G0,
-        )
+        factor = abs(sa * k.expected_az / k.slope_az)
+        text = f"a_z looks like m/s^2 where g is due: {slopes}; the a_z slope is g/U divided by {factor:.3g}"
+        text += " (9.81 for m/s^2)"
+        yield found("units.az", text, value=factor, expected=G0)
     if sz < 0:
-        yield Finding(
-            "sign.az",
-            f"a_z has the wrong sign (fdml's a_z is positive down, docs/theory.md Eq. 5; "
-            f"a record's a_n is positive up): {slopes}",
-            record=name,
-            value=k.slope_az,
-            expected=k.expected_az,
+        text = (
+            "a_z has the wrong sign (fdml's a_z is positive down, docs/theory.md Eq. 5; "
+            f"a record's a_n is positive up): {slopes}"
         )
+        yield found("sign.az", text, value=k.slope_az, expected=k.expected_az)
 
 
 # --- response to the input -------------------------------------------------------------------
@@ -486,9 +461,8 @@ def _coherent_fraction(record: Record, data) -> tuple[dict, float]:
     if data is None or not record.has("de"):
         return {}, math.nan
     lo, hi = float(data.omega.min()), float(data.omega.max())
-    outs = [o for o in OUTPUTS if record.has(o)]
     try:
-        coh, _, _, thr = _coherence(record, outs, lo, hi)
+        coh, _, _, thr = _coherence(record, OUTPUTS, lo, hi)  # the outputs the record has
     except (ValueError, FloatingPointError):  # degenerate record (constant input): quality reports it
         return {}, math.nan
     return {k: float(np.mean(v > thr)) if v.size else math.nan for k, v in coh.items()}, float(thr)
@@ -544,9 +518,9 @@ def phugoid_frequency(record: Record) -> float | None:
     gamma = record["theta"] - record["alpha"]
     y = gamma - gamma[0]
     t = record.t - record.t[0]
-    others = [_cumulative(record[k] - record[k][0], record.dt) for k in ("alpha", "de") if record.has(k)]
-    speed = _cumulative(record["V"] - record["V"][0], record.dt)
-    X = np.column_stack([speed, *others, t])
+    # the running integrals of the speed, alpha and elevator perturbations, the speed's first
+    integrals = [_cumulative(record[k] - record[k][0], record.dt) for k in ("V", "alpha", "de") if record.has(k)]
+    X = np.column_stack([*integrals, t])
     ss = float(y @ y)
     if ss == 0.0:
         return None

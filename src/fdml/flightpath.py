@@ -64,6 +64,7 @@ beside them.
 
 from __future__ import annotations
 
+import itertools
 import math
 import warnings
 from dataclasses import dataclass, field, replace
@@ -74,8 +75,9 @@ from scipy.interpolate import CubicSpline
 from .channels import SIGNALS, display_unit
 from .constants import G0
 from .errors import FdmlError, IdentifiabilityWarning, RecordError
-from .jsoncodec import Fields
+from .jsoncodec import SKIP, Codec, Spec, floats, integer, number_map, texts
 from .lsq import RelaxedFit, relaxed_least_squares
+from .quality import _resolution
 from .record import Record
 
 __all__ = ["check_compatibility", "CompatibilityResult", "ParameterEstimate", "PARAMETERS", "apply_corrections"]
@@ -112,7 +114,7 @@ RESIDUAL_FACTOR = 10.0
 
 
 @dataclass(frozen=True)
-class ParameterEstimate:
+class ParameterEstimate(Codec):
     """One estimated quantity: value, colour-corrected and white standard errors.
 
     Parameters
@@ -141,56 +143,16 @@ class ParameterEstimate:
     description: str
     nominal: float
 
+    json_fields = {"name": SKIP}  # the result files the estimate under its name
+    json_source = "parameter estimate"
+
     @property
     def z(self) -> float:
         """Distance from the nominal value in standard errors."""
         return abs(self.value - self.nominal) / self.stderr if self.stderr > 0 else math.inf
 
-    def to_dict(self) -> dict:
-        """The estimate, its standard errors, unit and description as plain JSON data.
-
-        Returns
-        -------
-        dict
-            Every field but ``name``.
-        """
-        return {
-            "value": self.value,
-            "stderr": self.stderr,
-            "stderr_white": self.stderr_white,
-            "unit": self.unit,
-            "description": self.description,
-            "nominal": self.nominal,
-        }
-
     @classmethod
-    def from_fields(cls, f: Fields, name: str) -> ParameterEstimate:
-        """Inverse of :meth:`to_dict` from the fields of a JSON object, every key checked.
-
-        Parameters
-        ----------
-        f : fdml.jsoncodec.Fields
-            The fields of the estimate.
-        name : str
-            The quantity's name (the key :meth:`CompatibilityResult.to_dict` files it under).
-
-        Returns
-        -------
-        ParameterEstimate
-            The estimate.
-        """
-        return cls(
-            name=name,
-            value=f.number("value"),
-            stderr=f.number("stderr"),
-            stderr_white=f.number("stderr_white"),
-            unit=f.string("unit"),
-            description=f.string("description"),
-            nominal=f.number("nominal"),
-        )
-
-    @classmethod
-    def from_dict(cls, d, *, name: str, source: str = "parameter estimate") -> ParameterEstimate:
+    def from_dict(cls, d, *, name: str, source: str = "parameter estimate") -> ParameterEstimate:  # type: ignore[override]
         """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
 
         :meth:`to_dict` leaves the name to the result that files the estimate under it, so it is given here.
@@ -209,11 +171,29 @@ class ParameterEstimate:
         ParameterEstimate
             The estimate.
         """
-        return cls.from_fields(Fields(d, source), name)
+        return super().from_dict(d, source=source, name=name)
+
+
+def _shown(value: float, unit: str, fmt: str) -> str:
+    """An SI value in the unit it is read in (degrees for angles), with that unit."""
+    f, u = display_unit(unit)
+    return f"{value * f:{fmt}} {u}"
+
+
+def _estimates(f, key: str, done: dict) -> dict:
+    """``{name: ParameterEstimate}`` from the object ``{name: estimate dict}``."""
+    sub = f.sub(key)
+    return {k: ParameterEstimate.from_fields(sub.sub(k), name=k) for k in sub.doc}
+
+
+def _fixed(f, key: str, done: dict) -> dict:
+    """``{name: (value, reason)}`` from the object ``{name: {"value", "reason"}}``."""
+    sub = f.sub(key)
+    return {k: (x.number("value"), x.string("reason")) for k in sub.doc for x in [sub.sub(k)]}
 
 
 @dataclass(frozen=True)
-class CompatibilityResult:
+class CompatibilityResult(Codec):
     """Result of :func:`check_compatibility`.
 
     Parameters
@@ -226,10 +206,10 @@ class CompatibilityResult:
         Initial states (alpha0, theta0, V0, h0 as present) -> ParameterEstimate.
     fixed : dict
         Parameters not estimated -> (value, reason).
-    corr : ndarray
-        Correlation matrix of all estimated quantities, in ``names`` order.
     names : tuple of str
         Estimated quantities (parameters then states), the order of ``corr``.
+    corr : ndarray
+        Correlation matrix of all estimated quantities, in ``names`` order.
     outputs : tuple of str
         Outputs compared (alpha, theta, V, h as present).
     residual_rms : dict
@@ -253,8 +233,8 @@ class CompatibilityResult:
     params: dict
     states: dict
     fixed: dict
-    corr: np.ndarray
     names: tuple
+    corr: np.ndarray
     outputs: tuple
     residual_rms: dict
     sigma: dict
@@ -264,6 +244,22 @@ class CompatibilityResult:
     record: Record | None = field(default=None, repr=False, compare=False)
     findings: tuple = ()
 
+    json_fields = {
+        "params": Spec(_estimates),
+        "states": Spec(_estimates),
+        "fixed": Spec(_fixed, write=lambda fixed: {k: {"value": v, "reason": r} for k, (v, r) in fixed.items()}),
+        "names": texts(),
+        # a non-finite correlation is written as 0
+        "corr": Spec(floats("names", "names").read, write=lambda c: np.where(np.isfinite(c), c, 0.0)),
+        "outputs": texts(),
+        "residual_rms": number_map(),
+        "sigma": number_map(),
+        "n_used": integer(0),
+        "record": SKIP,  # the corrected record is not written: read back, it is None
+        "findings": texts(),
+    }
+    json_source = "compatibility check"
+
     def values(self) -> dict:
         """All sensor parameters (estimated and fixed) by name.
 
@@ -272,9 +268,7 @@ class CompatibilityResult:
         dict of str to float
             The values, SI units.
         """
-        out = {k: v[0] for k, v in self.fixed.items()}
-        out.update({k: p.value for k, p in self.params.items()})
-        return out
+        return {k: v[0] for k, v in self.fixed.items()} | {k: p.value for k, p in self.params.items()}
 
     def apply(self, record: Record) -> Record:
         """The record corrected with these estimates (see :func:`apply_corrections`).
@@ -313,106 +307,20 @@ class CompatibilityResult:
                 f"{u:6s} {p.z:5.1f}  {p.description}"
             )
         if self.fixed:
-            lines.append("")
-            lines.append("  not estimated:")
-            for k, (v, why) in self.fixed.items():
-                f, u = display_unit(PARAMETERS[k][1])
-                lines.append(f"    {k:10s} = {v * f:g} {u}: {why}")
-        lines.append("")
-        lines.append(
-            "  initial states: "
-            + ", ".join(
-                f"{k} = {p.value * display_unit(p.unit)[0]:.5g} {display_unit(p.unit)[1]}"
-                for k, p in self.states.items()
-            )
-        )
-        lines.append(
-            "  residual RMS: "
-            + ", ".join(
-                f"{k} {v * display_unit(SIGNALS[k])[0]:.3g} {display_unit(SIGNALS[k])[1]}"
-                for k, v in self.residual_rms.items()
-            )
-        )
+            lines += ["", "  not estimated:"]
+            lines += [f"    {k:10s} = {_shown(v, PARAMETERS[k][1], 'g')}: {why}" for k, (v, why) in self.fixed.items()]
+        states = (f"{k} = {_shown(p.value, p.unit, '.5g')}" for k, p in self.states.items())
+        rms = (f"{k} {_shown(v, SIGNALS[k], '.3g')}" for k, v in self.residual_rms.items())
+        lines += ["", "  initial states: " + ", ".join(states), "  residual RMS: " + ", ".join(rms)]
         big = [
-            (self.names[i], self.names[j], self.corr[i, j])
-            for i in range(len(self.names))
-            for j in range(i + 1, len(self.names))
+            (a, b, self.corr[i, j])
+            for (i, a), (j, b) in itertools.combinations(enumerate(self.names), 2)
             if abs(self.corr[i, j]) > 0.9
         ]
         if big:
             lines.append("  correlations above 0.9: " + ", ".join(f"{a}/{b} {c:+.2f}" for a, b, c in big))
-        lines.append("")
-        lines.append("Findings:")
-        lines.extend(f"  - {f}" for f in self.findings)
+        lines += ["", "Findings:", *(f"  - {f}" for f in self.findings)]
         return "\n".join(lines)
-
-    def to_dict(self) -> dict:
-        """JSON-safe dictionary.
-
-        Returns
-        -------
-        dict
-            Every field but the record; estimates as dicts, ``corr`` as nested lists.
-        """
-        return {
-            "name": self.name,
-            "params": {k: p.to_dict() for k, p in self.params.items()},
-            "states": {k: p.to_dict() for k, p in self.states.items()},
-            "fixed": {k: {"value": v, "reason": r} for k, (v, r) in self.fixed.items()},
-            "names": list(self.names),
-            "corr": np.where(np.isfinite(self.corr), self.corr, 0.0).tolist(),
-            "outputs": list(self.outputs),
-            "residual_rms": self.residual_rms,
-            "sigma": self.sigma,
-            "n_used": self.n_used,
-            "converged": self.converged,
-            "message": self.message,
-            "findings": list(self.findings),
-        }
-
-    @classmethod
-    def from_dict(cls, d, *, source: str = "compatibility check") -> CompatibilityResult:
-        """Inverse of :meth:`to_dict`; a missing or mistyped key raises a one-line FdmlError naming ``source``.
-
-        What :meth:`to_dict` does not keep is not restored: ``record`` (the
-        corrected record) is None, and a non-finite correlation, written as 0,
-        reads back as 0.
-
-        Parameters
-        ----------
-        d : dict
-            As written by :meth:`to_dict`.
-        source : str, optional
-            What ``d`` came from, for the message.
-
-        Returns
-        -------
-        CompatibilityResult
-            The check's estimates, correlations, residuals and findings.
-        """
-        f = Fields(d, source)
-        names = f.strings("names")
-        fixed = f.sub("fixed")
-        return cls(
-            name=f.string("name"),
-            params=_estimates(f.sub("params")),
-            states=_estimates(f.sub("states")),
-            fixed={k: (x.number("value"), x.string("reason")) for k in fixed.doc for x in [fixed.sub(k)]},
-            corr=f.floats("corr", (len(names), len(names))),
-            names=names,
-            outputs=f.strings("outputs"),
-            residual_rms=f.number_map("residual_rms"),
-            sigma=f.number_map("sigma"),
-            n_used=f.integer("n_used", minimum=0),
-            converged=f.boolean("converged"),
-            message=f.string("message"),
-            findings=f.strings("findings"),
-        )
-
-
-def _estimates(f: Fields) -> dict:
-    """``{name: ParameterEstimate}`` from the object ``{name: estimate dict}``."""
-    return {k: ParameterEstimate.from_fields(f.sub(k), k) for k in f.doc}
 
 
 # --- corrections -------------------------------------------------------------------------------
@@ -438,11 +346,10 @@ def apply_corrections(record: Record, values: dict) -> Record:
     Record
         The corrected copy.
     """
-    v = {k: PARAMETERS[k][0] for k in PARAMETERS}
     unknown = set(values) - set(PARAMETERS)
     if unknown:
         raise FdmlError(f"unknown compatibility parameter(s) {sorted(unknown)}; known: {', '.join(PARAMETERS)}")
-    v.update({k: float(x) for k, x in values.items()})
+    v = {k: PARAMETERS[k][0] for k in PARAMETERS} | {k: float(x) for k, x in values.items()}
     t = record.t
 
     def shifted(x, tau):
@@ -450,10 +357,11 @@ def apply_corrections(record: Record, values: dict) -> Record:
             return x
         return CubicSpline(t, x)(np.clip(t + tau, t[0], t[-1]))
 
-    new = {}
-    new["q"] = (record["q"] - v["b_q"]) / v["K_q"]
-    new["az"] = (shifted(record["az"], v["tau_az"]) - v["b_az"]) / v["K_az"]
-    new["alpha"] = (shifted(record["alpha"], v["tau_alpha"]) - v["b_alpha"]) / v["K_alpha"]
+    new = {
+        "q": (record["q"] - v["b_q"]) / v["K_q"],
+        "az": (shifted(record["az"], v["tau_az"]) - v["b_az"]) / v["K_az"],
+        "alpha": (shifted(record["alpha"], v["tau_alpha"]) - v["b_alpha"]) / v["K_alpha"],
+    }
     if record.has("ax"):
         new["ax"] = record["ax"] - v["b_ax"]
     if record.has("theta"):
@@ -480,10 +388,7 @@ def _integrate(a, th, V, dt, q, az, ax, Vin):
     q, az = q.tolist(), az.tolist()
     ax = None if ax is None else ax.tolist()
     Vin = None if Vin is None else Vin.tolist()
-    A = [a] * n
-    TH = [th] * n
-    VV = [V] * n
-    HH = [0.0] * n
+    A, TH, VV, HH = [a] * n, [th] * n, [V] * n, [0.0] * n
     h = 0.0
     hdt = 0.5 * dt
     sixth = dt / 6.0
@@ -500,8 +405,8 @@ def _integrate(a, th, V, dt, q, az, ax, Vin):
 
     for k in range(n - 1):
         i0 = 2 * k
-        q0, q1, q2 = q[i0], q[i0 + 1], q[i0 + 2]
-        z0, z1, z2 = az[i0], az[i0 + 1], az[i0 + 2]
+        q0, q1, q2 = q[i0 : i0 + 3]
+        z0, z1, z2 = az[i0 : i0 + 3]
         # theta depends on q only
         t1, t2, t3, t4 = th, th + hdt * q0, th + hdt * q1, th + dt * q1
         if ax is None:
@@ -511,7 +416,7 @@ def _integrate(a, th, V, dt, q, az, ax, Vin):
         if vstate:
             v1 = V
         else:
-            v1, vm, v4 = Vin[i0], Vin[i0 + 1], Vin[i0 + 2]
+            v1, vm, v4 = Vin[i0 : i0 + 3]
         da1, dV1, dh1 = rates(a, v1, t1, q0, z0, x0)
         a2 = a + hdt * da1
         v2 = V + hdt * dV1 if vstate else vm
@@ -524,10 +429,7 @@ def _integrate(a, th, V, dt, q, az, ax, Vin):
         da4, dV4, dh4 = rates(a4, vv4, t4, q2, z2, x2)
         a += sixth * (da1 + 2 * da2 + 2 * da3 + da4)
         th += sixth * (q0 + 4 * q1 + q2)
-        if vstate:
-            V += sixth * (dV1 + 2 * dV2 + 2 * dV3 + dV4)
-        else:
-            V = v4
+        V = V + sixth * (dV1 + 2 * dV2 + 2 * dV3 + dV4) if vstate else v4
         h += sixth * (dh1 + 2 * dh2 + 2 * dh3 + dh4)
         if not (-10.0 < a < 10.0 and 0.0 < V < 1e5):
             raise FloatingPointError("kinematic integration diverged")
@@ -571,26 +473,12 @@ class _Problem:
         self.has_h = record.has("h")
         self.has_ax = record.has("ax")
         self.V_state = record.has("V") and self.has_ax
-        self.free = free
         self.fixed = fixed
         self.U = U
-        states = ["alpha0"]
-        if self.has_theta:
-            states.append("theta0")
-        if self.V_state:
-            states.append("V0")
-        if self.has_h:
-            states.append("h0")
-        self.states = states
-        self.names = free + states
-        outs = ["alpha"]
-        if self.has_theta:
-            outs.append("theta")
-        if self.V_state:
-            outs.append("V")
-        if self.has_h:
-            outs.append("h")
-        self.outputs = tuple(outs)
+        present = {"alpha": True, "theta": self.has_theta, "V": self.V_state, "h": self.has_h}
+        self.outputs = tuple(k for k, on in present.items() if on)
+        self.states = [f"{k}0" for k in self.outputs]  # each output's initial value
+        self.names = free + self.states
         m = int(math.ceil(max_shift / self.dt)) + 1
         self.sel = slice(m, self.n - m)
         self.n_used = self.n - 2 * m
@@ -599,33 +487,19 @@ class _Problem:
                 f"record {record.name!r} is too short for a compatibility check with time shifts "
                 f"of up to {max_shift:g} s ({self.n} samples)"
             )
-        self.meas = {k: record[k] for k in outs}
+        self.meas = {k: record[k] for k in self.outputs}
         self.tt = np.empty(2 * self.n - 1)  # the samples and the midpoints between them
         self.tt[0::2], self.tt[1::2] = self.t, self.t[:-1] + 0.5 * self.dt
-        self._cache: dict = {}
-        self._splines: dict = {}
+        # the inputs' cubic splines (fourth order, like the integrator: linear midpoints would bias
+        # slowly varying integrals), and their values at the samples and midpoints; V without a
+        # channel is the airspeed given
+        inputs = {k: record[k] for k in ("q", "az", "ax", "V") if record.has(k)}
+        self.splines = {k: CubicSpline(self.t, x) for k, x in ({"V": np.full(self.n, U)} | inputs).items()}
+        self.mid = {k: spline(self.tt) for k, spline in self.splines.items()}
         self._runs: dict = {}
-        self.V_meas = record["V"] if record.has("V") else np.full(self.n, U)
 
     def unpack(self, x):
-        p = dict(self.fixed)
-        p.update(zip(self.names, x))
-        return p
-
-    def _spline(self, name: str) -> CubicSpline:
-        """The cubic spline through a channel (cached: no parameter changes it)."""
-        if name not in self._splines:
-            self._splines[name] = CubicSpline(self.t, self.V_meas if name == "V" else self.rec[name])
-        return self._splines[name]
-
-    def _mid(self, name: str) -> np.ndarray:
-        """A channel at the samples and midpoints (cached), by cubic interpolation.
-
-        Fourth order, like the integrator; linear midpoints would bias slowly varying integrals.
-        """
-        if name not in self._cache:
-            self._cache[name] = self._spline(name)(self.tt)
-        return self._cache[name]
+        return self.fixed | dict(zip(self.names, x))
 
     def _run(self, p) -> _Run:
         """The kinematics integrated from the corrected inputs, reusing the last runs.
@@ -646,25 +520,17 @@ class _Problem:
 
     def _new_run(self, p) -> _Run:
         """One integration from the inputs corrected by the sensor parameters in ``p``."""
-        q = (self._mid("q") - p["b_q"]) / p["K_q"]
+        q = (self.mid["q"] - p["b_q"]) / p["K_q"]
         if p["tau_az"] != 0.0:
-            az_src = self._spline("az")(np.clip(self.tt + p["tau_az"], self.t[0], self.t[-1]))
+            az_src = self.splines["az"](np.clip(self.tt + p["tau_az"], self.t[0], self.t[-1]))
         else:
-            az_src = self._mid("az")
+            az_src = self.mid["az"]
         az = (az_src - p["b_az"]) / p["K_az"]
-        ax = self._mid("ax") - p["b_ax"] if self.has_ax else None
-        Vin = None if self.V_state else self._mid("V") / p["K_V"]
-        A, TH, VV, HH = _integrate(
-            float(p["alpha0"]),
-            float(p["theta0"] if self.has_theta else p["alpha0"]),
-            float(p["V0"]) if Vin is None else float(Vin[0]),
-            self.dt,
-            q,
-            az,
-            ax,
-            Vin,
-        )
-        return _Run(self.t, A, TH, VV, HH)
+        ax = self.mid["ax"] - p["b_ax"] if self.has_ax else None
+        Vin = None if self.V_state else self.mid["V"] / p["K_V"]
+        theta0 = p["theta0"] if self.has_theta else p["alpha0"]
+        V0 = p["V0"] if Vin is None else Vin[0]
+        return _Run(self.t, *_integrate(float(p["alpha0"]), float(theta0), float(V0), self.dt, q, az, ax, Vin))
 
     def simulate(self, p) -> dict:
         """Integrate the kinematics; returns the simulated outputs (as measured, sensor models applied)."""
@@ -710,14 +576,13 @@ class _Problem:
                 blocks.append((zero, zero, p["K_V"] * G0 * Lm))
             elif k == "h":
                 blocks.append((zero, -G0 * (Lm @ Lm), zero))
-        sel = np.arange(n)[self.sel]
         Minv = np.linalg.pinv(J.T @ J)
         mid = np.zeros((J.shape[1], J.shape[1]))
         AJ = [np.zeros((n, J.shape[1])) for _ in range(3)]
         for j, k in enumerate(self.outputs):
             Jk = J[j * self.n_used : (j + 1) * self.n_used]
             for i in range(3):
-                AJ[i] += blocks[j][i][sel].T @ Jk / sigma[k]
+                AJ[i] += blocks[j][i][self.sel].T @ Jk / sigma[k]
             s_meas = noise_level(self.meas[k])
             mid += (s_meas / sigma[k]) ** 2 * (Jk.T @ Jk)
         for i, s2 in enumerate((s_q**2, s_az**2, s_ax**2)):
@@ -733,15 +598,15 @@ class _Problem:
 def _default_free(record: Record) -> tuple[list[str], dict]:
     """Parameters the record's channels determine, and reasons for the others."""
     free = ["b_az", "K_alpha", "tau_alpha"]
-    why = {}
+    why: dict = {}
     if record.has("theta"):
         free += ["b_q", "K_q", "tau_theta"]
     else:
-        for k in ("b_q", "K_q", "tau_theta"):
-            why[k] = (
-                "no theta: a q bias and an a_z bias drift alpha alike, and a q scale factor has no "
-                "reference; the alpha drift is given to b_az"
-            )
+        why |= dict.fromkeys(
+            ("b_q", "K_q", "tau_theta"),
+            "no theta: a q bias and an a_z bias drift alpha alike, and a q scale factor has no "
+            "reference; the alpha drift is given to b_az",
+        )
     if record.has("h"):
         free.append("b_alpha")
     else:
@@ -753,15 +618,12 @@ def _default_free(record: Record) -> tuple[list[str], dict]:
         free.append("b_ax")
     else:
         why["b_ax"] = "no airspeed or no a_x: the airspeed equation is not integrated"
-    for k in ("K_az", "tau_az"):
+    for k in ("K_az", "tau_az", "K_V"):
+        cause = "" if k == "K_V" else ": with a_z near -1 g a scale error looks like a bias"
         why[k] = (
-            "not estimated by default: with a_z near -1 g a scale error looks like a bias "
+            f"not estimated by default{cause} "
             f"(to estimate it: fdml check --compat --estimate {','.join([*free, k])}; Python: estimate=)"
         )
-    why["K_V"] = (
-        f"not estimated by default (to estimate it: fdml check --compat --estimate {','.join([*free, 'K_V'])}; "
-        "Python: estimate=)"
-    )
     return free, why
 
 
@@ -782,8 +644,7 @@ def _checked_airspeed(record: Record, U: float | None) -> float:
             "with trim kept (a_z near -1 g in level flight, body z positive down). Load it without trim= "
             "or add the trim back"
         )
-    if U is None:
-        U = record.meta.get("U")
+    U = record.meta.get("U") if U is None else U
     if not record.has("V") and (U is None or not U > 0):
         raise RecordError(f"record {record.name!r} has no airspeed V: pass U= (m/s)")
     return float(U) if U is not None else float(np.mean(record["V"]))
@@ -793,11 +654,10 @@ def _choose_free(record: Record, estimate, fix) -> tuple[list[str], dict[str, fl
     """Free parameters, values of the fixed ones and why each is not estimated."""
     free, why = _default_free(record)
     if estimate is not None:
-        estimate = list(estimate)
-        bad = [k for k in estimate if k not in PARAMETERS]
+        free = list(estimate)
+        bad = [k for k in free if k not in PARAMETERS]
         if bad:
             raise FdmlError(f"unknown compatibility parameter(s) {bad}; known: {', '.join(PARAMETERS)}")
-        free = estimate
         why = {k: "not requested" for k in PARAMETERS if k not in free}
     fixed_vals = {k: PARAMETERS[k][0] for k in PARAMETERS if k not in free}
     for k, v in dict(fix or {}).items():
@@ -812,30 +672,17 @@ def _choose_free(record: Record, estimate, fix) -> tuple[list[str], dict[str, fl
 
 def _start(prob: _Problem, free: list[str], max_shift: float):
     """Start (nominal sensors, measured initial states) and bounds of the unknowns."""
-    record = prob.rec
-    x0_list = [PARAMETERS[k][0] for k in free]
-    x0_list.append(float(record["alpha"][0]))
-    if prob.has_theta:
-        x0_list.append(float(record["theta"][0]))
-    if prob.V_state:
-        x0_list.append(float(record["V"][0]))
-    if prob.has_h:
-        x0_list.append(float(record["h"][0]))
-    x0 = np.array(x0_list, dtype=float)
-    lo = np.full(x0.size, -np.inf)
-    hi = np.full(x0.size, np.inf)
-    for i, k in enumerate(free):
-        if PARAMETERS[k][1] == "s":  # a time shift (tau_*)
-            lo[i], hi[i] = -max_shift, max_shift
-        elif PARAMETERS[k][1] == "-":  # a scale factor (K_*)
-            lo[i], hi[i] = 0.2, 5.0
+    x0 = np.array([PARAMETERS[k][0] for k in free] + [float(prob.rec[k][0]) for k in prob.outputs])
+    by_unit = {"s": (-max_shift, max_shift), "-": (0.2, 5.0)}  # time shifts (tau_*), scale factors (K_*)
+    bounds = [by_unit.get(PARAMETERS[k][1], (-np.inf, np.inf)) for k in free]
+    lo, hi = np.array(bounds + [(-np.inf, np.inf)] * len(prob.outputs)).T
     return x0, lo, hi
 
 
 def _solve(prob: _Problem, x0, lo, hi) -> RelaxedFit:
     """Least-squares passes, each output weighted by its residual RMS of the pass before (:mod:`fdml.lsq`)."""
     floor = [_sigma_floor(prob.rec[k]) for k in prob.outputs]
-    start = np.maximum([noise_level(prob.rec[k]) for k in prob.outputs], floor)
+    start = np.array([noise_level(prob.rec[k]) for k in prob.outputs])  # each at least its floor
     return relaxed_least_squares(prob.errors, x0, (lo, hi), start, passes=_WEIGHT_PASSES, tol=_WEIGHT_TOL, floor=floor)
 
 
@@ -843,9 +690,7 @@ def _uncertainty(prob: _Problem, J, r, x, sigma):
     """Standard errors (the largest of white, coloured and noise-propagated), the white ones, and correlations."""
     cov_w, cov_c = _covariances(J, r, len(prob.outputs), prob.n_used)
     cov_n = prob.noise_covariance(J, prob.unpack(x), sigma)
-    se_w = np.sqrt(np.clip(np.diag(cov_w), 0, None))
-    se_c = np.sqrt(np.clip(np.diag(cov_c), 0, None))
-    se_n = np.sqrt(np.clip(np.diag(cov_n), 0, None))
+    se_w, se_c, se_n = (np.sqrt(np.clip(np.diag(c), 0, None)) for c in (cov_w, cov_c, cov_n))
     se = np.maximum.reduce([se_w, se_c, se_n])
     cov = cov_n if np.sum(se_n >= se_c) >= np.sum(se_c > se_n) else cov_c
     d = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -901,25 +746,17 @@ def check_compatibility(
     fit = _solve(prob, x0, lo, hi)
     x, sigma = fit.x, dict(zip(prob.outputs, fit.sigma.tolist()))
     se, se_w, corr = _uncertainty(prob, fit.J, fit.r, x, sigma)
-    params = {}
-    for i, k in enumerate(free):
-        nom, unit, desc = PARAMETERS[k]
-        params[k] = ParameterEstimate(k, float(x[i]), float(se[i]), float(se_w[i]), unit, desc, nom)
-    states = {}
-    for j, k in enumerate(prob.states):
-        i = len(free) + j
-        states[k] = ParameterEstimate(
-            k, float(x[i]), float(se[i]), float(se_w[i]), _STATE_UNITS[k], "initial state", float(x0[i])
-        )
-    y = prob.simulate(prob.unpack(x))
-    rms = {k: float(np.sqrt(np.mean((prob.meas[k][prob.sel] - y[k][prob.sel]) ** 2))) for k in prob.outputs}
-    fixed = {k: (fixed_vals[k], why.get(k, "fixed")) for k in PARAMETERS if k not in free}
-    findings = _findings(params, free, prob, x, hi, lo, rms)
+    est = {}
+    for i, k in enumerate(prob.names):
+        nom, unit, desc = PARAMETERS[k] if k in PARAMETERS else (float(x0[i]), _STATE_UNITS[k], "initial state")
+        est[k] = ParameterEstimate(k, float(x[i]), float(se[i]), float(se_w[i]), unit, desc, nom)
+    params = {k: est[k] for k in free}
+    rms = {k: float(np.sqrt(np.mean(e**2))) for k, e in zip(prob.outputs, prob.errors(x))}
     out = CompatibilityResult(
         name=record.name,
         params=params,
-        states=states,
-        fixed=fixed,
+        states={k: est[k] for k in prob.states},
+        fixed={k: (fixed_vals[k], why.get(k, "fixed")) for k in PARAMETERS if k not in free},
         corr=corr,
         names=tuple(prob.names),
         outputs=prob.outputs,
@@ -928,7 +765,7 @@ def check_compatibility(
         n_used=prob.n_used,
         converged=fit.success and fit.settled,
         message=fit.message if fit.settled else f"output weights still changing after {_WEIGHT_PASSES} passes",
-        findings=tuple(findings),
+        findings=tuple(_findings(params, free, prob, x, hi, lo, rms)),
     )
     if correct:
         out = replace(out, record=out.apply(record))
@@ -963,10 +800,7 @@ def noise_level(x: np.ndarray) -> float:
 
 def _sigma_floor(x: np.ndarray) -> float:
     """Smallest credible noise level: the quantisation noise of the channel (step / sqrt 12)."""
-    d = np.abs(np.diff(x))
-    nz = d[d > 1e-3 * np.median(d[d > 0])] if np.any(d > 0) else d
-    step = float(np.min(nz)) if nz.size else 1e-12
-    return max(step / math.sqrt(12), 1e-12)
+    return max(_resolution(x)[0] / math.sqrt(12), 1e-12)
 
 
 def _covariances(J: np.ndarray, r: np.ndarray, n_out: int, n_used: int):
@@ -1023,11 +857,9 @@ def _findings(params, free, prob, x, hi, lo, rms: dict[str, float]) -> list[str]
     if quiet:
         out.append(f"consistent with nominal (within {SIGNIFICANT:g} standard errors): {', '.join(quiet)}")
     for i, k in enumerate(free):
-        at_hi = abs(x[i] - hi[i]) < 1e-6 * (1 + abs(hi[i]))
-        at_lo = abs(x[i] - lo[i]) < 1e-6 * (1 + abs(lo[i]))
-        if np.isfinite(hi[i]) and (at_hi or at_lo):
+        if np.isfinite(hi[i]) and any(abs(x[i] - b) < 1e-6 * (1 + abs(b)) for b in (lo[i], hi[i])):
             out.append(f"{k} sits at its bound ({x[i]:g}): the data push it beyond the searched range")
-    if not any(p.z > SIGNIFICANT for p in params.values()):
+    if not sig:
         out.insert(0, "the record is kinematically consistent: no sensor error is significant")
     if "b_alpha" in params:
         out.append(

@@ -114,10 +114,7 @@ def _pulse_train(t, amplitude: float, start: float, widths, signs, rise: float) 
         )
     levels = np.concatenate([[0.0], np.asarray(signs, float), [0.0]])
     edges = start + np.concatenate([[0.0], np.cumsum(widths)])
-    u = np.zeros_like(t)
-    for edge, jump in zip(edges, np.diff(levels)):
-        u += jump * _smooth_step(t, edge, rise)
-    return amplitude * u
+    return amplitude * sum(jump * _smooth_step(t, edge, rise) for edge, jump in zip(edges, np.diff(levels)))
 
 
 def doublet(
@@ -263,8 +260,7 @@ def multisine(
         phi = phi + omega_k * _upward_zero(omega_k, phi, tau[-1], amps)
     u = np.cos(np.outer(tau, omega_k) + phi) @ amps
     if zero_start:
-        u[0] = 0.0  # the crossing is found to ~1e-16 of the peak; make it exact
-        u[-1] = 0.0
+        u[[0, -1]] = 0.0  # the crossing is found to ~1e-16 of the peak; make it exact
     return amplitude * u / np.max(np.abs(u))
 
 
@@ -483,9 +479,8 @@ def sweep(
     return amplitude * np.sin(phase) * w
 
 
-def _upward_zero(omega, phi, T: float, amps=None) -> float:
+def _upward_zero(omega, phi, T: float, a) -> float:
     """First time in [0, T) where sum a_k cos(omega_k t + phi_k) crosses zero upwards."""
-    a = np.ones(omega.size) if amps is None else amps
     f = lambda x: float(np.cos(omega * x + phi) @ a)  # noqa: E731
     grid = np.linspace(0.0, T, 64 * omega.size + 64)
     vals = np.cos(np.outer(grid, omega) + phi) @ a
@@ -527,10 +522,10 @@ def dryden_psd(omega, sigma: float, U: float, L: float = DRYDEN_L):
     return sigma**2 * (L / (np.pi * U)) * (1.0 + 3.0 * x**2) / (1.0 + x**2) ** 2
 
 
-def _dryden_state_space(sigma: float, U: float, L: float):
-    """Controllable form of H(s) = sigma sqrt(L/(pi U)) (1 + sqrt3 a s)/(1 + a s)^2, a = L/U."""
+def _dryden_state_space(U: float, L: float):
+    """Controllable form of the unit-RMS H(s) = sqrt(L/(pi U)) (1 + sqrt3 a s)/(1 + a s)^2, a = L/U."""
     a = L / U
-    k = sigma * math.sqrt(L / (math.pi * U))
+    k = math.sqrt(L / (math.pi * U))
     # H(s) = (k/a^2) (1 + sqrt3 a s) / (s^2 + (2/a) s + 1/a^2)
     A = np.array([[0.0, 1.0], [-1.0 / a**2, -2.0 / a]])
     B = np.array([[0.0], [1.0]])
@@ -587,26 +582,19 @@ def dryden_gust(
     if rng is None or not isinstance(rng, np.random.Generator):
         raise ParameterError("dryden_gust needs rng, a numpy Generator (np.random.default_rng(seed))")
     dt = _uniform_step(t)
-    A, B, C = _dryden_state_space(1.0, U, L)
+    A, B, C = _dryden_state_space(U, L)  # unit RMS: sigma scales the output
     q = np.pi  # two-sided intensity of the driving noise
     n = t.size
     if method == "exact":
         # Van Loan (1978): expm([[-A, q B B^T], [0, A^T]] dt) gives Phi and Qd.
-        M = np.zeros((4, 4))
-        M[:2, :2] = -A
-        M[:2, 2:] = q * (B @ B.T)
-        M[2:, 2:] = A.T
-        E = linalg.expm(M * dt)
+        E = linalg.expm(np.block([[-A, q * (B @ B.T)], [np.zeros((2, 2)), A.T]]) * dt)
         Phi = E[2:, 2:].T
         Qd = Phi @ E[:2, 2:]
         Qd = 0.5 * (Qd + Qd.T)
         Gw = np.linalg.cholesky(Qd + 1e-300 * np.eye(2))
         w = rng.standard_normal((n, 2)) @ Gw.T
     elif method == "zoh":
-        M = np.zeros((3, 3))
-        M[:2, :2] = A
-        M[:2, 2:] = B
-        E = linalg.expm(M * dt)
+        E = linalg.expm(np.block([[A, B], [np.zeros((1, 3))]]) * dt)
         Phi, Gam = E[:2, :2], E[:2, 2:]
         w = (rng.standard_normal((n, 1)) * math.sqrt(q / dt)) @ Gam.T
     else:
@@ -622,10 +610,7 @@ def dryden_gust(
     den = np.array([1.0, -np.trace(Phi), np.linalg.det(Phi)])
     adj = np.array([[-Phi[1, 1], Phi[0, 1]], [Phi[1, 0], -Phi[0, 0]]])  # adj(zI - Phi) = z I + adj
     drive = np.vstack([x0, w[:-1]])
-    y = np.zeros(n)
-    for j in range(2):
-        num = np.array([0.0, c[j], c @ adj[:, j]])
-        y += signal.lfilter(num, den, drive[:, j])
+    y = sum(signal.lfilter([0.0, c[j], c @ adj[:, j]], den, drive[:, j]) for j in range(2))
     return sigma * y / U
 
 
@@ -633,6 +618,10 @@ def dryden_gust(
 
 #: Input kinds understood by :func:`make_input`.
 INPUT_KINDS = ("doublet", "3211", "multisine", "sweep")
+#: The generator of each kind.
+_GENERATORS: dict[str, Callable[..., np.ndarray]] = dict(
+    zip(INPUT_KINDS, (doublet, three_two_one_one, multisine, sweep))
+)
 
 
 def make_input(kind: str, t, amplitude: float = DEFAULT_AMPLITUDE, **kw) -> np.ndarray:
@@ -657,16 +646,9 @@ def make_input(kind: str, t, amplitude: float = DEFAULT_AMPLITUDE, **kw) -> np.n
     ndarray, shape (n,)
         The elevator deflection de(t), rad.
     """
-    funcs: dict[str, Callable[..., np.ndarray]] = {
-        "doublet": doublet,
-        "3211": three_two_one_one,
-        "multisine": multisine,
-        "sweep": sweep,
-    }
-    try:
-        fn = funcs[kind]
-    except (KeyError, TypeError):
-        raise ParameterError(f"unknown input kind {kind!r}; kinds: {', '.join(INPUT_KINDS)}") from None
+    fn = _GENERATORS.get(kind) if isinstance(kind, str) else None
+    if fn is None:
+        raise ParameterError(f"unknown input kind {kind!r}; kinds: {', '.join(INPUT_KINDS)}")
     allowed = set(inspect.signature(fn).parameters) - {"t", "amplitude"}
     bad = sorted(set(kw) - allowed)
     if bad:

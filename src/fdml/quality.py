@@ -217,10 +217,7 @@ class QualityReport(Codec):
         ChannelQuality
             Its report.
         """
-        for c in self.channels:
-            if c.name == name:
-                return c
-        raise KeyError(name)
+        return {c.name: c for c in self.channels}[name]
 
     def summary(self) -> str:
         """Plain-text report.
@@ -246,11 +243,9 @@ class QualityReport(Codec):
                 f"  {c.name:8s} {c.resolution:11.4g} {c.unit:7s}{c.n_levels:5d} {c.change_rate:9.3g}"
                 f" {100 * c.repeat_fraction:7.1f}% {len(c.holds):5d}  {c.flat_max:.3g}/{c.flat_min:.3g}"
             )
-        out.append("")
-        out.append(f"  input energy inside the band: {100 * self.input_energy_fraction:.1f} %")
+        out += ["", f"  input energy inside the band: {100 * self.input_energy_fraction:.1f} %"]
         if self.low_input:
-            spans = _spans(self.low_input)
-            out.append(f"  input more than {LOW_INPUT_DB:g} dB below its peak at: {spans} rad/s")
+            out.append(f"  input more than {LOW_INPUT_DB:g} dB below its peak at: {_spans(self.low_input)} rad/s")
         out.append(f"  coherence: {self.coherence_method}")
         for k, g in self.coherence.items():
             if g.size:
@@ -259,9 +254,7 @@ class QualityReport(Codec):
                     f"    de -> {k:6s}: median {np.median(g):.2f}, min {np.min(g):.2f}, "
                     f">= {GOOD_COHERENCE:g} at {100 * good:.0f} % of {g.size} estimates"
                 )
-        out.append("")
-        out.append("Findings:")
-        out.extend(f"  - {f}" for f in self.findings)
+        out += ["", "Findings:", *(f"  - {f}" for f in self.findings)]
         return "\n".join(out)
 
 
@@ -314,11 +307,10 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
         )
     omega = fourier.omega_band(lo, hi, step)
     n, dt, T = record.n, record.dt, record.duration
-    d = np.diff(record.t)
-    jitter = float(np.max(np.abs(d - dt)) / dt)
+    jitter = float(np.max(np.abs(np.diff(record.t) - dt)) / dt)
 
     # --- channels --------------------------------------------------------------------------
-    chans, findings, findings_low, n_defects = _channel_findings(record, outputs, hi)
+    chans, findings, findings_low = _channel_findings(record, outputs, hi)
     if jitter > 1e-6:
         findings_low.append(f"sample intervals vary by up to {100 * jitter:.2g} % of dt")
 
@@ -338,25 +330,22 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
 
     # --- verdict ----------------------------------------------------------------------------
     independent = (hi - lo) * T / (2 * math.pi) + 1.0
-    good_in = ~low_mask
+    good = ~low_mask
     if coh_w.size:
         coherent = np.zeros(coh_w.size, bool)
         for g in coh.values():
             coherent |= g >= max(GOOD_COHERENCE, thr)
-        coherent_on_grid = np.interp(omega, coh_w, coherent.astype(float)) >= 0.5
-        good = good_in & coherent_on_grid
-    else:
-        good = good_in
+        good &= np.interp(omega, coh_w, coherent.astype(float)) >= 0.5
     useful = float(np.sum(good)) * step * T / (2 * math.pi) if omega.size > 1 else float(np.sum(good))
     useful = min(useful, independent)
     n_out = len(outputs)
     required = max(1, math.ceil(n_params / (2 * n_out)))
     sufficient = useful >= required and peak > 0
 
-    head = _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, omega, low_mask, coh, thr)
+    head = _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, low_input, coh, thr)
     if "too short" in method:
         head.append(method)
-    if n_defects == 0:
+    if not any(c.holds or c.clipped for c in chans if c.name != "de"):
         findings.append("no dropouts or saturation in any measured channel")
     findings = head + findings + findings_low + [f"sampling {1 / dt:.4g} Hz, jitter {jitter:.2g} of dt"]
 
@@ -386,16 +375,13 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
 
 
 def _channel_findings(record: Record, outputs, hi: float):
-    """Each channel's quantisation, holds and clipping; findings on the fitted channels, the others', and defects."""
-    dt = record.dt
+    """Each channel's quantisation, holds and clipping; findings on the fitted channels and on the others."""
     findings: list[str] = []
     findings_low: list[str] = []
-    n_defects = 0
-    chans = []
+    chans = [_channel(k, record[k], record.dt, is_input=(k == "de")) for k in SIGNALS if k in record.signals]
     f_hi_hz = hi / (2 * math.pi)
-    for name in [k for k in SIGNALS if k in record.signals]:
-        c = _channel(name, record[name], dt, is_input=(name == "de"))
-        chans.append(c)
+    for c in chans:
+        name = c.name
         if c.change_rate < 2 * f_hi_hz and c.n_levels > 1:
             msg = (
                 f"{name} changes value only {c.change_rate:.3g} times per second ({c.n_levels} levels, step "
@@ -403,33 +389,32 @@ def _channel_findings(record: Record, outputs, hi: float):
                 f"and the band reaches {f_hi_hz:.3g} Hz"
             )
             (findings if name in ("de", *outputs) else findings_low).append(msg)
-        if c.repeat_fraction > 0.5 and name != "de":
+        if name == "de":  # the input's holds and flat tops are its steps
+            continue
+        if c.repeat_fraction > 0.5:
             msg = (
                 f"{name} repeats its previous value in {100 * c.repeat_fraction:.0f} % of the samples "
                 f"({c.n_levels} levels, step {c.resolution:.3g} {c.unit}): a slow update or a coarse resolution"
             )
             (findings if name in outputs else findings_low).append(msg)
-        if (c.holds or c.clipped) and name != "de":
-            n_defects += 1
-        if c.holds and name != "de":
-            tot = sum(h[1] for h in c.holds)
+        if c.holds:
+            start, longest = max(c.holds, key=lambda h: h[1])
             findings.append(
                 f"{name} holds its value {len(c.holds)} time(s) while the signal moves "
-                f"(dropouts; {tot:.3g} s in all, longest {max(h[1] for h in c.holds):.3g} s at "
-                f"t = {max(c.holds, key=lambda h: h[1])[0]:.4g} s)"
+                f"(dropouts; {sum(h[1] for h in c.holds):.3g} s in all, longest {longest:.3g} s at "
+                f"t = {start:.4g} s)"
             )
-        if c.clipped and name != "de":
+        if c.clipped:
             findings.append(
                 f"{name} is flat at its {' and '.join(c.clipped)} value while heading further: "
                 "possible sensor saturation"
             )
-    return chans, findings, findings_low, n_defects
+    return chans, findings, findings_low
 
 
-def _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, omega, low_mask, coh, thr) -> list[str]:
+def _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, low_input, coh, thr) -> list[str]:
     """The verdict's first findings: sufficiency of excitation, input energy in the band, coherence."""
     lo, hi, _step = band
-    low_input = _intervals(omega, low_mask)
     head = []
     if peak == 0:
         head.append("the elevator does not move: the record carries no input; no parameter can be identified")
@@ -448,9 +433,8 @@ def _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, o
         )
     head.append(f"{100 * frac:.0f} % of the elevator's energy lies inside the band {lo:g}-{hi:g} rad/s")
     if low_input:
-        spans = _spans(low_input)
         head.append(
-            f"the input is more than {LOW_INPUT_DB:g} dB below its peak at {spans} rad/s: "
+            f"the input is more than {LOW_INPUT_DB:g} dB below its peak at {_spans(low_input)} rad/s: "
             "those frequencies carry almost no information"
         )
     for k, g in coh.items():
@@ -513,8 +497,7 @@ def _runs(x: np.ndarray, dust: float = 0.0):
     """(start index, length) of runs of equal consecutive values (steps <= ``dust`` count as equal)."""
     change = np.flatnonzero(np.abs(np.diff(x)) > dust) + 1
     starts = np.concatenate([[0], change])
-    ends = np.concatenate([change, [x.size]])
-    return starts, ends - starts
+    return starts, np.diff(np.append(starts, x.size))
 
 
 def _resolution(x: np.ndarray) -> tuple[float, float]:
@@ -535,15 +518,10 @@ def _resolution(x: np.ndarray) -> tuple[float, float]:
 
 
 def _channel(name: str, x: np.ndarray, dt: float, is_input: bool) -> ChannelQuality:
-    unit = SIGNALS.get(name, "")
     res, dust = _resolution(x)
-    dx = np.abs(np.diff(x))
-    changed = dx > dust
-    T = dt * (x.size - 1)
+    changed = np.abs(np.diff(x)) > dust  # a record has at least 4 samples
     starts, lens = _runs(x, dust)
-    n_levels = int(starts.size and np.unique(np.round(x[starts] / res) if res > 0 else x[starts]).size)
-    change_rate = int(np.sum(changed)) / T if T > 0 else 0.0
-    repeat = float(np.mean(~changed)) if dx.size else 0.0
+    n_levels = np.unique(np.round(x[starts] / res) if res > 0 else x[starts]).size
     holds = []
     xmax, xmin = float(np.max(x)), float(np.min(x))
     for s, L in zip(starts, lens):
@@ -554,8 +532,8 @@ def _channel(name: str, x: np.ndarray, dt: float, is_input: bool) -> ChannelQual
         D = abs(x[s + L] - x[s - 1])
         if D > 2 * res * (L + 1) / (L - 1):
             holds.append((float(s * dt), float((L - 1) * dt)))
-    flat_max, clip_max = _flat(x, lens, starts, np.max(x), res, dust, dt)
-    flat_min, clip_min = _flat(x, lens, starts, np.min(x), res, dust, dt)
+    flat_max, clip_max = _flat(x, lens, starts, xmax, res, dust, dt)
+    flat_min, clip_min = _flat(x, lens, starts, xmin, res, dust, dt)
     clipped = tuple(k for k, c in (("max", clip_max), ("min", clip_min)) if c)
     flags = []
     if holds:
@@ -566,11 +544,11 @@ def _channel(name: str, x: np.ndarray, dt: float, is_input: bool) -> ChannelQual
         )
     return ChannelQuality(
         name=name,
-        unit=unit,
+        unit=SIGNALS.get(name, ""),
         resolution=res,
         n_levels=n_levels,
-        change_rate=change_rate,
-        repeat_fraction=repeat,
+        change_rate=int(np.sum(changed)) / (dt * (x.size - 1)),
+        repeat_fraction=float(np.mean(~changed)),
         holds=tuple(holds),
         flat_max=flat_max,
         flat_min=flat_min,
@@ -609,8 +587,7 @@ def _flat(x, lens, starts, level, res, dust, dt):
     if abs(tv) > (best + 1) * dt:
         return dur, False
     vertex = c0 + c1 * tv + c2 * tv**2
-    excess = sign * (vertex - level)
-    return dur, bool(excess > max(3 * res, 3 * fit_rms))
+    return dur, bool(sign * (vertex - level) > max(3 * res, 3 * fit_rms))  # peaks beyond the flat level
 
 
 def _spans(intervals) -> str:
@@ -618,18 +595,9 @@ def _spans(intervals) -> str:
 
 
 def _intervals(omega, mask):
-    out = []
-    i = 0
-    while i < mask.size:
-        if mask[i]:
-            j = i
-            while j + 1 < mask.size and mask[j + 1]:
-                j += 1
-            out.append((float(np.round(omega[i], 10)), float(np.round(omega[j], 10))))
-            i = j + 1
-        else:
-            i += 1
-    return out
+    """(first, last) frequency of each run of ``mask``, rad/s."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(int), [0]])))
+    return [(float(np.round(omega[i], 10)), float(np.round(omega[j - 1], 10))) for i, j in edges.reshape(-1, 2)]
 
 
 # --- coherence ----------------------------------------------------------------------------------
@@ -681,75 +649,69 @@ def _welch(x: np.ndarray, Y: np.ndarray, fs: float, nper: int, nover: int):
 
 
 def _coherence(record: Record, outputs, lo: float, hi: float):
+    """Coherence of the elevator with each output in the band (Welch, or Daniell for short records: see
+    :func:`check_quality`); returns (by output, frequencies rad/s, method, 5 % significance threshold)."""
     n, dt = record.n, record.dt
     fs = 1.0 / dt
     de = record["de"]
+    names = [k for k in outputs if k in record.signals]
+    Y = np.vstack([record[k] for k in names]) if names else np.zeros((0, n))
     nper = int(2 * n / (WELCH_SEGMENTS + 1))
-    coh = {}
+    welch = False
     if nper >= 16:
-        nover = nper // 2
-        n_seg = 1 + (n - nper) // (nper - nover)
         w1 = 2 * math.pi * fs / nper
         w_grid = np.arange(lo, hi + 1e-12, (hi - lo) / 100 if hi > lo else 1.0)
         covered = float(np.mean(w_grid >= w1))
         n_in_band = int(np.sum((w1 * np.arange(1, nper // 2 + 1) >= lo) & (w1 * np.arange(1, nper // 2 + 1) <= hi)))
-        if covered >= 0.5 and n_in_band >= MIN_COHERENCE_ESTIMATES:
-            names = [k for k in outputs if k in record.signals]
-            Y = np.vstack([record[k] for k in names]) if names else np.zeros((0, n))
-            # one Welch pass over the elevator and all outputs (what scipy.signal.coherence
-            # computes output by output, in three passes each)
-            f, Pxx, Pyy, Pxy = _welch(de, Y, fs, nper, nover)
-            w = 2 * math.pi * f
-            sel = (w >= lo) & (w <= hi) & (w > 0)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                g = np.abs(Pxy) ** 2 / (Pxx[None, :] * Pyy)
-            for i, k in enumerate(names):
-                coh[k] = np.nan_to_num(g[i, sel])
-            w_out = w[sel]
-            thr = 1 - COHERENCE_ALPHA ** (1 / max(n_seg - 1, 1))
-            method = (
-                f"Welch, {nper}-sample Hann segments ({nper * dt:.3g} s), 50 % "
-                f"overlap, {n_seg} segments: resolution {w1:.3g} rad/s; 5 % significance threshold "
-                f"{thr:.2f}"
-            )
-            if covered < 1.0:
-                method += f"; band frequencies below {w1:.3g} rad/s are not resolved by these segments"
-            return coh, w_out, method, thr
-    # Daniell: whole-record FFT, smoothed over DANIELL_BINS adjacent bins; the
-    # spectrum is mirrored about zero frequency (S(-k) = conj S(k)) so the
-    # lowest bins are smoothed over as many bins as the others.
-    m = DANIELL_BINS
-    h = m // 2
-    X = np.fft.rfft(de - np.mean(de))
-    w = 2 * math.pi * np.fft.rfftfreq(n, dt)
-    ker = np.ones(m)
+        welch = covered >= 0.5 and n_in_band >= MIN_COHERENCE_ESTIMATES
+    if welch:
+        nover = nper // 2
+        n_seg = 1 + (n - nper) // (nper - nover)
+        # one Welch pass over the elevator and all outputs (what scipy.signal.coherence
+        # computes output by output, in three passes each)
+        f, Pxx, Pyy, Pxy = _welch(de, Y, fs, nper, nover)
+        w = 2 * math.pi * f
+        thr = 1 - COHERENCE_ALPHA ** (1 / max(n_seg - 1, 1))
+        method = (
+            f"Welch, {nper}-sample Hann segments ({nper * dt:.3g} s), 50 % "
+            f"overlap, {n_seg} segments: resolution {w1:.3g} rad/s; 5 % significance threshold "
+            f"{thr:.2f}"
+        )
+        if covered < 1.0:
+            method += f"; band frequencies below {w1:.3g} rad/s are not resolved by these segments"
+    else:
+        # Daniell: whole-record FFT, smoothed over DANIELL_BINS adjacent bins; the
+        # spectrum is mirrored about zero frequency (S(-k) = conj S(k)) so the
+        # lowest bins are smoothed over as many bins as the others.
+        m = DANIELL_BINS
+        h = m // 2
+        X = np.fft.rfft(de - np.mean(de))
+        w = 2 * math.pi * np.fft.rfftfreq(n, dt)
+        ker = np.ones(m)
 
-    def smooth(S):
-        ext = np.concatenate([np.conj(S[1 : h + 1][::-1]), S, np.conj(S[-h - 1 : -1][::-1])])
-        return np.convolve(ext, ker, mode="valid")
+        def smooth(S):
+            ext = np.concatenate([np.conj(S[1 : h + 1][::-1]), S, np.conj(S[-h - 1 : -1][::-1])])
+            return np.convolve(ext, ker, mode="valid")
 
-    Sxx = smooth(np.abs(X) ** 2)
+        Z = [np.fft.rfft(y - np.mean(y)) for y in Y]
+        Pxx = smooth(np.abs(X) ** 2).real
+        Pyy = [smooth(np.abs(z) ** 2).real for z in Z]
+        Pxy = [smooth(X * np.conj(z)) for z in Z]
+        thr = 1 - COHERENCE_ALPHA ** (1 / (m - 1))
+        reason = (
+            f"Welch segments short enough for {WELCH_SEGMENTS} averages ({nper * dt:.3g} s) resolve only "
+            f"{2 * math.pi / (nper * dt):.3g} rad/s"
+            if nper >= 16
+            else "too few samples for Welch segments"
+        )
+        method = (
+            f"record too short for Welch coherence over this band ({record.duration:.3g} s; {reason}): "
+            f"coherence from the whole-record FFT smoothed over {m} adjacent bins (Daniell), resolution "
+            f"{m * (2 * math.pi / (n * dt)):.3g} rad/s, {m} averages, 5 % significance threshold {thr:.2f}"
+        )
     sel = (w >= lo) & (w <= hi) & (w > 0)
-    for k in outputs:
-        if k not in record.signals:
-            continue
-        Y = np.fft.rfft(record[k] - np.mean(record[k]))
-        Syy = smooth(np.abs(Y) ** 2)
-        Sxy = smooth(X * np.conj(Y))
+    coh = {}
+    for k, syy, sxy in zip(names, Pyy, Pxy):
         with np.errstate(invalid="ignore", divide="ignore"):
-            g = np.abs(Sxy) ** 2 / (Sxx.real * Syy.real)
-        coh[k] = np.nan_to_num(g[sel])
-    thr = 1 - COHERENCE_ALPHA ** (1 / (m - 1))
-    dw = 2 * math.pi / (n * dt)
-    reason = (
-        f"Welch segments short enough for {WELCH_SEGMENTS} averages ({nper * dt:.3g} s) resolve only "
-        f"{2 * math.pi / (nper * dt):.3g} rad/s"
-        if nper >= 16
-        else "too few samples for Welch segments"
-    )
-    method = (
-        f"record too short for Welch coherence over this band ({record.duration:.3g} s; {reason}): "
-        f"coherence from the whole-record FFT smoothed over {m} adjacent bins (Daniell), resolution "
-        f"{m * dw:.3g} rad/s, {m} averages, 5 % significance threshold {thr:.2f}"
-    )
+            coh[k] = np.nan_to_num((np.abs(sxy) ** 2 / (Pxx * syy))[sel])
     return coh, w[sel], method, thr

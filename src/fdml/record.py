@@ -150,16 +150,13 @@ class Record(Codec):
             sig[k] = a
         if self.check_units:
             for k, lim in _DEGREE_LIMITS.items():
-                if k in sig:
-                    span = float(np.max(np.abs(sig[k] - sig[k][0])))
-                    peak = float(np.max(np.abs(sig[k])))
-                    if max(span, peak) > lim:
-                        unit = display_unit(SIGNALS[k])[1]
-                        raise RecordError(
-                            f"{where}: {k} reaches {max(span, peak):.3g} {SIGNALS[k]}, which looks like "
-                            f"{unit} where {SIGNALS[k]} is due; convert to radians "
-                            "(or, if this is real, --no-unit-check; Python: check_units=False)"
-                        )
+                size = max(np.max(np.abs(sig[k] - sig[k][0])), np.max(np.abs(sig[k]))) if k in sig else 0.0
+                if size > lim:  # the span about the first sample, or the peak
+                    raise RecordError(
+                        f"{where}: {k} reaches {size:.3g} {SIGNALS[k]}, which looks like "
+                        f"{display_unit(SIGNALS[k])[1]} where {SIGNALS[k]} is due; convert to radians "
+                        "(or, if this is real, --no-unit-check; Python: check_units=False)"
+                    )
         object.__setattr__(self, "t", t)
         object.__setattr__(self, "signals", sig)
         object.__setattr__(self, "meta", dict(self.meta))
@@ -275,22 +272,18 @@ class Record(Codec):
             The perturbation record; ``meta["trim"]`` holds the removed values
             and ``meta["trim_mode"]`` the mode, so the change can be undone.
         """
+        if mode not in TRIM_MODES:
+            raise RecordError(f"unknown trim mode {mode!r}; use 'first', 'mean' or 'none'")
         if mode == "none":
             return self
-        if mode == "first":
-            trim = {k: float(v[0]) for k, v in self.signals.items()}
-            n_lead = 1
-        elif mode == "mean":
-            n_lead = int(round(window / self.dt)) + 1
-            if window <= 0 or n_lead > self.n:
-                raise RecordError(
-                    f"record {self.name!r}: trim window {window} s must be positive and within the "
-                    f"{self.duration:.3g} s record"
-                )
-            trim = {k: float(np.mean(v[:n_lead])) for k, v in self.signals.items()}
-        else:
-            raise RecordError(f"unknown trim mode {mode!r}; use 'first', 'mean' or 'none'")
-        prev = dict(self.meta.get("trim", {}))
+        n_lead = 1 if mode == "first" else int(round(window / self.dt)) + 1  # the first sample is its own mean
+        if mode == "mean" and (window <= 0 or n_lead > self.n):
+            raise RecordError(
+                f"record {self.name!r}: trim window {window} s must be positive and within the "
+                f"{self.duration:.3g} s record"
+            )
+        trim = {k: float(np.mean(v[:n_lead])) for k, v in self.signals.items()}
+        prev = self.meta.get("trim", {})
         total = {k: prev.get(k, 0.0) + trim[k] for k in trim}
         return replace(
             self,
@@ -325,8 +318,7 @@ class Record(Codec):
         cols = ["t"] + [k for k in SIGNALS if k in self.signals]
         data = np.column_stack([self.t] + [self.signals[k] for k in cols[1:]])
         buf = io.StringIO()
-        buf.write(",".join(cols) + "\n")
-        np.savetxt(buf, data, delimiter=",", fmt="%.17g")
+        np.savetxt(buf, data, delimiter=",", fmt="%.17g", header=",".join(cols), comments="")
         return buf.getvalue()
 
     def to_csv(self, path: str | Path) -> Path:
@@ -567,8 +559,7 @@ def read_csv(
         text = path.read_text(encoding="utf-8-sig")  # utf-8-sig: drops a leading BOM
     except (OSError, UnicodeDecodeError) as exc:
         raise RecordError(f"cannot read record file {path}: {exc}") from None
-    rows = list(csv.reader(io.StringIO(text)))
-    rows = [r for r in rows if r and any(c.strip() for c in r)]
+    rows = [r for r in csv.reader(io.StringIO(text)) if r and any(c.strip() for c in r)]
     if not rows:
         raise RecordError(f"record file {path} is empty")
     header = [h.strip() for h in rows[0]]
@@ -579,7 +570,6 @@ def read_csv(
             raise RecordError(
                 f"record file {path}: column {h!r} appears {header.count(h)} times in the header; keep one"
             )
-    cols = {}
     for i, r in enumerate(rows[1:], start=2):
         if len(r) != len(header):
             raise RecordError(
@@ -592,8 +582,7 @@ def read_csv(
         raise RecordError(f"record file {path}: a non-numeric value in the data ({exc})") from None
     if data.ndim != 2 or data.shape[0] == 0:
         raise RecordError(f"record file {path} has a header but no data rows")
-    for i, h in enumerate(header):
-        cols[h] = data[:, i]
+    cols = dict(zip(header, data.T))
     signals = {k: cols[k] for k in SIGNALS if k in cols}
     try:
         return Record(

@@ -169,7 +169,7 @@ def gust_angle(
         ``auto``: ``hdot`` if the record has it, else the altitude.
     smooth : float, optional
         Savitzky-Golay window for differentiating the altitude, s (default
-        1 s; ignored for ``hdot``).
+        0.4 s, :data:`DEFAULT_SMOOTH`; ignored for ``hdot``).
     horizontal_wind : float, optional
         Along-track horizontal wind u_w, m/s (tailwind positive), if known.
 
@@ -202,25 +202,22 @@ def gust_angle(
     alpha, V, theta = record["alpha"], record["V"], record["theta"]
     if np.any(V <= 0):
         raise RecordError(f"record {record.name!r}: airspeed V must be positive")
+    from .flightpath import noise_level
+
     notes = []
     dt = record.dt
+    cutoff = None
     if source == "hdot":
         hdot = record["hdot"]
-        noise = _noise(hdot)
-        cutoff = None
-        channels = ("alpha", "V", "theta", "hdot")
+        noise = noise_level(hdot)
     else:
-        from scipy.signal import savgol_filter
+        from scipy.signal import savgol_coeffs, savgol_filter
 
-        h = record["h"]
-        n_win = max(5, int(round(smooth / dt)) | 1)
-        if n_win > record.n:
-            n_win = record.n if record.n % 2 else record.n - 1
-        hdot = savgol_filter(h, n_win, 2, deriv=1, delta=dt, mode="interp")
+        n_win = min(max(5, int(round(smooth / dt)) | 1), record.n if record.n % 2 else record.n - 1)
+        hdot = savgol_filter(record["h"], n_win, 2, deriv=1, delta=dt, mode="interp")
         cutoff = SG_CUTOFF * (1.0 / dt) / n_win
         # white noise on h through the differentiator: root sum of squared weights
-        noise = _noise(h) * float(np.sqrt(np.sum(savgol_coeffs(n_win, dt) ** 2)))
-        channels = ("alpha", "V", "theta", "h")
+        noise = noise_level(record["h"]) * float(np.sqrt(np.sum(savgol_coeffs(n_win, 2, deriv=1, delta=dt) ** 2)))
         notes.append(
             f"vertical speed differentiated from the altitude over {n_win * dt:.3g} s windows: alpha_w "
             f"is valid only below about {cutoff:.2g} Hz, and a barometric altitude is not inertial "
@@ -230,15 +227,12 @@ def gust_angle(
     w_wind = hdot - V * np.sin(gamma_a)
     gamma_k = np.arctan2(hdot, V * np.cos(gamma_a) + horizontal_wind)
     alpha_w = gamma_k - gamma_a
-    floor = noise / float(np.mean(V))
-    notes.append(
-        f"noise floor of alpha_w about {math.degrees(floor):.2g} deg (vertical-speed noise "
-        f"{noise:.2g} m/s over V = {np.mean(V):.4g} m/s)"
-    )
-    notes.append(
+    notes += [
+        f"noise floor of alpha_w about {math.degrees(noise / float(np.mean(V))):.2g} deg (vertical-speed noise "
+        f"{noise:.2g} m/s over V = {np.mean(V):.4g} m/s)",
         "any error of alpha (bias, scale, lag, upwash) appears one-for-one in alpha_w: correct alpha "
-        "first (fdml.flightpath)"
-    )
+        "first (fdml.flightpath)",
+    ]
     if horizontal_wind == 0.0:
         notes.append(
             "along-track horizontal wind taken as 0 (no ground speed in the record): error of order gamma u_w / V"
@@ -250,35 +244,9 @@ def gust_angle(
         gamma_k=gamma_k,
         gamma_a=gamma_a,
         source=source,
-        channels=channels,
+        channels=("alpha", "V", "theta", vert),
         cutoff_hz=cutoff,
         hdot_noise=float(noise),
         notes=tuple(notes),
         _record=record,
     )
-
-
-def savgol_coeffs(n_win: int, dt: float) -> np.ndarray:
-    """Weights of the quadratic Savitzky-Golay first-derivative filter (centre point), 1/s.
-
-    Parameters
-    ----------
-    n_win : int
-        Window length, samples (odd).
-    dt : float
-        Sample interval, s.
-
-    Returns
-    -------
-    numpy.ndarray
-        Shape (n_win,): the filter weights, 1/s (:func:`scipy.signal.savgol_coeffs` order).
-    """
-    from scipy.signal import savgol_coeffs as sg
-
-    return sg(n_win, 2, deriv=1, delta=dt)
-
-
-def _noise(x: np.ndarray) -> float:
-    from .flightpath import noise_level
-
-    return noise_level(x)
