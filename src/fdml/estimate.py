@@ -749,9 +749,9 @@ def _grad_hess(A: np.ndarray, V: np.ndarray, R: np.ndarray, full: bool, rows: np
             S = (np.transpose(Aw, (2, 0, 1)).reshape(p * no, Nb) @ Vw.conj().T).reshape(p, no, no)
             X = (-(S + np.conj(np.transpose(S, (0, 2, 1)))) / Nb).reshape(p, no * no)  # D_k, flattened
             H2 += (Nb / N) * np.real(X @ X.conj().T)
-    Ar, Vr = Ar.reshape(-1, p), Vr.reshape(-1)  # Re(a^H b) = a_r . b_r + a_i . b_i
-    H1 = (2.0 / N) * (Ar.T @ Ar)
-    g = -(2.0 / N) * (Ar.T @ Vr)
+    Ar2 = Ar.reshape(-1, p)  # Re(a^H b) = a_r . b_r + a_i . b_i
+    H1 = (2.0 / N) * (Ar2.T @ Ar2)
+    g = -(2.0 / N) * (Ar2.T @ Vr.reshape(-1))
     if not full:
         return g, H1, H1
     Hc = H1 - H2
