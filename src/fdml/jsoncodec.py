@@ -7,9 +7,11 @@ Writing
     non-finite floats into the strings ``"nan"``, ``"inf"`` and ``"-inf"``
     (JSON has neither; ``nonfinite="null"`` writes ``null`` instead), tuples
     and sets into lists, paths into strings, mapping keys into strings and
-    objects with a ``to_dict()`` method into its dict.  :func:`dumps` and
-    :func:`write_json` (atomic, through :func:`fdml.outputs.atomic_write_text`)
-    use it, so no writer ever meets a type it cannot encode.
+    objects with a ``to_dict()`` method into its dict.  :func:`dumps`,
+    :func:`json_text` (the text, also written to a file when given: the body of
+    every ``to_json``) and :func:`write_json` (atomic, through
+    :func:`fdml.outputs.atomic_write_text`) use it, so no writer ever meets a
+    type it cannot encode.
 
 Reading
     :func:`loads` parses text (a UTF-8 byte-order mark is ignored);
