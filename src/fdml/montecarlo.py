@@ -120,6 +120,7 @@ def _per_run(*shape) -> Spec:
 
 
 def _estimates_field(f, key, done) -> np.ndarray:
+    """The estimates, one row per run (``[]`` for a study of no runs)."""
     p = len(done["names"])
     return np.empty((0, p)) if f.raw(key) == [] else f.floats(key, (None, p), nulls=True)
 
@@ -442,10 +443,10 @@ class MonteCarloResult(Codec):
         return cls.from_fields(f, **given)
 
 
-def _by_run(f, key: str, **default) -> dict:
+def _by_run(f, key: str) -> dict:
     """A mapping of run numbers (JSON: strings) to values, read from the study's ``key``."""
     out = {}
-    for k, v in f.mapping(key, **default).items():
+    for k, v in f.mapping(key).items():
         if not k.strip().lstrip("-").isdigit():
             raise f.error(key, f"must map run numbers to messages, has the key {k[:40]!r}")
         out[int(k)] = v
