@@ -7,9 +7,11 @@ Writing
     non-finite floats into the strings ``"nan"``, ``"inf"`` and ``"-inf"``
     (JSON has neither; ``nonfinite="null"`` writes ``null`` instead), tuples
     and sets into lists, paths into strings, mapping keys into strings and
-    objects with a ``to_dict()`` method into its dict.  :func:`dumps` and
-    :func:`write_json` (atomic, through :func:`fdml.outputs.atomic_write_text`)
-    use it, so no writer ever meets a type it cannot encode.
+    objects with a ``to_dict()`` method into its dict.  :func:`dumps`,
+    :func:`json_text` (the text, also written to a file when given: the body of
+    every ``to_json``) and :func:`write_json` (atomic, through
+    :func:`fdml.outputs.atomic_write_text`) use it, so no writer ever meets a
+    type it cannot encode.
 
 Reading
     :func:`loads` parses text (a UTF-8 byte-order mark is ignored);
@@ -45,6 +47,7 @@ __all__ = [
     "loads",
     "read_json",
     "write_json",
+    "json_text",
     "float_value",
     "float_array",
     "complex_array",
@@ -229,10 +232,42 @@ def write_json(path, obj, *, inputs=(), indent: int | None = 1, what: str = "out
     Path
         The path written.
     """
+    json_text(obj, path, inputs=inputs, indent=indent, what=what)
+    return Path(path)
+
+
+def json_text(obj, path=None, *, inputs=(), indent: int | None = 1, what: str = "output file") -> str:
+    """JSON text of ``obj``; written atomically to ``path`` as well when given.
+
+    The body of every ``to_json`` method and of :func:`write_json`: goes through
+    :func:`fdml.outputs.atomic_write_text`, which refuses to replace any of
+    ``inputs`` or anything that is not a regular file (``what`` names the file
+    in its messages).
+
+    Parameters
+    ----------
+    obj : object
+        What to encode (see :func:`to_jsonable`).
+    path : str or Path, optional
+        The file to write; None only returns the text.
+    inputs : iterable of str or Path, optional
+        Files the output must not replace.
+    indent : int or None, optional
+        Spaces per nesting level (default 1); None writes one line.
+    what : str, optional
+        What the file is, for the messages.
+
+    Returns
+    -------
+    str
+        The JSON text (the file holds it and a newline).
+    """
     from .outputs import atomic_write_text
 
-    atomic_write_text(path, dumps(obj, indent=indent) + "\n", inputs=inputs, what=what)
-    return Path(path)
+    text = dumps(obj, indent=indent)
+    if path is not None:
+        atomic_write_text(path, text + "\n", inputs=inputs, what=what)
+    return text
 
 
 # --- reading ------------------------------------------------------------------------------------
@@ -1263,23 +1298,28 @@ class Codec:
     :class:`Spec`: shapes, choices, complex arrays, nested objects, renamed keys; :data:`SKIP`
     for a field not written).  A key that is absent gets the field's default, if it has one;
     every other problem is one :class:`~fdml.errors.FdmlError` line naming the source and the key.
-    A class sets ``json_source`` (how its JSON is named in messages by default) and may list
-    derived properties in ``json_extra`` (written, not read).
+    A class sets ``json_source`` (how its JSON is named in messages by default), may list
+    derived properties in ``json_extra`` (written, not read) and may set ``json_format``, the
+    ``(format, version)`` written first as the keys ``"format"`` and ``"version"`` (the class's
+    reader checks them, with its own messages).
     """
 
     json_fields: ClassVar[Mapping[str, Spec]] = {}
     json_extra: ClassVar[tuple[str, ...]] = ()
     json_source: ClassVar[str] = "JSON object"
+    json_format: ClassVar[tuple[str, int] | None] = None
 
     def to_dict(self) -> dict:
-        """The object as plain JSON data: every field (but the skipped ones) by name.
+        """The object as plain JSON data: the format keys, if any, then every field (but the skipped ones) by name.
 
         Returns
         -------
         dict
             JSON-ready (:func:`to_jsonable`).
         """
-        out = {}
+        out: dict[str, Any] = {}
+        if self.json_format is not None:
+            out.update(format=self.json_format[0], version=self.json_format[1])
         for name, spec in specs(type(self)).items():
             if spec is not SKIP:
                 value = getattr(self, name)

@@ -34,6 +34,7 @@ import numpy as np
 
 from .batch import ModelSpec, canonical_json, check_fit_kwargs, require_pandas
 from .errors import FdmlError
+from .jsoncodec import Codec, Fields, Spec, floats, json_text, read_json, texts, to_jsonable
 from .parallel import engine_name, execute, one_line
 from .record import check_noise
 from .warning_log import merged, recording
@@ -108,8 +109,24 @@ def _trial_error(task, exc) -> dict:
     }
 
 
+def _nulls(a) -> list:
+    """A per-run float array as JSON, a missing value (nan) as null."""
+    return to_jsonable(np.asarray(a, float), nonfinite="null")
+
+
+def _per_run(*shape) -> Spec:
+    """A float array, null read as nan, written by :func:`_nulls` (``shape`` as for :func:`fdml.jsoncodec.floats`)."""
+    return Spec(floats(*shape, nulls=True).read, write=_nulls)
+
+
+def _estimates_field(f, key, done) -> np.ndarray:
+    """The estimates, one row per run (``[]`` for a study of no runs)."""
+    p = len(done["names"])
+    return np.empty((0, p)) if f.raw(key) == [] else f.floats(key, (None, p), nulls=True)
+
+
 @dataclass(frozen=True)
-class MonteCarloResult:
+class MonteCarloResult(Codec):
     """Estimates of N seeded runs and their statistics per parameter.
 
     Each parameter is the attribute of the same name.
@@ -158,6 +175,20 @@ class MonteCarloResult:
     use_converged_only: bool = True
     units: dict = field(default_factory=dict)
     warnings: dict = field(default_factory=dict)
+
+    json_fields = {
+        "names": texts(),
+        "truth": _per_run("names"),
+        "estimates": Spec(_estimates_field, write=_nulls),
+        "stderr": _per_run("estimates", "names"),
+        "converged": Spec(lambda f, k, done: f.flags(k, len(done["estimates"]))),
+        "iterations": Spec(lambda f, k, done: f.integers(k, len(done["estimates"]))),
+        "fit_seconds": _per_run("estimates"),
+        "errors": Spec(lambda f, k, done: _by_run(f, k)),
+        "warnings": Spec(lambda f, k, done: {i: tuple(ws) for i, ws in _by_run(f, k).items()}),
+    }
+    json_source = "fdml Monte Carlo result"
+    json_format = MC_FORMAT
 
     # --- statistics ---------------------------------------------------------------------
     @property
@@ -353,36 +384,14 @@ class MonteCarloResult:
 
     # --- JSON -----------------------------------------------------------------------------------
     def to_dict(self) -> dict:
-        """JSON-ready dict; the per-run arrays write a missing value (nan) as null.
+        """JSON-ready dict (format ``fdml.MonteCarloResult`` version 1); per-run arrays write nan as null.
 
         Returns
         -------
         dict
-            Every field, per-run arrays as lists.
+            Every field, per-run arrays as lists, then ``stats`` (:meth:`stats`).
         """
-        from .jsoncodec import to_jsonable
-
-        def arr(a):
-            return to_jsonable(np.asarray(a, float), nonfinite="null")
-
-        return {
-            "format": MC_FORMAT[0],
-            "version": MC_FORMAT[1],
-            "names": list(self.names),
-            "truth": arr(self.truth),
-            "estimates": arr(self.estimates),
-            "stderr": arr(self.stderr),
-            "converged": self.converged.tolist(),
-            "iterations": self.iterations.tolist(),
-            "fit_seconds": arr(self.fit_seconds),
-            "errors": {str(k): v for k, v in self.errors.items()},
-            "settings": self.settings,
-            "wall_time": self.wall_time,
-            "use_converged_only": self.use_converged_only,
-            "units": self.units,
-            "warnings": {str(k): list(v) for k, v in self.warnings.items()},
-            "stats": self.stats(),
-        }
+        return {**super().to_dict(), "stats": to_jsonable(self.stats())}
 
     def to_json(self, path: str | Path | None = None, *, inputs=()) -> str:
         """Serialise to JSON text; write it atomically to ``path`` when given (never over ``inputs``).
@@ -399,16 +408,11 @@ class MonteCarloResult:
         str
             The JSON text.
         """
-        from .jsoncodec import dumps, write_json
-
-        d = self.to_dict()
-        if path is not None:
-            write_json(path, d, inputs=inputs, what="Monte Carlo file")
-        return dumps(d, indent=1)
+        return json_text(self.to_dict(), path, inputs=inputs, what="Monte Carlo file")
 
     @classmethod
-    def from_dict(cls, d: Mapping, *, source: str = "fdml Monte Carlo result") -> "MonteCarloResult":
-        """Inverse of :meth:`to_dict`.
+    def from_dict(cls, d, *, source: str | None = "fdml Monte Carlo result", **given) -> "MonteCarloResult":
+        """Inverse of :meth:`to_dict` (``stats`` is derived, not read).
 
         A key missing or of the wrong type or shape raises :class:`FdmlError`
         ``"<source>: key '<key>' ..."``.
@@ -419,15 +423,15 @@ class MonteCarloResult:
             A dict as written by :meth:`to_dict`.
         source : str, optional
             What and where, for the messages.
+        **given
+            Field values the dict does not hold.
 
         Returns
         -------
         MonteCarloResult
             The study.
         """
-        from .jsoncodec import Fields
-
-        f = Fields(d, source)
+        f = Fields(d, cls.json_source if source is None else source)
         fmt = f.raw("format", None)
         if fmt != MC_FORMAT[0]:
             raise f.error(
@@ -436,32 +440,13 @@ class MonteCarloResult:
                 + f": not an fdml Monte Carlo result ({MC_FORMAT[0]!r})",
             )
         f.version("version", MC_FORMAT[1])
-        names = f.strings("names")
-        p = len(names)
-        estimates = np.empty((0, p)) if f.raw("estimates") == [] else f.floats("estimates", (None, p), nulls=True)
-        n = estimates.shape[0]
-        errors, warned = _by_run(f, "errors"), _by_run(f, "warnings", default={})
-        return cls(
-            names=names,
-            truth=f.floats("truth", (p,), nulls=True),
-            estimates=estimates,
-            stderr=f.floats("stderr", (n, p), nulls=True),
-            converged=f.flags("converged", n),
-            iterations=f.integers("iterations", n),
-            fit_seconds=f.floats("fit_seconds", (n,), nulls=True),
-            errors=errors,
-            settings=f.mapping("settings"),
-            wall_time=f.number("wall_time"),
-            use_converged_only=f.boolean("use_converged_only", default=True),
-            units=f.mapping("units", default={}),
-            warnings={i: tuple(ws) for i, ws in warned.items()},
-        )
+        return cls.from_fields(f, **given)
 
 
-def _by_run(f, key: str, **default) -> dict:
+def _by_run(f, key: str) -> dict:
     """A mapping of run numbers (JSON: strings) to values, read from the study's ``key``."""
     out = {}
-    for k, v in f.mapping(key, **default).items():
+    for k, v in f.mapping(key).items():
         if not k.strip().lstrip("-").isdigit():
             raise f.error(key, f"must map run numbers to messages, has the key {k[:40]!r}")
         out[int(k)] = v
@@ -481,8 +466,6 @@ def load_monte_carlo(path: str | Path) -> MonteCarloResult:
     MonteCarloResult
         The study.
     """
-    from .jsoncodec import read_json
-
     path = Path(path)
     return MonteCarloResult.from_dict(read_json(path, what="Monte Carlo file"), source=f"Monte Carlo file {path}")
 

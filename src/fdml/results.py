@@ -23,7 +23,7 @@ import numpy as np
 from .errors import FdmlError
 from .findings import Finding
 from .fit_options import FitOptions
-from .jsoncodec import Codec, Fields, Spec, dumps, floats, integer, nested_list, numbers, read_json, texts, write_json
+from .jsoncodec import Codec, Fields, Spec, floats, integer, json_text, nested_list, numbers, read_json, texts
 from .models.measurement import (
     BOUNDARY_NAMES,
     INPUT_BIAS_NAME,
@@ -388,6 +388,7 @@ class FitResult(ByName, Codec, _Rebuilt):
         "slots": Spec(_slots_field),
     }
     json_source = "fdml result"
+    json_format = RESULT_FORMAT
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -743,8 +744,7 @@ class FitResult(ByName, Codec, _Rebuilt):
         dict
             JSON-ready.
         """
-        res = self if include_data else self.without_records()
-        return {"format": RESULT_FORMAT[0], "version": RESULT_FORMAT[1], **Codec.to_dict(res)}
+        return Codec.to_dict(self if include_data else self.without_records())
 
     def to_json(self, path: str | Path | None = None, indent: int = 1, *, inputs=(), include_data: bool = True):
         """JSON text, or, given ``path``, write it atomically there and return the path.
@@ -769,10 +769,8 @@ class FitResult(ByName, Codec, _Rebuilt):
         str or Path
             The JSON text, or the path written.
         """
-        doc = self.to_dict(include_data=include_data)
-        if path is None:
-            return dumps(doc, indent=indent)
-        return write_json(path, doc, inputs=inputs, indent=indent)
+        text = json_text(self.to_dict(include_data=include_data), path, inputs=inputs, indent=indent)
+        return text if path is None else Path(path)
 
     @classmethod
     def from_dict(cls, d, *, source: str | None = "fdml result", **given) -> "FitResult":

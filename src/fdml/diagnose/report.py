@@ -324,12 +324,9 @@ class DiagnosisReport:
         str
             The JSON text.
         """
-        from ..jsoncodec import dumps, write_json
+        from ..jsoncodec import json_text
 
-        d = self.to_dict()
-        if path is not None:
-            write_json(path, d, inputs=inputs, indent=indent, what="diagnosis file")
-        return dumps(d, indent=indent)
+        return json_text(self.to_dict(), path, inputs=inputs, indent=indent, what="diagnosis file")
 
     def summary(self) -> str:
         """The plain-language paragraph and a ranking table.

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from ..jsoncodec import dumps, loads
+from ..jsoncodec import dumps, json_text, loads
 from ..parallel import execute, one_line
 from ..warning_log import merged, recording
 from .report import SHRINK_CONFIRM, UNEXPLAINED_RULE, label_for
@@ -512,11 +512,7 @@ class ValidationResult:
             The settings, scores and rows as JSON.
         """
         d = {"settings": self.settings, "scores": self.scores, "rows": self.rows}
-        if path is not None:
-            from ..jsoncodec import write_json
-
-            write_json(path, d, inputs=inputs, what="validation file")
-        return dumps(d, indent=1)
+        return json_text(d, path, inputs=inputs, what="validation file")
 
 
 def format_scores(s: dict) -> str:
