@@ -93,9 +93,7 @@ def _write(cmp, folder) -> dict:
 
     from ..jsoncodec import write_json
 
-    out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = {k: str(out / v) for k, v in FILES.items()}
+    paths = {k: str(Path(folder) / v) for k, v in FILES.items()}  # the atomic writes make the folder
     write_json(paths["comparison"], cmp.to_dict(), what="compare comparison file")
     atomic_write_text(paths["summary"], cmp.summary() + "\n")
     atomic_savefig(cmp.plot, paths["figure"], dpi=110)
