@@ -421,17 +421,21 @@ class StagedOutputs:
             fh.write(text)
         return Path(path)
 
-    def savefig(self, fig, path, *, what: str = "figure", **savefig_kwargs) -> Path:
+    def savefig(self, fig, path, *, what: str = "figure", close: bool = False, **savefig_kwargs) -> Path:
         """Stage ``fig.savefig`` for ``path``; the format comes from ``path``'s suffix unless given.
 
         Parameters
         ----------
-        fig : matplotlib.figure.Figure
-            The figure to save.
+        fig : matplotlib.figure.Figure or callable
+            The figure to save, or a function of no arguments that draws it: matplotlib
+            is then switched to the non-interactive Agg backend first, and the figure
+            is closed after saving.
         path : str or Path
             Where the output goes.
         what : str, optional
             What the output is, for the messages.
+        close : bool, optional
+            Close the figure after saving (or failing to), as a drawn one always is.
         **savefig_kwargs
             Passed to :meth:`matplotlib.figure.Figure.savefig` (``dpi``, ``format``, ...).
 
@@ -440,9 +444,20 @@ class StagedOutputs:
         Path
             ``Path(path)``.
         """
+        if callable(fig):
+            import matplotlib
+
+            matplotlib.use("Agg")
+            fig, close = fig(), True
         fmt = savefig_kwargs.pop("format", None) or Path(path).suffix[1:].lower() or None
-        with self.open(path, "wb", what=what) as fh:
-            fig.savefig(fh, format=fmt, **savefig_kwargs)
+        try:
+            with self.open(path, "wb", what=what) as fh:
+                fig.savefig(fh, format=fmt, **savefig_kwargs)
+        finally:
+            if close:
+                import matplotlib.pyplot as plt
+
+                plt.close(fig)
         return Path(path)
 
     # -- finishing --
@@ -574,9 +589,8 @@ def atomic_savefig(
     Parameters
     ----------
     fig : matplotlib.figure.Figure or callable
-        The figure to save, or a function of no arguments that draws it: matplotlib
-        is then switched to the non-interactive Agg backend first, and the figure
-        is closed after saving.
+        The figure, or a function of no arguments that draws it headless (see
+        :meth:`StagedOutputs.savefig`).
     path : str or Path
         Where the output goes.
     inputs : iterable of str or Path, or Inputs, optional
@@ -584,7 +598,7 @@ def atomic_savefig(
     what : str, optional
         What the output is, for the messages.
     close : bool, optional
-        Close the figure after saving (or failing to), as a drawn one always is.
+        Close the figure after saving (or failing to).
     **savefig_kwargs
         Passed to :meth:`matplotlib.figure.Figure.savefig` (``dpi``, ``format``, ...).
 
@@ -593,16 +607,5 @@ def atomic_savefig(
     Path
         ``Path(path)``.
     """
-    if callable(fig):
-        import matplotlib
-
-        matplotlib.use("Agg")
-        fig, close = fig(), True
-    try:
-        with StagedOutputs(inputs) as out:
-            return out.savefig(fig, path, what=what, **savefig_kwargs)
-    finally:
-        if close:
-            import matplotlib.pyplot as plt
-
-            plt.close(fig)
+    with StagedOutputs(inputs) as out:
+        return out.savefig(fig, path, what=what, close=close, **savefig_kwargs)
