@@ -60,7 +60,7 @@ import numpy as np
 from .errors import AdequacyWarning, FdmlError
 from .jsoncodec import Codec, Spec, integer, mapping, nested, nested_list, number_map, text, texts
 from .kinematics import input_resolution, kinematic_evidence, known_terms
-from .models.base import OUTPUTS, ModelResponse
+from .models.base import OUTPUTS, ModelResponse, model_airspeed
 from .models.effects import (
     AugmentedModel,
     OutputEffect,
@@ -806,16 +806,9 @@ class _Refit:
     demoted: str | None
 
 
-def _airspeed(model) -> float | None:
-    try:
-        return float(model.U)
-    except (AttributeError, NotImplementedError, TypeError, ValueError):
-        return None
-
-
 def _kinematics(prob, model):
     """The short-period identity on the fit's spectra (None without alpha, q and a_z or an airspeed)."""
-    U = _airspeed(model)
+    U = model_airspeed(model)
     if U is None or not set(OUTPUTS) <= set(prob.outputs):  # alpha, q and a_z fitted (theta may be too)
         return None
     try:
@@ -852,7 +845,7 @@ def _refit_one(eff, start: dict, prob, result, refit, kin, n_ind: float) -> _Ref
     derivs = {n: (r.params[n], r.errors[n]) for n in base}
     dt = max(float(d.dt) for d in prob.data)
     floor = input_resolution([d.record for d in prob.data], dt)
-    why = judge(eff, params, result.model, derivs, kin, dt=dt, U=_airspeed(result.model), input_floor=floor)
+    why = judge(eff, params, result.model, derivs, kin, dt=dt, U=model_airspeed(result.model), input_floor=floor)
     return _Refit(eff, r, lr, p, q + len([x for x in plist if x.nuisance]), params, why)
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from .compare import Comparison, compare_steady_unsteady
 from .models import make_model
-from .outputs import atomic_savefig, atomic_write_text, check_output, check_output_dir
+from .outputs import atomic_savefig, atomic_write_text, check_output_folder
 from .record import Record, add_noise
 
 __all__ = ["DemoResult", "run_demo", "WK_TABLE1"]
@@ -97,9 +97,8 @@ def run_demo(
     from .simulate import simulate_maneuver
 
     out = Path(out_dir)
-    check_output_dir(out, what="demo folder")  # every output checked before the work
-    for key, name in FILES.items():
-        check_output(out / name, what=f"demo {key} file")
+    # every output checked before the work
+    check_output_folder(out, {name: f"demo {key} file" for key, name in FILES.items()}, what="demo folder")
     truth = make_model("unsteady", "navion")
     clean = simulate_maneuver(truth, "3211", duration=duration, dt=dt)
     rec = add_noise(clean, noise, np.random.default_rng(seed), relative=True)
@@ -116,20 +115,9 @@ def run_demo(
     )
     atomic_write_text(files["summary"], text)
     if figure:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
         from .plotting import plot_spectra
 
-        fig, _ = plot_spectra(
-            [cmp.unsteady, cmp.steady],
-            ["unsteady fit", "steady fit"],
-            title="Navion 3-2-1-1: measured and fitted spectra",
-        )
-        try:
-            atomic_savefig(fig, files["figure"], dpi=110)
-        finally:
-            plt.close(fig)
+        fits, labels = [cmp.unsteady, cmp.steady], ["unsteady fit", "steady fit"]
+        title = "Navion 3-2-1-1: measured and fitted spectra"
+        atomic_savefig(lambda: plot_spectra(fits, labels, title=title)[0], files["figure"], dpi=110)
     return DemoResult(comparison=cmp, record=rec, table=table, files=files)

@@ -53,7 +53,7 @@ from .errors import (
 from .estimator_settings import SETTINGS, EstimatorSettings
 from .findings import emit, raise_if_strict
 from .fit_options import CHECKS, ITERATION, PROBLEM, SPECTRA, FitOptions, NoiseModel, parse_outputs, takes_options
-from .models.base import Model
+from .models.base import Model, model_airspeed
 from .models.measurement import (
     INPUT_BIAS_NAME,
     STATE_BIAS_NAMES,
@@ -1113,10 +1113,7 @@ def _data_findings(prob: Problem, strict: bool) -> list:
     """The data check on every record the fit was given in the time domain (strict: raise)."""
     from .datacheck import check_data
 
-    try:
-        U = float(prob.model.U)
-    except (AttributeError, NotImplementedError, TypeError, ValueError):
-        U = None
+    U = model_airspeed(prob.model)
     found: list = []
     for d in prob.data:
         if d.record is not None:

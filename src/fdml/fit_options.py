@@ -48,6 +48,32 @@ if TYPE_CHECKING:
 __all__ = ["FitOptions", "NoiseModel", "parse_outputs"]
 
 
+def known_outputs(outputs, prefix: str = "") -> tuple[str, ...]:
+    """``outputs`` as a tuple, after checking that each is one of :data:`~fdml.channels.ALL_OUTPUTS`.
+
+    Parameters
+    ----------
+    outputs : sequence of str
+        The output names.
+    prefix : str, optional
+        Put before the message (the option's name).
+
+    Returns
+    -------
+    tuple of str
+        The output names, in the order given.
+
+    Raises
+    ------
+    FdmlError
+        An unknown name, named in the message.
+    """
+    bad = [o for o in outputs if o not in ALL_OUTPUTS]
+    if bad:
+        raise FdmlError(f"{prefix}unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
+    return tuple(outputs)
+
+
 def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
     """The fitted outputs as a tuple of names, from a sequence or ``"alpha,q,az"``.
 
@@ -75,10 +101,7 @@ def parse_outputs(outputs, *, what: str = "outputs") -> tuple[str, ...]:
         raise FdmlError(f"{what}: empty; choose from {', '.join(ALL_OUTPUTS)}")
     if "" in items:
         raise FdmlError(f"{what} {outputs!r}: an empty item; give names separated by commas")
-    bad = [o for o in items if o not in ALL_OUTPUTS]
-    if bad:
-        raise FdmlError(f"{what}: unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
-    dup = sorted({o for o in items if items.count(o) > 1})
+    dup = sorted({o for o in known_outputs(items, f"{what}: ") if items.count(o) > 1})
     if dup:
         raise FdmlError(f"{what}: {', '.join(dup)} given more than once; name each output once")
     return tuple(items)

@@ -32,7 +32,7 @@ import contextlib
 import os
 import stat
 import tempfile
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -42,6 +42,7 @@ from .errors import OutputError
 __all__ = [
     "check_output",
     "check_output_dir",
+    "check_output_folder",
     "atomic_write_text",
     "atomic_write_bytes",
     "atomic_open",
@@ -233,6 +234,33 @@ def check_output_dir(path, inputs: Iterable | Inputs = (), *, what: str = "outpu
     return check_output(path, inputs, what=what, folder=True)
 
 
+def check_output_folder(
+    folder, files: Mapping[str, str], inputs: Iterable | Inputs = (), *, what: str = "output folder"
+) -> Path:
+    """Check an output folder and the files it will hold, before any work; returns ``Path(folder)``.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The output folder as the user gave it.
+    files : mapping of str to str
+        Each file's name inside ``folder`` -> what it is, for the message.
+    inputs : iterable of str or Path, or Inputs, optional
+        The command's inputs, which no output may replace (see :func:`check_output`).
+    what : str, optional
+        What the folder is, for the message.
+
+    Returns
+    -------
+    Path
+        ``Path(folder)``.
+    """
+    out = check_output_dir(folder, inputs, what=what)
+    for name, file_what in files.items():
+        check_output(out / name, inputs, what=file_what)
+    return out
+
+
 # --- writing ------------------------------------------------------------------------------------
 def _umask() -> int:
     """The process umask, read without changing it where the system allows (Linux)."""
@@ -393,17 +421,21 @@ class StagedOutputs:
             fh.write(text)
         return Path(path)
 
-    def savefig(self, fig, path, *, what: str = "figure", **savefig_kwargs) -> Path:
+    def savefig(self, fig, path, *, what: str = "figure", close: bool = False, **savefig_kwargs) -> Path:
         """Stage ``fig.savefig`` for ``path``; the format comes from ``path``'s suffix unless given.
 
         Parameters
         ----------
-        fig : matplotlib.figure.Figure
-            The figure to save.
+        fig : matplotlib.figure.Figure or callable
+            The figure to save, or a function of no arguments that draws it: matplotlib
+            is then switched to the non-interactive Agg backend first, and the figure
+            is closed after saving.
         path : str or Path
             Where the output goes.
         what : str, optional
             What the output is, for the messages.
+        close : bool, optional
+            Close the figure after saving (or failing to), as a drawn one always is.
         **savefig_kwargs
             Passed to :meth:`matplotlib.figure.Figure.savefig` (``dpi``, ``format``, ...).
 
@@ -412,9 +444,20 @@ class StagedOutputs:
         Path
             ``Path(path)``.
         """
+        if callable(fig):
+            import matplotlib
+
+            matplotlib.use("Agg")
+            fig, close = fig(), True
         fmt = savefig_kwargs.pop("format", None) or Path(path).suffix[1:].lower() or None
-        with self.open(path, "wb", what=what) as fh:
-            fig.savefig(fh, format=fmt, **savefig_kwargs)
+        try:
+            with self.open(path, "wb", what=what) as fh:
+                fig.savefig(fh, format=fmt, **savefig_kwargs)
+        finally:
+            if close:
+                import matplotlib.pyplot as plt
+
+                plt.close(fig)
         return Path(path)
 
     # -- finishing --
@@ -535,7 +578,9 @@ def atomic_write_bytes(path, data: bytes, *, inputs: Iterable | Inputs = (), wha
         return out.write_bytes(path, data, what=what)
 
 
-def atomic_savefig(fig, path, *, inputs: Iterable | Inputs = (), what: str = "figure", **savefig_kwargs) -> Path:
+def atomic_savefig(
+    fig, path, *, inputs: Iterable | Inputs = (), what: str = "figure", close: bool = False, **savefig_kwargs
+) -> Path:
     """``fig.savefig(path, **savefig_kwargs)`` atomically: a failure leaves no truncated figure.
 
     The format comes from ``path``'s suffix unless ``format=`` is given (the
@@ -543,14 +588,17 @@ def atomic_savefig(fig, path, *, inputs: Iterable | Inputs = (), what: str = "fi
 
     Parameters
     ----------
-    fig : matplotlib.figure.Figure
-        The figure to save.
+    fig : matplotlib.figure.Figure or callable
+        The figure, or a function of no arguments that draws it headless (see
+        :meth:`StagedOutputs.savefig`).
     path : str or Path
         Where the output goes.
     inputs : iterable of str or Path, or Inputs, optional
         The command's inputs, which the output may not replace (see :func:`check_output`).
     what : str, optional
         What the output is, for the messages.
+    close : bool, optional
+        Close the figure after saving (or failing to).
     **savefig_kwargs
         Passed to :meth:`matplotlib.figure.Figure.savefig` (``dpi``, ``format``, ...).
 
@@ -560,4 +608,4 @@ def atomic_savefig(fig, path, *, inputs: Iterable | Inputs = (), what: str = "fi
         ``Path(path)``.
     """
     with StagedOutputs(inputs) as out:
-        return out.savefig(fig, path, what=what, **savefig_kwargs)
+        return out.savefig(fig, path, what=what, close=close, **savefig_kwargs)

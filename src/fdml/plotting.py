@@ -26,7 +26,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .channels import ALL_OUTPUTS, OUTPUTS, boundary_channels
+from .channels import OUTPUTS, boundary_channels
+from .fit_options import known_outputs
 
 __all__ = [
     "plot_spectra",
@@ -183,14 +184,6 @@ def _row(rows, out: str) -> int:
     return rows.index(out)
 
 
-def _check_outputs(outputs) -> list[str]:
-    outputs = list(outputs)
-    bad = [o for o in outputs if o not in ALL_OUTPUTS]
-    if bad or not outputs:
-        raise ValueError(f"unknown output(s) {bad or outputs}; choose from {', '.join(ALL_OUTPUTS)}")
-    return outputs
-
-
 # --- the Cramer-Rao band of the fitted spectra ---------------------------------------------------
 
 
@@ -322,7 +315,7 @@ def plot_spectra(
     if not isinstance(results, (list, tuple)):
         results = [results]
     labels = list(labels) if labels is not None else [r.kind for r in results]
-    outputs = _check_outputs(outputs or results[0].outputs)
+    outputs = known_outputs(outputs or results[0].outputs)
     spec = results[0].spectra[record]
     f, flabel = _freq(spec.omega, freq_unit)
     fig, axes, created = _axes_grid(axes, ax, (2, len(outputs)), (4.2 * len(outputs), 6))
@@ -557,7 +550,7 @@ def plot_time_histories(
     """
     if angle_unit not in ("deg", "rad"):
         raise ValueError(f"angle_unit must be 'deg' or 'rad', got {angle_unit!r}")
-    outputs = _check_outputs(outputs or OUTPUTS)
+    outputs = known_outputs(outputs or OUTPUTS)
     for out in outputs:
         _row(result.model.outputs, out)
     meas = result.record(record)
@@ -636,7 +629,7 @@ def plot_residual_spectra(
     axes : ndarray of Axes, shape (n_outputs,)
         One panel per output.
     """
-    outputs = _check_outputs(outputs or result.outputs)
+    outputs = known_outputs(outputs or result.outputs)
     spec = result.spectra[record]
     f, flabel = _freq(spec.omega, freq_unit)
     v = spec.z - result.fitted_spectra(record)

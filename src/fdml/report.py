@@ -76,15 +76,14 @@ def write_report(
         record whose inputs step at t = 0) is left out and the report says why.
     """
     from .errors import FdmlError
-    from .outputs import StagedOutputs, check_output, check_output_dir
+    from .outputs import StagedOutputs, check_output_folder
     from .plotting import plot_correlation, plot_residual_spectra, plot_spectra, plot_time_histories, settle_layout
 
     res, source = _load(result_or_path)
     out = Path(out_dir) if out_dir is not None else _default_dir(source)
     inputs = [] if source is None else [source]
-    check_output_dir(out, inputs, what="report folder")  # every output checked before any drawing
-    for name in _file_names(len(res.spectra)):
-        check_output(out / name, inputs, what="report file")
+    # every output checked before any drawing
+    check_output_folder(out, dict.fromkeys(_file_names(len(res.spectra)), "report file"), inputs, what="report folder")
     staged = StagedOutputs(inputs)  # nothing is renamed into place before every file is written
     pending: dict[str, Path] = {}  # key (the file's stem) -> final path
     figures: list[tuple[str, str, str]] = []  # (record label, caption, file name)

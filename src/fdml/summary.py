@@ -30,6 +30,8 @@ import numpy as np
 
 from .channels import ALL_OUTPUTS, SIGNALS, boundary_channels
 from .estimator_settings import SETTINGS
+from .models.base import model_airspeed
+from .models.conventional import DIMENSIONAL_UNITS
 from .parameters import NUISANCE_ROLES, Role
 
 __all__ = ["Summary", "Table", "Column", "fit_summary", "comparison_summary", "parameter_unit"]
@@ -41,9 +43,7 @@ _EXTRA_UNITS = {
     "bias_alpha_dot": "rad/s",
     "bias_q_dot": "rad/s^2",
     **{f"{end}_{c}": SIGNALS[c] for end in ("x0", "xT") for c in boundary_channels(ALL_OUTPUTS)},
-    **dict.fromkeys(("Z_a", "Z_de", "M_q"), "1/s"),
-    "Z_q": "-",
-    **dict.fromkeys(("M_a", "M_de"), "1/s^2"),
+    **DIMENSIONAL_UNITS,
     **dict.fromkeys(("Cz_a", "Cz_q", "Cz_de", "Cm_a", "Cm_q", "Cm_de", "Cz_adot_G", "Cm_adot_G"), "1/rad"),
 }
 
@@ -413,9 +413,8 @@ def _airspeed(res) -> str | None:
     if isinstance(given, Mapping) and given.get("value") is not None:
         src = str(given.get("source"))
         return f"{float(given['value']):.4g} m/s ({_AIRSPEED_SOURCES.get(src, src)})"
-    try:
-        U = float(res.model.U)
-    except (AttributeError, NotImplementedError, TypeError, ValueError):
+    U = model_airspeed(res.model)
+    if U is None:
         return None
     ac = getattr(res.model, "aircraft", None)
     return f"{U:.4g} m/s ({'aircraft ' + ac.name if ac is not None else 'given to the model'})"

@@ -16,8 +16,9 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .channels import ALL_OUTPUTS, OUTPUTS
-from .errors import FdmlError, RecordError
+from .channels import OUTPUTS
+from .errors import RecordError
+from .fit_options import known_outputs
 from .lsq import relaxed_least_squares
 from .models.base import Model
 from .record import Record
@@ -133,10 +134,7 @@ def fit_time_domain(
         raise RecordError(f"expected an fdml Record, got {type(record).__name__}")
     if isinstance(outputs, str):
         outputs = [o.strip() for o in outputs.split(",") if o.strip()]
-    outputs = tuple(outputs or OUTPUTS)
-    bad = [o for o in outputs if o not in ALL_OUTPUTS]
-    if bad:
-        raise FdmlError(f"unknown output(s) {bad}; choose from {', '.join(ALL_OUTPUTS)}")
+    outputs = known_outputs(outputs or OUTPUTS)
     model = model.with_outputs(outputs)  # the simulator returns them
     params = model.parameters.fix(fix or ()).free(free or ())
     model = model.with_parameters(params)

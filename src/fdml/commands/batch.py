@@ -81,19 +81,14 @@ def check_batch_outputs(sources, out_dir, aircraft=None) -> None:
     folders and the aircraft JSON.
     """
     from ..batch import collect_sources
-    from ..outputs import Inputs, check_output, check_output_dir
+    from ..outputs import Inputs, check_output_folder
 
     items = collect_sources(sources)
     folders = [s for s in sources if isinstance(s, str) and Path(s).is_dir()]
     inputs = Inputs([it.path for it in items] + folders + [aircraft])  # stat each input once
-    out = Path(out_dir)
-    check_output_dir(out, inputs)
-    check_output_dir(out / "results", inputs)
-    for name in ("table.csv", "table.json"):
-        check_output(out / name, inputs, what="batch table")
-    for it in items:
-        for name in (f"{it.key}.json", f"{it.key}.error.json"):
-            check_output(out / "results" / name, inputs, what="batch result file")
+    out = check_output_folder(out_dir, dict.fromkeys(("table.csv", "table.json"), "batch table"), inputs)
+    results = {f"{it.key}{end}": "batch result file" for it in items for end in (".json", ".error.json")}
+    check_output_folder(out / "results", results, inputs)
 
 
 def _read_kwargs(args) -> dict:

@@ -63,8 +63,9 @@ def run(args) -> int:
     texts = [report.summary(), data_check.summary()]
     if args.compat:
         from ..flightpath import check_compatibility
+        from ..parameters import as_names
 
-        estimate = [x.strip() for x in args.estimate.split(",") if x.strip()] if args.estimate else None
+        estimate = as_names(args.estimate, "--estimate") or None
         try:
             compat = check_compatibility(rec, estimate=estimate)
         except RecordError as exc:  # a perturbation record: the data check above covers Eq. 5

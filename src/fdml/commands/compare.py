@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from ..errors import FdmlError, ParameterError
-from ..outputs import atomic_savefig, atomic_write_text, check_output, check_output_dir
+from ..outputs import atomic_savefig, atomic_write_text, check_output_folder
 from . import _options as O
 from ._common import assignments, check_band_option, fit_spectra, model_for_records
 
@@ -31,14 +31,6 @@ def register(sub) -> None:
         p, kind="folder", metavar="DIR", help="comparison.json (both fits, shifts, evidence), summary.txt, compare.png"
     )
     O.add_json_option(p)
-
-
-def _check_outputs(args) -> None:
-    if args.output:
-        inputs = [*args.records, args.aircraft]
-        check_output_dir(args.output, inputs, what="compare folder")
-        for key, name in FILES.items():
-            check_output(f"{args.output}/{name}", inputs, what=f"compare {key} file")
 
 
 def _fit_both(args, records, data, kwargs):
@@ -75,7 +67,9 @@ def run(args) -> int:
 
     if args.aircraft is None:
         raise FdmlError("fdml compare needs --aircraft NAME or FILE.json (the unsteady model needs the geometry)")
-    _check_outputs(args)
+    if args.output:
+        files = {name: f"compare {key} file" for key, name in FILES.items()}
+        check_output_folder(args.output, files, [*args.records, args.aircraft], what="compare folder")
     check_band_option(args.band)
     kwargs = O.fit_kwargs(args)
     opts = record_options(args)
@@ -99,19 +93,8 @@ def _write(cmp, folder) -> dict:
 
     from ..jsoncodec import write_json
 
-    out = Path(folder)
-    out.mkdir(parents=True, exist_ok=True)
-    paths = {k: str(out / v) for k, v in FILES.items()}
+    paths = {k: str(Path(folder) / v) for k, v in FILES.items()}  # the atomic writes make the folder
     write_json(paths["comparison"], cmp.to_dict(), what="compare comparison file")
     atomic_write_text(paths["summary"], cmp.summary() + "\n")
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig = cmp.plot()
-    try:
-        atomic_savefig(fig, paths["figure"], dpi=110)
-    finally:
-        plt.close(fig)
+    atomic_savefig(cmp.plot, paths["figure"], dpi=110)
     return paths

@@ -120,13 +120,9 @@ def run(args) -> int:
         **({} if args.noise is None else {"noise": noise_option(args.noise)}),  # the library's default 0.05
     )
     if args.output is not None:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        fig = plot_design(d)
         with StagedOutputs([args.input, args.aircraft]) as out:
             out.write_text(args.output, d.input.to_record().to_csv_text(), what="input file")
-            out.savefig(fig, figure, dpi=110)
+            out.savefig(lambda: plot_design(d), figure, dpi=110)
     show(
         args,
         {**d.to_dict(args.output if args.output is not None else args.input), "figure": figure and str(figure)},

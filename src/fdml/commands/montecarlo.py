@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..outputs import atomic_savefig, atomic_write_text, check_output, check_output_dir
+from ..outputs import atomic_savefig, atomic_write_text, check_output_folder
 from . import _options as O
 from ._common import assignments, check_band_option, model_spec_from_args, noise_option, seed_int
 
@@ -61,9 +61,7 @@ def run(args) -> int:
     check_band_option(args.band)  # up front: a bad band would fail all N runs one by one
     paths = {k: Path(args.output or ".") / name for k, name in FILES.items()}
     if args.output:  # before any work: the folder and its three files
-        check_output_dir(args.output, [args.aircraft])
-        for path in paths.values():
-            check_output(path, [args.aircraft])
+        check_output_folder(args.output, dict.fromkeys(FILES.values(), "output file"), [args.aircraft])
     res = monte_carlo(
         truth,
         n=args.n,
@@ -84,16 +82,7 @@ def run(args) -> int:
         if not importlib.util.find_spec("matplotlib"):
             del paths["figure"]
         else:
-            import matplotlib
-
-            matplotlib.use("Agg")
-            import matplotlib.pyplot as plt
-
-            fig, _ = res.plot()
-            try:
-                atomic_savefig(fig, paths["figure"], dpi=120)
-            finally:
-                plt.close(fig)
+            atomic_savefig(lambda: res.plot()[0], paths["figure"], dpi=120)
     files = {k: str(v) for k, v in paths.items()} if args.output else {}
     summary = {"n": res.n, "used": res.n_used, "failed": len(res.errors), "wall_time": res.wall_time}
     show(

@@ -47,13 +47,13 @@ import numpy as np
 from ..estimate import prepare
 from ..fit_options import parse_outputs
 from ..kinematics import input_resolution
+from ..models.base import model_airspeed
 from ..models.effects import Effect
 from ..parameters import Role
 from ..score import ScreenContext, ScreenResult, davies_bound, holm, p_value, screen
 from ..score import grid_variation as _grid_variation
 from ..score import null_kind as _null_kind
 from ..verdict import LEVEL, choose_among, judge
-from .data import model_airspeed
 from .likelihood import DiagFit, fit_model, likelihood_ratio
 
 __all__ = ["Candidate", "attribute_step", "p_value", "davies_bound", "choose"]

@@ -21,14 +21,14 @@ from ..estimate import NoiseModel
 from ..fit_options import parse_outputs
 from ..kinematics import KinematicEvidence, flight_path_findings, kinematic_evidence, known_terms
 from ..kinematics import members as _members_of
-from ..models.base import Model
+from ..models.base import Model, model_airspeed
 from ..models.effects import Effect, applied_effects, default_library, registered_effects, root_model, with_effects
 from ..parameters import Role
 from ..record import Record
 from ..verdict import ABSORBS, LEVEL
 from ..warning_log import merged, recording
 from .attribute import Candidate, attribute_step, choose, p_value
-from .data import AnalysisData, analysis_data, model_airspeed
+from .data import AnalysisData, analysis_data
 from .disturbance import GustTest, gust_test
 from .likelihood import DiagFit, fit_model, likelihood_ratio, noise_bands
 from .locate import GapMap, default_bands, holm

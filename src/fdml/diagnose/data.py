@@ -39,25 +39,6 @@ __all__ = ["AnalysisData", "analysis_data", "parse_diag_band", "DEFAULT_DIAG_BAN
 DEFAULT_DIAG_BAND = (0.1, 10.0)
 
 
-def model_airspeed(model) -> float | None:
-    """The model's airspeed U, m/s, or None when it has none.
-
-    Parameters
-    ----------
-    model : Model
-        The model.
-
-    Returns
-    -------
-    float or None
-        U, m/s.
-    """
-    try:
-        return float(model.U)
-    except (AttributeError, NotImplementedError, TypeError, ValueError):
-        return None
-
-
 def parse_diag_band(band) -> tuple[float, float]:
     """``(lo, hi)`` from ``(lo, hi)``, ``(lo, hi, step)`` or ``"LO:HI[:STEP]"`` (rad/s).
 

@@ -123,10 +123,7 @@ def plot_report(rep, path=None):
     if path is not None:
         from ..outputs import atomic_savefig
 
-        try:
-            atomic_savefig(fig, path, dpi=110)
-        finally:
-            plt.close(fig)
+        atomic_savefig(fig, path, dpi=110, close=True)
     return fig
 
 

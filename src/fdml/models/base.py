@@ -135,6 +135,25 @@ def output_rows(rows: Sequence[str], U: float, p: Mapping[str, float]) -> tuple[
     return V, R, I
 
 
+def model_airspeed(model) -> float | None:
+    """The model's airspeed U, m/s, or None when it has none.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+
+    Returns
+    -------
+    float or None
+        U, m/s.
+    """
+    try:
+        return float(model.U)
+    except (AttributeError, NotImplementedError, TypeError, ValueError):
+        return None
+
+
 def solve_short_period(s: np.ndarray, M: np.ndarray, B: np.ndarray, E: np.ndarray, rows):
     """Solve ``M x = B u`` (and ``M x = E d``) for all frequencies at once and form the output rows.
 

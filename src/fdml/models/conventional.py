@@ -28,6 +28,8 @@ __all__ = ["DerivativesModel", "DimensionalModel", "to_dimensional"]
 #: Generic dimensional start values for a record without geometry: a stable
 #: short period near 3 rad/s; a fit moves them (they are not data).
 _GENERIC_DIMENSIONAL = {"Z_a": -1.0, "Z_q": 0.0, "Z_de": -0.1, "M_a": -8.0, "M_q": -2.0, "M_de": -10.0}
+#: Units of the dimensional derivatives: the ``dimensional`` model's parameters, the others' derived quantities.
+DIMENSIONAL_UNITS = {"Z_a": "1/s", "Z_q": "-", "Z_de": "1/s", "M_a": "1/s^2", "M_q": "1/s", "M_de": "1/s^2"}
 
 
 def _scales(ac: Aircraft) -> dict[str, tuple]:
@@ -193,8 +195,7 @@ class DimensionalModel(DescriptorModel):
             start = to_dimensional(alternate_set({**c, "l_t": self.aircraft.l_t}, self.aircraft), self.aircraft)
         else:
             start = dict(_GENERIC_DIMENSIONAL)
-        units = {"Z_a": "1/s", "Z_q": "-", "Z_de": "1/s", "M_a": "1/s^2", "M_q": "1/s", "M_de": "1/s^2"}
-        return Parameters(tuple(Parameter(k, start[k], unit=units[k]) for k in _GENERIC_DIMENSIONAL))
+        return Parameters(tuple(Parameter(k, start[k], unit=DIMENSIONAL_UNITS[k]) for k in _GENERIC_DIMENSIONAL))
 
     def _descriptor(self, p) -> Descriptor:
         """E = I, A, B0 of the equations above (B1 = 0); the gust enters like alpha."""
