@@ -45,6 +45,9 @@ __all__ = [
 
 #: Keys every aircraft description must have (SI units).
 REQUIRED_KEYS = ("name", "S_w", "c_w", "S_t", "c_t", "l_t", "mass", "Iy", "U", "rho")
+#: The same with the optional span after the wing chord: the order a description and a new
+#: aircraft file list them in.
+_FILE_ORDER = (*REQUIRED_KEYS[:3], "b", *REQUIRED_KEYS[3:])
 
 _UNITS = {
     "b": "m",
@@ -443,10 +446,9 @@ class Aircraft:
             One line per value.
         """
         lines = [f"{self.name}: {self.description}".rstrip(": ")]
-        for k in REQUIRED_KEYS[1:]:
-            lines.append(self._line(k, getattr(self, k), _UNITS[k]))
-            if k == "c_w" and self.b is not None:
-                lines.append(self._line("b", self.b, _UNITS["b"]))
+        for k in _FILE_ORDER[1:]:
+            if getattr(self, k) is not None:
+                lines.append(self._line(k, getattr(self, k), _UNITS[k]))
         for k in CONSTANT_KEYS:
             lines.append(self._line(k, self.constants[k], ""))
         return "\n".join(lines)
@@ -764,15 +766,9 @@ def aircraft_template(record, name: str | None = None) -> AircraftTemplate:
             values[k] = float(x)
             sources[k] = f"{origin}: " + _record_source(k, meta)
     missing = {k: KEY_MEANINGS[k] + _hint(k, meta) for k in REQUIRED_KEYS[1:] if k not in values}
-    ordered = {"name": values["name"]}
-    for k in REQUIRED_KEYS[1:]:
-        ordered[k] = values.get(k)
-        if k == "c_w" and "b" in values:
-            ordered["b"] = values["b"]
+    ordered = {k: values.get(k) for k in _FILE_ORDER if k != "b" or "b" in values}
     ordered["description"] = f"started by fdml aircraft init from {origin}; fill the null values"
-    ordered["sources"] = sources
-    ordered["assumed"] = []
-    return AircraftTemplate(ordered, missing)
+    return AircraftTemplate({**ordered, "sources": sources, "assumed": []}, missing)
 
 
 def _record_source(key: str, meta: Mapping) -> str:
