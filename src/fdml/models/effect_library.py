@@ -461,12 +461,9 @@ def _tail_delay_matrix(s, p, M, B, E, root):
 
 
 def _tail_applies(root):
-    why = _needs_gust(root)
-    if why:
-        return why
-    if getattr(root, "tail_gust_delay", False):
+    if getattr(root, "tail_gust_delay", False) and root.gust:
         return "the base model already delays the gust at the tail"
-    return None
+    return _needs_gust(root)
 
 
 _B1 = Param(
