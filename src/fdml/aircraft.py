@@ -48,6 +48,8 @@ REQUIRED_KEYS = ("name", "S_w", "c_w", "S_t", "c_t", "l_t", "mass", "Iy", "U", "
 #: The same with the optional span after the wing chord: the order a description and a new
 #: aircraft file list them in.
 _FILE_ORDER = (*REQUIRED_KEYS[:3], "b", *REQUIRED_KEYS[3:])
+#: The optional fields a description may give as they are.
+_OPTIONAL_FIELDS = ("sources", "description", "lag_constants", "b", "sensors")
 
 _UNITS = {
     "b": "m",
@@ -427,12 +429,8 @@ class Aircraft:
                 name=str(d["name"]),
                 **{k: d[k] for k in REQUIRED_KEYS[1:]},
                 constants={k: d[k] for k in CONSTANT_KEYS if k in d},
-                sources=d.get("sources", {}),
                 assumed=frozenset(assumed),
-                description=d.get("description", ""),
-                lag_constants=d.get("lag_constants", ""),
-                b=d.get("b"),
-                sensors=d.get("sensors", {}),
+                **{k: d[k] for k in _OPTIONAL_FIELDS if k in d},  # the others keep their defaults
             )
         except AircraftError as exc:
             raise AircraftError(f"{origin}: {exc}") from None  # name the user's file
