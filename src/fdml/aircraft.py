@@ -45,6 +45,11 @@ __all__ = [
 
 #: Keys every aircraft description must have (SI units).
 REQUIRED_KEYS = ("name", "S_w", "c_w", "S_t", "c_t", "l_t", "mass", "Iy", "U", "rho")
+#: The same with the optional span after the wing chord: the order a description and a new
+#: aircraft file list them in.
+_FILE_ORDER = (*REQUIRED_KEYS[:3], "b", *REQUIRED_KEYS[3:])
+#: The optional fields a description may give as they are.
+_OPTIONAL_FIELDS = ("sources", "description", "lag_constants", "b", "sensors")
 
 _UNITS = {
     "b": "m",
@@ -424,12 +429,8 @@ class Aircraft:
                 name=str(d["name"]),
                 **{k: d[k] for k in REQUIRED_KEYS[1:]},
                 constants={k: d[k] for k in CONSTANT_KEYS if k in d},
-                sources=d.get("sources", {}),
                 assumed=frozenset(assumed),
-                description=d.get("description", ""),
-                lag_constants=d.get("lag_constants", ""),
-                b=d.get("b"),
-                sensors=d.get("sensors", {}),
+                **{k: d[k] for k in _OPTIONAL_FIELDS if k in d},  # the others keep their defaults
             )
         except AircraftError as exc:
             raise AircraftError(f"{origin}: {exc}") from None  # name the user's file
@@ -443,10 +444,9 @@ class Aircraft:
             One line per value.
         """
         lines = [f"{self.name}: {self.description}".rstrip(": ")]
-        for k in REQUIRED_KEYS[1:]:
-            lines.append(self._line(k, getattr(self, k), _UNITS[k]))
-            if k == "c_w" and self.b is not None:
-                lines.append(self._line("b", self.b, _UNITS["b"]))
+        for k in _FILE_ORDER[1:]:
+            if getattr(self, k) is not None:
+                lines.append(self._line(k, getattr(self, k), _UNITS[k]))
         for k in CONSTANT_KEYS:
             lines.append(self._line(k, self.constants[k], ""))
         return "\n".join(lines)
@@ -764,15 +764,9 @@ def aircraft_template(record, name: str | None = None) -> AircraftTemplate:
             values[k] = float(x)
             sources[k] = f"{origin}: " + _record_source(k, meta)
     missing = {k: KEY_MEANINGS[k] + _hint(k, meta) for k in REQUIRED_KEYS[1:] if k not in values}
-    ordered = {"name": values["name"]}
-    for k in REQUIRED_KEYS[1:]:
-        ordered[k] = values.get(k)
-        if k == "c_w" and "b" in values:
-            ordered["b"] = values["b"]
+    ordered = {k: values.get(k) for k in _FILE_ORDER if k != "b" or "b" in values}
     ordered["description"] = f"started by fdml aircraft init from {origin}; fill the null values"
-    ordered["sources"] = sources
-    ordered["assumed"] = []
-    return AircraftTemplate(ordered, missing)
+    return AircraftTemplate({**ordered, "sources": sources, "assumed": []}, missing)
 
 
 def _record_source(key: str, meta: Mapping) -> str:

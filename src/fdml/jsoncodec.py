@@ -1270,13 +1270,11 @@ def specs(kind: Any) -> dict[str, Spec]:
     TypeError
         A field with neither an entry nor a known annotation (the class must say how to read it).
     """
-    own = dict(getattr(kind, "json_fields", {}))
     out = {}
     for fld in dataclasses.fields(kind):
-        make = _BY_ANNOTATION.get(str(fld.type))
-        if fld.name in own:
-            out[fld.name] = own[fld.name]
-        elif make is not None:
+        if fld.name in kind.json_fields:
+            out[fld.name] = kind.json_fields[fld.name]
+        elif (make := _BY_ANNOTATION.get(str(fld.type))) is not None:
             out[fld.name] = make()
         else:
             raise TypeError(

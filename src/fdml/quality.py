@@ -249,7 +249,7 @@ class QualityReport(Codec):
         out.append(f"  coherence: {self.coherence_method}")
         for k, g in self.coherence.items():
             if g.size:
-                good = float(np.mean(g >= max(GOOD_COHERENCE, self.coherence_threshold)))
+                good = float(np.mean(_coherent(g, self.coherence_threshold)))
                 out.append(
                     f"    de -> {k:6s}: median {np.median(g):.2f}, min {np.min(g):.2f}, "
                     f">= {GOOD_COHERENCE:g} at {100 * good:.0f} % of {g.size} estimates"
@@ -334,7 +334,7 @@ def check_quality(record: Record, band=None, *, n_params: int = DEFAULT_N_PARAMS
     if coh_w.size:
         coherent = np.zeros(coh_w.size, bool)
         for g in coh.values():
-            coherent |= g >= max(GOOD_COHERENCE, thr)
+            coherent |= _coherent(g, thr)
         good &= np.interp(omega, coh_w, coherent.astype(float)) >= 0.5
     useful = float(np.sum(good)) * step * T / (2 * math.pi) if omega.size > 1 else float(np.sum(good))
     useful = min(useful, independent)
@@ -418,18 +418,12 @@ def _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, l
     head = []
     if peak == 0:
         head.append("the elevator does not move: the record carries no input; no parameter can be identified")
-    elif sufficient:
-        head.append(
-            f"excitation sufficient: about {useful:.1f} independent frequencies in the band carry input "
-            f"within {LOW_INPUT_DB:g} dB of its peak with coherent outputs; {n_params} parameters with "
-            f"{n_out} outputs need at least {required}"
-        )
     else:
         head.append(
-            f"excitation INSUFFICIENT: only about {useful:.1f} independent frequencies in the band carry "
-            f"input within {LOW_INPUT_DB:g} dB of its peak with coherent outputs; {n_params} parameters "
-            f"with {n_out} outputs need at least {required}: widen the band, lengthen the record or "
-            "fly a richer input"
+            f"excitation {'sufficient: about' if sufficient else 'INSUFFICIENT: only about'} {useful:.1f} "
+            f"independent frequencies in the band carry input within {LOW_INPUT_DB:g} dB of its peak with "
+            f"coherent outputs; {n_params} parameters with {n_out} outputs need at least {required}"
+            + ("" if sufficient else ": widen the band, lengthen the record or fly a richer input")
         )
     head.append(f"{100 * frac:.0f} % of the elevator's energy lies inside the band {lo:g}-{hi:g} rad/s")
     if low_input:
@@ -439,7 +433,7 @@ def _headline(peak, sufficient, useful, n_params, n_out, required, frac, band, l
         )
     for k, g in coh.items():
         if g.size:
-            good_frac = float(np.mean(g >= max(GOOD_COHERENCE, thr)))
+            good_frac = float(np.mean(_coherent(g, thr)))
             if good_frac < 0.5:
                 head.append(
                     f"coherence de -> {k} is below {GOOD_COHERENCE:g} at {100 * (1 - good_frac):.0f} % "
@@ -590,6 +584,11 @@ def _flat(x, lens, starts, level, res, dust, dt):
     return dur, bool(sign * (vertex - level) > max(3 * res, 3 * fit_rms))  # peaks beyond the flat level
 
 
+def _coherent(g: np.ndarray, thr: float) -> np.ndarray:
+    """Where a coherence estimate is good: above both GOOD_COHERENCE and the significance threshold."""
+    return g >= max(GOOD_COHERENCE, thr)
+
+
 def _spans(intervals) -> str:
     return ", ".join(f"{a:.3g}" if a == b else f"{a:.3g}-{b:.3g}" for a, b in intervals)
 
@@ -662,7 +661,8 @@ def _coherence(record: Record, outputs, lo: float, hi: float):
         w1 = 2 * math.pi * fs / nper
         w_grid = np.arange(lo, hi + 1e-12, (hi - lo) / 100 if hi > lo else 1.0)
         covered = float(np.mean(w_grid >= w1))
-        n_in_band = int(np.sum((w1 * np.arange(1, nper // 2 + 1) >= lo) & (w1 * np.arange(1, nper // 2 + 1) <= hi)))
+        bins = w1 * np.arange(1, nper // 2 + 1)
+        n_in_band = int(np.sum((bins >= lo) & (bins <= hi)))
         welch = covered >= 0.5 and n_in_band >= MIN_COHERENCE_ESTIMATES
     if welch:
         nover = nper // 2

@@ -289,11 +289,16 @@ def _rebiased(params: Parameters, rows: tuple, free: bool) -> Parameters:
     return Parameters(keep).extended(_bias_parameter(r, free) for r in rows if f"bias_{r}" not in params)
 
 
+def _stepped(f, p: Mapping[str, float], name: str, rel: float, floor: float):
+    """``(f(p with name + h), f(p with name - h), h)``, h = rel max(|p[name]|, floor): a central difference's
+    two evaluations."""
+    h = rel * max(abs(p[name]), floor)
+    return f({**p, name: p[name] + h}), f({**p, name: p[name] - h}), h
+
+
 def _padded(dH: np.ndarray, nb: int) -> np.ndarray:
     """``dH`` of the states' boundary columns with zero columns for the integral rows' own, up to ``nb``."""
-    if dH.shape[-1] == nb:
-        return dH
-    return np.concatenate([dH, np.zeros(dH.shape[:-1] + (nb - dH.shape[-1],), complex)], axis=-1)
+    return np.pad(dH, [(0, 0)] * (dH.ndim - 1) + [(0, nb - dH.shape[-1])])
 
 
 #: Roles whose derivatives are not derivatives of the model matrices (M, B, E): input delays
@@ -575,9 +580,10 @@ class Model:
         dP = -(PdM @ inv) if "P" in parts else None
         for i, nm in enumerate(names):  # a sensor's station enters its output row, not the matrices
             if nm in _STATION_NAMES:
-                h = 1e-5 * max(abs(p[nm]), 1.0)  # the row is affine in the station: exact to rounding
-                up = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] + h}))
-                dn = _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, {**p, nm: p[nm] - h}))
+                # the row is affine in the station: exact to rounding
+                up, dn, h = _stepped(
+                    lambda q: _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, q)), p, nm, 1e-5, 1.0
+                )
                 for dx, a, b in zip((dG, dH, dP), up, dn):
                     if dx is not None:
                         dx[i] = (a - b) / (2 * h)
@@ -682,10 +688,7 @@ class Model:
         """
         out = {}
         for nm in names:
-            v = p[nm]
-            h = 1e-5 * max(abs(v), 1e-2)
-            Mp, Bp, Ep = self._matrices(s, {**p, nm: v + h})
-            Mm, Bm, Em = self._matrices(s, {**p, nm: v - h})
+            (Mp, Bp, Ep), (Mm, Bm, Em), h = _stepped(lambda q: self._matrices(s, q), p, nm, 1e-5, 1e-2)
             dE = (np.asarray(Ep) - np.asarray(Em)) / (2 * h)
             out[nm] = ((Mp - Mm) / (2 * h), (Bp - Bm) / (2 * h), dE if np.any(dE) else None)
         return out
@@ -695,10 +698,7 @@ class Model:
         resp = self.evaluate(omega, p)
         d = [np.zeros((len(names),) + x.shape, complex) for x in (resp.G, resp.H, resp.P)]
         for k, nm in enumerate(names):
-            v = p[nm]
-            h = 1e-5 * max(abs(v), 1e-2)
-            rp = self.evaluate(omega, {**p, nm: v + h})
-            rm = self.evaluate(omega, {**p, nm: v - h})
+            rp, rm, h = _stepped(lambda q: self.evaluate(omega, q), p, nm, 1e-5, 1e-2)
             for dx, up, dn in zip(d, (rp.G, rp.H, rp.P), (rm.G, rm.H, rm.P)):
                 dx[k] = (up - dn) / (2 * h)
         return (resp, *d)
@@ -860,8 +860,7 @@ class Model:
         keys = list(self.derived(base))
         J = np.zeros((len(keys), len(names)))
         for j, n in enumerate(names):
-            h = 1e-6 * max(abs(base[n]), 1e-3)
-            du, dd = self.derived({**base, n: base[n] + h}), self.derived({**base, n: base[n] - h})
+            du, dd, h = _stepped(self.derived, base, n, 1e-6, 1e-3)
             J[:, j] = [(du[k] - dd[k]) / (2 * h) for k in keys]
         return keys, J
 

@@ -161,9 +161,7 @@ def to_unsteady_equivalent(root: Model) -> Model:
     if root.gust:
         vals["b1"] = 0.0
     params = u.parameters.with_values(vals)
-    free = [n for n in root.parameters.free_names if n in params]
-    params = params.only_free(free)
-    return u.with_parameters(params)
+    return u.with_parameters(params.only_free([n for n in root.parameters.free_names if n in params]))
 
 
 def _needs_chord(root: Model) -> str | None:
@@ -441,10 +439,7 @@ def _input_lag(column: int, name: str):
 
 
 def _filter_realize(signal_name: str, name: str):
-    def fn(sys, p, root):
-        return filter_input(sys, signal_name, p[name])
-
-    return fn
+    return lambda sys, p, root: filter_input(sys, signal_name, p[name])
 
 
 def _tail_realize(opts, p, root):
@@ -466,12 +461,9 @@ def _tail_delay_matrix(s, p, M, B, E, root):
 
 
 def _tail_applies(root):
-    why = _needs_gust(root)
-    if why:
-        return why
-    if getattr(root, "tail_gust_delay", False):
+    if getattr(root, "tail_gust_delay", False) and root.gust:
         return "the base model already delays the gust at the tail"
-    return None
+    return _needs_gust(root)
 
 
 _B1 = Param(
