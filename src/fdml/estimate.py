@@ -438,9 +438,9 @@ class Problem:
         """
         name = self.slots[i].name
         scale = max(abs(theta[i]), 1e-3)
-        h = self._steps.get(name, SETTINGS.fd_start * scale)  # docs/theory.md 7: start at 5 % of |theta|
-        if tol < SETTINGS.settle_tol:
-            h = SETTINGS.fd_start * scale
+        h = SETTINGS.fd_start * scale  # docs/theory.md 7: start at 5 % of |theta|
+        if tol >= SETTINGS.settle_tol:
+            h = self._steps.get(name, h)
         if self.sensitivity == "central":
             h = SETTINGS.central_step * scale
             return (self._eval_moved(theta, i, h) - self._eval_moved(theta, i, -h)) / (2 * h)

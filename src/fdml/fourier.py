@@ -104,11 +104,8 @@ EDGE_SIZE = 0.05
 def _lagrange_basis(nodes):
     """Coefficients (ascending powers of u) of the Lagrange basis on ``nodes``."""
     nodes = np.asarray(nodes, dtype=float)
-    rows = []
-    for i, node in enumerate(nodes):
-        others = np.delete(nodes, i)
-        rows.append(_poly.polyfromroots(others) / np.prod(node - others))
-    return np.array(rows)
+    others = [np.delete(nodes, i) for i in range(nodes.size)]
+    return np.array([_poly.polyfromroots(rest) / np.prod(node - rest) for node, rest in zip(nodes, others)])
 
 
 #: Interior interval [i, i+1] with u = s - i, stencil i-1 .. i+2 (rows r = -1..2).
@@ -586,10 +583,8 @@ def finite_fourier_transform(x, dt, omega, *, method="auto", end_correction="cub
     """
     x2, n, dt, omega = _check(dt, omega, end_correction, method, x=x)
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
-    if _choose_method(n, omega, method) == "czt":
-        out = weight[:, None] * _czt_forward(x2, theta)
-    else:
-        out = weight[:, None] * _direct(x2, theta, n, adjoint=False)
+    czt = _choose_method(n, omega, method) == "czt"
+    out = weight[:, None] * (_czt_forward(x2, theta) if czt else _direct(x2, theta, n, adjoint=False))
     nend = alpha.shape[1]
     if nend:
         out += alpha @ x2[:nend] + tail @ x2[::-1][:nend]
@@ -620,9 +615,8 @@ def transform_weights(n, dt, omega, *, end_correction="cubic"):
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
     mat = _kernel(theta, 0, n, -1.0) * weight[:, None]
     nend = alpha.shape[1]
-    if nend:
-        mat[:, :nend] += alpha
-        mat[:, ::-1][:, :nend] += tail
+    mat[:, :nend] += alpha
+    mat[:, ::-1][:, :nend] += tail
     return mat * dt
 
 
@@ -826,13 +820,11 @@ def fourier_adjoint(y, n, dt, omega, *, method="auto", end_correction="cubic"):
         raise BandError(f"y must be finite, of shape ({omega.size},) or ({omega.size}, k); got shape {y.shape}")
     y2 = y.reshape(omega.size, -1).astype(complex)
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
-    if _choose_method(n, omega, method) == "czt":
-        out = _czt_adjoint(weight[:, None] * y2, theta, n)
-    else:
-        out = _direct(weight[:, None] * y2, theta, n, adjoint=True)
+    czt = _choose_method(n, omega, method) == "czt"
+    wy = weight[:, None] * y2
+    out = _czt_adjoint(wy, theta, n) if czt else _direct(wy, theta, n, adjoint=True)
     nend = alpha.shape[1]
-    if nend:
-        out[:nend] += alpha.conj().T @ y2
-        out[::-1][:nend] += tail.conj().T @ y2
+    out[:nend] += alpha.conj().T @ y2
+    out[::-1][:nend] += tail.conj().T @ y2
     out *= dt
     return out[:, 0] if y.ndim == 1 else out

@@ -245,7 +245,7 @@ class FrequencyData(Codec):
         "end_offset": floats(None),
         "outputs": Spec(_outputs_field),
         "edges": floats(None),
-        "edge_steps": Spec(lambda f, k, done: _edge_steps_field(f, k, done)),
+        "edge_steps": Spec(_edge_steps_field),
         "record": nested(Record, none=True),
     }
     json_source = "spectra"
@@ -397,9 +397,7 @@ def _noise_gram(n, dt, omega, end_correction, L, ones):
     l2 = 1.0 / L  # |l|^2
     Psi = GH - np.outer(f, b.conj()) - np.outer(b, f.conj()) + l2 * np.outer(b, b.conj())
     Phi = GT - np.outer(f, b) - np.outer(b, f) + l2 * np.outer(b, b)
-    Psi.setflags(write=False)
-    Phi.setflags(write=False)
-    return Psi, Phi
+    return fourier._read_only(Psi, Phi)
 
 
 def spectra(
