@@ -226,20 +226,15 @@ class Problem:
         upper : numpy.ndarray
             Upper bounds, shape (p,); inf for none.
         """
-        lo, hi = [], []
-        for s in self.slots:
+        lo, hi = np.full(len(self.slots), -math.inf), np.full(len(self.slots), math.inf)
+        for i, s in enumerate(self.slots):
             if not s.role.nuisance:
                 par = self.model.parameters[s.name]
-                lo.append(par.lower)
-                hi.append(par.upper)
+                lo[i], hi[i] = par.lower, par.upper
             elif s.role is Role.INPUT_EDGE:  # the step happened within its sample interval
-                half = 0.5 * self.data[s.record].dt
-                lo.append(-half)
-                hi.append(half)
-            else:
-                lo.append(-math.inf)
-                hi.append(math.inf)
-        return np.array(lo), np.array(hi)
+                hi[i] = 0.5 * self.data[s.record].dt
+                lo[i] = -hi[i]
+        return lo, hi
 
     def model_values(self, theta: np.ndarray) -> dict[str, float]:
         """The model's parameter values with the model entries of ``theta`` in place.
@@ -777,12 +772,9 @@ def _project(theta, lo, hi):
 
 def _identifiability(H1: np.ndarray, names: Sequence[str]) -> tuple[list[str], list[str]]:
     """Warnings for a singular information matrix; returns (messages, unidentified names)."""
-    msgs, dead = [], []
     diag = np.diag(H1)
-    for i, n in enumerate(names):
-        if diag[i] <= 0:
-            msgs.append(f"parameter {n} has no effect on the fitted outputs in this band: it cannot be identified")
-            dead.append(n)
+    dead = [n for n, h in zip(names, diag) if h <= 0]
+    msgs = [f"parameter {n} has no effect on the fitted outputs in this band: it cannot be identified" for n in dead]
     live = np.flatnonzero(diag > 0)
     if live.size:
         D = np.sqrt(diag[live])
@@ -994,12 +986,8 @@ def _edges_needed(prob: Problem, state: _State) -> Problem | None:
 
 def _carried(prob: Problem, theta: np.ndarray, other: Problem) -> np.ndarray:
     """``other``'s start vector with the values of the slots it shares with ``prob`` taken from ``theta``."""
-    out = other.initial()
-    at = {n: i for i, n in enumerate(prob.names)}
-    for j, n in enumerate(other.names):
-        if n in at:
-            out[j] = theta[at[n]]
-    return out
+    shared = dict(zip(prob.names, theta))
+    return np.array([shared.get(n, v) for n, v in zip(other.names, other.initial())])
 
 
 def _band_findings(prob: Problem, theta: np.ndarray) -> list:
@@ -1144,11 +1132,9 @@ def _proposal(g, H1, H, active, full):
     the largest dropped), from the eigensystem that :func:`_hybrid_step` shifts.
     Otherwise the Gauss-Newton step ``-H1^+ g`` (Eq. 23).
     """
-    if not full:
+    if not full or not np.all(np.isfinite(H)):
         return _solve(H1, g, active), None
     idx = np.flatnonzero(active)
-    if not np.all(np.isfinite(H)):
-        return _solve(H1, g, active), None
     eig = _scaled_eig(H1, H, idx)
     step = np.zeros_like(g)
     if idx.size:
