@@ -1197,10 +1197,8 @@ def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
     Morelli and Klein's correction of the Cramer-Rao bounds for coloured
     residuals.
     """
-    out = np.empty(V.shape)
-    off = 0
-    for d in prob.data:
-        v = V[off : off + d.m]
+    parts = []
+    for d, v in zip(prob.data, np.split(V, prob._offsets[1:-1])):
         p2 = np.abs(v) ** 2
         half = 2 * 2 * math.pi / d.T
         step = np.median(np.diff(d.omega)) if d.m > 1 else half
@@ -1209,9 +1207,8 @@ def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
         num = np.apply_along_axis(lambda x: np.convolve(x, kernel, mode="same"), 0, p2)
         den = np.convolve(np.ones(d.m), kernel, mode="same")[:, None]
         sm = num / den
-        out[off : off + d.m] = np.sqrt(sm / np.mean(sm, axis=0, keepdims=True))
-        off += d.m
-    return out
+        parts.append(np.sqrt(sm / np.mean(sm, axis=0, keepdims=True)))
+    return np.concatenate(parts)
 
 
 def _white_cov_g(
@@ -1243,10 +1240,7 @@ def _white_cov_g(
     bounds = [prob.rows.index(c) for c in boundary_channels(prob.rows)]
     bchan = [(j, out_idx.index(k)) for j, k in enumerate(bounds) if k in out_idx]
     cov = np.zeros((p, p))
-    off = 0
-    for d in prob.data:
-        Cr = C[off : off + d.m]
-        off += d.m
+    for d, Cr in zip(prob.data, np.split(C, prob._offsets[1:-1])):
         rows, E = _boundary_noise(prob, d, Cr, bchan) if prob.boundary == "measured" and bchan else (None, None)
         if _noise_route(prob, d) != "adjoint":
             # frequency-domain form, O(m^2): g = Re sum_i C_i v_i with E{v v^H} = Sigma (x) Psi,

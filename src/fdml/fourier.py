@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any
 
 import numpy as np
 from numpy.polynomial import polynomial as _poly
@@ -203,18 +202,18 @@ def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False)
         ``hi < lo``, ``step <= 0``, or more than :data:`MAX_BAND_FREQUENCIES`
         grid points.
     """
-    values: dict[str, Any] = {}  # float, or None for an absent step
-    for name, value in {"lo": lo, "hi": hi, "step": step}.items():
-        if name == "step" and value is None:
-            values[name] = None
-            continue
+
+    def number(name: str, value) -> float:
         try:
-            values[name] = math.nan if isinstance(value, (bool, str)) else float(value)
+            x = math.nan if isinstance(value, (bool, str)) else float(value)
         except (TypeError, ValueError, OverflowError):
-            values[name] = math.nan
-        if not math.isfinite(values[name]):
+            x = math.nan
+        if not math.isfinite(x):
             raise BandError(f"{what}: {name} = {value!r} is not a finite number (rad/s)")
-    lo, hi, step = values["lo"], values["hi"], values["step"]
+        return x
+
+    lo, hi = number("lo", lo), number("hi", hi)
+    step = None if step is None else number("step", step)
     if lo < 0 or (positive and lo == 0):
         raise BandError(f"{what}: lo = {lo:g} rad/s must be {'positive' if positive else 'non-negative'}")
     if hi < lo:
