@@ -510,12 +510,8 @@ def _sample_keys(d: FrequencyData) -> set:
     keys = {digest("spectra", d.omega, d.z, d.u)}
     rec = d.record
     if rec is not None:  # the samples and the interval; a shift of the time origin changes nothing
-        keys.add(
-            digest(
-                f"samples {rec.n} {rec.dt:.12g} " + ",".join(sorted(rec.signals)),
-                *(rec.signals[k] for k in sorted(rec.signals)),
-            )
-        )
+        names = sorted(rec.signals)
+        keys.add(digest(f"samples {rec.n} {rec.dt:.12g} {','.join(names)}", *(rec.signals[k] for k in names)))
     return keys
 
 

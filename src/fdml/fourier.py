@@ -282,14 +282,11 @@ def _moments(theta):
     s = np.arange(nterms)[:, None]
     fact = np.cumprod(np.r_[1.0, np.arange(1.0, nterms)])[:, None]
     coef = 1.0 / (fact * (np.arange(4)[None, :] + s + 1))  # (S, 4)
-    allsmall = bool(small.all())
-    zs = (z if allsmall else z[small])[:, None]
+    zs = z[small][:, None]
     acc = np.zeros((zs.shape[0], 4), dtype=complex)
     for row in coef[::-1]:
         acc *= zs
         acc += row
-    if allsmall:
-        return acc
     mu[small] = acc
     # Closed form: mu_0 = (e^z - 1) / z, mu_q = (e^z - q mu_{q-1}) / z; the
     # recursion amplifies errors by at most q/|z| <= 3 per step here.
