@@ -292,15 +292,7 @@ class Problem:
         """
         if responses is None:
             responses = self._responses(self.model_values(theta))
-        out = []
-        for r, (d, resp) in enumerate(zip(self.data, responses)):
-            nu = self._nuisance(theta, r)  # Eqs. 18-19 with section 7's boundary terms
-            out.append(
-                _measure(
-                    resp, d.u, d.ones, nu.boundary(self._shift[r]), nu.biases, nu.state_biases, self._elevator(nu, r)
-                )
-            )
-        return out
+        return [self._measured(theta, r, resp, biases=True) for r, resp in enumerate(responses)]
 
     def linear_predict(self, theta: np.ndarray, r: int, change) -> np.ndarray:
         """The change of record ``r``'s predicted outputs for a change of the model response.
@@ -324,9 +316,16 @@ class Problem:
         numpy.ndarray
             The change of the predicted outputs, complex, shape (..., m_r, n_y).
         """
-        d = self.data[r]
-        nu = self._nuisance(theta, r)
-        return _measure(change, d.u, d.ones, nu.boundary(self._shift[r]), None, nu.state_biases, self._elevator(nu, r))
+        return self._measured(theta, r, change, biases=False)
+
+    def _measured(self, theta: np.ndarray, r: int, response, biases: bool) -> np.ndarray:
+        """Record r's outputs from the model's ``response`` (Eqs. 18-19 with section 7's boundary terms at
+        ``theta``), with the output biases when ``biases``."""
+        d, nu = self.data[r], self._nuisance(theta, r)
+        bias = nu.biases if biases else None
+        return _measure(
+            response, d.u, d.ones, nu.boundary(self._shift[r]), bias, nu.state_biases, self._elevator(nu, r)
+        )
 
     def _elevator(self, nu: Nuisance, r: int) -> np.ndarray | None:
         """What record r's nuisance terms add to its elevator spectrum (offset, step edges' timing)."""
@@ -1145,10 +1144,9 @@ def _proposal(g, H1, H, active, full):
 def _scaled_eig(H1, H, idx):
     """(D, w, Q): D = sqrt(diag H1) on the active set ``idx`` (1 where not positive), and the
     eigenvalues w and vectors Q of H[idx, idx] / (D D^T)."""
-    whole = idx.size == H.shape[0]  # every parameter active: no copy of the block
-    d1 = np.diag(H1) if whole else np.diag(H1)[idx]
+    d1 = np.diag(H1)[idx]
     D = np.sqrt(np.where(d1 > 0, d1, 1.0))
-    w, Q = np.linalg.eigh((H if whole else H[np.ix_(idx, idx)]) / np.outer(D, D))
+    w, Q = np.linalg.eigh(H[np.ix_(idx, idx)] / np.outer(D, D))
     return D, w, Q
 
 

@@ -466,10 +466,9 @@ def spectra(
     rec = record.remove_trim(trim, window=trim_window)
     outs = np.column_stack([rec[k] for k in rows])
     inputs = INPUTS if rec.has(GUST) else INPUTS[:1]
-    ins = np.column_stack([rec[k] for k in inputs])
-    ones = np.ones(rec.n)
+    ins = [rec[k] for k in inputs]
     X = fourier.finite_fourier_transform(
-        np.column_stack([outs, ins, ones]), rec.dt, omega, method=method, end_correction=end_correction
+        np.column_stack([outs, *ins, np.ones(rec.n)]), rec.dt, omega, method=method, end_correction=end_correction
     )
     steps = fourier.step_edges(rec["de"])
     peak = np.max(np.abs(outs), axis=0)
