@@ -775,10 +775,8 @@ def leading_transform(weights, n, dt, omega, *, end_correction="cubic"):
     L = w.size
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
     nend = alpha.shape[1]
-    if L > n - nend:
-        x = np.zeros(n)
-        x[:L] = w
-        return finite_fourier_transform(x, dt, omega, end_correction=end_correction)
+    if L > n - nend:  # the leading samples reach the end-corrected ones: the full transform
+        return finite_fourier_transform(np.r_[w, np.zeros(n - L)], dt, omega, end_correction=end_correction)
     out = weight * (_kernel(theta, 0, L, -1.0) @ w)
     k = min(L, nend)
     out += alpha[:, :k] @ w[:k]
