@@ -226,20 +226,15 @@ class Problem:
         upper : numpy.ndarray
             Upper bounds, shape (p,); inf for none.
         """
-        lo, hi = [], []
-        for s in self.slots:
+        lo, hi = np.full(len(self.slots), -math.inf), np.full(len(self.slots), math.inf)
+        for i, s in enumerate(self.slots):
             if not s.role.nuisance:
                 par = self.model.parameters[s.name]
-                lo.append(par.lower)
-                hi.append(par.upper)
+                lo[i], hi[i] = par.lower, par.upper
             elif s.role is Role.INPUT_EDGE:  # the step happened within its sample interval
-                half = 0.5 * self.data[s.record].dt
-                lo.append(-half)
-                hi.append(half)
-            else:
-                lo.append(-math.inf)
-                hi.append(math.inf)
-        return np.array(lo), np.array(hi)
+                hi[i] = 0.5 * self.data[s.record].dt
+                lo[i] = -hi[i]
+        return lo, hi
 
     def model_values(self, theta: np.ndarray) -> dict[str, float]:
         """The model's parameter values with the model entries of ``theta`` in place.
@@ -297,15 +292,7 @@ class Problem:
         """
         if responses is None:
             responses = self._responses(self.model_values(theta))
-        out = []
-        for r, (d, resp) in enumerate(zip(self.data, responses)):
-            nu = self._nuisance(theta, r)  # Eqs. 18-19 with section 7's boundary terms
-            out.append(
-                _measure(
-                    resp, d.u, d.ones, nu.boundary(self._shift[r]), nu.biases, nu.state_biases, self._elevator(nu, r)
-                )
-            )
-        return out
+        return [self._measured(theta, r, resp, biases=True) for r, resp in enumerate(responses)]
 
     def linear_predict(self, theta: np.ndarray, r: int, change) -> np.ndarray:
         """The change of record ``r``'s predicted outputs for a change of the model response.
@@ -329,9 +316,16 @@ class Problem:
         numpy.ndarray
             The change of the predicted outputs, complex, shape (..., m_r, n_y).
         """
-        d = self.data[r]
-        nu = self._nuisance(theta, r)
-        return _measure(change, d.u, d.ones, nu.boundary(self._shift[r]), None, nu.state_biases, self._elevator(nu, r))
+        return self._measured(theta, r, change, biases=False)
+
+    def _measured(self, theta: np.ndarray, r: int, response, biases: bool) -> np.ndarray:
+        """Record r's outputs from the model's ``response`` (Eqs. 18-19 with section 7's boundary terms at
+        ``theta``), with the output biases when ``biases``."""
+        d, nu = self.data[r], self._nuisance(theta, r)
+        bias = nu.biases if biases else None
+        return _measure(
+            response, d.u, d.ones, nu.boundary(self._shift[r]), bias, nu.state_biases, self._elevator(nu, r)
+        )
 
     def _elevator(self, nu: Nuisance, r: int) -> np.ndarray | None:
         """What record r's nuisance terms add to its elevator spectrum (offset, step edges' timing)."""
@@ -438,9 +432,9 @@ class Problem:
         """
         name = self.slots[i].name
         scale = max(abs(theta[i]), 1e-3)
-        h = self._steps.get(name, SETTINGS.fd_start * scale)  # docs/theory.md 7: start at 5 % of |theta|
-        if tol < SETTINGS.settle_tol:
-            h = SETTINGS.fd_start * scale
+        h = SETTINGS.fd_start * scale  # docs/theory.md 7: start at 5 % of |theta|
+        if tol >= SETTINGS.settle_tol:
+            h = self._steps.get(name, h)
         if self.sensitivity == "central":
             h = SETTINGS.central_step * scale
             return (self._eval_moved(theta, i, h) - self._eval_moved(theta, i, -h)) / (2 * h)
@@ -515,12 +509,8 @@ def _sample_keys(d: FrequencyData) -> set:
     keys = {digest("spectra", d.omega, d.z, d.u)}
     rec = d.record
     if rec is not None:  # the samples and the interval; a shift of the time origin changes nothing
-        keys.add(
-            digest(
-                f"samples {rec.n} {rec.dt:.12g} " + ",".join(sorted(rec.signals)),
-                *(rec.signals[k] for k in sorted(rec.signals)),
-            )
-        )
+        names = sorted(rec.signals)
+        keys.add(digest(f"samples {rec.n} {rec.dt:.12g} {','.join(names)}", *(rec.signals[k] for k in names)))
     return keys
 
 
@@ -777,12 +767,9 @@ def _project(theta, lo, hi):
 
 def _identifiability(H1: np.ndarray, names: Sequence[str]) -> tuple[list[str], list[str]]:
     """Warnings for a singular information matrix; returns (messages, unidentified names)."""
-    msgs, dead = [], []
     diag = np.diag(H1)
-    for i, n in enumerate(names):
-        if diag[i] <= 0:
-            msgs.append(f"parameter {n} has no effect on the fitted outputs in this band: it cannot be identified")
-            dead.append(n)
+    dead = [n for n, h in zip(names, diag) if h <= 0]
+    msgs = [f"parameter {n} has no effect on the fitted outputs in this band: it cannot be identified" for n in dead]
     live = np.flatnonzero(diag > 0)
     if live.size:
         D = np.sqrt(diag[live])
@@ -994,12 +981,8 @@ def _edges_needed(prob: Problem, state: _State) -> Problem | None:
 
 def _carried(prob: Problem, theta: np.ndarray, other: Problem) -> np.ndarray:
     """``other``'s start vector with the values of the slots it shares with ``prob`` taken from ``theta``."""
-    out = other.initial()
-    at = {n: i for i, n in enumerate(prob.names)}
-    for j, n in enumerate(other.names):
-        if n in at:
-            out[j] = theta[at[n]]
-    return out
+    shared = dict(zip(prob.names, theta))
+    return np.array([shared.get(n, v) for n, v in zip(other.names, other.initial())])
 
 
 def _band_findings(prob: Problem, theta: np.ndarray) -> list:
@@ -1141,11 +1124,9 @@ def _proposal(g, H1, H, active, full):
     the largest dropped), from the eigensystem that :func:`_hybrid_step` shifts.
     Otherwise the Gauss-Newton step ``-H1^+ g`` (Eq. 23).
     """
-    if not full:
+    if not full or not np.all(np.isfinite(H)):
         return _solve(H1, g, active), None
     idx = np.flatnonzero(active)
-    if not np.all(np.isfinite(H)):
-        return _solve(H1, g, active), None
     eig = _scaled_eig(H1, H, idx)
     step = np.zeros_like(g)
     if idx.size:
@@ -1160,10 +1141,9 @@ def _proposal(g, H1, H, active, full):
 def _scaled_eig(H1, H, idx):
     """(D, w, Q): D = sqrt(diag H1) on the active set ``idx`` (1 where not positive), and the
     eigenvalues w and vectors Q of H[idx, idx] / (D D^T)."""
-    whole = idx.size == H.shape[0]  # every parameter active: no copy of the block
-    d1 = np.diag(H1) if whole else np.diag(H1)[idx]
+    d1 = np.diag(H1)[idx]
     D = np.sqrt(np.where(d1 > 0, d1, 1.0))
-    w, Q = np.linalg.eigh((H if whole else H[np.ix_(idx, idx)]) / np.outer(D, D))
+    w, Q = np.linalg.eigh(H[np.ix_(idx, idx)] / np.outer(D, D))
     return D, w, Q
 
 
@@ -1208,10 +1188,8 @@ def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
     Morelli and Klein's correction of the Cramer-Rao bounds for coloured
     residuals.
     """
-    out = np.empty(V.shape)
-    off = 0
-    for d in prob.data:
-        v = V[off : off + d.m]
+    parts = []
+    for d, v in zip(prob.data, np.split(V, prob._offsets[1:-1])):
         p2 = np.abs(v) ** 2
         half = 2 * 2 * math.pi / d.T
         step = np.median(np.diff(d.omega)) if d.m > 1 else half
@@ -1220,9 +1198,8 @@ def _residual_shape(prob: Problem, V: np.ndarray) -> np.ndarray:
         num = np.apply_along_axis(lambda x: np.convolve(x, kernel, mode="same"), 0, p2)
         den = np.convolve(np.ones(d.m), kernel, mode="same")[:, None]
         sm = num / den
-        out[off : off + d.m] = np.sqrt(sm / np.mean(sm, axis=0, keepdims=True))
-        off += d.m
-    return out
+        parts.append(np.sqrt(sm / np.mean(sm, axis=0, keepdims=True)))
+    return np.concatenate(parts)
 
 
 def _white_cov_g(
@@ -1254,10 +1231,7 @@ def _white_cov_g(
     bounds = [prob.rows.index(c) for c in boundary_channels(prob.rows)]
     bchan = [(j, out_idx.index(k)) for j, k in enumerate(bounds) if k in out_idx]
     cov = np.zeros((p, p))
-    off = 0
-    for d in prob.data:
-        Cr = C[off : off + d.m]
-        off += d.m
+    for d, Cr in zip(prob.data, np.split(C, prob._offsets[1:-1])):
         rows, E = _boundary_noise(prob, d, Cr, bchan) if prob.boundary == "measured" and bchan else (None, None)
         if _noise_route(prob, d) != "adjoint":
             # frequency-domain form, O(m^2): g = Re sum_i C_i v_i with E{v v^H} = Sigma (x) Psi,

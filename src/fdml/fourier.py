@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any
 
 import numpy as np
 from numpy.polynomial import polynomial as _poly
@@ -104,11 +103,8 @@ EDGE_SIZE = 0.05
 def _lagrange_basis(nodes):
     """Coefficients (ascending powers of u) of the Lagrange basis on ``nodes``."""
     nodes = np.asarray(nodes, dtype=float)
-    rows = []
-    for i, node in enumerate(nodes):
-        others = np.delete(nodes, i)
-        rows.append(_poly.polyfromroots(others) / np.prod(node - others))
-    return np.array(rows)
+    others = [np.delete(nodes, i) for i in range(nodes.size)]
+    return np.array([_poly.polyfromroots(rest) / np.prod(node - rest) for node, rest in zip(nodes, others)])
 
 
 #: Interior interval [i, i+1] with u = s - i, stencil i-1 .. i+2 (rows r = -1..2).
@@ -206,18 +202,18 @@ def check_band(lo, hi, step=None, *, what: str = "band", positive: bool = False)
         ``hi < lo``, ``step <= 0``, or more than :data:`MAX_BAND_FREQUENCIES`
         grid points.
     """
-    values: dict[str, Any] = {}  # float, or None for an absent step
-    for name, value in {"lo": lo, "hi": hi, "step": step}.items():
-        if name == "step" and value is None:
-            values[name] = None
-            continue
+
+    def number(name: str, value) -> float:
         try:
-            values[name] = math.nan if isinstance(value, (bool, str)) else float(value)
+            x = math.nan if isinstance(value, (bool, str)) else float(value)
         except (TypeError, ValueError, OverflowError):
-            values[name] = math.nan
-        if not math.isfinite(values[name]):
+            x = math.nan
+        if not math.isfinite(x):
             raise BandError(f"{what}: {name} = {value!r} is not a finite number (rad/s)")
-    lo, hi, step = values["lo"], values["hi"], values["step"]
+        return x
+
+    lo, hi = number("lo", lo), number("hi", hi)
+    step = None if step is None else number("step", step)
     if lo < 0 or (positive and lo == 0):
         raise BandError(f"{what}: lo = {lo:g} rad/s must be {'positive' if positive else 'non-negative'}")
     if hi < lo:
@@ -286,14 +282,11 @@ def _moments(theta):
     s = np.arange(nterms)[:, None]
     fact = np.cumprod(np.r_[1.0, np.arange(1.0, nterms)])[:, None]
     coef = 1.0 / (fact * (np.arange(4)[None, :] + s + 1))  # (S, 4)
-    allsmall = bool(small.all())
-    zs = (z if allsmall else z[small])[:, None]
+    zs = z[small][:, None]
     acc = np.zeros((zs.shape[0], 4), dtype=complex)
     for row in coef[::-1]:
         acc *= zs
         acc += row
-    if allsmall:
-        return acc
     mu[small] = acc
     # Closed form: mu_0 = (e^z - 1) / z, mu_q = (e^z - q mu_{q-1}) / z; the
     # recursion amplifies errors by at most q/|z| <= 3 per step here.
@@ -586,10 +579,8 @@ def finite_fourier_transform(x, dt, omega, *, method="auto", end_correction="cub
     """
     x2, n, dt, omega = _check(dt, omega, end_correction, method, x=x)
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
-    if _choose_method(n, omega, method) == "czt":
-        out = weight[:, None] * _czt_forward(x2, theta)
-    else:
-        out = weight[:, None] * _direct(x2, theta, n, adjoint=False)
+    czt = _choose_method(n, omega, method) == "czt"
+    out = weight[:, None] * (_czt_forward(x2, theta) if czt else _direct(x2, theta, n, adjoint=False))
     nend = alpha.shape[1]
     if nend:
         out += alpha @ x2[:nend] + tail @ x2[::-1][:nend]
@@ -620,9 +611,8 @@ def transform_weights(n, dt, omega, *, end_correction="cubic"):
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
     mat = _kernel(theta, 0, n, -1.0) * weight[:, None]
     nend = alpha.shape[1]
-    if nend:
-        mat[:, :nend] += alpha
-        mat[:, ::-1][:, :nend] += tail
+    mat[:, :nend] += alpha
+    mat[:, ::-1][:, :nend] += tail
     return mat * dt
 
 
@@ -785,10 +775,8 @@ def leading_transform(weights, n, dt, omega, *, end_correction="cubic"):
     L = w.size
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
     nend = alpha.shape[1]
-    if L > n - nend:
-        x = np.zeros(n)
-        x[:L] = w
-        return finite_fourier_transform(x, dt, omega, end_correction=end_correction)
+    if L > n - nend:  # the leading samples reach the end-corrected ones: the full transform
+        return finite_fourier_transform(np.r_[w, np.zeros(n - L)], dt, omega, end_correction=end_correction)
     out = weight * (_kernel(theta, 0, L, -1.0) @ w)
     k = min(L, nend)
     out += alpha[:, :k] @ w[:k]
@@ -826,13 +814,11 @@ def fourier_adjoint(y, n, dt, omega, *, method="auto", end_correction="cubic"):
         raise BandError(f"y must be finite, of shape ({omega.size},) or ({omega.size}, k); got shape {y.shape}")
     y2 = y.reshape(omega.size, -1).astype(complex)
     theta, weight, alpha, tail = _setup(n, dt, omega, end_correction)
-    if _choose_method(n, omega, method) == "czt":
-        out = _czt_adjoint(weight[:, None] * y2, theta, n)
-    else:
-        out = _direct(weight[:, None] * y2, theta, n, adjoint=True)
+    czt = _choose_method(n, omega, method) == "czt"
+    wy = weight[:, None] * y2
+    out = _czt_adjoint(wy, theta, n) if czt else _direct(wy, theta, n, adjoint=True)
     nend = alpha.shape[1]
-    if nend:
-        out[:nend] += alpha.conj().T @ y2
-        out[::-1][:nend] += tail.conj().T @ y2
+    out[:nend] += alpha.conj().T @ y2
+    out[::-1][:nend] += tail.conj().T @ y2
     out *= dt
     return out[:, 0] if y.ndim == 1 else out

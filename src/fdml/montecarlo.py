@@ -637,32 +637,24 @@ def _sim_settings(truth, maneuver, duration, dt, amplitude) -> dict[str, Any]:
 
 def _collect(rows, n: int, p: int) -> dict:
     """The trials' rows as the result's arrays (a failed trial leaves NaN and its error)."""
-    est = np.full((n, p), math.nan)
-    se = np.full((n, p), math.nan)
-    conv = np.zeros(n, bool)
-    iters = np.zeros(n, int)
-    secs = np.full(n, math.nan)
+    # the result's field -> (the row's key, the array over runs)
+    arrays = {
+        "estimates": ("values", np.full((n, p), math.nan)),
+        "stderr": ("stderr", np.full((n, p), math.nan)),
+        "converged": ("converged", np.zeros(n, bool)),
+        "iterations": ("iterations", np.zeros(n, int)),
+        "fit_seconds": ("elapsed", np.full(n, math.nan)),
+    }
     errors: dict[int, str] = {}
     warned: dict[int, tuple] = {}
     with contextlib.closing(rows):  # at once on any exception (a signal included): the workers end with the run
         for row in rows:
             i = row["index"]
             if row["ok"]:
-                est[i] = row["values"]
-                se[i] = row["stderr"]
-                conv[i] = row["converged"]
-                iters[i] = row["iterations"]
-                secs[i] = row["elapsed"]
+                for key, a in arrays.values():
+                    a[i] = row[key]
             else:
                 errors[i] = row["error"]
             if row.get("warnings"):
                 warned[i] = tuple(row["warnings"])
-    return {
-        "estimates": est,
-        "stderr": se,
-        "converged": conv,
-        "iterations": iters,
-        "fit_seconds": secs,
-        "errors": errors,
-        "warnings": warned,
-    }
+    return {**{name: a for name, (_, a) in arrays.items()}, "errors": errors, "warnings": warned}

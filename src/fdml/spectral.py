@@ -245,7 +245,7 @@ class FrequencyData(Codec):
         "end_offset": floats(None),
         "outputs": Spec(_outputs_field),
         "edges": floats(None),
-        "edge_steps": Spec(lambda f, k, done: _edge_steps_field(f, k, done)),
+        "edge_steps": Spec(_edge_steps_field),
         "record": nested(Record, none=True),
     }
     json_source = "spectra"
@@ -397,9 +397,7 @@ def _noise_gram(n, dt, omega, end_correction, L, ones):
     l2 = 1.0 / L  # |l|^2
     Psi = GH - np.outer(f, b.conj()) - np.outer(b, f.conj()) + l2 * np.outer(b, b.conj())
     Phi = GT - np.outer(f, b) - np.outer(b, f) + l2 * np.outer(b, b)
-    Psi.setflags(write=False)
-    Phi.setflags(write=False)
-    return Psi, Phi
+    return fourier._read_only(Psi, Phi)
 
 
 def spectra(
@@ -468,10 +466,9 @@ def spectra(
     rec = record.remove_trim(trim, window=trim_window)
     outs = np.column_stack([rec[k] for k in rows])
     inputs = INPUTS if rec.has(GUST) else INPUTS[:1]
-    ins = np.column_stack([rec[k] for k in inputs])
-    ones = np.ones(rec.n)
+    ins = [rec[k] for k in inputs]
     X = fourier.finite_fourier_transform(
-        np.column_stack([outs, ins, ones]), rec.dt, omega, method=method, end_correction=end_correction
+        np.column_stack([outs, *ins, np.ones(rec.n)]), rec.dt, omega, method=method, end_correction=end_correction
     )
     steps = fourier.step_edges(rec["de"])
     peak = np.max(np.abs(outs), axis=0)
