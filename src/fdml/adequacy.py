@@ -433,7 +433,7 @@ class _Context(ScreenContext):
         base = self._base
         A = self._measure(
             [
-                [_stack_parts([e for c in changes for e in c[r][i]], base[r][i]) for i in range(3)]
+                [_stack_grid([e for c in changes for e in c[r][i]], base[r][i]) for i in range(3)]
                 for r in range(len(base))
             ]
         )
@@ -540,18 +540,13 @@ def _grid_call(eff, s: np.ndarray, p: dict, base: tuple, root) -> tuple:
     return res
 
 
-def _stack_parts(cols: list, like: np.ndarray) -> np.ndarray:
-    """Response changes of one part (G, H or P) stacked on a leading axis; unchanged ones (None) are zero.
+def _stack_grid(cols: list, like: np.ndarray, g: int = 1) -> np.ndarray:
+    """Response changes of one part (G, H or P) of q parameters stacked on a leading axis.
 
-    A part no parameter changes is a zero of leading size 1 (it broadcasts in the measurement).
+    Each change is (g, m, ...) over a grid of g values (``like``'s shape alone without one); stacked as
+    (g q, m, ...), grid value first.  Unchanged ones (None) are zero; a part no parameter changes is a
+    zero of leading size 1 (it broadcasts in the measurement).
     """
-    if all(c is None for c in cols):
-        return np.zeros((1,) + like.shape, complex)
-    return np.stack([np.zeros(like.shape, complex) if c is None else c for c in cols])
-
-
-def _stack_grid(cols: list, like: np.ndarray, g: int) -> np.ndarray:
-    """Grid changes (g, m, ...) of q parameters as (g q, m, ...), grid value first; zero of size 1 if none."""
     if all(c is None for c in cols):
         return np.zeros((1,) + like.shape, complex)
     out = np.zeros((g, len(cols)) + like.shape, complex)
