@@ -46,7 +46,6 @@ both use).
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 import shlex
 import time
@@ -427,9 +426,8 @@ class _Context(ScreenContext):
         """Every candidate's dy/d eta from one measurement of all their response changes."""
         tried = [attempt(self._changes, *c) for c in cands]
         changes = [t for t in tried if not isinstance(t, Exception)]
-        out = [t if isinstance(t, Exception) else len(c[1]) for t, c in zip(tried, cands)]  # columns, or why not
         if not changes:
-            return out
+            return tried
         base = self._base
         A = self._measure(
             [
@@ -437,9 +435,9 @@ class _Context(ScreenContext):
                 for r in range(len(base))
             ]
         )
-        cols = np.cumsum([0] + [q for q in out if not isinstance(q, Exception)])
-        blocks = iter(A[..., a:b] for a, b in itertools.pairwise(cols))
-        return [q if isinstance(q, Exception) else next(blocks) for q in out]
+        q = [len(c[1]) for t, c in zip(tried, cands) if not isinstance(t, Exception)]  # columns per candidate
+        blocks = iter(np.split(A, np.cumsum(q)[:-1], axis=-1))
+        return [t if isinstance(t, Exception) else next(blocks) for t in tried]
 
     def _changes(self, model, names, steps, one_sided) -> list:
         """Per record and part (G, H, P), the response change per tested parameter (None: unchanged)."""

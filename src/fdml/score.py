@@ -233,11 +233,8 @@ def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> 
     if q == 1:
         p = plist[0]
         null = effect.nulls(model)[p.name]
-        try:
-            aug = screen_res.model if screen_res is not None and screen_res.model is not None else effect.augment(model)
-            bounds = aug.parameters[p.name]
-        except FdmlError:  # pragma: no cover - augment validated before
-            bounds = p
+        aug = screen_res.model if screen_res is not None and screen_res.model is not None else effect.augment(model)
+        bounds = aug.parameters[p.name]  # every caller has augmented the model already
         if null <= bounds.lower or null >= bounds.upper:
             return "chibar", 1
     return "chi2", q

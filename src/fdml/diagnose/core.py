@@ -655,7 +655,6 @@ def _turbulence(su: _Setup, cur, gust_eff, K0, skipped_all: dict):
     """Unmeasured turbulence, tested after the deterministic effects: (GustTest or None, significant)."""
     if gust_eff is None:
         return None, False
-    gust = None
     why = gust_eff.applicable(cur.model, inputs=su.data.inputs, outputs=su.channels)
     if why is None and len(su.channels) < 2:
         why = "needs at least two output channels"
@@ -666,7 +665,6 @@ def _turbulence(su: _Setup, cur, gust_eff, K0, skipped_all: dict):
             why = f"cannot be evaluated: {exc}"
     if why is not None:
         skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False, reason=why)
-    if gust is None:
         return None, False
     return gust, min(1.0, gust.p * max(K0 or 1, 1)) < su.alpha
 
@@ -979,16 +977,15 @@ def _derivative_table(raw, rec) -> dict:
     """Per free base parameter: the base model's estimate as given and the recommended one, with standard errors."""
     if rec is None:
         return {}
-    out = {}
-    for p in root_model(rec.model).parameters:
-        n = p.name
-        if not (p.free and p.role is Role.AERO and n in rec.params):
-            continue
-        row = {"recommended": [rec.params[n], rec.errors.get(n)]}
-        if raw is not None and n in raw.params:
-            row["base"] = [raw.params[n], raw.stderr.get(n)]
-        out[n] = row
-    return out
+    aero = [p.name for p in root_model(rec.model).parameters if p.free and p.role is Role.AERO]
+    return {
+        n: {
+            "recommended": [rec.params[n], rec.errors.get(n)],
+            **({"base": [raw.params[n], raw.stderr.get(n)]} if raw is not None and n in raw.params else {}),
+        }
+        for n in aero
+        if n in rec.params
+    }
 
 
 def _unit(c: Candidate, name: str) -> str:
