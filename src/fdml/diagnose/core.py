@@ -666,6 +666,8 @@ def _turbulence(su: _Setup, cur, gust_eff, K0, skipped_all: dict):
     if why is not None:
         skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False, reason=why)
         return None, False
+    if gust is None:  # no band holds two samples
+        return None, False
     return gust, min(1.0, gust.p * max(K0 or 1, 1)) < su.alpha
 
 
