@@ -389,7 +389,6 @@ class _BaseFit:
     """The fit as the diagnosis's score screen reads it (model, theta, residual V, band covariances Rs)."""
 
     model: object
-    names: tuple
     theta: np.ndarray
     V: np.ndarray
     Rs: list
@@ -579,7 +578,7 @@ def _context(prob, model, theta, V, R, A=None, prepare=None):
     rows = np.concatenate([np.full(d.m, i) for i, d in enumerate(prob.data)])
     # the whitener of R K_i divides record i's rows by sqrt(K_i): the LM sum then counts independent frequencies
     theta = np.asarray(theta, float)
-    base = _BaseFit(model, tuple(prob.names), theta, V, [R * k for k in K], prob, dict(zip(prob.names, theta.tolist())))
+    base = _BaseFit(model, theta, V, [R * k for k in K], prob, dict(zip(prob.names, theta.tolist())))
     floor = 1.0 / np.sqrt(np.maximum(np.real(np.diag(R)), 1e-300))
     fw = floor[None, :] / np.sqrt(K[rows])[:, None]  # diagonal white-noise floors for aliasing and the MDE
     options = {
@@ -590,8 +589,7 @@ def _context(prob, model, theta, V, R, A=None, prepare=None):
         "input_bias": bool(prob.input_bias),
         "input_edges": prob.input_edges,
     }
-    ctx = _Context(base, rows, 1, prob.data, options, fw, sensitivities=A, prepare=prepare)
-    return ctx, K[rows]
+    return _Context(base, rows, 1, prob.data, options, fw, sensitivities=A, prepare=prepare), K[rows]
 
 
 def _logdet_weighted(r: np.ndarray, Kr: np.ndarray) -> tuple[np.ndarray, float]:
@@ -627,13 +625,11 @@ def _one_step_lrs(ctx, screens: list, Kr: np.ndarray) -> np.ndarray:
 def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
     """(tests as dicts, skipped) for every applicable deterministic effect."""
     ctx, Kr = _context(prob, model, theta, V, R, A)
-    inputs = tuple(prob.data[0].inputs)
-    outputs = tuple(ctx.options["outputs"])
     usable, skipped = [], []
     for eff in library if library is not None else registered_effects():
         if eff.kind != "deterministic":
             continue
-        why = eff.applicable(model, inputs=inputs, outputs=outputs)
+        why = eff.applicable(model, inputs=tuple(prob.data[0].inputs), outputs=tuple(ctx.options["outputs"]))
         (skipped.append((eff.key, why)) if why else usable.append(eff))
     ctx.family_size = max(len(usable), 1)
     band = (float(min(d.omega[0] for d in prob.data)), float(max(d.omega[-1] for d in prob.data)))
