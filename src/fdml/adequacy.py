@@ -673,8 +673,7 @@ def _independent(d) -> np.ndarray:
 
 
 def _bands(n: int) -> list:
-    nb = max(min(MAX_BANDS, n // MIN_BAND), 1)
-    return np.array_split(np.arange(n), nb)
+    return np.array_split(np.arange(n), max(min(MAX_BANDS, n // MIN_BAND), 1))
 
 
 def _residual_checks(prob, V) -> tuple[tuple, tuple]:

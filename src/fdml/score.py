@@ -321,8 +321,7 @@ def whitener(Rs) -> list[np.ndarray]:
     list of numpy.ndarray
         The whitening matrix L of each band, (n_out, n_out).
     """
-    Ws = [np.linalg.inv(R) for R in Rs]
-    return [np.linalg.cholesky(0.5 * (W + W.conj().T)).conj().T for W in Ws]
+    return [np.linalg.cholesky(0.5 * (W + W.conj().T)).conj().T for W in map(np.linalg.inv, Rs)]
 
 
 # --- the screen ----------------------------------------------------------------------------------

@@ -801,25 +801,14 @@ def recommended_fit(
         sv = start.parameters.values.items()
         model = model.with_values({k: v for k, v in sv if k in model.parameters and math.isfinite(v)})
 
-    def refit(values=None, start_model=model, adequacy=True):
-        m = start_model.with_values(values) if values else start_model
-        return fdml_fit(
-            list(data.spectra),
-            m,
-            outputs=outputs,
-            boundary=boundary,
-            biases=biases,
-            input_edges=input_edges,
-            check=False,
-            adequacy=adequacy,
-        )
-
-    try:  # the diagnosis has checked the records
+    opts = {"outputs": outputs, "boundary": boundary, "biases": biases, "input_edges": input_edges}
+    refit = functools.partial(fdml_fit, list(data.spectra), check=False, **opts)  # the diagnosis checked the records
+    try:
         with recording(reemit=False):  # kept in res.warnings
-            res = reworded(refit(), in_diagnosis=True)  # its advice does not send the user to this diagnosis
+            res = reworded(refit(model), in_diagnosis=True)  # its advice does not send the user to this diagnosis
             if settled:  # the two refits' warnings repeat the fit's
                 res = with_known_uncertainty(
-                    res, lambda v: refit(v, res.model, adequacy=False), {s.param: s.stderr for s in settled}
+                    res, lambda v: refit(res.model.with_values(v), adequacy=False), {s.param: s.stderr for s in settled}
                 )
         return res
     except FdmlError as exc:
