@@ -46,7 +46,6 @@ both use).
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 import shlex
 import time
@@ -390,7 +389,6 @@ class _BaseFit:
     """The fit as the diagnosis's score screen reads it (model, theta, residual V, band covariances Rs)."""
 
     model: object
-    names: tuple
     theta: np.ndarray
     V: np.ndarray
     Rs: list
@@ -427,19 +425,18 @@ class _Context(ScreenContext):
         """Every candidate's dy/d eta from one measurement of all their response changes."""
         tried = [attempt(self._changes, *c) for c in cands]
         changes = [t for t in tried if not isinstance(t, Exception)]
-        out = [t if isinstance(t, Exception) else len(c[1]) for t, c in zip(tried, cands)]  # columns, or why not
         if not changes:
-            return out
+            return tried
         base = self._base
         A = self._measure(
             [
-                [_stack_parts([e for c in changes for e in c[r][i]], base[r][i]) for i in range(3)]
+                [_stack_grid([e for c in changes for e in c[r][i]], base[r][i]) for i in range(3)]
                 for r in range(len(base))
             ]
         )
-        cols = np.cumsum([0] + [q for q in out if not isinstance(q, Exception)])
-        blocks = iter(A[..., a:b] for a, b in itertools.pairwise(cols))
-        return [q if isinstance(q, Exception) else next(blocks) for q in out]
+        q = [len(c[1]) for t, c in zip(tried, cands) if not isinstance(t, Exception)]  # columns per candidate
+        blocks = iter(np.split(A, np.cumsum(q)[:-1], axis=-1))
+        return [t if isinstance(t, Exception) else next(blocks) for t in tried]
 
     def _changes(self, model, names, steps, one_sided) -> list:
         """Per record and part (G, H, P), the response change per tested parameter (None: unchanged)."""
@@ -540,18 +537,13 @@ def _grid_call(eff, s: np.ndarray, p: dict, base: tuple, root) -> tuple:
     return res
 
 
-def _stack_parts(cols: list, like: np.ndarray) -> np.ndarray:
-    """Response changes of one part (G, H or P) stacked on a leading axis; unchanged ones (None) are zero.
+def _stack_grid(cols: list, like: np.ndarray, g: int = 1) -> np.ndarray:
+    """Response changes of one part (G, H or P) of q parameters stacked on a leading axis.
 
-    A part no parameter changes is a zero of leading size 1 (it broadcasts in the measurement).
+    Each change is (g, m, ...) over a grid of g values (``like``'s shape alone without one); stacked as
+    (g q, m, ...), grid value first.  Unchanged ones (None) are zero; a part no parameter changes is a
+    zero of leading size 1 (it broadcasts in the measurement).
     """
-    if all(c is None for c in cols):
-        return np.zeros((1,) + like.shape, complex)
-    return np.stack([np.zeros(like.shape, complex) if c is None else c for c in cols])
-
-
-def _stack_grid(cols: list, like: np.ndarray, g: int) -> np.ndarray:
-    """Grid changes (g, m, ...) of q parameters as (g q, m, ...), grid value first; zero of size 1 if none."""
     if all(c is None for c in cols):
         return np.zeros((1,) + like.shape, complex)
     out = np.zeros((g, len(cols)) + like.shape, complex)
@@ -586,7 +578,7 @@ def _context(prob, model, theta, V, R, A=None, prepare=None):
     rows = np.concatenate([np.full(d.m, i) for i, d in enumerate(prob.data)])
     # the whitener of R K_i divides record i's rows by sqrt(K_i): the LM sum then counts independent frequencies
     theta = np.asarray(theta, float)
-    base = _BaseFit(model, tuple(prob.names), theta, V, [R * k for k in K], prob, dict(zip(prob.names, theta.tolist())))
+    base = _BaseFit(model, theta, V, [R * k for k in K], prob, dict(zip(prob.names, theta.tolist())))
     floor = 1.0 / np.sqrt(np.maximum(np.real(np.diag(R)), 1e-300))
     fw = floor[None, :] / np.sqrt(K[rows])[:, None]  # diagonal white-noise floors for aliasing and the MDE
     options = {
@@ -597,8 +589,7 @@ def _context(prob, model, theta, V, R, A=None, prepare=None):
         "input_bias": bool(prob.input_bias),
         "input_edges": prob.input_edges,
     }
-    ctx = _Context(base, rows, 1, prob.data, options, fw, sensitivities=A, prepare=prepare)
-    return ctx, K[rows]
+    return _Context(base, rows, 1, prob.data, options, fw, sensitivities=A, prepare=prepare), K[rows]
 
 
 def _logdet_weighted(r: np.ndarray, Kr: np.ndarray) -> tuple[np.ndarray, float]:
@@ -634,13 +625,11 @@ def _one_step_lrs(ctx, screens: list, Kr: np.ndarray) -> np.ndarray:
 def _test_effects(prob, model, theta, V, R, alpha: float, library=None, A=None):
     """(tests as dicts, skipped) for every applicable deterministic effect."""
     ctx, Kr = _context(prob, model, theta, V, R, A)
-    inputs = tuple(prob.data[0].inputs)
-    outputs = tuple(ctx.options["outputs"])
     usable, skipped = [], []
     for eff in library if library is not None else registered_effects():
         if eff.kind != "deterministic":
             continue
-        why = eff.applicable(model, inputs=inputs, outputs=outputs)
+        why = eff.applicable(model, inputs=tuple(prob.data[0].inputs), outputs=tuple(ctx.options["outputs"]))
         (skipped.append((eff.key, why)) if why else usable.append(eff))
     ctx.family_size = max(len(usable), 1)
     band = (float(min(d.omega[0] for d in prob.data)), float(max(d.omega[-1] for d in prob.data)))
@@ -684,8 +673,7 @@ def _independent(d) -> np.ndarray:
 
 
 def _bands(n: int) -> list:
-    nb = max(min(MAX_BANDS, n // MIN_BAND), 1)
-    return np.array_split(np.arange(n), nb)
+    return np.array_split(np.arange(n), max(min(MAX_BANDS, n // MIN_BAND), 1))
 
 
 def _residual_checks(prob, V) -> tuple[tuple, tuple]:

@@ -233,11 +233,8 @@ def null_kind(effect: Effect, model, screen_res: ScreenResult | None = None) -> 
     if q == 1:
         p = plist[0]
         null = effect.nulls(model)[p.name]
-        try:
-            aug = screen_res.model if screen_res is not None and screen_res.model is not None else effect.augment(model)
-            bounds = aug.parameters[p.name]
-        except FdmlError:  # pragma: no cover - augment validated before
-            bounds = p
+        aug = screen_res.model if screen_res is not None and screen_res.model is not None else effect.augment(model)
+        bounds = aug.parameters[p.name]  # every caller has augmented the model already
         if null <= bounds.lower or null >= bounds.upper:
             return "chibar", 1
     return "chi2", q
@@ -324,8 +321,7 @@ def whitener(Rs) -> list[np.ndarray]:
     list of numpy.ndarray
         The whitening matrix L of each band, (n_out, n_out).
     """
-    Ws = [np.linalg.inv(R) for R in Rs]
-    return [np.linalg.cholesky(0.5 * (W + W.conj().T)).conj().T for W in Ws]
+    return [np.linalg.cholesky(0.5 * (W + W.conj().T)).conj().T for W in map(np.linalg.inv, Rs)]
 
 
 # --- the screen ----------------------------------------------------------------------------------
@@ -512,23 +508,6 @@ class ScreenContext:
         """
         return self._real_cols(A * self.fw[:, :, None])  # row n, output j divided by its floor
 
-    def pair(self, A: np.ndarray) -> tuple:
-        """(:meth:`white`, :meth:`floor`) of A.
-
-        Parameters
-        ----------
-        A : numpy.ndarray
-            Sensitivities d(prediction)/d(eta), shape (N, n_out, q).
-
-        Returns
-        -------
-        white : numpy.ndarray
-            Likelihood-whitened columns, (M, q).
-        floor : numpy.ndarray
-            Floor-whitened columns, (M, q).
-        """
-        return self.white(A), self.floor(A)
-
     def candidate_sensitivities(self, model, names, steps, one_sided) -> np.ndarray:
         """Sensitivities d(prediction)/d(eta) at the model's values, by central (or forward) differences.
 
@@ -562,29 +541,6 @@ class ScreenContext:
                 tm[i] -= h
             cols.append((_stack(prob, tp) - _stack(prob, tm)) / (h if os_ else 2 * h))
         return np.stack(cols, axis=-1)
-
-    def candidate_jacobian(self, model, names, steps, one_sided) -> tuple:
-        """(likelihood-whitened, floor-whitened) real-stacked d(prediction)/d(eta) at the model's values.
-
-        Parameters
-        ----------
-        model : Model
-            The augmented model at the candidate's null values.
-        names : list of str
-            The candidate parameters eta.
-        steps : sequence of float
-            Difference step of each parameter, in its unit.
-        one_sided : sequence of bool
-            Forward differences for each parameter whose null is at a bound.
-
-        Returns
-        -------
-        white : numpy.ndarray
-            Likelihood-whitened columns, (M, q).
-        floor : numpy.ndarray
-            Floor-whitened columns, (M, q).
-        """
-        return self.pair(self.candidate_sensitivities(model, names, steps, one_sided))
 
     def candidate_sensitivities_many(self, cands) -> list:
         """Compute :meth:`candidate_sensitivities` of each ``(model, names, steps, one_sided)``.
@@ -691,8 +647,8 @@ def _blocks(n: int, per_value: int) -> list:
 
 def _steps(test, nulls, aug) -> tuple[list, list]:
     """Finite-difference steps (typical sizes) and one-sidedness (null on the lower bound) per tested parameter."""
-    at_lo = [nulls[p.name] <= p.lower or aug.parameters[p.name].lower >= nulls[p.name] for p in test]
-    return [p.typical() for p in test], [bool(x) for x in at_lo]
+    one_sided = [bool(nulls[p.name] <= p.lower or aug.parameters[p.name].lower >= nulls[p.name]) for p in test]
+    return [p.typical() for p in test], one_sided
 
 
 @dataclass(frozen=True)
@@ -784,8 +740,8 @@ def screen_all(ctx: ScreenContext, effects, *, level: float, band: tuple) -> lis
     good = [(i, A) for i, A in sens.items() if not isinstance(A, Exception)]
     for q in sorted({A.shape[-1] for _, A in good}):
         group = [(i, A) for i, A in good if A.shape[-1] == q]
-        Je, Jf = ctx.pair(np.concatenate([A for _, A in group], axis=-1))
-        Je, Jf = Je.reshape(-1, len(group), q), Jf.reshape(-1, len(group), q)
+        stacked = np.concatenate([A for _, A in group], axis=-1)
+        Je, Jf = ctx.white(stacked).reshape(-1, len(group), q), ctx.floor(stacked).reshape(-1, len(group), q)
         lms, etas = _score(ctx, Je)
         infos, aliases = _floor_stats(ctx, Jf)
         for j, (i, _) in enumerate(group):
@@ -853,9 +809,8 @@ def _result(ctx: ScreenContext, c: _Candidate, stats: tuple, level: float) -> Sc
 
 def _unidentifiable(aliasing: dict, mde: dict, test, nulls: dict, grid: bool) -> str | None:
     """Why these data cannot test the candidate (aliased, or an MDE beyond the plausible range), else None."""
-    worst = max(aliasing.values()) if aliasing else 0.0
-    if worst > ALIAS_LIMIT:
-        n_ = max(aliasing, key=lambda n: aliasing[n])
+    n_ = max(aliasing, key=aliasing.__getitem__, default=None)
+    if n_ is not None and aliasing[n_] > ALIAS_LIMIT:
         return (
             f"aliased: {100 * aliasing[n_]:.1f} % of the {n_} signature is absorbed by the base parameters "
             "with these inputs"

@@ -655,7 +655,6 @@ def _turbulence(su: _Setup, cur, gust_eff, K0, skipped_all: dict):
     """Unmeasured turbulence, tested after the deterministic effects: (GustTest or None, significant)."""
     if gust_eff is None:
         return None, False
-    gust = None
     why = gust_eff.applicable(cur.model, inputs=su.data.inputs, outputs=su.channels)
     if why is None and len(su.channels) < 2:
         why = "needs at least two output channels"
@@ -666,7 +665,8 @@ def _turbulence(su: _Setup, cur, gust_eff, K0, skipped_all: dict):
             why = f"cannot be evaluated: {exc}"
     if why is not None:
         skipped_all[gust_eff.key] = Candidate(gust_eff, gust_eff.key, identifiable=False, reason=why)
-    if gust is None:
+        return None, False
+    if gust is None:  # no band holds two samples
         return None, False
     return gust, min(1.0, gust.p * max(K0 or 1, 1)) < su.alpha
 
@@ -801,25 +801,14 @@ def recommended_fit(
         sv = start.parameters.values.items()
         model = model.with_values({k: v for k, v in sv if k in model.parameters and math.isfinite(v)})
 
-    def refit(values=None, start_model=model, adequacy=True):
-        m = start_model.with_values(values) if values else start_model
-        return fdml_fit(
-            list(data.spectra),
-            m,
-            outputs=outputs,
-            boundary=boundary,
-            biases=biases,
-            input_edges=input_edges,
-            check=False,
-            adequacy=adequacy,
-        )
-
-    try:  # the diagnosis has checked the records
+    opts = {"outputs": outputs, "boundary": boundary, "biases": biases, "input_edges": input_edges}
+    refit = functools.partial(fdml_fit, list(data.spectra), check=False, **opts)  # the diagnosis checked the records
+    try:
         with recording(reemit=False):  # kept in res.warnings
-            res = reworded(refit(), in_diagnosis=True)  # its advice does not send the user to this diagnosis
+            res = reworded(refit(model), in_diagnosis=True)  # its advice does not send the user to this diagnosis
             if settled:  # the two refits' warnings repeat the fit's
                 res = with_known_uncertainty(
-                    res, lambda v: refit(v, res.model, adequacy=False), {s.param: s.stderr for s in settled}
+                    res, lambda v: refit(res.model.with_values(v), adequacy=False), {s.param: s.stderr for s in settled}
                 )
         return res
     except FdmlError as exc:
@@ -979,16 +968,15 @@ def _derivative_table(raw, rec) -> dict:
     """Per free base parameter: the base model's estimate as given and the recommended one, with standard errors."""
     if rec is None:
         return {}
-    out = {}
-    for p in root_model(rec.model).parameters:
-        n = p.name
-        if not (p.free and p.role is Role.AERO and n in rec.params):
-            continue
-        row = {"recommended": [rec.params[n], rec.errors.get(n)]}
-        if raw is not None and n in raw.params:
-            row["base"] = [raw.params[n], raw.stderr.get(n)]
-        out[n] = row
-    return out
+    aero = [p.name for p in root_model(rec.model).parameters if p.free and p.role is Role.AERO]
+    return {
+        n: {
+            "recommended": [rec.params[n], rec.errors.get(n)],
+            **({"base": [raw.params[n], raw.stderr.get(n)]} if raw is not None and n in raw.params else {}),
+        }
+        for n in aero
+        if n in rec.params
+    }
 
 
 def _unit(c: Candidate, name: str) -> str:

@@ -352,7 +352,7 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
         confusion[case] = {v: conf.get(v, 0) for v in verdicts}
         errors = sum(1 for r in rs if r["verdict"] == "error")
         if case in NULLS:
-            k = sum(1 for r in rs if r["verdict"] not in ("none",))
+            k = sum(1 for r in rs if r["verdict"] != "none")
             nulls[case] = {
                 "n": n,
                 "false_alarms": k,
@@ -360,6 +360,20 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
                 "wilson95": wilson(k, n),
                 "fired": dict(Counter(r["verdict_key"] for r in rs if r["verdict"] != "none")),
                 "errors": errors,
+            }
+            continue
+        if case in OUT_OF_LIBRARY:
+            wrong_conf = sum(
+                1 for r, lab in zip(rs, labels) if r["verdict"] not in ("none", "error") and lab == "confirmed"
+            )
+            partial = sum(1 for r, lab in zip(rs, labels) if r["verdict"] == "none" or lab == "partial")
+            ool[case] = {
+                "n": n,
+                "confidently_wrong": wrong_conf / n,
+                "partial_or_none": partial / n,
+                "not_confirmed": 1 - wrong_conf / n,
+                "labels": dict(Counter(str(x) for x in labels)),
+                "verdicts": dict(Counter(r["verdict_key"] for r in rs)),
             }
             continue
         name = rs[0]["truth_name"]
@@ -371,7 +385,8 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
         ]
         shr = [r["shrink"] for r in top1 if r.get("shrink") is not None]
         lab_top = Counter(lab for r, lab in zip(rs, labels) if r["verdict"] == name)
-        entry = {
+        by_size = {size: [r for r in rs if r["size"] == size] for size in ("small", "large")}
+        eff[case] = {
             "n": n,
             "detected": len(det) / n,
             "top1": len(top1) / n,
@@ -382,32 +397,16 @@ def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
             "confirmed_when_top1": lab_top.get("confirmed", 0) / max(len(top1), 1),
             "labels_when_top1": dict(lab_top),
             "errors": errors,
+            "by_size": {
+                size: {
+                    "n": len(rr),
+                    "top1": sum(1 for r in rr if r["verdict"] == name) / len(rr),
+                    "detected": sum(1 for r in rr if r["verdict"] not in ("none", "error")) / len(rr),
+                }
+                for size, rr in by_size.items()
+                if rr
+            },
         }
-        by_size = {size: [r for r in rs if r["size"] == size] for size in ("small", "large")}
-        entry["by_size"] = {
-            size: {
-                "n": len(rr),
-                "top1": sum(1 for r in rr if r["verdict"] == name) / len(rr),
-                "detected": sum(1 for r in rr if r["verdict"] not in ("none", "error")) / len(rr),
-            }
-            for size, rr in by_size.items()
-            if rr
-        }
-        if case in OUT_OF_LIBRARY:
-            wrong_conf = sum(
-                1 for r, lab in zip(rs, labels) if r["verdict"] not in ("none", "error") and lab == "confirmed"
-            )
-            partial = sum(1 for r, lab in zip(rs, labels) if r["verdict"] in ("none",) or lab in ("partial",))
-            ool[case] = {
-                "n": n,
-                "confidently_wrong": wrong_conf / n,
-                "partial_or_none": partial / n,
-                "not_confirmed": 1 - wrong_conf / n,
-                "labels": dict(Counter(str(x) for x in labels)),
-                "verdicts": dict(Counter(r["verdict_key"] for r in rs)),
-            }
-            continue
-        eff[case] = entry
     overall_top1 = sum(v["top1"] * v["n"] for v in eff.values()) / max(sum(v["n"] for v in eff.values()), 1)
     return {
         "threshold": threshold,
