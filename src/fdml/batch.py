@@ -506,11 +506,6 @@ def canonical_json(obj) -> str:
         raise FdmlError(f"batch options must be plain data (numbers, strings, lists, dicts); {exc}") from None
 
 
-def _file_hash(path: str) -> str:
-    with open(path, "rb") as fh:
-        return hashlib.file_digest(fh, "sha256").hexdigest()
-
-
 def check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
     """``fit_kwargs`` as a dict of :func:`fdml.fit` options, checked once before any task runs.
 
@@ -577,11 +572,6 @@ def error_row(task: Mapping, exc: BaseException | str) -> dict:
     return {**_base_row(task), "error": exc if isinstance(exc, str) else one_line(exc)}
 
 
-def _result_paths(task: Mapping) -> tuple[Path, Path]:
-    d = Path(task["out_dir"]) / "results"
-    return d / f"{task['key']}.json", d / f"{task['key']}.error.json"
-
-
 def _reusable(path: Path, input_hash: str) -> dict | None:
     try:
         d = _loads(path.read_text())
@@ -603,13 +593,15 @@ def run_task(task: Mapping) -> dict:
     from . import __version__
 
     t_start = time.perf_counter()
-    res_path, err_path = _result_paths(task)
+    res_path, err_path = (Path(task["out_dir"]) / "results" / f"{task['key']}{end}" for end in (".json", ".error.json"))
     row = _base_row(task)
     key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_key"], "fdml": __version__}
     if task.get("read"):  # absent when empty: the hash of a batch without reading options is unchanged
         key["read"] = task["read"]
     try:
-        input_hash = hashlib.sha256((_file_hash(task["path"]) + canonical_json(key)).encode()).hexdigest()
+        with open(task["path"], "rb") as fh:
+            file_hash = hashlib.file_digest(fh, "sha256").hexdigest()
+        input_hash = hashlib.sha256((file_hash + canonical_json(key)).encode()).hexdigest()
     except OSError as exc:
         from .errors import RecordError
 
@@ -827,7 +819,7 @@ class _RowSpool:
         self.flagged = bytearray(n)  # rows whose data check found something
         self.reused = bytearray(n)
         self.names: dict[str, None] = {}  # ordered union of parameter names
-        self.warnings: dict[str, int] = {}  # warnings by category, over every record
+        self.warnings: Counter = Counter()  # warnings by category, over every record
 
     def add(self, row: dict) -> bool:
         """Store ``row``; True if its record had no row yet."""
@@ -835,8 +827,8 @@ class _RowSpool:
         row["warnings"] = _row_warnings(row.get("warnings"))
         self.fh.seek(0, os.SEEK_END)
         first = self.offsets[i] < 0
-        for w in row["warnings"] if first else ():
-            self.warnings[w["category"]] = self.warnings.get(w["category"], 0) + 1
+        if first:
+            self.warnings.update(w["category"] for w in row["warnings"])
         self.offsets[i] = self.fh.tell()
         self.fh.write(_dumps(row, compact=True).encode() + b"\n")
         self.failed[i] = row["status"] != "ok"

@@ -487,11 +487,6 @@ def _ends(d) -> np.ndarray:
     return out
 
 
-def _shifts(r: _Record, lags: np.ndarray) -> list:
-    """exp(s tau) of each output's lag, shape (G, m), or None where no hypothesis lags it."""
-    return [np.exp(r.s[None, :] * lags[:, j : j + 1]) if np.any(lags[:, j]) else None for j in range(3)]
-
-
 def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scales: np.ndarray):
     """The spectra with sensor terms undone, for a batch of G hypotheses: alpha at the accelerometer's
     station, q, a_z, each of shape (G, m).  ``lags``, ``scales``: (G, 3); ``offset``: (G,), m.
@@ -501,7 +496,8 @@ def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scale
     measured ends (:attr:`_Record.ends`) for x(0) and x(T): known values, not free coefficients, which
     near tau = 0 would fit two directions of noise per lagged channel.
     """
-    shifts = _shifts(r, lags)
+    # exp(s tau) of each output's lag, shape (G, m), or None where no hypothesis lags it
+    shifts = [np.exp(r.s[None, :] * lags[:, j : j + 1]) if np.any(lags[:, j]) else None for j in range(3)]
     eT = np.exp(-r.s * r.T)
 
     def undo(x, j):  # the lag (with its record ends) and the scale of output j undone
