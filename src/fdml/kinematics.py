@@ -573,13 +573,13 @@ class _Identity:
         return {"kappa_alpha": (float(est[0]), float(se[0])), "kappa_az": (float(est[1]), float(se[1]))}
 
 
-def _identity(spectra, U: float, t: SensorTerms | None = None) -> _Identity:
+def _identity(spectra, U: float, t: SensorTerms) -> _Identity:
     """The identity with its equation-error variance v = a + b omega^2 estimated at the terms ``t``."""
     recs = tuple(_records(spectra))
     c = G0 / float(U)
     flat = _Identity(recs, c, tuple(np.ones(r.s.size) for r in recs), tuple(_basis(r, np.ones(r.s.size)) for r in recs))
     ws = []
-    for r, e in zip(recs, flat.errors([t or SensorTerms()])):
+    for r, e in zip(recs, flat.errors([t])):
         m = r.s.size
         v = _variance(np.abs(r.s) ** 2, e[0, :m] ** 2 + e[0, m:] ** 2)
         ws.append(1.0 / np.sqrt(v))
