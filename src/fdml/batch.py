@@ -408,10 +408,6 @@ def _expand(src) -> list[tuple[str, float | None, float | None, str | None]]:
     return [(str(f.absolute()), None, None, None) for f in files]
 
 
-def _safe(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._@+-]", "_", name).lstrip(".") or "record"
-
-
 def collect_sources(sources) -> list[BatchItem]:
     """Expand ``sources`` into batch items with unique keys, in order.
 
@@ -443,7 +439,7 @@ def collect_sources(sources) -> list[BatchItem]:
             name = Path(path).stem
             if t0 is not None or t1 is not None:
                 name += f"@{'' if t0 is None else f'{t0:g}'}-{'' if t1 is None else f'{t1:g}'}"
-        keys.append(_safe(name))
+        keys.append(re.sub(r"[^A-Za-z0-9._@+-]", "_", name).lstrip(".") or "record")  # a safe file name
     count = Counter(keys)
     items = []
     for (path, t0, t1), k in zip(entries, keys):
@@ -806,7 +802,7 @@ _FIXED_COLUMNS = tuple(
 class _RowSpool:
     """Rows as they finish, appended to a file; read back in source order for the tables.
 
-    In memory per record: one file offset (8 bytes) and three flag bytes.
+    In memory per record: one file offset (8 bytes).
     """
 
     def __init__(self, path: Path, n: int):
@@ -815,9 +811,6 @@ class _RowSpool:
         self.path = path
         self.fh = open(path, "w+b")
         self.offsets = array("q", [-1]) * n
-        self.failed = bytearray(n)
-        self.flagged = bytearray(n)  # rows whose data check found something
-        self.reused = bytearray(n)
         self.names: dict[str, None] = {}  # ordered union of parameter names
         self.warnings: Counter = Counter()  # warnings by category, over every record
 
@@ -831,16 +824,13 @@ class _RowSpool:
             self.warnings.update(w["category"] for w in row["warnings"])
         self.offsets[i] = self.fh.tell()
         self.fh.write(_dumps(row, compact=True).encode() + b"\n")
-        self.failed[i] = row["status"] != "ok"
-        self.flagged[i] = bool(row.get("findings"))
-        self.reused[i] = bool(row.get("reused"))
         self.names.update(dict.fromkeys(row["params"]))
         return first
 
-    def rows(self, only_failed: bool = False, only_flagged: bool = False) -> Iterator[dict]:
-        """The rows in source order (only those that failed, or whose data check found something)."""
-        for i, off in enumerate(self.offsets):
-            if off >= 0 and (self.failed[i] or not only_failed) and (self.flagged[i] or not only_flagged):
+    def rows(self) -> Iterator[dict]:
+        """The rows in source order."""
+        for off in self.offsets:
+            if off >= 0:
                 self.fh.seek(off)
                 yield _loads(self.fh.readline())
 
@@ -1081,18 +1071,22 @@ def run_batch(
         for row in run.enter_context(contextlib.closing(rows)):
             done += spool.add(row)
         csv_path, json_path = _write_tables(out, spool, spec_d, kw)
-        n_failed, n_reused = sum(spool.failed), sum(spool.reused)
-        errors = {r["key"]: r["error"] for r in spool.rows(only_failed=True)}
-        findings = {r["key"]: r["findings"] for r in spool.rows(only_flagged=True)}
+        errors, findings, n_reused = {}, {}, 0
+        for r in spool.rows():
+            n_reused += bool(r.get("reused"))
+            if r["status"] != "ok":
+                errors[r["key"]] = r["error"]
+            if r.get("findings"):
+                findings[r["key"]] = r["findings"]
         warned = dict(spool.warnings)
     return BatchSummary(
         out_dir=out,
         table_csv=csv_path,
         table_json=json_path,
         n_total=done,
-        n_fitted=done - n_failed - n_reused,
+        n_fitted=done - len(errors) - n_reused,
         n_reused=n_reused,
-        n_failed=n_failed,
+        n_failed=len(errors),
         errors=errors,
         wall_time=time.perf_counter() - t_start,
         engine=engine_name(engine),
