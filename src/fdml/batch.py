@@ -169,11 +169,7 @@ class ModelSpec(Codec):
 
         d = model_to_dict(model)
         return cls(
-            kind=d["kind"],
-            aircraft=d["aircraft"],
-            options=d["options"],
-            parameters=d["parameters"],
-            effects=tuple(d.get("effects", ())),
+            **{k: d[k] for k in ("kind", "aircraft", "options", "parameters")}, effects=tuple(d.get("effects", ()))
         )
 
     @classmethod

@@ -824,14 +824,12 @@ def members(found: KinematicFinding, dt: float = 0.0, U: float = 0.0) -> list:
     list of SensorEffect
         One per library effect (two for a vane offset: the vane x and the accelerometer -x).
     """
-    pat = _pattern_of(found)
+    floor = resolution(found.unit, dt, U)
     out = []
-    for key, vals in pat.values(found.value).items():
-        eff = get_effect(key)
+    for key, vals in _pattern_of(found).values(found.value).items():
         ((name, v),) = vals.items()
-        par = next(p for p in eff.params if p.name == name)
+        par = next(p for p in get_effect(key).params if p.name == name)
         ok = par.plausible is None or par.plausible[0] <= v <= par.plausible[1]
-        floor = resolution(found.unit, dt, U)
         res = floor is None or abs(v) >= floor
         out.append(SensorEffect(key, name, float(v), found.stderr, found.unit, found, bool(ok), bool(res)))
     return out
