@@ -169,11 +169,7 @@ class ModelSpec(Codec):
 
         d = model_to_dict(model)
         return cls(
-            kind=d["kind"],
-            aircraft=d["aircraft"],
-            options=d["options"],
-            parameters=d["parameters"],
-            effects=tuple(d.get("effects", ())),
+            **{k: d[k] for k in ("kind", "aircraft", "options", "parameters")}, effects=tuple(d.get("effects", ()))
         )
 
     @classmethod
@@ -408,10 +404,6 @@ def _expand(src) -> list[tuple[str, float | None, float | None, str | None]]:
     return [(str(f.absolute()), None, None, None) for f in files]
 
 
-def _safe(name: str) -> str:
-    return re.sub(r"[^A-Za-z0-9._@+-]", "_", name).lstrip(".") or "record"
-
-
 def collect_sources(sources) -> list[BatchItem]:
     """Expand ``sources`` into batch items with unique keys, in order.
 
@@ -443,7 +435,7 @@ def collect_sources(sources) -> list[BatchItem]:
             name = Path(path).stem
             if t0 is not None or t1 is not None:
                 name += f"@{'' if t0 is None else f'{t0:g}'}-{'' if t1 is None else f'{t1:g}'}"
-        keys.append(_safe(name))
+        keys.append(re.sub(r"[^A-Za-z0-9._@+-]", "_", name).lstrip(".") or "record")  # a safe file name
     count = Counter(keys)
     items = []
     for (path, t0, t1), k in zip(entries, keys):
@@ -504,11 +496,6 @@ def canonical_json(obj) -> str:
         return _dumps(obj, compact=True, sort_keys=True, default=None)
     except TypeError as exc:
         raise FdmlError(f"batch options must be plain data (numbers, strings, lists, dicts); {exc}") from None
-
-
-def _file_hash(path: str) -> str:
-    with open(path, "rb") as fh:
-        return hashlib.file_digest(fh, "sha256").hexdigest()
 
 
 def check_fit_kwargs(fit_kwargs: Mapping | None) -> dict:
@@ -577,11 +564,6 @@ def error_row(task: Mapping, exc: BaseException | str) -> dict:
     return {**_base_row(task), "error": exc if isinstance(exc, str) else one_line(exc)}
 
 
-def _result_paths(task: Mapping) -> tuple[Path, Path]:
-    d = Path(task["out_dir"]) / "results"
-    return d / f"{task['key']}.json", d / f"{task['key']}.error.json"
-
-
 def _reusable(path: Path, input_hash: str) -> dict | None:
     try:
         d = _loads(path.read_text())
@@ -603,13 +585,15 @@ def run_task(task: Mapping) -> dict:
     from . import __version__
 
     t_start = time.perf_counter()
-    res_path, err_path = _result_paths(task)
+    res_path, err_path = (Path(task["out_dir"]) / "results" / f"{task['key']}{end}" for end in (".json", ".error.json"))
     row = _base_row(task)
     key = {"t0": task["t0"], "t1": task["t1"], "spec": task["spec"], "fit": task["fit_key"], "fdml": __version__}
     if task.get("read"):  # absent when empty: the hash of a batch without reading options is unchanged
         key["read"] = task["read"]
     try:
-        input_hash = hashlib.sha256((_file_hash(task["path"]) + canonical_json(key)).encode()).hexdigest()
+        with open(task["path"], "rb") as fh:
+            file_hash = hashlib.file_digest(fh, "sha256").hexdigest()
+        input_hash = hashlib.sha256((file_hash + canonical_json(key)).encode()).hexdigest()
     except OSError as exc:
         from .errors import RecordError
 
@@ -814,7 +798,7 @@ _FIXED_COLUMNS = tuple(
 class _RowSpool:
     """Rows as they finish, appended to a file; read back in source order for the tables.
 
-    In memory per record: one file offset (8 bytes) and three flag bytes.
+    In memory per record: one file offset (8 bytes).
     """
 
     def __init__(self, path: Path, n: int):
@@ -823,11 +807,8 @@ class _RowSpool:
         self.path = path
         self.fh = open(path, "w+b")
         self.offsets = array("q", [-1]) * n
-        self.failed = bytearray(n)
-        self.flagged = bytearray(n)  # rows whose data check found something
-        self.reused = bytearray(n)
         self.names: dict[str, None] = {}  # ordered union of parameter names
-        self.warnings: dict[str, int] = {}  # warnings by category, over every record
+        self.warnings: Counter = Counter()  # warnings by category, over every record
 
     def add(self, row: dict) -> bool:
         """Store ``row``; True if its record had no row yet."""
@@ -835,20 +816,17 @@ class _RowSpool:
         row["warnings"] = _row_warnings(row.get("warnings"))
         self.fh.seek(0, os.SEEK_END)
         first = self.offsets[i] < 0
-        for w in row["warnings"] if first else ():
-            self.warnings[w["category"]] = self.warnings.get(w["category"], 0) + 1
+        if first:
+            self.warnings.update(w["category"] for w in row["warnings"])
         self.offsets[i] = self.fh.tell()
         self.fh.write(_dumps(row, compact=True).encode() + b"\n")
-        self.failed[i] = row["status"] != "ok"
-        self.flagged[i] = bool(row.get("findings"))
-        self.reused[i] = bool(row.get("reused"))
         self.names.update(dict.fromkeys(row["params"]))
         return first
 
-    def rows(self, only_failed: bool = False, only_flagged: bool = False) -> Iterator[dict]:
-        """The rows in source order (only those that failed, or whose data check found something)."""
-        for i, off in enumerate(self.offsets):
-            if off >= 0 and (self.failed[i] or not only_failed) and (self.flagged[i] or not only_flagged):
+    def rows(self) -> Iterator[dict]:
+        """The rows in source order."""
+        for off in self.offsets:
+            if off >= 0:
                 self.fh.seek(off)
                 yield _loads(self.fh.readline())
 
@@ -1089,18 +1067,22 @@ def run_batch(
         for row in run.enter_context(contextlib.closing(rows)):
             done += spool.add(row)
         csv_path, json_path = _write_tables(out, spool, spec_d, kw)
-        n_failed, n_reused = sum(spool.failed), sum(spool.reused)
-        errors = {r["key"]: r["error"] for r in spool.rows(only_failed=True)}
-        findings = {r["key"]: r["findings"] for r in spool.rows(only_flagged=True)}
+        errors, findings, n_reused = {}, {}, 0
+        for r in spool.rows():
+            n_reused += bool(r.get("reused"))
+            if r["status"] != "ok":
+                errors[r["key"]] = r["error"]
+            if r.get("findings"):
+                findings[r["key"]] = r["findings"]
         warned = dict(spool.warnings)
     return BatchSummary(
         out_dir=out,
         table_csv=csv_path,
         table_json=json_path,
         n_total=done,
-        n_fitted=done - n_failed - n_reused,
+        n_fitted=done - len(errors) - n_reused,
         n_reused=n_reused,
-        n_failed=n_failed,
+        n_failed=len(errors),
         errors=errors,
         wall_time=time.perf_counter() - t_start,
         engine=engine_name(engine),

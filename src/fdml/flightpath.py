@@ -833,7 +833,7 @@ def _covariances(J: np.ndarray, r: np.ndarray, n_out: int, n_used: int):
         var = float(np.mean(e**2))
         mid += Jk.T @ Jk * var
         for lag in range(1, L + 1):
-            rho = float(np.mean(e[:-lag] * e[lag:])) * n_used / n_used
+            rho = float(np.mean(e[:-lag] * e[lag:]))
             w = 1.0 - lag / (L + 1)
             C = Jk[:-lag].T @ Jk[lag:]
             mid += w * rho * (C + C.T)

@@ -487,11 +487,6 @@ def _ends(d) -> np.ndarray:
     return out
 
 
-def _shifts(r: _Record, lags: np.ndarray) -> list:
-    """exp(s tau) of each output's lag, shape (G, m), or None where no hypothesis lags it."""
-    return [np.exp(r.s[None, :] * lags[:, j : j + 1]) if np.any(lags[:, j]) else None for j in range(3)]
-
-
 def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scales: np.ndarray):
     """The spectra with sensor terms undone, for a batch of G hypotheses: alpha at the accelerometer's
     station, q, a_z, each of shape (G, m).  ``lags``, ``scales``: (G, 3); ``offset``: (G,), m.
@@ -501,7 +496,8 @@ def _corrected(r: _Record, c: float, lags: np.ndarray, offset: np.ndarray, scale
     measured ends (:attr:`_Record.ends`) for x(0) and x(T): known values, not free coefficients, which
     near tau = 0 would fit two directions of noise per lagged channel.
     """
-    shifts = _shifts(r, lags)
+    # exp(s tau) of each output's lag, shape (G, m), or None where no hypothesis lags it
+    shifts = [np.exp(r.s[None, :] * lags[:, j : j + 1]) if np.any(lags[:, j]) else None for j in range(3)]
     eT = np.exp(-r.s * r.T)
 
     def undo(x, j):  # the lag (with its record ends) and the scale of output j undone
@@ -577,13 +573,13 @@ class _Identity:
         return {"kappa_alpha": (float(est[0]), float(se[0])), "kappa_az": (float(est[1]), float(se[1]))}
 
 
-def _identity(spectra, U: float, t: SensorTerms | None = None) -> _Identity:
+def _identity(spectra, U: float, t: SensorTerms) -> _Identity:
     """The identity with its equation-error variance v = a + b omega^2 estimated at the terms ``t``."""
     recs = tuple(_records(spectra))
     c = G0 / float(U)
     flat = _Identity(recs, c, tuple(np.ones(r.s.size) for r in recs), tuple(_basis(r, np.ones(r.s.size)) for r in recs))
     ws = []
-    for r, e in zip(recs, flat.errors([t or SensorTerms()])):
+    for r, e in zip(recs, flat.errors([t])):
         m = r.s.size
         v = _variance(np.abs(r.s) ** 2, e[0, :m] ** 2 + e[0, m:] ** 2)
         ws.append(1.0 / np.sqrt(v))
@@ -828,14 +824,12 @@ def members(found: KinematicFinding, dt: float = 0.0, U: float = 0.0) -> list:
     list of SensorEffect
         One per library effect (two for a vane offset: the vane x and the accelerometer -x).
     """
-    pat = _pattern_of(found)
+    floor = resolution(found.unit, dt, U)
     out = []
-    for key, vals in pat.values(found.value).items():
-        eff = get_effect(key)
+    for key, vals in _pattern_of(found).values(found.value).items():
         ((name, v),) = vals.items()
-        par = next(p for p in eff.params if p.name == name)
+        par = next(p for p in get_effect(key).params if p.name == name)
         ok = par.plausible is None or par.plausible[0] <= v <= par.plausible[1]
-        floor = resolution(found.unit, dt, U)
         res = floor is None or abs(v) >= floor
         out.append(SensorEffect(key, name, float(v), found.stderr, found.unit, found, bool(ok), bool(res)))
     return out

@@ -52,7 +52,7 @@ class _Rebuilt:
     """Pickled as its fields, thawed, and built again on unpickling (which freezes them again)."""
 
     def __reduce__(self):
-        return (_rebuild, (type(self), _thawed_fields(self)))
+        return (_rebuild, (type(self), {f.name: _thawed(getattr(self, f.name)) for f in fields(self)}))
 
 
 @dataclass(frozen=True)
@@ -126,10 +126,6 @@ def _thawed(value):
             rec = replace(rec, signals=dict(rec.signals), meta=_thawed(rec.meta))
         return replace(value, meta=_thawed(value.meta), record=rec)
     return value
-
-
-def _thawed_fields(obj) -> dict:
-    return {f.name: _thawed(getattr(obj, f.name)) for f in fields(obj)}
 
 
 def _rebuild(cls, kwargs: dict):
@@ -229,15 +225,17 @@ def _model_field(f: Fields, key: str, done: dict):
     from .models import model_from_dict
 
     m = f.sub(key)
-    kind = m.string("kind")
-    options = m.mapping("options", default={})
-    aircraft = None if m.raw("aircraft", None) is None else m.mapping("aircraft")
-    params = [{k: getattr(p, reader)(k, **kw) for k, reader, kw in _PARAMETER_KEYS} for p in m.items("parameters")]
-    effects = list(m.strings("effects", default=()))  # effect keys (H1, issue 8)
+    doc = {
+        "kind": m.string("kind"),
+        "options": m.mapping("options", default={}),
+        "aircraft": None if m.raw("aircraft", None) is None else m.mapping("aircraft"),
+        "parameters": [
+            {k: getattr(p, reader)(k, **kw) for k, reader, kw in _PARAMETER_KEYS} for p in m.items("parameters")
+        ],
+        "effects": list(m.strings("effects", default=())),  # effect keys (H1, issue 8)
+    }
     try:
-        return model_from_dict(
-            {"kind": kind, "options": options, "aircraft": aircraft, "parameters": params, "effects": effects}
-        )
+        return model_from_dict(doc)
     except FdmlError as exc:
         raise f.error(key, f"does not describe a model: {exc}") from None
     except (TypeError, ValueError, LookupError, AttributeError, ArithmeticError) as exc:
