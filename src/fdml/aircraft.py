@@ -555,8 +555,6 @@ def missing_lag_message(ac: Aircraft, kind: str = "unsteady") -> str:
     )
 
 
-#: Channels whose sensor position an aircraft file can give, and the effect parameter each one sets.
-SENSOR_POSITIONS = STATIONS
 #: Largest |x| of a sensor position, m: outside it no airframe has a sensor.
 MAX_SENSOR_X = 50.0
 
@@ -568,9 +566,9 @@ def _checked_sensors(sensors, where: str) -> Mapping:
         raise AircraftError(f"{where}: sensors must map channels to positions, e.g. {example}, got {sensors!r}")
     out = {}
     for ch, pos in sensors.items():
-        if ch not in SENSOR_POSITIONS:
+        if ch not in STATIONS:  # channels whose position a file can give (fdml.channels)
             raise AircraftError(
-                f"{where}: sensors: unknown channel {ch!r}; positions can be given for {', '.join(SENSOR_POSITIONS)}"
+                f"{where}: sensors: unknown channel {ch!r}; positions can be given for {', '.join(STATIONS)}"
             )
         if not isinstance(pos, Mapping) or set(pos) != {"x"}:
             raise AircraftError(

@@ -7,6 +7,7 @@ Above :mod:`fdml.models.effects` (a model is built with effects) and :mod:`fdml.
 from __future__ import annotations
 
 from ..aircraft import Aircraft, load_aircraft
+from ..channels import STATIONS
 from ..errors import ParameterError
 from .base import Model
 from .effects import with_effects
@@ -68,10 +69,8 @@ def known_sensors(model: Model) -> Model:
     Model
         The model, unchanged without known positions.
     """
-    from ..aircraft import SENSOR_POSITIONS
-
     sensors = getattr(getattr(model, "aircraft", None), "sensors", None) or {}
     if not sensors:
         return model
     m = with_effects(model, [f"sensor_offset:{ch}" for ch in sensors])
-    return m.fix({SENSOR_POSITIONS[ch]: float(pos["x"]) for ch, pos in sensors.items()})
+    return m.fix({STATIONS[ch]: float(pos["x"]) for ch, pos in sensors.items()})
