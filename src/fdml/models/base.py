@@ -665,12 +665,14 @@ class Model:
         dE = np.zeros((k, 1, 2, 2))
         roles = [self.parameters[nm].role for nm in names]
         delay_names = self._delay_names()
-        mats = self._matrix_derivatives(s, p, [nm for nm, r in zip(names, roles) if r not in _NOT_IN_MATRICES])
+        # output biases enter the measurement, a sensor's station its output row: neither the matrices
+        inside = [nm for nm, r in zip(names, roles) if r not in _NOT_IN_MATRICES and nm not in _STATION_NAMES]
+        mats = self._matrix_derivatives(s, p, inside)
         for i, (nm, role) in enumerate(zip(names, roles)):
             if role is Role.DELAY and nm in delay_names:  # an input delay of B
                 j = delay_names.index(nm)
                 dBd[i, :, :, j] = -s[:, None] * Bd[:, :, j]  # d/dtau exp(-s tau) = -s exp(-s tau)
-            elif role not in _NOT_IN_MATRICES:  # output biases enter the measurement, not G
+            elif nm in mats:
                 dMi, dBi, dEi = mats[nm]
                 dM[i] = dMi
                 dBd[i] = dBi if Dl is None else dBi * Dl[:, None, :]
