@@ -917,7 +917,9 @@ def _iterate(prob: Problem, theta: np.ndarray, opts: FitOptions, callback) -> _S
         if full:
             accepted, t_new, V_new, R_new, J_new = _hybrid_step(prob, theta, g, H1, J, active, lo, hi, rows, eig)
         else:
-            accepted, t_new, V_new, R_new, J_new = _halving_step(prob, theta, step_n, lo, hi, J, rows)
+            accepted, t_new, V_new, R_new, J_new = _halving_step(
+                prob, theta, step_n, lo, hi, J, rows, SETTINGS.gn_max_halvings
+            )
         if accepted:
             theta, V, R, J = t_new, V_new, R_new, J_new
         history.append(math.exp(J))
@@ -999,7 +1001,7 @@ def _band_findings(prob: Problem, theta: np.ndarray) -> list:
     return [found]
 
 
-def _halving_step(prob, theta, step, lo, hi, J, rows, halvings=SETTINGS.gn_max_halvings):
+def _halving_step(prob, theta, step, lo, hi, J, rows, halvings: int):
     """A Gauss-Newton step, halved while the cost rises: (accepted, theta, V, R, J) as :func:`_try`."""
     accepted, t_new, V_new, R_new, J_new = False, theta, None, None, J
     for _ in range(halvings):
