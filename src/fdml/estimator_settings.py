@@ -42,7 +42,8 @@ class EstimatorSettings:
         Most step halvings of a Gauss-Newton step (``method="gauss-newton"``)
         while the cost rises.
     shift_tries : int
-        Most shifted-Newton trials (growing shift) per Levenberg-Marquardt step.
+        Most shifted-Newton trials per Levenberg-Marquardt step (the trust
+        region quartered after each trial that does not lower the cost).
     shift_limit : float
         Shifted Newton only while the most negative curvature of the scaled
         concentrated Hessian is within this fraction of the largest one.
