@@ -1105,8 +1105,10 @@ def _with_adequacy(prob, res, V, A_final, opts: FitOptions):
 
     def refit(model, **changes):
         # closed-form sensitivities where the model has them, else central differences (as the
-        # diagnosis's fits): a refit starts near its optimum and needs no settled Eq. 26 columns
-        refit_opts = FitOptions.of(opts, adequacy=False, check=False, sensitivity="analytic", **changes)
+        # diagnosis's fits): a refit starts near its optimum and needs no settled Eq. 26 columns;
+        # within 1e-2 standard errors of its optimum its likelihood ratio is off by about 1e-4
+        tol = max(opts.tol, 1e-2)
+        refit_opts = FitOptions.of(opts, adequacy=False, check=False, sensitivity="analytic", **{"tol": tol, **changes})
         with recording(reemit=False):  # the refits' warnings belong to them, not to this fit
             return _fit(prob.data, model, refit_opts, None)[0]
 
