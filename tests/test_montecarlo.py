@@ -3,6 +3,7 @@
 import dataclasses
 import json
 import math
+import warnings
 
 import matplotlib
 import numpy as np
@@ -187,3 +188,31 @@ def test_table_shows_only_the_parameters_the_fit_shares_with_the_truth():
     lone = dataclasses.replace(r, truth=np.full(3, math.nan))
     text = lone.table()
     assert "nan" not in text.lower() and "no parameter shared with the truth model" in text
+
+
+@pytest.mark.parametrize("runs", [0, 1])
+def test_a_study_too_small_for_statistics_round_trips_without_numpy_warnings(runs, tmp_path):
+    """No runs (or one: no scatter) give nan statistics, and the file reads back (a study of no runs
+    could not be: its empty standard errors were checked against a shape of 0 x p)."""
+    names = ["M_a", "M_q"]
+    study = MonteCarloResult(
+        names=names,
+        truth=np.array([-5.0, -2.0]),
+        estimates=np.full((runs, 2), -4.0),
+        stderr=np.full((runs, 2), 0.5),
+        converged=np.ones(runs, bool),
+        iterations=np.full(runs, 7),
+        fit_seconds=np.full(runs, 0.01),
+        errors={},
+        settings={},
+        wall_time=0.0,
+        use_converged_only=True,
+        units={"M_a": "1/s^2", "M_q": "1/s"},
+        warnings={},
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a RuntimeWarning from numpy's empty means fails the test
+        study.to_json(tmp_path / "mc.json")
+        back = load_monte_carlo(tmp_path / "mc.json")
+    assert back.estimates.shape == back.stderr.shape == (runs, 2)
+    assert np.all(np.isnan(back.scatter)) and np.all(np.isnan(back.mean)) == (runs == 0)

@@ -119,10 +119,11 @@ def _per_run(*shape) -> Spec:
     return Spec(floats(*shape, nulls=True).read, write=_nulls)
 
 
-def _estimates_field(f, key, done) -> np.ndarray:
-    """The estimates, one row per run (``[]`` for a study of no runs)."""
+def _per_run_rows(f, key, done) -> np.ndarray:
+    """The estimates or their standard errors, one row per run (``[]`` for a study of no runs)."""
     p = len(done["names"])
-    return np.empty((0, p)) if f.raw(key) == [] else f.floats(key, (None, p), nulls=True)
+    runs = len(done["estimates"]) if "estimates" in done else None  # the standard errors: as many as the estimates
+    return np.empty((0, p)) if f.raw(key) == [] and not runs else f.floats(key, (runs, p), nulls=True)
 
 
 @dataclass(frozen=True)
@@ -179,8 +180,8 @@ class MonteCarloResult(Codec):
     json_fields = {
         "names": texts(),
         "truth": _per_run("names"),
-        "estimates": Spec(_estimates_field, write=_nulls),
-        "stderr": _per_run("estimates", "names"),
+        "estimates": Spec(_per_run_rows, write=_nulls),
+        "stderr": Spec(_per_run_rows, write=_nulls),
         "converged": Spec(lambda f, k, done: f.flags(k, len(done["estimates"]))),
         "iterations": Spec(lambda f, k, done: f.integers(k, len(done["estimates"]))),
         "fit_seconds": _per_run("estimates"),
@@ -210,7 +211,7 @@ class MonteCarloResult(Codec):
     @property
     def mean(self) -> np.ndarray:
         """Mean estimate per parameter over the runs used."""
-        return self.estimates[self.used].mean(axis=0)
+        return self._over_used(self.estimates, 1, lambda a: a.mean(axis=0))
 
     @property
     def bias(self) -> np.ndarray:
@@ -220,12 +221,17 @@ class MonteCarloResult(Codec):
     @property
     def scatter(self) -> np.ndarray:
         """Sample standard deviation of the estimates (ddof=1)."""
-        return self.estimates[self.used].std(axis=0, ddof=1)
+        return self._over_used(self.estimates, 2, lambda a: a.std(axis=0, ddof=1))
 
     @property
     def mean_crb(self) -> np.ndarray:
         """Mean reported standard error (Cramer-Rao bound)."""
-        return self.stderr[self.used].mean(axis=0)
+        return self._over_used(self.stderr, 1, lambda a: a.mean(axis=0))
+
+    def _over_used(self, a: np.ndarray, least: int, stat) -> np.ndarray:
+        """``stat`` of the rows of ``a`` the statistics use; nan per parameter with fewer than ``least`` of them."""
+        rows = a[self.used]
+        return stat(rows) if rows.shape[0] >= least else np.full(a.shape[1], np.nan)
 
     @property
     def efficiency(self) -> np.ndarray:
