@@ -1187,7 +1187,10 @@ def _hybrid_step(prob, theta, g, H1, J, active, lo, hi, rows=None, eig=None, rad
     quadratic model's decrease sets the next pass's region (Nocedal and
     Wright, Algorithm 4.1), so a pass seldom needs a second trial.  The
     paper's Gauss-Newton step with R held (Eq. 23), with step halving, is
-    the last resort.  ``eig`` is :func:`_scaled_eig` of ``Hc`` on the active
+    the last resort; a step it makes leaves the next pass's region unbounded.
+    A pass whose unbounded step predicts a decrease below ``rounding`` (the
+    rounding error of ln det R) tries nothing: the cost cannot tell the
+    points apart.  ``eig`` is :func:`_scaled_eig` of ``Hc`` on the active
     set (None: no finite Hc, straight to the last resort).
     """
     idx = np.flatnonzero(active)
@@ -1241,8 +1244,9 @@ def _next_radius(ratio: float, size: float, radius: float) -> float:
     By the ratio of the actual to the predicted decrease (Nocedal and Wright, Algorithm 4.1): half
     the step where the quadratic model overstated the decrease fourfold, at least four times the
     step where it held to half (the first region, unbounded, takes the step's scale), else kept.
-    The generous growth follows the long, slightly indefinite valleys of short, ill-conditioned
-    records (4 s, 10 frequencies: twice as many fits converged as with the textbook's doubling).
+    The generous growth follows long, slightly indefinite valleys: against the textbook's doubling
+    beyond three quarters, 14 passes instead of 17 on Twin Otter 017 and 956 instead of 1,060 over
+    twelve short, ill-conditioned records (4 s, 10 frequencies).
     """
     if ratio < 0.25:
         return 0.5 * size
