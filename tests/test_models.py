@@ -13,6 +13,8 @@ from fdml.aircraft import Aircraft, get_aircraft, list_aircraft, load_aircraft
 from fdml.constants import G0
 from fdml.errors import AircraftError, ParameterError
 from fdml.models import make_model, model_from_dict, model_to_dict
+from fdml.models.effects import OutputEffect
+from fdml.parameters import Role
 
 OMEGA = np.linspace(0.1, 10.0, 100)
 
@@ -278,18 +280,28 @@ def _forcing_case(model, rng):
         ("derivatives", {"gust": True}),
         ("steady", {"gust": True}),
         ("unsteady", {}),
-        ("unsteady", {"effects": ["sensor_offset:az"]}),  # overrides evaluate: goes through the response
+        ("unsteady", {"effects": ["sensor_offset:az"]}),  # a station: the output row, the root's matrices
+        ("steady", {"gust": True, "effects": ["gust_lag:tail", "sensor_offset:alpha"]}),  # a matrix-level effect
+        # output-level effects by their factors: scaled outputs and inputs, and an added mode
+        ("dimensional", {"effects": ["time_delay:alpha", "sensor_offset:az", "actuator_lag"]}),
+        ("derivatives", {"gust": True, "effects": ["gust_lag:alpha_w", "sensor_scale:q", "structural_mode"]}),
     ],
 )
 def test_forced_sensitivity_matches_the_derivatives_of_the_response(kind, options):
-    # Model.forced_sensitivity, P (dB u + dE d - dM x) per name with one 2 x 2 solve of the forcing,
-    # against dG u + dH d + dP f from Model.sensitivity's derivative matrices: the same arithmetic
-    # reordered, so rounding ~ 1e-13 of the largest term
+    # Model.forced_sensitivity, P (dB u + dE d - dM x) per name with one 2 x 2 solve of the forcing
+    # (augmented models without output-level effects too), against dG u + dH d + dP f from
+    # Model.sensitivity's derivative matrices: the same arithmetic reordered, so rounding ~ 1e-13 of
+    # the largest term; a station's row is a central difference in both, exact for an affine row.
+    # Output-level effects: the reference pushes dG through them by differences of 1e-6 of the
+    # response, so its rounding is ~1e-16/1e-6 = 1e-10 relative: tolerance 1e-9 there
     model = make_model(kind, "navion", **options).free(["tau_de"])
     rng = np.random.default_rng(5)
     u, d, f = _forcing_case(model, rng)
     vals = {n: v * (1.0 + 0.1 * rng.normal()) for n, v in model.parameters.values.items()}
     vals["tau_de"] = 0.03
+    effect_values = {n: 0.05 for n in model.parameters.names if model.parameters[n].role is Role.EFFECT}
+    vals.update(effect_values)  # away from their nulls, where every factor is one
+    tol = 1e-9 if any(isinstance(e, OutputEffect) for e in getattr(model, "effects", ())) else 1e-12
     names = list(model.parameters.free_model_names)
     resp = model.evaluate(OMEGA, vals)
     _, dG, dH, dP = model.sensitivity(OMEGA, vals, names)
@@ -299,5 +311,5 @@ def test_forced_sensitivity_matches_the_derivatives_of_the_response(kind, option
         dy = dy + (0 if ff is None else (dP @ ff[:, :, None])[..., 0])
         resp2, got_dy = model.forced_sensitivity(OMEGA, vals, names, u, dd, ff)
         assert got_dy.shape == (len(names), OMEGA.size, 3)
-        assert np.abs(got_dy - dy).max() <= 1e-12 * np.abs(dy).max()
+        assert np.abs(got_dy - dy).max() <= tol * np.abs(dy).max()
         assert np.abs(resp2.G - resp.G).max() <= 1e-14 * np.abs(resp.G).max()

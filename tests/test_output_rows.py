@@ -271,6 +271,30 @@ def test_descriptor_sensitivities_equal_differences_of_the_response(kind, opts):
             assert np.abs(got - ref).max() <= 1e-7 * max(np.abs(ref).max(), np.abs(resp.G).max()), n
 
 
+def test_station_sensitivities_with_theta_and_qdot_equal_differences_of_the_response():
+    # a sensor's station enters its output row only; with theta's own boundary column (an integral
+    # row) beside it, the response's derivatives and the forced outputs' (y = G u + H d + P f) against
+    # central differences of the response: the rows are affine in the station, so the differences
+    # carry rounding alone, eps/h ~ 1e-13 relative at h = 1e-3 m
+    m = with_effects(
+        make_model("unsteady", "navion", outputs=OUTPUTS + MORE), "sensor_offset:alpha", "sensor_offset:az"
+    )
+    p = {**m.values(), "x_alpha": 4.0, "x_az": 1.3}
+    names = ["x_alpha", "x_az", "Cm_de"]
+    _, dG, dH, dP = m.sensitivity(OMEGA, p, names)
+    rng = np.random.default_rng(2)
+    u, d, f = (rng.normal(size=(OMEGA.size, k)) + 1j * rng.normal(size=(OMEGA.size, k)) for k in (1, dH.shape[-1], 2))
+    _, dy = m.forced_sensitivity(OMEGA, p, names, u, d, f)
+    for i, n in enumerate(names[:2]):
+        h = 1e-3
+        up, dn = m.evaluate(OMEGA, {**p, n: p[n] + h}), m.evaluate(OMEGA, {**p, n: p[n] - h})
+        refs = [(a - b) / (2 * h) for a, b in ((up.G, dn.G), (up.H, dn.H), (up.P, dn.P))]
+        for got, ref in zip((dG[i], dH[i], dP[i]), refs):
+            assert got.shape == ref.shape and np.abs(got - ref).max() <= 1e-10 * np.abs(ref).max(), n
+        forced = sum((x @ v[:, :, None])[..., 0] for x, v in zip(refs, (u, d, f)))
+        assert np.abs(dy[i] - forced).max() <= 1e-10 * np.abs(forced).max(), n
+
+
 def test_figures_draw_theta_and_qdot(noisy_record):
     from matplotlib.figure import Figure
 

@@ -20,7 +20,7 @@ import numpy as np
 from ..channels import INPUT, OUTPUTS
 from ..errors import FdmlError, ParameterError
 from ..parameters import Parameter, Parameters, Role
-from .base import Model, ModelResponse
+from .base import Model, ModelResponse, _responded
 
 __all__ = [
     "Param",
@@ -360,7 +360,7 @@ class AugmentedModel(Model):
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         p = self.values(values)
         names = list(names)
-        own = {q.name for e in self.effects if isinstance(e, OutputEffect) for q in e.param_list(self.root)}
+        own = self._output_names()
         inner = [n for n in names if n not in own]  # through the solve: root, matrix-level and station parameters
         outer = [n for n in names if n in own]  # output-level effects' own: differences of the effects alone
         r, dG, dH, dP = self._matrix_sensitivity(omega, p, inner, ("G", "H", "P"))
@@ -374,6 +374,64 @@ class AugmentedModel(Model):
             return np.concatenate([a] + [x[i][None] for x in extra])[order] if extra else a[order]
 
         return ModelResponse(omega, G, H, P, self.outputs), joined(dG, 0), joined(dH, 1), joined(dP, 2)
+
+    def forced_sensitivity(self, omega, values, names, u, boundary=None, forcing=None):
+        """:meth:`Model.forced_sensitivity`, through output-level effects given by their factors.
+
+        When each output-level effect gives its :attr:`OutputEffect.factors`, their linear part scales
+        the outputs and the inputs, so a base or
+        matrix-level parameter's derivative is the solve's with the inputs scaled, its outputs scaled, and
+        an output-level effect's own is its central difference applied to the forcing.
+
+        Parameters
+        ----------
+        omega : array_like
+            Frequencies, rad/s, shape (n,).
+        values : mapping of str to float, optional
+            Parameter values by name overriding the model's own.
+        names : sequence of str
+            Parameters to differentiate with respect to.
+        u : numpy.ndarray
+            Input spectra (de rad s[, alpha_w rad s]), complex, shape (n, n_in).
+        boundary : numpy.ndarray, optional
+            Boundary vector d, complex, shape (n, n_b); None for none.
+        forcing : numpy.ndarray, optional
+            State forcing f, shape (n, 2); None for none.
+
+        Returns
+        -------
+        resp : ModelResponse
+            The response at ``omega``, the effects applied.
+        dy : numpy.ndarray
+            Derivatives of the outputs per name, complex, shape (len(names), n, n_y).
+        """
+        factored = [e.factors for e in self.effects if isinstance(e, OutputEffect)]
+        if not factored or None in factored or not self.root._solves_matrices():
+            return super().forced_sensitivity(omega, values, names, u, boundary, forcing)
+        omega = np.atleast_1d(np.asarray(omega, dtype=float))
+        p, s, names, own = self.values(values), 1j * omega, list(names), self._output_names()
+        rows, cols = 1.0, 1.0  # the products of the effects' factors: diagonal scalings commute
+        for f in factored:
+            r, c, _ = f(s, p, self.root)
+            rows, cols = rows if r is None else rows * r, cols if c is None else cols * c
+        inner = [n for n in names if n not in own]
+        base, dy = self._forced_solve(omega, p, inner, u * cols, boundary, forcing)
+        resp = (base.G, base.H, base.P)
+        extra = [
+            _responded(ModelResponse(omega, *self._output_difference(s, p, resp, n)), u, boundary, forcing)[None]
+            for n in names
+            if n in own
+        ]
+        dy = np.concatenate([dy * rows] + extra)
+        order = [inner.index(n) if n in inner else len(inner) + [m for m in names if m in own].index(n) for n in names]
+        return ModelResponse(omega, *self._outputs(s, p, *resp), self.outputs), dy[order]
+
+    def _solves_matrices(self) -> bool:
+        return self.root._solves_matrices() and not any(isinstance(e, OutputEffect) for e in self.effects)
+
+    def _output_names(self) -> set:
+        """The output-level effects' own parameters."""
+        return {q.name for e in self.effects if isinstance(e, OutputEffect) for q in e.param_list(self.root)}
 
     def _outputs(self, s, p, G, H, P) -> tuple:
         """(G, H, P) through the output-level effects, in order."""
@@ -427,7 +485,7 @@ class AugmentedModel(Model):
         """The root's own (closed-form where it has them) when no effect acts on the matrices; the
         central differences of :meth:`Model._matrix_derivatives` for the rest (a matrix-level effect
         maps the root's matrices, and its own parameters enter only through it)."""
-        if any(isinstance(e, MatrixEffect) for e in self.effects):
+        if any(isinstance(e, MatrixEffect) and e.acts_on_matrices for e in self.effects):
             return super()._matrix_derivatives(s, p, names)
         root = [n for n in names if n in self.root.parameters]
         out = self.root._matrix_derivatives(s, self._root_values(p), root) if root else {}
@@ -633,7 +691,45 @@ class OutputEffect(_AppliedEffect):
         on this base model (e.g. no chord for a lift lag), or None.
     realize : callable, optional
         The effect on a realisation, with the signature of :meth:`Effect.realize` (without ``self``).
+    factors : callable, optional
+        Instead of ``fn``, for an effect that scales outputs and inputs:
+        ``factors(s, p, root) -> (rows, columns, added)``, the effect being
+        ``G' = rows G columns + added``, ``H' = rows H``, ``P' = rows P``, with
+        ``rows`` (n, n_y) per output, ``columns`` (n, n_in) per input and
+        ``added`` (n, n_y, n_in) independent of the base model's parameters
+        (each None for none).  A model then forms its outputs' derivatives
+        without its response's (:meth:`AugmentedModel.forced_sensitivity`).
     """
+
+    def __init__(
+        self,
+        name: str,
+        channel: str,
+        params: Sequence[Param],
+        fn: Callable | None = None,
+        *,
+        needs: Sequence[str] = (),
+        signature: str = "",
+        nuisance_grid: dict | None = None,
+        applies: Callable | None = None,
+        realize: Callable | None = None,
+        factors: Callable | None = None,
+    ):
+        if (fn is None) == (factors is None):
+            raise ParameterError(f"OutputEffect {name!r} needs either fn or factors")
+        fn = fn or (lambda *a: _factored(factors, *a))
+        super().__init__(
+            name,
+            channel,
+            params,
+            fn,
+            needs=needs,
+            signature=signature,
+            nuisance_grid=nuisance_grid,
+            applies=applies,
+            realize=realize,
+        )
+        self.factors = factors
 
     def output(self, s, p, G, H, P, root):
         """Apply the effect to the output matrices at ``s = j omega``; returns ``(G, H, P)``.
@@ -663,6 +759,15 @@ class OutputEffect(_AppliedEffect):
         return self._fn(s, p, G, H, P, root)
 
 
+def _factored(factors, s, p, G, H, P, root) -> tuple:
+    """(G, H, P) through an effect given by its :attr:`OutputEffect.factors`."""
+    rows, cols, added = factors(s, p, root)
+    G = G if cols is None else G * cols[:, None, :]
+    if rows is not None:
+        G, H, P = (x * rows[:, :, None] for x in (G, H, P))
+    return (G, H, P) if added is None else (G + added, H, P)
+
+
 class MatrixEffect(_AppliedEffect):
     """An effect on the short-period matrices (M, B, E) before the solve.
 
@@ -689,6 +794,10 @@ class MatrixEffect(_AppliedEffect):
     realize : callable, optional
         The effect on a realisation, with the signature of :meth:`Effect.realize` (without ``self``).
     """
+
+    #: False for an effect that enters elsewhere (a sensor's station: the output rows) and leaves the matrices
+    #: as they are; the root's closed-form matrix derivatives then still hold.
+    acts_on_matrices = True
 
     def matrices(self, s, p, M, B, E, root):
         """Apply the effect to the short-period matrices; returns ``(M, B, E)``.

@@ -578,15 +578,11 @@ class Model:
         dG = P @ dBd - PdM @ X
         dH = _padded(P @ dE - PdM @ IE, H.shape[2]) if "H" in parts else None  # integral rows' own: constant
         dP = -(PdM @ inv) if "P" in parts else None
-        for i, nm in enumerate(names):  # a sensor's station enters its output row, not the matrices
+        for i, nm in enumerate(names):
             if nm in _STATION_NAMES:
-                # the row is affine in the station: exact to rounding
-                up, dn, h = _stepped(
-                    lambda q: _response_rows(s, inv, Bd, E, output_rows(self.outputs, self.U, q)), p, nm, 1e-5, 1.0
-                )
-                for dx, a, b in zip((dG, dH, dP), up, dn):
+                for dx, d in zip((dG, dH, dP), self._station_derivative(s, inv, Bd, E, p, nm, H.shape[2])):
                     if dx is not None:
-                        dx[i] = (a - b) / (2 * h)
+                        dx[i] = d
         return ModelResponse(omega, G, H, P, self.outputs), dG, dH, dP
 
     def forced_sensitivity(self, omega, values, names, u, boundary=None, forcing=None):
@@ -625,18 +621,43 @@ class Model:
         """
         omega = np.atleast_1d(np.asarray(omega, dtype=float))
         names = list(names)
-        if type(self).evaluate is not Model.evaluate or type(self).sensitivity is not Model.sensitivity:
+        if not self._solves_matrices():
             parts = ("G",) + (("H",) if boundary is not None else ()) + (("P",) if forcing is not None else ())
             resp, dG, dH, dP = self.sensitivity(omega, values, names, parts)
             return resp, _responded(ModelResponse(omega, dG, dH, dP), u, boundary, forcing)
-        p = self.values(values)
+        return self._forced_solve(omega, self.values(values), names, u, boundary, forcing)
+
+    def _forced_solve(self, omega, p, names, u, boundary, forcing):
+        """:meth:`forced_sensitivity` through the solve of :meth:`_matrices` (every value in ``p``)."""
         s, M, Bd, E, Dl, inv, (G, H, P) = self._solved(omega, p)
         x = _apply(inv, _right_side(Bd, E, u, boundary, forcing))  # the states M^-1 r
         dM, dBd, dE = self._derivative_stack(s, p, names, Bd, Dl)
         w = _inputs(dBd, u) - _apply(dM, x)  # (k, n, 2)
         if boundary is not None and dE.any():
             w = w + _apply(dE, boundary[:, :2])
-        return ModelResponse(omega, G, H, P, self.outputs), _apply(P, w)
+        dy = _apply(P, w)
+        for i, nm in enumerate(names):
+            if nm in _STATION_NAMES:
+                rows = ModelResponse(omega, *self._station_derivative(s, inv, Bd, E, p, nm, H.shape[2]))
+                dy[i] = _responded(rows, u, boundary, forcing)
+        return ModelResponse(omega, G, H, P, self.outputs), dy
+
+    def _station_derivative(self, s, inv, Bd, E, p, name: str, nb: int) -> tuple:
+        """d(G, H, P)/d(name) for a sensor's station: it enters its output row, not the matrices.
+
+        The row's coefficients are affine in the station and (G, H, P) linear in them, so the derivative
+        is the response of the coefficients' unit change (no integral term: no boundary column of its own).
+        """
+        at = output_rows(self.outputs, self.U, p)
+        unit = output_rows(self.outputs, self.U, {**p, name: p[name] + 1.0})
+        dG, dH, dP = _response_rows(s, inv, Bd, E, tuple(b - a for a, b in zip(at, unit)))
+        return dG, _padded(dH, nb), dP
+
+    def _solves_matrices(self) -> bool:
+        """Whether the response is the solve of :meth:`_matrices` alone (then :meth:`forced_sensitivity` forms
+        the outputs' derivatives without the response's; an overridden :meth:`evaluate` or
+        :meth:`sensitivity` says otherwise)."""
+        return type(self).evaluate is Model.evaluate and type(self).sensitivity is Model.sensitivity
 
     def _forced_matrices(self, omega, p):
         """s, M, B with input delays, E and the delay factors exp(-s tau), shape (n, n_in) (None: no delays)."""

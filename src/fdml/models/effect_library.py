@@ -53,7 +53,6 @@ from .augment import (
     OutputEffect,
     Param,
     root_model,
-    scale_rows,
 )
 from .base import Model
 from .realization import (
@@ -430,12 +429,12 @@ DOWNWASH_DELAY = Dispatch(
 def _input_lag(column: int, name: str):
     """The response with input ``column`` (0 de, 1 alpha_w) through ``1/(1 + T s)``, T the parameter ``name``, s."""
 
-    def fn(s, p, G, H, P, root):
-        G = G.copy()
-        G[:, :, column] = G[:, :, column] / (1.0 + s[:, None] * p[name])
-        return G, H, P
+    def factors(s, p, root):
+        cols = np.ones((s.size, len(root.inputs)), complex)
+        cols[:, column] = 1.0 / (1.0 + s * p[name])
+        return None, cols, None
 
-    return fn
+    return factors
 
 
 def _filter_realize(signal_name: str, name: str):
@@ -481,7 +480,7 @@ _GUST_T = OutputEffect(
     "gust_lag",
     "alpha_w",
     (_seconds("T_gust", upper=2.0, plausible=0.5, start=0.01),),
-    _input_lag(1, "T_gust"),
+    factors=_input_lag(1, "T_gust"),
     needs=("alpha_w",),
     applies=_needs_gust,
     realize=_filter_realize("alpha_w", "T_gust"),
@@ -536,11 +535,10 @@ def _make_output_delay(channels: tuple) -> OutputEffect:
     name = "tau_" + "_".join(channels)
     others = _spoken([c for c in ("de", *OUTPUTS) if c not in channels])
 
-    def output(s, p, G, H, P, root):
-        f = np.exp(-s * p[name])
-        for row in rows:
-            G, H, P = scale_rows(G, H, P, row, f)
-        return G, H, P
+    def factors(s, p, root):
+        f = np.ones((s.size, len(root.outputs)), complex)
+        f[:, rows] = np.exp(-s * p[name])[:, None]
+        return f, None, None
 
     def realize(sys, p, root):
         for row in rows:
@@ -553,7 +551,7 @@ def _make_output_delay(channels: tuple) -> OutputEffect:
         "time_delay",
         ",".join(channels),
         (_seconds(name, upper=0.5, plausible=0.25, start=0.002, description=what),),
-        output,
+        factors=factors,
         signature=f"{_spoken(channels)} recorded tau after {others}: phase lag growing with frequency on "
         + ("it" if len(channels) == 1 else "them"),
         realize=realize,
@@ -575,7 +573,7 @@ ACTUATOR_LAG = OutputEffect(
             description="first-order lag, recorded to effective elevator",
         ),
     ),
-    _input_lag(0, "T_act"),
+    factors=_input_lag(0, "T_act"),
     signature="phase lag and roll-off above 1/T on every output",
     realize=_filter_realize("de", "T_act"),
 )
@@ -601,6 +599,8 @@ class StationEffect(MatrixEffect):
     signature : str
         One line on where the effect shows, for reports.
     """
+
+    acts_on_matrices = False
 
     def __init__(self, channel: str, param: Param, signature: str):
         super().__init__("sensor_offset", channel, (param,), _unchanged, signature=signature, realize=_as_is)
@@ -643,13 +643,13 @@ SENSOR_OFFSET_ALPHA = StationEffect(
 # --- structural mode -------------------------------------------------------------------------
 
 
-def _mode(s, p, G, H, P, root):
+def _mode(s, p, root):
     w, z = p["omega_s"], p["zeta_s"]
     D = s**2 + 2.0 * z * w * s + w**2
-    G = G.copy()
-    G[:, 1, 0] = G[:, 1, 0] + p["r_q"] * s * w / D  # modal rate: s eta, eta = w^2/D de (unit static gain)
-    G[:, 2, 0] = G[:, 2, 0] + p["r_az"] * s**2 / D  # modal acceleration: s^2 eta / w^2
-    return G, H, P
+    added = np.zeros((s.size, len(root.outputs), len(root.inputs)), complex)
+    added[:, 1, 0] = p["r_q"] * s * w / D  # modal rate: s eta, eta = w^2/D de (unit static gain)
+    added[:, 2, 0] = p["r_az"] * s**2 / D  # modal acceleration: s^2 eta / w^2
+    return None, None, added
 
 
 def _mode_realize(sys, p, root):
@@ -690,7 +690,7 @@ STRUCTURAL_MODE = OutputEffect(
             description="mode damping (refined within its plausible range: lightly damped)",
         ),
     ),
-    _mode,
+    factors=_mode,
     nuisance_grid={"omega_s": mode_grid},
     signature="a narrow resonance on q and a_z, coherent with the elevator",
     realize=_mode_realize,
@@ -703,8 +703,10 @@ STRUCTURAL_MODE = OutputEffect(
 def _make_scale(ch: str) -> OutputEffect:
     name, row = f"k_{ch}", OUTPUTS.index(ch)
 
-    def output(s, p, G, H, P, root):
-        return scale_rows(G, H, P, row, 1.0 + p[name])
+    def factors(s, p, root):
+        f = np.ones((s.size, len(root.outputs)))
+        f[:, row] = 1.0 + p[name]
+        return f, None, None
 
     def realize(sys, p, root):
         return scale_output(sys, row, 1.0 + p[name])
@@ -720,7 +722,12 @@ def _make_scale(ch: str) -> OutputEffect:
         description=f"gain error of {ch}",
     )
     return OutputEffect(
-        "sensor_scale", ch, (param,), output, signature=f"{ch} too large or small at every frequency", realize=realize
+        "sensor_scale",
+        ch,
+        (param,),
+        factors=factors,
+        signature=f"{ch} too large or small at every frequency",
+        realize=realize,
     )
 
 
