@@ -1110,7 +1110,7 @@ def _with_adequacy(prob, res, V, A_final, opts: FitOptions):
         tol = max(opts.tol, 1e-2)
         refit_opts = FitOptions.of(opts, adequacy=False, check=False, sensitivity="analytic", **{"tol": tol, **changes})
         with recording(reemit=False):  # the refits' warnings belong to them, not to this fit
-            return _fit(prob.data, model, refit_opts, None)[0]
+            return _fit(list(res.spectra), model, refit_opts, None)[0]  # the fit's spectra, frozen once
 
     # analytic sensitivities at the estimate do not depend on the settling tolerance, so the last ones
     # serve the check too

@@ -626,37 +626,56 @@ def _basis(r: _Record, w: np.ndarray) -> np.ndarray:
 
 def _profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int = 2) -> tuple[float, float, float]:
     """(size, cost, standard error) of ``pat`` on top of ``base``."""
-    if any(pat.lags):
-        return _lag_profile(idn, base, pat, refine)
-    return _linear_profile(idn, base, pat)
+    return _profiles(idn, base, [pat], refine)[0]
 
 
-def _linear_profile(idn: _Identity, base: SensorTerms, pat: Pattern) -> tuple[float, float, float]:
+def _profiles(idn: _Identity, base: SensorTerms, pats: list, refine: int = 2) -> list:
+    """:func:`_profile` of every pattern, their hypotheses costed together: one :meth:`_Identity.costs`
+    call per round of requests (each profile's next step depends on its last costs only)."""
+    steps = [(_lag_steps(base, p, refine, idn) if any(p.lags) else _linear_steps(base, p)) for p in pats]
+    out: list = [None] * len(steps)
+    asked = {i: next(st) for i, st in enumerate(steps)}
+    while asked:
+        batches = list(asked.values())
+        costs = idn.costs(tuple(np.concatenate([b[k] for b in batches]) for k in range(3)))
+        parts = np.split(costs, np.cumsum([len(b[1]) for b in batches])[:-1])
+        waiting, asked = asked, {}
+        for i, c in zip(waiting, parts):
+            try:
+                asked[i] = steps[i].send(c)
+            except StopIteration as done:
+                out[i] = done.value
+    return out
+
+
+def _linear_steps(base: SensorTerms, pat: Pattern):
     """The profile of an offset or a scale pattern, exactly: the identity's residual is affine in the
     offset, and in u = 1/(1 + size) for a scale (the output is divided by its scale factor; the
     record's ends move only with the lags), so the cost is a quadratic a u^2 + b u + c with a >= 0, known
-    from three points."""
+    from three points.  A generator: it yields the hypotheses it needs costed (:func:`_profiles`)."""
     lo, hi = pat.bounds
     to_u = (lambda k: k) if pat.scale is None else (lambda k: 1.0 / (1.0 + k))
     u3 = np.array([to_u(lo), to_u(0.5 * (lo + hi)), to_u(hi)])
-    a, b, c = np.polyfit(u3, idn.costs(pat.batch(base, np.array([lo, 0.5 * (lo + hi), hi]))), 2)
+    a, b, c = np.polyfit(u3, (yield pat.batch(base, np.array([lo, 0.5 * (lo + hi), hi]))), 2)
     ulo, uhi = sorted((u3[0], u3[2]))
     u = float(np.clip(-b / (2 * a), ulo, uhi)) if a > 0 else min((ulo, uhi), key=lambda v: a * v**2 + b * v)
     x = u if pat.scale is None else 1.0 / u - 1.0
     # cost'' in the size: d2/dk2 of a u^2 + b u with du/dk = -u^2, d2u/dk2 = 2 u^3 for a scale
     curv = 2 * a if pat.scale is None else (2 * a * u + b) * 2 * u**3 + 2 * a * u**4
-    return float(x), float(idn.terms_cost(base + pat.terms(x))), _stderr(curv)
+    (cost,) = yield pat.batch(base, np.array([x]))
+    return float(x), float(cost), _stderr(curv)
 
 
-def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -> tuple[float, float, float]:
+def _lag_steps(base: SensorTerms, pat: Pattern, refine: int, idn: _Identity):
     """The profile of a lag: a grid fine enough for the records' highest frequency (the cost's shortest
     period in the lag is 2 pi / omega_max; eight points to it), ``refine`` grids four times finer
-    around the best point, and the vertex of the parabola through the best point and its neighbours."""
+    around the best point, and the vertex of the parabola through the best point and its neighbours.
+    A generator: it yields the hypotheses it needs costed (:func:`_profiles`)."""
     lo, hi = pat.bounds
     w_max = max(float(np.max(np.abs(r.s))) for r in idn.recs) * max(np.abs(pat.lags))
     grid = np.linspace(lo, hi, int(np.clip(math.ceil(8 * (hi - lo) * w_max / (2 * math.pi)) + 1, 11, 51)))
     for level in range(1 + refine):
-        costs = idn.costs(pat.batch(base, grid))
+        costs = yield pat.batch(base, grid)
         i = int(np.argmin(costs))
         if level < refine:
             grid = np.linspace(grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)], 9)
@@ -667,7 +686,7 @@ def _lag_profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int) -
             half = 0.5 * (grid[1] - grid[0])
             x = float(np.clip(x - half * (cp - cm) / (cp - 2 * c0 + cm), grid[i - 1], grid[i + 1]))
     h = 1e-4 * (hi - lo)  # the cost is defined past the bounds (a lead): its curvature at x, at a bound too
-    cm, c0, cp = idn.costs(pat.batch(base, np.array([x - h, x, x + h])))
+    cm, c0, cp = yield pat.batch(base, np.array([x - h, x, x + h]))
     return x, float(c0), _stderr((cp - 2 * c0 + cm) / h**2)
 
 
@@ -1037,8 +1056,7 @@ def _search(idn: _Identity, base: SensorTerms, rnd: int, refine: int = 2) -> lis
     """Every pattern on top of ``base``: findings, largest LR first."""
     c0 = idn.terms_cost(base)
     found = []
-    for pat in patterns():
-        x, c, se = _profile(idn, base, pat, refine)
+    for pat, (x, c, se) in zip(patterns(), _profiles(idn, base, patterns(), refine)):
         lr = max(c0 - c, 0.0)
         found.append(KinematicFinding(pat.keys, pat.param, x, se, pat.unit, lr, _p_value(pat, lr), rnd))
     found.sort(key=lambda f: -f.lr)
