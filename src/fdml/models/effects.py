@@ -294,7 +294,9 @@ def confounded_effect_parameters(model: Model, omega, outputs: Sequence[str], to
     free = list(model.parameters.free_model_names)
     if not free:  # every parameter fixed (a prediction): nothing to confound
         return []
-    _, dG, _, _ = model.sensitivity(omega, None, free, parts=("G",))
+    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    unit = np.eye(len(model.inputs), dtype=complex)  # dG column by column: the outputs' derivatives per input
+    dG = np.stack([model.forced_sensitivity(omega, None, free, np.tile(e, (omega.size, 1)))[1] for e in unit], -1)
     J = dG[:, :, rows, :].reshape(len(free), -1)
     J = np.concatenate([J.real, J.imag], axis=1).T  # (data, parameters)
     J = J / np.maximum(np.linalg.norm(J, axis=0), 1e-300)
