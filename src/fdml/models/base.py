@@ -637,20 +637,25 @@ class Model:
             w = w + _apply(dE, boundary[:, :2])
         dy = _apply(P, w)
         for i, nm in enumerate(names):
-            if nm in _STATION_NAMES:
-                rows = ModelResponse(omega, *self._station_derivative(s, inv, Bd, E, p, nm, H.shape[2]))
-                dy[i] = _responded(rows, u, boundary, forcing)
+            if nm in _STATION_NAMES:  # y = V x + R (s x - d) + I x / s: the station moves V and R
+                dV, dR, dI = self._station_rows(p, nm)
+                d = 0.0 if boundary is None else boundary[:, :2]
+                dy[i] = _apply(dV, x) + _apply(dR, s[:, None] * x - d) + _apply(dI, x / s[:, None])
         return ModelResponse(omega, G, H, P, self.outputs), dy
+
+    def _station_rows(self, p, name: str) -> tuple:
+        """d(V, R, I)/d(name) of the output rows (:func:`output_rows`) for a sensor's station: the rows are
+        affine in it, so their change for a unit step, exactly."""
+        at, unit = output_rows(self.outputs, self.U, p), output_rows(self.outputs, self.U, {**p, name: p[name] + 1.0})
+        return tuple(b - a for a, b in zip(at, unit))
 
     def _station_derivative(self, s, inv, Bd, E, p, name: str, nb: int) -> tuple:
         """d(G, H, P)/d(name) for a sensor's station: it enters its output row, not the matrices.
 
-        The row's coefficients are affine in the station and (G, H, P) linear in them, so the derivative
-        is the response of the coefficients' unit change (no integral term: no boundary column of its own).
+        (G, H, P) are linear in the rows' coefficients, so the derivative is the response of their unit
+        change (:meth:`_station_rows`; no integral term, so no boundary column of its own).
         """
-        at = output_rows(self.outputs, self.U, p)
-        unit = output_rows(self.outputs, self.U, {**p, name: p[name] + 1.0})
-        dG, dH, dP = _response_rows(s, inv, Bd, E, tuple(b - a for a, b in zip(at, unit)))
+        dG, dH, dP = _response_rows(s, inv, Bd, E, self._station_rows(p, name))
         return dG, _padded(dH, nb), dP
 
     def _solves_matrices(self) -> bool:
