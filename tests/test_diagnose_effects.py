@@ -115,6 +115,36 @@ def test_user_registers_an_effect_in_a_few_lines():
     assert all(e.key != "gyro_lag@q" for e in registered_effects())
 
 
+def test_an_effect_given_by_its_factors_equals_its_function():
+    # the gyro lag written as a function of (G, H, P) and as factors scaling q's row: the same response,
+    # and the same forced sensitivities (the factors' path scales the solve's; the function's goes
+    # through the response's derivatives, whose differences carry ~1e-10 of rounding)
+    param = (Param("T_gyro", 0.0, lower=0.0, plausible=(0, 0.1), unit="s"),)
+
+    def gyro_lag(s, p, G, H, P, root):
+        return scale_rows(G, H, P, 1, 1.0 / (1.0 + s * p["T_gyro"]))
+
+    def gyro_factors(s, p, root):
+        rows = np.ones((s.size, len(root.outputs)), complex)
+        rows[:, 1] = 1.0 / (1.0 + s * p["T_gyro"])
+        return rows, None, None
+
+    m = fdml.make_model("dimensional", "navion")
+    by_fn = OutputEffect("gyro_lag", "q", param, gyro_lag).augment(m)
+    by_factors = OutputEffect("gyro_lag", "q", param, factors=gyro_factors).augment(m)
+    vals = {"T_gyro": 0.04}
+    np.testing.assert_allclose(by_factors.evaluate(OMEGA, vals).G, by_fn.evaluate(OMEGA, vals).G, rtol=1e-14)
+    rng = np.random.default_rng(4)
+    u, d = (rng.normal(size=(OMEGA.size, k)) + 1j * rng.normal(size=(OMEGA.size, k)) for k in (1, 2))
+    names = list(by_fn.parameters.free_model_names)
+    (_, a), (_, b) = (x.forced_sensitivity(OMEGA, vals, names, u, d) for x in (by_fn, by_factors))
+    assert np.abs(a - b).max() <= 1e-9 * np.abs(a).max()
+    with pytest.raises(ParameterError, match="either fn or factors"):
+        OutputEffect("gyro_lag", "q", param)
+    with pytest.raises(ParameterError, match="either fn or factors"):
+        OutputEffect("gyro_lag", "q", param, gyro_lag, factors=gyro_factors)
+
+
 def test_candidate_needing_a_missing_channel_says_why():
     m = fdml.make_model("steady", "navion")
     why = get_effect("gust_lag@alpha_w").applicable(m, inputs=("de",))
