@@ -379,9 +379,9 @@ class AugmentedModel(Model):
         """:meth:`Model.forced_sensitivity`, through output-level effects given by their factors.
 
         When each output-level effect gives its :attr:`OutputEffect.factors`, their linear part scales
-        the outputs and the inputs, so a base or
-        matrix-level parameter's derivative is the solve's with the inputs scaled, its outputs scaled, and
-        an output-level effect's own is its central difference applied to the forcing.
+        the outputs and the inputs: a base or matrix-level parameter's derivative is then the solve's,
+        with the inputs scaled and the outputs scaled, and an output-level effect's own parameter's is
+        its central difference (:meth:`_output_difference`) applied to the forcing.
 
         Parameters
         ----------
@@ -414,16 +414,15 @@ class AugmentedModel(Model):
         for f in factored:
             r, c, _ = f(s, p, self.root)
             rows, cols = rows if r is None else rows * r, cols if c is None else cols * c
-        inner = [n for n in names if n not in own]
+        inner, outer = [n for n in names if n not in own], [n for n in names if n in own]
         base, dy = self._forced_solve(omega, p, inner, u * cols, boundary, forcing)
         resp = (base.G, base.H, base.P)
         extra = [
             _responded(ModelResponse(omega, *self._output_difference(s, p, resp, n)), u, boundary, forcing)[None]
-            for n in names
-            if n in own
+            for n in outer
         ]
         dy = np.concatenate([dy * rows] + extra)
-        order = [inner.index(n) if n in inner else len(inner) + [m for m in names if m in own].index(n) for n in names]
+        order = [inner.index(n) if n in inner else len(inner) + outer.index(n) for n in names]
         return ModelResponse(omega, *self._outputs(s, p, *resp), self.outputs), dy[order]
 
     def _solves_matrices(self) -> bool:

@@ -37,7 +37,7 @@ A user adds an effect in a few lines::
 
 An effect that scales outputs or inputs (or adds a response of its own parameters) can say so
 with ``factors`` instead of ``fn``; a fit then forms its sensitivities without the response's
-derivatives (a third to a quarter of the time for the built-in lags and delays)::
+derivatives (for the built-in delays and lags, about a third of the time: 0.26 ms, not 0.84)::
 
     def gyro_factors(s, p, model):
         rows = np.ones((s.size, len(model.outputs)), complex)
