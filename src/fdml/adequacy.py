@@ -904,8 +904,12 @@ def _steps(prob, n_ind: float) -> tuple[int, float]:
 
 
 def _lr_of_steps(refit, model, R0: np.ndarray, n_ind: float) -> float | None:
-    """LR of ``model`` refitted with every step's timing against residual covariance ``R0`` (None: no fit)."""
-    r = _refitted(refit, model, input_edges="estimated")
+    """LR of ``model`` refitted with every step's timing against residual covariance ``R0`` (None: no fit).
+
+    Only its R counts, so the refit's covariance is the information matrix's (``naive``), not the white
+    noise's: with a timing per step that one is the costly part (Gram columns per step and output).
+    """
+    r = _refitted(refit, model, input_edges="estimated", cov_type="naive")
     return _lr(R0, r.R, n_ind) if r is not None and r.converged else None
 
 
@@ -941,7 +945,7 @@ def _steps_beside(prob, result, refit, n_ind: float, m) -> bool:
     if not k:
         return False
     model = with_effects(result.model, get_effect(m.key)).fix({m.param: m.value})
-    r0 = _refitted(refit, model)
+    r0 = _refitted(refit, model, cov_type="naive")  # only its R counts
     lr = None if r0 is None else _lr_of_steps(refit, model, r0.R, n_ind)
     return lr is not None and lr > k * logn
 
