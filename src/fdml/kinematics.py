@@ -60,6 +60,7 @@ every fit, on the spectra the fit already has.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -629,7 +630,7 @@ def _profile(idn: _Identity, base: SensorTerms, pat: Pattern, refine: int = 2) -
     return _profiles(idn, base, [pat], refine)[0]
 
 
-def _profiles(idn: _Identity, base: SensorTerms, pats: list, refine: int = 2) -> list:
+def _profiles(idn: _Identity, base: SensorTerms, pats: Sequence[Pattern], refine: int = 2) -> list:
     """:func:`_profile` of every pattern, their hypotheses costed together: one :meth:`_Identity.costs`
     call per round of requests (each profile's next step depends on its last costs only)."""
     steps = [(_lag_steps(base, p, refine, idn) if any(p.lags) else _linear_steps(base, p)) for p in pats]
