@@ -143,6 +143,10 @@ def test_an_effect_given_by_its_factors_equals_its_function():
         OutputEffect("gyro_lag", "q", param)
     with pytest.raises(ParameterError, match="either fn or factors"):
         OutputEffect("gyro_lag", "q", param, gyro_lag, factors=gyro_factors)
+    # factors of the wrong shape (one row per output expected): named, not a numpy broadcasting error
+    wrong = OutputEffect("gyro_lag", "q", param, factors=lambda s, p, root: (np.ones((s.size, 2)), None, None))
+    with pytest.raises(ParameterError, match=r"gyro_lag@q: its factors give rows of shape \(40, 2\), not \(40, 3\)"):
+        wrong.augment(m).evaluate(OMEGA[:40], vals)
 
 
 def test_candidate_needing_a_missing_channel_says_why():

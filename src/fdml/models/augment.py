@@ -716,7 +716,7 @@ class OutputEffect(_AppliedEffect):
     ):
         if (fn is None) == (factors is None):
             raise ParameterError(f"OutputEffect {name!r} needs either fn or factors")
-        fn = fn or (lambda *a: _factored(factors, *a))
+        fn = fn or (lambda *a: _factored(self.factors, *a))
         super().__init__(
             name,
             channel,
@@ -728,7 +728,18 @@ class OutputEffect(_AppliedEffect):
             applies=applies,
             realize=realize,
         )
-        self.factors = factors
+        self._factors = factors
+        #: ``factors(s, p, root) -> (rows, columns, added)`` with their shapes checked, or None (``fn`` given).
+        self.factors = None if factors is None else self._checked_factors
+
+    def _checked_factors(self, s, p, root) -> tuple:
+        """The effect's factors at ``s``, each None or of its shape (else a ParameterError naming the effect)."""
+        out = self._factors(s, p, root)
+        n, ny, nin = s.size, len(root.outputs), len(root.inputs)
+        for what, x, shape in zip(("rows", "columns", "added"), out, ((n, ny), (n, nin), (n, ny, nin))):
+            if x is not None and np.shape(x) != shape:
+                raise ParameterError(f"effect {self.key}: its factors give {what} of shape {np.shape(x)}, not {shape}")
+        return out
 
     def output(self, s, p, G, H, P, root):
         """Apply the effect to the output matrices at ``s = j omega``; returns ``(G, H, P)``.
