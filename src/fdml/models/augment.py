@@ -728,7 +728,7 @@ class OutputEffect(_AppliedEffect):
             applies=applies,
             realize=realize,
         )
-        self._factors = factors
+        self._factors = cast(Callable, factors)  # read only when given (self.factors is not None)
         #: ``factors(s, p, root) -> (rows, columns, added)`` with their shapes checked, or None (``fn`` given).
         self.factors = None if factors is None else self._checked_factors
 
