@@ -515,3 +515,41 @@ def test_short_ill_conditioned_records_converge():
             warnings.simplefilter("ignore")
             converged += fit(rec, model, band="0.5:5:0.5", check=False, adequacy=False).converged
     assert converged >= 9
+
+
+def test_an_uphill_newton_prediction_is_not_the_floating_point_floor():
+    """With an indefinite concentrated Hessian H the Newton step's quadratic model predicts a rise of
+    ln det R, not a decrease below the rounding; the floor test reads the Gauss-Newton step halved
+    instead (g H1^-1 g / 2^11, positive), so a pass that found no decrease is not taken for the floor."""
+    from fdml.estimate import _least_resolved
+
+    g = np.array([1.0, -2.0])
+    H1 = np.diag([2.0, 1.0])
+    H = np.diag([2.0, -1.0])
+    step_n = -np.linalg.solve(H, g)  # the Newton step: 0.5 * step.H.step + g.step = -g H^-1 g / 2 > 0 here: a rise
+    assert -(g @ step_n + 0.5 * step_n @ H @ step_n) < 0
+    least = _least_resolved(g, H1, H, np.ones(2, bool), step_n, True)
+    assert least == pytest.approx((0.5 + 4.0) * 0.5**11)
+
+
+def test_a_strongly_indefinite_first_pass_finds_its_way_when_gauss_newton_cannot():
+    """Sundowner, q and theta fitted with a q delay (40 ms in the truth).  The first pass's concentrated
+    Hessian is strongly indefinite, so the Gauss-Newton step goes first, and at every length it raised
+    the cost.  That used to end the fit at its start as 'converged at the floating-point floor', with the
+    delay at its null, five standard errors from the truth; the shifted steps now take it there in one
+    pass.  (The derivatives are only partly identifiable from q and theta, which the fit says.)"""
+    from fdml.maneuvers import three_two_one_one, time_vector
+    from fdml.models import with_effects
+    from fdml.record import add_noise
+    from fdml.simulate import simulate
+
+    base = make_model("dimensional", "sundowner", outputs=("alpha", "q", "az", "theta", "qdot"))
+    t = time_vector(12.0, 0.02)
+    truth = with_effects(base, "time_delay:q").with_values({"tau_q": 0.04})
+    rec = simulate(truth, t, {"de": three_two_one_one(t, amplitude=0.02, start=1.0, unit=0.5, rise=0.1)})
+    rec = add_noise(rec, 0.01, np.random.default_rng(1), relative=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # identifiability and convergence warnings: the valley is long
+        res = fit(rec, with_effects(base, "time_delay:q"), band=(0.3, 10, 0.1), outputs="q,theta", max_iter=3)
+    assert "floor" not in res.message
+    assert abs(res.params["tau_q"] - 0.04) < 5 * res.errors["tau_q"]

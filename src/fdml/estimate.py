@@ -1060,7 +1060,10 @@ def _least_resolved(g, H1, H, active, step_n, full: bool) -> float:
     gn = _solve(H1, g, active) if full else step_n
     halvings = SETTINGS.fallback_halvings if full else SETTINGS.gn_max_halvings
     least = -float(g @ gn) * 0.5 ** (halvings - 1)
-    return min(least, -float(g @ step_n + 0.5 * step_n @ H @ step_n)) if full else least
+    if not full:
+        return least
+    newton = -float(g @ step_n + 0.5 * step_n @ H @ step_n)  # with an indefinite H, below zero: no decrease
+    return min(least, newton) if newton > 0 else least
 
 
 def _floor_reached(R: np.ndarray, rows, history: list, least: float = math.inf) -> str:
@@ -1179,44 +1182,60 @@ def _hybrid_step(prob, theta, g, H1, J, active, lo, hi, rows=None, eig=None, rad
     Newton with the concentrated Hessian ``Hc`` when it is positive definite
     and its step lies within ``radius`` (in the metric scaled by diag H1).
     Otherwise ``Hc + mu I`` with the shift mu that puts the step on the
-    region's edge (Moré and Sorensen's secular equation, :func:`_shift_for`),
-    at least the smallest shift that makes it positive definite (far from the
-    optimum the dependence of R on theta can make it indefinite), which keeps
-    the curvature the paper's alternation ignores.  A trial that does not
-    lower the cost shrinks the region; the ratio of the actual to the
-    quadratic model's decrease sets the next pass's region (Nocedal and
-    Wright, Algorithm 4.1), so a pass seldom needs a second trial.  The
-    paper's Gauss-Newton step with R held (Eq. 23), with step halving, is
-    the last resort; a step it makes leaves the next pass's region unbounded.
-    A pass whose unbounded step predicts a decrease below ``rounding`` (the
-    rounding error of ln det R) tries nothing: the cost cannot tell the
-    points apart.  ``eig`` is :func:`_scaled_eig` of ``Hc`` on the active
-    set (None: no finite Hc, straight to the last resort).
+    region's edge (:func:`_shifted_step`), which keeps the curvature the
+    paper's alternation ignores.  The paper's Gauss-Newton step with R held
+    (Eq. 23), with step halving, is the last resort; a step it makes leaves
+    the next pass's region unbounded.  Where ``Hc`` is strongly indefinite
+    (far from the optimum) the Gauss-Newton step goes first, as it goes
+    further; when it finds no decrease, the shifted steps are tried after
+    all (Sundowner, q and theta fitted with a q delay: its steps of every
+    length raised the cost).  ``eig`` is :func:`_scaled_eig` of ``Hc`` on
+    the active set (None: no finite Hc, straight to the last resort).
     """
     idx = np.flatnonzero(active)
-    if idx.size and eig is not None:
-        D, w, Q = eig
-        c = Q.T @ (g[idx] / D)  # the scaled gradient in the eigenvectors' basis
-        top = max(float(w.max()), 1e-300)
-        least = 0.0 if w.min() > SETTINGS.singular_eig * top else 2.0 * abs(float(w.min())) + 1e-8 * top
-        # strongly indefinite (far from the optimum): the Gauss-Newton step goes further
-        tries = SETTINGS.shift_tries if w.min() > -SETTINGS.shift_limit * top else 0
-        for _ in range(tries):
-            y = -c / (w + _shift_for(c, w, least, radius))
-            size = float(np.linalg.norm(y))
-            predicted = -float(c @ y + 0.5 * (w * y) @ y)  # the quadratic model's decrease of ln det R
-            if predicted <= rounding:  # a decrease the cost cannot resolve
-                if math.isinf(radius):  # even the unbounded step's: the cost cannot tell the points apart
-                    return False, theta, None, None, J, radius
-                break  # the region has shrunk enough
-            step = np.zeros_like(g)
-            step[idx] = (Q @ y) / D
-            ok, *rest = _try(prob, theta, step, lo, hi, J, rows)
-            if ok:
-                return (True, *rest, _next_radius((J - rest[3]) / predicted, size, radius))
-            radius = 0.25 * size  # the trial did not lower the cost: a quarter of the region
+    shifted = idx.size > 0 and eig is not None
+    strongly = shifted and float(eig[1].min()) <= -SETTINGS.shift_limit * max(float(eig[1].max()), 1e-300)
+    if shifted and not strongly:
+        done, radius = _shifted_step(prob, theta, g, idx, eig, J, lo, hi, rows, radius, rounding)
+        if done is not None:
+            return done
     accepted, *rest = _halving_step(prob, theta, _solve(H1, g, active), lo, hi, J, rows, SETTINGS.fallback_halvings)
-    return (accepted, *rest, math.inf if accepted else radius)
+    if accepted or not strongly:
+        return (accepted, *rest, math.inf if accepted else radius)
+    done, radius = _shifted_step(prob, theta, g, idx, eig, J, lo, hi, rows, radius, rounding)
+    return done if done is not None else (False, *rest, radius)
+
+
+def _shifted_step(prob, theta, g, idx, eig, J, lo, hi, rows, radius: float, rounding: float) -> tuple:
+    """Levenberg-Marquardt trials in the trust region: ``(result, radius)``, ``result`` as :func:`_hybrid_step`'s
+    or None when none lowered the cost (``radius`` then the region they shrank to).
+
+    The shift puts the step on the region's edge (Moré and Sorensen's secular equation,
+    :func:`_shift_for`), at least the smallest that makes ``Hc`` positive definite.  A trial that does
+    not lower the cost shrinks the region to a quarter of its step; the ratio of the actual to the
+    quadratic model's decrease sets the next pass's region (Nocedal and Wright, Algorithm 4.1), so a
+    pass seldom needs a second trial.  An unbounded step whose predicted decrease is below
+    ``rounding`` (the rounding error of ln det R) is not tried: the cost cannot tell the points apart.
+    """
+    D, w, Q = eig
+    c = Q.T @ (g[idx] / D)  # the scaled gradient in the eigenvectors' basis
+    top = max(float(w.max()), 1e-300)
+    least = 0.0 if w.min() > SETTINGS.singular_eig * top else 2.0 * abs(float(w.min())) + 1e-8 * top
+    for _ in range(SETTINGS.shift_tries):
+        y = -c / (w + _shift_for(c, w, least, radius))
+        size = float(np.linalg.norm(y))
+        predicted = -float(c @ y + 0.5 * (w * y) @ y)  # the quadratic model's decrease of ln det R
+        if predicted <= rounding:  # a decrease the cost cannot resolve
+            if math.isinf(radius):  # even the unbounded step's: the cost cannot tell the points apart
+                return (False, theta, None, None, J, radius), radius
+            break  # the region has shrunk enough
+        step = np.zeros_like(g)
+        step[idx] = (Q @ y) / D
+        ok, *rest = _try(prob, theta, step, lo, hi, J, rows)
+        if ok:
+            return (True, *rest, _next_radius((J - rest[3]) / predicted, size, radius)), radius
+        radius = 0.25 * size  # the trial did not lower the cost: a quarter of the region
+    return None, radius
 
 
 def _shift_for(c: np.ndarray, w: np.ndarray, least: float, radius: float) -> float:
