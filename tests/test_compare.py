@@ -18,7 +18,7 @@ from conftest import assert_refused_in_one_line
 from fdml.aircraft import LAG_KEYS, Aircraft, get_aircraft, jones_lag_constants
 from fdml.cli import main
 from fdml.compare import Comparison, _long_run_variance, compare_steady_unsteady, loglik_contributions
-from fdml.errors import AircraftError
+from fdml.errors import AircraftError, FdmlError
 from fdml.models import make_model
 from fdml.simulate import simulate_maneuver
 
@@ -158,6 +158,12 @@ def test_comparison_round_trip_summary_and_plot(comparison):
         assert back.shifts[name] == pytest.approx(shift)
     text = comparison.summary()
     assert "evidence" in text and "ln det R" in text and text == comparison.table()
+    damaged = json.loads(json.dumps(comparison.to_dict()))
+    damaged["unsteady"]["values"] = "not a value"  # the fit's messages name the comparison and the key
+    with pytest.raises(FdmlError, match=r"^saved c.json: unsteady: key 'values'"):
+        Comparison.from_dict(damaged, source="saved c.json")
+    with pytest.raises(FdmlError, match=r"^saved c.json: key 'format' is not 'fdml.Comparison'"):
+        Comparison.from_dict({**comparison.to_dict(), "format": "fdml.FitResult"}, source="saved c.json")
     assert comparison.evidence.favoured == "unsteady"  # 2 % noise: far beyond the 90 % crossing
     assert comparison.unsteady.provenance["lag_constants"]["source"] == "aircraft file"  # the navion preset
     fig = comparison.plot()

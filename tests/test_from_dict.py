@@ -33,7 +33,7 @@ from fdml.flightpath import CompatibilityResult, ParameterEstimate, check_compat
 from fdml.jsoncodec import dumps, to_jsonable
 from fdml.kinematics import KinematicEvidence, kinematic_evidence
 from fdml.models import make_model
-from fdml.parameters import Role, Slot
+from fdml.parameters import Parameter, Role, Slot
 from fdml.quality import ChannelQuality, QualityReport, check_quality
 from fdml.record import Record
 from fdml.simulate import simulate_maneuver
@@ -128,6 +128,7 @@ def instances(record, fitted, air_record, plan, cell):
     return {
         RecordedWarning: (RecordedWarning("DataWarning", "ends far from trim"), {}, True),
         Slot: (fitted.slots[0], {"name": fitted.slots[0].name}, True),
+        Parameter: (fitted.model.parameters["CLa_w"], {}, True),
         Finding: (Finding("units.q", "q looks like deg/s", record="r", value=57.3, expected=1.0), {}, True),
         Adequacy: (fitted.adequacy, {}, True),
         DataCheck: (check_data(record), {}, True),
@@ -150,6 +151,7 @@ def instances(record, fitted, air_record, plan, cell):
 CLASSES = [
     RecordedWarning,
     Slot,
+    Parameter,
     Finding,
     Adequacy,
     DataCheck,
@@ -237,6 +239,7 @@ def test_design_reads_its_input_csv(plan, tmp_path):
 DAMAGE = {
     RecordedWarning: ("message", "category"),
     Slot: ("base", "role"),
+    Parameter: ("name", "lower"),
     Finding: ("code", "value"),
     Adequacy: ("alpha", "whiteness"),
     DataCheck: ("record", "kinematics.slope_q"),

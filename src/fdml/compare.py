@@ -22,7 +22,7 @@ import numpy as np
 from .aircraft import Aircraft, lag_provenance, load_aircraft
 from .errors import FdmlError
 from .estimate import fit
-from .jsoncodec import Codec
+from .jsoncodec import SKIP, Codec, Fields, Spec, nested
 from .jsoncodec import text as choose
 from .models import make_model
 from .models.wells_keskar import ALTERNATE_NAMES
@@ -243,8 +243,13 @@ def check_records_for_compare(records, *, gust: bool = False) -> None:
 
 
 # --- the comparison --------------------------------------------------------------------------
+def _fit_field() -> Spec:
+    """A full fit (:meth:`FitResult.from_dict`, its messages naming the comparison and the key)."""
+    return Spec(lambda f, k, done: FitResult.from_dict(f.raw(k), source=f"{f.source}: {k}"))
+
+
 @dataclass(frozen=True)
-class Comparison:
+class Comparison(Codec):
     """Steady and unsteady fits of the same data, their derivative sets and the evidence.
 
     Parameters
@@ -262,6 +267,15 @@ class Comparison:
     steady_set: dict = field(default_factory=dict)
     unsteady_set: dict = field(default_factory=dict)
     evidence: Evidence | None = None
+
+    json_fields = {
+        **dict.fromkeys(("steady", "unsteady"), _fit_field()),
+        **dict.fromkeys(("steady_set", "unsteady_set"), SKIP),  # derived from the fits
+        "evidence": nested(Evidence, none=True),
+    }
+    json_extra = ("shifts",)
+    json_format = COMPARISON_FORMAT
+    json_source = "fdml comparison"
 
     def __post_init__(self) -> None:
         if not self.steady_set:
@@ -370,51 +384,31 @@ class Comparison:
             "fit_quality": self.fit_quality() if self.steady.spectra else None,
         }
 
-    def to_dict(self) -> dict:
-        """JSON-ready dict (format ``fdml.Comparison`` version 1).
-
-        Returns
-        -------
-        dict
-            Both full fits, the shifts and the evidence.
-        """
-        return {
-            "format": COMPARISON_FORMAT[0],
-            "version": COMPARISON_FORMAT[1],
-            "steady": self.steady.to_dict(),
-            "unsteady": self.unsteady.to_dict(),
-            "shifts": self.shifts,
-            "evidence": None if self.evidence is None else self.evidence.to_dict(),
-        }
-
     @classmethod
-    def from_dict(cls, d: dict, *, source: str = "fdml comparison") -> "Comparison":
-        """Inverse of :meth:`to_dict` (the shifts are recomputed from the fits).
+    def from_dict(cls, d, *, source: str | None = "fdml comparison", **given) -> "Comparison":
+        """Inverse of ``to_dict`` (:class:`~fdml.jsoncodec.Codec`: format ``fdml.Comparison`` version 1).
+
+        Both full fits and the evidence are read; the shifts, written beside them, are recomputed from the fits.
 
         Parameters
         ----------
         d : dict
-            As written by :meth:`to_dict`.
+            As written by ``to_dict``.
         source : str, optional
             What ``d`` came from, named in a one-line error.
+        **given
+            Field values the dict does not hold.
 
         Returns
         -------
         Comparison
             The comparison ``d`` describes.
         """
-        from .jsoncodec import Fields
-
-        f = Fields(d, source)
+        f = Fields(d, cls.json_source if source is None else source)
         if f.raw("format", None) != COMPARISON_FORMAT[0]:
             raise f.error("format", f"is not {COMPARISON_FORMAT[0]!r}: not an fdml comparison")
         f.version("version", COMPARISON_FORMAT[1])
-        ev = f.raw("evidence", None)
-        return cls(
-            steady=FitResult.from_dict(f.raw("steady"), source=f"{source}: steady"),
-            unsteady=FitResult.from_dict(f.raw("unsteady"), source=f"{source}: unsteady"),
-            evidence=None if ev is None else Evidence.from_dict(ev, source=f"{source}: evidence"),
-        )
+        return cls.from_fields(f, **given)
 
     def plot(self, *, record: int = 0, fig=None):
         """Data spectra with both fits (top) and the derivative shifts with +-2 sigma bounds (bottom).

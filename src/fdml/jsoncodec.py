@@ -23,6 +23,20 @@ Reading
     is refused with one line naming the file and the key.  The decoders
     accept what :func:`to_jsonable` writes and also the ``NaN``/``Infinity``
     tokens and ``null`` that earlier fdml versions wrote.
+
+Objects
+    A result or state object (a fit, a record, its spectra, a parameter, a
+    comparison, a verdict, ...) derives ``to_dict`` and ``from_dict`` from its
+    dataclass fields (:class:`Codec`, one :class:`Spec` per field that needs
+    more than its annotation says).  The fit's options are read field by field
+    into :class:`~fdml.fit_options.FitOptions`, whose constructor validates each
+    one.  Six objects write a layout of their own
+    with :class:`Fields` instead, because their JSON is not their fields: the
+    aircraft file (a user's file, keys in SI units, with its own messages), and
+    the reports read by people and scripts, whose keys are figures derived from
+    the fields (a gap-map cell's coherent fraction, the kinematic evidence's
+    flattened findings, the diagnosis report's sections, a design plan's gains
+    and a prediction's ``{name: {value, stderr}}``).
 """
 
 from __future__ import annotations

@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
 
 from .errors import ParameterError
-from .jsoncodec import SKIP, Codec, choice
+from .jsoncodec import SKIP, Codec, Spec, choice
 
 __all__ = ["NUISANCE_ROLES", "Parameter", "Parameters", "Role", "Slot", "as_names", "check_fix_free", "fixed_values"]
 
@@ -100,9 +100,20 @@ class Slot(Codec):
         return super().from_fields(f, name=f.string("base") if name is None else name, **given)
 
 
+def _bound(sign: float) -> Spec:
+    """A bound written as a number, an infinite one as null (read back as ``sign`` * inf)."""
+    return Spec(
+        lambda f, k, done: sign * math.inf if (v := f.number(k, allow_none=True)) is None else v,
+        write=lambda v: None if math.isinf(v) else v,
+    )
+
+
 @dataclass(frozen=True)
-class Parameter:
+class Parameter(Codec):
     """One model parameter.
+
+    ``to_dict``/``from_dict`` (:class:`~fdml.jsoncodec.Codec`) write every field, infinite
+    bounds as null and the role as its JSON string; a missing optional key takes its default.
 
     Parameters
     ----------
@@ -131,6 +142,9 @@ class Parameter:
     description: str = ""
     role: Role = Role.AERO
 
+    json_fields = {"lower": _bound(-1.0), "upper": _bound(1.0), "role": choice(Role)}
+    json_source = "parameter"
+
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
             raise ParameterError("a parameter needs a non-empty name")
@@ -145,48 +159,6 @@ class Parameter:
             )
         object.__setattr__(self, "value", v)
         object.__setattr__(self, "role", _role(self.role, self.name))
-
-    def to_dict(self) -> dict:
-        """Return a JSON-ready dict (infinite bounds as None).
-
-        Returns
-        -------
-        dict
-            Every field; the role as its JSON form.
-        """
-        return {
-            **asdict(self),
-            "lower": None if math.isinf(self.lower) else self.lower,
-            "upper": None if math.isinf(self.upper) else self.upper,
-            "role": self.role.value,
-        }
-
-    @classmethod
-    def from_dict(cls, d: Mapping) -> "Parameter":
-        """Inverse of :meth:`to_dict`.
-
-        Parameters
-        ----------
-        d : mapping
-            A dict as written by :meth:`to_dict` (missing optional keys take their defaults).
-
-        Returns
-        -------
-        Parameter
-            The parameter.
-        """
-        lo = d.get("lower")
-        hi = d.get("upper")
-        return cls(
-            name=d["name"],
-            value=d["value"],
-            free=bool(d.get("free", True)),
-            lower=-math.inf if lo is None else float(lo),
-            upper=math.inf if hi is None else float(hi),
-            unit=d.get("unit", ""),
-            description=d.get("description", ""),
-            role=d.get("role", Role.AERO),  # checked by __post_init__
-        )
 
 
 def _role(value, name: str) -> Role:
