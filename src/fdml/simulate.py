@@ -89,33 +89,87 @@ def _foh_steps(sys: _System, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return Ex[:ns, :ns], Ex[:ns, ns : ns + nu], Ex[:ns, ns + nu :]
 
 
-def _kinks(channels, dt: float) -> np.ndarray:
-    """Where in a sample interval [0, dt] the delayed inputs u(t - d) bend: 0, d mod dt of each channel, dt."""
-    frac = [d - dt * math.floor(d / dt) for _, d in channels]
-    inside = [f for f in frac if _KINK_RTOL * dt < f < (1.0 - _KINK_RTOL) * dt]
+def _pieces(sys: _System, dt: float) -> np.ndarray:
+    """Where the march stops in a sample interval [0, dt]: its ends, the delayed inputs' kinks, the outputs' reads.
+
+    An input u(t - d) bends at ``d mod dt`` after each sample; an output recorded d late is read at
+    ``t_k - d``, ``-d mod dt`` after a sample.
+    """
+    at = [d % dt for _, d in sys.channels] + [-d % dt for d in sys.out_delay]
+    inside = [f for f in at if _KINK_RTOL * dt < f < (1.0 - _KINK_RTOL) * dt]
     return np.unique(np.r_[0.0, inside, dt])
 
 
-def _foh_march(sys: _System, dt: float, tau: np.ndarray, sig: Mapping[str, np.ndarray]) -> np.ndarray:
-    """States at the samples for inputs linear between their samples, each delayed by its channel's d.
+def _foh_march(sys: _System, dt: float, tau: np.ndarray, sig: Mapping[str, np.ndarray]):
+    """States of inputs linear between their samples, each delayed by its channel's d: exact (x(0) = 0).
 
-    Exact (x(0) = 0): a delayed input ``u(t - d)`` is linear between its kinks at ``t_k + d``, so a
-    delay that is not a whole number of samples splits each sample interval at ``d mod dt``, and the
-    march takes one exact first-order-hold step (:func:`_foh_steps`) per piece.  Sampling the delayed
-    input and holding it linear between the samples instead would smooth it like a short lag.
+    A delayed input ``u(t - d)`` is linear between its kinks at ``t_k + d``, so each sample interval
+    is stepped in pieces (:func:`_pieces`), one exact first-order-hold step (:func:`_foh_steps`)
+    each.  Sampling the delayed input and holding it linear between the samples instead would
+    smooth it like a short lag.
+
+    Returns
+    -------
+    pieces : numpy.ndarray
+        Where the pieces start in a sample interval, s, and its end dt, shape (p + 1,).
+    x : numpy.ndarray
+        The states at the samples, shape (n, ns).
+    partial : list of tuple
+        Per piece, ``(Phi, drive)``: the state at ``t_k + pieces[j]`` is ``Phi x_k + drive[k]``.
     """
-    s = _kinks(sys.channels, dt)
+    s = _pieces(sys, dt)
     ns = sys.A.shape[0]
     at = [np.column_stack([_delayed(tau[:-1] + sj, sig[nm], d, tau) for nm, d in sys.channels]) for sj in s]
     Phi, drive = np.eye(ns), np.zeros((tau.size - 1, ns))
+    partial = []
     for j in range(s.size - 1):  # the pieces in turn: drive_k <- Phi_j drive_k + its own forcing
+        partial.append((Phi, drive))
         P, G1, G2 = _foh_steps(sys, s[j + 1] - s[j])
         drive = drive @ P.T + at[j] @ (G1 - G2).T + at[j + 1] @ G2.T
         Phi = P @ Phi
     x = np.zeros((tau.size, ns))
     for k in range(tau.size - 1):  # linear recursion; the work per step is a small matrix product
         x[k + 1] = Phi @ x[k] + drive[k]
-    return x
+    return s, x, partial
+
+
+def _simulate_foh(sys: _System, tau: np.ndarray, dt: float, sig: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Every output at its own delay, ``y_i(t - d_i)``, for inputs linear between their samples: exact.
+
+    An output recorded d late is read where it was, at ``t_k - d``: one of the march's stops
+    (:func:`_foh_march`).  Before the start the outputs are zero (rest); an advance past the end
+    holds the last value.  The rate feedthrough (``Dd``, a_z of alpha_w_dot) takes central
+    differences of the delayed inputs.
+    """
+    s, x, partial = _foh_march(sys, dt, tau, sig)
+    u = np.column_stack([_delayed(tau, sig[nm], d, tau) for nm, d in sys.channels])
+    rates = np.gradient(u, dt, axis=0)
+    y = x @ sys.C.T + u @ sys.D.T + rates @ sys.Dd.T
+    for i, d in enumerate(sys.out_delay):
+        if d != 0.0:
+            read = np.clip(tau - d, tau[0], tau[-1])
+            ui = np.column_stack([_delayed(read, sig[nm], dc, tau) for nm, dc in sys.channels])
+            ri = np.column_stack([np.interp(read, tau, r) for r in rates.T])
+            delayed = _states_at(read, d, s, x, partial, dt) @ sys.C[i] + ui @ sys.D[i] + ri @ sys.Dd[i]
+            delayed[tau - d > tau[-1]] = y[-1, i]
+            delayed[tau - d < tau[0] - _KINK_RTOL * dt] = 0.0
+            y[:, i] = delayed
+    return y
+
+
+def _states_at(read: np.ndarray, d: float, s: np.ndarray, x: np.ndarray, partial: list, dt: float) -> np.ndarray:
+    """The states at the times ``read`` of an output recorded ``d`` late: stops of :func:`_foh_march`.
+
+    Each read time is ``t_k - d``: a sample plus ``r = -d mod dt`` (0 when d is whole samples).
+    """
+    r = -d % dt
+    r = 0.0 if min(r, dt - r) <= _KINK_RTOL * dt else r
+    k = np.clip(np.round((read - r) / dt).astype(int), 0, x.shape[0] - 1)
+    if r == 0.0:
+        return x[k]
+    Phi, drive = partial[int(np.argmin(np.abs(s - r)))]
+    k = np.minimum(k, x.shape[0] - 2)
+    return x[k] @ Phi.T + drive[k]
 
 
 def pole_steps_for(T: float, dt: float, substeps: int | None = None) -> int:
@@ -411,15 +465,10 @@ def simulate(
     sys = _system(model, p)
     tau = t - t[0]
     if sys.kappa == 0.0:
-        u = np.column_stack([_delayed(tau, sig[nm], d, tau) for nm, d in sys.channels])
-        x = _foh_march(sys, dt, tau, sig)
-        y = x @ sys.C.T + u @ sys.D.T
-        if np.any(sys.Dd):  # a_z feedthrough of alpha_w_dot (alpha-dot derivatives with a gust)
-            y += np.gradient(u, dt, axis=0) @ sys.Dd.T
+        y = _simulate_foh(sys, tau, dt, sig)
         integration = {"method": "exact first-order-hold discretisation (matrix exponential)"}
     else:
         y, integration = _simulate_memory(sys, tau, dt, sig, substeps, pole_steps)
-    y = _delay_outputs(y, tau, sys.out_delay)
     y = y + np.array([p[f"bias_{k}"] for k in sys.outputs])
     if noise:
         for i, k in enumerate(sys.outputs):  # fixed channel order: reproducible for a given seed
@@ -430,22 +479,6 @@ def simulate(
         signals["alpha_w"] = sig["alpha_w"]
     meta = {"model": model.kind, "values": p, "noise": noise, "U": model.U, "integration": integration}
     return Record(t, signals, name=name, meta=meta, check_units=False)
-
-
-def _delay_outputs(y: np.ndarray, tau: np.ndarray, delays) -> np.ndarray:
-    """Each output column y_i(t - d_i) by a cubic spline (interpolation error O(dt^4)).
-
-    Zero before the start (the simulation starts from rest), held after the end
-    (a negative delay, an advance, reaches past the last sample).
-    """
-    y = y.copy()
-    for i, d in enumerate(delays):
-        if d:
-            ts = tau - d
-            yi = interpolate.CubicSpline(tau, y[:, i])(np.clip(ts, tau[0], tau[-1]))
-            yi[ts < tau[0]] = 0.0
-            y[:, i] = yi
-    return y
 
 
 def _delayed(tau_out, u, delay: float, tau_in) -> np.ndarray:
@@ -487,10 +520,13 @@ def _simulate_memory(sys: _System, tau, dt, sig, substeps, pole_steps):
     # Outputs at the samples: states by cubic Hermite interpolation (their derivatives are known),
     # eps_F by a cubic spline, and the direct input feedthrough of a_z from the inputs themselves,
     # whose kinks at the samples would otherwise be smeared over an internal step.
-    xs = interpolate.CubicHermiteSpline(tk, x, xdot, axis=0)(tau)
-    eps_s = interpolate.CubicSpline(tk, eps)(tau)
-    u_s = np.column_stack([_delayed(tau, sig[nm], d, tau) for nm, d in sys.channels])
-    y = xs @ sys.C.T + u_s @ sys.D.T + np.outer(eps_s, sys.dF)
+    states, eps_F = interpolate.CubicHermiteSpline(tk, x, xdot, axis=0), interpolate.CubicSpline(tk, eps)
+    y = np.zeros((tau.size, len(sys.outputs)))
+    for i, d in enumerate(sys.out_delay):  # each output read d_i late: zero before the start, held after the end
+        read = np.clip(tau - d, tau[0], tau[-1])
+        u_s = np.column_stack([_delayed(read, sig[nm], dc, tau) for nm, dc in sys.channels])
+        y[:, i] = states(read) @ sys.C[i] + u_s @ sys.D[i] + eps_F(read) * sys.dF[i]
+        y[tau - d < tau[0] - _KINK_RTOL * dt, i] = 0.0
     integration = {"method": "trapezoid + PV memory by singularity subtraction", "h": h, "pole_steps": m, "T": sys.T}
     return y, integration
 
