@@ -116,6 +116,11 @@ def test_cli_validate_prints_the_table(capsys, monkeypatch):
     monkeypatch.setattr(V, "validate", lambda **kw: V.ValidationResult(rows, V.score(rows), {"n": 2}))
     code, out, _ = run(capsys, "diagnose", "--validate", "--quick")
     assert code == 0 and "false alarms none-white" in out and "top-1" in out
+    # the scores relabel at the diagnosis's own threshold: the label it gave.  The q delay is settled by
+    # the kinematics, whose label judges the model as given (its hold-out map flags cells; the settled
+    # model's map, flagged_before_holdout, flags none)
+    assert rows[0]["label"] == "confirmed" and rows[0]["flagged_before_holdout"] == 0
+    assert [V.relabel(r, V.SHRINK_CONFIRM) for r in rows] == [r["label"] for r in rows]
 
 
 def test_scoring_counts_what_it_says():

@@ -951,6 +951,7 @@ def _settled_entries(su: _Setup, sensors: _Sensors, n_unexplained: int) -> list:
             "shrink": shr,
             "shrink_in_sample": sensors.shrink,
             "shrink_holdout": sensors.shrink_holdout,
+            "n_flagged": sensors.n_flagged,  # the flagged cells the label judged
             "plausible": True,
             "label": label,
             "params": {m.param: {"value": m.value, "stderr": m.stderr, "unit": m.unit}},
@@ -1036,7 +1037,8 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> l
         )
         if sig and c.demoted:
             lab = ABSORBS if c.demoted.startswith(ABSORBS) else "set aside"
-        ranking.append(_rank_entry(c, lab, shr_, in_sample, h[0] if h else None, acc, su.n_obs, sig))
+        entry = _rank_entry(c, lab, shr_, in_sample, h[0] if h else None, acc, su.n_obs, sig)
+        ranking.append({**entry, "n_flagged": nflag})  # the flagged cells the label judged
     gust, K0 = sel.gust, sel.family
     if gust is not None:
         # a noise-kind effect is judged on its likelihood gain, not on the coherent gap (which it cannot

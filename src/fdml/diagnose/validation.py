@@ -226,6 +226,7 @@ def run_scenario(sc: Scenario, *, diagnose_options: dict | None = None) -> dict:
         shrink=sel.get("shrink") if sel else None,
         shrink_in_sample=sel.get("shrink_in_sample") if sel else None,
         shrink_holdout=sel.get("shrink_holdout") if sel else None,
+        flagged_for_label=sel.get("n_flagged") if sel else None,
         plausible=sel.get("plausible", True) if sel else None,
         flagged_before=sum(1 for c in rep.location if c.get("significant")),
         flagged_before_holdout=(rep.holdout or {}).get("flagged_before"),
@@ -315,10 +316,21 @@ def relabel(row: dict, threshold: float, unexplained: str = UNEXPLAINED_RULE) ->
         ambiguous=len(loads(row.get("ambiguous") or "[]")) > 0,
         plausible=bool(row.get("plausible", True)),
         shrink=row.get("shrink"),
-        n_flagged=row.get("flagged_before_holdout") or 0,
+        n_flagged=_flagged_for_label(row),
         n_unexplained=n_unexp,
         threshold=threshold,
     )
+
+
+def _flagged_for_label(row: dict) -> int:
+    """The flagged cells the verdict's label judged: held out, or in-sample where the hold-out flags none.
+
+    A kinematics-settled sensor effect is judged on the model as given, whose hold-out map the row's
+    ``flagged_before_holdout`` (the map of the base with the settled effects) does not count.  Rows
+    written before the diagnosis kept the count fall back to ``flagged_before_holdout``.
+    """
+    n = row.get("flagged_for_label")
+    return int(n) if n is not None else int(row.get("flagged_before_holdout") or 0)
 
 
 def score(rows: list, threshold: float = SHRINK_CONFIRM) -> dict:
