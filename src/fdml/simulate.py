@@ -119,13 +119,16 @@ def _foh_march(sys: _System, dt: float, tau: np.ndarray, sig: Mapping[str, np.nd
     """
     s = _pieces(sys, dt)
     ns = sys.A.shape[0]
+    # each piece's input at its start, and just before its end: an input that does not start at 0 steps
+    # up from rest at t = d, where the piece that ends there still holds 0
     at = [np.column_stack([_delayed(tau[:-1] + sj, sig[nm], d, tau) for nm, d in sys.channels]) for sj in s]
+    before = [np.column_stack([_delayed(tau[:-1] + sj, sig[nm], d, tau, True) for nm, d in sys.channels]) for sj in s]
     Phi, drive = np.eye(ns), np.zeros((tau.size - 1, ns))
     partial = []
     for j in range(s.size - 1):  # the pieces in turn: drive_k <- Phi_j drive_k + its own forcing
         partial.append((Phi, drive))
         P, G1, G2 = _foh_steps(sys, s[j + 1] - s[j])
-        drive = drive @ P.T + at[j] @ (G1 - G2).T + at[j + 1] @ G2.T
+        drive = drive @ P.T + at[j] @ (G1 - G2).T + before[j + 1] @ G2.T
         Phi = P @ Phi
     x = np.zeros((tau.size, ns))
     for k in range(tau.size - 1):  # linear recursion; the work per step is a small matrix product
@@ -481,9 +484,17 @@ def simulate(
     return Record(t, signals, name=name, meta=meta, check_units=False)
 
 
-def _delayed(tau_out, u, delay: float, tau_in) -> np.ndarray:
-    """u(t - delay) by linear interpolation, zero before t = 0, held after the end."""
-    return np.interp(tau_out - delay, tau_in, u, left=0.0, right=u[-1])
+def _delayed(tau_out, u, delay: float, tau_in, left_limit: bool = False) -> np.ndarray:
+    """u(t - delay) by linear interpolation, zero before t = 0, held after the end.
+
+    ``left_limit``: the value just before each time, 0 at t - delay = 0 itself (where an input that
+    does not start at 0 steps up from rest).
+    """
+    x = np.asarray(tau_out, dtype=float) - delay
+    out = np.interp(x, tau_in, u, left=0.0, right=u[-1])
+    if left_limit:
+        out[x <= tau_in[0] + _KINK_RTOL * (tau_in[1] - tau_in[0])] = 0.0
+    return out
 
 
 def _delayed_integral(tau_out, u, delay: float, tau_in) -> np.ndarray:
