@@ -9,7 +9,9 @@ what a real record varies (:func:`null_record`): the manoeuvre (3-2-1-1,
 doublet, multisine), the sample rate (50, 100 or 40 Hz), the edges (the
 record starts 0-1.6 s into the simulation, i.e. often during the input and
 off trim, and lasts 8-14 s), the trim values (constant offsets on every
-channel), the noise level and the seed.  Each is fitted with the same model
+channel), the noise level, the seed and, in half of the records, an elevator
+delay of 0-40 ms (mostly a fraction of a sample; the model is fitted with it
+fixed, as a known actuator delay would be).  Each is fitted with the same model
 and band (``fdml.fit``, default adequacy check at ``ALPHA``); a false alarm
 is a fit that flags anything (an effect or a residual check).
 
@@ -53,6 +55,12 @@ def truth_model():
     return res.model, BAND
 
 
+def delayed(model, seed: int):
+    """``model`` with the elevator delay of record ``seed``: 0-40 ms in half of the records, else none."""
+    rng = np.random.default_rng([seed, 1])  # its own stream: the other draws of a record stay as they were
+    return model.with_values(tau_de=float(rng.uniform(0.0, 0.04)) if rng.uniform() < 0.5 else 0.0)
+
+
 def null_record(model, seed: int):
     """One time-domain record from ``model`` with a random manoeuvre, rate, edges, trim and noise."""
     rng = np.random.default_rng(seed)
@@ -87,6 +95,7 @@ def null_record(model, seed: int):
 def one(args):
     """(flagged keys, fit time, adequacy time) of null record ``seed``."""
     model, band, seed = args
+    model = delayed(model, seed)
     rec = null_record(model, seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
