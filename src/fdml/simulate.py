@@ -34,7 +34,9 @@ Input delays ``tau_de`` and ``tau_alpha_w`` (and the tail gust delay l_t/U)
 are applied as ``u(t - tau)`` of the input linear between its samples, zero
 before t = 0.  The finite-state march stays exact with them: a delay that is
 not a whole number of samples moves the input's kinks off the samples, and
-each sample interval is stepped in pieces between the kinks.
+each sample interval is stepped in pieces between the kinks.  An output
+recorded late (a sensor delay) is read where it was, at t - d: the march
+stops there too (the F-term path reads its interpolant there).
 """
 
 from __future__ import annotations
