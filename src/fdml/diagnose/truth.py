@@ -278,7 +278,7 @@ TRUTHS = {
     },
     "downwash_lag@tail": lambda run, v: _downwash_delay(run.model, run.t, run.inputs, v["tau_dw"]),
     "actuator_lag@de": _on_fine_grid(_actuator_lag),
-    "sensor_offset@az": _accelerometer_offset,
+    "sensor_offset@az": _on_fine_grid(_accelerometer_offset),  # q_dot holds delayed inputs linear (a base's tau_de)
     "sensor_offset@alpha": _vane_offset,
     "structural_mode@q,az": _structural_mode,
     **{f"sensor_scale@{ch}": _sensor_scale(ch) for ch in OUTPUTS},
