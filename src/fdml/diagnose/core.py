@@ -1037,8 +1037,7 @@ def _ranking(su: _Setup, sel: _Selection, shr: _Shrink, n_settled: int = 0) -> l
         )
         if sig and c.demoted:
             lab = ABSORBS if c.demoted.startswith(ABSORBS) else "set aside"
-        entry = _rank_entry(c, lab, shr_, in_sample, h[0] if h else None, acc, su.n_obs, sig)
-        ranking.append({**entry, "n_flagged": nflag})  # the flagged cells the label judged
+        ranking.append(_rank_entry(c, lab, (shr_, in_sample, h[0] if h else None, nflag), acc, su.n_obs, sig))
     gust, K0 = sel.gust, sel.family
     if gust is not None:
         # a noise-kind effect is judged on its likelihood gain, not on the coherent gap (which it cannot
@@ -1103,7 +1102,9 @@ def _entry_head(effect: Effect, key: str, lr: float, p: float, p_holm: float | N
     return {"effect": effect.name, "key": key, "channel": effect.channel, "lr": lr, "p_value": p, "p_holm": p_holm}
 
 
-def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_obs: int, sig: bool) -> dict:
+def _rank_entry(c: Candidate, label, judged: tuple, accepted: bool, n_obs: int, sig: bool) -> dict:
+    """A candidate's ranking entry; ``judged``: (shrink, in-sample, held-out shrink, flagged cells) of its label."""
+    shr, in_sample, holdout, n_flagged = judged
     units = {p.name: p.unit for p in c.effect.params}
     try:
         units.update({p.name: p.unit for p in c.effect.param_list(c.fit.model)} if c.fit is not None else {})
@@ -1116,6 +1117,7 @@ def _rank_entry(c: Candidate, label, shr, in_sample, holdout, accepted: bool, n_
         "shrink": shr,
         "shrink_in_sample": in_sample,
         "shrink_holdout": holdout,
+        "n_flagged": n_flagged,  # the flagged cells the label judged
         "label": label,
         "params": {k: {"value": v, "stderr": se, "unit": units.get(k, "")} for k, (v, se) in c.params.items()},
         "df": c.df,
